@@ -1,0 +1,1 @@
+"""Pure calibration mathematics over numpy arrays: no web, no database, no pydantic."""
