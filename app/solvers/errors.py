@@ -25,6 +25,8 @@ KINDS: dict[str, str] = {
     "orientation-changed": "Orientation changed during a translation",
     "invalid-direction": "Invalid direction",
     "invalid-sweep": "Invalid laser sweep",
+    "missing-load": "Tool load missing",
+    "unknown-format": "Unknown format",
     "unsupported": "Not supported",
 }
 
