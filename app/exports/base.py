@@ -1,0 +1,122 @@
+"""What every controller export shares: the tool's data, the result, and number printing.
+
+Printed precision: the text goes to a controller whose REAL is a 32-bit float (KRL REAL,
+RAPID num: about 7 significant digits), so more digits than that change nothing on the robot.
+We still print enough that parsing the text gives the TCP back within 1e-6 mm and 1e-6 deg
+(our round-trip test), so a pasted text never silently loses calibration accuracy:
+
+- mm: 6 decimals, rounding <= 5e-7 mm per axis (<= 8.7e-7 mm in 3D);
+- deg: 7 decimals, <= 5e-8 deg per angle (<= 1.5e-7 deg for three Euler angles);
+- quaternion components: 9 decimals (<= 1e-7 deg);
+- m and rad (UR): 10 decimals (<= 8.7e-8 mm, <= 1e-8 deg).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from app.solvers.errors import SolveError
+from app.solvers.validation import check_positions_mm, normalised_quaternions
+
+MM_DECIMALS = 6
+DEG_DECIMALS = 7
+QUATERNION_DECIMALS = 9
+SI_DECIMALS = 10
+#: Masses, kg: a gram is finer than any tool's load is known.
+KG_DECIMALS = 3
+
+FloatArray = NDArray[np.float64]
+
+
+def _vector(value: ArrayLike | None, size: int) -> FloatArray | None:
+    if value is None:
+        return None
+    arr: FloatArray = np.asarray(value, dtype=np.float64).reshape(size)
+    return arr
+
+
+@dataclass(frozen=True)
+class ToolData:
+    """A tool as a controller stores it: slot, name, TCP in the flange frame, optional load.
+
+    position_mm (3,) and quaternion_wxyz (4,) give flange_from_tool; mass_kg and cog_mm (3,)
+    (centre of gravity in the flange frame, mm) are the tool's load, when known.
+    """
+
+    slot: int | None
+    name: str
+    position_mm: FloatArray
+    quaternion_wxyz: FloatArray
+    mass_kg: float | None = None
+    cog_mm: FloatArray | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        # Accept lists: store float arrays of the documented shapes.
+        object.__setattr__(self, "position_mm", _vector(self.position_mm, 3))
+        object.__setattr__(self, "quaternion_wxyz", _vector(self.quaternion_wxyz, 4))
+        object.__setattr__(self, "cog_mm", _vector(self.cog_mm, 3))
+
+
+@dataclass(frozen=True)
+class ControllerExport:
+    """A TCP in one controller's text, and the same numbers by name (plain JSON values)."""
+
+    format: str
+    text: str
+    values: dict[str, Any]
+
+
+def checked_tcp(tool: ToolData) -> tuple[FloatArray, FloatArray]:
+    """The tool's (position (3,) mm, unit quaternion wxyz (4,)), checked like any pose."""
+    try:
+        position = check_positions_mm(tool.position_mm.reshape(1, 3), loc=("tcp",))[0]
+    except SolveError as err:
+        raise SolveError(err.kind, err.detail, loc=("tcp", "position_mm")) from err
+    try:
+        quaternion = normalised_quaternions(tool.quaternion_wxyz.reshape(1, 4), loc=("tcp",))[0]
+    except SolveError as err:
+        raise SolveError(err.kind, err.detail, loc=("tcp", "quaternion")) from err
+    return position, quaternion
+
+
+def comment_text(name: str, limit: int = 40) -> str:
+    """`name` safe inside a one-line controller comment: printable, no line breaks, short.
+
+    A tool name is user input; a newline in it would otherwise start a new program line.
+    """
+    cleaned = "".join(ch if ch.isprintable() else " " for ch in name)
+    return " ".join(cleaned.split())[:limit]
+
+
+def rounded(value: float, decimals: int) -> float:
+    """`value` rounded to `decimals`, with -0.0 turned into 0.0 (controllers print "-0")."""
+    r = round(float(value), decimals)
+    return 0.0 if r == 0 else r
+
+
+def fmt_number(value: float, decimals: int) -> str:
+    """Fixed-point text of `value` with `decimals` decimals and no negative zero."""
+    return f"{rounded(value, decimals):.{decimals}f}"
+
+
+def fmt_list(values: Sequence[float] | ArrayLike, decimals: int, sep: str = ",") -> str:
+    """Comma-separated fixed-point numbers."""
+    return sep.join(fmt_number(v, decimals) for v in np.asarray(values, dtype=np.float64))
+
+
+NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def parse_error(fmt: str, expected: str, text: str) -> SolveError:
+    """The error for text that is not what `fmt` looks like."""
+    shown = text if len(text) <= 120 else text[:117] + "..."
+    return SolveError(
+        "invalid-pose",
+        f"cannot read {fmt} tool data: expected {expected}, got {shown!r}",
+        loc=("text",),
+    )
