@@ -1,0 +1,47 @@
+# Two commands on a fresh machine: `make run` and `make test`. Each creates .venv if missing.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+HOST ?= 127.0.0.1
+PORT ?= 8000
+
+.PHONY: run test lint typecheck openapi bench clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+run: $(STAMP)
+	$(BIN)/tcpcal db upgrade
+	@echo ""
+	@echo "tcpcal serving on http://$(HOST):$(PORT) (SQLite file var/tcpcal.sqlite3)"
+	@echo "Get an API key:  $(BIN)/tcpcal keys create --scope admin --name me"
+	@echo "  or start with: TCPCAL_BOOTSTRAP_ADMIN_KEY=<a long secret> make run"
+	@echo "Then: curl -H 'Authorization: Bearer <key>' http://$(HOST):$(PORT)/v1/robots"
+	@echo ""
+	$(BIN)/tcpcal serve --host $(HOST) --port $(PORT)
+
+lint: $(STAMP)
+	$(BIN)/ruff check app tests bench migrations
+	$(BIN)/ruff format --check app tests bench migrations
+
+typecheck: $(STAMP)
+	$(BIN)/mypy
+
+test: lint typecheck
+	$(BIN)/tcpcal openapi --check
+	$(BIN)/pytest -q
+
+openapi: $(STAMP)
+	$(BIN)/tcpcal openapi
+
+bench: $(STAMP)
+	$(BIN)/python -m bench.accuracy --quick
+	$(BIN)/python -m bench.solver_speed
+	$(BIN)/python -m bench.api_load
+
+clean:
+	rm -rf $(VENV) var .pytest_cache .mypy_cache .ruff_cache .hypothesis

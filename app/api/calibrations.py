@@ -1,0 +1,75 @@
+"""HTTP for calibrations: submit (with Idempotency-Key), list, read; stateless solve."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, Header, Request, Response
+
+from app.api.params import DEFAULT_PAGE, Cursor, Limit
+from app.deps import CalibrateKey, ReadKey, SessionDep
+from app.errors import InvalidInput
+from app.schemas.calibrations import (
+    Calibration,
+    CalibrationDetail,
+    CalibrationRequest,
+    SolveRequest,
+    SolveResult,
+)
+from app.schemas.common import Page
+from app.services import calibrate
+
+router = APIRouter(tags=["calibrations"])
+
+IdempotencyKey = Annotated[
+    str | None,
+    Header(min_length=1, max_length=200,
+           description="retry-safe submissions: same key and body -> the first response"),
+]
+
+
+def raw_json_body(request: Request) -> dict[str, Any]:
+    """The body exactly as received (the body-size middleware keeps the bytes)."""
+    raw = request.scope.get("tcpcal.raw_body", b"")
+    parsed = json.loads(raw) if raw else {}
+    if not isinstance(parsed, dict):
+        raise InvalidInput("validation", "the body must be a JSON object", loc=("body",))
+    return parsed
+
+
+@router.post("/v1/tools/{tool_id}/calibrations", status_code=201, response_model=Calibration)
+def submit_calibration(
+    tool_id: str,
+    body: Annotated[CalibrationRequest, Body()],
+    request: Request,
+    response: Response,
+    session: SessionDep,
+    key: CalibrateKey,
+    idempotency_key: IdempotencyKey = None,
+) -> object:
+    doc, replayed = calibrate.submit(
+        session, tool_id=tool_id, request=body, raw_body=raw_json_body(request),
+        idempotency_key=idempotency_key, actor=key,
+    )
+    if replayed:
+        response.headers["Idempotent-Replayed"] = "true"
+    return doc
+
+
+@router.get("/v1/tools/{tool_id}/calibrations", response_model=Page[Calibration])
+def list_calibrations(tool_id: str, session: SessionDep, key: ReadKey,
+                      limit: Limit = DEFAULT_PAGE, cursor: Cursor = None) -> object:
+    items, next_cursor = calibrate.list_calibrations(session, tool_id=tool_id, limit=limit,
+                                                     cursor=cursor)
+    return {"items": items, "next_cursor": next_cursor}
+
+
+@router.get("/v1/calibrations/{calibration_id}", response_model=CalibrationDetail)
+def get_calibration(calibration_id: str, session: SessionDep, key: ReadKey) -> object:
+    return calibrate.get_calibration(session, calibration_id=calibration_id)
+
+
+@router.post("/v1/solve", response_model=SolveResult, tags=["stateless"])
+def solve(body: Annotated[SolveRequest, Body()], session: SessionDep, key: ReadKey) -> object:
+    return calibrate.solve_stateless(session, request=body)

@@ -1,0 +1,38 @@
+"""Liveness, readiness (database reachable and migrated to head) and metrics."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+from fastapi.responses import JSONResponse, PlainTextResponse
+from sqlalchemy.exc import SQLAlchemyError
+
+from app.db import get_engine
+from app.metrics import METRICS
+from app.migrate import current_revision, head_revision
+
+router = APIRouter(tags=["operations"])
+
+
+@router.get("/health")
+def health() -> dict[str, str]:
+    return {"status": "ok"}
+
+
+@router.get("/ready", responses={503: {"description": "not ready"}})
+def ready() -> JSONResponse:
+    head = head_revision()
+    try:
+        current = current_revision(get_engine())
+    except SQLAlchemyError as exc:
+        return JSONResponse(
+            {"ready": False, "database": "unreachable", "detail": type(exc).__name__},
+            status_code=503,
+        )
+    at_head = current == head
+    body = {"ready": at_head, "database": "reachable", "revision": current, "head": head}
+    return JSONResponse(body, status_code=200 if at_head else 503)
+
+
+@router.get("/metrics", response_class=PlainTextResponse)
+def metrics() -> PlainTextResponse:
+    return PlainTextResponse(METRICS.render(), media_type="text/plain; version=0.0.4")

@@ -1,0 +1,28 @@
+"""HTTP for API keys (admin)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Response
+
+from app.deps import AdminKey, SessionDep
+from app.schemas.keys import KeyCreate, KeyCreated, KeyOut
+from app.services import keys
+
+router = APIRouter(prefix="/v1/keys", tags=["keys"])
+
+
+@router.post("", status_code=201, response_model=KeyCreated)
+def create_key(body: KeyCreate, session: SessionDep, key: AdminKey) -> object:
+    row, secret = keys.create_key(session, name=body.name, scope=body.scope, actor=key)
+    return {**KeyOut.model_validate(row, from_attributes=True).model_dump(), "key": secret}
+
+
+@router.get("", response_model=dict[str, list[KeyOut]])
+def list_keys(session: SessionDep, key: AdminKey) -> object:
+    return {"items": [KeyOut.model_validate(r, from_attributes=True) for r in keys.list_keys(session)]}
+
+
+@router.delete("/{key_id}", status_code=204)
+def revoke_key(key_id: str, session: SessionDep, key: AdminKey) -> Response:
+    keys.revoke_key(session, key_id=key_id, actor=key)
+    return Response(status_code=204)

@@ -1,0 +1,50 @@
+"""HTTP for robots."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Response
+
+from app.api.params import DEFAULT_PAGE, Cursor, Limit
+from app.deps import AdminKey, ReadKey, SessionDep
+from app.schemas.common import Page
+from app.schemas.robots import Robot, RobotCreate, RobotUpdate
+from app.services import registry
+
+router = APIRouter(prefix="/v1/robots", tags=["robots"])
+
+
+@router.post("", status_code=201, response_model=Robot)
+def create_robot(body: RobotCreate, session: SessionDep, key: AdminKey) -> object:
+    return registry.create_robot(session, data=body, actor=key)
+
+
+@router.get("", response_model=Page[Robot])
+def list_robots(
+    session: SessionDep,
+    key: ReadKey,
+    cell: Annotated[str | None, Query(max_length=200)] = None,
+    name: Annotated[str | None, Query(max_length=200)] = None,
+    limit: Limit = DEFAULT_PAGE,
+    cursor: Cursor = None,
+) -> object:
+    items, next_cursor = registry.list_robots(session, cell=cell, name=name, limit=limit,
+                                              cursor=cursor)
+    return {"items": items, "next_cursor": next_cursor}
+
+
+@router.get("/{robot_id}", response_model=Robot)
+def get_robot(robot_id: str, session: SessionDep, key: ReadKey) -> object:
+    return registry.get_robot(session, robot_id)
+
+
+@router.patch("/{robot_id}", response_model=Robot)
+def update_robot(robot_id: str, body: RobotUpdate, session: SessionDep, key: AdminKey) -> object:
+    return registry.update_robot(session, robot_id=robot_id, data=body, actor=key)
+
+
+@router.delete("/{robot_id}", status_code=204)
+def archive_robot(robot_id: str, session: SessionDep, key: AdminKey) -> Response:
+    registry.archive_robot(session, robot_id=robot_id, actor=key)
+    return Response(status_code=204)

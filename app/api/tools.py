@@ -1,0 +1,59 @@
+"""HTTP for tools (CRUD with ETag / If-Match)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Header, Response
+
+from app.api.params import DEFAULT_PAGE, Cursor, Limit
+from app.deps import AdminKey, ReadKey, SessionDep
+from app.schemas.common import Page
+from app.schemas.tools import Tool, ToolCreate, ToolUpdate
+from app.services import registry
+
+router = APIRouter(tags=["tools"])
+
+IfMatch = Annotated[str | None, Header(description="the tool's ETag; 412 when stale")]
+
+
+@router.post("/v1/robots/{robot_id}/tools", status_code=201, response_model=Tool)
+def create_tool(
+    robot_id: str, body: ToolCreate, response: Response, session: SessionDep, key: AdminKey
+) -> object:
+    tool = registry.create_tool(session, robot_id=robot_id, data=body, actor=key)
+    response.headers["ETag"] = registry.tool_etag(tool)
+    return tool
+
+
+@router.get("/v1/robots/{robot_id}/tools", response_model=Page[Tool])
+def list_tools(
+    robot_id: str, session: SessionDep, key: ReadKey, limit: Limit = DEFAULT_PAGE,
+    cursor: Cursor = None,
+) -> object:
+    items, next_cursor = registry.list_tools(session, robot_id=robot_id, limit=limit,
+                                             cursor=cursor)
+    return {"items": items, "next_cursor": next_cursor}
+
+
+@router.get("/v1/tools/{tool_id}", response_model=Tool)
+def get_tool(tool_id: str, response: Response, session: SessionDep, key: ReadKey) -> object:
+    tool = registry.get_tool(session, tool_id)
+    response.headers["ETag"] = registry.tool_etag(tool)
+    return tool
+
+
+@router.patch("/v1/tools/{tool_id}", response_model=Tool)
+def update_tool(
+    tool_id: str, body: ToolUpdate, response: Response, session: SessionDep, key: AdminKey,
+    if_match: IfMatch = None,
+) -> object:
+    tool = registry.update_tool(session, tool_id=tool_id, data=body, if_match=if_match, actor=key)
+    response.headers["ETag"] = registry.tool_etag(tool)
+    return tool
+
+
+@router.delete("/v1/tools/{tool_id}", status_code=204)
+def archive_tool(tool_id: str, session: SessionDep, key: AdminKey) -> Response:
+    registry.archive_tool(session, tool_id=tool_id, actor=key)
+    return Response(status_code=204)

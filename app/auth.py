@@ -1,0 +1,92 @@
+"""API keys: generated, hashed at rest, looked up by hash; scopes read < calibrate < admin."""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import secrets
+from dataclasses import dataclass
+
+from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from app.errors import Forbidden, Unauthorized
+from app.models import ApiKey
+
+SCOPES: tuple[str, ...] = ("read", "calibrate", "admin")
+KEY_PREFIX = "tcpcal_"
+BOOTSTRAP_NAME = "bootstrap-admin"
+
+
+@dataclass(frozen=True)
+class Principal:
+    """Who is calling: the API key's id, name and scope."""
+
+    key_id: str
+    name: str
+    scope: str
+
+    def allows(self, required: str) -> bool:
+        """True when this key's scope includes `required`."""
+        return SCOPES.index(self.scope) >= SCOPES.index(required)
+
+
+def hash_key(key: str) -> str:
+    """SHA-256 of a key. Keys carry 256 random bits, so a slow KDF would add nothing."""
+    return hashlib.sha256(key.encode("utf-8")).hexdigest()
+
+
+def generate_key() -> str:
+    """A new random API key."""
+    return KEY_PREFIX + secrets.token_urlsafe(32)
+
+
+def _bearer(header: str | None) -> str:
+    if not header:
+        raise Unauthorized(
+            "missing Authorization header; send 'Authorization: Bearer <api-key>'",
+            headers={"WWW-Authenticate": "Bearer"},
+        )
+    scheme, _, token = header.partition(" ")
+    if scheme.lower() != "bearer" or not token.strip():
+        raise Unauthorized(
+            "Authorization header must be 'Bearer <api-key>'",
+            headers={"WWW-Authenticate": "Bearer"},
+        )
+    return token.strip()
+
+
+def authenticate(session: Session, header: str | None, *, required: str) -> Principal:
+    """The caller behind an Authorization header, checked against the required scope."""
+    token = _bearer(header)
+    digest = hash_key(token)
+    row = session.scalars(select(ApiKey).where(ApiKey.key_hash == digest)).one_or_none()
+    if row is None or row.revoked_at is not None or not hmac.compare_digest(row.key_hash, digest):
+        raise Unauthorized(
+            "unknown or revoked API key", headers={"WWW-Authenticate": 'Bearer error="invalid_token"'}
+        )
+    principal = Principal(key_id=row.id, name=row.name, scope=row.scope)
+    if not principal.allows(required):
+        raise Forbidden(f"this key has scope '{row.scope}'; this operation needs '{required}'")
+    return principal
+
+
+def ensure_bootstrap_key(session: Session, key: str) -> None:
+    """Make `key` exist with admin scope (idempotent; safe when several workers start)."""
+    digest = hash_key(key)
+    if session.scalars(select(ApiKey.id).where(ApiKey.key_hash == digest)).first():
+        return
+    session.add(
+        ApiKey(
+            name=BOOTSTRAP_NAME,
+            scope="admin",
+            key_hash=digest,
+            prefix=key[:12],
+            created_by="TCPCAL_BOOTSTRAP_ADMIN_KEY",
+        )
+    )
+    try:
+        session.commit()
+    except IntegrityError:
+        session.rollback()  # another worker inserted it first

@@ -1,0 +1,153 @@
+"""The `tcpcal` command: serve, migrate, manage keys, write the OpenAPI spec, talk to a server."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+cli = typer.Typer(help="tcpcal: Tool Center Point calibration service.", no_args_is_help=True)
+db_cli = typer.Typer(help="Database migrations.", no_args_is_help=True)
+keys_cli = typer.Typer(help="API keys (writes the database directly).", no_args_is_help=True)
+client_cli = typer.Typer(help="Talk to a running server over HTTP.", no_args_is_help=True)
+cli.add_typer(db_cli, name="db")
+cli.add_typer(keys_cli, name="keys")
+cli.add_typer(client_cli, name="client")
+
+OPENAPI_PATH = Path("openapi") / "openapi.json"
+
+
+@cli.command()
+def serve(
+    host: Annotated[str, typer.Option(help="interface to bind")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="TCP port")] = 8000,
+    workers: Annotated[int, typer.Option(min=1, help="worker processes")] = 1,
+) -> None:
+    """Serve the API with uvicorn (migrate first: `tcpcal db upgrade`)."""
+    import uvicorn
+
+    uvicorn.run("app.main:app", host=host, port=port, workers=workers, proxy_headers=True)
+
+
+@db_cli.command("upgrade")
+def db_upgrade(revision: str = "head") -> None:
+    """Migrate the database (TCPCAL_DATABASE_URL) to a revision, head by default."""
+    from app.config import get_settings
+    from app.migrate import upgrade
+
+    upgrade(get_settings().database_url, revision)
+    typer.echo(f"database at {revision}")
+
+
+@db_cli.command("downgrade")
+def db_downgrade(revision: str) -> None:
+    """Migrate the database down to a revision ("base" empties it)."""
+    from app.config import get_settings
+    from app.migrate import downgrade
+
+    downgrade(get_settings().database_url, revision)
+    typer.echo(f"database at {revision}")
+
+
+@db_cli.command("current")
+def db_current() -> None:
+    """Print the database's revision and the newest one available."""
+    from app.db import get_engine
+    from app.migrate import current_revision, head_revision
+
+    typer.echo(f"current: {current_revision(get_engine())}  head: {head_revision()}")
+
+
+@keys_cli.command("create")
+def keys_create(
+    scope: Annotated[str, typer.Option(help="read | calibrate | admin")],
+    name: Annotated[str, typer.Option(help="who holds the key, e.g. cell-12")],
+) -> None:
+    """Create an API key and print it (shown once; only its hash is stored)."""
+    from app.auth import SCOPES
+    from app.db import session_scope
+    from app.services.keys import create_key
+
+    if scope not in SCOPES:
+        typer.echo(f"scope must be one of {', '.join(SCOPES)}", err=True)
+        raise typer.Exit(2)
+    with session_scope(write=True) as session:
+        row, secret = create_key(session, name=name, scope=scope, actor=None)
+        key_id = row.id
+    typer.echo(f"id:    {key_id}\nscope: {scope}\nkey:   {secret}")
+
+
+@keys_cli.command("list")
+def keys_list() -> None:
+    """List keys (never their secrets)."""
+    from app.db import session_scope
+    from app.services.keys import list_keys
+
+    with session_scope(write=False) as session:
+        for row in list_keys(session):
+            state = "revoked" if row.revoked_at else "active"
+            typer.echo(f"{row.id}  {row.scope:<9}  {state:<7}  {row.prefix}...  {row.name}")
+
+
+@cli.command()
+def openapi(
+    out: Annotated[Path, typer.Option(help="where to write the spec")] = OPENAPI_PATH,
+    check: Annotated[bool, typer.Option(help="exit 1 if the file differs")] = False,
+) -> None:
+    """Write (or --check) the committed OpenAPI spec from the app."""
+    from app.main import create_app
+
+    text = json.dumps(create_app().openapi(), indent=2, sort_keys=True) + "\n"
+    if check:
+        if not out.is_file() or out.read_text() != text:
+            typer.echo(f"{out} is stale; run `tcpcal openapi`", err=True)
+            raise typer.Exit(1)
+        typer.echo(f"{out} is up to date")
+        return
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text)
+    typer.echo(f"wrote {out}")
+
+
+def _client() -> Any:
+    import httpx
+
+    url = os.environ.get("TCPCAL_URL", "http://127.0.0.1:8000")
+    key = os.environ.get("TCPCAL_API_KEY")
+    if not key:
+        typer.echo("set TCPCAL_API_KEY (and TCPCAL_URL if not http://127.0.0.1:8000)", err=True)
+        raise typer.Exit(2)
+    return httpx.Client(base_url=url, headers={"Authorization": f"Bearer {key}"}, timeout=30)
+
+
+def _print_response(response: Any) -> None:
+    typer.echo(json.dumps(response.json(), indent=2) if response.content else "")
+    if response.status_code >= 400:
+        raise typer.Exit(1)
+
+
+@client_cli.command("get")
+def client_get(path: str) -> None:
+    """GET a path, e.g. /v1/tools/<id>/tcp?format=kuka."""
+    with _client() as http:
+        _print_response(http.get(path))
+
+
+@client_cli.command("post")
+def client_post(
+    path: str,
+    body: Annotated[Path, typer.Argument(help="JSON file, or - for standard input")],
+) -> None:
+    """POST a JSON body, e.g. a calibration submission."""
+    payload = json.load(sys.stdin) if str(body) == "-" else json.loads(body.read_text())
+    with _client() as http:
+        _print_response(http.post(path, json=payload))
+
+
+def main() -> None:
+    """Console-script entry point."""
+    cli()

@@ -1,0 +1,37 @@
+"""Settings from TCPCAL_* environment variables (pydantic-settings)."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from pydantic import Field, SecretStr
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+DEFAULT_SQLITE_PATH = Path("var") / "tcpcal.sqlite3"
+
+
+class Settings(BaseSettings):
+    """Runtime configuration; every field can be set as TCPCAL_<NAME>."""
+
+    model_config = SettingsConfigDict(env_prefix="TCPCAL_", extra="ignore")
+
+    database_url: str = Field(
+        default=f"sqlite:///{DEFAULT_SQLITE_PATH}",
+        description="SQLAlchemy URL; SQLite file by default, postgresql+psycopg://... for a fleet",
+    )
+    bootstrap_admin_key: SecretStr | None = Field(
+        default=None, description="When set, this key exists with admin scope (stored hashed)."
+    )
+    max_body_bytes: int = Field(default=1024 * 1024, gt=0, description="Largest request body.")
+    max_poses: int = Field(default=1000, gt=0, description="Most poses in one submission.")
+    idempotency_ttl_hours: float = Field(default=24.0, gt=0)
+    problem_type_base: str = Field(
+        default="/problems", description="Prefix of the `type` URI of problem documents."
+    )
+
+
+@lru_cache
+def get_settings() -> Settings:
+    """The process-wide settings (read once; tests clear the cache)."""
+    return Settings()

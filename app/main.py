@@ -1,0 +1,68 @@
+"""The ASGI app: create_app() wires routers, middleware, error handlers and start-up."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI
+from fastapi.routing import APIRoute
+from sqlalchemy.exc import SQLAlchemyError
+
+from app import __version__
+from app.api import calibrations, health, keys, robots, tools, versions
+from app.auth import ensure_bootstrap_key
+from app.config import get_settings
+from app.db import get_engine, session_scope
+from app.errors import install_error_handlers
+from app.middleware import BodyLimitMiddleware, MetricsMiddleware
+from app.migrate import current_revision, head_revision
+
+log = logging.getLogger("tcpcal")
+
+
+def _operation_id(route: APIRoute) -> str:
+    return route.name
+
+
+def _bootstrap() -> None:
+    settings = get_settings()
+    if settings.bootstrap_admin_key is None:
+        return
+    try:
+        if current_revision(get_engine()) != head_revision():
+            log.warning("database is not migrated to head; bootstrap key not installed "
+                        "(run `tcpcal db upgrade`)")
+            return
+        with session_scope(write=True) as session:
+            ensure_bootstrap_key(session, settings.bootstrap_admin_key.get_secret_value())
+    except SQLAlchemyError:
+        log.exception("could not install the bootstrap admin key")
+
+
+@asynccontextmanager
+async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+    _bootstrap()
+    yield
+
+
+def create_app() -> FastAPI:
+    """A new tcpcal application."""
+    settings = get_settings()
+    app = FastAPI(
+        title="tcpcal",
+        version=__version__,
+        summary="Tool Center Point calibration as a fleet service",
+        lifespan=lifespan,
+        generate_unique_id_function=_operation_id,
+    )
+    install_error_handlers(app)
+    for module in (health, keys, robots, tools, calibrations, versions):
+        app.include_router(module.router)
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    app.add_middleware(MetricsMiddleware)
+    return app
+
+
+app = create_app()

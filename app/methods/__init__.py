@@ -1,0 +1,28 @@
+"""The method registry: each calibration method is one run() over one solver and one schema."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from app.methods import manual
+from app.methods.base import MethodContext, SolvedTcp
+
+Runner = Callable[[Any, MethodContext], SolvedTcp]
+
+RUNNERS: dict[str, Runner] = {
+    "manual": manual.run,
+}
+
+
+def run_method(request: Any, ctx: MethodContext) -> SolvedTcp:
+    """Solve a submission with the method it names."""
+    from app.errors import InvalidInput
+
+    runner = RUNNERS.get(request.method)
+    if runner is None:
+        raise InvalidInput(
+            "unsupported", f"method {request.method!r} is not available on this server yet",
+            loc=("body", "method"),
+        )
+    return runner(request, ctx)

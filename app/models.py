@@ -1,0 +1,275 @@
+"""Every table of tcpcal: SQLAlchemy 2 typed models with a constraint naming convention.
+
+Robots and tools are archived, never deleted: their calibrations, versions, activations and
+audit trail stay. A tool's `revision` counts every change to the tool, its versions or its
+activation; the tool's ETag is derived from it.
+"""
+
+from __future__ import annotations
+
+import uuid
+from datetime import UTC, datetime
+from typing import Any
+
+from sqlalchemy import (
+    JSON,
+    BigInteger,
+    DateTime,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    MetaData,
+    String,
+    Text,
+    UniqueConstraint,
+    text,
+)
+from sqlalchemy.engine import Dialect
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+from sqlalchemy.types import TypeDecorator
+
+NAMING_CONVENTION = {
+    "ix": "ix_%(column_0_label)s",
+    "uq": "uq_%(table_name)s_%(column_0_name)s",
+    "ck": "ck_%(table_name)s_%(constraint_name)s",
+    "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s",
+    "pk": "pk_%(table_name)s",
+}
+
+# SQLite only autoincrements INTEGER PRIMARY KEY; PostgreSQL gets a 64-bit identity.
+AutoId = BigInteger().with_variant(Integer(), "sqlite")
+
+
+def utcnow() -> datetime:
+    """The current time, timezone-aware UTC."""
+    return datetime.now(UTC)
+
+
+def new_id() -> str:
+    """A new random resource id."""
+    return str(uuid.uuid4())
+
+
+class UTCDateTime(TypeDecorator[datetime]):
+    """Timezone-aware UTC on the way in and out, also on SQLite (which stores naive text)."""
+
+    impl = DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            raise ValueError("naive datetime given to a UTC column")
+        return value.astimezone(UTC)
+
+    def process_result_value(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is None:
+            return None
+        return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+
+
+class Base(DeclarativeBase):
+    metadata = MetaData(naming_convention=NAMING_CONVENTION)
+    type_annotation_map = {datetime: UTCDateTime(), dict[str, Any]: JSON(), list[Any]: JSON()}
+
+
+class Robot(Base):
+    __tablename__ = "robots"
+    __table_args__ = (
+        Index(
+            "uq_robots_live_name",
+            "name",
+            unique=True,
+            sqlite_where=text("archived_at IS NULL"),
+            postgresql_where=text("archived_at IS NULL"),
+        ),
+        Index("ix_robots_created", "created_at", "id"),
+    )
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    name: Mapped[str] = mapped_column(String(200))
+    vendor: Mapped[str | None] = mapped_column(String(200))
+    model: Mapped[str | None] = mapped_column(String(200))
+    serial: Mapped[str | None] = mapped_column(String(200))
+    cell: Mapped[str | None] = mapped_column(String(200), index=True)
+    kinematics: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
+    archived_at: Mapped[datetime | None] = mapped_column()
+
+
+class Tool(Base):
+    __tablename__ = "tools"
+    __table_args__ = (
+        Index(
+            "uq_tools_live_name",
+            "robot_id",
+            "name",
+            unique=True,
+            sqlite_where=text("archived_at IS NULL"),
+            postgresql_where=text("archived_at IS NULL"),
+        ),
+        Index(
+            "uq_tools_live_slot",
+            "robot_id",
+            "slot",
+            unique=True,
+            sqlite_where=text("archived_at IS NULL AND slot IS NOT NULL"),
+            postgresql_where=text("archived_at IS NULL AND slot IS NOT NULL"),
+        ),
+        Index("ix_tools_robot_created", "robot_id", "created_at", "id"),
+    )
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"))
+    name: Mapped[str] = mapped_column(String(200))
+    slot: Mapped[int | None] = mapped_column(Integer)
+    serial: Mapped[str | None] = mapped_column(String(200))
+    description: Mapped[str | None] = mapped_column(Text)
+    load: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    tolerance: Mapped[dict[str, Any]] = mapped_column(JSON)
+    active_version: Mapped[int | None] = mapped_column(Integer)
+    last_version: Mapped[int] = mapped_column(Integer, default=0)
+    revision: Mapped[int] = mapped_column(Integer, default=1)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
+    archived_at: Mapped[datetime | None] = mapped_column()
+
+
+class Calibration(Base):
+    """One submission as received and what the solver made of it (also when out of tolerance)."""
+
+    __tablename__ = "calibrations"
+    __table_args__ = (Index("ix_calibrations_tool_created", "tool_id", "created_at", "id"),)
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
+    method: Mapped[str] = mapped_column(String(40))
+    algorithm: Mapped[str | None] = mapped_column(String(40))
+    status: Mapped[str] = mapped_column(String(40))
+    request: Mapped[dict[str, Any]] = mapped_column(JSON)
+    result: Mapped[dict[str, Any]] = mapped_column(JSON)
+    version: Mapped[int | None] = mapped_column(Integer)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by: Mapped[str] = mapped_column(String(200))
+
+
+class TcpVersion(Base):
+    """Version n of a tool's TCP: immutable once written."""
+
+    __tablename__ = "tcp_versions"
+    __table_args__ = (UniqueConstraint("tool_id", "version", name="uq_tcp_versions_tool_version"),)
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
+    version: Mapped[int] = mapped_column(Integer)
+    position_mm: Mapped[list[Any]] = mapped_column(JSON)
+    quaternion: Mapped[list[Any]] = mapped_column(JSON)
+    source: Mapped[str] = mapped_column(String(40))
+    status: Mapped[str] = mapped_column(String(40))
+    calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
+    note: Mapped[str | None] = mapped_column(Text)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by: Mapped[str] = mapped_column(String(200))
+
+
+class Activation(Base):
+    """One activation of a version: the history behind `active_version`, with who and when."""
+
+    __tablename__ = "activations"
+    __table_args__ = (Index("ix_activations_tool_seq", "tool_id", "id"),)
+
+    id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
+    version: Mapped[int] = mapped_column(Integer)
+    previous_version: Mapped[int | None] = mapped_column(Integer)
+    reason: Mapped[str] = mapped_column(String(40))
+    activated_at: Mapped[datetime] = mapped_column(default=utcnow)
+    activated_by: Mapped[str] = mapped_column(String(200))
+
+
+class ReferencePoint(Base):
+    __tablename__ = "reference_points"
+    __table_args__ = (
+        UniqueConstraint("robot_id", "name", name="uq_reference_points_robot_name"),
+        Index("ix_reference_points_robot_created", "robot_id", "created_at", "id"),
+    )
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"))
+    name: Mapped[str] = mapped_column(String(200))
+    position_mm: Mapped[list[Any]] = mapped_column(JSON)
+    covariance_mm2: Mapped[list[Any] | None] = mapped_column(JSON)
+    source: Mapped[str] = mapped_column(String(40))
+    calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by: Mapped[str] = mapped_column(String(200))
+
+
+class LaserDevice(Base):
+    __tablename__ = "laser_devices"
+    __table_args__ = (
+        UniqueConstraint("robot_id", "name", name="uq_laser_devices_robot_name"),
+        Index("ix_laser_devices_robot_created", "robot_id", "created_at", "id"),
+    )
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"))
+    name: Mapped[str] = mapped_column(String(200))
+    beam_a_y_mm: Mapped[float] = mapped_column(Float)
+    beam_b_x_mm: Mapped[float] = mapped_column(Float)
+    plane_z_mm: Mapped[float] = mapped_column(Float)
+    source: Mapped[str] = mapped_column(String(40))
+    details: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by: Mapped[str] = mapped_column(String(200))
+
+
+class ApiKey(Base):
+    """An API key; only the SHA-256 of the secret is stored (keys are 256-bit random)."""
+
+    __tablename__ = "api_keys"
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    name: Mapped[str] = mapped_column(String(200))
+    scope: Mapped[str] = mapped_column(String(20))
+    key_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    prefix: Mapped[str] = mapped_column(String(20))
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by: Mapped[str | None] = mapped_column(String(200))
+    revoked_at: Mapped[datetime | None] = mapped_column()
+
+
+class IdempotencyRecord(Base):
+    """The first response to a keyed submission, replayed for the same key and body."""
+
+    __tablename__ = "idempotency_records"
+    __table_args__ = (UniqueConstraint("api_key_id", "key", name="uq_idempotency_records_key"),)
+
+    id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
+    api_key_id: Mapped[str] = mapped_column(String(36))
+    key: Mapped[str] = mapped_column(String(200))
+    request_hash: Mapped[str] = mapped_column(String(64))
+    status_code: Mapped[int] = mapped_column(Integer)
+    response: Mapped[dict[str, Any]] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow, index=True)
+
+
+class AuditEvent(Base):
+    """Every write, with who and when: the audit trail."""
+
+    __tablename__ = "audit_events"
+    __table_args__ = (Index("ix_audit_events_resource", "resource_type", "resource_id"),)
+
+    id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
+    at: Mapped[datetime] = mapped_column(default=utcnow)
+    actor: Mapped[str] = mapped_column(String(200))
+    api_key_id: Mapped[str | None] = mapped_column(String(36))
+    action: Mapped[str] = mapped_column(String(60))
+    resource_type: Mapped[str] = mapped_column(String(40))
+    resource_id: Mapped[str] = mapped_column(String(36))
+    robot_id: Mapped[str | None] = mapped_column(String(36))
+    tool_id: Mapped[str | None] = mapped_column(String(36), index=True)
+    details: Mapped[dict[str, Any] | None] = mapped_column(JSON)

@@ -1,0 +1,58 @@
+"""Robots: request and response bodies."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, Field
+
+from app.schemas.common import FiniteFloat, Name, ShortText, StrictModel, Timestamp
+
+
+class DHLinkIn(StrictModel):
+    a: FiniteFloat = Field(description="link length, mm")
+    alpha: FiniteFloat = Field(description="link twist, deg")
+    d: FiniteFloat = Field(description="link offset, mm")
+    theta_offset: FiniteFloat = Field(default=0.0, description="joint zero offset, deg")
+
+
+class PresetKinematics(StrictModel):
+    preset: Annotated[str, Field(min_length=1, max_length=40, examples=["ur5e"])]
+
+
+class DHKinematics(StrictModel):
+    convention: Literal["dh", "mdh"]
+    links: Annotated[list[DHLinkIn], Field(min_length=1, max_length=12)]
+
+
+Kinematics = PresetKinematics | DHKinematics
+
+
+class RobotCreate(StrictModel):
+    name: Name
+    vendor: ShortText | None = None
+    model: ShortText | None = None
+    serial: ShortText | None = None
+    cell: ShortText | None = None
+    kinematics: Kinematics | None = None
+
+
+class RobotUpdate(StrictModel):
+    name: Name | None = None
+    vendor: ShortText | None = None
+    model: ShortText | None = None
+    serial: ShortText | None = None
+    cell: ShortText | None = None
+    kinematics: Kinematics | None = None
+
+
+class Robot(BaseModel):
+    id: str
+    name: str
+    vendor: str | None
+    model: str | None
+    serial: str | None
+    cell: str | None
+    kinematics: dict[str, object] | None
+    created_at: Timestamp
+    updated_at: Timestamp

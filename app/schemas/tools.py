@@ -1,0 +1,128 @@
+"""Tools, their tolerance and load, versions and the served TCP."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from pydantic import BaseModel, Field
+
+from app.schemas.common import (
+    LongText,
+    Name,
+    NonNegativeFloat,
+    PositiveFloat,
+    Quaternion,
+    ShortText,
+    StrictModel,
+    Timestamp,
+    Vec3,
+)
+
+Slot = Annotated[int, Field(ge=0, le=10_000, description="the controller's tool number")]
+
+
+class Load(StrictModel):
+    mass_kg: NonNegativeFloat
+    cog_mm: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+class Tolerance(StrictModel):
+    """When a calibration counts as good enough to activate automatically."""
+
+    max_rms_mm: PositiveFloat = 0.5
+    max_residual_mm: PositiveFloat = 1.0
+    touch_noise_mm: PositiveFloat | None = None
+    check_mm: PositiveFloat = 1.0
+
+
+class ToolCreate(StrictModel):
+    name: Name
+    slot: Slot | None = None
+    serial: ShortText | None = None
+    description: LongText | None = None
+    load: Load | None = None
+    tolerance: Tolerance = Field(default_factory=Tolerance)
+
+
+class ToolUpdate(StrictModel):
+    name: Name | None = None
+    slot: Slot | None = None
+    serial: ShortText | None = None
+    description: LongText | None = None
+    load: Load | None = None
+    tolerance: Tolerance | None = None
+
+
+class Tool(BaseModel):
+    id: str
+    robot_id: str
+    name: str
+    slot: int | None
+    serial: str | None
+    description: str | None
+    load: Load | None
+    tolerance: Tolerance
+    active_version: int | None
+    created_at: Timestamp
+    updated_at: Timestamp
+
+
+class Tcp(BaseModel):
+    """A tool frame relative to the flange: position (mm) and orientation [w, x, y, z]."""
+
+    position_mm: Vec3
+    quaternion: Quaternion = Field(default_factory=lambda: [1.0, 0.0, 0.0, 0.0])
+
+
+class Version(BaseModel):
+    version: int
+    tcp: Tcp
+    source: str
+    status: str
+    calibration_id: str | None
+    note: str | None
+    created_at: Timestamp
+    created_by: str
+    active: bool
+
+
+class VersionList(BaseModel):
+    items: list[Version]
+    activations: list[ActivationOut] = Field(default_factory=list)
+
+
+class ActivationOut(BaseModel):
+    version: int
+    previous_version: int | None
+    reason: str
+    activated_at: Timestamp
+    activated_by: str
+
+
+class ControllerText(BaseModel):
+    format: str
+    text: str
+    values: dict[str, Any]
+
+
+class ActiveTcp(BaseModel):
+    tool_id: str
+    robot_id: str
+    tool_name: str
+    slot: int | None
+    version: int
+    tcp: Tcp
+    calibrated_at: Timestamp
+    method: str
+    controller: ControllerText | None = None
+
+
+class ToolTable(BaseModel):
+    robot_id: str
+    items: list[ActiveTcp]
+    without_active_version: list[str] = Field(
+        default_factory=list, description="ids of tools that have no active TCP"
+    )
+
+
+VersionList.model_rebuild()

@@ -1,0 +1,157 @@
+"""Test harness: every API test runs on SQLite, and on PostgreSQL when
+TCPCAL_TEST_DATABASE_URL is set. Each backend gets a fresh database built by
+`alembic upgrade head` (so migrations are tested); tables are emptied between tests.
+"""
+
+from __future__ import annotations
+
+import os
+import uuid
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+from sqlalchemy import create_engine, text
+from sqlalchemy.engine import make_url
+
+PG_URL = os.environ.get("TCPCAL_TEST_DATABASE_URL")
+BACKENDS = ["sqlite"] + (["postgresql"] if PG_URL else [])
+
+
+def _reset_app_caches() -> None:
+    from app.config import get_settings
+    from app.db import get_engine
+
+    if get_engine.cache_info().currsize:
+        get_engine().dispose()
+    get_engine.cache_clear()
+    get_settings.cache_clear()
+
+
+@dataclass
+class Database:
+    backend: str
+    url: str
+
+
+@pytest.fixture(scope="session")
+def _pg_database() -> Iterator[str]:
+    """A throwaway PostgreSQL database for this test session (the `test` db is left alone)."""
+    assert PG_URL
+    admin = create_engine(PG_URL, isolation_level="AUTOCOMMIT")
+    name = f"tcpcal_test_{uuid.uuid4().hex[:10]}"
+    with admin.connect() as conn:
+        conn.execute(text(f'CREATE DATABASE "{name}"'))
+    url = make_url(PG_URL).set(database=name).render_as_string(hide_password=False)
+    try:
+        yield url
+    finally:
+        with admin.connect() as conn:
+            conn.execute(text(
+                "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = :n"
+            ), {"n": name})
+            conn.execute(text(f'DROP DATABASE IF EXISTS "{name}"'))
+        admin.dispose()
+
+
+@pytest.fixture(scope="session", params=BACKENDS)
+def database(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory,
+             ) -> Iterator[Database]:
+    """A migrated database per backend, shared by the tests of the session."""
+    from app.migrate import upgrade
+
+    if request.param == "sqlite":
+        path: Path = tmp_path_factory.mktemp("db") / "tcpcal.sqlite3"
+        url = f"sqlite:///{path}"
+    else:
+        url = request.getfixturevalue("_pg_database")
+    upgrade(url)
+    yield Database(request.param, url)
+
+
+TABLES = ("audit_events", "idempotency_records", "activations", "tcp_versions",
+          "reference_points", "laser_devices", "calibrations", "tools", "robots", "api_keys")
+
+
+@pytest.fixture
+def db(database: Database, monkeypatch: pytest.MonkeyPatch) -> Iterator[Database]:
+    """Point the app at the test database; empty every table afterwards."""
+    monkeypatch.setenv("TCPCAL_DATABASE_URL", database.url)
+    monkeypatch.delenv("TCPCAL_BOOTSTRAP_ADMIN_KEY", raising=False)
+    _reset_app_caches()
+    yield database
+    from app.db import get_engine
+
+    engine = get_engine()
+    with engine.begin() as conn:
+        if database.backend == "postgresql":
+            conn.execute(text(f"TRUNCATE {', '.join(TABLES)} RESTART IDENTITY CASCADE"))
+        else:
+            for table in TABLES:
+                conn.execute(text(f"DELETE FROM {table}"))
+    _reset_app_caches()
+
+
+class Api:
+    """A TestClient with a key of each scope and small helpers for common set-up."""
+
+    def __init__(self, client: Any, keys: dict[str, str]) -> None:
+        self.client = client
+        self.keys = keys
+
+    def headers(self, scope: str = "admin", **extra: str) -> dict[str, str]:
+        return {"Authorization": f"Bearer {self.keys[scope]}", **extra}
+
+    def get(self, path: str, scope: str = "read", **kw: Any) -> Any:
+        return self.client.get(path, headers={**self.headers(scope), **kw.pop("headers", {})},
+                               **kw)
+
+    def post(self, path: str, json: Any = None, scope: str = "admin", **kw: Any) -> Any:
+        return self.client.post(path, json=json,
+                                headers={**self.headers(scope), **kw.pop("headers", {})}, **kw)
+
+    def patch(self, path: str, json: Any = None, scope: str = "admin", **kw: Any) -> Any:
+        return self.client.patch(path, json=json,
+                                 headers={**self.headers(scope), **kw.pop("headers", {})}, **kw)
+
+    def delete(self, path: str, scope: str = "admin", **kw: Any) -> Any:
+        return self.client.delete(path, headers={**self.headers(scope), **kw.pop("headers", {})},
+                                  **kw)
+
+    def robot(self, name: str = "r1", **fields: Any) -> dict[str, Any]:
+        response = self.post("/v1/robots", {"name": name, **fields})
+        assert response.status_code == 201, response.text
+        return dict(response.json())
+
+    def tool(self, robot_id: str, name: str = "t1", **fields: Any) -> dict[str, Any]:
+        response = self.post(f"/v1/robots/{robot_id}/tools", {"name": name, **fields})
+        assert response.status_code == 201, response.text
+        return dict(response.json())
+
+    def manual(self, tool_id: str, position: list[float], **fields: Any) -> dict[str, Any]:
+        body = {"method": "manual", "tcp": {"position_mm": position}, **fields}
+        response = self.post(f"/v1/tools/{tool_id}/calibrations", body, scope="calibrate")
+        assert response.status_code == 201, response.text
+        return dict(response.json())
+
+
+@pytest.fixture
+def api(db: Database) -> Iterator[Api]:
+    """The app over an in-process client, with one API key per scope."""
+    import warnings
+
+    from app.db import session_scope
+    from app.main import create_app
+    from app.services.keys import create_key
+
+    keys = {}
+    with session_scope(write=True) as session:
+        for scope in ("read", "calibrate", "admin"):
+            keys[scope] = create_key(session, name=f"test-{scope}", scope=scope, actor=None)[1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from fastapi.testclient import TestClient
+    with TestClient(create_app(), raise_server_exceptions=False) as client:
+        yield Api(client, keys)
