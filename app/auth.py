@@ -64,7 +64,8 @@ def authenticate(session: Session, header: str | None, *, required: str) -> Prin
     row = session.scalars(select(ApiKey).where(ApiKey.key_hash == digest)).one_or_none()
     if row is None or row.revoked_at is not None or not hmac.compare_digest(row.key_hash, digest):
         raise Unauthorized(
-            "unknown or revoked API key", headers={"WWW-Authenticate": 'Bearer error="invalid_token"'}
+            "unknown or revoked API key",
+            headers={"WWW-Authenticate": 'Bearer error="invalid_token"'},
         )
     principal = Principal(key_id=row.id, name=row.name, scope=row.scope)
     if not principal.allows(required):

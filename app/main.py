@@ -32,8 +32,10 @@ def _bootstrap() -> None:
         return
     try:
         if current_revision(get_engine()) != head_revision():
-            log.warning("database is not migrated to head; bootstrap key not installed "
-                        "(run `tcpcal db upgrade`)")
+            log.warning(
+                "database is not migrated to head; bootstrap key not installed "
+                "(run `tcpcal db upgrade`)"
+            )
             return
         with session_scope(write=True) as session:
             ensure_bootstrap_key(session, settings.bootstrap_admin_key.get_secret_value())

@@ -44,21 +44,33 @@ class Metrics:
         ]
         with self._lock:
             for (method, route, status), n in sorted(self.requests.items()):
-                out.append(f'tcpcal_http_requests_total{{method="{method}",route="{route}",'
-                           f'status="{status}"}} {n}')
-            out += ["# HELP tcpcal_http_request_duration_seconds Request latency.",
-                    "# TYPE tcpcal_http_request_duration_seconds histogram"]
+                out.append(
+                    f'tcpcal_http_requests_total{{method="{method}",route="{route}",'
+                    f'status="{status}"}} {n}'
+                )
+            out += [
+                "# HELP tcpcal_http_request_duration_seconds Request latency.",
+                "# TYPE tcpcal_http_request_duration_seconds histogram",
+            ]
             for (method, route), buckets in sorted(self.latency_buckets.items()):
                 labels = f'method="{method}",route="{route}"'
                 for bound, n in zip(LATENCY_BUCKETS, buckets, strict=True):
-                    out.append(f'tcpcal_http_request_duration_seconds_bucket{{{labels},le="{bound}"}} {n}')
+                    out.append(
+                        f'tcpcal_http_request_duration_seconds_bucket{{{labels},le="{bound}"}} {n}'
+                    )
                 count = self.latency_count[(method, route)]
-                out.append(f'tcpcal_http_request_duration_seconds_bucket{{{labels},le="+Inf"}} {count}')
-                out.append(f"tcpcal_http_request_duration_seconds_sum{{{labels}}} "
-                           f"{self.latency_sum[(method, route)]:.6f}")
+                out.append(
+                    f'tcpcal_http_request_duration_seconds_bucket{{{labels},le="+Inf"}} {count}'
+                )
+                out.append(
+                    f"tcpcal_http_request_duration_seconds_sum{{{labels}}} "
+                    f"{self.latency_sum[(method, route)]:.6f}"
+                )
                 out.append(f"tcpcal_http_request_duration_seconds_count{{{labels}}} {count}")
-            out += ["# HELP tcpcal_calibrations_total Stored calibrations by method and status.",
-                    "# TYPE tcpcal_calibrations_total counter"]
+            out += [
+                "# HELP tcpcal_calibrations_total Stored calibrations by method and status.",
+                "# TYPE tcpcal_calibrations_total counter",
+            ]
             for (method, status), n in sorted(self.calibrations.items()):
                 out.append(f'tcpcal_calibrations_total{{method="{method}",status="{status}"}} {n}')
         return "\n".join(out) + "\n"

@@ -27,9 +27,11 @@ class BodyLimitMiddleware:
 
     async def _too_large(self, scope: Scope, receive: Receive, send: Send) -> None:
         response = problem_response(
-            status=413, kind="payload-too-large", title="Payload too large",
+            status=413,
+            kind="payload-too-large",
+            title="Payload too large",
             detail=f"request body exceeds {self.max_bytes} bytes "
-                   f"({self.max_bytes // 1024} KiB); split the submission",
+            f"({self.max_bytes // 1024} KiB); split the submission",
         )
         await response(scope, receive, send)
 
@@ -98,5 +100,4 @@ class MetricsMiddleware:
         finally:
             route: Any = scope.get("route")
             template = getattr(route, "path", None) or "unmatched"
-            METRICS.observe_request(scope["method"], template, status,
-                                    time.perf_counter() - start)
+            METRICS.observe_request(scope["method"], template, status, time.perf_counter() - start)

@@ -49,16 +49,19 @@ def _pg_database() -> Iterator[str]:
         yield url
     finally:
         with admin.connect() as conn:
-            conn.execute(text(
-                "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = :n"
-            ), {"n": name})
+            conn.execute(
+                text("SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = :n"),
+                {"n": name},
+            )
             conn.execute(text(f'DROP DATABASE IF EXISTS "{name}"'))
         admin.dispose()
 
 
 @pytest.fixture(scope="session", params=BACKENDS)
-def database(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory,
-             ) -> Iterator[Database]:
+def database(
+    request: pytest.FixtureRequest,
+    tmp_path_factory: pytest.TempPathFactory,
+) -> Database:
     """A migrated database per backend, shared by the tests of the session."""
     from app.migrate import upgrade
 
@@ -68,11 +71,21 @@ def database(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFa
     else:
         url = request.getfixturevalue("_pg_database")
     upgrade(url)
-    yield Database(request.param, url)
+    return Database(request.param, url)
 
 
-TABLES = ("audit_events", "idempotency_records", "activations", "tcp_versions",
-          "reference_points", "laser_devices", "calibrations", "tools", "robots", "api_keys")
+TABLES = (
+    "audit_events",
+    "idempotency_records",
+    "activations",
+    "tcp_versions",
+    "reference_points",
+    "laser_devices",
+    "calibrations",
+    "tools",
+    "robots",
+    "api_keys",
+)
 
 
 @pytest.fixture
@@ -105,20 +118,22 @@ class Api:
         return {"Authorization": f"Bearer {self.keys[scope]}", **extra}
 
     def get(self, path: str, scope: str = "read", **kw: Any) -> Any:
-        return self.client.get(path, headers={**self.headers(scope), **kw.pop("headers", {})},
-                               **kw)
+        return self.client.get(path, headers={**self.headers(scope), **kw.pop("headers", {})}, **kw)
 
     def post(self, path: str, json: Any = None, scope: str = "admin", **kw: Any) -> Any:
-        return self.client.post(path, json=json,
-                                headers={**self.headers(scope), **kw.pop("headers", {})}, **kw)
+        return self.client.post(
+            path, json=json, headers={**self.headers(scope), **kw.pop("headers", {})}, **kw
+        )
 
     def patch(self, path: str, json: Any = None, scope: str = "admin", **kw: Any) -> Any:
-        return self.client.patch(path, json=json,
-                                 headers={**self.headers(scope), **kw.pop("headers", {})}, **kw)
+        return self.client.patch(
+            path, json=json, headers={**self.headers(scope), **kw.pop("headers", {})}, **kw
+        )
 
     def delete(self, path: str, scope: str = "admin", **kw: Any) -> Any:
-        return self.client.delete(path, headers={**self.headers(scope), **kw.pop("headers", {})},
-                                  **kw)
+        return self.client.delete(
+            path, headers={**self.headers(scope), **kw.pop("headers", {})}, **kw
+        )
 
     def robot(self, name: str = "r1", **fields: Any) -> dict[str, Any]:
         response = self.post("/v1/robots", {"name": name, **fields})

@@ -24,8 +24,11 @@ router = APIRouter(tags=["calibrations"])
 
 IdempotencyKey = Annotated[
     str | None,
-    Header(min_length=1, max_length=200,
-           description="retry-safe submissions: same key and body -> the first response"),
+    Header(
+        min_length=1,
+        max_length=200,
+        description="retry-safe submissions: same key and body -> the first response",
+    ),
 ]
 
 
@@ -49,8 +52,12 @@ def submit_calibration(
     idempotency_key: IdempotencyKey = None,
 ) -> object:
     doc, replayed = calibrate.submit(
-        session, tool_id=tool_id, request=body, raw_body=raw_json_body(request),
-        idempotency_key=idempotency_key, actor=key,
+        session,
+        tool_id=tool_id,
+        request=body,
+        raw_body=raw_json_body(request),
+        idempotency_key=idempotency_key,
+        actor=key,
     )
     if replayed:
         response.headers["Idempotent-Replayed"] = "true"
@@ -58,10 +65,16 @@ def submit_calibration(
 
 
 @router.get("/v1/tools/{tool_id}/calibrations", response_model=Page[Calibration])
-def list_calibrations(tool_id: str, session: SessionDep, key: ReadKey,
-                      limit: Limit = DEFAULT_PAGE, cursor: Cursor = None) -> object:
-    items, next_cursor = calibrate.list_calibrations(session, tool_id=tool_id, limit=limit,
-                                                     cursor=cursor)
+def list_calibrations(
+    tool_id: str,
+    session: SessionDep,
+    key: ReadKey,
+    limit: Limit = DEFAULT_PAGE,
+    cursor: Cursor = None,
+) -> object:
+    items, next_cursor = calibrate.list_calibrations(
+        session, tool_id=tool_id, limit=limit, cursor=cursor
+    )
     return {"items": items, "next_cursor": next_cursor}
 
 

@@ -19,7 +19,9 @@ def create_key(body: KeyCreate, session: SessionDep, key: AdminKey) -> object:
 
 @router.get("", response_model=dict[str, list[KeyOut]])
 def list_keys(session: SessionDep, key: AdminKey) -> object:
-    return {"items": [KeyOut.model_validate(r, from_attributes=True) for r in keys.list_keys(session)]}
+    return {
+        "items": [KeyOut.model_validate(r, from_attributes=True) for r in keys.list_keys(session)]
+    }
 
 
 @router.delete("/{key_id}", status_code=204)

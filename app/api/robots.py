@@ -29,8 +29,9 @@ def list_robots(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
-    items, next_cursor = registry.list_robots(session, cell=cell, name=name, limit=limit,
-                                              cursor=cursor)
+    items, next_cursor = registry.list_robots(
+        session, cell=cell, name=name, limit=limit, cursor=cursor
+    )
     return {"items": items, "next_cursor": next_cursor}
 
 

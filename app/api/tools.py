@@ -28,11 +28,13 @@ def create_tool(
 
 @router.get("/v1/robots/{robot_id}/tools", response_model=Page[Tool])
 def list_tools(
-    robot_id: str, session: SessionDep, key: ReadKey, limit: Limit = DEFAULT_PAGE,
+    robot_id: str,
+    session: SessionDep,
+    key: ReadKey,
+    limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
-    items, next_cursor = registry.list_tools(session, robot_id=robot_id, limit=limit,
-                                             cursor=cursor)
+    items, next_cursor = registry.list_tools(session, robot_id=robot_id, limit=limit, cursor=cursor)
     return {"items": items, "next_cursor": next_cursor}
 
 
@@ -45,7 +47,11 @@ def get_tool(tool_id: str, response: Response, session: SessionDep, key: ReadKey
 
 @router.patch("/v1/tools/{tool_id}", response_model=Tool)
 def update_tool(
-    tool_id: str, body: ToolUpdate, response: Response, session: SessionDep, key: AdminKey,
+    tool_id: str,
+    body: ToolUpdate,
+    response: Response,
+    session: SessionDep,
+    key: AdminKey,
     if_match: IfMatch = None,
 ) -> object:
     tool = registry.update_tool(session, tool_id=tool_id, data=body, if_match=if_match, actor=key)

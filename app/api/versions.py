@@ -25,18 +25,26 @@ def _version_out(row: TcpVersion, tool: ToolRow) -> dict[str, Any]:
     return {
         "version": row.version,
         "tcp": {"position_mm": row.position_mm, "quaternion": row.quaternion},
-        "source": row.source, "status": row.status, "calibration_id": row.calibration_id,
-        "note": row.note, "created_at": row.created_at, "created_by": row.created_by,
+        "source": row.source,
+        "status": row.status,
+        "calibration_id": row.calibration_id,
+        "note": row.note,
+        "created_at": row.created_at,
+        "created_by": row.created_by,
         "active": tool.active_version == row.version,
     }
 
 
 def _active_out(tool: ToolRow, row: TcpVersion, fmt: str | None) -> dict[str, Any]:
     out: dict[str, Any] = {
-        "tool_id": tool.id, "robot_id": tool.robot_id, "tool_name": tool.name,
-        "slot": tool.slot, "version": row.version,
+        "tool_id": tool.id,
+        "robot_id": tool.robot_id,
+        "tool_name": tool.name,
+        "slot": tool.slot,
+        "version": row.version,
         "tcp": {"position_mm": row.position_mm, "quaternion": row.quaternion},
-        "calibrated_at": row.created_at, "method": row.source,
+        "calibrated_at": row.created_at,
+        "method": row.source,
     }
     if fmt is not None:
         out["controller"] = controller_text(fmt, tool=tool, version=row)
@@ -60,19 +68,30 @@ def get_version(tool_id: str, version: int, session: SessionDep, key: ReadKey) -
 
 @router.post("/v1/tools/{tool_id}/versions/{version}/activate", response_model=Tool)
 def activate_version(
-    tool_id: str, version: int, response: Response, session: SessionDep, key: CalibrateKey,
+    tool_id: str,
+    version: int,
+    response: Response,
+    session: SessionDep,
+    key: CalibrateKey,
     if_match: IfMatch = None,
 ) -> object:
-    tool = versions.activate_version(session, tool_id=tool_id, version=version,
-                                     if_match=if_match, actor=key)
+    tool = versions.activate_version(
+        session, tool_id=tool_id, version=version, if_match=if_match, actor=key
+    )
     response.headers["ETag"] = registry.tool_etag(tool)
     return tool
 
 
-@router.get("/v1/tools/{tool_id}/tcp", response_model=ActiveTcp,
-            responses={304: {"description": "not modified (If-None-Match)"}})
+@router.get(
+    "/v1/tools/{tool_id}/tcp",
+    response_model=ActiveTcp,
+    responses={304: {"description": "not modified (If-None-Match)"}},
+)
 def get_active_tcp(
-    tool_id: str, session: SessionDep, key: ReadKey, format: FormatQuery = None,
+    tool_id: str,
+    session: SessionDep,
+    key: ReadKey,
+    format: FormatQuery = None,
     if_none_match: Annotated[str | None, Header()] = None,
 ) -> Any:
     tool, row = versions.active_tcp(session, tool_id=tool_id)
@@ -86,9 +105,12 @@ def get_active_tcp(
 
 
 @router.get("/v1/robots/{robot_id}/tool-table", response_model=ToolTable)
-def tool_table(robot_id: str, session: SessionDep, key: ReadKey,
-               format: FormatQuery = None) -> object:
+def tool_table(
+    robot_id: str, session: SessionDep, key: ReadKey, format: FormatQuery = None
+) -> object:
     served, missing = versions.tool_table(session, robot_id=robot_id)
-    return {"robot_id": robot_id,
-            "items": [_active_out(t, r, format) for t, r in served],
-            "without_active_version": missing}
+    return {
+        "robot_id": robot_id,
+        "items": [_active_out(t, r, format) for t, r in served],
+        "without_active_version": missing,
+    }

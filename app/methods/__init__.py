@@ -22,7 +22,8 @@ def run_method(request: Any, ctx: MethodContext) -> SolvedTcp:
     runner = RUNNERS.get(request.method)
     if runner is None:
         raise InvalidInput(
-            "unsupported", f"method {request.method!r} is not available on this server yet",
+            "unsupported",
+            f"method {request.method!r} is not available on this server yet",
             loc=("body", "method"),
         )
     return runner(request, ctx)

@@ -16,16 +16,29 @@ def run(request: ManualCalibration, ctx: MethodContext) -> SolvedTcp:
         position = check_positions_mm([request.tcp.position_mm], loc=("tcp", "position_mm"))[0]
         quaternion = None
         if request.tcp.quaternion is not None:
-            quaternion = normalised_quaternions([request.tcp.quaternion],
-                                                loc=("tcp", "quaternion"))[0]
-        return SolvedTcp(position_mm=position, quaternion=quaternion, algorithm=None,
-                         quality=empty_quality(0), graded=False)
+            quaternion = normalised_quaternions(
+                [request.tcp.quaternion], loc=("tcp", "quaternion")
+            )[0]
+        return SolvedTcp(
+            position_mm=position,
+            quaternion=quaternion,
+            algorithm=None,
+            quality=empty_quality(0),
+            graded=False,
+        )
 
-    assert request.format is not None and request.poses is not None  # schema guarantees it
-    rotations, positions = ctx.parse_poses(request.format, request.poses, request.units,
-                                           loc=("poses",))
+    if request.format is None or request.poses is None:  # the schema guarantees both
+        raise ValueError("manual pose entry needs format and poses")
+    rotations, positions = ctx.parse_poses(
+        request.format, request.poses, request.units, loc=("poses",)
+    )
     quaternion = np.asarray(
         Rotation.from_matrix(rotations[0]).as_quat(canonical=True, scalar_first=True)
     )
-    return SolvedTcp(position_mm=positions[0], quaternion=quaternion, algorithm=None,
-                     quality=empty_quality(1), graded=False)
+    return SolvedTcp(
+        position_mm=positions[0],
+        quaternion=quaternion,
+        algorithm=None,
+        quality=empty_quality(1),
+        graded=False,
+    )

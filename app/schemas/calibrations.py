@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.schemas.common import (
     FiniteFloat,
@@ -92,7 +92,7 @@ class DirectionIn(StrictModel):
     from_: Pose = Field(alias="from")
     to: Pose
 
-    model_config = {"extra": "forbid", "populate_by_name": True}
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
 
 
 class TcpZxOptions(NPointOptions):

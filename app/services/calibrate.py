@@ -35,10 +35,10 @@ from app.models import (
 )
 from app.schemas.common import Units
 from app.services import audit
+from app.services.pagination import paginate
 from app.services.registry import get_robot, get_tool
 from app.services.tolerance import effective_tolerance, grade
 from app.services.versions import IDENTITY_QUATERNION, activate, add_version
-from app.services.pagination import paginate
 
 
 # ---- contexts -------------------------------------------------------------------------------
@@ -63,17 +63,23 @@ def _frame_of(session: Session, tool: Tool) -> ActiveFrame | None:
     if tool.active_version is None:
         return None
     row = session.scalars(
-        select(TcpVersion).where(TcpVersion.tool_id == tool.id,
-                                 TcpVersion.version == tool.active_version)
+        select(TcpVersion).where(
+            TcpVersion.tool_id == tool.id, TcpVersion.version == tool.active_version
+        )
     ).one()
     covariance = None
     if row.calibration_id:
         calibration = session.get(Calibration, row.calibration_id)
-        cov = calibration.result.get("quality", {}).get("tcp_covariance_mm2") if calibration else None
+        cov = (
+            calibration.result.get("quality", {}).get("tcp_covariance_mm2") if calibration else None
+        )
         covariance = np.asarray(cov, dtype=float) if cov else None
-    return ActiveFrame(position_mm=np.asarray(row.position_mm, dtype=float),
-                       quaternion=np.asarray(row.quaternion, dtype=float),
-                       covariance_mm2=covariance, version=row.version)
+    return ActiveFrame(
+        position_mm=np.asarray(row.position_mm, dtype=float),
+        quaternion=np.asarray(row.quaternion, dtype=float),
+        covariance_mm2=covariance,
+        version=row.version,
+    )
 
 
 class DbContext:
@@ -89,46 +95,54 @@ class DbContext:
     def active_frame(self) -> ActiveFrame | None:
         return _frame_of(self.session, self.tool)
 
-    def parse_poses(self, fmt: str, poses: Sequence[Any], units: Units | None, *,
-                    loc: Sequence[str | int]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def parse_poses(
+        self, fmt: str, poses: Sequence[Any], units: Units | None, *, loc: Sequence[str | int]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         return parse_poses_with(self.robot.kinematics, fmt, poses, units, loc=loc)
 
     def reference_point(self, reference_point_id: str) -> StoredPoint:
         row = self.session.get(ReferencePoint, reference_point_id)
         if row is None or row.robot_id != self.robot.id:
-            raise InvalidInput("unknown-reference",
-                               f"robot {self.robot.id} has no reference point {reference_point_id}",
-                               loc=("body", "options", "reference_point_id"))
+            raise InvalidInput(
+                "unknown-reference",
+                f"robot {self.robot.id} has no reference point {reference_point_id}",
+                loc=("body", "options", "reference_point_id"),
+            )
         cov = np.asarray(row.covariance_mm2, dtype=float) if row.covariance_mm2 else None
         return StoredPoint(np.asarray(row.position_mm, dtype=float), cov)
 
     def tool_frame(self, tool_id: str) -> ActiveFrame:
         other = self.session.get(Tool, tool_id)
         if other is None or other.archived_at is not None or other.robot_id != self.robot.id:
-            raise InvalidInput("unknown-reference",
-                               f"robot {self.robot.id} has no live tool {tool_id}",
-                               loc=("body", "options", "reference_tool_id"))
+            raise InvalidInput(
+                "unknown-reference",
+                f"robot {self.robot.id} has no live tool {tool_id}",
+                loc=("body", "options", "reference_tool_id"),
+            )
         frame = _frame_of(self.session, other)
         if frame is None:
-            raise InvalidInput("unknown-reference",
-                               f"reference tool {tool_id} has no active TCP to trust",
-                               loc=("body", "options", "reference_tool_id"))
+            raise InvalidInput(
+                "unknown-reference",
+                f"reference tool {tool_id} has no active TCP to trust",
+                loc=("body", "options", "reference_tool_id"),
+            )
         return frame
 
     def laser_device(self, device_id: str) -> tuple[float, float, float]:
         row = self.session.get(LaserDevice, device_id)
         if row is None or row.robot_id != self.robot.id:
-            raise InvalidInput("unknown-reference",
-                               f"robot {self.robot.id} has no laser device {device_id}",
-                               loc=("body", "laser", "device_id"))
+            raise InvalidInput(
+                "unknown-reference",
+                f"robot {self.robot.id} has no laser device {device_id}",
+                loc=("body", "laser", "device_id"),
+            )
         return row.beam_a_y_mm, row.beam_b_x_mm, row.plane_z_mm
 
 
 class StatelessContext:
     """Method context for POST /v1/solve: nothing stored is read except an optional robot."""
 
-    def __init__(self, kinematics: dict[str, Any] | None,
-                 tolerance: dict[str, Any] | None) -> None:
+    def __init__(self, kinematics: dict[str, Any] | None, tolerance: dict[str, Any] | None) -> None:
         self._kinematics = kinematics
         self._tolerance = effective_tolerance(
             {k: v for k, v in (tolerance or {}).items() if v is not None}
@@ -141,31 +155,44 @@ class StatelessContext:
     def active_frame(self) -> ActiveFrame | None:
         return None
 
-    def parse_poses(self, fmt: str, poses: Sequence[Any], units: Units | None, *,
-                    loc: Sequence[str | int]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def parse_poses(
+        self, fmt: str, poses: Sequence[Any], units: Units | None, *, loc: Sequence[str | int]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         return parse_poses_with(self._kinematics, fmt, poses, units, loc=loc)
 
     def _stored(self, what: str, field: tuple[str, ...], instead: str) -> InvalidInput:
-        return InvalidInput("needs-storage",
-                            f"/v1/solve stores nothing and cannot look up {what}; {instead}",
-                            loc=("body", *field))
+        return InvalidInput(
+            "needs-storage",
+            f"/v1/solve stores nothing and cannot look up {what}; {instead}",
+            loc=("body", *field),
+        )
 
     def reference_point(self, reference_point_id: str) -> StoredPoint:
-        raise self._stored("a reference point", ("options", "reference_point_id"),
-                           "give options.reference_point_mm")
+        raise self._stored(
+            "a reference point",
+            ("options", "reference_point_id"),
+            "give options.reference_point_mm",
+        )
 
     def tool_frame(self, tool_id: str) -> ActiveFrame:
-        raise self._stored("another tool's TCP", ("options", "reference_tool_id"),
-                           "give options.reference_point_mm")
+        raise self._stored(
+            "another tool's TCP",
+            ("options", "reference_tool_id"),
+            "give options.reference_point_mm",
+        )
 
     def laser_device(self, device_id: str) -> tuple[float, float, float]:
-        raise self._stored("a laser device", ("laser", "device_id"),
-                           "give beam_a_y_mm, beam_b_x_mm and plane_z_mm")
+        raise self._stored(
+            "a laser device", ("laser", "device_id"), "give beam_a_y_mm, beam_b_x_mm and plane_z_mm"
+        )
 
 
 # ---- results --------------------------------------------------------------------------------
-def result_document(request: Any, solved: SolvedTcp, ctx: DbContext | StatelessContext,
-                    ) -> dict[str, Any]:
+def result_document(
+    request: Any,
+    solved: SolvedTcp,
+    ctx: DbContext | StatelessContext,
+) -> dict[str, Any]:
     """The CalibrationResult of a solve, graded against the tolerance in the context."""
     status, reasons = grade(solved.quality, ctx.tolerance, graded=solved.graded)
     quaternion = solved.quaternion
@@ -174,16 +201,20 @@ def result_document(request: Any, solved: SolvedTcp, ctx: DbContext | StatelessC
         frame = ctx.active_frame()
         if frame is not None:
             quaternion = frame.quaternion
-            warnings.append(f"orientation kept from active version {frame.version}: "
-                            f"{request.method} calibrates the position only")
+            warnings.append(
+                f"orientation kept from active version {frame.version}: "
+                f"{request.method} calibrates the position only"
+            )
         else:
             quaternion = np.asarray(IDENTITY_QUATERNION)
     doc: dict[str, Any] = {
         "method": request.method,
         "algorithm": solved.algorithm,
         "status": status,
-        "tcp": {"position_mm": [float(v) for v in solved.position_mm],
-                "quaternion": [float(v) for v in quaternion]},
+        "tcp": {
+            "position_mm": [float(v) for v in solved.position_mm],
+            "quaternion": [float(v) for v in quaternion],
+        },
         "reference_point_mm": solved.reference_point_mm,
         "quality": solved.quality,
         "warnings": warnings,
@@ -213,13 +244,19 @@ def request_fingerprint(tool_id: str, raw_body: dict[str, Any]) -> str:
     return hashlib.sha256(canonical.encode()).hexdigest()
 
 
-def _replay(session: Session, *, actor: Principal, key: str, fingerprint: str,
-            ) -> dict[str, Any] | None:
+def _replay(
+    session: Session,
+    *,
+    actor: Principal,
+    key: str,
+    fingerprint: str,
+) -> dict[str, Any] | None:
     ttl = timedelta(hours=get_settings().idempotency_ttl_hours)
     session.execute(delete(IdempotencyRecord).where(IdempotencyRecord.created_at < utcnow() - ttl))
     record = session.scalars(
-        select(IdempotencyRecord).where(IdempotencyRecord.api_key_id == actor.key_id,
-                                        IdempotencyRecord.key == key)
+        select(IdempotencyRecord).where(
+            IdempotencyRecord.api_key_id == actor.key_id, IdempotencyRecord.key == key
+        )
     ).one_or_none()
     if record is None:
         return None
@@ -255,56 +292,109 @@ def submit(
     doc = result_document(request, solved, ctx)
 
     row = Calibration(
-        tool_id=tool.id, method=request.method, algorithm=solved.algorithm,
-        status=doc["status"], request=raw_body, result=doc, created_by=actor.name,
+        tool_id=tool.id,
+        method=request.method,
+        algorithm=solved.algorithm,
+        status=doc["status"],
+        request=raw_body,
+        result=doc,
+        created_by=actor.name,
     )
     session.add(row)
     session.flush()
     version = add_version(
-        session, tool=tool, position_mm=doc["tcp"]["position_mm"],
-        quaternion=doc["tcp"]["quaternion"], source=request.method, status=doc["status"],
-        calibration_id=row.id, note=request.note, actor=actor,
+        session,
+        tool=tool,
+        position_mm=doc["tcp"]["position_mm"],
+        quaternion=doc["tcp"]["quaternion"],
+        source=request.method,
+        status=doc["status"],
+        calibration_id=row.id,
+        note=request.note,
+        actor=actor,
     )
     row.version = version.version
     should_activate = request.activate == "always" or (
         request.activate == "auto" and doc["status"] == "accepted"
     )
     if should_activate:
-        activate(session, tool=tool, version=version.version, reason=f"calibration:{request.activate}",
-                 actor=actor)
-    _save_reference_point(session, request=request, solved=solved, status=doc["status"],
-                          tool=tool, calibration=row, actor=actor)
-    audit.record(session, actor=actor, action="calibration.create", resource_type="calibration",
-                 resource_id=row.id, robot_id=tool.robot_id, tool_id=tool.id,
-                 details={"method": request.method, "status": doc["status"],
-                          "version": version.version, "activated": should_activate})
+        activate(
+            session,
+            tool=tool,
+            version=version.version,
+            reason=f"calibration:{request.activate}",
+            actor=actor,
+        )
+    _save_reference_point(
+        session,
+        request=request,
+        solved=solved,
+        status=doc["status"],
+        tool=tool,
+        calibration=row,
+        actor=actor,
+    )
+    audit.record(
+        session,
+        actor=actor,
+        action="calibration.create",
+        resource_type="calibration",
+        resource_id=row.id,
+        robot_id=tool.robot_id,
+        tool_id=tool.id,
+        details={
+            "method": request.method,
+            "status": doc["status"],
+            "version": version.version,
+            "activated": should_activate,
+        },
+    )
     out = _calibration_out(row, tool)
     if idempotency_key is not None:
         from app.schemas.calibrations import Calibration as CalibrationOut
 
-        session.add(IdempotencyRecord(
-            api_key_id=actor.key_id, key=idempotency_key, request_hash=fingerprint,
-            status_code=201, response=CalibrationOut.model_validate(out).model_dump(mode="json"),
-        ))
+        session.add(
+            IdempotencyRecord(
+                api_key_id=actor.key_id,
+                key=idempotency_key,
+                request_hash=fingerprint,
+                status_code=201,
+                response=CalibrationOut.model_validate(out).model_dump(mode="json"),
+            )
+        )
         session.flush()
     return out, False
 
 
-def _save_reference_point(session: Session, *, request: Any, solved: SolvedTcp, status: str,
-                          tool: Tool, calibration: Calibration, actor: Principal) -> None:
+def _save_reference_point(
+    session: Session,
+    *,
+    request: Any,
+    solved: SolvedTcp,
+    status: str,
+    tool: Tool,
+    calibration: Calibration,
+    actor: Principal,
+) -> None:
     name = getattr(getattr(request, "options", None), "save_reference_point", None)
     if name is None or solved.reference_point_mm is None:
         return
     if status != "accepted":
         solved.warnings.append(
-            f"reference point {name!r} not saved: the calibration is out of tolerance")
+            f"reference point {name!r} not saved: the calibration is out of tolerance"
+        )
         return
     from app.services.references import create_reference_point
 
     create_reference_point(
-        session, robot_id=tool.robot_id, name=name, position_mm=solved.reference_point_mm,
-        covariance_mm2=solved.reference_covariance_mm2, source="xyz_npoint",
-        calibration_id=calibration.id, actor=actor,
+        session,
+        robot_id=tool.robot_id,
+        name=name,
+        position_mm=solved.reference_point_mm,
+        covariance_mm2=solved.reference_covariance_mm2,
+        source="xyz_npoint",
+        calibration_id=calibration.id,
+        actor=actor,
     )
 
 
@@ -322,13 +412,22 @@ def solve_stateless(session: Session, *, request: Any) -> dict[str, Any]:
     return result_document(request, solved, ctx)
 
 
-def list_calibrations(session: Session, *, tool_id: str, limit: int, cursor: str | None,
-                      ) -> tuple[list[dict[str, Any]], str | None]:
+def list_calibrations(
+    session: Session,
+    *,
+    tool_id: str,
+    limit: int,
+    cursor: str | None,
+) -> tuple[list[dict[str, Any]], str | None]:
     """A tool's calibrations, oldest first."""
     tool = get_tool(session, tool_id)
     rows, next_cursor = paginate(
-        session, select(Calibration).where(Calibration.tool_id == tool_id),
-        created_col=Calibration.created_at, id_col=Calibration.id, limit=limit, cursor=cursor,
+        session,
+        select(Calibration).where(Calibration.tool_id == tool_id),
+        created_col=Calibration.created_at,
+        id_col=Calibration.id,
+        limit=limit,
+        cursor=cursor,
     )
     return [_calibration_out(r, tool) for r in rows], next_cursor
 

@@ -13,16 +13,29 @@ from app.models import ApiKey, utcnow
 from app.services import audit
 
 
-def create_key(session: Session, *, name: str, scope: str, actor: Principal | None) -> tuple[ApiKey, str]:
+def create_key(
+    session: Session, *, name: str, scope: str, actor: Principal | None
+) -> tuple[ApiKey, str]:
     """A new key; the secret is returned once and only its hash is stored."""
     key = generate_key()
-    row = ApiKey(name=name, scope=scope, key_hash=hash_key(key), prefix=key[:12],
-                 created_by=actor.name if actor else "cli")
+    row = ApiKey(
+        name=name,
+        scope=scope,
+        key_hash=hash_key(key),
+        prefix=key[:12],
+        created_by=actor.name if actor else "cli",
+    )
     session.add(row)
     session.flush()
     if actor is not None:
-        audit.record(session, actor=actor, action="key.create", resource_type="api_key",
-                     resource_id=row.id, details={"name": name, "scope": scope})
+        audit.record(
+            session,
+            actor=actor,
+            action="key.create",
+            resource_type="api_key",
+            resource_id=row.id,
+            details={"name": name, "scope": scope},
+        )
     return row, key
 
 
@@ -41,5 +54,11 @@ def revoke_key(session: Session, *, key_id: str, actor: Principal) -> None:
     if row.id == actor.key_id:
         raise Conflict("a key cannot revoke itself; revoke it with another admin key")
     row.revoked_at = utcnow()
-    audit.record(session, actor=actor, action="key.revoke", resource_type="api_key",
-                 resource_id=row.id, details={"name": row.name})
+    audit.record(
+        session,
+        actor=actor,
+        action="key.revoke",
+        resource_type="api_key",
+        resource_id=row.id,
+        details={"name": row.name},
+    )

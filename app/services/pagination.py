@@ -33,13 +33,15 @@ def decode_cursor(cursor: str) -> tuple[datetime, str]:
         return datetime.fromisoformat(created), str(row_id)
     except (ValueError, TypeError, json.JSONDecodeError) as exc:
         raise InvalidInput(
-            "invalid-cursor", "cursor is not a value returned as next_cursor", loc=("query", "cursor")
+            "invalid-cursor",
+            "cursor is not a value returned as next_cursor",
+            loc=("query", "cursor"),
         ) from exc
 
 
 def paginate(
     session: Session,
-    stmt: Select[tuple[M]],
+    stmt: Select[M],
     *,
     created_col: InstrumentedAttribute[Any],
     id_col: InstrumentedAttribute[Any],
@@ -55,7 +57,7 @@ def paginate(
                 and_(created_col == after_created, id_col > after_id),
             )
         )
-    rows = list(session.scalars(stmt.order_by(created_col, id_col).limit(limit + 1)))
+    rows: list[M] = list(session.scalars(stmt.order_by(created_col, id_col).limit(limit + 1)))
     next_cursor = None
     if len(rows) > limit:
         rows = rows[:limit]

@@ -52,8 +52,15 @@ def create_robot(session: Session, *, data: RobotCreate, actor: Principal) -> Ro
     robot = Robot(**values)
     session.add(robot)
     session.flush()
-    audit.record(session, actor=actor, action="robot.create", resource_type="robot",
-                 resource_id=robot.id, robot_id=robot.id, details={"name": robot.name})
+    audit.record(
+        session,
+        actor=actor,
+        action="robot.create",
+        resource_type="robot",
+        resource_id=robot.id,
+        robot_id=robot.id,
+        details={"name": robot.name},
+    )
     return robot
 
 
@@ -66,13 +73,12 @@ def list_robots(
         stmt = stmt.where(Robot.cell == cell)
     if name is not None:
         stmt = stmt.where(Robot.name == name)
-    return paginate(session, stmt, created_col=Robot.created_at, id_col=Robot.id,
-                    limit=limit, cursor=cursor)
+    return paginate(
+        session, stmt, created_col=Robot.created_at, id_col=Robot.id, limit=limit, cursor=cursor
+    )
 
 
-def update_robot(
-    session: Session, *, robot_id: str, data: RobotUpdate, actor: Principal
-) -> Robot:
+def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: Principal) -> Robot:
     """Change the fields given in the PATCH body."""
     robot = get_robot(session, robot_id, for_update=True)
     changes = data.model_dump(exclude_unset=True)
@@ -85,8 +91,15 @@ def update_robot(
     for key, value in changes.items():
         setattr(robot, key, value)
     robot.updated_at = utcnow()
-    audit.record(session, actor=actor, action="robot.update", resource_type="robot",
-                 resource_id=robot.id, robot_id=robot.id, details={"changed": sorted(changes)})
+    audit.record(
+        session,
+        actor=actor,
+        action="robot.update",
+        resource_type="robot",
+        resource_id=robot.id,
+        robot_id=robot.id,
+        details={"changed": sorted(changes)},
+    )
     return robot
 
 
@@ -101,9 +114,15 @@ def archive_robot(session: Session, *, robot_id: str, actor: Principal) -> None:
     for tool in tools:
         tool.archived_at = now
         tool.revision += 1
-    audit.record(session, actor=actor, action="robot.archive", resource_type="robot",
-                 resource_id=robot.id, robot_id=robot.id,
-                 details={"archived_tools": [t.id for t in tools]})
+    audit.record(
+        session,
+        actor=actor,
+        action="robot.archive",
+        resource_type="robot",
+        resource_id=robot.id,
+        robot_id=robot.id,
+        details={"archived_tools": [t.id for t in tools]},
+    )
 
 
 # ---- tools ----------------------------------------------------------------------------------
@@ -141,23 +160,29 @@ def check_if_match(tool: Tool, if_match: str | None) -> None:
 
 
 def _tool_unique(
-    session: Session, *, robot_id: str, name: str | None, slot: int | None,
+    session: Session,
+    *,
+    robot_id: str,
+    name: str | None,
+    slot: int | None,
     except_id: str | None = None,
 ) -> None:
     live = select(Tool.id).where(Tool.robot_id == robot_id, Tool.archived_at.is_(None))
     if except_id:
         live = live.where(Tool.id != except_id)
     if name is not None and session.scalars(live.where(Tool.name == name)).first():
-        raise Conflict(f"robot {robot_id} already has a tool named {name!r}",
-                       errors=[{"loc": ["body", "name"], "msg": "already taken"}])
+        raise Conflict(
+            f"robot {robot_id} already has a tool named {name!r}",
+            errors=[{"loc": ["body", "name"], "msg": "already taken"}],
+        )
     if slot is not None and session.scalars(live.where(Tool.slot == slot)).first():
-        raise Conflict(f"slot {slot} of robot {robot_id} is already taken by another tool",
-                       errors=[{"loc": ["body", "slot"], "msg": "already taken"}])
+        raise Conflict(
+            f"slot {slot} of robot {robot_id} is already taken by another tool",
+            errors=[{"loc": ["body", "slot"], "msg": "already taken"}],
+        )
 
 
-def create_tool(
-    session: Session, *, robot_id: str, data: ToolCreate, actor: Principal
-) -> Tool:
+def create_tool(session: Session, *, robot_id: str, data: ToolCreate, actor: Principal) -> Tool:
     """Register a tool on a robot (name and slot unique among the robot's live tools)."""
     get_robot(session, robot_id, for_update=True)
     _tool_unique(session, robot_id=robot_id, name=data.name, slot=data.slot)
@@ -165,9 +190,16 @@ def create_tool(
     tool = Tool(robot_id=robot_id, last_version=0, revision=1, **values)
     session.add(tool)
     session.flush()
-    audit.record(session, actor=actor, action="tool.create", resource_type="tool",
-                 resource_id=tool.id, robot_id=robot_id, tool_id=tool.id,
-                 details={"name": tool.name, "slot": tool.slot})
+    audit.record(
+        session,
+        actor=actor,
+        action="tool.create",
+        resource_type="tool",
+        resource_id=tool.id,
+        robot_id=robot_id,
+        tool_id=tool.id,
+        details={"name": tool.name, "slot": tool.slot},
+    )
     return tool
 
 
@@ -177,8 +209,9 @@ def list_tools(
     """Live tools of a robot."""
     get_robot(session, robot_id)
     stmt = select(Tool).where(Tool.robot_id == robot_id, Tool.archived_at.is_(None))
-    return paginate(session, stmt, created_col=Tool.created_at, id_col=Tool.id,
-                    limit=limit, cursor=cursor)
+    return paginate(
+        session, stmt, created_col=Tool.created_at, id_col=Tool.id, limit=limit, cursor=cursor
+    )
 
 
 def update_tool(
@@ -190,17 +223,29 @@ def update_tool(
     changes = data.model_dump(exclude_unset=True)
     if changes.get("name", "") is None:
         changes.pop("name")
-    _tool_unique(session, robot_id=tool.robot_id, name=changes.get("name"),
-                 slot=changes.get("slot"), except_id=tool.id)
+    _tool_unique(
+        session,
+        robot_id=tool.robot_id,
+        name=changes.get("name"),
+        slot=changes.get("slot"),
+        except_id=tool.id,
+    )
     if "tolerance" in changes and changes["tolerance"] is None:
         changes.pop("tolerance")
     for key, value in changes.items():
         setattr(tool, key, value)
     tool.updated_at = utcnow()
     tool.revision += 1
-    audit.record(session, actor=actor, action="tool.update", resource_type="tool",
-                 resource_id=tool.id, robot_id=tool.robot_id, tool_id=tool.id,
-                 details={"changed": sorted(changes)})
+    audit.record(
+        session,
+        actor=actor,
+        action="tool.update",
+        resource_type="tool",
+        resource_id=tool.id,
+        robot_id=tool.robot_id,
+        tool_id=tool.id,
+        details={"changed": sorted(changes)},
+    )
     return tool
 
 
@@ -209,5 +254,12 @@ def archive_tool(session: Session, *, tool_id: str, actor: Principal) -> None:
     tool = get_tool(session, tool_id, for_update=True)
     tool.archived_at = utcnow()
     tool.revision += 1
-    audit.record(session, actor=actor, action="tool.archive", resource_type="tool",
-                 resource_id=tool.id, robot_id=tool.robot_id, tool_id=tool.id)
+    audit.record(
+        session,
+        actor=actor,
+        action="tool.archive",
+        resource_type="tool",
+        resource_id=tool.id,
+        robot_id=tool.robot_id,
+        tool_id=tool.id,
+    )

@@ -47,9 +47,16 @@ def add_version(
     )
     session.add(row)
     session.flush()
-    audit.record(session, actor=actor, action="version.create", resource_type="tool",
-                 resource_id=tool.id, robot_id=tool.robot_id, tool_id=tool.id,
-                 details={"version": row.version, "source": source, "status": status})
+    audit.record(
+        session,
+        actor=actor,
+        action="version.create",
+        resource_type="tool",
+        resource_id=tool.id,
+        robot_id=tool.robot_id,
+        tool_id=tool.id,
+        details={"version": row.version, "source": source, "status": status},
+    )
     return row
 
 
@@ -70,10 +77,16 @@ def activate(
     tool.updated_at = utcnow()
     session.add(row)
     session.flush()
-    audit.record(session, actor=actor, action="version.activate", resource_type="tool",
-                 resource_id=tool.id, robot_id=tool.robot_id, tool_id=tool.id,
-                 details={"version": version, "previous_version": row.previous_version,
-                          "reason": reason})
+    audit.record(
+        session,
+        actor=actor,
+        action="version.activate",
+        resource_type="tool",
+        resource_id=tool.id,
+        robot_id=tool.robot_id,
+        tool_id=tool.id,
+        details={"version": version, "previous_version": row.previous_version, "reason": reason},
+    )
     return row
 
 
@@ -88,16 +101,21 @@ def get_version(session: Session, *, tool_id: str, version: int) -> TcpVersion:
     return row
 
 
-def list_versions(session: Session, *, tool_id: str) -> tuple[Tool, list[TcpVersion],
-                                                               list[Activation]]:
+def list_versions(
+    session: Session, *, tool_id: str
+) -> tuple[Tool, list[TcpVersion], list[Activation]]:
     """Every version of a tool (oldest first) and its activation history."""
     tool = get_tool(session, tool_id)
-    versions = list(session.scalars(
-        select(TcpVersion).where(TcpVersion.tool_id == tool_id).order_by(TcpVersion.version)
-    ))
-    history = list(session.scalars(
-        select(Activation).where(Activation.tool_id == tool_id).order_by(Activation.id)
-    ))
+    versions = list(
+        session.scalars(
+            select(TcpVersion).where(TcpVersion.tool_id == tool_id).order_by(TcpVersion.version)
+        )
+    )
+    history = list(
+        session.scalars(
+            select(Activation).where(Activation.tool_id == tool_id).order_by(Activation.id)
+        )
+    )
     return tool, versions, history
 
 
@@ -138,8 +156,9 @@ def active_tcp(session: Session, *, tool_id: str) -> tuple[Tool, TcpVersion]:
     return tool, active_version_row(session, tool)
 
 
-def tool_table(session: Session, *, robot_id: str) -> tuple[list[tuple[Tool, TcpVersion]],
-                                                            list[str]]:
+def tool_table(
+    session: Session, *, robot_id: str
+) -> tuple[list[tuple[Tool, TcpVersion]], list[str]]:
     """Every live tool of a robot with its active version; ids of those without one."""
     get_robot(session, robot_id)
     tools = session.scalars(

@@ -14,4 +14,4 @@ def test_robot_crud_and_filters(api: Api) -> None:
     patched = api.patch(f"/v1/robots/{a['id']}", {"model": "KR 16"}).json()
     assert patched["model"] == "KR 16"
     assert patched["vendor"] == "KUKA"
-    assert api.get(f"/v1/robots?name=kr-2").json()["items"][0]["cell"] == "c2"
+    assert api.get("/v1/robots?name=kr-2").json()["items"][0]["cell"] == "c2"
