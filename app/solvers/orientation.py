@@ -1,0 +1,620 @@
+"""Orientation of the tool frame relative to the flange (shared/METHODS.md section 4).
+
+Frames: a flange pose is (R, f), R the rotation flange -> base, f the flange position in mm
+(base). The TCP is t (mm, flange frame); the tool orientation is Q, the rotation
+tool frame -> flange frame, reported as a unit quaternion [w, x, y, z] with w >= 0.
+
+Three procedures:
+- `orientation_from_translations`: ABB "TCP and Z, X" / Fanuc six-point: pure translations
+  of the flange along tool axes.
+- `orientation_from_touches`: KUKA "ABC 2-point": three touches of one fixed point.
+- `orientation_from_world`: KUKA "ABC world" (5D and 6D): tool axes aligned with base axes.
+
+Uncertainty: each result carries `sigma_deg`, the 1-sigma of the small rotations about the
+tool x, y and z axes (the error rotation Q_true^T Q_est as a rotation vector, in degrees),
+obtained by propagating the given isotropic position noise linearly through the whole
+solution (numerical Jacobian, `linear_sigma`). Without a noise figure there is nothing to
+propagate and `sigma_source` is "none" (sigma reported as zeros, with a warning).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from app.solvers.errors import SolveError
+from app.solvers.validation import check_finite, check_positions_mm, check_rotation_matrices
+
+AxisName = Literal["+z", "-z", "+x", "-x"]
+WorkingAxis = Literal["x", "z"]
+SigmaSource = Literal["configured", "residuals", "none"]
+
+#: Largest rotation allowed between the two poses of a pure translation, deg.
+MAX_ORIENTATION_CHANGE_DEG = 0.5
+#: Shortest accepted translation, mm: shorter moves turn position noise into large angles.
+MIN_TRANSLATION_MM = 10.0
+#: The X move must be at least this far (deg) from the Z line, else X and Z are "parallel".
+MIN_X_Z_ANGLE_DEG = 30.0
+#: An X move further than this (deg) from perpendicular to Z earns a warning.
+WARN_ORTHOGONALITY_DEG = 2.0
+#: Two moves along the same tool axis that disagree by more than this (deg) are refused.
+MAX_SAME_AXIS_DISAGREEMENT_DEG = 30.0
+#: Shortest lever (mm) between touch points in the 2-point method; shorter is degenerate.
+MIN_LEVER_MM = 5.0
+#: Levers shorter than this (mm) earn a warning: small touch errors become large angles.
+WARN_LEVER_MM = 20.0
+
+_UNIT = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass(frozen=True)
+class Direction:
+    """A pure translation of the flange along one tool axis.
+
+    `axis` names the tool axis and sign the TCP moved along (from -> to). Rotations are
+    (3, 3) flange -> base, positions (3,) in mm (base frame).
+    """
+
+    axis: AxisName
+    rotation_from: NDArray[np.float64]
+    position_from_mm: NDArray[np.float64]
+    rotation_to: NDArray[np.float64]
+    position_to_mm: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class OrientationResult:
+    """A tool orientation with its quality figures.
+
+    rotation: (3, 3) tool -> flange. quaternion_wxyz: the same, w >= 0.
+    sigma_deg: 1-sigma of small rotations about tool x, y, z (deg); see `sigma_source`.
+    residuals: per measurement, mm (translations: how far each move strays sideways from
+    the fitted axis; touches and world alignment are exactly determined: zeros / empty).
+    """
+
+    rotation: NDArray[np.float64]
+    quaternion_wxyz: tuple[float, float, float, float]
+    sigma_deg: tuple[float, float, float]
+    residuals: tuple[float, ...]
+    warnings: tuple[str, ...]
+    sigma_source: SigmaSource = "none"
+
+
+# --------------------------------------------------------------------------------------
+# Shared helpers
+# --------------------------------------------------------------------------------------
+
+
+def quaternion_wxyz_from_matrix(rotation: ArrayLike) -> tuple[float, float, float, float]:
+    """Unit quaternion [w, x, y, z] (w >= 0) of a (3, 3) rotation matrix."""
+    q = Rotation.from_matrix(np.asarray(rotation, dtype=np.float64)).as_quat(
+        canonical=True, scalar_first=True
+    )
+    return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+
+
+def angle_between_deg(q1_wxyz: ArrayLike, q2_wxyz: ArrayLike) -> float:
+    """Angle (deg, 0..180) of the rotation between two orientations given as [w, x, y, z]."""
+    q1 = check_finite(q1_wxyz, loc=("q1",))
+    q2 = check_finite(q2_wxyz, loc=("q2",))
+    for name, q in (("q1", q1), ("q2", q2)):
+        if q.shape != (4,) or not 0.5 < float(np.linalg.norm(q)) < 2.0:
+            raise SolveError(
+                "invalid-rotation",
+                f"{name} must be a unit quaternion [w, x, y, z], got {q.tolist()}",
+                loc=(name,),
+            )
+    r1 = Rotation.from_quat(q1, scalar_first=True)
+    r2 = Rotation.from_quat(q2, scalar_first=True)
+    return float(np.degrees((r1.inv() * r2).magnitude()))
+
+
+def rotation_error_deg(reference: ArrayLike, estimate: ArrayLike) -> NDArray[np.float64]:
+    """Small rotation (deg) about the reference tool axes taking `reference` to `estimate`.
+
+    Both are (3, 3) tool -> flange; the result is the rotation vector of reference^T estimate.
+    """
+    ref = np.asarray(reference, dtype=np.float64)
+    est = np.asarray(estimate, dtype=np.float64)
+    rotvec: NDArray[np.float64] = Rotation.from_matrix(ref.T @ est).as_rotvec(degrees=True)
+    return rotvec
+
+
+def linear_sigma(
+    fn: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    x0: NDArray[np.float64],
+    sigma_in: NDArray[np.float64],
+    *,
+    step: float = 1e-3,
+) -> NDArray[np.float64]:
+    """1-sigma of fn(x) for independent input errors sigma_in, by a central-difference Jacobian.
+
+    fn maps the (n,) noisy inputs to (m,) outputs and must be smooth near x0 (all solvers
+    here are: ratios, square roots and normalisations of well-conditioned quantities).
+    """
+    x0 = np.asarray(x0, dtype=np.float64)
+    cols = []
+    for j in range(x0.size):
+        if sigma_in[j] == 0.0:
+            continue
+        e = np.zeros_like(x0)
+        e[j] = step
+        cols.append((fn(x0 + e) - fn(x0 - e)) / (2.0 * step) * sigma_in[j])
+    if not cols:
+        return np.zeros_like(fn(x0))
+    jac = np.stack(cols, axis=1)
+    out: NDArray[np.float64] = np.sqrt(np.sum(jac**2, axis=1))
+    return out
+
+
+def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    out: NDArray[np.float64] = v / np.linalg.norm(v)
+    return out
+
+
+def _orthogonalised(v: NDArray[np.float64], axis: NDArray[np.float64]) -> NDArray[np.float64]:
+    """v with its component along the unit vector `axis` removed (not normalised)."""
+    out: NDArray[np.float64] = v - float(v @ axis) * axis
+    return out
+
+
+def _frame_from_z_x(z: NDArray[np.float64], x_hint: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Right-handed frame [X Y Z] with Z = z and X = x_hint made orthogonal to Z."""
+    zu = _unit(z)
+    xu = _unit(_orthogonalised(x_hint, zu))
+    return np.column_stack([xu, np.cross(zu, xu), zu])
+
+
+def _frame_from_x_y(x: NDArray[np.float64], y_hint: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Right-handed frame [X Y Z] with X = x and Y = y_hint made orthogonal to X."""
+    xu = _unit(x)
+    yu = _unit(_orthogonalised(y_hint, xu))
+    return np.column_stack([xu, yu, np.cross(xu, yu)])
+
+
+def _result(
+    Q: NDArray[np.float64],
+    sigma: NDArray[np.float64] | None,
+    residuals: Sequence[float],
+    warnings: list[str],
+    source: SigmaSource,
+) -> OrientationResult:
+    if sigma is None:
+        sigma = np.zeros(3)
+        warnings.append("no position noise given: the orientation's uncertainty was not estimated")
+    return OrientationResult(
+        rotation=Q,
+        quaternion_wxyz=quaternion_wxyz_from_matrix(Q),
+        sigma_deg=(float(sigma[0]), float(sigma[1]), float(sigma[2])),
+        residuals=tuple(float(r) for r in residuals),
+        warnings=tuple(warnings),
+        sigma_source=source,
+    )
+
+
+def _check_noise(value: float | None, name: str) -> float | None:
+    if value is None:
+        return None
+    v = float(check_finite(value, loc=("options", name)))
+    if v < 0.0:
+        raise SolveError(
+            "invalid-options", f"{name} must be zero or positive, got {v:g}", loc=("options", name)
+        )
+    return v
+
+
+def _checked_rotation(R: ArrayLike, loc: tuple[str | int, ...], what: str) -> NDArray[np.float64]:
+    try:
+        arr = check_rotation_matrices(np.asarray(R, dtype=np.float64)[None], loc=loc)
+    except SolveError as exc:
+        detail = exc.detail.replace("pose 0", what)
+        raise SolveError(exc.kind, detail, loc=loc) from None
+    out: NDArray[np.float64] = arr[0]
+    return out
+
+
+def _checked_position(p: ArrayLike, loc: tuple[str | int, ...], what: str) -> NDArray[np.float64]:
+    arr = np.asarray(p, dtype=np.float64)
+    if arr.shape != (3,):
+        raise SolveError("invalid-pose", f"{what}: a position needs 3 values (mm)", loc=loc)
+    try:
+        out = check_positions_mm(arr[None], loc=loc)
+    except SolveError as exc:
+        raise SolveError(exc.kind, exc.detail.replace("pose 0", what), loc=loc) from None
+    pos: NDArray[np.float64] = out[0]
+    return pos
+
+
+# --------------------------------------------------------------------------------------
+# Pure translations (ABB TCP&Z,X; Fanuc six-point)
+# --------------------------------------------------------------------------------------
+
+
+def _translation_axes(
+    mid_rotations: Sequence[NDArray[np.float64]],
+    signs: NDArray[np.float64],
+    moves: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Signed tool-axis unit vectors in the flange frame, one per move ((n, 3))."""
+    out = np.empty_like(moves)
+    for i, (R, s, d) in enumerate(zip(mid_rotations, signs, moves, strict=True)):
+        out[i] = s * (R.T @ d) / np.linalg.norm(d)
+    return out
+
+
+def _combine(vectors: NDArray[np.float64], lengths: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Weighted mean direction: weights L^2 (a move's angular noise scales as 1/L)."""
+    return _unit(np.sum(vectors * (lengths**2)[:, None], axis=0))
+
+
+def _frame_from_moves(
+    mid_rotations: Sequence[NDArray[np.float64]],
+    signs: NDArray[np.float64],
+    is_z: NDArray[np.bool_],
+    moves: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    axes = _translation_axes(mid_rotations, signs, moves)
+    lengths = np.linalg.norm(moves, axis=1)
+    z = _combine(axes[is_z], lengths[is_z])
+    x_hint = _combine(axes[~is_z], lengths[~is_z]) if (~is_z).any() else np.array([1.0, 0, 0])
+    return _frame_from_z_x(z, x_hint)
+
+
+def orientation_from_translations(
+    directions: Sequence[Direction], *, position_noise_mm: float | None = None
+) -> OrientationResult:
+    """Tool frame from pure flange translations along tool +-Z (required) and +-X (optional).
+
+    Each move gives a tool axis in the flange frame: R^T (f_to - f_from) / |f_to - f_from|
+    with the sign the direction names (R: the mean of the two poses' rotations). Several
+    moves along one axis are averaged with weights L^2. X is made orthogonal to Z
+    (Gram-Schmidt), Y = Z x X; without an X move, X is the flange X made orthogonal to Z.
+    `position_noise_mm`: 1-sigma per coordinate of each recorded flange position.
+    """
+    noise = _check_noise(position_noise_mm, "position_noise_mm")
+    if len(directions) == 0:
+        raise SolveError(
+            "invalid-direction",
+            "no directions given: move the TCP along the tool's Z axis (at least one pair)",
+            loc=("directions",),
+        )
+    mids: list[NDArray[np.float64]] = []
+    signs = np.empty(len(directions))
+    is_z = np.zeros(len(directions), dtype=bool)
+    starts = np.empty((len(directions), 3))
+    ends = np.empty((len(directions), 3))
+    for i, d in enumerate(directions):
+        if d.axis not in ("+z", "-z", "+x", "-x"):
+            raise SolveError(
+                "invalid-direction",
+                f"direction {i}: axis must be one of +z, -z, +x, -x, got {d.axis!r}",
+                loc=("directions", i, "axis"),
+            )
+        Ra = _checked_rotation(d.rotation_from, ("directions", i, "from"), f"direction {i} 'from'")
+        Rb = _checked_rotation(d.rotation_to, ("directions", i, "to"), f"direction {i} 'to'")
+        starts[i] = _checked_position(
+            d.position_from_mm, ("directions", i, "from"), f"direction {i} 'from'"
+        )
+        ends[i] = _checked_position(
+            d.position_to_mm, ("directions", i, "to"), f"direction {i} 'to'"
+        )
+        pair = Rotation.from_matrix(np.stack([Ra, Rb]))
+        change = float(np.degrees((pair[0].inv() * pair[1]).magnitude()))
+        if change > MAX_ORIENTATION_CHANGE_DEG:
+            raise SolveError(
+                "orientation-changed",
+                f"direction {i} ({d.axis}): the flange orientation changed by {change:.2f} deg "
+                f"between 'from' and 'to'; a pure translation keeps it within "
+                f"{MAX_ORIENTATION_CHANGE_DEG} deg: jog in linear mode without rotating",
+                loc=("directions", i, "to"),
+                extra={"change_deg": change},
+            )
+        length = float(np.linalg.norm(ends[i] - starts[i]))
+        if length < MIN_TRANSLATION_MM:
+            raise SolveError(
+                "invalid-direction",
+                f"direction {i} ({d.axis}): the flange moved only {length:.2f} mm; move at "
+                f"least {MIN_TRANSLATION_MM:g} mm along the tool axis",
+                loc=("directions", i, "to"),
+                extra={"length_mm": length},
+            )
+        mids.append(pair.mean().as_matrix())
+        signs[i] = 1.0 if d.axis[0] == "+" else -1.0
+        is_z[i] = d.axis[1] == "z"
+    if not is_z.any():
+        raise SolveError(
+            "invalid-direction",
+            "no move along the tool's Z axis: the Z direction is required (X is optional)",
+            loc=("directions",),
+        )
+    moves = ends - starts
+    axes = _translation_axes(mids, signs, moves)
+    lengths = np.linalg.norm(moves, axis=1)
+    for i in range(len(directions)):
+        # Compare with the first move along the same axis, before averaging: two moves that
+        # contradict each other could cancel and leave no direction at all.
+        first = int(np.flatnonzero(is_z == is_z[i])[0])
+        off = float(np.degrees(np.arccos(np.clip(axes[i] @ axes[first], -1.0, 1.0))))
+        if off > MAX_SAME_AXIS_DISAGREEMENT_DEG:
+            raise SolveError(
+                "invalid-direction",
+                f"direction {i} ({directions[i].axis}) points {off:.0f} deg away from "
+                f"direction {first} ({directions[first].axis}) along the same tool axis: check "
+                "the sign and that the right axis was jogged",
+                loc=("directions", i, "axis"),
+            )
+    z = _combine(axes[is_z], lengths[is_z])
+    x = _combine(axes[~is_z], lengths[~is_z]) if (~is_z).any() else None
+    warnings: list[str] = []
+    if x is not None:
+        line_angle = float(np.degrees(np.arccos(min(1.0, abs(float(x @ z))))))
+        if line_angle < MIN_X_Z_ANGLE_DEG:
+            i_x = int(np.flatnonzero(~is_z)[0])
+            raise SolveError(
+                "invalid-direction",
+                f"the X move is only {line_angle:.1f} deg from the Z move: X and Z are (nearly) "
+                "parallel; jog along the tool's X axis, perpendicular to Z",
+                loc=("directions", i_x, "to"),
+                extra={"angle_deg": line_angle},
+            )
+        defect = 90.0 - float(np.degrees(np.arccos(float(np.clip(x @ z, -1.0, 1.0)))))
+        if abs(defect) > WARN_ORTHOGONALITY_DEG:
+            warnings.append(
+                f"the X move is {abs(defect):.2f} deg from perpendicular to Z; X was made "
+                "orthogonal to Z (check that the moves were pure tool-axis moves)"
+            )
+    else:
+        warnings.append("no X move: the tool X axis is the flange X axis made orthogonal to Z")
+    Q = _frame_from_moves(mids, signs, is_z, moves)
+    # Sideways deviation of each move from the fitted axis, mm.
+    fitted = np.where(is_z[:, None], Q[:, 2][None, :], Q[:, 0][None, :])
+    residuals = [
+        float(np.linalg.norm(_orthogonalised(lengths[i] * axes[i], fitted[i])))
+        for i in range(len(directions))
+    ]
+    sigma = None
+    if noise is not None:
+        x0 = np.concatenate([starts.ravel(), ends.ravel()])
+        n = len(directions)
+
+        def fn(xv: NDArray[np.float64]) -> NDArray[np.float64]:
+            mv = xv[3 * n :].reshape(n, 3) - xv[: 3 * n].reshape(n, 3)
+            return rotation_error_deg(Q, _frame_from_moves(mids, signs, is_z, mv))
+
+        sigma = linear_sigma(fn, x0, np.full(x0.size, noise))
+    return _result(Q, sigma, residuals, warnings, "configured" if noise is not None else "none")
+
+
+# --------------------------------------------------------------------------------------
+# Touches (KUKA ABC 2-point)
+# --------------------------------------------------------------------------------------
+
+
+def _frame_from_touch_points(
+    t: NDArray[np.float64],
+    rotations: NDArray[np.float64],
+    positions: NDArray[np.float64],
+    working_axis: WorkingAxis,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(Q, axis vector t - p2, y vector p3 - t) in the flange frame."""
+    r = rotations[0] @ t + positions[0]
+    p2 = rotations[1].T @ (r - positions[1])
+    p3 = rotations[2].T @ (r - positions[2])
+    w = t - p2
+    y = p3 - t
+    if working_axis == "x":
+        Q = _frame_from_x_y(w, y)
+    else:
+        wu = _unit(w)
+        yu = _unit(_orthogonalised(y, wu))
+        Q = np.column_stack([np.cross(yu, wu), yu, wu])
+    return Q, w, y
+
+
+def orientation_from_touches(
+    *,
+    tcp_mm: ArrayLike,
+    rotations: ArrayLike,
+    positions_mm: ArrayLike,
+    working_axis: WorkingAxis = "x",
+    touch_noise_mm: float | None = None,
+) -> OrientationResult:
+    """Tool frame from three touches of one fixed point (KUKA "ABC 2-point").
+
+    rotations (3, 3, 3) and positions_mm (3, 3): the flange poses of
+    0: the TCP touching the point (r = R0 t + f0);
+    1: a point on the working axis behind the TCP (nearer the flange) touching r;
+    2: a point in the plane of the working axis and tool +Y, on the +Y side, touching r
+       (for the KUKA working axis X: the tool XY plane).
+    The working axis is (t - p2)/|t - p2|; Y comes from p3 - t made orthogonal to it.
+    `touch_noise_mm`: 1-sigma per coordinate of each touch (flange position).
+    The solution is exactly determined: the residuals are zeros.
+    """
+    if working_axis not in ("x", "z"):
+        raise SolveError(
+            "invalid-options",
+            f"working_axis must be 'x' or 'z', got {working_axis!r}",
+            loc=("options", "working_axis"),
+        )
+    noise = _check_noise(touch_noise_mm, "touch_noise_mm")
+    t = check_finite(tcp_mm, loc=("options", "tcp_mm"))
+    if t.shape != (3,):
+        raise SolveError("invalid-options", "tcp_mm needs 3 values (mm)", loc=("options", "tcp_mm"))
+    R = np.asarray(rotations, dtype=np.float64)
+    f = np.asarray(positions_mm, dtype=np.float64)
+    if R.shape[0] != 3 or f.shape[0] != 3:
+        raise SolveError(
+            "too-few-poses" if min(R.shape[0], f.shape[0]) < 3 else "invalid-pose",
+            "the 2-point method takes exactly 3 touches: TCP, a point on the working axis "
+            "behind it, a point on +Y",
+            loc=("poses",),
+        )
+    R = check_rotation_matrices(R, loc=("poses",))
+    f = check_positions_mm(f, loc=("poses",))
+    Q, w, y = _frame_from_touch_points(t, R, f, working_axis)
+    lever_axis = float(np.linalg.norm(w))
+    if lever_axis < MIN_LEVER_MM:
+        raise SolveError(
+            "degenerate-poses",
+            f"touch 1 puts the working-axis point only {lever_axis:.2f} mm from the TCP: touch "
+            f"the point with a spot on the {working_axis.upper()} axis at least "
+            f"{MIN_LEVER_MM:g} mm behind the TCP",
+            loc=("poses", 1),
+            extra={"lever_mm": lever_axis},
+        )
+    lever_y = float(np.linalg.norm(_orthogonalised(y, w / lever_axis)))
+    if lever_y < MIN_LEVER_MM:
+        raise SolveError(
+            "degenerate-poses",
+            f"the three touched tool points are (nearly) collinear: touch 2 is only "
+            f"{lever_y:.2f} mm off the working axis; touch with a point on the tool's +Y "
+            f"side at least {MIN_LEVER_MM:g} mm away from the axis",
+            loc=("poses", 2),
+            extra={"lever_mm": lever_y},
+        )
+    warnings: list[str] = []
+    for name, lever in (("working-axis", lever_axis), ("+Y", lever_y)):
+        if lever < WARN_LEVER_MM:
+            warnings.append(
+                f"the {name} lever is only {lever:.1f} mm: touch errors are magnified into "
+                "orientation errors; use points further apart"
+            )
+    sigma = None
+    if noise is not None:
+
+        def fn(xv: NDArray[np.float64]) -> NDArray[np.float64]:
+            Qp = _frame_from_touch_points(t, R, xv.reshape(3, 3), working_axis)[0]
+            return rotation_error_deg(Q, Qp)
+
+        sigma = linear_sigma(fn, f.ravel(), np.full(9, noise))
+    return _result(
+        Q, sigma, (0.0, 0.0, 0.0), warnings, "configured" if noise is not None else "none"
+    )
+
+
+# --------------------------------------------------------------------------------------
+# World alignment (KUKA ABC world, 5D and 6D)
+# --------------------------------------------------------------------------------------
+
+
+def _parse_base_direction(value: object, key: str) -> NDArray[np.float64]:
+    text = str(value).strip().lower()
+    if len(text) == 1:
+        text = "+" + text
+    if len(text) != 2 or text[0] not in "+-" or text[1] not in _UNIT:
+        raise SolveError(
+            "invalid-options",
+            f"align.{key}: a base direction is one of +x, -x, +y, -y, +z, -z; got {value!r}",
+            loc=("options", "align", key),
+        )
+    v = np.zeros(3)
+    v[_UNIT[text[1]]] = 1.0 if text[0] == "+" else -1.0
+    return v
+
+
+def orientation_from_world(
+    *,
+    rotation: ArrayLike,
+    align: Mapping[str, str],
+    working_axis: WorkingAxis = "x",
+) -> OrientationResult:
+    """Tool frame from one flange pose with tool axes aligned to base axes (KUKA ABC world).
+
+    rotation (3, 3): flange -> base at the aligned pose. align maps tool axes to base
+    directions, e.g. {"x": "-z"} (5D) or {"x": "-z", "y": "+y"} (6D). Q = R^T M, M holding
+    the named base directions. With one axis named (5D) only that axis is fixed and the
+    rotation about it is the one closest to the flange frame (the smallest rotation from the
+    flange frame that carries the flange's own axis onto the named direction).
+    `working_axis` documents the 5D convention: a 5D alignment normally names it; naming
+    another axis is accepted and earns a warning. No measurement redundancy: no residuals,
+    and no noise model (sigma_source "none").
+    """
+    if working_axis not in ("x", "z"):
+        raise SolveError(
+            "invalid-options",
+            f"working_axis must be 'x' or 'z', got {working_axis!r}",
+            loc=("options", "working_axis"),
+        )
+    R = check_rotation_matrices(np.asarray(rotation, dtype=np.float64)[None], loc=("poses",))[0]
+    if not isinstance(align, Mapping) or not 1 <= len(align) <= 3:
+        raise SolveError(
+            "invalid-options",
+            "align must name one (5D) or two (6D) tool axes, e.g. {'x': '-z', 'y': '+y'}",
+            loc=("options", "align"),
+        )
+    named: dict[int, NDArray[np.float64]] = {}
+    for key, value in align.items():
+        k = str(key).strip().lower()
+        if k not in _UNIT:
+            raise SolveError(
+                "invalid-options",
+                f"align: {key!r} is not a tool axis; use x, y or z",
+                loc=("options", "align", str(key)),
+            )
+        if _UNIT[k] in named:
+            raise SolveError(
+                "invalid-options",
+                f"align names the tool axis {k} twice",
+                loc=("options", "align", str(key)),
+            )
+        v = _parse_base_direction(value, k)
+        for other, ov in named.items():
+            if abs(float(v @ ov)) > 0.5:
+                raise SolveError(
+                    "invalid-options",
+                    f"align maps tool {'xyz'[other]} and tool {k} onto the same base axis; "
+                    "tool axes are perpendicular, so they must go to different base axes",
+                    loc=("options", "align", str(key)),
+                )
+        named[_UNIT[k]] = v
+    warnings: list[str] = []
+    if len(named) == 1:
+        ((a, b_base),) = named.items()
+        if a != _UNIT[working_axis]:
+            warnings.append(
+                f"5D alignment of tool {'xyz'[a]}, not of the working axis {working_axis}: "
+                "the rotation about tool " + "xyz"[a] + " was taken as close to the flange as "
+                "possible"
+            )
+        w = R.T @ b_base  # the tool axis, in the flange frame
+        e = np.zeros(3)
+        e[a] = 1.0
+        cross = np.cross(e, w)
+        s = float(np.linalg.norm(cross))
+        c = float(e @ w)
+        if s < 1e-12:
+            if c > 0:
+                Q = np.eye(3)
+            else:
+                # Half-turn: every axis perpendicular to e is equally close; pick a fixed one.
+                spin = np.zeros(3)
+                spin[(a + 2) % 3] = 1.0
+                Q = Rotation.from_rotvec(np.pi * spin).as_matrix()
+                warnings.append(
+                    "the named direction is opposite the flange's own axis: the half-turn "
+                    f"about the flange {'xyz'[(a + 2) % 3]} axis was chosen"
+                )
+        else:
+            Q = Rotation.from_rotvec(cross / s * float(np.arctan2(s, c))).as_matrix()
+    else:
+        M = np.zeros((3, 3))
+        for a, v in named.items():
+            M[:, a] = v
+        if len(named) == 2:
+            missing = ({0, 1, 2} - set(named)).pop()
+            i, j = (missing + 1) % 3, (missing + 2) % 3
+            M[:, missing] = np.cross(M[:, i], M[:, j])
+        elif np.linalg.det(M) < 0:
+            raise SolveError(
+                "invalid-options",
+                "align names a left-handed set of axes (x cross y must equal z); name two "
+                "axes and let the third follow",
+                loc=("options", "align"),
+            )
+        Q = R.T @ M
+    return _result(Q, np.zeros(3), (), warnings, "none")

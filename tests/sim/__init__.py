@@ -1,0 +1,1 @@
+"""Seeded simulators of calibration measurements with known truth."""
