@@ -159,7 +159,11 @@ def validation_response(exc: RequestValidationError) -> JSONResponse:
     for err in exc.errors():
         if err.get("type") == "finite_number":
             non_finite = True
-        errors.append({"loc": _loc(err.get("loc", ())), "msg": str(err.get("msg", ""))})
+        loc = _loc(err.get("loc", ()))
+        if err.get("type") in {"union_tag_invalid", "union_tag_not_found"}:
+            # pydantic reports a bad discriminator at its parent; name the field itself
+            loc.append(str(err.get("ctx", {}).get("discriminator", "")).strip("'"))
+        errors.append({"loc": loc, "msg": str(err.get("msg", ""))})
     first = errors[0] if errors else {"loc": [], "msg": "invalid request"}
     where = ".".join(str(p) for p in first["loc"]) or "body"
     detail = f"{where}: {first['msg']}"

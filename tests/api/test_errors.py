@@ -1,0 +1,208 @@
+"""Every kind of bad input gets a problem+json naming the field and the reason, never a 500."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.conftest import Api
+
+PROBLEM = "application/problem+json"
+
+
+def _problem(response, status: int, type_suffix: str) -> dict:  # type: ignore[no-untyped-def]
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"].startswith(PROBLEM)
+    body = response.json()
+    assert body["status"] == status
+    assert body["type"].endswith("/" + type_suffix), body
+    assert body["title"]
+    assert body["detail"]
+    return dict(body)
+
+
+def test_unknown_robot_id_is_404_naming_the_id(api: Api) -> None:
+    body = _problem(api.get("/v1/robots/nope"), 404, "not-found")
+    assert "nope" in body["detail"]
+
+
+def test_unknown_tool_and_calibration_ids_are_404(api: Api) -> None:
+    _problem(api.get("/v1/tools/missing-tool/tcp"), 404, "not-found")
+    _problem(api.get("/v1/calibrations/missing-cal"), 404, "not-found")
+    _problem(api.post("/v1/robots/missing/tools", {"name": "t"}), 404, "not-found")
+
+
+def test_duplicate_robot_name_is_409_naming_name(api: Api) -> None:
+    api.robot("same")
+    body = _problem(api.post("/v1/robots", {"name": "same"}), 409, "conflict")
+    assert body["errors"] == [{"loc": ["body", "name"], "msg": "already taken"}]
+
+
+def test_duplicate_tool_name_and_slot_are_409(api: Api) -> None:
+    robot = api.robot()
+    api.tool(robot["id"], "gripper", slot=3)
+    by_name = _problem(
+        api.post(f"/v1/robots/{robot['id']}/tools", {"name": "gripper"}), 409, "conflict"
+    )
+    assert by_name["errors"][0]["loc"] == ["body", "name"]
+    by_slot = _problem(
+        api.post(f"/v1/robots/{robot['id']}/tools", {"name": "torch", "slot": 3}), 409, "conflict"
+    )
+    assert by_slot["errors"][0]["loc"] == ["body", "slot"]
+    assert "slot 3" in by_slot["detail"]
+
+
+def test_wrong_type_is_422_naming_field(api: Api) -> None:
+    robot = api.robot()
+    body = _problem(
+        api.post(f"/v1/robots/{robot['id']}/tools", {"name": "t", "slot": "three"}),
+        422,
+        "validation",
+    )
+    assert body["errors"][0]["loc"] == ["body", "slot"]
+
+
+def test_missing_field_is_422_naming_field(api: Api) -> None:
+    body = _problem(api.post("/v1/robots", {"vendor": "KUKA"}), 422, "validation")
+    assert body["errors"][0]["loc"] == ["body", "name"]
+    assert "required" in body["errors"][0]["msg"].lower()
+
+
+def test_unknown_field_is_422_naming_it(api: Api) -> None:
+    body = _problem(api.post("/v1/robots", {"name": "r", "vendr": "KUKA"}), 422, "validation")
+    assert body["errors"][0]["loc"] == ["body", "vendr"]
+
+
+@pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity"])
+def test_non_finite_numbers_are_422_non_finite(api: Api, token: str) -> None:
+    robot = api.robot()
+    tool = api.tool(robot["id"])
+    raw = '{"method": "manual", "tcp": {"position_mm": [0, 0, %s]}}' % token
+    response = api.client.post(
+        f"/v1/tools/{tool['id']}/calibrations",
+        content=raw,
+        headers={**api.headers("calibrate"), "content-type": "application/json"},
+    )
+    body = _problem(response, 422, "non-finite")
+    assert body["errors"][0]["loc"] == ["body", "tcp", "position_mm", 2]
+    assert api.get(f"/v1/tools/{tool['id']}/versions").json()["items"] == []
+
+
+def test_unknown_format_is_422_naming_format(api: Api) -> None:
+    robot = api.robot()
+    tool = api.tool(robot["id"])
+    response = api.post(
+        f"/v1/tools/{tool['id']}/calibrations",
+        {"method": "manual", "format": "kuka_xyz", "poses": [[0, 0, 0, 0, 0, 0]]},
+        scope="calibrate",
+    )
+    body = _problem(response, 422, "validation")
+    assert body["errors"][0]["loc"] == ["body", "format"]
+    assert "kuka_abc" in body["errors"][0]["msg"]
+
+
+def test_unknown_method_is_422_naming_method(api: Api) -> None:
+    robot = api.robot()
+    tool = api.tool(robot["id"])
+    body = _problem(
+        api.post(f"/v1/tools/{tool['id']}/calibrations", {"method": "guess"}, scope="calibrate"),
+        422,
+        "validation",
+    )
+    assert body["errors"][0]["loc"] == ["body", "method"]
+
+
+def test_body_over_one_mib_is_413(api: Api) -> None:
+    padding = "x" * (1024 * 1024)
+    response = api.post("/v1/robots", {"name": "big", "description": padding})
+    _problem(response, 413, "payload-too-large")
+    assert api.get("/v1/robots").json()["items"] == []
+
+
+def test_chunked_body_over_limit_is_413(api: Api) -> None:
+    def chunks():  # type: ignore[no-untyped-def]
+        yield b'{"name": "'
+        for _ in range(20):
+            yield b"y" * 65536
+        yield b'"}'
+
+    response = api.client.post(
+        "/v1/robots",
+        content=chunks(),
+        headers={**api.headers("admin"), "content-type": "application/json"},
+    )
+    _problem(response, 413, "payload-too-large")
+
+
+def test_scope_too_small_is_403_and_no_key_is_401(api: Api) -> None:
+    body = _problem(api.post("/v1/robots", {"name": "r"}, scope="calibrate"), 403, "forbidden")
+    assert "admin" in body["detail"]
+    assert "calibrate" in body["detail"]
+    _problem(api.client.get("/v1/robots"), 401, "unauthorized")
+    _problem(
+        api.client.get("/v1/robots", headers={"Authorization": "Bearer wrong"}), 401, "unauthorized"
+    )
+    _problem(
+        api.client.get("/v1/robots", headers={"Authorization": "Basic abc"}), 401, "unauthorized"
+    )
+
+
+def test_read_key_cannot_calibrate(api: Api) -> None:
+    robot = api.robot()
+    tool = api.tool(robot["id"])
+    _problem(
+        api.post(
+            f"/v1/tools/{tool['id']}/calibrations",
+            {"method": "manual", "tcp": {"position_mm": [0, 0, 1]}},
+            scope="read",
+        ),
+        403,
+        "forbidden",
+    )
+
+
+def test_unknown_route_and_wrong_method_are_problems(api: Api) -> None:
+    _problem(api.get("/v1/nothing-here"), 404, "not-found")
+    _problem(api.client.put("/v1/robots", headers=api.headers()), 405, "method-not-allowed")
+
+
+def test_malformed_json_is_422(api: Api) -> None:
+    response = api.client.post(
+        "/v1/robots",
+        content=b'{"name": ',
+        headers={**api.headers(), "content-type": "application/json"},
+    )
+    _problem(response, 422, "validation")
+
+
+def test_limit_over_max_is_422_and_bad_cursor_is_422(api: Api) -> None:
+    body = _problem(api.get("/v1/robots?limit=501"), 422, "validation")
+    assert body["errors"][0]["loc"] == ["query", "limit"]
+    body = _problem(api.get("/v1/robots?cursor=garbage"), 422, "invalid-cursor")
+    assert body["errors"][0]["loc"] == ["query", "cursor"]
+
+
+def test_bad_quaternion_length_is_422(api: Api) -> None:
+    robot = api.robot()
+    tool = api.tool(robot["id"])
+    response = api.post(
+        f"/v1/tools/{tool['id']}/calibrations",
+        {"method": "manual", "tcp": {"position_mm": [0, 0, 1], "quaternion": [1, 0, 0]}},
+        scope="calibrate",
+    )
+    body = _problem(response, 422, "validation")
+    assert body["errors"][0]["loc"] == ["body", "tcp", "quaternion"]
+
+
+def test_non_unit_quaternion_is_422_invalid_rotation(api: Api) -> None:
+    robot = api.robot()
+    tool = api.tool(robot["id"])
+    response = api.post(
+        f"/v1/tools/{tool['id']}/calibrations",
+        {"method": "manual", "tcp": {"position_mm": [0, 0, 1], "quaternion": [2, 0, 0, 0]}},
+        scope="calibrate",
+    )
+    body = _problem(response, 422, "invalid-rotation")
+    assert body["errors"][0]["loc"][:2] == ["tcp", "quaternion"]
+    assert json.dumps(body).count("NaN") == 0

@@ -1,0 +1,213 @@
+"""Manual TCPs become versions 1..n; activation, rollback, ETags, the served TCP."""
+
+from __future__ import annotations
+
+from tests.conftest import Api
+
+
+def _setup(api: Api) -> tuple[dict, dict]:  # type: ignore[type-arg]
+    robot = api.robot("kr16", vendor="KUKA")
+    tool = api.tool(robot["id"], "torch", slot=3, load={"mass_kg": 2.5, "cog_mm": [0, 0, 80]})
+    return robot, tool
+
+
+def test_manual_creates_versions_in_order_and_activates(api: Api) -> None:
+    _, tool = _setup(api)
+    first = api.manual(tool["id"], [0, 0, 150])
+    second = api.manual(tool["id"], [1, 2, 151], note="after crash")
+    assert (first["version"], first["status"], first["active"]) == (1, "accepted", True)
+    assert (second["version"], second["active"]) == (2, True)
+    versions = api.get(f"/v1/tools/{tool['id']}/versions").json()
+    assert [v["version"] for v in versions["items"]] == [1, 2]
+    assert [v["active"] for v in versions["items"]] == [False, True]
+    assert versions["items"][1]["note"] == "after crash"
+    assert versions["items"][1]["created_by"] == "test-calibrate"
+    assert [a["version"] for a in versions["activations"]] == [1, 2]
+    assert versions["activations"][1]["previous_version"] == 1
+
+
+def test_activate_never_keeps_previous_and_explicit_activation_rolls_back(api: Api) -> None:
+    _, tool = _setup(api)
+    api.manual(tool["id"], [0, 0, 150])
+    newer = api.manual(tool["id"], [0, 0, 160], activate="never")
+    assert (newer["version"], newer["active"]) == (2, False)
+    assert api.get(f"/v1/tools/{tool['id']}/tcp").json()["version"] == 1
+
+    etag = api.get(f"/v1/tools/{tool['id']}").headers["etag"]
+    ok = api.post(
+        f"/v1/tools/{tool['id']}/versions/2/activate", scope="calibrate", headers={"If-Match": etag}
+    )
+    assert ok.status_code == 200
+    assert ok.json()["active_version"] == 2
+    assert ok.headers["etag"] != etag
+    stale = api.post(
+        f"/v1/tools/{tool['id']}/versions/1/activate", scope="calibrate", headers={"If-Match": etag}
+    )
+    assert stale.status_code == 412
+    assert stale.json()["type"].endswith("/precondition-failed")
+    assert api.get(f"/v1/tools/{tool['id']}/tcp").json()["tcp"]["position_mm"] == [0, 0, 160]
+    back = api.post(f"/v1/tools/{tool['id']}/versions/1/activate", scope="calibrate")
+    assert back.json()["active_version"] == 1
+    history = api.get(f"/v1/tools/{tool['id']}/versions").json()["activations"]
+    assert [(a["version"], a["reason"]) for a in history] == [
+        (1, "calibration:auto"),
+        (2, "explicit"),
+        (1, "explicit"),
+    ]
+    missing = api.post(f"/v1/tools/{tool['id']}/versions/9/activate", scope="calibrate")
+    assert missing.status_code == 404
+
+
+def test_tcp_etag_304_and_change(api: Api) -> None:
+    _, tool = _setup(api)
+    none = api.get(f"/v1/tools/{tool['id']}/tcp")
+    assert none.status_code == 404
+    assert none.json()["type"].endswith("/no-active-version")
+    api.manual(tool["id"], [0, 0, 150])
+    first = api.get(f"/v1/tools/{tool['id']}/tcp")
+    body = first.json()
+    assert body["version"] == 1
+    assert body["slot"] == 3
+    assert body["method"] == "manual"
+    assert body["tcp"] == {"position_mm": [0, 0, 150], "quaternion": [1, 0, 0, 0]}
+    etag = first.headers["etag"]
+    assert etag.startswith('"')
+    not_modified = api.get(f"/v1/tools/{tool['id']}/tcp", headers={"If-None-Match": etag})
+    assert not_modified.status_code == 304
+    assert not_modified.headers["etag"] == etag
+    api.manual(tool["id"], [0, 0, 151])
+    changed = api.get(f"/v1/tools/{tool['id']}/tcp", headers={"If-None-Match": etag})
+    assert changed.status_code == 200
+    assert changed.json()["version"] == 2
+
+
+def test_tcp_as_kuka_text(api: Api) -> None:
+    _, tool = _setup(api)
+    api.manual(tool["id"], [0, 0, 150])
+    body = api.get(f"/v1/tools/{tool['id']}/tcp?format=kuka").json()
+    controller = body["controller"]
+    assert controller["format"] == "kuka"
+    assert controller["text"].startswith("$TOOL_DATA[3]={X 0")
+    assert controller["values"]["Z"] == 150
+
+
+def test_manual_pose_entry_as_kuka_abc(api: Api) -> None:
+    _, tool = _setup(api)
+    response = api.post(
+        f"/v1/tools/{tool['id']}/calibrations",
+        {"method": "manual", "format": "kuka_abc", "poses": [[10, 0, 200, 0, 90, 0]]},
+        scope="calibrate",
+    )
+    assert response.status_code == 201, response.text
+    tcp = response.json()["tcp"]
+    assert tcp["position_mm"] == [10, 0, 200]
+    w, x, y, z = tcp["quaternion"]
+    assert abs(w - 2**-0.5) < 1e-12
+    assert abs(y - 2**-0.5) < 1e-12
+    assert abs(x) < 1e-12
+    assert abs(z) < 1e-12
+
+
+def test_tool_table_lists_active_tcps(api: Api) -> None:
+    robot, tool = _setup(api)
+    other = api.tool(robot["id"], "gripper", slot=1)
+    api.manual(tool["id"], [0, 0, 150])
+    table = api.get(f"/v1/robots/{robot['id']}/tool-table?format=kuka").json()
+    assert [t["tool_id"] for t in table["items"]] == [tool["id"]]
+    assert table["items"][0]["controller"]["text"].startswith("$TOOL_DATA[3]=")
+    assert table["without_active_version"] == [other["id"]]
+
+
+def test_archive_tool_stops_serving_and_keeps_history(api: Api) -> None:
+    robot, tool = _setup(api)
+    api.manual(tool["id"], [0, 0, 150])
+    assert api.delete(f"/v1/tools/{tool['id']}").status_code == 204
+    gone = api.get(f"/v1/tools/{tool['id']}/tcp")
+    assert gone.status_code == 404
+    assert gone.json()["type"].endswith("/archived")
+    assert api.get(f"/v1/robots/{robot['id']}/tools").json()["items"] == []
+    # the name and slot are free again; the calibration is kept
+    again = api.tool(robot["id"], "torch", slot=3)
+    assert again["id"] != tool["id"]
+    cal_id = api.get(f"/v1/robots/{robot['id']}/tool-table").json()
+    assert cal_id["items"] == []
+
+
+def test_archive_robot_archives_its_tools(api: Api) -> None:
+    robot, tool = _setup(api)
+    api.manual(tool["id"], [0, 0, 150])
+    assert api.delete(f"/v1/robots/{robot['id']}").status_code == 204
+    assert api.get(f"/v1/robots/{robot['id']}").json()["type"].endswith("/archived")
+    assert api.get(f"/v1/tools/{tool['id']}").json()["type"].endswith("/archived")
+    assert api.get("/v1/robots").json()["items"] == []
+    assert api.robot("kr16")["name"] == "kr16"
+
+
+def test_pagination_walks_every_robot_once(api: Api) -> None:
+    names = {f"r{i:02d}" for i in range(7)}
+    for name in sorted(names):
+        api.robot(name)
+    seen: list[str] = []
+    cursor = None
+    while True:
+        query = "/v1/robots?limit=3" + (f"&cursor={cursor}" if cursor else "")
+        page = api.get(query).json()
+        assert len(page["items"]) <= 3
+        seen += [r["name"] for r in page["items"]]
+        cursor = page["next_cursor"]
+        if cursor is None:
+            break
+    assert sorted(seen) == sorted(names)
+    assert len(seen) == 7
+
+
+def test_patch_tool_changes_etag_and_honours_if_match(api: Api) -> None:
+    _, tool = _setup(api)
+    etag = api.get(f"/v1/tools/{tool['id']}").headers["etag"]
+    patched = api.patch(
+        f"/v1/tools/{tool['id']}", {"tolerance": {"max_rms_mm": 0.2}}, headers={"If-Match": etag}
+    )
+    assert patched.status_code == 200
+    assert patched.json()["tolerance"]["max_rms_mm"] == 0.2
+    assert patched.json()["tolerance"]["max_residual_mm"] == 1.0
+    stale = api.patch(f"/v1/tools/{tool['id']}", {"serial": "x"}, headers={"If-Match": etag})
+    assert stale.status_code == 412
+
+
+def test_calibration_detail_keeps_request_as_received(api: Api) -> None:
+    _, tool = _setup(api)
+    created = api.manual(tool["id"], [0, 0, 150], note="from pendant")
+    detail = api.get(f"/v1/calibrations/{created['id']}").json()
+    assert detail["request"] == {
+        "method": "manual",
+        "tcp": {"position_mm": [0, 0, 150]},
+        "note": "from pendant",
+    }
+    listed = api.get(f"/v1/tools/{tool['id']}/calibrations").json()["items"]
+    assert [c["id"] for c in listed] == [created["id"]]
+
+
+def test_keys_create_list_revoke(api: Api) -> None:
+    created = api.post("/v1/keys", {"name": "cell-12", "scope": "read"})
+    assert created.status_code == 201
+    key = created.json()
+    assert key["key"].startswith("tcpcal_")
+    assert key["scope"] == "read"
+    listed = api.get("/v1/keys", scope="admin").json()["items"]
+    assert "key" not in listed[0]
+    assert any(k["id"] == key["id"] for k in listed)
+    ok = api.client.get("/v1/robots", headers={"Authorization": f"Bearer {key['key']}"})
+    assert ok.status_code == 200
+    assert api.delete(f"/v1/keys/{key['id']}").status_code == 204
+    revoked = api.client.get("/v1/robots", headers={"Authorization": f"Bearer {key['key']}"})
+    assert revoked.status_code == 401
+
+
+def test_health_ready_metrics(api: Api) -> None:
+    assert api.client.get("/health").json() == {"status": "ok"}
+    ready = api.client.get("/ready").json()
+    assert ready["ready"] is True
+    assert ready["revision"] == ready["head"]
+    api.get("/v1/robots")
+    text = api.client.get("/metrics").text
+    assert 'tcpcal_http_requests_total{method="GET",route="/v1/robots",status="200"}' in text
