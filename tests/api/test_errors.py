@@ -78,7 +78,7 @@ def test_unknown_field_is_422_naming_it(api: Api) -> None:
 def test_non_finite_numbers_are_422_non_finite(api: Api, token: str) -> None:
     robot = api.robot()
     tool = api.tool(robot["id"])
-    raw = '{"method": "manual", "tcp": {"position_mm": [0, 0, %s]}}' % token
+    raw = '{"method": "manual", "tcp": {"position_mm": [0, 0, TOKEN]}}'.replace("TOKEN", token)
     response = api.client.post(
         f"/v1/tools/{tool['id']}/calibrations",
         content=raw,
