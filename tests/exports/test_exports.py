@@ -1,0 +1,252 @@
+"""Controller texts: known outputs, vendor examples, export -> parse round trips, refusals."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+from scipy.spatial.transform import Rotation
+
+from app.exports import (
+    CONTROLLER_FORMATS,
+    ToolData,
+    export_tool,
+    parse_controller_text,
+    rapid_identifier,
+)
+from app.solvers.errors import SolveError
+
+H = math.sqrt(0.5)
+
+
+def tool(
+    position: list[float] | None = None,
+    quaternion: list[float] | None = None,
+    *,
+    slot: int | None = 3,
+    name: str = "gripper",
+    mass: float | None = 1.5,
+    cog: list[float] | None = None,
+) -> ToolData:
+    return ToolData(
+        slot=slot,
+        name=name,
+        position_mm=np.array(position if position is not None else [0.0, 0.0, 150.0]),
+        quaternion_wxyz=np.array(quaternion if quaternion is not None else [1.0, 0, 0, 0]),
+        mass_kg=mass,
+        cog_mm=np.array(cog if cog is not None else [0.0, 0.0, 60.0]),
+    )
+
+
+# --- known texts -------------------------------------------------------------------------------
+
+
+def test_kuka_text_as_in_api_doc() -> None:
+    """API.md's example: $TOOL_DATA[3]={X 0.0,Y 0.0,Z 150.0,A 0.0,B 0.0,C 0.0}, here with 6/7
+    decimals (see app/exports/base.py for why)."""
+    out = export_tool("kuka", tool())
+    assert out.text == (
+        "$TOOL_DATA[3]={X 0.000000,Y 0.000000,Z 150.000000,A 0.0000000,B 0.0000000,C 0.0000000}"
+    )
+    assert out.values == {"slot": 3, "X": 0.0, "Y": 0.0, "Z": 150.0, "A": 0.0, "B": 0.0, "C": 0.0}
+
+
+def test_kuka_tool_z_along_flange_x() -> None:
+    """Tool turned -90 deg about flange Y (quaternion [cos45, 0, -sin45, 0]): B = -90 in
+    KUKA's Rz(A) Ry(B) Rx(C) (independent: the rotation is a pure Ry)."""
+    out = export_tool("kuka", tool([10, 20, 30], [H, 0, -H, 0]))
+    assert out.values["B"] == pytest.approx(-90.0)
+    assert out.values["A"] == pytest.approx(0.0, abs=1e-7)
+    assert out.values["C"] == pytest.approx(0.0, abs=1e-7)
+
+
+def test_abb_text_and_load() -> None:
+    """ABB tooldata layout of the RAPID reference manual; quaternion q1 is the scalar."""
+    out = export_tool(
+        "abb", tool([97.4, 0, 223.1], [0.92388, 0, 0.382683, 0], cog=[23, 0, 75], mass=5)
+    )
+    assert out.text.startswith("PERS tooldata gripper:=[TRUE,[[97.400000,0.000000,223.100000],[")
+    assert out.text.endswith("],[5.000,[23.000000,0.000000,75.000000],[1,0,0,0],0,0,0]];")
+    assert out.values["mass_kg"] == 5.0
+    assert out.values["cog_mm"] == [23.0, 0.0, 75.0]
+    assert out.values["q1"] == pytest.approx(0.92388, abs=1e-5)
+
+
+def test_abb_parses_manual_example() -> None:
+    """The RAPID reference manual's tooldata example parses: TCP (97.4, 0, 223.1),
+    tool X and Z turned 45 deg about wrist Y."""
+    text = (
+        "PERS tooldata gripper := [ TRUE, [[97.4, 0, 223.1], [0.924, 0, 0.383 ,0]],\n"
+        "[5, [23, 0, 75], [1, 0, 0, 0], 0, 0, 0]];"
+    )
+    position, quaternion = parse_controller_text("abb", text)
+    assert_allclose(position, [97.4, 0, 223.1])
+    angle = Rotation.from_quat(np.roll(quaternion, -1)).as_rotvec()
+    assert_allclose(np.degrees(angle), [0, 45, 0], atol=0.05)
+
+
+def test_ur_text_metres_radians() -> None:
+    """UR: set_tcp(p[x,y,z,rx,ry,rz]) in m/rad; 90 deg about Z is rz = pi/2."""
+    out = export_tool("ur", tool([0, 0, 150], [H, 0, 0, H]))
+    first = out.text.splitlines()[0]
+    assert first.startswith("set_tcp(p[0.0000000000,0.0000000000,0.1500000000,")
+    assert out.values["pose"] == pytest.approx([0, 0, 0.15, 0, 0, math.pi / 2])
+    assert "set_payload(1.500, [0.0000000000,0.0000000000,0.0600000000])" in out.text
+
+
+@pytest.mark.parametrize(
+    ("fmt", "start"),
+    [
+        (
+            "fanuc",
+            "UTOOL[3]: X 0.000000 Y 0.000000 Z 150.000000 W 90.0000000 P 0.0000000 R 0.0000000",
+        ),
+        (
+            "yaskawa",
+            "TOOL[3]: X 0.000000 Y 0.000000 Z 150.000000 "
+            "Rx 90.0000000 Ry 0.0000000 Rz 0.0000000 W 1.500",
+        ),
+        (
+            "techman",
+            "ChangeTCP({0.000000,0.000000,150.000000,90.0000000,0.0000000,0.0000000},1.500)",
+        ),
+    ],
+)
+def test_fixed_axis_texts(fmt: str, start: str) -> None:
+    """Fanuc/Yaskawa/Techman: 90 deg about flange X is W (Rx, RX) = 90."""
+    out = export_tool(fmt, tool([0, 0, 150], [H, H, 0, 0]))
+    assert out.text.startswith(start), out.text
+
+
+def test_values_are_plain_json() -> None:
+    import json
+
+    for fmt in CONTROLLER_FORMATS:
+        out = export_tool(fmt, tool([1.5, -2.25, 100], [0.5, 0.5, 0.5, 0.5]))
+        assert json.loads(json.dumps(out.values)) == out.values
+        assert out.format == fmt
+
+
+def test_names_cannot_inject_lines() -> None:
+    """A tool name is user input: it never starts a new program line."""
+    for fmt in CONTROLLER_FORMATS:
+        out = export_tool(fmt, tool(name="x\nmovej([0,0,0,0,0,0])"))
+        lines = out.text.splitlines()
+        assert not any(line.lstrip().startswith("movej") for line in lines), out.text
+        assert len(lines) == (2 if fmt == "ur" else 1)
+
+
+@pytest.mark.parametrize(
+    ("name", "ident"),
+    [
+        ("gripper", "gripper"),
+        ("Weld gun #2", "Weld_gun__2"),
+        ("2nd tool", "t2nd_tool"),
+        ("", "t"),
+        ("tool0", "tool0_1"),
+        ("PERS", "PERS_1"),
+        ("a" * 40, "a" * 32),
+        ("Düse", "D_se"),
+    ],
+)
+def test_rapid_identifier(name: str, ident: str) -> None:
+    assert rapid_identifier(name) == ident
+
+
+# --- round trips ---------------------------------------------------------------------------------
+
+quaternions = st.lists(st.floats(-1, 1, allow_nan=False), min_size=4, max_size=4).filter(
+    lambda q: np.linalg.norm(q) > 0.1
+)
+coords = st.floats(-1000, 1000, allow_nan=False)
+
+
+def _angle_deg(q1: np.ndarray, q2: np.ndarray) -> float:
+    r1 = Rotation.from_quat(np.roll(q1, -1))
+    r2 = Rotation.from_quat(np.roll(q2, -1))
+    return float(np.degrees((r1.inv() * r2).magnitude()))
+
+
+@pytest.mark.parametrize("fmt", CONTROLLER_FORMATS)
+@settings(
+    max_examples=150, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
+@given(x=coords, y=coords, z=coords, q=quaternions)
+def test_export_parse_round_trip(fmt: str, x: float, y: float, z: float, q: list[float]) -> None:
+    """export -> parse gives the same TCP within 1e-6 mm and 1e-6 deg."""
+    unit = np.asarray(q) / np.linalg.norm(q)
+    out = export_tool(fmt, tool([x, y, z], unit.tolist()))
+    position, quaternion = parse_controller_text(fmt, out.text)
+    assert np.linalg.norm(position - [x, y, z]) < 1e-6
+    assert _angle_deg(unit, quaternion) < 1e-6
+
+
+@pytest.mark.parametrize("fmt", ["kuka", "fanuc", "yaskawa", "techman"])
+@pytest.mark.parametrize("quaternion", [[H, 0, H, 0], [H, 0, -H, 0], [0.5, 0.5, 0.5, 0.5]])
+def test_export_parse_gimbal_lock(fmt: str, quaternion: list[float]) -> None:
+    """Tools turned +-90 deg about flange Y sit at gimbal lock of both Euler conventions."""
+    out = export_tool(fmt, tool([1, 2, 3], quaternion))
+    _, parsed = parse_controller_text(fmt, out.text)
+    assert _angle_deg(np.array(quaternion), parsed) < 1e-6
+
+
+# --- refusals -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("mass", [None, 0.0, -1.0, float("nan")])
+def test_abb_refuses_missing_or_zero_mass(mass: float | None) -> None:
+    with pytest.raises(SolveError) as info:
+        export_tool("abb", tool(mass=mass))
+    assert info.value.kind == "missing-load"
+    assert info.value.loc == ("load", "mass_kg")
+
+
+def test_abb_refuses_missing_cog() -> None:
+    t = ToolData(
+        slot=1,
+        name="g",
+        position_mm=np.zeros(3),
+        quaternion_wxyz=np.array([1.0, 0, 0, 0]),
+        mass_kg=2.0,
+    )
+    with pytest.raises(SolveError) as info:
+        export_tool("abb", t)
+    assert info.value.kind == "missing-load"
+    assert info.value.loc == ("load", "cog_mm")
+
+
+def test_kuka_refuses_missing_slot() -> None:
+    with pytest.raises(SolveError) as info:
+        export_tool("kuka", tool(slot=None))
+    assert info.value.kind == "invalid-options"
+    assert info.value.loc == ("slot",)
+
+
+def test_refuses_unknown_controller_format() -> None:
+    with pytest.raises(SolveError) as info:
+        export_tool("staubli", tool())
+    assert info.value.kind == "unknown-format"
+    with pytest.raises(SolveError):
+        parse_controller_text("staubli", "")
+
+
+def test_refuses_bad_quaternion_and_sentinel() -> None:
+    with pytest.raises(SolveError) as info:
+        export_tool("ur", tool(quaternion=[2, 0, 0, 0]))
+    assert info.value.kind == "invalid-rotation"
+    assert info.value.loc == ("tcp", "quaternion")
+    with pytest.raises(SolveError) as info:
+        export_tool("ur", tool(position=[-3.7e28, 0, 0]))
+    assert info.value.kind == "out-of-range"
+
+
+@pytest.mark.parametrize("fmt", CONTROLLER_FORMATS)
+def test_parse_refuses_garbage(fmt: str) -> None:
+    with pytest.raises(SolveError) as info:
+        parse_controller_text(fmt, "hello robot")
+    assert info.value.kind == "invalid-pose"
+    assert info.value.loc == ("text",)
