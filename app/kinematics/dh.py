@@ -114,6 +114,8 @@ def kinematics_from_spec(spec: Mapping[str, Any]) -> Kinematics:
             "{'convention': 'dh' | 'mdh', 'links': [{a, alpha, d, theta_offset}]}",
             loc=base,
         )
+    # A serialised union model may carry the other variant's fields as None: not given.
+    spec = {key: value for key, value in spec.items() if value is not None}
     if "preset" in spec:
         from app.kinematics.presets import PRESETS  # presets import this module
 

@@ -229,6 +229,10 @@ def test_spec_preset_and_links() -> None:
     assert rebuilt.convention == "dh"
     minimal = kinematics_from_spec({"convention": "mdh", "links": [{"a": 0, "alpha": 0, "d": 1}]})
     assert minimal.links[0].theta_offset_deg == 0.0
+    # fields of the other variant left as None (a dumped union model) are ignored
+    assert (
+        kinematics_from_spec({"preset": "ur3e", "convention": None, "links": None}).name == "ur3e"
+    )
 
 
 @pytest.mark.parametrize(
