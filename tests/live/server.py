@@ -1,0 +1,100 @@
+"""Start `tcpcal serve` as a real multi-worker uvicorn on a loopback port, for live tests."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import httpx
+from sqlalchemy import create_engine, text
+from sqlalchemy.engine import make_url
+
+from app.db import make_engine, session_scope
+from app.migrate import upgrade
+from app.services.keys import create_key
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@dataclass
+class LiveServer:
+    url: str
+    admin_key: str
+
+    def client(self) -> httpx.Client:
+        return httpx.Client(base_url=self.url, timeout=60,
+                            headers={"Authorization": f"Bearer {self.admin_key}"})
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+@contextmanager
+def fresh_database(backend: str, tmp: Path, pg_url: str | None) -> Iterator[str]:
+    """An empty database of the given backend, dropped afterwards."""
+    if backend == "sqlite":
+        yield f"sqlite:///{tmp / 'live.sqlite3'}"
+        return
+    assert pg_url
+    admin = create_engine(pg_url, isolation_level="AUTOCOMMIT")
+    name = f"tcpcal_live_{uuid.uuid4().hex[:10]}"
+    with admin.connect() as conn:
+        conn.execute(text(f'CREATE DATABASE "{name}"'))
+    try:
+        yield make_url(pg_url).set(database=name).render_as_string(hide_password=False)
+    finally:
+        with admin.connect() as conn:
+            conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
+        admin.dispose()
+
+
+@contextmanager
+def live_server(database_url: str, *, workers: int = 2) -> Iterator[LiveServer]:
+    """Migrate, create an admin key, serve with `tcpcal serve --workers N`, stop afterwards."""
+    upgrade(database_url)
+    engine = make_engine(database_url)
+    with session_scope(write=True, engine=engine) as session:
+        _, key = create_key(session, name="live-admin", scope="admin", actor=None)
+    engine.dispose()
+    port = _free_port()
+    env = {**os.environ, "TCPCAL_DATABASE_URL": database_url}
+    tcpcal = Path(sys.executable).parent / "tcpcal"
+    proc = subprocess.Popen(
+        [str(tcpcal), "serve", "--host", "127.0.0.1", "--port", str(port),
+         "--workers", str(workers)],
+        cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+    )
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            if proc.poll() is not None:
+                out = proc.stdout.read().decode() if proc.stdout else ""
+                raise RuntimeError(f"server exited early:\n{out}")
+            try:
+                if httpx.get(f"{url}/ready", timeout=1).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                pass
+            if time.monotonic() > deadline:
+                raise RuntimeError("server did not become ready within 60 s")
+            time.sleep(0.2)
+        yield LiveServer(url, key)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()

@@ -1,0 +1,28 @@
+"""The committed openapi/openapi.json is the app's schema (run `tcpcal openapi` to refresh)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from app.main import create_app
+
+SPEC = Path(__file__).resolve().parents[1] / "openapi" / "openapi.json"
+
+
+def test_committed_spec_equals_app_schema() -> None:
+    committed = json.loads(SPEC.read_text())
+    assert committed == create_app().openapi(), "openapi/openapi.json is stale: run tcpcal openapi"
+
+
+def test_spec_has_the_contract_paths() -> None:
+    paths = json.loads(SPEC.read_text())["paths"]
+    for path in (
+        "/v1/robots", "/v1/robots/{robot_id}", "/v1/robots/{robot_id}/tools",
+        "/v1/tools/{tool_id}", "/v1/tools/{tool_id}/calibrations",
+        "/v1/calibrations/{calibration_id}", "/v1/tools/{tool_id}/versions",
+        "/v1/tools/{tool_id}/versions/{version}/activate", "/v1/tools/{tool_id}/tcp",
+        "/v1/robots/{robot_id}/tool-table", "/v1/keys", "/v1/solve", "/health", "/ready",
+        "/metrics",
+    ):
+        assert path in paths, path
