@@ -176,7 +176,7 @@ def test_translation_sigma_matches_the_scatter() -> None:
         )
         return Q, orientation_from_translations(dirs, position_noise_mm=0.05)
 
-    _assert_calibrated(_normalised_errors(make, 400))
+    _assert_calibrated(_normalised_errors(make, 300))
 
 
 def test_touch_sigma_matches_the_scatter() -> None:
@@ -188,7 +188,7 @@ def test_touch_sigma_matches_the_scatter() -> None:
         )
         return Q, result
 
-    _assert_calibrated(_normalised_errors(make, 400))
+    _assert_calibrated(_normalised_errors(make, 300))
 
 
 def test_translation_sigma_scales_with_noise_over_length() -> None:
