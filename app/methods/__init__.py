@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from app.errors import InvalidInput
 from app.methods import manual
 from app.methods.base import MethodContext, SolvedTcp
 
@@ -17,8 +18,6 @@ RUNNERS: dict[str, Runner] = {
 
 def run_method(request: Any, ctx: MethodContext) -> SolvedTcp:
     """Solve a submission with the method it names."""
-    from app.errors import InvalidInput
-
     runner = RUNNERS.get(request.method)
     if runner is None:
         raise InvalidInput(

@@ -21,6 +21,8 @@ from sqlalchemy.orm import Session
 from app.auth import Principal
 from app.config import get_settings
 from app.errors import IdempotencyConflict, InvalidInput, NotFound
+from app.kinematics.dh import kinematics_from_spec
+from app.kinematics.poses import poses_from_format
 from app.methods import run_method
 from app.methods.base import ActiveFrame, SolvedTcp, StoredPoint
 from app.models import (
@@ -33,9 +35,12 @@ from app.models import (
     Tool,
     utcnow,
 )
+from app.schemas.calibrations import Calibration as CalibrationOut
 from app.schemas.common import Units
 from app.services import audit
+from app.services.kinematics import validate_kinematics
 from app.services.pagination import paginate
+from app.services.references import create_reference_point
 from app.services.registry import get_robot, get_tool
 from app.services.tolerance import effective_tolerance, grade
 from app.services.versions import IDENTITY_QUATERNION, activate, add_version
@@ -51,9 +56,6 @@ def parse_poses_with(
     loc: Sequence[str | int],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Poses in any format -> (R, f), with the robot's kinematics for `joints`."""
-    from app.kinematics.dh import kinematics_from_spec
-    from app.kinematics.poses import poses_from_format
-
     chain = kinematics_from_spec(kinematics) if kinematics else None
     unit_map = units.model_dump(exclude_none=True) if units else None
     return poses_from_format(fmt, poses, units=unit_map, kinematics=chain, loc=loc)
@@ -351,8 +353,6 @@ def submit(
     )
     out = _calibration_out(row, tool)
     if idempotency_key is not None:
-        from app.schemas.calibrations import Calibration as CalibrationOut
-
         session.add(
             IdempotencyRecord(
                 api_key_id=actor.key_id,
@@ -384,8 +384,6 @@ def _save_reference_point(
             f"reference point {name!r} not saved: the calibration is out of tolerance"
         )
         return
-    from app.services.references import create_reference_point
-
     create_reference_point(
         session,
         robot_id=tool.robot_id,
@@ -402,8 +400,6 @@ def solve_stateless(session: Session, *, request: Any) -> dict[str, Any]:
     """Solve without storing anything (POST /v1/solve)."""
     kinematics: dict[str, Any] | None = None
     if request.kinematics is not None:
-        from app.services.kinematics import validate_kinematics
-
         kinematics = validate_kinematics(request.kinematics)
     elif request.robot_id is not None:
         kinematics = get_robot(session, request.robot_id).kinematics

@@ -6,13 +6,12 @@ from typing import Any
 
 import numpy as np
 
+from app.exports import ToolData, export_tool
 from app.models import TcpVersion, Tool
 
 
 def controller_text(fmt: str, *, tool: Tool, version: TcpVersion) -> dict[str, Any]:
     """{format, text, values} of a tool's version in a controller's own syntax."""
-    from app.exports import ToolData, export_tool
-
     load = tool.load or {}
     data = ToolData(
         slot=tool.slot,

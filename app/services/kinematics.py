@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from app.errors import InvalidInput
+from app.kinematics.dh import kinematics_from_spec
 from app.schemas.robots import Kinematics as KinematicsIn
+from app.solvers.errors import SolveError
 
 
 def validate_kinematics(spec: KinematicsIn | None) -> dict[str, Any] | None:
@@ -12,12 +15,9 @@ def validate_kinematics(spec: KinematicsIn | None) -> dict[str, Any] | None:
     if spec is None:
         return None
     as_dict = spec.model_dump()
-    from app.kinematics.dh import kinematics_from_spec  # built by the pose-format work
-
     try:
         kinematics_from_spec(as_dict)
-    except ValueError as exc:
-        from app.errors import InvalidInput
-
-        raise InvalidInput("invalid-kinematics", str(exc), loc=("body", "kinematics")) from exc
+    except SolveError as exc:
+        loc = ("body", "kinematics", *[p for p in exc.loc if p != "kinematics"])
+        raise InvalidInput("invalid-kinematics", exc.detail, loc=loc) from exc
     return as_dict

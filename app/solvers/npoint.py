@@ -1,0 +1,720 @@
+"""XYZ N-point TCP calibration: N >= 4 touches of one fixed point from distinct orientations.
+
+Model (METHODS.md section 1): R_i t + f_i = p + e_i, with R_i (3, 3) flange -> base, f_i (3,)
+flange position in mm (base frame), t (3,) the TCP in the flange frame, p (3,) the touched
+point in the base frame and e_i the touch error. Every estimator returns (t, p) together with
+its sensitivity to the touch errors, so that each one reports the covariance it really has
+under the stated noise model (touch noise sigma_p, optional orientation noise sigma_theta):
+
+    Cov(e_i) = sigma_p^2 I + sigma_theta^2 R_i [t]x [t]x^T R_i^T
+
+Estimators: "stacked" (one linear least squares, the maximum-likelihood estimate under
+isotropic noise), "gls" (iterated weighted least squares under the full noise model),
+"pairwise" (the lecture's differences of consecutive touches), "sphere" (the lecture's
+algebraic sphere fit, biased, a baseline) and "robust" (default: stacked or gls on the
+consistent majority of touches found by a deterministic minimal-set search).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.stats import chi2
+from scipy.stats import f as f_dist
+
+from app.solvers.errors import SolveError
+from app.solvers.quality import (
+    SIGMA_CONFIGURED,
+    SIGMA_RESIDUALS,
+    Quality,
+    format_vector,
+    make_quality,
+)
+from app.solvers.validation import MAX_ABS_MM, check_positions_mm, check_rotation_matrices
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+ALGORITHMS = ("robust", "stacked", "pairwise", "sphere", "gls")
+
+#: Fewest touches the method accepts (the lecture's "XYZ 4-point").
+MIN_POSES = 4
+#: Two touches whose orientations differ by less than this (deg) count as one orientation.
+REPEATED_POSE_DEG = 0.5
+#: Refuse when s_min / s_max of the centred TCP block [R_i - mean(R)] is below this: the TCP
+#: component along the weakest direction is then at least 100x worse determined than the best.
+DEGENERACY_RATIO = 1e-2
+#: Warn (but solve) when that ratio is below this.
+WEAK_DIRECTION_RATIO = 0.1
+#: The robust fit assumes at most this fraction of touches missed the point.
+MAX_OUTLIER_FRACTION = 0.4
+#: Family-wise false-alarm probability of the outlier test over all touches of one solve.
+OUTLIER_ALPHA = 0.01
+#: Residuals below this (mm) are never evidence of a missed touch (rounding on exact data).
+RESIDUAL_FLOOR_MM = 1e-6
+#: Enumerate every 3-touch minimal set up to this many; above it draw this many, seeded.
+MINIMAL_SETS_ENUMERATED = 2000
+MINIMAL_SETS_SAMPLED = 200
+#: Hypotheses are scored on at most this many touches (evenly spaced) when N is larger.
+SCORING_TOUCHES = 100
+_MINIMAL_SET_SEED = 0x7C9C41
+_MAX_REFINE_STEPS = 25
+_MAX_GLS_STEPS = 30
+#: Upper bounds on the noise options, to catch unit mistakes (m for mm, rad for deg).
+MAX_TOUCH_NOISE_MM = 100.0
+MAX_ORIENTATION_NOISE_DEG = 10.0
+#: Below this many residual degrees of freedom an estimated touch noise is flagged as soft.
+FEW_DOF = 12
+
+
+@dataclass(frozen=True)
+class NPointResult:
+    """TCP t (3,) mm in the flange frame, pivot p (3,) mm in the base frame, with quality."""
+
+    algorithm: str
+    tcp_mm: FloatArray
+    pivot_mm: FloatArray
+    pivot_covariance_mm2: FloatArray
+    quality: Quality
+
+
+@dataclass(frozen=True)
+class _Noise:
+    touch_mm: float | None
+    orientation_rad: float
+
+
+@dataclass(frozen=True)
+class _Fit:
+    t: FloatArray  # (3,)
+    p: FloatArray  # (3,)
+    jac: FloatArray  # (m, 6, 3): d(t, p) / d(e_i), e_i the touch error of touch i
+
+
+def solve_npoint(
+    rotations: ArrayLike,
+    positions_mm: ArrayLike,
+    *,
+    algorithm: str = "robust",
+    touch_noise_mm: float | None = None,
+    orientation_noise_deg: float | None = None,
+    max_tcp_sigma_mm: float | None = None,
+) -> NPointResult:
+    """Solve the TCP from N touches: rotations (N, 3, 3) flange->base, positions_mm (N, 3).
+
+    touch_noise_mm: the tool's 1-sigma touch error per axis (mm); None: estimated from the
+    residuals. orientation_noise_deg: 1-sigma flange orientation error per axis (deg); used
+    as a weight model by "gls" and "robust". max_tcp_sigma_mm: refuse ("insufficient-spread")
+    when the predicted TCP 1-sigma along its weakest direction exceeds it.
+    Raises SolveError for input that cannot give a trustworthy TCP.
+    """
+    R = check_rotation_matrices(rotations, loc=("poses",))
+    f = check_positions_mm(positions_mm, loc=("poses",))
+    if R.shape[0] != f.shape[0]:
+        raise SolveError(
+            "invalid-pose",
+            f"got {R.shape[0]} rotations but {f.shape[0]} positions; each touch needs both",
+            loc=("poses",),
+        )
+    noise = _check_options(algorithm, touch_noise_mm, orientation_noise_deg, max_tcp_sigma_mm)
+    n = R.shape[0]
+    if n < MIN_POSES:
+        raise SolveError(
+            "too-few-poses",
+            f"{n} touch(es) given; the N-point method needs at least {MIN_POSES} touches of "
+            "the same point from clearly different orientations",
+            loc=("poses",),
+            extra={"n_poses": n, "min_poses": MIN_POSES},
+        )
+    cosines = _relative_cosines(R)
+    warnings = _check_repeated(cosines)
+    block = _block_conditioning(R)
+    _check_degenerate(block, context="")
+
+    used: BoolArray = np.ones(n, dtype=bool)
+    if algorithm == "robust":
+        fit, used, robust_warnings = _robust(R, f, noise)
+        warnings += robust_warnings
+        if not used.all():
+            rejected = [int(i) for i in np.flatnonzero(~used)]
+            block = _block_conditioning(R[used])
+            _check_degenerate(block, context=f"after setting aside the missed touches {rejected}, ")
+    else:
+        fit = _ESTIMATORS[algorithm](R, f, noise)
+    t, p = fit.t, fit.p
+    if (
+        not (np.isfinite(t).all() and np.isfinite(p).all())
+        or max(float(np.abs(t).max()), float(np.abs(p).max())) > MAX_ABS_MM
+    ):
+        raise SolveError(
+            "degenerate-poses",
+            "the touches do not determine the TCP (the solution is unbounded); "
+            "add touches rotated about different axes",
+            loc=("poses",),
+        )
+
+    res_vec = _residual_vectors(R, f, t, p)
+    res = np.linalg.norm(res_vec, axis=1)
+    Ru, resu = R[used], res_vec[used]
+    m = Ru.shape[0]
+    s_p, dof = _touch_noise_level(resu, Ru, t, noise)
+    cov6 = _covariance(fit.jac, Ru, t, s_p, noise.orientation_rad)
+    cov_t = cov6[:3, :3]
+
+    if noise.touch_mm is not None:
+        sse = float(_mahalanobis_sq(resu, _noise_cov(Ru, t, s_p, noise.orientation_rad)).sum())
+        if sse > float(chi2.ppf(1.0 - 1e-3, 3 * m - 6)):
+            warnings.append(
+                f"the residuals (rms {np.sqrt(np.mean(res[used] ** 2)):.3f} mm) are larger "
+                f"than the configured touch noise of {noise.touch_mm:g} mm explains: the "
+                "reported uncertainty is probably optimistic"
+            )
+    elif dof is not None and dof < FEW_DOF:
+        warnings.append(
+            f"the touch noise was estimated from only {dof} degrees of freedom; configure the "
+            "tool's touch noise (or add touches) for a firmer uncertainty"
+        )
+    if block.ratio < WEAK_DIRECTION_RATIO:
+        warnings.append(
+            f"the TCP along the flange direction {format_vector(block.weakest)} is weakly "
+            f"determined (singular value ratio {block.ratio:.3f}): add a touch rotated about "
+            "a different axis"
+        )
+    if algorithm == "sphere":
+        warnings.append("the sphere fit is the lecture's baseline; it is biased under touch noise")
+
+    if max_tcp_sigma_mm is not None:
+        evals, evecs = np.linalg.eigh(0.5 * (cov_t + cov_t.T))
+        worst = float(np.sqrt(max(float(evals[-1]), 0.0)))
+        if worst > max_tcp_sigma_mm:
+            direction = _canonical_direction(evecs[:, -1])
+            source = (
+                f"the configured touch noise of {s_p:g} mm"
+                if noise.touch_mm is not None
+                else f"the touch noise estimated from the residuals ({s_p:.3g} mm)"
+            )
+            raise SolveError(
+                "insufficient-spread",
+                f"with {source} the TCP is only determined to {worst:.3g} mm (1 sigma) along "
+                f"the flange direction {format_vector(direction)}, more than the allowed "
+                f"{max_tcp_sigma_mm:g} mm: touch from orientations further apart (tilt the "
+                "tool more, about different axes)",
+                loc=("poses",),
+                extra={
+                    "predicted_sigma_mm": worst,
+                    "max_tcp_sigma_mm": float(max_tcp_sigma_mm),
+                    "direction_flange": [float(x) for x in direction],
+                },
+            )
+
+    spread = math.degrees(math.acos(float(np.clip(cosines.min(), -1.0, 1.0))))
+    quality = make_quality(
+        residuals_mm=res,
+        used=used,
+        tcp_covariance_mm2=cov_t,
+        sigma_source=SIGMA_CONFIGURED if noise.touch_mm is not None else SIGMA_RESIDUALS,
+        orientation_spread_deg=spread,
+        condition_number=block.design_condition,
+        outliers=tuple(int(i) for i in np.flatnonzero(~used)),
+        warnings=tuple(warnings),
+        dof=dof,
+    )
+    cov_p = cov6[3:, 3:]
+    return NPointResult(
+        algorithm=algorithm,
+        tcp_mm=np.array(t, dtype=np.float64),
+        pivot_mm=np.array(p, dtype=np.float64),
+        pivot_covariance_mm2=np.array(0.5 * (cov_p + cov_p.T), dtype=np.float64),
+        quality=quality,
+    )
+
+
+# --------------------------------------------------------------------------- input checks
+
+
+def _check_options(
+    algorithm: str,
+    touch_noise_mm: float | None,
+    orientation_noise_deg: float | None,
+    max_tcp_sigma_mm: float | None,
+) -> _Noise:
+    if algorithm not in ALGORITHMS:
+        raise SolveError(
+            "invalid-options",
+            f"unknown algorithm {algorithm!r}; choose one of {', '.join(ALGORITHMS)}",
+            loc=("options", "algorithm"),
+        )
+    checks = (
+        ("touch_noise_mm", touch_noise_mm, MAX_TOUCH_NOISE_MM, "mm", False),
+        ("orientation_noise_deg", orientation_noise_deg, MAX_ORIENTATION_NOISE_DEG, "deg", True),
+        ("max_tcp_sigma_mm", max_tcp_sigma_mm, MAX_ABS_MM, "mm", False),
+    )
+    for name, value, upper, unit, zero_ok in checks:
+        if value is None:
+            continue
+        v = float(value)
+        low_ok = v >= 0.0 if zero_ok else v > 0.0
+        if not (math.isfinite(v) and low_ok and v <= upper):
+            bound = "at least 0" if zero_ok else "greater than 0"
+            raise SolveError(
+                "invalid-options",
+                f"{name} = {value!r} is not usable: it must be a number {bound} and at most "
+                f"{upper:g} {unit}",
+                loc=("options", name),
+            )
+    return _Noise(
+        touch_mm=None if touch_noise_mm is None else float(touch_noise_mm),
+        orientation_rad=math.radians(float(orientation_noise_deg or 0.0)),
+    )
+
+
+def _relative_cosines(R: FloatArray) -> FloatArray:
+    """(N, N) cosine of the rotation angle between every pair: (trace(R_i^T R_j) - 1) / 2."""
+    flat = R.reshape(R.shape[0], 9)
+    out: FloatArray = 0.5 * (flat @ flat.T - 1.0)
+    return out
+
+
+def _check_repeated(cosines: FloatArray) -> list[str]:
+    """Name touches that repeat an orientation; refuse if fewer than 4 distinct remain."""
+    n = cosines.shape[0]
+    close = cosines > math.cos(math.radians(REPEATED_POSE_DEG))
+    np.fill_diagonal(close, False)
+    if not close.any():
+        return []
+    close = np.triu(close, k=1)
+    pairs = [(int(i), int(j)) for i, j in np.argwhere(close)]
+    distinct = n - int(close.any(axis=0).sum())
+    shown = ", ".join(f"{i} and {j}" for i, j in pairs[:10])
+    more = f" (and {len(pairs) - 10} more pairs)" if len(pairs) > 10 else ""
+    if distinct < MIN_POSES:
+        raise SolveError(
+            "repeated-poses",
+            f"touches {shown}{more} have the same orientation (within {REPEATED_POSE_DEG:g} "
+            f"deg) and add nothing about the TCP: only {distinct} distinct orientations "
+            f"remain, at least {MIN_POSES} are needed; re-touch from different orientations",
+            loc=("poses", pairs[0][1]),
+            extra={"pairs": [list(pr) for pr in pairs], "distinct_orientations": distinct},
+        )
+    return [
+        f"touches {shown}{more} repeat an orientation (within {REPEATED_POSE_DEG:g} deg): "
+        "they average noise but add nothing to the spread"
+    ]
+
+
+@dataclass(frozen=True)
+class _Block:
+    ratio: float  # s_min / s_max of the centred TCP block [R_i - mean(R)]
+    weakest: FloatArray  # its weakest direction, flange frame
+    design_condition: float  # s_max / s_min of the stacked design matrix [R_i  -I]
+
+
+def _block_conditioning(R: FloatArray) -> _Block:
+    """Conditioning of the TCP block and of the stacked design matrix A for rotations (m, 3, 3).
+
+    C^T C = m (I - R_bar^T R_bar) for the centred block C, and A^T A has eigenvalues
+    m (1 +- s_k(R_bar)), so both follow from one 3x3 eigen-decomposition.
+    """
+    m = R.shape[0]
+    Cs = (R - R.mean(axis=0)).reshape(-1, 3)
+    evals, evecs = np.linalg.eigh(Cs.T @ Cs)
+    top = float(evals[-1])
+    low = max(float(evals[0]), 0.0)
+    ratio = math.sqrt(low / top) if top > 0.0 else 0.0
+    x = min(low / m, 1.0)  # 1 - rho^2, rho = largest singular value of R_bar
+    rho = math.sqrt(1.0 - x)
+    one_minus_rho = x / (1.0 + rho)
+    cond = math.sqrt((1.0 + rho) / one_minus_rho) if one_minus_rho > 1e-30 else 1e15
+    return _Block(
+        ratio=ratio, weakest=_canonical_direction(evecs[:, 0]), design_condition=min(cond, 1e15)
+    )
+
+
+def _canonical_direction(v: FloatArray) -> FloatArray:
+    u = np.asarray(v, dtype=np.float64) / float(np.linalg.norm(v))
+    if u[int(np.argmax(np.abs(u)))] < 0:
+        u = -u
+    return u + 0.0  # no negative zeros in messages
+
+
+def _check_degenerate(block: _Block, *, context: str) -> None:
+    if block.ratio < DEGENERACY_RATIO:
+        raise SolveError(
+            "degenerate-poses",
+            f"{context}the touches rotate (almost) about one common axis, so the TCP along the "
+            f"flange direction {format_vector(block.weakest)} cannot be determined (singular "
+            f"value ratio {block.ratio:.1e}): add a touch rotated about a different axis",
+            loc=("poses",),
+            extra={
+                "direction_flange": [float(x) for x in block.weakest],
+                "singular_value_ratio": block.ratio,
+            },
+        )
+
+
+# ------------------------------------------------------------------------------ the model
+
+
+def _rotate(R: FloatArray, t: FloatArray) -> FloatArray:
+    out: FloatArray = R @ t
+    return out
+
+
+def _residual_vectors(R: FloatArray, f: FloatArray, t: FloatArray, p: FloatArray) -> FloatArray:
+    return _rotate(R, t) + f - p
+
+
+def _design(R: FloatArray) -> FloatArray:
+    """The (m, 3, 6) blocks [R_i  -I] of the stacked design matrix A."""
+    m = R.shape[0]
+    return np.concatenate([R, np.broadcast_to(-np.eye(3), (m, 3, 3))], axis=2)
+
+
+def _lever_directions(R: FloatArray, t: FloatArray) -> tuple[FloatArray, float]:
+    """Unit vectors R_i t / |t| (m, 3) and |t| (mm)."""
+    tn = float(np.linalg.norm(t))
+    if tn == 0.0:
+        return np.zeros((R.shape[0], 3)), 0.0
+    return _rotate(R, t) / tn, tn
+
+
+def _noise_cov(R: FloatArray, t: FloatArray, s_p: float, s_th: float) -> FloatArray:
+    """Per-touch error covariance (m, 3, 3): s_p^2 I + s_th^2 R_i [t]x [t]x^T R_i^T."""
+    if s_th == 0.0:
+        return np.broadcast_to(s_p**2 * np.eye(3), R.shape)
+    u, tn = _lever_directions(R, t)
+    c = (s_th * tn) ** 2
+    uu = u[:, :, None] * u[:, None, :]
+    cov: FloatArray = (s_p**2 + c) * np.eye(3) - c * uu
+    return cov
+
+
+def _whiteners(R: FloatArray, t: FloatArray, s_p: float, s_th: float) -> FloatArray:
+    """Cov_i^(-1/2) (m, 3, 3); Cov_i has eigenvalue s_p^2 along R_i t, s_p^2 + c across."""
+    u, tn = _lever_directions(R, t)
+    c = (s_th * tn) ** 2
+    uu = u[:, :, None] * u[:, None, :]
+    a = 1.0 / math.sqrt(s_p**2 + c)
+    w: FloatArray = a * np.eye(3) + (1.0 / s_p - a) * uu
+    return w
+
+
+def _mahalanobis_sq(res: FloatArray, cov: FloatArray) -> FloatArray:
+    """r_i^T cov_i^-1 r_i for residuals (m, 3) and covariances (m, 3, 3)."""
+    sol = np.linalg.solve(cov, res[:, :, None])[:, :, 0]
+    out: FloatArray = (res * sol).sum(axis=1)
+    return out
+
+
+def _estimate_touch_noise(res: FloatArray, R: FloatArray, t: FloatArray, s_th: float) -> float:
+    """Touch noise s_p (mm) making the weighted residual sum equal its dof (3m - 6).
+
+    With Cov_i = s_p^2 u u^T + (s_p^2 + c)(I - u u^T), the weighted sum is
+    a / s_p^2 + b / (s_p^2 + c): a quadratic in s_p^2, solved in closed form.
+    """
+    nu = 3 * res.shape[0] - 6
+    if s_th == 0.0:
+        return math.sqrt(float(np.sum(res**2)) / nu)
+    u, tn = _lever_directions(R, t)
+    c = (s_th * tn) ** 2
+    along = (res * u).sum(axis=1)
+    a = float(np.sum(along**2))
+    b = float(np.sum(res**2)) - a
+    if c == 0.0:
+        return math.sqrt((a + b) / nu)
+    q = nu * c - a - b
+    x = (-q + math.sqrt(q * q + 4.0 * nu * a * c)) / (2.0 * nu)
+    return math.sqrt(max(x, 0.0))
+
+
+def _touch_noise_level(
+    res: FloatArray, R: FloatArray, t: FloatArray, noise: _Noise
+) -> tuple[float, int | None]:
+    """(s_p, dof): the configured touch noise and None, or the estimate and its dof."""
+    if noise.touch_mm is not None:
+        return noise.touch_mm, None
+    return _estimate_touch_noise(res, R, t, noise.orientation_rad), 3 * res.shape[0] - 6
+
+
+def _covariance(
+    jac: FloatArray, R: FloatArray, t: FloatArray, s_p: float, s_th: float
+) -> FloatArray:
+    """Cov(t, p) (6, 6) = sum_i J_i Cov_i J_i^T for an estimator with sensitivities J."""
+    flat = jac.transpose(1, 0, 2).reshape(6, -1)
+    if s_th == 0.0:
+        cov = s_p**2 * (flat @ flat.T)
+    else:
+        u, tn = _lever_directions(R, t)
+        c = (s_th * tn) ** 2
+        ju = (jac @ u[:, :, None])[:, :, 0]
+        cov = (s_p**2 + c) * (flat @ flat.T) - c * (ju.T @ ju)
+    out: FloatArray = 0.5 * (cov + cov.T)
+    return out
+
+
+# ---------------------------------------------------------------------------- estimators
+
+
+def _fit_stacked(R: FloatArray, f: FloatArray) -> _Fit:
+    """[R_i -I][t; p] = -f_i by least squares; p eliminated: (R_i - R_bar) t = -(f_i - f_bar)."""
+    m = R.shape[0]
+    Rbar = R.sum(axis=0) / m
+    fbar = f.sum(axis=0) / m
+    C = R - Rbar
+    Cs = C.reshape(-1, 3)
+    t = np.linalg.lstsq(Cs, (fbar - f).reshape(-1), rcond=None)[0]
+    p = Rbar @ t + fbar
+    G = np.linalg.inv(Cs.T @ Cs)
+    jt = -(G @ C.transpose(0, 2, 1))
+    jp = Rbar @ jt + np.eye(3) / m
+    return _Fit(t=t, p=p, jac=np.concatenate([jt, jp], axis=1))
+
+
+def _fit_weighted(R: FloatArray, f: FloatArray, whiten: FloatArray) -> _Fit:
+    """Weighted least squares for [t; p] with per-touch whiteners W_i^(1/2) (m, 3, 3)."""
+    A = _design(R)
+    Aw = whiten @ A
+    yw = -np.einsum("nij,nj->ni", whiten, f)
+    theta = np.linalg.lstsq(Aw.reshape(-1, 6), yw.reshape(-1), rcond=None)[0]
+    Aws = Aw.reshape(-1, 6)
+    Finv = np.linalg.inv(Aws.T @ Aws)
+    W = np.swapaxes(whiten, 1, 2) @ whiten
+    jac = -(Finv @ A.transpose(0, 2, 1) @ W)
+    return _Fit(t=theta[:3], p=theta[3:], jac=jac)
+
+
+def _fit_gls(R: FloatArray, f: FloatArray, noise: _Noise) -> _Fit:
+    """Iterated weighted least squares under the touch + orientation noise model."""
+    fit = _fit_stacked(R, f)
+    s_th = noise.orientation_rad
+    if s_th == 0.0:
+        return fit  # isotropic weights: the stacked solution is the weighted one
+    for _ in range(_MAX_GLS_STEPS):
+        if noise.touch_mm is not None:
+            s_p = noise.touch_mm
+        else:
+            res = _residual_vectors(R, f, fit.t, fit.p)
+            s_p = _estimate_touch_noise(res, R, fit.t, s_th)
+        tn = float(np.linalg.norm(fit.t))
+        s_p = max(s_p, RESIDUAL_FLOOR_MM, 1e-3 * s_th * tn)
+        new = _fit_weighted(R, f, _whiteners(R, fit.t, s_p, s_th))
+        step = float(np.linalg.norm(new.t - fit.t))
+        fit = new
+        if step <= 1e-12 * (1.0 + tn):
+            break
+    return fit
+
+
+def _fit_pairwise(R: FloatArray, f: FloatArray) -> _Fit:
+    """(R_i - R_i+1) t = -(f_i - f_i+1) over consecutive touches; then p = mean(R_i t + f_i).
+
+    Consecutive pairs, as in the lecture's pairing: over all pairs the normal equations are
+    exactly N times the stacked ones, which would make this option a copy of "stacked".
+    """
+    m = R.shape[0]
+    D = R[:-1] - R[1:]
+    Ds = D.reshape(-1, 3)
+    t = np.linalg.lstsq(Ds, -(f[:-1] - f[1:]).reshape(-1), rcond=None)[0]
+    Rbar = R.mean(axis=0)
+    p = Rbar @ t + f.mean(axis=0)
+    G = np.linalg.pinv(Ds.T @ Ds)
+    Dt = np.swapaxes(D, 1, 2)
+    coef = np.zeros((m, 3, 3))
+    coef[:-1] += Dt
+    coef[1:] -= Dt
+    jt = -(G @ coef)
+    jp = Rbar @ jt + np.eye(3) / m
+    return _Fit(t=t, p=p, jac=np.concatenate([jt, jp], axis=1))
+
+
+def _fit_sphere(R: FloatArray, f: FloatArray) -> _Fit:
+    """Algebraic sphere |f|^2 = 2 f.c + k through the flange positions; p = c, t = mean R_i^T (c - f_i).
+
+    Solved in centred, scaled coordinates (the fit is similarity-equivariant) for conditioning.
+    """
+    m = R.shape[0]
+    fbar = f.mean(axis=0)
+    g = f - fbar
+    scale = float(np.sqrt(np.mean(np.sum(g**2, axis=1)))) or 1.0
+    gs = g / scale
+    M = np.hstack([2.0 * gs, np.ones((m, 1))])
+    y = np.sum(gs**2, axis=1)
+    x = np.linalg.lstsq(M, y, rcond=None)[0]
+    cs = x[:3]
+    c = cs * scale + fbar
+    t = np.einsum("nji,nj->i", R, c - f) / m
+    # d c / d f_i via the normal equations of the (scaled) fit; the map is degree-0 homogeneous
+    r = y - M @ x
+    Minv = np.linalg.pinv(M.T @ M)
+    rhs = np.zeros((m, 4, 3))
+    rhs[:, :3, :] = 2.0 * r[:, None, None] * np.eye(3)
+    rhs += 2.0 * np.einsum("na,nb->nab", M, gs - cs)
+    jc = np.einsum("ab,nbc->nac", Minv, rhs)[:, :3, :]
+    Rbar = R.mean(axis=0)
+    jt = np.einsum("ba,nbc->nac", Rbar, jc) - np.swapaxes(R, 1, 2) / m
+    return _Fit(t=t, p=c, jac=np.concatenate([jt, jc], axis=1))
+
+
+def _base_fit(R: FloatArray, f: FloatArray, noise: _Noise) -> _Fit:
+    return _fit_gls(R, f, noise) if noise.orientation_rad > 0.0 else _fit_stacked(R, f)
+
+
+_ESTIMATORS: dict[str, Callable[[FloatArray, FloatArray, _Noise], _Fit]] = {
+    "stacked": lambda R, f, noise: _fit_stacked(R, f),
+    "gls": _fit_gls,
+    "pairwise": lambda R, f, noise: _fit_pairwise(R, f),
+    "sphere": lambda R, f, noise: _fit_sphere(R, f),
+}
+
+
+# --------------------------------------------------------------------------------- robust
+
+
+@lru_cache(maxsize=512)
+def _outlier_threshold(n: int, dof: int | None) -> float:
+    """Squared Mahalanobis bound for one touch: Bonferroni over n touches at OUTLIER_ALPHA."""
+    q = 1.0 - OUTLIER_ALPHA / n
+    if dof is None:
+        return float(chi2.ppf(q, 3))
+    return float(3.0 * f_dist.ppf(q, 3, max(dof, 1)))
+
+
+@lru_cache(maxsize=512)
+def _sse_threshold(dof: int) -> float:
+    return float(chi2.ppf(1.0 - OUTLIER_ALPHA, dof))
+
+
+def _touch_distances(
+    R: FloatArray, f: FloatArray, used: BoolArray, fit: _Fit, noise: _Noise
+) -> tuple[FloatArray, int | None]:
+    """Squared Mahalanobis distance of every touch's residual from the fit on `used`.
+
+    A used touch's residual has covariance Cov_i - A_i Cov A_i^T, a left-out touch's
+    Cov_i + A_i Cov A_i^T (prediction error), with Cov the (6, 6) covariance of the fit.
+    """
+    Ru = R[used]
+    res = _residual_vectors(R, f, fit.t, fit.p)
+    s_p, dof = _touch_noise_level(res[used], Ru, fit.t, noise)
+    s_th = noise.orientation_rad
+    cov6 = _covariance(fit.jac, Ru, fit.t, s_p, s_th)
+    # A_i Cov A_i^T with A_i = [R_i  -I]
+    RC = R @ cov6[:3, :]  # (n, 3, 6): [R Ctt, R Ctp]
+    pred = RC[:, :, :3] @ R.transpose(0, 2, 1) - RC[:, :, 3:]
+    pred = pred - cov6[3:, :3] @ R.transpose(0, 2, 1) + cov6[3:, 3:]
+    sign = np.where(used, -1.0, 1.0)[:, None, None]
+    V = _noise_cov(R, fit.t, s_p, s_th) + sign * pred + RESIDUAL_FLOOR_MM**2 * np.eye(3)
+    return _mahalanobis_sq(res, V), dof
+
+
+@lru_cache(maxsize=64)
+def _minimal_sets(n: int) -> NDArray[np.intp]:
+    """Deterministic 3-touch minimal sets: all of them, or a fixed seeded sample."""
+    if math.comb(n, 3) <= MINIMAL_SETS_ENUMERATED:
+        return np.array(list(itertools.combinations(range(n), 3)), dtype=np.intp)
+    rng = np.random.default_rng(_MINIMAL_SET_SEED)
+    draws = rng.integers(0, n, size=(3 * MINIMAL_SETS_SAMPLED, 3))
+    ok = (draws[:, 0] != draws[:, 1]) & (draws[:, 0] != draws[:, 2]) & (draws[:, 1] != draws[:, 2])
+    sets: NDArray[np.intp] = draws[ok][:MINIMAL_SETS_SAMPLED].astype(np.intp)
+    return sets
+
+
+def _minimal_set_hypotheses(R: FloatArray, f: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """(t, p) solved exactly from every minimal set: (K, 3) and (K, 3), ill-posed sets dropped."""
+    idx = _minimal_sets(R.shape[0])
+    g = (R.transpose(0, 2, 1) @ f[:, :, None])[:, :, 0]  # R_i^T f_i
+    S = R[idx].sum(axis=1)
+    F = f[idx].sum(axis=1)
+    G = g[idx].sum(axis=1)
+    St = np.swapaxes(S, 1, 2)
+    M = 3.0 * np.eye(3) - St @ S / 3.0
+    rhs = (St @ F[:, :, None])[:, :, 0] / 3.0 - G
+    # eigenvalues of M lie in [0, 4]; det well above 0 keeps the solve well-posed
+    ok = np.linalg.det(M) > 1e-9
+    if not ok.any():
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    t = np.linalg.solve(M[ok], rhs[ok][:, :, None])[:, :, 0]
+    p = ((S[ok] @ t[:, :, None])[:, :, 0] + F[ok]) / 3.0
+    return t, p
+
+
+def _robust(R: FloatArray, f: FloatArray, noise: _Noise) -> tuple[_Fit, BoolArray, list[str]]:
+    """Fit on the consistent majority: minimal-set search, then refit and re-test to a fixed point.
+
+    1. With a configured touch noise, the plain fit is kept when every touch passes the test
+       (fast path). 2. Every 3-touch minimal set (or a fixed seeded sample of 500) gives a
+       hypothesis; the one whose h-th smallest touch distance is least wins (least median of
+       squares with h = 60 % of the touches, at least 4). 3. Its h closest touches are refitted;
+       touches whose Mahalanobis distance from the fit passes a Bonferroni test at 1 % are kept,
+       the fit is repeated on them until the set no longer changes.
+    """
+    n = R.shape[0]
+    everyone: BoolArray = np.ones(n, dtype=bool)
+    if n < 5 or noise.touch_mm is not None:
+        fit = _base_fit(R, f, noise)
+        d2, dof = _touch_distances(R, f, everyone, fit, noise)
+        consistent = dof is not None or float(d2.max()) <= _outlier_threshold(n, None)
+        if noise.touch_mm is not None and consistent:
+            res = _residual_vectors(R, f, fit.t, fit.p)
+            cov = _noise_cov(R, fit.t, noise.touch_mm, noise.orientation_rad)
+            consistent = float(_mahalanobis_sq(res, cov).sum()) <= _sse_threshold(3 * n - 6)
+        if consistent:
+            return fit, everyone, []
+        if n < 5:
+            return (
+                fit,
+                everyone,
+                [
+                    "a touch misses the common point by more than the touch noise explains, but "
+                    f"with {n} touches it cannot be singled out: add touches"
+                ],
+            )
+
+    h = min(n, max(MIN_POSES, math.ceil((1.0 - MAX_OUTLIER_FRACTION) * n)))
+    ht, hp = _minimal_set_hypotheses(R, f)
+    used: BoolArray = np.zeros(n, dtype=bool)
+    if ht.shape[0] == 0:
+        used[:] = True
+    else:
+        pick = np.unique(np.linspace(0, n - 1, min(n, SCORING_TOUCHES)).round().astype(np.intp))
+        k = pick.size
+        hk = min(k, max(MIN_POSES, math.ceil((1.0 - MAX_OUTLIER_FRACTION) * k)))
+        Rt = (R[pick].reshape(-1, 3) @ ht.T).reshape(k, 3, -1)
+        diff = Rt + (f[pick][:, :, None] - hp.T[None, :, :])
+        dist = np.sqrt((diff * diff).sum(axis=1))  # (k, K)
+        score = np.partition(dist, hk - 1, axis=0)[hk - 1]
+        best = int(np.argmin(score))
+        closest = np.linalg.norm(_residual_vectors(R, f, ht[best], hp[best]), axis=1)
+        used[np.argsort(closest, kind="stable")[:h]] = True
+
+    fits: dict[bytes, _Fit] = {}
+    for _ in range(_MAX_REFINE_STEPS):
+        key = used.tobytes()
+        if key not in fits:
+            fits[key] = _base_fit(R[used], f[used], noise)
+        d2, dof = _touch_distances(R, f, used, fits[key], noise)
+        new = d2 <= _outlier_threshold(n, dof)
+        if int(new.sum()) < h:
+            new = np.zeros(n, dtype=bool)
+            new[np.argsort(d2, kind="stable")[:h]] = True
+        if np.array_equal(new, used):
+            break
+        used = new
+    key = used.tobytes()
+    fit = fits[key] if key in fits else _base_fit(R[used], f[used], noise)
+
+    warnings: list[str] = []
+    if not used.all():
+        res = np.linalg.norm(_residual_vectors(R, f, fit.t, fit.p), axis=1)
+        rejected = np.flatnonzero(~used)
+        listed = ", ".join(f"{int(i)} ({res[i]:.2f} mm)" for i in rejected[:20])
+        more = f" and {rejected.size - 20} more" if rejected.size > 20 else ""
+        warnings.append(
+            f"set aside {rejected.size} of {n} touches that miss the common point: {listed}{more}"
+        )
+    return fit, used, warnings

@@ -1,0 +1,115 @@
+"""Quality of a TCP solution: residuals, propagated uncertainty, conditioning, flags.
+
+Every solver reports a `Quality` made of plain Python floats and tuples, so that it
+serialises to JSON as it is (`dataclasses.asdict`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+from scipy.stats import chi2, f
+
+#: Probability content of the reported uncertainty ellipsoid.
+ELLIPSOID_PROBABILITY = 0.95
+
+SIGMA_CONFIGURED = "configured"
+SIGMA_RESIDUALS = "residuals"
+
+
+@dataclass(frozen=True)
+class Quality:
+    """How well a TCP is determined; lengths mm, angles deg, plain floats for JSON."""
+
+    n_poses: int
+    rms_mm: float
+    max_mm: float
+    residuals_mm: tuple[float, ...]
+    tcp_sigma_mm: tuple[float, float, float]
+    tcp_covariance_mm2: tuple[tuple[float, ...], ...]
+    sigma_source: str
+    orientation_spread_deg: float
+    condition_number: float
+    outliers: tuple[int, ...]
+    warnings: tuple[str, ...]
+    ellipsoid95_scale: float
+
+
+@lru_cache(maxsize=256)
+def ellipsoid95_scale(dof: int | None) -> float:
+    """Factor k so that (x - x^)^T Cov^-1 (x - x^) <= k^2 holds 95 % of the time in 3-D.
+
+    `dof` None: the covariance rests on a configured (known) noise level, k^2 = chi2_3(0.95).
+    `dof` > 0: the noise level was estimated from residuals with `dof` degrees of freedom,
+    k^2 = 3 F(3, dof)(0.95) (Hotelling), which is wider for few touches.
+    """
+    if dof is None:
+        return float(np.sqrt(chi2.ppf(ELLIPSOID_PROBABILITY, 3)))
+    return float(np.sqrt(3.0 * f.ppf(ELLIPSOID_PROBABILITY, 3, max(int(dof), 1))))
+
+
+def rotation_angles_deg(rotations: ArrayLike) -> NDArray[np.float64]:
+    """(N, N) rotation angle between every pair of (N, 3, 3) rotations, degrees."""
+    quats = Rotation.from_matrix(np.asarray(rotations, dtype=np.float64)).as_quat()
+    dots = np.clip(np.abs(quats @ quats.T), 0.0, 1.0)
+    angles: NDArray[np.float64] = np.degrees(2.0 * np.arccos(dots))
+    return angles
+
+
+def orientation_spread_deg(rotations: ArrayLike) -> float:
+    """Largest rotation angle between any two of the (N, 3, 3) rotations, degrees."""
+    arr = np.asarray(rotations, dtype=np.float64)
+    if arr.shape[0] < 2:
+        return 0.0
+    quats = Rotation.from_matrix(arr).as_quat()
+    smallest = float(np.clip(np.abs(quats @ quats.T).min(), 0.0, 1.0))
+    return float(np.degrees(2.0 * np.arccos(smallest)))
+
+
+def format_vector(v: ArrayLike) -> str:
+    """A 3-vector as a technician reads it: "[0.00, 0.00, 1.00]"."""
+    return "[" + ", ".join(f"{float(x):.2f}" for x in np.asarray(v).ravel()) + "]"
+
+
+def make_quality(
+    *,
+    residuals_mm: ArrayLike,
+    used: ArrayLike | None = None,
+    tcp_covariance_mm2: ArrayLike,
+    sigma_source: str,
+    orientation_spread_deg: float,
+    condition_number: float,
+    outliers: tuple[int, ...] = (),
+    warnings: tuple[str, ...] = (),
+    dof: int | None,
+) -> Quality:
+    """Build a Quality from per-touch residuals (N,) mm and the TCP covariance (3, 3) mm^2.
+
+    rms and max are over the touches used in the fit (`used`, a boolean mask; default all):
+    a rejected touch is named in `outliers` and keeps its residual in `residuals_mm`.
+    `dof` is None when the noise level was configured, else the residual degrees of freedom.
+    """
+    res = np.asarray(residuals_mm, dtype=np.float64).ravel()
+    mask = np.ones(res.shape, dtype=bool) if used is None else np.asarray(used, dtype=bool)
+    inl = res[mask] if mask.any() else res
+    cov = np.asarray(tcp_covariance_mm2, dtype=np.float64).reshape(3, 3)
+    cov = 0.5 * (cov + cov.T)
+    sig = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return Quality(
+        n_poses=int(res.size),
+        rms_mm=float(np.sqrt(np.mean(inl**2))) if inl.size else 0.0,
+        max_mm=float(inl.max()) if inl.size else 0.0,
+        residuals_mm=tuple(float(x) for x in res),
+        tcp_sigma_mm=(float(sig[0]), float(sig[1]), float(sig[2])),
+        tcp_covariance_mm2=tuple(tuple(float(x) for x in row) for row in cov),
+        sigma_source=sigma_source,
+        orientation_spread_deg=float(orientation_spread_deg),
+        condition_number=float(condition_number),
+        outliers=tuple(int(i) for i in outliers),
+        warnings=tuple(warnings),
+        ellipsoid95_scale=ellipsoid95_scale(dof),
+    )
