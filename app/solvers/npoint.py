@@ -530,11 +530,11 @@ def _fit_pairwise(R: FloatArray, f: FloatArray) -> _Fit:
     coef[1:] -= Dt
     jt = -(G @ coef)
     jp = Rbar @ jt + np.eye(3) / m
-    return _Fit(t=t, p=p, jac=np.concatenate([jt, jp], axis=1))
+    return _Fit(t=np.asarray(t, dtype=np.float64), p=p, jac=np.concatenate([jt, jp], axis=1))
 
 
 def _fit_sphere(R: FloatArray, f: FloatArray) -> _Fit:
-    """Algebraic sphere |f|^2 = 2 f.c + k through the flange positions; p = c, t = mean R_i^T (c - f_i).
+    """Algebraic sphere |f|^2 = 2 f.c + k through the flanges: p = c, t = mean R_i^T (c - f_i).
 
     Solved in centred, scaled coordinates (the fit is similarity-equivariant) for conditioning.
     """
