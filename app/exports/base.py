@@ -100,8 +100,13 @@ def rounded(value: float, decimals: int) -> float:
 
 
 def fmt_number(value: float, decimals: int) -> str:
-    """Fixed-point text of `value` with `decimals` decimals and no negative zero."""
-    return f"{rounded(value, decimals):.{decimals}f}"
+    """`value` to `decimals` places, trailing zeros dropped ("150.0", not "150.000000").
+
+    Short text is what a technician reads on the pendant (API.md's KRL example); the
+    rounding, and so the round-trip precision, is the same either way. No negative zero.
+    """
+    text = f"{rounded(value, decimals):.{decimals}f}".rstrip("0")
+    return text + "0" if text.endswith(".") else text
 
 
 def fmt_list(values: Sequence[float] | ArrayLike, decimals: int, sep: str = ",") -> str:

@@ -46,12 +46,9 @@ def tool(
 
 
 def test_kuka_text_as_in_api_doc() -> None:
-    """API.md's example: $TOOL_DATA[3]={X 0.0,Y 0.0,Z 150.0,A 0.0,B 0.0,C 0.0}, here with 6/7
-    decimals (see app/exports/base.py for why)."""
+    """API.md's example, to the character: $TOOL_DATA[3]={X 0.0,Y 0.0,Z 150.0,A 0.0,B 0.0,C 0.0}."""
     out = export_tool("kuka", tool())
-    assert out.text == (
-        "$TOOL_DATA[3]={X 0.000000,Y 0.000000,Z 150.000000,A 0.0000000,B 0.0000000,C 0.0000000}"
-    )
+    assert out.text == ("$TOOL_DATA[3]={X 0.0,Y 0.0,Z 150.0,A 0.0,B 0.0,C 0.0}")
     assert out.values == {"slot": 3, "X": 0.0, "Y": 0.0, "Z": 150.0, "A": 0.0, "B": 0.0, "C": 0.0}
 
 
@@ -69,8 +66,8 @@ def test_abb_text_and_load() -> None:
     out = export_tool(
         "abb", tool([97.4, 0, 223.1], [0.92388, 0, 0.382683, 0], cog=[23, 0, 75], mass=5)
     )
-    assert out.text.startswith("PERS tooldata gripper:=[TRUE,[[97.400000,0.000000,223.100000],[")
-    assert out.text.endswith("],[5.000,[23.000000,0.000000,75.000000],[1,0,0,0],0,0,0]];")
+    assert out.text.startswith("PERS tooldata gripper:=[TRUE,[[97.4,0.0,223.1],[")
+    assert out.text.endswith("],[5.0,[23.0,0.0,75.0],[1,0,0,0],0,0,0]];")
     assert out.values["mass_kg"] == 5.0
     assert out.values["cog_mm"] == [23.0, 0.0, 75.0]
     assert out.values["q1"] == pytest.approx(0.92388, abs=1e-5)
@@ -93,9 +90,9 @@ def test_ur_text_metres_radians() -> None:
     """UR: set_tcp(p[x,y,z,rx,ry,rz]) in m/rad; 90 deg about Z is rz = pi/2."""
     out = export_tool("ur", tool([0, 0, 150], [H, 0, 0, H]))
     first = out.text.splitlines()[0]
-    assert first.startswith("set_tcp(p[0.0000000000,0.0000000000,0.1500000000,")
+    assert first.startswith("set_tcp(p[0.0,0.0,0.15,")
     assert out.values["pose"] == pytest.approx([0, 0, 0.15, 0, 0, math.pi / 2])
-    assert "set_payload(1.500, [0.0000000000,0.0000000000,0.0600000000])" in out.text
+    assert "set_payload(1.5, [0.0,0.0,0.06])" in out.text
 
 
 @pytest.mark.parametrize(
@@ -103,16 +100,15 @@ def test_ur_text_metres_radians() -> None:
     [
         (
             "fanuc",
-            "UTOOL[3]: X 0.000000 Y 0.000000 Z 150.000000 W 90.0000000 P 0.0000000 R 0.0000000",
+            "UTOOL[3]: X 0.0 Y 0.0 Z 150.0 W 90.0 P 0.0 R 0.0",
         ),
         (
             "yaskawa",
-            "TOOL[3]: X 0.000000 Y 0.000000 Z 150.000000 "
-            "Rx 90.0000000 Ry 0.0000000 Rz 0.0000000 W 1.500",
+            "TOOL[3]: X 0.0 Y 0.0 Z 150.0 Rx 90.0 Ry 0.0 Rz 0.0 W 1.5",
         ),
         (
             "techman",
-            "ChangeTCP({0.000000,0.000000,150.000000,90.0000000,0.0000000,0.0000000},1.500)",
+            "ChangeTCP({0.0,0.0,150.0,90.0,0.0,0.0},1.5)",
         ),
     ],
 )
