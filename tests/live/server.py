@@ -30,8 +30,9 @@ class LiveServer:
     admin_key: str
 
     def client(self) -> httpx.Client:
-        return httpx.Client(base_url=self.url, timeout=60,
-                            headers={"Authorization": f"Bearer {self.admin_key}"})
+        return httpx.Client(
+            base_url=self.url, timeout=60, headers={"Authorization": f"Bearer {self.admin_key}"}
+        )
 
 
 def _free_port() -> int:
@@ -71,9 +72,20 @@ def live_server(database_url: str, *, workers: int = 2) -> Iterator[LiveServer]:
     env = {**os.environ, "TCPCAL_DATABASE_URL": database_url}
     tcpcal = Path(sys.executable).parent / "tcpcal"
     proc = subprocess.Popen(
-        [str(tcpcal), "serve", "--host", "127.0.0.1", "--port", str(port),
-         "--workers", str(workers)],
-        cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        [
+            str(tcpcal),
+            "serve",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--workers",
+            str(workers),
+        ],
+        cwd=REPO,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
     )
     url = f"http://127.0.0.1:{port}"
     try:

@@ -3,6 +3,7 @@ and concurrent activations leave exactly one active version, the last one record
 
 from __future__ import annotations
 
+import itertools
 import threading
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -42,8 +43,10 @@ def test_concurrent_calibrations_and_activations(server: LiveServer) -> None:
 
     def submit(i: int) -> tuple[int, int | None]:
         with server.client() as http:
-            r = http.post(f"{tool_path}/calibrations", json={
-                "method": "manual", "tcp": {"position_mm": [0, 0, 100 + i]}, "note": str(i)})
+            r = http.post(
+                f"{tool_path}/calibrations",
+                json={"method": "manual", "tcp": {"position_mm": [0, 0, 100 + i]}, "note": str(i)},
+            )
             return r.status_code, r.json().get("version")
 
     results = _all_at_once(submit, N)
@@ -55,7 +58,8 @@ def test_concurrent_calibrations_and_activations(server: LiveServer) -> None:
     assert [v["version"] for v in versions] == list(range(1, N + 1))
     # each version holds the TCP its own submission sent
     assert {v["note"]: v["tcp"]["position_mm"][2] for v in versions} == {
-        str(i): 100 + i for i in range(N)}
+        str(i): 100 + i for i in range(N)
+    }
 
     def activate(i: int) -> int:
         with server.client() as http:
@@ -73,4 +77,4 @@ def test_concurrent_calibrations_and_activations(server: LiveServer) -> None:
     assert active[0] == listing["activations"][-1]["version"] == tool_now["active_version"]
     # the history chains: each activation's previous_version is the one before it
     chain = listing["activations"]
-    assert all(b["previous_version"] == a["version"] for a, b in zip(chain, chain[1:]))
+    assert all(b["previous_version"] == a["version"] for a, b in itertools.pairwise(chain))
