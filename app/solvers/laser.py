@@ -189,6 +189,12 @@ def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: Arra
         raise SolveError("invalid-sweep", "descent_mm needs 3 values (mm)", loc=("descent_mm",))
     descent = check_positions_mm(descent[None], loc=("descent_mm",))[0]
     n = len(sweeps)
+    if n == 0:
+        raise SolveError(
+            "too-few-poses",
+            "no sweeps: sweep both beams at two or more flange heights",
+            loc=("sweeps",),
+        )
     breaks = np.empty((n, 3))
     restores = np.empty((n, 3))
     beams: list[str] = []
@@ -375,6 +381,13 @@ def _solve_tool(p: _Parsed, x: NDArray[np.float64], dev: LaserDevice) -> _Tool:
     R0 = p.R0
     u_b = line.direction_base()
     u = R0.T @ u_b
+    if abs(float(u[2])) < 0.5:
+        raise SolveError(
+            "degenerate-poses",
+            "the sweeps put the tool axis within 30 deg of the flange plane: the laser method "
+            "needs a tool that points away from the flange (check the sweep positions)",
+            loc=("sweeps",),
+        )
     p0 = R0.T @ np.array([line.alpha[0], line.alpha[1], 0.0])
     axis_point = p0 - (p0[2] / u[2]) * u
     descent = p.descent.copy()
@@ -484,13 +497,6 @@ def solve_laser(
             )
     x0 = p.noisy_inputs()
     tool = _solve_tool(p, x0, dev)
-    if abs(float(tool.u[2])) < 0.5:
-        raise SolveError(
-            "degenerate-poses",
-            "the fitted tool axis lies within 30 deg of the flange plane: the laser method "
-            "needs a tool that points away from the flange",
-            loc=("sweeps",),
-        )
     widths = _check_widths(p, warnings)
     _check_line_residuals(p, tool.line, widths)
     # Descent: the tip must lie beyond every swept section and on (one of) the beams.

@@ -323,6 +323,25 @@ def test_refuses_a_single_height() -> None:
     assert err.loc == ("sweeps",)
 
 
+def test_refuses_no_sweeps() -> None:
+    err = _refused(dataclasses.replace(_data(), sweeps=[]), "too-few-poses")
+    assert err.loc == ("sweeps",)
+
+
+def test_refuses_an_axis_nearly_in_the_flange_plane() -> None:
+    """Midpoints drifting 100 mm per 20 mm of height: no tool points that way."""
+    data = _data(heights_mm=(200.0, 220.0))
+    sweeps = [
+        Sweep(
+            s.beam,
+            np.asarray(s.break_mm) + i // 2 * np.array([100.0, 100.0, 0.0]),
+            np.asarray(s.restore_mm) + i // 2 * np.array([100.0, 100.0, 0.0]),
+        )
+        for i, s in enumerate(data.sweeps)
+    ]
+    _refused(dataclasses.replace(data, sweeps=sweeps), "degenerate-poses")
+
+
 def test_refuses_heights_too_close() -> None:
     err = _refused(_data(heights_mm=(200.0, 203.0)), "invalid-sweep")
     assert err.loc == ("sweeps", 2, "break_mm")
