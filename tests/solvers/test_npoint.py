@@ -1,0 +1,362 @@
+"""XYZ N-point solver against simulated touches with known truth."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from scipy.spatial.transform import Rotation
+
+from app.solvers.errors import SolveError
+from app.solvers.npoint import ALGORITHMS, solve_npoint
+from app.solvers.quality import Quality, ellipsoid95_scale, orientation_spread_deg
+from tests.sim.touches import TOOL_DOWN, coaxial_rotations, simulate_touches
+
+SCENARIOS = [
+    {"tilt_deg": 30.0, "spin": True},
+    {"tilt_deg": 10.0, "spin": False},
+    {"tilt_deg": 60.0, "spin": True, "tcp_norm_mm": 300.0},
+    {"tilt_deg": 45.0, "spin": False, "tcp_norm_mm": 50.0},
+]
+
+
+def _mahalanobis(err: np.ndarray, quality: Quality) -> float:
+    cov = np.array(quality.tcp_covariance_mm2)
+    return float(err @ np.linalg.solve(cov, err))
+
+
+# ------------------------------------------------------------------------ exact recovery
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("scenario", range(len(SCENARIOS)))
+@pytest.mark.parametrize("n", [4, 8, 50])
+def test_noise_free_touches_give_the_exact_tcp(algorithm: str, scenario: int, n: int) -> None:
+    sim = simulate_touches(n, seed=100 + scenario, touch_noise_mm=0.0, **SCENARIOS[scenario])
+    result = solve_npoint(sim.R, sim.f, algorithm=algorithm)
+    assert_allclose(result.tcp_mm, sim.t, rtol=0, atol=1e-9)
+    assert_allclose(result.pivot_mm, sim.p, rtol=0, atol=1e-9)
+    q = result.quality
+    assert q.max_mm < 1e-9
+    assert q.outliers == ()
+    assert q.sigma_source == "residuals"
+    assert all(np.isfinite(q.tcp_sigma_mm))
+    assert max(q.tcp_sigma_mm) < 1e-8
+
+
+def test_noise_free_with_configured_noise_reports_the_predicted_uncertainty() -> None:
+    sim = simulate_touches(8, seed=3, touch_noise_mm=0.0)
+    result = solve_npoint(sim.R, sim.f, touch_noise_mm=0.05)
+    assert_allclose(result.tcp_mm, sim.t, atol=1e-9)
+    assert result.quality.sigma_source == "configured"
+    assert result.quality.ellipsoid95_scale == pytest.approx(ellipsoid95_scale(None))
+    # sigma = 0.05 (A^T A)^-1: a fraction of the touch noise with 8 touches over a 30 deg cone
+    assert 0.005 < max(result.quality.tcp_sigma_mm) < 0.1
+
+
+# ----------------------------------------------------------------- noise and uncertainty
+
+
+@pytest.mark.parametrize(
+    ("algorithm", "configured", "orientation_deg"),
+    [
+        ("robust", False, 0.0),
+        ("robust", True, 0.0),
+        ("stacked", False, 0.0),
+        ("pairwise", True, 0.0),
+        ("gls", True, 0.1),
+        ("robust", False, 0.1),
+    ],
+)
+def test_reported_95_percent_ellipsoid_covers_the_truth(
+    algorithm: str, configured: bool, orientation_deg: float
+) -> None:
+    trials, hits, maha = 300, 0, []
+    n = 8 if orientation_deg == 0 else 12
+    for seed in range(trials):
+        sim = simulate_touches(
+            n, seed=seed, touch_noise_mm=0.05, orientation_noise_deg=orientation_deg
+        )
+        result = solve_npoint(
+            sim.R,
+            sim.f,
+            algorithm=algorithm,
+            touch_noise_mm=0.05 if configured else None,
+            orientation_noise_deg=orientation_deg or None,
+        )
+        d2 = _mahalanobis(result.tcp_mm - sim.t, result.quality)
+        maha.append(d2)
+        hits += d2 <= result.quality.ellipsoid95_scale**2
+    # binomial(300, 0.95): sd 1.3 %; the window is about +-3 sd
+    assert 0.91 <= hits / trials <= 0.99
+    if configured:
+        # with a known sigma the squared Mahalanobis distance is chi2(3): mean 3
+        assert 2.5 < float(np.mean(maha)) < 3.5
+
+
+def test_stacked_covariance_is_sigma_squared_times_inverse_normal_matrix() -> None:
+    sim = simulate_touches(10, seed=7)
+    result = solve_npoint(sim.R, sim.f, algorithm="stacked", touch_noise_mm=0.05)
+    A = np.concatenate([sim.R, np.broadcast_to(-np.eye(3), sim.R.shape)], axis=2).reshape(-1, 6)
+    expected = 0.05**2 * np.linalg.inv(A.T @ A)
+    assert_allclose(np.array(result.quality.tcp_covariance_mm2), expected[:3, :3], rtol=1e-9)
+    assert_allclose(result.pivot_covariance_mm2, expected[3:, 3:], rtol=1e-9)
+    s = np.linalg.svd(A, compute_uv=False)
+    assert result.quality.condition_number == pytest.approx(s[0] / s[-1], rel=1e-6)
+
+
+def test_estimated_sigma_matches_the_residuals_and_uses_f_based_scale() -> None:
+    sim = simulate_touches(8, seed=11)
+    result = solve_npoint(sim.R, sim.f, algorithm="stacked")
+    res = np.array(result.quality.residuals_mm)
+    sigma_hat = np.sqrt(np.sum(res**2) / (3 * 8 - 6))
+    A = np.concatenate([sim.R, np.broadcast_to(-np.eye(3), sim.R.shape)], axis=2).reshape(-1, 6)
+    expected = sigma_hat**2 * np.linalg.inv(A.T @ A)[:3, :3]
+    assert_allclose(np.array(result.quality.tcp_covariance_mm2), expected, rtol=1e-9)
+    assert result.quality.ellipsoid95_scale == pytest.approx(ellipsoid95_scale(18))
+    assert result.quality.ellipsoid95_scale > ellipsoid95_scale(None)
+
+
+def test_residuals_are_distances_of_the_tcp_from_the_pivot() -> None:
+    sim = simulate_touches(6, seed=5)
+    result = solve_npoint(sim.R, sim.f)
+    tips = sim.R @ result.tcp_mm + sim.f
+    assert_allclose(
+        result.quality.residuals_mm, np.linalg.norm(tips - result.pivot_mm, axis=1), atol=1e-12
+    )
+    q = result.quality
+    assert q.n_poses == 6
+    assert len(q.residuals_mm) == 6
+    assert q.rms_mm == pytest.approx(np.sqrt(np.mean(np.square(q.residuals_mm))))
+    assert q.max_mm == pytest.approx(max(q.residuals_mm))
+
+
+def test_gls_beats_stacked_under_orientation_noise() -> None:
+    err = {"gls": [], "stacked": []}
+    for seed in range(60):
+        sim = simulate_touches(20, seed=seed, touch_noise_mm=0.02, orientation_noise_deg=0.1)
+        for algorithm in err:
+            result = solve_npoint(
+                sim.R, sim.f, algorithm=algorithm, touch_noise_mm=0.02, orientation_noise_deg=0.1
+            )
+            err[algorithm].append(np.sum((result.tcp_mm - sim.t) ** 2))
+    assert np.mean(err["gls"]) < 0.8 * np.mean(err["stacked"])
+
+
+# -------------------------------------------------------------------------------- robust
+
+
+@pytest.mark.parametrize("seed", range(5))
+@pytest.mark.parametrize("configured", [False, True])
+def test_robust_names_exactly_the_missed_touches(seed: int, configured: bool) -> None:
+    sim = simulate_touches(20, seed=seed, outlier_fraction=0.4, outlier_mm=5.0)
+    result = solve_npoint(sim.R, sim.f, touch_noise_mm=0.05 if configured else None)
+    assert result.quality.outliers == tuple(np.flatnonzero(sim.outliers))
+    # as good as a fit on the clean touches alone
+    clean = solve_npoint(sim.R[~sim.outliers], sim.f[~sim.outliers], algorithm="stacked")
+    assert_allclose(result.tcp_mm, clean.tcp_mm, atol=1e-9)
+    assert any("set aside 8 of 20" in w for w in result.quality.warnings)
+    assert result.quality.max_mm < 0.5  # rms and max are over the kept touches
+
+
+def test_robust_finds_small_outliers_and_one_missed_touch_in_eight() -> None:
+    sim = simulate_touches(8, seed=21, outlier_fraction=0.125, outlier_mm=2.0)
+    result = solve_npoint(sim.R, sim.f)
+    assert result.quality.outliers == tuple(np.flatnonzero(sim.outliers))
+    sim = simulate_touches(20, seed=22, outlier_fraction=0.2, outlier_mm=0.5, touch_noise_mm=0.02)
+    result = solve_npoint(sim.R, sim.f)
+    assert result.quality.outliers == tuple(np.flatnonzero(sim.outliers))
+
+
+def test_plain_estimators_are_pulled_by_outliers_robust_is_not() -> None:
+    sim = simulate_touches(20, seed=4, outlier_fraction=0.3, outlier_mm=5.0)
+    robust = solve_npoint(sim.R, sim.f)
+    stacked = solve_npoint(sim.R, sim.f, algorithm="stacked")
+    assert np.linalg.norm(robust.tcp_mm - sim.t) < 0.1
+    assert np.linalg.norm(stacked.tcp_mm - sim.t) > 0.3
+    assert stacked.quality.outliers == ()
+
+
+def test_robust_with_large_n_and_outliers() -> None:
+    sim = simulate_touches(300, seed=8, outlier_fraction=0.3, outlier_mm=3.0)
+    result = solve_npoint(sim.R, sim.f)
+    assert result.quality.outliers == tuple(np.flatnonzero(sim.outliers))
+
+
+def test_robust_keeps_clean_data_whole() -> None:
+    for seed in range(40):
+        sim = simulate_touches(12, seed=seed)
+        robust = solve_npoint(sim.R, sim.f)
+        stacked = solve_npoint(sim.R, sim.f, algorithm="stacked")
+        if robust.quality.outliers:  # an honest 1 % family-wise false alarm is allowed
+            continue
+        assert_allclose(robust.tcp_mm, stacked.tcp_mm, atol=1e-12)
+
+
+def test_robust_is_deterministic() -> None:
+    sim = simulate_touches(40, seed=9, outlier_fraction=0.4, outlier_mm=5.0)
+    first = solve_npoint(sim.R, sim.f)
+    for _ in range(3):
+        again = solve_npoint(sim.R.copy(), sim.f.copy())
+        assert np.array_equal(again.tcp_mm, first.tcp_mm)
+        assert again.quality == first.quality
+
+
+def test_four_touches_with_a_miss_are_flagged_not_guessed() -> None:
+    sim = simulate_touches(4, seed=2, outlier_fraction=0.25, outlier_mm=5.0)
+    result = solve_npoint(sim.R, sim.f, touch_noise_mm=0.05)
+    assert result.quality.outliers == ()
+    assert any("cannot be singled out" in w for w in result.quality.warnings)
+
+
+# ------------------------------------------------------------------------------ refusals
+
+
+def _raises(kind: str, *args: object, **kwargs: object) -> SolveError:
+    with pytest.raises(SolveError) as info:
+        solve_npoint(*args, **kwargs)  # type: ignore[arg-type]
+    assert info.value.kind == kind, info.value.detail
+    assert info.value.detail
+    return info.value
+
+
+def test_too_few_touches() -> None:
+    sim = simulate_touches(3, seed=1)
+    err = _raises("too-few-poses", sim.R, sim.f)
+    assert err.loc == ("poses",)
+    assert "at least 4" in err.detail
+
+
+def test_repeated_orientations_are_named() -> None:
+    sim = simulate_touches(4, seed=1)
+    R = sim.R.copy()
+    R[2] = R[0] @ Rotation.from_euler("x", 0.2, degrees=True).as_matrix()
+    err = _raises("repeated-poses", R, sim.f)
+    assert err.extra["pairs"] == [[0, 2]]
+    assert err.loc == ("poses", 2)
+    assert "0 and 2" in err.detail
+
+
+def test_repeated_orientation_among_many_touches_is_a_warning() -> None:
+    sim = simulate_touches(8, seed=1, touch_noise_mm=0.0)
+    R, f = np.concatenate([sim.R, sim.R[:1]]), np.concatenate([sim.f, sim.f[:1]])
+    result = solve_npoint(R, f)
+    assert_allclose(result.tcp_mm, sim.t, atol=1e-9)
+    assert any("0 and 8" in w for w in result.quality.warnings)
+
+
+@pytest.mark.parametrize("axis", [(0, 0, 1), (1, 0, 0), (0.6, 0.8, 0)])
+def test_rotations_about_one_axis_are_degenerate_and_the_direction_is_named(
+    axis: tuple[float, float, float],
+) -> None:
+    R = coaxial_rotations(6, axis_flange=np.array(axis))
+    t, p = np.array([10.0, 5.0, 150.0]), np.array([700.0, 0.0, 200.0])
+    f = p - R @ t
+    err = _raises("degenerate-poses", R, f)
+    direction = np.array(err.extra["direction_flange"])
+    assert_allclose(np.abs(direction @ np.array(axis)), 1.0, atol=1e-6)
+    assert "add a touch rotated about a different axis" in err.detail
+    if axis == (0, 0, 1):
+        assert "[0.00, 0.00, 1.00]" in err.detail
+
+
+def test_almost_coaxial_rotations_with_noise_are_still_degenerate() -> None:
+    R = coaxial_rotations(8, axis_flange=np.array([0.0, 0.0, 1.0]))
+    jitter = Rotation.from_rotvec(np.random.default_rng(0).normal(0, np.radians(0.02), (8, 3)))
+    R = (Rotation.from_matrix(R) * jitter).as_matrix()
+    f = np.array([700.0, 0.0, 200.0]) - R @ np.array([0.0, 0.0, 150.0])
+    _raises("degenerate-poses", R, f)
+
+
+def test_small_spread_is_refused_against_the_tolerance() -> None:
+    sim = simulate_touches(6, seed=3, tilt_deg=3.0, spin=False)
+    err = _raises("insufficient-spread", sim.R, sim.f, touch_noise_mm=0.05, max_tcp_sigma_mm=0.1)
+    assert err.extra["predicted_sigma_mm"] > 0.1
+    assert "tilt the tool more" in err.detail
+    # a wide spread with the same tolerance passes
+    wide = simulate_touches(6, seed=3, tilt_deg=45.0)
+    solve_npoint(wide.R, wide.f, touch_noise_mm=0.05, max_tcp_sigma_mm=0.1)
+
+
+def test_small_spread_uses_the_estimated_noise_when_none_is_configured() -> None:
+    sim = simulate_touches(8, seed=3, tilt_deg=3.0, spin=False, touch_noise_mm=0.1)
+    err = _raises("insufficient-spread", sim.R, sim.f, max_tcp_sigma_mm=0.2)
+    assert "estimated" in err.detail
+
+
+def test_non_finite_and_out_of_range_values_are_refused() -> None:
+    sim = simulate_touches(6, seed=1)
+    f = sim.f.copy()
+    f[3, 1] = np.nan
+    assert _raises("non-finite", sim.R, f).loc[:2] == ("poses", 3)
+    f = sim.f.copy()
+    f[4] = -3.7e28
+    assert _raises("out-of-range", sim.R, f).loc == ("poses", 4, "position")
+    R = sim.R.copy()
+    R[1, 0, 0] = np.inf
+    _raises("non-finite", R, sim.f)
+
+
+def test_non_orthonormal_and_mirrored_rotations_are_refused() -> None:
+    sim = simulate_touches(6, seed=1)
+    R = sim.R.copy()
+    R[2] *= 1.01
+    assert _raises("invalid-rotation", R, sim.f).loc == ("poses", 2, "rotation")
+    R = sim.R.copy()
+    R[0] = -R[0]
+    _raises("invalid-rotation", R, sim.f)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"algorithm": "magic"},
+        {"touch_noise_mm": -0.1},
+        {"touch_noise_mm": 0.0},
+        {"touch_noise_mm": float("nan")},
+        {"orientation_noise_deg": 45.0},
+        {"max_tcp_sigma_mm": 0.0},
+    ],
+)
+def test_unusable_options_are_refused(options: dict[str, object]) -> None:
+    sim = simulate_touches(6, seed=1)
+    err = _raises("invalid-options", sim.R, sim.f, **options)
+    assert err.loc[0] == "options"
+
+
+def test_mismatched_lengths_are_refused() -> None:
+    sim = simulate_touches(6, seed=1)
+    _raises("invalid-pose", sim.R, sim.f[:5])
+
+
+# ------------------------------------------------------------------------ quality object
+
+
+def test_quality_is_plain_json() -> None:
+    sim = simulate_touches(20, seed=2, outlier_fraction=0.1)
+    q = solve_npoint(sim.R, sim.f).quality
+    text = json.dumps(dataclasses.asdict(q))
+    back = json.loads(text)
+    assert back["n_poses"] == 20
+    assert len(back["residuals_mm"]) == 20
+    assert back["sigma_source"] in ("configured", "residuals")
+    assert all(isinstance(x, float) for x in q.tcp_sigma_mm)
+    assert all(isinstance(i, int) for i in q.outliers)
+
+
+def test_orientation_spread_is_the_largest_pairwise_angle() -> None:
+    angles = [0.0, 10.0, 25.0, -20.0]
+    R = (TOOL_DOWN * Rotation.from_euler("x", np.array(angles)[:, None], degrees=True)).as_matrix()
+    assert orientation_spread_deg(R) == pytest.approx(45.0)
+    sim = simulate_touches(10, seed=5)
+    q = solve_npoint(sim.R, sim.f).quality
+    assert q.orientation_spread_deg == pytest.approx(orientation_spread_deg(sim.R), abs=1e-6)
+
+
+def test_weakly_determined_direction_is_warned() -> None:
+    sim = simulate_touches(8, seed=4, tilt_deg=2.0, spin=True)
+    q = solve_npoint(sim.R, sim.f).quality
+    assert any("weakly determined" in w for w in q.warnings)
