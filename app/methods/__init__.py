@@ -6,13 +6,14 @@ from collections.abc import Callable
 from typing import Any
 
 from app.errors import InvalidInput
-from app.methods import manual
+from app.methods import manual, npoint
 from app.methods.base import MethodContext, SolvedTcp
 
 Runner = Callable[[Any, MethodContext], SolvedTcp]
 
 RUNNERS: dict[str, Runner] = {
     "manual": manual.run,
+    "xyz_npoint": npoint.run,
 }
 
 

@@ -260,6 +260,11 @@ class QualityOut(BaseModel):
     orientation_spread_deg: float | None
     condition_number: float | None
     outliers: list[int]
+    ellipsoid95_scale: float | None = Field(
+        default=None,
+        description="multiply the 1-sigma ellipsoid by this for 95 % (F-based when the noise "
+        "is estimated from the residuals)",
+    )
     orientation_sigma_deg: list[float] | None = None
 
 
