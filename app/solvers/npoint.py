@@ -69,6 +69,9 @@ _MAX_GLS_STEPS = 30
 #: Upper bounds on the noise options, to catch unit mistakes (m for mm, rad for deg).
 MAX_TOUCH_NOISE_MM = 100.0
 MAX_ORIENTATION_NOISE_DEG = 10.0
+#: From this many touches on, correlated residuals of consecutive touches are flagged.
+SERIAL_MIN_POSES = 30
+SERIAL_CORRELATION_WARN = 0.5
 #: Below this many residual degrees of freedom an estimated touch noise is flagged as soft.
 FEW_DOF = 12
 
@@ -180,6 +183,14 @@ def solve_npoint(
             f"the touch noise was estimated from only {dof} degrees of freedom; configure the "
             "tool's touch noise (or add touches) for a firmer uncertainty"
         )
+    if m >= SERIAL_MIN_POSES:
+        lag1 = _lag1_correlation(resu)
+        if lag1 > SERIAL_CORRELATION_WARN:
+            warnings.append(
+                f"the residuals of consecutive touches are correlated (lag-1 correlation "
+                f"{lag1:.2f}), as in a tracker stream: the uncertainty assumes independent "
+                "touches and is too small; use frames further apart in time"
+            )
     if block.ratio < WEAK_DIRECTION_RATIO:
         warnings.append(
             f"the TCP along the flange direction {format_vector(block.weakest)} is weakly "
@@ -236,6 +247,13 @@ def solve_npoint(
 
 
 # --------------------------------------------------------------------------- input checks
+
+
+def _lag1_correlation(res: FloatArray) -> float:
+    """Correlation of consecutive residual vectors (m, 3): sum r_i . r_i+1 / sum |r_i|^2."""
+    x = res - res.mean(axis=0)
+    den = float(np.sum(x * x))
+    return float(np.sum(x[:-1] * x[1:]) / den) if den > 0.0 else 0.0
 
 
 def _check_options(
