@@ -11,7 +11,7 @@ from fastapi.routing import APIRoute
 from sqlalchemy.exc import SQLAlchemyError
 
 from app import __version__
-from app.api import calibrations, health, keys, robots, tools, versions
+from app.api import calibrations, health, keys, methods, references, robots, tools, versions
 from app.auth import ensure_bootstrap_key
 from app.config import get_settings
 from app.db import get_engine, session_scope
@@ -60,7 +60,7 @@ def create_app() -> FastAPI:
         generate_unique_id_function=_operation_id,
     )
     install_error_handlers(app)
-    for module in (health, keys, robots, tools, calibrations, versions):
+    for module in (health, keys, robots, tools, calibrations, versions, references, methods):
         app.include_router(module.router)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     app.add_middleware(MetricsMiddleware)

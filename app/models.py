@@ -207,7 +207,7 @@ class ReferencePoint(Base):
     name: Mapped[str] = mapped_column(String(200))
     position_mm: Mapped[list[Any]] = mapped_column(JSON)
     covariance_mm2: Mapped[list[Any] | None] = mapped_column(JSON)
-    source: Mapped[str] = mapped_column(String(40))
+    source: Mapped[str] = mapped_column(String(100))
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str] = mapped_column(String(200))

@@ -6,7 +6,7 @@ from collections.abc import Callable
 from typing import Any
 
 from app.errors import InvalidInput
-from app.methods import manual, npoint
+from app.methods import manual, npoint, reference
 from app.methods.base import MethodContext, SolvedTcp
 
 Runner = Callable[[Any, MethodContext], SolvedTcp]
@@ -14,6 +14,7 @@ Runner = Callable[[Any, MethodContext], SolvedTcp]
 RUNNERS: dict[str, Runner] = {
     "manual": manual.run,
     "xyz_npoint": npoint.run,
+    "xyz_reference": reference.run,
 }
 
 

@@ -21,8 +21,6 @@ from sqlalchemy.orm import Session
 from app.auth import Principal
 from app.config import get_settings
 from app.errors import IdempotencyConflict, InvalidInput, NotFound
-from app.kinematics.dh import kinematics_from_spec
-from app.kinematics.poses import poses_from_format
 from app.methods import run_method
 from app.methods.base import ActiveFrame, SolvedTcp, StoredPoint
 from app.models import (
@@ -31,13 +29,13 @@ from app.models import (
     LaserDevice,
     ReferencePoint,
     Robot,
-    TcpVersion,
     Tool,
     utcnow,
 )
 from app.schemas.calibrations import Calibration as CalibrationOut
 from app.schemas.common import Units
 from app.services import audit
+from app.services.frames import active_frame, parse_poses_with
 from app.services.kinematics import validate_kinematics
 from app.services.pagination import paginate
 from app.services.references import create_reference_point
@@ -47,43 +45,6 @@ from app.services.versions import IDENTITY_QUATERNION, activate, add_version
 
 
 # ---- contexts -------------------------------------------------------------------------------
-def parse_poses_with(
-    kinematics: dict[str, Any] | None,
-    fmt: str,
-    poses: Sequence[Any],
-    units: Units | None,
-    *,
-    loc: Sequence[str | int],
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Poses in any format -> (R, f), with the robot's kinematics for `joints`."""
-    chain = kinematics_from_spec(kinematics) if kinematics else None
-    unit_map = units.model_dump(exclude_none=True) if units else None
-    return poses_from_format(fmt, poses, units=unit_map, kinematics=chain, loc=loc)
-
-
-def _frame_of(session: Session, tool: Tool) -> ActiveFrame | None:
-    if tool.active_version is None:
-        return None
-    row = session.scalars(
-        select(TcpVersion).where(
-            TcpVersion.tool_id == tool.id, TcpVersion.version == tool.active_version
-        )
-    ).one()
-    covariance = None
-    if row.calibration_id:
-        calibration = session.get(Calibration, row.calibration_id)
-        cov = (
-            calibration.result.get("quality", {}).get("tcp_covariance_mm2") if calibration else None
-        )
-        covariance = np.asarray(cov, dtype=float) if cov else None
-    return ActiveFrame(
-        position_mm=np.asarray(row.position_mm, dtype=float),
-        quaternion=np.asarray(row.quaternion, dtype=float),
-        covariance_mm2=covariance,
-        version=row.version,
-    )
-
-
 class DbContext:
     """Method context backed by the database, for one tool of one robot."""
 
@@ -95,7 +56,7 @@ class DbContext:
         return effective_tolerance(self.tool.tolerance)
 
     def active_frame(self) -> ActiveFrame | None:
-        return _frame_of(self.session, self.tool)
+        return active_frame(self.session, self.tool)
 
     def parse_poses(
         self, fmt: str, poses: Sequence[Any], units: Units | None, *, loc: Sequence[str | int]
@@ -121,7 +82,7 @@ class DbContext:
                 f"robot {self.robot.id} has no live tool {tool_id}",
                 loc=("body", "options", "reference_tool_id"),
             )
-        frame = _frame_of(self.session, other)
+        frame = active_frame(self.session, other)
         if frame is None:
             raise InvalidInput(
                 "unknown-reference",

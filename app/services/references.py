@@ -9,11 +9,15 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import Conflict
+from app.errors import Conflict, InvalidInput, NotFound
 from app.models import ReferencePoint
+from app.schemas.references import ReferencePointCreate
 from app.services import audit
+from app.services.frames import active_frame, parse_poses_with
 from app.services.pagination import paginate
-from app.services.registry import get_robot
+from app.services.registry import get_robot, get_tool
+from app.services.tolerance import effective_tolerance
+from app.solvers.reference import reference_point_from_touch
 
 
 def create_reference_point(
@@ -95,3 +99,67 @@ def reference_point_out(row: ReferencePoint) -> dict[str, Any]:
         "created_at": row.created_at,
         "created_by": row.created_by,
     }
+
+
+def register_reference_point(
+    session: Session, *, robot_id: str, data: ReferencePointCreate, actor: Principal
+) -> ReferencePoint:
+    """A reference point entered as numbers, or touched by a tool whose active TCP is trusted."""
+    robot = get_robot(session, robot_id)
+    if data.touch is None:
+        assert data.position_mm is not None
+        return create_reference_point(
+            session,
+            robot_id=robot_id,
+            name=data.name,
+            position_mm=data.position_mm,
+            covariance_mm2=data.covariance_mm2,
+            source="numeric",
+            calibration_id=None,
+            actor=actor,
+        )
+    touch = data.touch
+    tool = get_tool(session, touch.tool_id)
+    if tool.robot_id != robot_id:
+        raise InvalidInput(
+            "unknown-reference",
+            f"tool {tool.id} is not on robot {robot_id}",
+            loc=("body", "touch", "tool_id"),
+        )
+    frame = active_frame(session, tool)
+    if frame is None:
+        raise InvalidInput(
+            "unknown-reference",
+            f"tool {tool.id} has no active TCP to touch the point with",
+            loc=("body", "touch", "tool_id"),
+        )
+    rotations, positions = parse_poses_with(
+        robot.kinematics, touch.format, [touch.pose], touch.units, loc=("touch", "pose")
+    )
+    tolerance = effective_tolerance(tool.tolerance)
+    point, covariance = reference_point_from_touch(
+        tcp_mm=frame.position_mm,
+        tcp_covariance_mm2=frame.covariance_mm2,
+        rotation=rotations[0],
+        position_mm=positions[0],
+        touch_noise_mm=tolerance.get("touch_noise_mm"),
+    )
+    return create_reference_point(
+        session,
+        robot_id=robot_id,
+        name=data.name,
+        position_mm=point.tolist(),
+        covariance_mm2=covariance.tolist(),
+        source=f"touch:{tool.id}:v{frame.version}",
+        calibration_id=None,
+        actor=actor,
+    )
+
+
+def get_reference_point(session: Session, *, robot_id: str, point_id: str) -> ReferencePoint:
+    """One reference point of a robot, or 404."""
+    get_robot(session, robot_id)
+    row = session.get(ReferencePoint, point_id)
+    if row is None or row.robot_id != robot_id:
+        raise NotFound(f"robot {robot_id} has no reference point {point_id}")
+    return row

@@ -431,24 +431,33 @@ def _mahalanobis_sq(res: FloatArray, cov: FloatArray) -> FloatArray:
 
 
 def _estimate_touch_noise(res: FloatArray, R: FloatArray, t: FloatArray, s_th: float) -> float:
-    """Touch noise s_p (mm) making the weighted residual sum equal its dof (3m - 6).
+    """Touch noise s_p (mm) from residuals (m, 3), the orientation noise s_th (rad) known.
 
-    With Cov_i = s_p^2 u u^T + (s_p^2 + c)(I - u u^T), the weighted sum is
-    a / s_p^2 + b / (s_p^2 + c): a quadratic in s_p^2, solved in closed form.
+    Along u_i = R_i t / |t| the residual variance is s_p^2, across it s_p^2 + c with
+    c = (s_th |t|)^2. The residual energy along (a, about nu/3 dof) and across (b, about
+    2 nu/3 dof) each estimate s_p^2; they are combined with inverse-variance weights, so that
+    a dominant orientation noise cannot drive the estimate to zero. Without orientation
+    noise this is sum |r_i|^2 / (3m - 6).
     """
     nu = 3 * res.shape[0] - 6
-    if s_th == 0.0:
-        return math.sqrt(float(np.sum(res**2)) / nu)
+    total = float(np.sum(res * res))
     u, tn = _lever_directions(R, t)
     c = (s_th * tn) ** 2
-    along = (res * u).sum(axis=1)
-    a = float(np.sum(along**2))
-    b = float(np.sum(res**2)) - a
     if c == 0.0:
-        return math.sqrt((a + b) / nu)
-    q = nu * c - a - b
-    x = (-q + math.sqrt(q * q + 4.0 * nu * a * c)) / (2.0 * nu)
-    return math.sqrt(max(x, 0.0))
+        return math.sqrt(total / nu)
+    a = float(np.sum(np.sum(res * u, axis=1) ** 2))
+    b = total - a
+    nu_a, nu_b = nu / 3.0, 2.0 * nu / 3.0
+    xa, xb = a / nu_a, b / nu_b - c
+    floor = RESIDUAL_FLOOR_MM**2
+    x = max(xa, floor)
+    for _ in range(50):
+        wa, wb = nu_a / x**2, nu_b / (x + c) ** 2
+        new = max((wa * xa + wb * xb) / (wa + wb), floor)
+        if abs(new - x) <= 1e-12 * x:
+            break
+        x = new
+    return math.sqrt(x)
 
 
 def _touch_noise_level(

@@ -161,7 +161,7 @@ def upgrade() -> None:
     sa.Column('name', sa.String(length=200), nullable=False),
     sa.Column('position_mm', sa.JSON(), nullable=False),
     sa.Column('covariance_mm2', sa.JSON(), nullable=True),
-    sa.Column('source', sa.String(length=40), nullable=False),
+    sa.Column('source', sa.String(length=100), nullable=False),
     sa.Column('calibration_id', sa.String(length=36), nullable=True),
     sa.Column('created_at', sa.DateTime(timezone=True), nullable=False),
     sa.Column('created_by', sa.String(length=200), nullable=False),

@@ -1,0 +1,94 @@
+"""Reference points, laser devices and TCP checks."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, Field, model_validator
+
+from app.schemas.common import (
+    FiniteFloat,
+    Name,
+    Pose,
+    PoseFormat,
+    Poses,
+    StrictModel,
+    Timestamp,
+    Units,
+    Vec3,
+)
+
+Matrix3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
+
+
+class TouchIn(StrictModel):
+    """A touch of the point by a tool whose active TCP is trusted."""
+
+    tool_id: str
+    format: PoseFormat
+    pose: Pose
+    units: Units | None = None
+
+
+class ReferencePointCreate(StrictModel):
+    name: Name
+    position_mm: Vec3 | None = None
+    covariance_mm2: Matrix3 | None = None
+    source: Literal["numeric", "touch"] | None = None
+    touch: TouchIn | None = None
+
+    @model_validator(mode="after")
+    def _numbers_or_touch(self) -> ReferencePointCreate:
+        if (self.position_mm is None) == (self.touch is None):
+            raise ValueError("give position_mm (numeric entry) or touch (a trusted tool's touch)")
+        if self.touch is not None and self.covariance_mm2 is not None:
+            raise ValueError("a touched point's covariance is computed; do not give one")
+        return self
+
+
+class ReferencePoint(BaseModel):
+    id: str
+    robot_id: str
+    name: str
+    position_mm: list[float]
+    covariance_mm2: list[list[float]] | None
+    source: str
+    calibration_id: str | None
+    created_at: Timestamp
+    created_by: str
+
+
+class CheckCreate(StrictModel):
+    reference_point_id: str
+    format: PoseFormat
+    poses: Annotated[Poses, Field(min_length=1)]
+    units: Units | None = None
+
+
+class CheckTouch(BaseModel):
+    deviation_mm: list[float]
+    deviation_flange_mm: list[float]
+    distance_mm: float
+
+
+class CheckResult(BaseModel):
+    tool_id: str
+    version: int
+    reference_point_id: str
+    deviation_mm: list[float] = Field(
+        description="mean of R t + f - r over the touches, base frame"
+    )
+    deviation_flange_mm: list[float]
+    distance_mm: float
+    max_distance_mm: float
+    check_mm: float
+    within_tolerance: bool
+    touches: list[CheckTouch]
+    checked_at: Timestamp
+    checked_by: str
+
+
+class LaserDeviceNumbers(StrictModel):
+    beam_a_y_mm: FiniteFloat
+    beam_b_x_mm: FiniteFloat
+    plane_z_mm: FiniteFloat

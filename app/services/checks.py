@@ -1,0 +1,95 @@
+"""TCP checks: touch a stored reference point with the active TCP and measure the drift.
+
+A check never changes the active TCP; it is recorded in the audit trail either way.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from sqlalchemy.orm import Session
+
+from app.auth import Principal
+from app.models import utcnow
+from app.schemas.references import CheckCreate
+from app.services import audit
+from app.services.frames import active_frame, parse_poses_with
+from app.services.references import get_reference_point
+from app.services.registry import get_robot, get_tool
+from app.services.tolerance import effective_tolerance
+from app.services.versions import active_version_row
+from app.solvers.reference import check_tcp
+
+
+def run_check(
+    session: Session,
+    *,
+    tool_id: str,
+    data: CheckCreate,
+    actor: Principal,
+) -> dict[str, Any]:
+    """Deviation of the active TCP at a reference point, against the tool's check_mm."""
+    tool = get_tool(session, tool_id)
+    robot = get_robot(session, tool.robot_id)
+    version = active_version_row(session, tool)  # 404 /no-active-version when none
+    frame = active_frame(session, tool)
+    assert frame is not None
+    point = get_reference_point(session, robot_id=robot.id, point_id=data.reference_point_id)
+    rotations, positions = parse_poses_with(
+        robot.kinematics, data.format, data.poses, data.units, loc=("poses",)
+    )
+    touches = [
+        check_tcp(
+            tcp_mm=frame.position_mm, rotation=R, position_mm=f, reference_mm=point.position_mm
+        )
+        for R, f in zip(rotations, positions, strict=True)
+    ]
+    mean_base = np.mean([t.deviation_base_mm for t in touches], axis=0)
+    mean_flange = np.mean([t.deviation_flange_mm for t in touches], axis=0)
+    distances = [float(t.distance_mm) for t in touches]
+    limit = float(effective_tolerance(tool.tolerance)["check_mm"])
+    within = max(distances) <= limit
+    result: dict[str, Any] = {
+        "tool_id": tool.id,
+        "version": version.version,
+        "reference_point_id": point.id,
+        "deviation_mm": [float(v) for v in mean_base],
+        "deviation_flange_mm": [float(v) for v in mean_flange],
+        "distance_mm": float(np.linalg.norm(mean_base)),
+        "max_distance_mm": max(distances),
+        "check_mm": limit,
+        "within_tolerance": within,
+        "touches": [
+            {
+                "deviation_mm": [float(v) for v in t.deviation_base_mm],
+                "deviation_flange_mm": [float(v) for v in t.deviation_flange_mm],
+                "distance_mm": float(t.distance_mm),
+            }
+            for t in touches
+        ],
+        "checked_at": utcnow(),
+        "checked_by": actor.name,
+    }
+    audit.record(
+        session,
+        actor=actor,
+        action="tool.check",
+        resource_type="tool",
+        resource_id=tool.id,
+        robot_id=tool.robot_id,
+        tool_id=tool.id,
+        details={
+            k: result[k]
+            for k in (
+                "version",
+                "reference_point_id",
+                "deviation_mm",
+                "distance_mm",
+                "max_distance_mm",
+                "check_mm",
+                "within_tolerance",
+            )
+        },
+    )
+    return result

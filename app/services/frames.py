@@ -1,0 +1,55 @@
+"""Reading poses and a tool's trusted frame: shared by calibrations, references and checks."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.kinematics.dh import kinematics_from_spec
+from app.kinematics.poses import poses_from_format
+from app.methods.base import ActiveFrame
+from app.models import Calibration, TcpVersion, Tool
+from app.schemas.common import Units
+
+
+def parse_poses_with(
+    kinematics: dict[str, Any] | None,
+    fmt: str,
+    poses: Sequence[Any],
+    units: Units | None,
+    *,
+    loc: Sequence[str | int],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Poses in any format -> (R, f), with the robot's kinematics for `joints`."""
+    chain = kinematics_from_spec(kinematics) if kinematics else None
+    unit_map = units.model_dump(exclude_none=True) if units else None
+    return poses_from_format(fmt, poses, units=unit_map, kinematics=chain, loc=loc)
+
+
+def active_frame(session: Session, tool: Tool) -> ActiveFrame | None:
+    """A tool's active TCP with the covariance its calibration reported (None: no version)."""
+    if tool.active_version is None:
+        return None
+    row = session.scalars(
+        select(TcpVersion).where(
+            TcpVersion.tool_id == tool.id, TcpVersion.version == tool.active_version
+        )
+    ).one()
+    covariance = None
+    if row.calibration_id:
+        calibration = session.get(Calibration, row.calibration_id)
+        cov = (
+            calibration.result.get("quality", {}).get("tcp_covariance_mm2") if calibration else None
+        )
+        covariance = np.asarray(cov, dtype=float) if cov else None
+    return ActiveFrame(
+        position_mm=np.asarray(row.position_mm, dtype=float),
+        quaternion=np.asarray(row.quaternion, dtype=float),
+        covariance_mm2=covariance,
+        version=row.version,
+    )
