@@ -13,8 +13,9 @@ from app.models import ApiKey
 from tests.conftest import Database
 
 
-def test_bootstrap_key_is_admin_and_stored_hashed(db: Database,
-                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+def test_bootstrap_key_is_admin_and_stored_hashed(
+    db: Database, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from fastapi.testclient import TestClient
 
     from app.config import get_settings
@@ -25,8 +26,9 @@ def test_bootstrap_key_is_admin_and_stored_hashed(db: Database,
     get_settings.cache_clear()
     for _ in range(2):  # a restart must not duplicate it
         with TestClient(create_app()) as client:
-            response = client.post("/v1/robots", json={"name": "boot"},
-                                   headers={"Authorization": f"Bearer {secret}"})
+            response = client.post(
+                "/v1/robots", json={"name": "boot"}, headers={"Authorization": f"Bearer {secret}"}
+            )
             assert response.status_code in (201, 409)
     with session_scope(write=False) as session:
         rows = session.scalars(select(ApiKey).where(ApiKey.name == "bootstrap-admin")).all()

@@ -18,11 +18,20 @@ def test_committed_spec_equals_app_schema() -> None:
 def test_spec_has_the_contract_paths() -> None:
     paths = json.loads(SPEC.read_text())["paths"]
     for path in (
-        "/v1/robots", "/v1/robots/{robot_id}", "/v1/robots/{robot_id}/tools",
-        "/v1/tools/{tool_id}", "/v1/tools/{tool_id}/calibrations",
-        "/v1/calibrations/{calibration_id}", "/v1/tools/{tool_id}/versions",
-        "/v1/tools/{tool_id}/versions/{version}/activate", "/v1/tools/{tool_id}/tcp",
-        "/v1/robots/{robot_id}/tool-table", "/v1/keys", "/v1/solve", "/health", "/ready",
+        "/v1/robots",
+        "/v1/robots/{robot_id}",
+        "/v1/robots/{robot_id}/tools",
+        "/v1/tools/{tool_id}",
+        "/v1/tools/{tool_id}/calibrations",
+        "/v1/calibrations/{calibration_id}",
+        "/v1/tools/{tool_id}/versions",
+        "/v1/tools/{tool_id}/versions/{version}/activate",
+        "/v1/tools/{tool_id}/tcp",
+        "/v1/robots/{robot_id}/tool-table",
+        "/v1/keys",
+        "/v1/solve",
+        "/health",
+        "/ready",
         "/metrics",
     ):
         assert path in paths, path
