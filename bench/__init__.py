@@ -1,0 +1,1 @@
+"""Benchmarks: accuracy against the Cramer-Rao bound, solver speed."""

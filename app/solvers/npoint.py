@@ -169,6 +169,14 @@ def solve_npoint(
     s_p, dof = _touch_noise_level(resu, Ru, t, noise)
     cov6 = _covariance(fit.jac, Ru, t, s_p, noise.orientation_rad)
     cov_t = cov6[:3, :3]
+    scale_dof = dof
+    if dof is not None and noise.orientation_rad > 0.0:
+        # Satterthwaite: only the touch-noise share w of the covariance is estimated, so the
+        # ellipsoid's effective degrees of freedom are dof / w^2 (chi2-like when w is small)
+        share = float(np.trace(_covariance(fit.jac, Ru, t, s_p, 0.0)[:3, :3]))
+        total = float(np.trace(cov_t))
+        w = share / total if total > 0.0 else 1.0
+        scale_dof = int(min(dof / max(w * w, 1e-9), 1e9))
 
     if noise.touch_mm is not None:
         sse = float(_mahalanobis_sq(resu, _noise_cov(Ru, t, s_p, noise.orientation_rad)).sum())
@@ -234,7 +242,7 @@ def solve_npoint(
         condition_number=block.design_condition,
         outliers=tuple(int(i) for i in np.flatnonzero(~used)),
         warnings=tuple(warnings),
-        dof=dof,
+        dof=scale_dof,
     )
     cov_p = cov6[3:, 3:]
     return NPointResult(
@@ -433,31 +441,17 @@ def _mahalanobis_sq(res: FloatArray, cov: FloatArray) -> FloatArray:
 def _estimate_touch_noise(res: FloatArray, R: FloatArray, t: FloatArray, s_th: float) -> float:
     """Touch noise s_p (mm) from residuals (m, 3), the orientation noise s_th (rad) known.
 
-    Along u_i = R_i t / |t| the residual variance is s_p^2, across it s_p^2 + c with
-    c = (s_th |t|)^2. The residual energy along (a, about nu/3 dof) and across (b, about
-    2 nu/3 dof) each estimate s_p^2; they are combined with inverse-variance weights, so that
-    a dominant orientation noise cannot drive the estimate to zero. Without orientation
-    noise this is sum |r_i|^2 / (3m - 6).
+    Moment estimate: E sum |r_i|^2 = (3m - 6)(s_p^2 + 2c/3) with c = (s_th |t|)^2, so
+    s_p^2 = sum |r_i|^2 / (3m - 6) - 2c/3, floored at c/25: a touch noise estimated to zero
+    under a dominant orientation noise would let the weighted fit trust one direction of
+    every touch blindly. Without orientation noise this is sum |r_i|^2 / (3m - 6).
     """
     nu = 3 * res.shape[0] - 6
-    total = float(np.sum(res * res))
-    u, tn = _lever_directions(R, t)
-    c = (s_th * tn) ** 2
-    if c == 0.0:
-        return math.sqrt(total / nu)
-    a = float(np.sum(np.sum(res * u, axis=1) ** 2))
-    b = total - a
-    nu_a, nu_b = nu / 3.0, 2.0 * nu / 3.0
-    xa, xb = a / nu_a, b / nu_b - c
-    floor = RESIDUAL_FLOOR_MM**2
-    x = max(xa, floor)
-    for _ in range(50):
-        wa, wb = nu_a / x**2, nu_b / (x + c) ** 2
-        new = max((wa * xa + wb * xb) / (wa + wb), floor)
-        if abs(new - x) <= 1e-12 * x:
-            break
-        x = new
-    return math.sqrt(x)
+    total = float(np.sum(res * res)) / nu
+    if s_th == 0.0:
+        return math.sqrt(total)
+    c = (s_th * float(np.linalg.norm(t))) ** 2
+    return math.sqrt(max(total - 2.0 * c / 3.0, c / 25.0, RESIDUAL_FLOOR_MM**2))
 
 
 def _touch_noise_level(
@@ -522,15 +516,16 @@ def _fit_gls(R: FloatArray, f: FloatArray, noise: _Noise) -> _Fit:
     s_th = noise.orientation_rad
     if s_th == 0.0:
         return fit  # isotropic weights: the stacked solution is the weighted one
+    if noise.touch_mm is not None:
+        s_p = noise.touch_mm
+    else:
+        # estimated once from the unweighted fit: re-estimating it from weighted residuals
+        # feeds back (small s_p -> tight fit along R_i t -> smaller s_p)
+        res = _residual_vectors(R, f, fit.t, fit.p)
+        s_p = _estimate_touch_noise(res, R, fit.t, s_th)
     for _ in range(_MAX_GLS_STEPS):
-        if noise.touch_mm is not None:
-            s_p = noise.touch_mm
-        else:
-            res = _residual_vectors(R, f, fit.t, fit.p)
-            s_p = _estimate_touch_noise(res, R, fit.t, s_th)
         tn = float(np.linalg.norm(fit.t))
-        s_p = max(s_p, RESIDUAL_FLOOR_MM, 1e-3 * s_th * tn)
-        new = _fit_weighted(R, f, _whiteners(R, fit.t, s_p, s_th))
+        new = _fit_weighted(R, f, _whiteners(R, fit.t, max(s_p, RESIDUAL_FLOOR_MM), s_th))
         step = float(np.linalg.norm(new.t - fit.t))
         fit = new
         if step <= 1e-12 * (1.0 + tn):
