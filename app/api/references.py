@@ -7,8 +7,15 @@ from fastapi import APIRouter
 from app.api.params import DEFAULT_PAGE, Cursor, Limit
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
-from app.schemas.references import CheckCreate, CheckResult, ReferencePoint, ReferencePointCreate
-from app.services import checks, references
+from app.schemas.references import (
+    CheckCreate,
+    CheckResult,
+    LaserDevice,
+    LaserDeviceCreate,
+    ReferencePoint,
+    ReferencePointCreate,
+)
+from app.services import checks, laser_devices, references
 
 router = APIRouter(tags=["reference points and checks"])
 
@@ -44,3 +51,40 @@ def get_reference_point(robot_id: str, point_id: str, session: SessionDep, key: 
 @router.post("/v1/tools/{tool_id}/checks", response_model=CheckResult)
 def check_tool(tool_id: str, body: CheckCreate, session: SessionDep, key: CalibrateKey) -> object:
     return checks.run_check(session, tool_id=tool_id, data=body, actor=key)
+
+
+@router.post(
+    "/v1/robots/{robot_id}/laser-devices",
+    status_code=201,
+    response_model=LaserDevice,
+    tags=["laser devices"],
+)
+def create_laser_device(
+    robot_id: str, body: LaserDeviceCreate, session: SessionDep, key: CalibrateKey
+) -> object:
+    return laser_devices.create_laser_device(session, robot_id=robot_id, data=body, actor=key)
+
+
+@router.get(
+    "/v1/robots/{robot_id}/laser-devices", response_model=Page[LaserDevice], tags=["laser devices"]
+)
+def list_laser_devices(
+    robot_id: str,
+    session: SessionDep,
+    key: ReadKey,
+    limit: Limit = DEFAULT_PAGE,
+    cursor: Cursor = None,
+) -> object:
+    items, next_cursor = laser_devices.list_laser_devices(
+        session, robot_id=robot_id, limit=limit, cursor=cursor
+    )
+    return {"items": items, "next_cursor": next_cursor}
+
+
+@router.get(
+    "/v1/robots/{robot_id}/laser-devices/{device_id}",
+    response_model=LaserDevice,
+    tags=["laser devices"],
+)
+def get_laser_device(robot_id: str, device_id: str, session: SessionDep, key: ReadKey) -> object:
+    return laser_devices.get_laser_device(session, robot_id=robot_id, device_id=device_id)

@@ -6,7 +6,7 @@ from collections.abc import Callable
 from typing import Any
 
 from app.errors import InvalidInput
-from app.methods import manual, npoint, reference
+from app.methods import laser, manual, npoint, orientation, reference
 from app.methods.base import MethodContext, SolvedTcp
 
 Runner = Callable[[Any, MethodContext], SolvedTcp]
@@ -15,6 +15,10 @@ RUNNERS: dict[str, Runner] = {
     "manual": manual.run,
     "xyz_npoint": npoint.run,
     "xyz_reference": reference.run,
+    "tcp_z_x": orientation.run_tcp_z_x,
+    "abc_2point": orientation.run_abc_2point,
+    "abc_world": orientation.run_abc_world,
+    "laser_beam": laser.run,
 }
 
 

@@ -8,7 +8,8 @@ from typing import Any
 import numpy as np
 
 from app.methods.base import MethodContext, SolvedTcp
-from app.schemas.calibrations import XyzNpointCalibration
+from app.schemas.calibrations import NPointOptions, XyzNpointCalibration
+from app.schemas.common import Units
 from app.solvers.errors import SolveError
 from app.solvers.npoint import NPointResult, solve_npoint
 from app.solvers.quality import Quality, format_vector
@@ -21,12 +22,11 @@ def quality_document(quality: Quality) -> dict[str, Any]:
     return doc
 
 
-def solve_touches(request: XyzNpointCalibration, ctx: MethodContext) -> NPointResult:
+def solve_touches(
+    ctx: MethodContext, fmt: str, poses: list[Any], units: Units | None, options: NPointOptions
+) -> NPointResult:
     """Parse the touches and run the chosen estimator with the tool's noise and tolerance."""
-    rotations, positions = ctx.parse_poses(
-        request.format, request.poses, request.units, loc=("poses",)
-    )
-    options = request.options
+    rotations, positions = ctx.parse_poses(fmt, poses, units, loc=("poses",))
     tolerance = ctx.tolerance
     limit = float(tolerance["max_rms_mm"])
     touch_noise = options.touch_noise_mm or tolerance.get("touch_noise_mm")
@@ -74,7 +74,7 @@ def _refuse_weak_geometry(result: NPointResult, limit: float) -> None:
 
 def run(request: XyzNpointCalibration, ctx: MethodContext) -> SolvedTcp:
     """TCP position from N touches; the touched point becomes `reference_point_mm`."""
-    result = solve_touches(request, ctx)
+    result = solve_touches(ctx, request.format, request.poses, request.units, request.options)
     return SolvedTcp(
         position_mm=result.tcp_mm,
         quaternion=None,

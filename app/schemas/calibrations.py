@@ -123,6 +123,7 @@ class AbcWorldOptions(StrictModel):
         min_length=1,
         max_length=2,
     )
+    working_axis: Literal["x", "z"] = "x"
     tcp_mm: Vec3 | None = None
 
 

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field, model_validator
 
+from app.schemas.calibrations import SweepIn
 from app.schemas.common import (
     FiniteFloat,
     Name,
@@ -92,3 +93,45 @@ class LaserDeviceNumbers(StrictModel):
     beam_a_y_mm: FiniteFloat
     beam_b_x_mm: FiniteFloat
     plane_z_mm: FiniteFloat
+
+
+class LaserTeachIn(StrictModel):
+    """Sweeps and descent by a tool whose active TCP (and axis) is trusted."""
+
+    tool_id: str
+    format: PoseFormat
+    poses: Annotated[Poses, Field(min_length=1, max_length=1)]
+    units: Units | None = None
+    sweeps: Annotated[list[SweepIn], Field(min_length=4, max_length=200)]
+    descent_mm: Vec3
+    trigger_noise_mm: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = None
+
+
+class LaserDeviceCreate(StrictModel):
+    name: Name
+    beam_a_y_mm: FiniteFloat | None = None
+    beam_b_x_mm: FiniteFloat | None = None
+    plane_z_mm: FiniteFloat | None = None
+    teach: LaserTeachIn | None = None
+
+    @model_validator(mode="after")
+    def _numbers_or_teach(self) -> LaserDeviceCreate:
+        numbers = [self.beam_a_y_mm, self.beam_b_x_mm, self.plane_z_mm]
+        if self.teach is None and any(n is None for n in numbers):
+            raise ValueError("give beam_a_y_mm, beam_b_x_mm and plane_z_mm, or teach")
+        if self.teach is not None and any(n is not None for n in numbers):
+            raise ValueError("a taught device's geometry is computed; give teach alone")
+        return self
+
+
+class LaserDevice(BaseModel):
+    id: str
+    robot_id: str
+    name: str
+    beam_a_y_mm: float
+    beam_b_x_mm: float
+    plane_z_mm: float
+    source: str
+    details: dict[str, Any] | None
+    created_at: Timestamp
+    created_by: str
