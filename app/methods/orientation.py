@@ -130,7 +130,7 @@ def run_abc_world(request: AbcWorldCalibration, ctx: MethodContext) -> SolvedTcp
     rotations, _ = ctx.parse_poses(request.format, request.poses, request.units, loc=("poses",))
     result = orientation_from_world(
         rotation=rotations[0],
-        align=dict[str, str](request.options.align),
+        align={str(k): str(v) for k, v in request.options.align.items()},
         working_axis=request.options.working_axis,
     )
     solved = SolvedTcp(
