@@ -172,11 +172,15 @@ def solve_npoint(
     scale_dof = dof
     if dof is not None and noise.orientation_rad > 0.0:
         # Satterthwaite: only the touch-noise share w of the covariance is estimated, so the
-        # ellipsoid's effective degrees of freedom are dof / w^2 (chi2-like when w is small)
+        # ellipsoid's effective degrees of freedom are nu_x / w^2 (chi2-like when w is small);
+        # s_p^2 = sum|r|^2 / dof - 2c/3 is less certain than dof says:
+        # nu_x = dof s_p^2 / (s_p^2 + 2c/3)
         share = float(np.trace(_covariance(fit.jac, Ru, t, s_p, 0.0)[:3, :3]))
         total = float(np.trace(cov_t))
         w = share / total if total > 0.0 else 1.0
-        scale_dof = int(min(dof / max(w * w, 1e-9), 1e9))
+        c = (noise.orientation_rad * float(np.linalg.norm(t))) ** 2
+        nu_x = dof * s_p**2 / (s_p**2 + 2.0 * c / 3.0)
+        scale_dof = max(1, int(min(nu_x / max(w * w, 1e-9), 1e9)))
 
     if noise.touch_mm is not None:
         sse = float(_mahalanobis_sq(resu, _noise_cov(Ru, t, s_p, noise.orientation_rad)).sum())
