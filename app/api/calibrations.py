@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Header, Request, Response
 
-from app.api.params import DEFAULT_PAGE, Cursor, Limit
+from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.errors import InvalidInput
 from app.schemas.calibrations import (
@@ -43,7 +43,7 @@ def raw_json_body(request: Request) -> dict[str, Any]:
 
 @router.post("/v1/tools/{tool_id}/calibrations", status_code=201, response_model=Calibration)
 def submit_calibration(
-    tool_id: str,
+    tool_id: PathId,
     body: Annotated[CalibrationRequest, Body()],
     request: Request,
     response: Response,
@@ -66,7 +66,7 @@ def submit_calibration(
 
 @router.get("/v1/tools/{tool_id}/calibrations", response_model=Page[Calibration])
 def list_calibrations(
-    tool_id: str,
+    tool_id: PathId,
     session: SessionDep,
     key: ReadKey,
     limit: Limit = DEFAULT_PAGE,
@@ -79,7 +79,7 @@ def list_calibrations(
 
 
 @router.get("/v1/calibrations/{calibration_id}", response_model=CalibrationDetail)
-def get_calibration(calibration_id: str, session: SessionDep, key: ReadKey) -> object:
+def get_calibration(calibration_id: PathId, session: SessionDep, key: ReadKey) -> object:
     return calibrate.get_calibration(session, calibration_id=calibration_id)
 
 

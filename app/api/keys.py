@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
+from app.api.params import PathId
 from app.deps import AdminKey, SessionDep
 from app.schemas.keys import KeyCreate, KeyCreated, KeyOut
 from app.services import keys
@@ -25,6 +26,6 @@ def list_keys(session: SessionDep, key: AdminKey) -> object:
 
 
 @router.delete("/{key_id}", status_code=204)
-def revoke_key(key_id: str, session: SessionDep, key: AdminKey) -> Response:
+def revoke_key(key_id: PathId, session: SessionDep, key: AdminKey) -> Response:
     keys.revoke_key(session, key_id=key_id, actor=key)
     return Response(status_code=204)

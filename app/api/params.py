@@ -4,10 +4,14 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import Query
+from fastapi import Path, Query
 
+from app.schemas.common import ID_PATTERN
 from app.services.pagination import DEFAULT_LIMIT, MAX_LIMIT
 
 Limit = Annotated[int, Query(ge=1, le=MAX_LIMIT, description="page size (max 500)")]
 Cursor = Annotated[str | None, Query(max_length=400, description="next_cursor of the last page")]
 DEFAULT_PAGE = DEFAULT_LIMIT
+#: Path ids: anything but an id this service could have issued is refused (422) before a
+#: database sees it.
+PathId = Annotated[str, Path(pattern=ID_PATTERN, description="resource id")]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app.api.params import DEFAULT_PAGE, Cursor, Limit
+from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.references import (
@@ -24,14 +24,14 @@ router = APIRouter(tags=["reference points and checks"])
     "/v1/robots/{robot_id}/reference-points", status_code=201, response_model=ReferencePoint
 )
 def create_reference_point(
-    robot_id: str, body: ReferencePointCreate, session: SessionDep, key: CalibrateKey
+    robot_id: PathId, body: ReferencePointCreate, session: SessionDep, key: CalibrateKey
 ) -> object:
     return references.register_reference_point(session, robot_id=robot_id, data=body, actor=key)
 
 
 @router.get("/v1/robots/{robot_id}/reference-points", response_model=Page[ReferencePoint])
 def list_reference_points(
-    robot_id: str,
+    robot_id: PathId,
     session: SessionDep,
     key: ReadKey,
     limit: Limit = DEFAULT_PAGE,
@@ -44,12 +44,16 @@ def list_reference_points(
 
 
 @router.get("/v1/robots/{robot_id}/reference-points/{point_id}", response_model=ReferencePoint)
-def get_reference_point(robot_id: str, point_id: str, session: SessionDep, key: ReadKey) -> object:
+def get_reference_point(
+    robot_id: PathId, point_id: PathId, session: SessionDep, key: ReadKey
+) -> object:
     return references.get_reference_point(session, robot_id=robot_id, point_id=point_id)
 
 
 @router.post("/v1/tools/{tool_id}/checks", response_model=CheckResult)
-def check_tool(tool_id: str, body: CheckCreate, session: SessionDep, key: CalibrateKey) -> object:
+def check_tool(
+    tool_id: PathId, body: CheckCreate, session: SessionDep, key: CalibrateKey
+) -> object:
     return checks.run_check(session, tool_id=tool_id, data=body, actor=key)
 
 
@@ -60,7 +64,7 @@ def check_tool(tool_id: str, body: CheckCreate, session: SessionDep, key: Calibr
     tags=["laser devices"],
 )
 def create_laser_device(
-    robot_id: str, body: LaserDeviceCreate, session: SessionDep, key: CalibrateKey
+    robot_id: PathId, body: LaserDeviceCreate, session: SessionDep, key: CalibrateKey
 ) -> object:
     return laser_devices.create_laser_device(session, robot_id=robot_id, data=body, actor=key)
 
@@ -69,7 +73,7 @@ def create_laser_device(
     "/v1/robots/{robot_id}/laser-devices", response_model=Page[LaserDevice], tags=["laser devices"]
 )
 def list_laser_devices(
-    robot_id: str,
+    robot_id: PathId,
     session: SessionDep,
     key: ReadKey,
     limit: Limit = DEFAULT_PAGE,
@@ -86,5 +90,7 @@ def list_laser_devices(
     response_model=LaserDevice,
     tags=["laser devices"],
 )
-def get_laser_device(robot_id: str, device_id: str, session: SessionDep, key: ReadKey) -> object:
+def get_laser_device(
+    robot_id: PathId, device_id: PathId, session: SessionDep, key: ReadKey
+) -> object:
     return laser_devices.get_laser_device(session, robot_id=robot_id, device_id=device_id)

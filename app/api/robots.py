@@ -6,7 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
-from app.api.params import DEFAULT_PAGE, Cursor, Limit
+from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import AdminKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.robots import Robot, RobotCreate, RobotUpdate
@@ -36,16 +36,16 @@ def list_robots(
 
 
 @router.get("/{robot_id}", response_model=Robot)
-def get_robot(robot_id: str, session: SessionDep, key: ReadKey) -> object:
+def get_robot(robot_id: PathId, session: SessionDep, key: ReadKey) -> object:
     return registry.get_robot(session, robot_id)
 
 
 @router.patch("/{robot_id}", response_model=Robot)
-def update_robot(robot_id: str, body: RobotUpdate, session: SessionDep, key: AdminKey) -> object:
+def update_robot(robot_id: PathId, body: RobotUpdate, session: SessionDep, key: AdminKey) -> object:
     return registry.update_robot(session, robot_id=robot_id, data=body, actor=key)
 
 
 @router.delete("/{robot_id}", status_code=204)
-def archive_robot(robot_id: str, session: SessionDep, key: AdminKey) -> Response:
+def archive_robot(robot_id: PathId, session: SessionDep, key: AdminKey) -> Response:
     registry.archive_robot(session, robot_id=robot_id, actor=key)
     return Response(status_code=204)

@@ -6,7 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Header, Response
 
-from app.api.params import DEFAULT_PAGE, Cursor, Limit
+from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import AdminKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.tools import Tool, ToolCreate, ToolUpdate
@@ -19,7 +19,7 @@ IfMatch = Annotated[str | None, Header(description="the tool's ETag; 412 when st
 
 @router.post("/v1/robots/{robot_id}/tools", status_code=201, response_model=Tool)
 def create_tool(
-    robot_id: str, body: ToolCreate, response: Response, session: SessionDep, key: AdminKey
+    robot_id: PathId, body: ToolCreate, response: Response, session: SessionDep, key: AdminKey
 ) -> object:
     tool = registry.create_tool(session, robot_id=robot_id, data=body, actor=key)
     response.headers["ETag"] = registry.tool_etag(tool)
@@ -28,7 +28,7 @@ def create_tool(
 
 @router.get("/v1/robots/{robot_id}/tools", response_model=Page[Tool])
 def list_tools(
-    robot_id: str,
+    robot_id: PathId,
     session: SessionDep,
     key: ReadKey,
     limit: Limit = DEFAULT_PAGE,
@@ -39,7 +39,7 @@ def list_tools(
 
 
 @router.get("/v1/tools/{tool_id}", response_model=Tool)
-def get_tool(tool_id: str, response: Response, session: SessionDep, key: ReadKey) -> object:
+def get_tool(tool_id: PathId, response: Response, session: SessionDep, key: ReadKey) -> object:
     tool = registry.get_tool(session, tool_id)
     response.headers["ETag"] = registry.tool_etag(tool)
     return tool
@@ -47,7 +47,7 @@ def get_tool(tool_id: str, response: Response, session: SessionDep, key: ReadKey
 
 @router.patch("/v1/tools/{tool_id}", response_model=Tool)
 def update_tool(
-    tool_id: str,
+    tool_id: PathId,
     body: ToolUpdate,
     response: Response,
     session: SessionDep,
@@ -60,6 +60,6 @@ def update_tool(
 
 
 @router.delete("/v1/tools/{tool_id}", status_code=204)
-def archive_tool(tool_id: str, session: SessionDep, key: AdminKey) -> Response:
+def archive_tool(tool_id: PathId, session: SessionDep, key: AdminKey) -> Response:
     registry.archive_tool(session, tool_id=tool_id, actor=key)
     return Response(status_code=204)

@@ -7,6 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Header, Query, Response
 from fastapi.responses import JSONResponse
 
+from app.api.params import PathId
 from app.api.tools import IfMatch
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.models import TcpVersion
@@ -52,7 +53,7 @@ def _active_out(tool: ToolRow, row: TcpVersion, fmt: str | None) -> dict[str, An
 
 
 @router.get("/v1/tools/{tool_id}/versions", response_model=VersionList)
-def list_versions(tool_id: str, session: SessionDep, key: ReadKey) -> object:
+def list_versions(tool_id: PathId, session: SessionDep, key: ReadKey) -> object:
     tool, rows, history = versions.list_versions(session, tool_id=tool_id)
     return {
         "items": [_version_out(r, tool) for r in rows],
@@ -61,14 +62,14 @@ def list_versions(tool_id: str, session: SessionDep, key: ReadKey) -> object:
 
 
 @router.get("/v1/tools/{tool_id}/versions/{version}", response_model=Version)
-def get_version(tool_id: str, version: int, session: SessionDep, key: ReadKey) -> object:
+def get_version(tool_id: PathId, version: int, session: SessionDep, key: ReadKey) -> object:
     row = versions.get_version(session, tool_id=tool_id, version=version)
     return _version_out(row, registry.get_tool(session, tool_id))
 
 
 @router.post("/v1/tools/{tool_id}/versions/{version}/activate", response_model=Tool)
 def activate_version(
-    tool_id: str,
+    tool_id: PathId,
     version: int,
     response: Response,
     session: SessionDep,
@@ -88,7 +89,7 @@ def activate_version(
     responses={304: {"description": "not modified (If-None-Match)"}},
 )
 def get_active_tcp(
-    tool_id: str,
+    tool_id: PathId,
     session: SessionDep,
     key: ReadKey,
     format: FormatQuery = None,
@@ -106,7 +107,7 @@ def get_active_tcp(
 
 @router.get("/v1/robots/{robot_id}/tool-table", response_model=ToolTable)
 def tool_table(
-    robot_id: str, session: SessionDep, key: ReadKey, format: FormatQuery = None
+    robot_id: PathId, session: SessionDep, key: ReadKey, format: FormatQuery = None
 ) -> object:
     served, missing = versions.tool_table(session, robot_id=robot_id)
     return {

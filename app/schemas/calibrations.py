@@ -16,6 +16,7 @@ from app.schemas.common import (
     Poses,
     PositiveFloat,
     Quaternion,
+    ResourceId,
     StrictModel,
     Timestamp,
     Units,
@@ -58,8 +59,8 @@ class XyzNpointCalibration(_PosesRequired):
 
 # ---- xyz_reference --------------------------------------------------------------------------
 class ReferenceOptions(StrictModel):
-    reference_point_id: str | None = None
-    reference_tool_id: str | None = None
+    reference_point_id: ResourceId | None = None
+    reference_tool_id: ResourceId | None = None
     reference_pose: Pose | None = None
     reference_point_mm: Vec3 | None = None
     touch_noise_mm: PositiveFloat | None = None
@@ -134,7 +135,7 @@ class AbcWorldCalibration(_PosesRequired):
 
 # ---- laser_beam -----------------------------------------------------------------------------
 class LaserGeometry(StrictModel):
-    device_id: str | None = None
+    device_id: ResourceId | None = None
     beam_a_y_mm: FiniteFloat | None = None
     beam_b_x_mm: FiniteFloat | None = None
     plane_z_mm: FiniteFloat | None = None
@@ -211,7 +212,7 @@ METHOD_NAMES = (
 
 # ---- stateless solve: the same bodies plus what the method needs without a database ---------
 class _Stateless(StrictModel):
-    robot_id: str | None = None
+    robot_id: ResourceId | None = None
     kinematics: Kinematics | None = None
     tolerance: dict[str, PositiveFloat | None] | None = None
 

@@ -15,9 +15,20 @@ Vec3 = Annotated[list[FiniteFloat], Field(min_length=3, max_length=3)]
 Quaternion = Annotated[
     list[FiniteFloat], Field(min_length=4, max_length=4, description="unit quaternion [w, x, y, z]")
 ]
-Name = Annotated[str, Field(min_length=1, max_length=200, pattern=r"^\S(.*\S)?$")]
-ShortText = Annotated[str, Field(max_length=200)]
-LongText = Annotated[str, Field(max_length=4000)]
+# No control characters in names (PostgreSQL refuses NUL; a newline would break exports).
+Name = Annotated[
+    str,
+    Field(
+        min_length=1,
+        max_length=200,
+        pattern=r"^[^\s\x00-\x1f\x7f]([^\x00-\x1f\x7f]*[^\s\x00-\x1f\x7f])?$",
+    ),
+]
+ShortText = Annotated[str, Field(max_length=200, pattern=r"^[^\x00-\x1f\x7f]*$")]
+LongText = Annotated[str, Field(max_length=4000, pattern=r"^[^\x00-\x08\x0b\x0c\x0e-\x1f\x7f]*$")]
+#: A resource id as this service issues them (UUIDs); anything else cannot exist.
+ID_PATTERN = r"^[A-Za-z0-9_-]{1,64}$"
+ResourceId = Annotated[str, Field(pattern=ID_PATTERN, description="resource id")]
 
 #: One pose in the submission's format: a flat list of numbers, or a 4x4 nested matrix.
 Pose = list[FiniteFloat] | list[Annotated[list[FiniteFloat], Field(max_length=4)]]

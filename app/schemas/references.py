@@ -13,6 +13,7 @@ from app.schemas.common import (
     Pose,
     PoseFormat,
     Poses,
+    ResourceId,
     StrictModel,
     Timestamp,
     Units,
@@ -25,7 +26,7 @@ Matrix3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
 class TouchIn(StrictModel):
     """A touch of the point by a tool whose active TCP is trusted."""
 
-    tool_id: str
+    tool_id: ResourceId
     format: PoseFormat
     pose: Pose
     units: Units | None = None
@@ -60,7 +61,7 @@ class ReferencePoint(BaseModel):
 
 
 class CheckCreate(StrictModel):
-    reference_point_id: str
+    reference_point_id: ResourceId
     format: PoseFormat
     poses: Annotated[Poses, Field(min_length=1)]
     units: Units | None = None
@@ -98,7 +99,7 @@ class LaserDeviceNumbers(StrictModel):
 class LaserTeachIn(StrictModel):
     """Sweeps and descent by a tool whose active TCP (and axis) is trusted."""
 
-    tool_id: str
+    tool_id: ResourceId
     format: PoseFormat
     poses: Annotated[Poses, Field(min_length=1, max_length=1)]
     units: Units | None = None

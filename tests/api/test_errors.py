@@ -206,3 +206,39 @@ def test_non_unit_quaternion_is_422_invalid_rotation(api: Api) -> None:
     body = _problem(response, 422, "invalid-rotation")
     assert body["errors"][0]["loc"][:2] == ["tcp", "quaternion"]
     assert json.dumps(body).count("NaN") == 0
+
+
+def test_nul_byte_in_a_path_id_is_422_not_a_database_error(api: Api) -> None:
+    # PostgreSQL refuses NUL in text; it must be turned away before any query.
+    body = _problem(api.get("/v1/tools/%00/versions/1"), 422, "validation")
+    assert body["errors"][0]["loc"] == ["path", "tool_id"]
+    body = _problem(
+        api.post("/v1/robots/%00/laser-devices", {"name": "x"}, scope="calibrate"),
+        422,
+        "validation",
+    )
+    assert ["path", "robot_id"] in [e["loc"] for e in body["errors"]]
+
+
+def test_control_characters_in_names_and_body_ids_are_422(api: Api) -> None:
+    body = _problem(api.post("/v1/robots", {"name": "kr\u000016"}), 422, "validation")
+    assert body["errors"][0]["loc"] == ["body", "name"]
+    body = _problem(api.post("/v1/robots", {"name": "kr16", "cell": "c\n1"}), 422, "validation")
+    assert body["errors"][0]["loc"] == ["body", "cell"]
+    robot = api.robot()
+    tool = api.tool(robot["id"])
+    api.manual(tool["id"], [0, 0, 100])
+    body = _problem(
+        api.post(
+            f"/v1/tools/{tool['id']}/checks",
+            {
+                "reference_point_id": "\u0000",
+                "format": "xyz_wxyz",
+                "poses": [[0, 0, 0, 1, 0, 0, 0]],
+            },
+            scope="calibrate",
+        ),
+        422,
+        "validation",
+    )
+    assert body["errors"][0]["loc"] == ["body", "reference_point_id"]
