@@ -10,6 +10,7 @@ from fastapi import APIRouter, Body, Header, Request, Response
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.errors import InvalidInput
+from app.metrics import METRICS
 from app.schemas.calibrations import (
     Calibration,
     CalibrationDetail,
@@ -61,6 +62,8 @@ def submit_calibration(
     )
     if replayed:
         response.headers["Idempotent-Replayed"] = "true"
+    else:
+        METRICS.observe_calibration(doc["method"], doc["status"])
     return doc
 
 

@@ -193,3 +193,36 @@ def test_save_reference_point_registers_the_pivot(api: Api, tool: dict) -> None:
     assert points[0]["position_mm"] == cal["reference_point_mm"]
     assert points[0]["calibration_id"] == cal["id"]
     assert points[0]["covariance_mm2"] is not None
+
+
+def test_idempotency_keys_expire_after_their_ttl(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+    from datetime import timedelta
+
+    from sqlalchemy import update
+
+    from app.db import session_scope
+    from app.models import IdempotencyRecord, utcnow
+
+    body = {"method": "manual", "tcp": {"position_mm": [0, 0, 120]}}
+    headers = {"Idempotency-Key": "k-1"}
+    assert _calibrate(api, tool["id"], body, headers=headers).json()["version"] == 1
+    with session_scope(write=True) as session:
+        session.execute(update(IdempotencyRecord).values(created_at=utcnow() - timedelta(hours=25)))
+    again = _calibrate(api, tool["id"], body, headers=headers)
+    assert again.headers.get("idempotent-replayed") is None
+    assert again.json()["version"] == 2
+
+
+def test_metrics_count_calibrations_by_method_and_status(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+    import re
+
+    def count() -> int:
+        text = api.client.get("/metrics").text
+        found = re.search(
+            r'tcpcal_calibrations_total\{method="manual",status="accepted"\} (\d+)', text
+        )
+        return int(found.group(1)) if found else 0
+
+    before = count()
+    api.manual(tool["id"], [0, 0, 100])
+    assert count() == before + 1
