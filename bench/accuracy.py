@@ -223,7 +223,9 @@ def check_targets(rows: list[dict[str, object]]) -> list[dict[str, object]]:
     return out
 
 
-def markdown(rows: list[dict[str, object]], targets: list[dict[str, object]], meta: dict[str, object]) -> str:
+def markdown(
+    rows: list[dict[str, object]], targets: list[dict[str, object]], meta: dict[str, object]
+) -> str:
     lines = [
         "# N-point accuracy (Monte Carlo)",
         "",
@@ -273,13 +275,15 @@ def main(argv: list[str] | None = None) -> None:
         row = run_scenario(sc, trials, args.seed + 100_000 * i)
         rows.append(row)
         cells = "  ".join(f"{a}={_cell(row['algorithms'][a])}" for a in ALGORITHMS)  # type: ignore[index]
-        print(f"[{sc.sweep:>17}] {sc.label:60s} bound {row['bound_rms_mm']:.4f}  {cells}", flush=True)
+        print(
+            f"[{sc.sweep:>17}] {sc.label:60s} bound {row['bound_rms_mm']:.4f}  {cells}", flush=True
+        )
     targets = check_targets(rows)
     meta = {
         "trials": trials,
         "seed": args.seed,
         "seconds": time.perf_counter() - start,
-        "machine": f"{platform.machine()} {platform.python_implementation()} {platform.python_version()}",
+        "machine": f"{platform.machine()} Python {platform.python_version()}",
         "command": "python -m bench.accuracy" + (" --quick" if args.quick else ""),
         "targets": TARGETS,
     }
