@@ -7,147 +7,26 @@ serialises version numbering and makes idempotency-key replays see the first res
 
 from __future__ import annotations
 
-import hashlib
-import json
-from collections.abc import Sequence
-from datetime import timedelta
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
-from sqlalchemy import delete, select
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.config import get_settings
-from app.errors import IdempotencyConflict, InvalidInput, NotFound
+from app.errors import NotFound
 from app.methods import run_method
-from app.methods.base import ActiveFrame, SolvedTcp, StoredPoint
-from app.models import (
-    Calibration,
-    IdempotencyRecord,
-    LaserDevice,
-    ReferencePoint,
-    Robot,
-    Tool,
-    utcnow,
-)
+from app.methods.base import SolvedTcp
+from app.models import Calibration, IdempotencyRecord, Tool
 from app.schemas.calibrations import Calibration as CalibrationOut
-from app.schemas.common import Units
-from app.services import audit
-from app.services.frames import active_frame, parse_poses_with
+from app.services import audit, idempotency
+from app.services.contexts import DbContext, StatelessContext
 from app.services.kinematics import validate_kinematics
 from app.services.pagination import paginate
 from app.services.references import create_reference_point
 from app.services.registry import get_robot, get_tool
-from app.services.tolerance import effective_tolerance, grade
+from app.services.tolerance import grade
 from app.services.versions import IDENTITY_QUATERNION, activate, add_version
-
-
-# ---- contexts -------------------------------------------------------------------------------
-class DbContext:
-    """Method context backed by the database, for one tool of one robot."""
-
-    def __init__(self, session: Session, tool: Tool, robot: Robot) -> None:
-        self.session, self.tool, self.robot = session, tool, robot
-
-    @property
-    def tolerance(self) -> dict[str, Any]:
-        return effective_tolerance(self.tool.tolerance)
-
-    def active_frame(self) -> ActiveFrame | None:
-        return active_frame(self.session, self.tool)
-
-    def parse_poses(
-        self, fmt: str, poses: Sequence[Any], units: Units | None, *, loc: Sequence[str | int]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        return parse_poses_with(self.robot.kinematics, fmt, poses, units, loc=loc)
-
-    def reference_point(self, reference_point_id: str) -> StoredPoint:
-        row = self.session.get(ReferencePoint, reference_point_id)
-        if row is None or row.robot_id != self.robot.id:
-            raise InvalidInput(
-                "unknown-reference",
-                f"robot {self.robot.id} has no reference point {reference_point_id}",
-                loc=("body", "options", "reference_point_id"),
-            )
-        cov = np.asarray(row.covariance_mm2, dtype=float) if row.covariance_mm2 else None
-        return StoredPoint(np.asarray(row.position_mm, dtype=float), cov)
-
-    def tool_frame(self, tool_id: str) -> ActiveFrame:
-        other = self.session.get(Tool, tool_id)
-        if other is None or other.archived_at is not None or other.robot_id != self.robot.id:
-            raise InvalidInput(
-                "unknown-reference",
-                f"robot {self.robot.id} has no live tool {tool_id}",
-                loc=("body", "options", "reference_tool_id"),
-            )
-        frame = active_frame(self.session, other)
-        if frame is None:
-            raise InvalidInput(
-                "unknown-reference",
-                f"reference tool {tool_id} has no active TCP to trust",
-                loc=("body", "options", "reference_tool_id"),
-            )
-        return frame
-
-    def laser_device(self, device_id: str) -> tuple[float, float, float]:
-        row = self.session.get(LaserDevice, device_id)
-        if row is None or row.robot_id != self.robot.id:
-            raise InvalidInput(
-                "unknown-reference",
-                f"robot {self.robot.id} has no laser device {device_id}",
-                loc=("body", "laser", "device_id"),
-            )
-        return row.beam_a_y_mm, row.beam_b_x_mm, row.plane_z_mm
-
-
-class StatelessContext:
-    """Method context for POST /v1/solve: nothing stored is read except an optional robot."""
-
-    def __init__(self, kinematics: dict[str, Any] | None, tolerance: dict[str, Any] | None) -> None:
-        self._kinematics = kinematics
-        self._tolerance = effective_tolerance(
-            {k: v for k, v in (tolerance or {}).items() if v is not None}
-        )
-
-    @property
-    def tolerance(self) -> dict[str, Any]:
-        return self._tolerance
-
-    def active_frame(self) -> ActiveFrame | None:
-        return None
-
-    def parse_poses(
-        self, fmt: str, poses: Sequence[Any], units: Units | None, *, loc: Sequence[str | int]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        return parse_poses_with(self._kinematics, fmt, poses, units, loc=loc)
-
-    def _stored(self, what: str, field: tuple[str, ...], instead: str) -> InvalidInput:
-        return InvalidInput(
-            "needs-storage",
-            f"/v1/solve stores nothing and cannot look up {what}; {instead}",
-            loc=("body", *field),
-        )
-
-    def reference_point(self, reference_point_id: str) -> StoredPoint:
-        raise self._stored(
-            "a reference point",
-            ("options", "reference_point_id"),
-            "give options.reference_point_mm",
-        )
-
-    def tool_frame(self, tool_id: str) -> ActiveFrame:
-        raise self._stored(
-            "another tool's TCP",
-            ("options", "reference_tool_id"),
-            "give options.reference_point_mm",
-        )
-
-    def laser_device(self, device_id: str) -> tuple[float, float, float]:
-        raise self._stored(
-            "a laser device", ("laser", "device_id"), "give beam_a_y_mm, beam_b_x_mm and plane_z_mm"
-        )
 
 
 # ---- results --------------------------------------------------------------------------------
@@ -200,37 +79,6 @@ def _calibration_out(row: Calibration, tool: Tool) -> dict[str, Any]:
     }
 
 
-# ---- idempotency ----------------------------------------------------------------------------
-def request_fingerprint(tool_id: str, raw_body: dict[str, Any]) -> str:
-    """Hash of what a retry must repeat exactly: the target and the body."""
-    canonical = json.dumps([tool_id, raw_body], sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(canonical.encode()).hexdigest()
-
-
-def _replay(
-    session: Session,
-    *,
-    actor: Principal,
-    key: str,
-    fingerprint: str,
-) -> dict[str, Any] | None:
-    ttl = timedelta(hours=get_settings().idempotency_ttl_hours)
-    session.execute(delete(IdempotencyRecord).where(IdempotencyRecord.created_at < utcnow() - ttl))
-    record = session.scalars(
-        select(IdempotencyRecord).where(
-            IdempotencyRecord.api_key_id == actor.key_id, IdempotencyRecord.key == key
-        )
-    ).one_or_none()
-    if record is None:
-        return None
-    if record.request_hash != fingerprint:
-        raise IdempotencyConflict(
-            f"Idempotency-Key {key!r} was already used with a different request body or tool; "
-            "use a new key for a new submission"
-        )
-    return record.response
-
-
 # ---- use cases ------------------------------------------------------------------------------
 def submit(
     session: Session,
@@ -243,9 +91,11 @@ def submit(
 ) -> tuple[dict[str, Any], bool]:
     """Solve and store a calibration; (Calibration document, replayed?)."""
     tool = get_tool(session, tool_id, for_update=True)
-    fingerprint = request_fingerprint(tool_id, raw_body)
+    fingerprint = idempotency.request_fingerprint(tool_id, raw_body)
     if idempotency_key is not None:
-        replay = _replay(session, actor=actor, key=idempotency_key, fingerprint=fingerprint)
+        replay = idempotency.replay(
+            session, actor=actor, key=idempotency_key, fingerprint=fingerprint
+        )
         if replay is not None:
             return replay, True
 

@@ -1,0 +1,126 @@
+"""Method contexts: what a calibration method may look up, from the database or from nothing.
+
+DbContext serves stored calibrations (one tool of one robot); StatelessContext serves
+POST /v1/solve and refuses every lookup that would need storage, naming the field to fill.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy.orm import Session
+
+from app.errors import InvalidInput
+from app.methods.base import ActiveFrame, StoredPoint
+from app.models import LaserDevice, ReferencePoint, Robot, Tool
+from app.schemas.common import Units
+from app.services.frames import active_frame, parse_poses_with
+from app.services.tolerance import effective_tolerance
+
+
+class DbContext:
+    """Method context backed by the database, for one tool of one robot."""
+
+    def __init__(self, session: Session, tool: Tool, robot: Robot) -> None:
+        self.session, self.tool, self.robot = session, tool, robot
+
+    @property
+    def tolerance(self) -> dict[str, Any]:
+        return effective_tolerance(self.tool.tolerance)
+
+    def active_frame(self) -> ActiveFrame | None:
+        return active_frame(self.session, self.tool)
+
+    def parse_poses(
+        self, fmt: str, poses: Sequence[Any], units: Units | None, *, loc: Sequence[str | int]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return parse_poses_with(self.robot.kinematics, fmt, poses, units, loc=loc)
+
+    def reference_point(self, reference_point_id: str) -> StoredPoint:
+        row = self.session.get(ReferencePoint, reference_point_id)
+        if row is None or row.robot_id != self.robot.id:
+            raise InvalidInput(
+                "unknown-reference",
+                f"robot {self.robot.id} has no reference point {reference_point_id}",
+                loc=("body", "options", "reference_point_id"),
+            )
+        cov = np.asarray(row.covariance_mm2, dtype=float) if row.covariance_mm2 else None
+        return StoredPoint(np.asarray(row.position_mm, dtype=float), cov)
+
+    def tool_frame(self, tool_id: str) -> ActiveFrame:
+        other = self.session.get(Tool, tool_id)
+        if other is None or other.archived_at is not None or other.robot_id != self.robot.id:
+            raise InvalidInput(
+                "unknown-reference",
+                f"robot {self.robot.id} has no live tool {tool_id}",
+                loc=("body", "options", "reference_tool_id"),
+            )
+        frame = active_frame(self.session, other)
+        if frame is None:
+            raise InvalidInput(
+                "unknown-reference",
+                f"reference tool {tool_id} has no active TCP to trust",
+                loc=("body", "options", "reference_tool_id"),
+            )
+        return frame
+
+    def laser_device(self, device_id: str) -> tuple[float, float, float]:
+        row = self.session.get(LaserDevice, device_id)
+        if row is None or row.robot_id != self.robot.id:
+            raise InvalidInput(
+                "unknown-reference",
+                f"robot {self.robot.id} has no laser device {device_id}",
+                loc=("body", "laser", "device_id"),
+            )
+        return row.beam_a_y_mm, row.beam_b_x_mm, row.plane_z_mm
+
+
+class StatelessContext:
+    """Method context for POST /v1/solve: nothing stored is read except an optional robot."""
+
+    def __init__(self, kinematics: dict[str, Any] | None, tolerance: dict[str, Any] | None) -> None:
+        self._kinematics = kinematics
+        self._tolerance = effective_tolerance(
+            {k: v for k, v in (tolerance or {}).items() if v is not None}
+        )
+
+    @property
+    def tolerance(self) -> dict[str, Any]:
+        return self._tolerance
+
+    def active_frame(self) -> ActiveFrame | None:
+        return None
+
+    def parse_poses(
+        self, fmt: str, poses: Sequence[Any], units: Units | None, *, loc: Sequence[str | int]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return parse_poses_with(self._kinematics, fmt, poses, units, loc=loc)
+
+    def _stored(self, what: str, field: tuple[str, ...], instead: str) -> InvalidInput:
+        return InvalidInput(
+            "needs-storage",
+            f"/v1/solve stores nothing and cannot look up {what}; {instead}",
+            loc=("body", *field),
+        )
+
+    def reference_point(self, reference_point_id: str) -> StoredPoint:
+        raise self._stored(
+            "a reference point",
+            ("options", "reference_point_id"),
+            "give options.reference_point_mm",
+        )
+
+    def tool_frame(self, tool_id: str) -> ActiveFrame:
+        raise self._stored(
+            "another tool's TCP",
+            ("options", "reference_tool_id"),
+            "give options.reference_point_mm",
+        )
+
+    def laser_device(self, device_id: str) -> tuple[float, float, float]:
+        raise self._stored(
+            "a laser device", ("laser", "device_id"), "give beam_a_y_mm, beam_b_x_mm and plane_z_mm"
+        )

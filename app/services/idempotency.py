@@ -1,0 +1,46 @@
+"""Idempotency keys: the first response to a keyed submission, replayed for 24 h."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from datetime import timedelta
+from typing import Any
+
+from sqlalchemy import delete, select
+from sqlalchemy.orm import Session
+
+from app.auth import Principal
+from app.config import get_settings
+from app.errors import IdempotencyConflict
+from app.models import IdempotencyRecord, utcnow
+
+
+def request_fingerprint(tool_id: str, raw_body: dict[str, Any]) -> str:
+    """Hash of what a retry must repeat exactly: the target and the body."""
+    canonical = json.dumps([tool_id, raw_body], sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def replay(
+    session: Session,
+    *,
+    actor: Principal,
+    key: str,
+    fingerprint: str,
+) -> dict[str, Any] | None:
+    ttl = timedelta(hours=get_settings().idempotency_ttl_hours)
+    session.execute(delete(IdempotencyRecord).where(IdempotencyRecord.created_at < utcnow() - ttl))
+    record = session.scalars(
+        select(IdempotencyRecord).where(
+            IdempotencyRecord.api_key_id == actor.key_id, IdempotencyRecord.key == key
+        )
+    ).one_or_none()
+    if record is None:
+        return None
+    if record.request_hash != fingerprint:
+        raise IdempotencyConflict(
+            f"Idempotency-Key {key!r} was already used with a different request body or tool; "
+            "use a new key for a new submission"
+        )
+    return record.response
