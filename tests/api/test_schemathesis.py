@@ -2,18 +2,22 @@
 
 Each operation gets a freshly seeded database (a robot, a tool with an active version, a
 reference point) and up to MAX_EXAMPLES generated requests, valid and invalid, sent with an
-admin key; path parameters hit the seeded ids about half the time. Checked for every
-response: never a 5xx; success responses match the documented status, content type, headers
-and body schema; every 4xx is an RFC 9457 problem+json with type, title, status and detail.
+admin key; path parameters often hit the seeded ids, integer ones also the database integer
+limits. Checked for every response: never a 5xx; success responses match the documented
+status, content type, headers and body schema; every 4xx is an RFC 9457 problem+json with
+type, title, status and detail.
+A known bug turns its operation's test into an xfail and has a strict reproduction test.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import hypothesis.strategies as st
+import pytest
 import schemathesis
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, Phase, settings
 from schemathesis.checks import not_a_server_error
 from schemathesis.specs.openapi.checks import (
     content_type_conformance,
@@ -25,14 +29,44 @@ from schemathesis.specs.openapi.checks import (
 from app.main import create_app
 from tests.conftest import Api
 
-MAX_EXAMPLES = 25
+MAX_EXAMPLES = 20
+SEED = 20240611
 PROBLEM_JSON = "application/problem+json"
+HUGE_VERSION = 2**63  # one past SQLite's INTEGER
+INT32_VERSION = 2**31  # one past PostgreSQL's integer
+#: integer path parameters also try the edges of the database integer types
+DATABASE_INT_EDGES = [INT32_VERSION, HUGE_VERSION, -(2**63) - 1]
+
+VERSION_OVERFLOW = (
+    "bug: a {version} path parameter beyond the database integer range (>= 2**63 on SQLite, "
+    ">= 2**31 on PostgreSQL) reaches the query unchecked -> 500 OverflowError / "
+    "NumericValueOutOfRange instead of 404 or 422"
+)
+
+
+def _version_out_of_int32(case: schemathesis.Case) -> bool:
+    version = (case.path_parameters or {}).get("version")
+    return isinstance(version, int) and abs(version) >= INT32_VERSION
+
+
+#: operation label -> (is this 5xx the known bug?, the bug). Such a 5xx turns the operation's
+#: fuzz test into an xfail; strictness comes from the plain reproduction tests below, because
+#: schemathesis' pytest plugin (4.32.5) crashes (INTERNALERROR) on a strict XPASS of its items.
+KNOWN_BUGS: dict[str, tuple[Callable[[schemathesis.Case], bool], str]] = {
+    "GET /v1/tools/{tool_id}/versions/{version}": (_version_out_of_int32, VERSION_OVERFLOW),
+    "POST /v1/tools/{tool_id}/versions/{version}/activate": (
+        _version_out_of_int32,
+        VERSION_OVERFLOW,
+    ),
+}
 
 schema = schemathesis.openapi.from_dict(
     create_app().openapi(),
     config=schemathesis.Config.from_dict(
         {
-            "generation": {"mode": "all", "max-examples": MAX_EXAMPLES, "deterministic": True},
+            # a fixed seed, derived per operation: editing this file does not change the cases
+            "seed": SEED,
+            "generation": {"mode": "all", "max-examples": MAX_EXAMPLES},
             "phases": {
                 "examples": {"enabled": False},
                 "coverage": {"enabled": False},
@@ -42,17 +76,9 @@ schema = schemathesis.openapi.from_dict(
     ),
 )
 
-FUZZ_SETTINGS = settings(
-    max_examples=MAX_EXAMPLES,
-    derandomize=True,
-    deadline=None,
-    database=None,
-    suppress_health_check=list(HealthCheck),
-)
-
 
 def _seed(api: Api) -> dict[str, Any]:
-    """A robot, a tool with version 1 active, a reference point; their ids by path parameter."""
+    """A robot, a tool with version 1 active, a reference point: their ids by path parameter."""
     robot = api.robot("fuzz-robot", vendor="KUKA")
     tool = api.tool(robot["id"], "fuzz-tool", slot=3)
     calibration = api.manual(tool["id"], [0.0, 0.0, 150.0])
@@ -72,6 +98,38 @@ def _seed(api: Api) -> dict[str, Any]:
         "key_id": read_key["id"],
         "version": 1,
     }
+
+
+@pytest.fixture
+def seeded_ids(api: Api) -> dict[str, Any]:
+    """Ids of the seeded rows, by the path parameter that names them."""
+    return _seed(api)
+
+
+class ResponseOnly:
+    """An ASGI app that answers like the wrapped one but never re-raises after its 500.
+
+    Starlette sends the 500 and then re-raises for the server's log; schemathesis' in-process
+    client would turn that into an exception instead of a response to check.
+    """
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        """Forward the request; swallow an error raised after the response started."""
+        started = False
+
+        async def tracking_send(message: Any) -> None:
+            nonlocal started
+            started = started or message["type"] == "http.response.start"
+            await send(message)
+
+        try:
+            await self.app(scope, receive, tracking_send)
+        except Exception:
+            if not started:
+                raise
 
 
 def problem_details(ctx: Any, response: schemathesis.Response, case: schemathesis.Case) -> None:
@@ -94,29 +152,72 @@ SUCCESS_CHECKS = [
     response_headers_conformance,
     response_schema_conformance,
 ]
+# Error responses are checked against the contract (API.md), not the generated spec: see
+# test_documented_422_matches_what_is_sent for how the spec's 422 differs.
 ERROR_CHECKS = [not_a_server_error, problem_details]
 
 
 @schema.parametrize()
 @schema.given(data=st.data())
-@FUZZ_SETTINGS
-def test_api_conforms_to_its_schema(case: schemathesis.Case, data: st.DataObject, api: Api) -> None:
+@settings(
+    max_examples=MAX_EXAMPLES,
+    deadline=None,
+    database=None,
+    phases=[Phase.explicit, Phase.generate, Phase.shrink],
+    suppress_health_check=list(HealthCheck),
+)
+def test_api_conforms_to_its_schema(
+    case: schemathesis.Case,
+    data: st.DataObject,
+    api: Api,
+    seeded_ids: dict[str, Any],
+) -> None:
     """No 5xx; 2xx/3xx as documented; 4xx as problem details."""
-    seeded = _seeded_ids(api)
-    for name in case.path_parameters or {}:
-        if name in seeded and data.draw(st.booleans(), label=f"real {name}"):
-            case.path_parameters[name] = seeded[name]
-    response = case.call(app=api.client.app, headers=api.headers("admin"))
+    for name, generated in (case.path_parameters or {}).items():
+        choices = [generated]
+        if name in seeded_ids:
+            choices.append(seeded_ids[name])
+        if isinstance(generated, int):
+            choices.extend(DATABASE_INT_EDGES)
+        case.path_parameters[name] = data.draw(st.sampled_from(choices), label=name)
+    response = case.call(app=ResponseOnly(api.client.app), headers=api.headers("admin"))
+    is_known_bug, bug = KNOWN_BUGS.get(f"{case.method} {case.path}", (None, ""))
+    if response.status_code >= 500 and is_known_bug is not None and is_known_bug(case):
+        pytest.xfail(bug)
     checks = SUCCESS_CHECKS if response.status_code < 400 else ERROR_CHECKS
     case.validate_response(response, checks=checks)
 
 
-_SEEDED: dict[int, dict[str, Any]] = {}
+@pytest.mark.parametrize("version", [HUGE_VERSION, INT32_VERSION])
+@pytest.mark.parametrize("method", ["GET", "POST"])
+def test_out_of_range_version_is_not_a_server_error(
+    api: Api,
+    seeded_ids: dict[str, Any],
+    method: str,
+    version: int,
+    request: pytest.FixtureRequest,
+) -> None:
+    """Minimal reproduction of VERSION_OVERFLOW (2**31 fits SQLite, so fails on PostgreSQL only)."""
+    backend = request.getfixturevalue("db").backend
+    if version == HUGE_VERSION or backend == "postgresql":
+        request.applymarker(pytest.mark.xfail(strict=True, reason=VERSION_OVERFLOW))
+    path = f"/v1/tools/{seeded_ids['tool_id']}/versions/{version}"
+    if method == "POST":
+        response = api.post(f"{path}/activate", scope="calibrate")
+    else:
+        response = api.get(path)
+    assert response.status_code < 500, response.text
 
 
-def _seeded_ids(api: Api) -> dict[str, Any]:
-    """Seed once per test (one `api` fixture per operation)."""
-    if id(api) not in _SEEDED:
-        _SEEDED.clear()
-        _SEEDED[id(api)] = _seed(api)
-    return _SEEDED[id(api)]
+@pytest.mark.xfail(
+    strict=True,
+    reason="bug: the OpenAPI spec documents every 422 as FastAPI's HTTPValidationError "
+    "(application/json, detail: array), but the app answers application/problem+json with "
+    "detail: string (the contract in API.md); 401/403/404/409/412/413 are not documented at all",
+)
+def test_documented_422_matches_what_is_sent(api: Api) -> None:
+    """A 422 conforms to the response the spec documents for it."""
+    case = schema["/v1/robots"]["POST"].Case(body={})
+    response = case.call(app=ResponseOnly(api.client.app), headers=api.headers("admin"))
+    assert response.status_code == 422
+    case.validate_response(response, checks=[content_type_conformance, response_schema_conformance])
