@@ -18,6 +18,7 @@ from app.db import get_engine, session_scope
 from app.errors import install_error_handlers
 from app.middleware import BodyLimitMiddleware, MetricsMiddleware
 from app.migrate import current_revision, head_revision
+from app.openapi import build_openapi
 
 log = logging.getLogger("tcpcal")
 
@@ -64,6 +65,7 @@ def create_app() -> FastAPI:
         app.include_router(module.router)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     app.add_middleware(MetricsMiddleware)
+    app.openapi = lambda: build_openapi(app)  # type: ignore[method-assign]
     return app
 
 

@@ -15,3 +15,5 @@ DEFAULT_PAGE = DEFAULT_LIMIT
 #: Path ids: anything but an id this service could have issued is refused (422) before a
 #: database sees it.
 PathId = Annotated[str, Path(pattern=ID_PATTERN, description="resource id")]
+#: Version numbers start at 1 and fit every database's 32-bit integer.
+VersionNumber = Annotated[int, Path(ge=1, le=2**31 - 1, description="version number")]

@@ -7,7 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Header, Query, Response
 from fastapi.responses import JSONResponse
 
-from app.api.params import PathId
+from app.api.params import PathId, VersionNumber
 from app.api.tools import IfMatch
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.models import TcpVersion
@@ -62,7 +62,9 @@ def list_versions(tool_id: PathId, session: SessionDep, key: ReadKey) -> object:
 
 
 @router.get("/v1/tools/{tool_id}/versions/{version}", response_model=Version)
-def get_version(tool_id: PathId, version: int, session: SessionDep, key: ReadKey) -> object:
+def get_version(
+    tool_id: PathId, version: VersionNumber, session: SessionDep, key: ReadKey
+) -> object:
     row = versions.get_version(session, tool_id=tool_id, version=version)
     return _version_out(row, registry.get_tool(session, tool_id))
 
@@ -70,7 +72,7 @@ def get_version(tool_id: PathId, version: int, session: SessionDep, key: ReadKey
 @router.post("/v1/tools/{tool_id}/versions/{version}/activate", response_model=Tool)
 def activate_version(
     tool_id: PathId,
-    version: int,
+    version: VersionNumber,
     response: Response,
     session: SessionDep,
     key: CalibrateKey,

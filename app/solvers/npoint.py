@@ -20,7 +20,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -33,6 +33,7 @@ from app.solvers.quality import (
     SIGMA_CONFIGURED,
     SIGMA_RESIDUALS,
     Quality,
+    ellipsoid95_scale,
     format_vector,
     make_quality,
 )
@@ -66,6 +67,10 @@ SCORING_TOUCHES = 100
 _MINIMAL_SET_SEED = 0x7C9C41
 _MAX_REFINE_STEPS = 25
 _MAX_GLS_STEPS = 30
+#: REML iteration for the touch noise: relative tolerance on s_p^2, and its floor relative to
+#: the orientation share c = (s_th |t|)^2 (a weight, never an estimate of 0 divided by)
+_REML_RTOL = 1e-6
+_REML_FLOOR_REL = 1e-10
 #: Upper bounds on the noise options, to catch unit mistakes (m for mm, rad for deg).
 MAX_TOUCH_NOISE_MM = 100.0
 MAX_ORIENTATION_NOISE_DEG = 10.0
@@ -98,6 +103,10 @@ class _Fit:
     t: FloatArray  # (3,)
     p: FloatArray  # (3,)
     jac: FloatArray  # (m, 6, 3): d(t, p) / d(e_i), e_i the touch error of touch i
+    #: s_p^2 (mm^2) estimated by REML inside the fit (gls with the touch noise unknown and an
+    #: orientation noise given) and its effective degrees of freedom 2 s_p^4 / Var(s_p^2)
+    touch_var: float | None = None
+    touch_var_dof: float | None = None
 
 
 def solve_npoint(
@@ -166,21 +175,21 @@ def solve_npoint(
     res = np.linalg.norm(res_vec, axis=1)
     Ru, resu = R[used], res_vec[used]
     m = Ru.shape[0]
-    s_p, dof = _touch_noise_level(resu, Ru, t, noise)
+    s_p, nu = _touch_noise_level(resu, Ru, t, noise, fit)
     cov6 = _covariance(fit.jac, Ru, t, s_p, noise.orientation_rad)
-    cov_t = cov6[:3, :3]
-    scale_dof = dof
-    if dof is not None and noise.orientation_rad > 0.0:
-        # Satterthwaite: only the touch-noise share w of the covariance is estimated, so the
-        # ellipsoid's effective degrees of freedom are nu_x / w^2 (chi2-like when w is small);
-        # s_p^2 = sum|r|^2 / dof - 2c/3 is less certain than dof says:
-        # nu_x = dof s_p^2 / (s_p^2 + 2c/3)
-        share = float(np.trace(_covariance(fit.jac, Ru, t, s_p, 0.0)[:3, :3]))
-        total = float(np.trace(cov_t))
-        w = share / total if total > 0.0 else 1.0
+    scale_dof = nu
+    scale: float | None = None
+    if fit.touch_var is not None:
         c = (noise.orientation_rad * float(np.linalg.norm(t))) ** 2
-        nu_x = dof * s_p**2 / (s_p**2 + 2.0 * c / 3.0)
-        scale_dof = max(1, int(min(nu_x / max(w * w, 1e-9), 1e9)))
+        lam6, m_dof, lam = _kenward_roger(Ru, t, fit.touch_var, c)
+        cov6 = cov6 + 2.0 * lam6
+        scale_dof = m_dof
+        scale = ellipsoid95_scale(m_dof) / math.sqrt(lam)
+    elif nu is not None and noise.orientation_rad > 0.0:
+        scale_dof = _ellipsoid_dof(
+            nu, s_p, cov6[:3, :3], _covariance(fit.jac, Ru, t, 1.0, 0.0)[:3, :3]
+        )
+    cov_t = cov6[:3, :3]
 
     if noise.touch_mm is not None:
         sse = float(_mahalanobis_sq(resu, _noise_cov(Ru, t, s_p, noise.orientation_rad)).sum())
@@ -190,9 +199,9 @@ def solve_npoint(
                 f"than the configured touch noise of {noise.touch_mm:g} mm explains: the "
                 "reported uncertainty is probably optimistic"
             )
-    elif dof is not None and dof < FEW_DOF:
+    elif nu is not None and nu < FEW_DOF:
         warnings.append(
-            f"the touch noise was estimated from only {dof} degrees of freedom; configure the "
+            f"the touch noise was estimated from only {nu:.0f} degrees of freedom; configure the "
             "tool's touch noise (or add touches) for a firmer uncertainty"
         )
     if m >= SERIAL_MIN_POSES:
@@ -247,6 +256,7 @@ def solve_npoint(
         outliers=tuple(int(i) for i in np.flatnonzero(~used)),
         warnings=tuple(warnings),
         dof=scale_dof,
+        ellipsoid_scale=scale,
     )
     cov_p = cov6[3:, 3:]
     return NPointResult(
@@ -256,6 +266,23 @@ def solve_npoint(
         pivot_covariance_mm2=np.array(0.5 * (cov_p + cov_p.T), dtype=np.float64),
         quality=quality,
     )
+
+
+def _ellipsoid_dof(nu: float, s_p: float, cov_t: FloatArray, touch_part: FloatArray) -> float:
+    """Satterthwaite degrees of freedom of the TCP ellipsoid when only s_p^2 is estimated.
+
+    Cov_t = s_p^2 M_p + (known orientation part); an error d(s_p^2) changes the Mahalanobis
+    metric by the relative amount w d(s_p^2) / s_p^2 on average over directions, with
+    w = s_p^2 tr(Cov_t^-1 M_p) / 3 the touch-noise share of Cov_t (1 without orientation
+    noise). s_p^2 has nu dof, so the scale of Cov_t has nu / w^2 (chi2-like when w is small).
+    """
+    try:
+        w = s_p**2 * float(np.trace(np.linalg.solve(cov_t, touch_part))) / 3.0
+    except np.linalg.LinAlgError:
+        return nu
+    if not math.isfinite(w) or w <= 0.0:
+        return nu
+    return float(min(nu / min(w * w, 1.0), 1e9))
 
 
 # --------------------------------------------------------------------------- input checks
@@ -443,12 +470,12 @@ def _mahalanobis_sq(res: FloatArray, cov: FloatArray) -> FloatArray:
 
 
 def _estimate_touch_noise(res: FloatArray, R: FloatArray, t: FloatArray, s_th: float) -> float:
-    """Touch noise s_p (mm) from residuals (m, 3), the orientation noise s_th (rad) known.
+    """Touch noise s_p (mm) from residuals (m, 3) of any estimator, s_th (rad) known.
 
-    Moment estimate: E sum |r_i|^2 = (3m - 6)(s_p^2 + 2c/3) with c = (s_th |t|)^2, so
-    s_p^2 = sum |r_i|^2 / (3m - 6) - 2c/3, floored at c/25: a touch noise estimated to zero
-    under a dominant orientation noise would let the weighted fit trust one direction of
-    every touch blindly. Without orientation noise this is sum |r_i|^2 / (3m - 6).
+    Moment estimate: E sum |r_i|^2 ~ (3m - 6)(s_p^2 + 2c/3) with c = (s_th |t|)^2, so
+    s_p^2 = sum |r_i|^2 / (3m - 6) - 2c/3, floored at c/25. Used by the estimators that do not
+    weight (stacked, pairwise, sphere) and as the starting value of the REML iteration of gls.
+    Without orientation noise this is sum |r_i|^2 / (3m - 6).
     """
     nu = 3 * res.shape[0] - 6
     total = float(np.sum(res * res)) / nu
@@ -458,13 +485,121 @@ def _estimate_touch_noise(res: FloatArray, R: FloatArray, t: FloatArray, s_th: f
     return math.sqrt(max(total - 2.0 * c / 3.0, c / 25.0, RESIDUAL_FLOOR_MM**2))
 
 
+def _touch_var_floor(c: float) -> float:
+    """Smallest s_p^2 used as a weight: keeps Cov_i invertible when REML clamps s_p^2 at 0."""
+    return max(RESIDUAL_FLOOR_MM**2, _REML_FLOOR_REL * c)
+
+
+def _reml_touch_variance(
+    R: FloatArray, t: FloatArray, res: FloatArray, theta: float, c: float
+) -> tuple[float, float]:
+    """One REML Fisher-scoring step for theta = s_p^2; returns (new theta >= 0, its dof).
+
+    Per touch Cov_i = theta I + c (I - u_i u_i^T) with u_i = R_i t / |t| and c = (s_th |t|)^2
+    known; `res` (m, 3) are the weighted-least-squares residuals under Cov(theta). With
+    Q = S^-1 - S^-1 A (A^T S^-1 A)^-1 A^T S^-1 (S = blockdiag Cov_i) the REML score is
+    (r^T S^-2 r - tr Q) / 2 and the expected information tr(Q Q) / 2, so the step
+    theta + (r^T S^-2 r - tr Q) / tr(QQ) is also the iterated-MINQUE (Helmert) estimate.
+    Var(theta^) = 2 / tr(QQ): the effective dof 2 theta^2 / Var is theta^2 tr(QQ).
+
+    All traces reduce to 6x6 algebra: sum_i A_i^T S_i^-k A_i = x^k K + (1 - x^k) V after
+    scaling by theta^k, with x = theta / (theta + c), K = sum A_i^T A_i and V = sum v_i v_i^T,
+    v_i = A_i^T u_i = [t / |t|; -u_i]. Without orientation noise (x = 1) the step is
+    sum |r_i|^2 / (3m - 6) with 3m - 6 dof, the classical estimate.
+    """
+    m = R.shape[0]
+    u, _ = _lever_directions(R, t)
+    x = theta / (theta + c)
+    n1, n2, n3 = _scaled_normal_matrices(R, t, x)
+    B = np.linalg.solve(n1, np.hstack([n2, n3]))
+    B2, B3 = B[:, :6], B[:, 6:]
+    tr_q = m * (2.0 * x + 1.0) - float(np.trace(B2))  # theta tr Q
+    tr_qq = m * (2.0 * x * x + 1.0) - 2.0 * float(np.trace(B3)) + float(np.sum(B2 * B2.T))
+    ur = np.einsum("ij,ij->i", u, res)
+    quad = x * x * float(np.sum(res * res)) + (1.0 - x * x) * float(ur @ ur)  # theta^2 r'S^-2 r
+    if not (tr_qq > 0.0 and math.isfinite(quad)):
+        return theta, float(max(3 * m - 6, 1))
+    new = (quad + theta * (tr_qq - tr_q)) / tr_qq
+    return max(new, 0.0), tr_qq
+
+
+def _scaled_normal_matrices(
+    R: FloatArray, t: FloatArray, x: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """theta^k sum_i A_i^T Cov_i^-k A_i = x^k K + (1 - x^k) V for k = 1, 2, 3 (each 6x6)."""
+    m = R.shape[0]
+    u, tn = _lever_directions(R, t)
+    S = R.sum(axis=0)
+    K = np.empty((6, 6))
+    K[:3, :3] = m * np.eye(3)
+    K[3:, 3:] = m * np.eye(3)
+    K[:3, 3:] = -S.T
+    K[3:, :3] = -S
+    th = t / tn if tn > 0.0 else np.zeros(3)
+    us = u.sum(axis=0)
+    V = np.empty((6, 6))
+    V[:3, :3] = m * np.outer(th, th)
+    V[:3, 3:] = -np.outer(th, us)
+    V[3:, :3] = -np.outer(us, th)
+    V[3:, 3:] = u.T @ u
+    return x * K + (1.0 - x) * V, x * x * K + (1.0 - x * x) * V, x**3 * K + (1.0 - x**3) * V
+
+
+def _kenward_roger(
+    R: FloatArray, t: FloatArray, theta: float, c: float
+) -> tuple[FloatArray, float, float]:
+    """Small-sample correction for a GLS fit whose weights use the REML estimate theta = s_p^2.
+
+    Kenward & Roger (1997) for one variance component (dCov_i / dtheta = I): returns
+    (Lambda, m, lam). The covariance of (t, p) is Phi + 2 Lambda, Phi the plug-in GLS
+    covariance and Lambda = Var(theta^) Phi (Q - P Phi P) Phi with P = sum A_i^T Cov_i^-2 A_i,
+    Q = sum A_i^T Cov_i^-3 A_i (Kackar-Harville: the extra spread from estimated weights, and
+    the bias of Phi(theta^)). For the 3-D TCP block, lam F ~ F(3, m) with
+    F = e^T (Phi + 2 Lambda)_tt^-1 e / 3, so the 95 % ellipsoid is k^2 = 3 F(3, m)(0.95) / lam.
+    """
+    x = theta / (theta + c)
+    n1, n2, n3 = _scaled_normal_matrices(R, t, x)
+    g = np.linalg.inv(n1)  # Phi / theta
+    b2 = g @ n2
+    tr_qq = (
+        R.shape[0] * (2.0 * x * x + 1.0) - 2.0 * float(np.trace(g @ n3)) + float(np.sum(b2 * b2.T))
+    )  # theta^2 tr(QQ); Var(theta^) = 2 theta^2 / tr_qq
+    lam6 = (2.0 * theta / tr_qq) * (g @ (n3 - n2 @ b2) @ g)
+    d = b2 @ g  # Phi P Phi / theta^0 (= dPhi / dtheta)
+    mt = np.linalg.solve(g[:3, :3], d[:3, :3])  # theta Phi_tt^-1 (Phi P Phi)_tt
+    ell = 3.0
+    a1 = 2.0 * float(np.trace(mt)) ** 2 / tr_qq
+    a2 = 2.0 * float(np.sum(mt * mt.T)) / tr_qq
+    big_b = (a1 + 6.0 * a2) / (2.0 * ell)
+    gg = ((ell + 1.0) * a1 - (ell + 4.0) * a2) / ((ell + 2.0) * a2)
+    den = 3.0 * ell + 2.0 * (1.0 - gg)
+    c1, c2, c3 = gg / den, (ell - gg) / den, (ell + 2.0 - gg) / den
+    e_star = 1.0 / (1.0 - a2 / ell)
+    v_star = (2.0 / ell) * (1.0 + c1 * big_b) / ((1.0 - c2 * big_b) ** 2 * (1.0 - c3 * big_b))
+    rho = v_star / (2.0 * e_star**2)
+    m_dof = 4.0 + (ell + 2.0) / (ell * rho - 1.0) if ell * rho > 1.0 else 1e9
+    lam = m_dof / (e_star * (m_dof - 2.0))
+    return lam6, m_dof, lam
+
+
 def _touch_noise_level(
-    res: FloatArray, R: FloatArray, t: FloatArray, noise: _Noise
-) -> tuple[float, int | None]:
-    """(s_p, dof): the configured touch noise and None, or the estimate and its dof."""
+    res: FloatArray, R: FloatArray, t: FloatArray, noise: _Noise, fit: _Fit | None = None
+) -> tuple[float, float | None]:
+    """(s_p, nu): the configured touch noise and None, or the estimate and the effective dof
+    2 s_p^4 / Var(s_p^2) of its square: REML's when the fit carries one, else the moment
+    estimate's (3m - 6 without orientation noise, less with it: the known orientation share
+    of the residuals makes the difference s_p^2 = sum |r|^2 / dof - 2c/3 less certain).
+    """
     if noise.touch_mm is not None:
         return noise.touch_mm, None
-    return _estimate_touch_noise(res, R, t, noise.orientation_rad), 3 * res.shape[0] - 6
+    if fit is not None and fit.touch_var is not None and fit.touch_var_dof is not None:
+        return math.sqrt(fit.touch_var), fit.touch_var_dof
+    dof = 3 * res.shape[0] - 6
+    s_p = _estimate_touch_noise(res, R, t, noise.orientation_rad)
+    if noise.orientation_rad == 0.0:
+        return s_p, float(dof)
+    c = (noise.orientation_rad * float(np.linalg.norm(t))) ** 2
+    return s_p, dof * s_p**2 / (s_p**2 + 2.0 * c / 3.0)
 
 
 def _covariance(
@@ -515,26 +650,43 @@ def _fit_weighted(R: FloatArray, f: FloatArray, whiten: FloatArray) -> _Fit:
 
 
 def _fit_gls(R: FloatArray, f: FloatArray, noise: _Noise) -> _Fit:
-    """Iterated weighted least squares under the touch + orientation noise model."""
+    """Iterated weighted least squares under the touch + orientation noise model.
+
+    With the touch noise unknown, s_p^2 is estimated jointly by REML (restricted maximum
+    likelihood, one Fisher-scoring step per reweighting): the fixed point is both the weighted
+    fit for that s_p and the REML estimate of s_p given the fit's residuals. REML, unlike a
+    moment estimate on weighted residuals, accounts for the 6 fitted parameters in every
+    direction (the trace of Q), so it does not collapse under its own weights.
+    """
     fit = _fit_stacked(R, f)
     s_th = noise.orientation_rad
     if s_th == 0.0:
         return fit  # isotropic weights: the stacked solution is the weighted one
     if noise.touch_mm is not None:
         s_p = noise.touch_mm
-    else:
-        # estimated once from the unweighted fit: re-estimating it from weighted residuals
-        # feeds back (small s_p -> tight fit along R_i t -> smaller s_p)
-        res = _residual_vectors(R, f, fit.t, fit.p)
-        s_p = _estimate_touch_noise(res, R, fit.t, s_th)
+        for _ in range(_MAX_GLS_STEPS):
+            tn = float(np.linalg.norm(fit.t))
+            new = _fit_weighted(R, f, _whiteners(R, fit.t, s_p, s_th))
+            step = float(np.linalg.norm(new.t - fit.t))
+            fit = new
+            if step <= 1e-12 * (1.0 + tn):
+                break
+        return fit
+    res = _residual_vectors(R, f, fit.t, fit.p)
+    theta = _estimate_touch_noise(res, R, fit.t, s_th) ** 2
+    dof = float(max(3 * R.shape[0] - 6, 1))
     for _ in range(_MAX_GLS_STEPS):
         tn = float(np.linalg.norm(fit.t))
-        new = _fit_weighted(R, f, _whiteners(R, fit.t, max(s_p, RESIDUAL_FLOOR_MM), s_th))
+        theta_w = max(theta, _touch_var_floor((s_th * tn) ** 2))
+        new = _fit_weighted(R, f, _whiteners(R, fit.t, math.sqrt(theta_w), s_th))
+        res = _residual_vectors(R, f, new.t, new.p)
+        theta, dof = _reml_touch_variance(R, new.t, res, theta_w, (s_th * tn) ** 2)
         step = float(np.linalg.norm(new.t - fit.t))
         fit = new
-        if step <= 1e-12 * (1.0 + tn):
+        if step <= 1e-12 * (1.0 + tn) and abs(theta - theta_w) <= _REML_RTOL * theta_w:
             break
-    return fit
+    theta = max(theta, _touch_var_floor((s_th * float(np.linalg.norm(fit.t))) ** 2))
+    return replace(fit, touch_var=theta, touch_var_dof=dof)
 
 
 def _fit_pairwise(R: FloatArray, f: FloatArray) -> _Fit:
@@ -626,7 +778,8 @@ def _touch_distances(
     """
     Ru = R[used]
     res = _residual_vectors(R, f, fit.t, fit.p)
-    s_p, dof = _touch_noise_level(res[used], Ru, fit.t, noise)
+    s_p, nu = _touch_noise_level(res[used], Ru, fit.t, noise, fit)
+    dof = None if nu is None else 3 * Ru.shape[0] - 6
     s_th = noise.orientation_rad
     cov6 = _covariance(fit.jac, Ru, fit.t, s_p, s_th)
     # A_i Cov A_i^T with A_i = [R_i  -I]

@@ -39,17 +39,24 @@ class Quality:
     ellipsoid95_scale: float
 
 
-@lru_cache(maxsize=256)
-def ellipsoid95_scale(dof: int | None) -> float:
+def ellipsoid95_scale(dof: float | None) -> float:
     """Factor k so that (x - x^)^T Cov^-1 (x - x^) <= k^2 holds 95 % of the time in 3-D.
 
     `dof` None: the covariance rests on a configured (known) noise level, k^2 = chi2_3(0.95).
-    `dof` > 0: the noise level was estimated from residuals with `dof` degrees of freedom,
-    k^2 = 3 F(3, dof)(0.95) (Hotelling), which is wider for few touches.
+    `dof` > 0: the noise level was estimated from residuals with `dof` (effective, possibly
+    fractional) degrees of freedom, k^2 = 3 F(3, dof)(0.95) (Hotelling), which is wider for
+    few touches. dof is rounded to 3 significant digits (the quantile moves far less).
     """
     if dof is None:
+        return _scale(None)
+    return _scale(float(f"{max(float(dof), 1.0):.3g}"))
+
+
+@lru_cache(maxsize=1024)
+def _scale(dof: float | None) -> float:
+    if dof is None:
         return float(np.sqrt(chi2.ppf(ELLIPSOID_PROBABILITY, 3)))
-    return float(np.sqrt(3.0 * f.ppf(ELLIPSOID_PROBABILITY, 3, max(int(dof), 1))))
+    return float(np.sqrt(3.0 * f.ppf(ELLIPSOID_PROBABILITY, 3, dof)))
 
 
 def rotation_angles_deg(rotations: ArrayLike) -> NDArray[np.float64]:
@@ -85,13 +92,16 @@ def make_quality(
     condition_number: float,
     outliers: tuple[int, ...] = (),
     warnings: tuple[str, ...] = (),
-    dof: int | None,
+    dof: float | None,
+    ellipsoid_scale: float | None = None,
 ) -> Quality:
     """Build a Quality from per-touch residuals (N,) mm and the TCP covariance (3, 3) mm^2.
 
     rms and max are over the touches used in the fit (`used`, a boolean mask; default all):
     a rejected touch is named in `outliers` and keeps its residual in `residuals_mm`.
-    `dof` is None when the noise level was configured, else the residual degrees of freedom.
+    `dof` is None when the noise level was configured, else the (effective) degrees of freedom
+    of the estimated noise level behind the covariance. `ellipsoid_scale`, when given, replaces
+    the scale that follows from `dof` (a small-sample correction such as Kenward-Roger's).
     """
     res = np.asarray(residuals_mm, dtype=np.float64).ravel()
     mask = np.ones(res.shape, dtype=bool) if used is None else np.asarray(used, dtype=bool)
@@ -111,5 +121,5 @@ def make_quality(
         condition_number=float(condition_number),
         outliers=tuple(int(i) for i in outliers),
         warnings=tuple(warnings),
-        ellipsoid95_scale=ellipsoid95_scale(dof),
+        ellipsoid95_scale=ellipsoid95_scale(dof) if ellipsoid_scale is None else ellipsoid_scale,
     )

@@ -211,3 +211,11 @@ def test_health_ready_metrics(api: Api) -> None:
     api.get("/v1/robots")
     text = api.client.get("/metrics").text
     assert 'tcpcal_http_requests_total{method="GET",route="/v1/robots",status="200"}' in text
+
+
+def test_version_numbers_beyond_32_bits_are_422_not_500(api: Api) -> None:
+    _, tool = _setup(api)
+    for version in (2**31, 2**63, 0):
+        response = api.get(f"/v1/tools/{tool['id']}/versions/{version}")
+        assert response.status_code == 422
+        assert response.json()["errors"][0]["loc"] == ["path", "version"]

@@ -1,0 +1,68 @@
+"""The OpenAPI document, with the error responses the app really sends (problem+json).
+
+FastAPI documents every 422 as its own HTTPValidationError; this app answers every error as
+a Problem, so the spec is rewritten to say so, and lists the other statuses an operation can
+answer (401/403 on /v1, 404 with a path id, 409/413 on writes, 412 with If-Match).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.openapi.utils import get_openapi
+
+from app.schemas.problems import Problem
+
+PROBLEM_REF = {"$ref": "#/components/schemas/Problem"}
+DESCRIPTIONS = {
+    "401": "no or unknown API key",
+    "403": "the key's scope is too small",
+    "404": "unknown or archived resource",
+    "409": "conflict (duplicate name or slot, idempotency key reused)",
+    "412": "If-Match does not name the current ETag",
+    "413": "body larger than the limit",
+    "422": "malformed or unsolvable input; `type` names the kind",
+}
+
+
+def _problem(code: str) -> dict[str, Any]:
+    return {
+        "description": DESCRIPTIONS[code],
+        "content": {"application/problem+json": {"schema": PROBLEM_REF}},
+    }
+
+
+def _codes(path: str, method: str, operation: dict[str, Any]) -> list[str]:
+    codes = ["422"]
+    if path.startswith("/v1/"):
+        codes += ["401", "403"]
+    if "{" in path:
+        codes.append("404")
+    if method in {"post", "patch", "put"}:
+        codes += ["409", "413"]
+    if any(p.get("name") == "if-match" for p in operation.get("parameters", [])):
+        codes.append("412")
+    return codes
+
+
+def build_openapi(app: FastAPI) -> dict[str, Any]:
+    """The app's OpenAPI document with problem+json error responses."""
+    if app.openapi_schema:
+        return app.openapi_schema
+    spec = get_openapi(title=app.title, version=app.version, summary=app.summary, routes=app.routes)
+    schemas = spec.setdefault("components", {}).setdefault("schemas", {})
+    problem = Problem.model_json_schema(ref_template="#/components/schemas/{model}")
+    schemas.update(problem.pop("$defs", {}))
+    schemas["Problem"] = problem
+    for path, item in spec.get("paths", {}).items():
+        for method, operation in item.items():
+            if path in {"/health", "/ready", "/metrics"}:
+                continue
+            responses = operation.setdefault("responses", {})
+            for code in _codes(path, method, operation):
+                responses[code] = _problem(code)
+    for unused in ("HTTPValidationError", "ValidationError"):
+        schemas.pop(unused, None)
+    app.openapi_schema = spec
+    return spec
