@@ -203,6 +203,16 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+        if exc.status_code == 400:
+            # Starlette's "error parsing the body" (not UTF-8, not JSON): malformed input,
+            # which the contract answers with 422 like every other malformed body
+            return problem_response(
+                status=422,
+                kind="validation",
+                title="Invalid request",
+                detail=f"body: {exc.detail}; send UTF-8 JSON",
+                errors=[{"loc": ["body"], "msg": str(exc.detail)}],
+            )
         kinds = {404: ("not-found", "Not found"), 405: ("method-not-allowed", "Method not allowed")}
         kind, title = kinds.get(exc.status_code, ("http-error", "HTTP error"))
         return problem_response(

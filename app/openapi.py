@@ -36,11 +36,11 @@ def _problem(code: str) -> dict[str, Any]:
 def _codes(path: str, method: str, operation: dict[str, Any]) -> list[str]:
     codes = ["422"]
     if path.startswith("/v1/"):
-        codes += ["401", "403"]
-    if "{" in path:
-        codes.append("404")
+        # 404 also where an id in the body is unknown (e.g. /v1/solve's robot_id); 409 also
+        # for DELETE (a key revoked twice)
+        codes += ["401", "403", "404", "409"]
     if method in {"post", "patch", "put"}:
-        codes += ["409", "413"]
+        codes.append("413")
     if any(p.get("name") == "if-match" for p in operation.get("parameters", [])):
         codes.append("412")
     return codes

@@ -71,6 +71,8 @@ _MAX_GLS_STEPS = 30
 #: the orientation share c = (s_th |t|)^2 (a weight, never an estimate of 0 divided by)
 _REML_RTOL = 1e-6
 _REML_FLOOR_REL = 1e-10
+#: Degrees of freedom from which an F test is taken as chi2.
+_CHI2_DOF = 10**6
 #: Upper bounds on the noise options, to catch unit mistakes (m for mm, rad for deg).
 MAX_TOUCH_NOISE_MM = 100.0
 MAX_ORIENTATION_NOISE_DEG = 10.0
@@ -770,16 +772,24 @@ def _sse_threshold(dof: int) -> float:
 
 def _touch_distances(
     R: FloatArray, f: FloatArray, used: BoolArray, fit: _Fit, noise: _Noise
-) -> tuple[FloatArray, int | None]:
-    """Squared Mahalanobis distance of every touch's residual from the fit on `used`.
+) -> tuple[FloatArray, bool]:
+    """Outlier score of every touch's residual from the fit on `used` (<= 1: consistent), and
+    whether the touch noise behind it was estimated.
 
-    A used touch's residual has covariance Cov_i - A_i Cov A_i^T, a left-out touch's
-    Cov_i + A_i Cov A_i^T (prediction error), with Cov the (6, 6) covariance of the fit.
+    A used touch's residual has covariance V_i = Cov_i - A_i Cov A_i^T, a left-out touch's
+    Cov_i + A_i Cov A_i^T (prediction error), with Cov the (6, 6) covariance of the fit. The
+    score is the squared Mahalanobis distance over its Bonferroni bound at OUTLIER_ALPHA over
+    the n touches: chi2(3) with a configured noise, 3 F(3, 3m - 6) with one estimated without
+    orientation noise. With orientation noise and s_p^2 estimated (nu dof) only the share
+    w = s_p^2 / lambda of each eigen-direction (eigenvalue lambda) of V_i is uncertain: along
+    R_i t it is nearly all (heavy F tail, few dof), across it little (known orientation noise).
+    Each of the 3 directions is then tested alone against F(1, nu / w^2) at OUTLIER_ALPHA / 3n,
+    so that a poorly known touch noise does not hide misses across the lever.
     """
+    n = R.shape[0]
     Ru = R[used]
     res = _residual_vectors(R, f, fit.t, fit.p)
     s_p, nu = _touch_noise_level(res[used], Ru, fit.t, noise, fit)
-    dof = None if nu is None else 3 * Ru.shape[0] - 6
     s_th = noise.orientation_rad
     cov6 = _covariance(fit.jac, Ru, fit.t, s_p, s_th)
     # A_i Cov A_i^T with A_i = [R_i  -I]
@@ -788,7 +798,33 @@ def _touch_distances(
     pred = pred - cov6[3:, :3] @ R.transpose(0, 2, 1) + cov6[3:, 3:]
     sign = np.where(used, -1.0, 1.0)[:, None, None]
     V = _noise_cov(R, fit.t, s_p, s_th) + sign * pred + RESIDUAL_FLOOR_MM**2 * np.eye(3)
-    return _mahalanobis_sq(res, V), dof
+    if nu is None or fit.touch_var is None:
+        limit = _outlier_threshold(n, None if nu is None else 3 * Ru.shape[0] - 6)
+        return _mahalanobis_sq(res, V) / limit, nu is not None
+    evals, evecs = np.linalg.eigh(V)
+    evals = np.maximum(evals, RESIDUAL_FLOOR_MM**2)
+    z2 = np.einsum("nij,ni->nj", evecs, res) ** 2 / evals
+    w = np.clip(s_p**2 / evals, 1e-6, 1.0)
+    limits = _direction_limits(n, nu / (w * w))
+    score: FloatArray = (z2 / limits).max(axis=1)
+    return score, True
+
+
+def _direction_limits(n: int, dof: FloatArray) -> FloatArray:
+    """Bound on one direction's squared distance, F(1, dof) at OUTLIER_ALPHA / 3n (dof floored)."""
+    ints = np.clip(np.floor(dof), 1, _CHI2_DOF).astype(np.int64)
+    uniq, inverse = np.unique(ints, return_inverse=True)
+    limits = np.array([_direction_threshold(n, int(k)) for k in uniq])
+    out: FloatArray = limits[inverse].reshape(dof.shape)
+    return out
+
+
+@lru_cache(maxsize=4096)
+def _direction_threshold(n: int, dof: int) -> float:
+    q = 1.0 - OUTLIER_ALPHA / (3 * n)
+    if dof >= _CHI2_DOF:
+        return float(chi2.ppf(q, 1))
+    return float(f_dist.ppf(q, 1, dof))
 
 
 @lru_cache(maxsize=64)
@@ -836,8 +872,8 @@ def _robust(R: FloatArray, f: FloatArray, noise: _Noise) -> tuple[_Fit, BoolArra
     everyone: BoolArray = np.ones(n, dtype=bool)
     if n < 5 or noise.touch_mm is not None:
         fit = _base_fit(R, f, noise)
-        d2, dof = _touch_distances(R, f, everyone, fit, noise)
-        consistent = dof is not None or float(d2.max()) <= _outlier_threshold(n, None)
+        score, estimated = _touch_distances(R, f, everyone, fit, noise)
+        consistent = estimated or float(score.max()) <= 1.0
         if noise.touch_mm is not None and consistent:
             res = _residual_vectors(R, f, fit.t, fit.p)
             cov = _noise_cov(R, fit.t, noise.touch_mm, noise.orientation_rad)
@@ -876,11 +912,11 @@ def _robust(R: FloatArray, f: FloatArray, noise: _Noise) -> tuple[_Fit, BoolArra
         key = used.tobytes()
         if key not in fits:
             fits[key] = _base_fit(R[used], f[used], noise)
-        d2, dof = _touch_distances(R, f, used, fits[key], noise)
-        new = d2 <= _outlier_threshold(n, dof)
+        score, _ = _touch_distances(R, f, used, fits[key], noise)
+        new = score <= 1.0
         if int(new.sum()) < h:
             new = np.zeros(n, dtype=bool)
-            new[np.argsort(d2, kind="stable")[:h]] = True
+            new[np.argsort(score, kind="stable")[:h]] = True
         if np.array_equal(new, used):
             break
         used = new

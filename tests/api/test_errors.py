@@ -242,3 +242,13 @@ def test_control_characters_in_names_and_body_ids_are_422(api: Api) -> None:
         "validation",
     )
     assert body["errors"][0]["loc"] == ["body", "reference_point_id"]
+
+
+def test_body_that_is_not_utf8_is_422(api: Api) -> None:
+    response = api.client.post(
+        "/v1/robots",
+        content=b'{"name": "\xff\xfe"}',
+        headers={**api.headers(), "content-type": "application/json"},
+    )
+    body = _problem(response, 422, "validation")
+    assert body["errors"][0]["loc"] == ["body"]

@@ -6,12 +6,11 @@ admin key; path parameters often hit the seeded ids, integer ones also the datab
 limits. Checked for every response: never a 5xx; success responses match the documented
 status, content type, headers and body schema; every 4xx is an RFC 9457 problem+json with
 type, title, status and detail.
-A known bug turns its operation's test into an xfail and has a strict reproduction test.
+Errors are checked against the spec too (it documents them as problem+json).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import hypothesis.strategies as st
@@ -36,29 +35,6 @@ HUGE_VERSION = 2**63  # one past SQLite's INTEGER
 INT32_VERSION = 2**31  # one past PostgreSQL's integer
 #: integer path parameters also try the edges of the database integer types
 DATABASE_INT_EDGES = [INT32_VERSION, HUGE_VERSION, -(2**63) - 1]
-
-VERSION_OVERFLOW = (
-    "bug: a {version} path parameter beyond the database integer range (>= 2**63 on SQLite, "
-    ">= 2**31 on PostgreSQL) reaches the query unchecked -> 500 OverflowError / "
-    "NumericValueOutOfRange instead of 404 or 422"
-)
-
-
-def _version_out_of_int32(case: schemathesis.Case) -> bool:
-    version = (case.path_parameters or {}).get("version")
-    return isinstance(version, int) and abs(version) >= INT32_VERSION
-
-
-#: operation label -> (is this 5xx the known bug?, the bug). Such a 5xx turns the operation's
-#: fuzz test into an xfail; strictness comes from the plain reproduction tests below, because
-#: schemathesis' pytest plugin (4.32.5) crashes (INTERNALERROR) on a strict XPASS of its items.
-KNOWN_BUGS: dict[str, tuple[Callable[[schemathesis.Case], bool], str]] = {
-    "GET /v1/tools/{tool_id}/versions/{version}": (_version_out_of_int32, VERSION_OVERFLOW),
-    "POST /v1/tools/{tool_id}/versions/{version}/activate": (
-        _version_out_of_int32,
-        VERSION_OVERFLOW,
-    ),
-}
 
 schema = schemathesis.openapi.from_dict(
     create_app().openapi(),
@@ -152,9 +128,13 @@ SUCCESS_CHECKS = [
     response_headers_conformance,
     response_schema_conformance,
 ]
-# Error responses are checked against the contract (API.md), not the generated spec: see
-# test_documented_422_matches_what_is_sent for how the spec's 422 differs.
-ERROR_CHECKS = [not_a_server_error, problem_details]
+ERROR_CHECKS = [
+    not_a_server_error,
+    status_code_conformance,
+    content_type_conformance,
+    response_schema_conformance,
+    problem_details,
+]
 
 
 @schema.parametrize()
@@ -181,42 +161,27 @@ def test_api_conforms_to_its_schema(
             choices.extend(DATABASE_INT_EDGES)
         case.path_parameters[name] = data.draw(st.sampled_from(choices), label=name)
     response = case.call(app=ResponseOnly(api.client.app), headers=api.headers("admin"))
-    is_known_bug, bug = KNOWN_BUGS.get(f"{case.method} {case.path}", (None, ""))
-    if response.status_code >= 500 and is_known_bug is not None and is_known_bug(case):
-        pytest.xfail(bug)
     checks = SUCCESS_CHECKS if response.status_code < 400 else ERROR_CHECKS
     case.validate_response(response, checks=checks)
 
 
 @pytest.mark.parametrize("version", [HUGE_VERSION, INT32_VERSION])
 @pytest.mark.parametrize("method", ["GET", "POST"])
-def test_out_of_range_version_is_not_a_server_error(
-    api: Api,
-    seeded_ids: dict[str, Any],
-    method: str,
-    version: int,
-    request: pytest.FixtureRequest,
+def test_out_of_range_version_is_422(
+    api: Api, seeded_ids: dict[str, Any], method: str, version: int
 ) -> None:
-    """Minimal reproduction of VERSION_OVERFLOW (2**31 fits SQLite, so fails on PostgreSQL only)."""
-    backend = request.getfixturevalue("db").backend
-    if version == HUGE_VERSION or backend == "postgresql":
-        request.applymarker(pytest.mark.xfail(strict=True, reason=VERSION_OVERFLOW))
+    """Regression: versions beyond the database integers reached the query (500)."""
     path = f"/v1/tools/{seeded_ids['tool_id']}/versions/{version}"
     if method == "POST":
         response = api.post(f"{path}/activate", scope="calibrate")
     else:
         response = api.get(path)
-    assert response.status_code < 500, response.text
+    assert response.status_code == 422, response.text
+    assert response.json()["errors"][0]["loc"] == ["path", "version"]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: the OpenAPI spec documents every 422 as FastAPI's HTTPValidationError "
-    "(application/json, detail: array), but the app answers application/problem+json with "
-    "detail: string (the contract in API.md); 401/403/404/409/412/413 are not documented at all",
-)
 def test_documented_422_matches_what_is_sent(api: Api) -> None:
-    """A 422 conforms to the response the spec documents for it."""
+    """Regression: the spec documented FastAPI's HTTPValidationError, not problem+json."""
     case = schema["/v1/robots"]["POST"].Case(body={})
     response = case.call(app=ResponseOnly(api.client.app), headers=api.headers("admin"))
     assert response.status_code == 422
