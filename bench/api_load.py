@@ -32,7 +32,6 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import httpx
@@ -71,36 +70,14 @@ class Samples:
     wall_s: float = 0.0
 
 
-def _log_server_output(log: Any) -> Any:
-    """A stand-in for the subprocess module in tests.live.server that logs to a file.
-
-    live_server pipes the server's stdout and never reads it: under load the uvicorn access
-    log fills the pipe and the server stalls. The bench sends that output to a file instead.
-    """
-
-    def popen(*args: Any, **kwargs: Any) -> subprocess.Popen[bytes]:
-        kwargs["stdout"] = log
-        kwargs["stderr"] = subprocess.STDOUT
-        return subprocess.Popen(*args, **kwargs)
-
-    return SimpleNamespace(
-        Popen=popen,
-        PIPE=subprocess.PIPE,
-        STDOUT=subprocess.STDOUT,
-        TimeoutExpired=subprocess.TimeoutExpired,
-    )
-
-
 @contextmanager
 def tcpcal_server(tmp: Path, workers: int, log: Any) -> Iterator[live.LiveServer]:
     """`tcpcal serve --workers N` on a fresh SQLite database, output to `log`."""
-    original = live.subprocess
-    live.subprocess = _log_server_output(log)  # type: ignore[assignment]
-    try:
-        with fresh_database("sqlite", tmp, None) as url, live_server(url, workers=workers) as srv:
-            yield srv
-    finally:
-        live.subprocess = original
+    with (
+        fresh_database("sqlite", tmp, None) as url,
+        live_server(url, workers=workers, log=log) as srv,
+    ):
+        yield srv
 
 
 @dataclass

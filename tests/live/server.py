@@ -6,12 +6,14 @@ import os
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 import httpx
 from sqlalchemy import create_engine, text
@@ -61,8 +63,14 @@ def fresh_database(backend: str, tmp: Path, pg_url: str | None) -> Iterator[str]
 
 
 @contextmanager
-def live_server(database_url: str, *, workers: int = 2) -> Iterator[LiveServer]:
-    """Migrate, create an admin key, serve with `tcpcal serve --workers N`, stop afterwards."""
+def live_server(
+    database_url: str, *, workers: int = 2, log: IO[bytes] | None = None
+) -> Iterator[LiveServer]:
+    """Migrate, create an admin key, serve with `tcpcal serve --workers N`, stop afterwards.
+
+    The server's output goes to `log` (default: a temporary file): a pipe nobody reads fills
+    up after a few thousand access-log lines and the server then blocks.
+    """
     upgrade(database_url)
     engine = make_engine(database_url)
     with session_scope(write=True, engine=engine) as session:
@@ -71,6 +79,7 @@ def live_server(database_url: str, *, workers: int = 2) -> Iterator[LiveServer]:
     port = _free_port()
     env = {**os.environ, "TCPCAL_DATABASE_URL": database_url}
     tcpcal = Path(sys.executable).parent / "tcpcal"
+    output = log if log is not None else tempfile.TemporaryFile()  # noqa: SIM115 (closed below)
     proc = subprocess.Popen(
         [
             str(tcpcal),
@@ -84,7 +93,7 @@ def live_server(database_url: str, *, workers: int = 2) -> Iterator[LiveServer]:
         ],
         cwd=REPO,
         env=env,
-        stdout=subprocess.PIPE,
+        stdout=output,
         stderr=subprocess.STDOUT,
     )
     url = f"http://127.0.0.1:{port}"
@@ -92,8 +101,8 @@ def live_server(database_url: str, *, workers: int = 2) -> Iterator[LiveServer]:
         deadline = time.monotonic() + 60
         while True:
             if proc.poll() is not None:
-                out = proc.stdout.read().decode() if proc.stdout else ""
-                raise RuntimeError(f"server exited early:\n{out}")
+                output.seek(0)
+                raise RuntimeError(f"server exited early:\n{output.read().decode()}")
             try:
                 if httpx.get(f"{url}/ready", timeout=1).status_code == 200:
                     break
@@ -110,3 +119,5 @@ def live_server(database_url: str, *, workers: int = 2) -> Iterator[LiveServer]:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        if log is None:
+            output.close()
