@@ -66,13 +66,21 @@ def is_sqlite(engine: Engine) -> bool:
     return engine.dialect.name == "sqlite"
 
 
+@lru_cache(maxsize=16)
+def _session_factory(engine: Engine, write: bool) -> sessionmaker[Session]:
+    # Built once per engine and mode: a sessionmaker per request costs more than the query.
+    bind = (
+        engine.execution_options(sqlite_begin="IMMEDIATE")
+        if write and is_sqlite(engine)
+        else engine
+    )
+    return sessionmaker(bind=bind, expire_on_commit=False, autoflush=True)
+
+
 @contextmanager
 def session_scope(*, write: bool, engine: Engine | None = None) -> Iterator[Session]:
     """A session whose transaction commits on success and rolls back on any error."""
-    bind = engine or get_engine()
-    if write and is_sqlite(bind):
-        bind = bind.execution_options(sqlite_begin="IMMEDIATE")
-    factory = sessionmaker(bind=bind, expire_on_commit=False, autoflush=True)
+    factory = _session_factory(engine or get_engine(), write)
     with factory() as session:
         try:
             yield session
