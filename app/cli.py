@@ -30,7 +30,16 @@ def serve(
     """Serve the API with uvicorn (migrate first: `tcpcal db upgrade`)."""
     import uvicorn
 
-    uvicorn.run("app.main:app", host=host, port=port, workers=workers, proxy_headers=True)
+    from app.server import HTTP_PROTOCOL
+
+    uvicorn.run(
+        "app.main:app",
+        host=host,
+        port=port,
+        workers=workers,
+        proxy_headers=True,
+        http=HTTP_PROTOCOL,
+    )
 
 
 @db_cli.command("upgrade")
