@@ -108,8 +108,9 @@ def bare_server(workers: int, log: Any) -> Iterator[BareServer]:
     """bench.bare_app under uvicorn.run with the arguments `tcpcal serve` uses (not yet ready)."""
     port = live._free_port()
     code = (
-        "import uvicorn; uvicorn.run('bench.bare_app:app', host='127.0.0.1', "
-        f"port={port}, workers={workers}, proxy_headers=True)"
+        "import uvicorn; from app.server import HTTP_PROTOCOL; "
+        "uvicorn.run('bench.bare_app:app', host='127.0.0.1', "
+        f"port={port}, workers={workers}, proxy_headers=True, http=HTTP_PROTOCOL)"
     )
     proc = subprocess.Popen(
         [sys.executable, "-c", code], cwd=REPO, stdout=log, stderr=subprocess.STDOUT
