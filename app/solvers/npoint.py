@@ -70,7 +70,7 @@ _MAX_GLS_STEPS = 30
 #: REML iteration for the touch noise: relative tolerance on s_p^2, and its floor relative to
 #: the orientation share c = (s_th |t|)^2 (a weight, never an estimate of 0 divided by)
 _REML_RTOL = 1e-6
-_REML_FLOOR_REL = 1e-10
+_REML_FLOOR_REL = 1e-8
 #: Degrees of freedom from which an F test is taken as chi2.
 _CHI2_DOF = 10**6
 #: Upper bounds on the noise options, to catch unit mistakes (m for mm, rad for deg).
@@ -638,17 +638,21 @@ def _fit_stacked(R: FloatArray, f: FloatArray) -> _Fit:
     return _Fit(t=t, p=p, jac=np.concatenate([jt, jp], axis=1))
 
 
-def _fit_weighted(R: FloatArray, f: FloatArray, whiten: FloatArray) -> _Fit:
-    """Weighted least squares for [t; p] with per-touch whiteners W_i^(1/2) (m, 3, 3)."""
+def _fit_weighted(R: FloatArray, f: FloatArray, whiten: FloatArray, start: _Fit) -> _Fit:
+    """Weighted least squares for [t; p] with per-touch whiteners W_i^(1/2) (m, 3, 3).
+
+    Solved as a correction to `start` from its whitened residuals, so that strongly unequal
+    weights cost precision only in proportion to the residuals (exact data stay exact).
+    """
     A = _design(R)
     Aw = whiten @ A
-    yw = -np.einsum("nij,nj->ni", whiten, f)
-    theta = np.linalg.lstsq(Aw.reshape(-1, 6), yw.reshape(-1), rcond=None)[0]
+    rw = -np.einsum("nij,nj->ni", whiten, _residual_vectors(R, f, start.t, start.p))
     Aws = Aw.reshape(-1, 6)
+    delta = np.linalg.lstsq(Aws, rw.reshape(-1), rcond=None)[0]
     Finv = np.linalg.inv(Aws.T @ Aws)
     W = np.swapaxes(whiten, 1, 2) @ whiten
     jac = -(Finv @ A.transpose(0, 2, 1) @ W)
-    return _Fit(t=theta[:3], p=theta[3:], jac=jac)
+    return _Fit(t=start.t + delta[:3], p=start.p + delta[3:], jac=jac)
 
 
 def _fit_gls(R: FloatArray, f: FloatArray, noise: _Noise) -> _Fit:
@@ -668,7 +672,7 @@ def _fit_gls(R: FloatArray, f: FloatArray, noise: _Noise) -> _Fit:
         s_p = noise.touch_mm
         for _ in range(_MAX_GLS_STEPS):
             tn = float(np.linalg.norm(fit.t))
-            new = _fit_weighted(R, f, _whiteners(R, fit.t, s_p, s_th))
+            new = _fit_weighted(R, f, _whiteners(R, fit.t, s_p, s_th), fit)
             step = float(np.linalg.norm(new.t - fit.t))
             fit = new
             if step <= 1e-12 * (1.0 + tn):
@@ -677,16 +681,27 @@ def _fit_gls(R: FloatArray, f: FloatArray, noise: _Noise) -> _Fit:
     res = _residual_vectors(R, f, fit.t, fit.p)
     theta = _estimate_touch_noise(res, R, fit.t, s_th) ** 2
     dof = float(max(3 * R.shape[0] - 6, 1))
+    last: tuple[float, float] | None = None  # previous (theta_w, REML update of it)
     for _ in range(_MAX_GLS_STEPS):
         tn = float(np.linalg.norm(fit.t))
         theta_w = max(theta, _touch_var_floor((s_th * tn) ** 2))
-        new = _fit_weighted(R, f, _whiteners(R, fit.t, math.sqrt(theta_w), s_th))
+        new = _fit_weighted(R, f, _whiteners(R, fit.t, math.sqrt(theta_w), s_th), fit)
         res = _residual_vectors(R, f, new.t, new.p)
-        theta, dof = _reml_touch_variance(R, new.t, res, theta_w, (s_th * tn) ** 2)
+        update, dof = _reml_touch_variance(R, new.t, res, theta_w, (s_th * tn) ** 2)
         step = float(np.linalg.norm(new.t - fit.t))
         fit = new
-        if step <= 1e-12 * (1.0 + tn) and abs(theta - theta_w) <= _REML_RTOL * theta_w:
+        if step <= 1e-10 * (1.0 + tn) and abs(update - theta_w) <= _REML_RTOL * theta_w:
+            theta = update
             break
+        # the fixed point theta = update(theta) oscillates through the refit: secant step
+        theta = update
+        if last is not None:
+            h0, h1 = last[1] - last[0], update - theta_w
+            if h1 != h0 and last[0] != theta_w:
+                secant = theta_w - h1 * (theta_w - last[0]) / (h1 - h0)
+                if math.isfinite(secant) and secant >= 0.0:
+                    theta = secant
+        last = (theta_w, update)
     theta = max(theta, _touch_var_floor((s_th * float(np.linalg.norm(fit.t))) ** 2))
     return replace(fit, touch_var=theta, touch_var_dof=dof)
 
@@ -792,22 +807,34 @@ def _touch_distances(
     s_p, nu = _touch_noise_level(res[used], Ru, fit.t, noise, fit)
     s_th = noise.orientation_rad
     cov6 = _covariance(fit.jac, Ru, fit.t, s_p, s_th)
-    # A_i Cov A_i^T with A_i = [R_i  -I]
-    RC = R @ cov6[:3, :]  # (n, 3, 6): [R Ctt, R Ctp]
-    pred = RC[:, :, :3] @ R.transpose(0, 2, 1) - RC[:, :, 3:]
-    pred = pred - cov6[3:, :3] @ R.transpose(0, 2, 1) + cov6[3:, 3:]
     sign = np.where(used, -1.0, 1.0)[:, None, None]
-    V = _noise_cov(R, fit.t, s_p, s_th) + sign * pred + RESIDUAL_FLOOR_MM**2 * np.eye(3)
+    V = (
+        _noise_cov(R, fit.t, s_p, s_th)
+        + sign * _predicted_cov(R, cov6)
+        + RESIDUAL_FLOOR_MM**2 * np.eye(3)
+    )
     if nu is None or fit.touch_var is None:
         limit = _outlier_threshold(n, None if nu is None else 3 * Ru.shape[0] - 6)
         return _mahalanobis_sq(res, V) / limit, nu is not None
     evals, evecs = np.linalg.eigh(V)
     evals = np.maximum(evals, RESIDUAL_FLOOR_MM**2)
     z2 = np.einsum("nij,ni->nj", evecs, res) ** 2 / evals
-    w = np.clip(s_p**2 / evals, 1e-6, 1.0)
+    # s_p^2 dV_i / d(s_p^2) along each eigen-direction: the touch noise of the touch itself
+    # and, through the fit, of the others (Cov = s_p^2 J J^T + orientation part)
+    dV = np.eye(3) + sign * _predicted_cov(R, _covariance(fit.jac, Ru, fit.t, 1.0, 0.0))
+    share = np.einsum("nij,nik,nkj->nj", evecs, dV, evecs)
+    w = np.clip(s_p**2 * share / evals, 1e-6, 1.0)
     limits = _direction_limits(n, nu / (w * w))
     score: FloatArray = (z2 / limits).max(axis=1)
     return score, True
+
+
+def _predicted_cov(R: FloatArray, cov6: FloatArray) -> FloatArray:
+    """A_i Cov A_i^T (n, 3, 3) with A_i = [R_i  -I], Cov (6, 6) the covariance of (t, p)."""
+    RC = R @ cov6[:3, :]  # (n, 3, 6): [R Ctt, R Ctp]
+    pred = RC[:, :, :3] @ R.transpose(0, 2, 1) - RC[:, :, 3:]
+    out: FloatArray = pred - cov6[3:, :3] @ R.transpose(0, 2, 1) + cov6[3:, 3:]
+    return out
 
 
 def _direction_limits(n: int, dof: FloatArray) -> FloatArray:
