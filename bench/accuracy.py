@@ -194,6 +194,11 @@ def _cell(r: dict[str, object]) -> str:
     return text
 
 
+def _bound(value: float) -> str:
+    """The bound column: "-" when no trial had a finite bound (degenerate layouts)."""
+    return f"{value:.4f}" if np.isfinite(value) else "-"
+
+
 def check_targets(rows: list[dict[str, object]]) -> list[dict[str, object]]:
     """Compare the default algorithm with the targets of the issue."""
     out = []
@@ -241,7 +246,7 @@ def markdown(
     for row in rows:
         cells = [_cell(row["algorithms"][a]) for a in ALGORITHMS]  # type: ignore[index]
         lines.append(
-            f"| {row['scenario']['sweep']} | {row['label']} | {row['bound_rms_mm']:.4f} | "  # type: ignore[index]
+            f"| {row['scenario']['sweep']} | {row['label']} | {_bound(row['bound_rms_mm'])} | "  # type: ignore[arg-type,index]
             + " | ".join(cells)
             + " |"
         )
@@ -263,12 +268,12 @@ def markdown(
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else "")
-    parser.add_argument("--quick", action="store_true", help="60 trials per scenario")
+    parser.add_argument("--quick", action="store_true", help="60 trials per scenario (else 1000)")
     parser.add_argument("--trials", type=int, default=None)
     parser.add_argument("--seed", type=int, default=20261122)
     parser.add_argument("--name", default="accuracy", help="results file stem")
     args = parser.parse_args(argv)
-    trials = args.trials or (60 if args.quick else 500)
+    trials = args.trials or (60 if args.quick else 1000)
     start = time.perf_counter()
     rows = []
     for i, sc in enumerate(scenarios()):
@@ -276,7 +281,8 @@ def main(argv: list[str] | None = None) -> None:
         rows.append(row)
         cells = "  ".join(f"{a}={_cell(row['algorithms'][a])}" for a in ALGORITHMS)  # type: ignore[index]
         print(
-            f"[{sc.sweep:>17}] {sc.label:60s} bound {row['bound_rms_mm']:.4f}  {cells}", flush=True
+            f"[{sc.sweep:>17}] {sc.label:60s} bound {_bound(row['bound_rms_mm'])}  {cells}",  # type: ignore[arg-type]
+            flush=True,
         )
     targets = check_targets(rows)
     meta = {
@@ -284,7 +290,9 @@ def main(argv: list[str] | None = None) -> None:
         "seed": args.seed,
         "seconds": time.perf_counter() - start,
         "machine": f"{platform.machine()} Python {platform.python_version()}",
-        "command": "python -m bench.accuracy" + (" --quick" if args.quick else ""),
+        "command": "python -m bench.accuracy"
+        + (" --quick" if args.quick else "")
+        + (f" --trials {args.trials}" if args.trials else ""),
         "targets": TARGETS,
     }
     RESULTS.mkdir(parents=True, exist_ok=True)
