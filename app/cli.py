@@ -94,10 +94,18 @@ def keys_create(
 def keys_list() -> None:
     """List keys (never their secrets)."""
     from app.db import session_scope
+    from app.models import ApiKey
     from app.services.keys import list_keys
 
     with session_scope(write=False) as session:
-        for row in list_keys(session):
+        cursor = None
+        rows: list[ApiKey] = []
+        while True:
+            page, cursor = list_keys(session, limit=500, cursor=cursor)
+            rows += page
+            if cursor is None:
+                break
+        for row in rows:
             state = "revoked" if row.revoked_at else "active"
             typer.echo(f"{row.id}  {row.scope:<9}  {state:<7}  {row.prefix}...  {row.name}")
 

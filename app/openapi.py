@@ -35,6 +35,8 @@ def _problem(code: str) -> dict[str, Any]:
 
 def _codes(path: str, method: str, operation: dict[str, Any]) -> list[str]:
     codes = ["422"]
+    if path == "/metrics":
+        return ["401", "403"]
     if path.startswith("/v1/"):
         # 404 also where an id in the body is unknown (e.g. /v1/solve's robot_id); 409 also
         # for DELETE (a key revoked twice)
@@ -57,7 +59,7 @@ def build_openapi(app: FastAPI) -> dict[str, Any]:
     schemas["Problem"] = problem
     for path, item in spec.get("paths", {}).items():
         for method, operation in item.items():
-            if path in {"/health", "/ready", "/metrics"}:
+            if path in {"/health", "/ready"}:
                 continue
             responses = operation.setdefault("responses", {})
             for code in _codes(path, method, operation):

@@ -7,6 +7,7 @@ from fastapi.responses import JSONResponse, PlainTextResponse
 from sqlalchemy.exc import SQLAlchemyError
 
 from app.db import get_engine
+from app.deps import ReadKey
 from app.metrics import METRICS
 from app.migrate import current_revision, head_revision
 
@@ -34,5 +35,7 @@ def ready() -> JSONResponse:
 
 
 @router.get("/metrics", response_class=PlainTextResponse)
-def metrics() -> PlainTextResponse:
+def metrics(key: ReadKey) -> PlainTextResponse:
+    """Prometheus text; scrape with a read key (bearer token), as API.md opens only
+    /health and /ready."""
     return PlainTextResponse(METRICS.render(), media_type="text/plain; version=0.0.4")

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
-from app.api.params import PathId
+from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import AdminKey, SessionDep
+from app.schemas.common import Page
 from app.schemas.keys import KeyCreate, KeyCreated, KeyOut
 from app.services import keys
 
@@ -18,11 +19,12 @@ def create_key(body: KeyCreate, session: SessionDep, key: AdminKey) -> object:
     return {**KeyOut.model_validate(row, from_attributes=True).model_dump(), "key": secret}
 
 
-@router.get("", response_model=dict[str, list[KeyOut]])
-def list_keys(session: SessionDep, key: AdminKey) -> object:
-    return {
-        "items": [KeyOut.model_validate(r, from_attributes=True) for r in keys.list_keys(session)]
-    }
+@router.get("", response_model=Page[KeyOut])
+def list_keys(
+    session: SessionDep, key: AdminKey, limit: Limit = DEFAULT_PAGE, cursor: Cursor = None
+) -> object:
+    items, next_cursor = keys.list_keys(session, limit=limit, cursor=cursor)
+    return {"items": items, "next_cursor": next_cursor}
 
 
 @router.delete("/{key_id}", status_code=204)

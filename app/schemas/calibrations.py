@@ -23,7 +23,7 @@ from app.schemas.common import (
     Vec3,
 )
 from app.schemas.robots import Kinematics
-from app.schemas.tools import Tcp
+from app.schemas.tools import Tcp, Tolerance
 
 Activate = Literal["auto", "always", "never"]
 Axis = Literal["+z", "-z", "+x", "-x"]
@@ -214,7 +214,7 @@ METHOD_NAMES = (
 class _Stateless(StrictModel):
     robot_id: ResourceId | None = None
     kinematics: Kinematics | None = None
-    tolerance: dict[str, PositiveFloat | None] | None = None
+    tolerance: Tolerance | None = None
 
 
 class SolveXyzNpoint(XyzNpointCalibration, _Stateless): ...

@@ -45,6 +45,9 @@ class ReferencePointCreate(StrictModel):
             raise ValueError("give position_mm (numeric entry) or touch (a trusted tool's touch)")
         if self.touch is not None and self.covariance_mm2 is not None:
             raise ValueError("a touched point's covariance is computed; do not give one")
+        given_by = "touch" if self.touch is not None else "numeric"
+        if self.source is not None and self.source != given_by:
+            raise ValueError(f"source {self.source!r} does not match what was given ({given_by})")
         return self
 
 

@@ -214,7 +214,8 @@ def solve_stateless(session: Session, *, request: Any) -> dict[str, Any]:
         kinematics = validate_kinematics(request.kinematics)
     elif request.robot_id is not None:
         kinematics = get_robot(session, request.robot_id).kinematics
-    ctx = StatelessContext(kinematics, request.tolerance)
+    tolerance = request.tolerance.model_dump(exclude_unset=True) if request.tolerance else None
+    ctx = StatelessContext(kinematics, tolerance)
     solved = run_method(request, ctx)
     return result_document(request, solved, ctx)
 

@@ -83,9 +83,7 @@ class StatelessContext:
 
     def __init__(self, kinematics: dict[str, Any] | None, tolerance: dict[str, Any] | None) -> None:
         self._kinematics = kinematics
-        self._tolerance = effective_tolerance(
-            {k: v for k, v in (tolerance or {}).items() if v is not None}
-        )
+        self._tolerance = effective_tolerance(tolerance)
 
     @property
     def tolerance(self) -> dict[str, Any]:

@@ -11,6 +11,7 @@ from app.auth import Principal, generate_key, hash_key
 from app.errors import Conflict, NotFound
 from app.models import ApiKey, utcnow
 from app.services import audit
+from app.services.pagination import paginate
 
 
 def create_key(
@@ -39,9 +40,18 @@ def create_key(
     return row, key
 
 
-def list_keys(session: Session) -> Sequence[ApiKey]:
-    """All keys, revoked ones included (their secrets are never shown)."""
-    return session.scalars(select(ApiKey).order_by(ApiKey.created_at, ApiKey.id)).all()
+def list_keys(
+    session: Session, *, limit: int, cursor: str | None
+) -> tuple[Sequence[ApiKey], str | None]:
+    """Keys, revoked ones included (their secrets are never shown)."""
+    return paginate(
+        session,
+        select(ApiKey),
+        created_col=ApiKey.created_at,
+        id_col=ApiKey.id,
+        limit=limit,
+        cursor=cursor,
+    )
 
 
 def revoke_key(session: Session, *, key_id: str, actor: Principal) -> None:

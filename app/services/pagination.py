@@ -30,7 +30,10 @@ def decode_cursor(cursor: str) -> tuple[datetime, str]:
     try:
         padded = cursor + "=" * (-len(cursor) % 4)
         created, row_id = json.loads(base64.urlsafe_b64decode(padded.encode()))
-        return datetime.fromisoformat(created), str(row_id)
+        after = datetime.fromisoformat(created)
+        if after.tzinfo is None:
+            raise ValueError("cursor timestamp without a time zone")
+        return after, str(row_id)
     except (ValueError, TypeError, json.JSONDecodeError) as exc:
         raise InvalidInput(
             "invalid-cursor",

@@ -13,10 +13,11 @@ from app.auth import Principal
 from app.errors import Archived, Conflict, NotFound, PreconditionFailed
 from app.models import Robot, Tool, utcnow
 from app.schemas.robots import RobotCreate, RobotUpdate
-from app.schemas.tools import ToolCreate, ToolUpdate
+from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.services import audit
 from app.services.kinematics import validate_kinematics
 from app.services.pagination import paginate
+from app.services.tolerance import effective_tolerance
 
 
 # ---- robots ---------------------------------------------------------------------------------
@@ -230,8 +231,15 @@ def update_tool(
         slot=changes.get("slot"),
         except_id=tool.id,
     )
-    if "tolerance" in changes and changes["tolerance"] is None:
-        changes.pop("tolerance")
+    # Nested objects merge (JSON merge patch): {"tolerance": {"max_rms_mm": 0.2}} changes that
+    # one limit and keeps the others, rather than resetting them to the defaults.
+    if "tolerance" in changes:
+        if changes["tolerance"] is None:
+            changes.pop("tolerance")
+        else:
+            changes["tolerance"] = {**effective_tolerance(tool.tolerance), **changes["tolerance"]}
+    if changes.get("load") is not None and tool.load is not None:
+        changes["load"] = Load.model_validate({**tool.load, **changes["load"]}).model_dump()
     for key, value in changes.items():
         setattr(tool, key, value)
     tool.updated_at = utcnow()

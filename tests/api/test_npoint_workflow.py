@@ -217,7 +217,7 @@ def test_metrics_count_calibrations_by_method_and_status(api: Api, tool: dict) -
     import re
 
     def count() -> int:
-        text = api.client.get("/metrics").text
+        text = api.get("/metrics").text
         found = re.search(
             r'tcpcal_calibrations_total\{method="manual",status="accepted"\} (\d+)', text
         )

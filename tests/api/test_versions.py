@@ -209,7 +209,8 @@ def test_health_ready_metrics(api: Api) -> None:
     assert ready["ready"] is True
     assert ready["revision"] == ready["head"]
     api.get("/v1/robots")
-    text = api.client.get("/metrics").text
+    assert api.client.get("/metrics").status_code == 401  # only /health and /ready are open
+    text = api.get("/metrics").text
     assert 'tcpcal_http_requests_total{method="GET",route="/v1/robots",status="200"}' in text
 
 
@@ -219,3 +220,54 @@ def test_version_numbers_beyond_32_bits_are_422_not_500(api: Api) -> None:
         response = api.get(f"/v1/tools/{tool['id']}/versions/{version}")
         assert response.status_code == 422
         assert response.json()["errors"][0]["loc"] == ["path", "version"]
+
+
+def test_patch_of_one_tolerance_field_keeps_the_others(api: Api) -> None:
+    robot = api.robot()
+    tool = api.tool(
+        robot["id"],
+        tolerance={"check_mm": 0.2, "max_rms_mm": 0.1},
+        load={"mass_kg": 2.0, "cog_mm": [0, 0, 50]},
+    )
+    patched = api.patch(
+        f"/v1/tools/{tool['id']}", {"tolerance": {"max_residual_mm": 2.0}, "load": {"mass_kg": 2.5}}
+    ).json()
+    assert patched["tolerance"] == {
+        "max_rms_mm": 0.1,
+        "max_residual_mm": 2.0,
+        "touch_noise_mm": None,
+        "check_mm": 0.2,
+    }
+    assert patched["load"] == {"mass_kg": 2.5, "cog_mm": [0, 0, 50]}
+
+
+def test_crafted_naive_cursor_is_422(api: Api) -> None:
+    import base64
+    import json
+
+    cursor = base64.urlsafe_b64encode(json.dumps(["2020-01-01T00:00:00", "x"]).encode())
+    response = api.get(f"/v1/robots?cursor={cursor.decode().rstrip('=')}")
+    assert response.status_code == 422
+    assert response.json()["type"].endswith("/invalid-cursor")
+
+
+def test_keys_are_paginated(api: Api) -> None:
+    first = api.get("/v1/keys?limit=2", scope="admin").json()
+    assert len(first["items"]) == 2
+    rest = api.get(f"/v1/keys?limit=2&cursor={first['next_cursor']}", scope="admin").json()
+    assert [k["name"] for k in first["items"] + rest["items"]] == [
+        "test-read",
+        "test-calibrate",
+        "test-admin",
+    ]
+    assert rest["next_cursor"] is None
+
+
+def test_solve_with_unknown_tolerance_field_is_422(api: Api) -> None:
+    response = api.post(
+        "/v1/solve",
+        {"method": "manual", "tcp": {"position_mm": [0, 0, 1]}, "tolerance": {"foo": 1}},
+        scope="read",
+    )
+    assert response.status_code == 422
+    assert response.json()["errors"][0]["loc"] == ["body", "tolerance", "foo"]
