@@ -14,6 +14,7 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from sqlalchemy.exc import IntegrityError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.config import get_settings
@@ -178,6 +179,57 @@ def validation_response(exc: RequestValidationError) -> JSONResponse:
     )
 
 
+#: Unique constraints a concurrent request can lose against, and the field each guards.
+#: The services check first and name the field; this covers the race between check and insert
+#: (SQLite serialises writers, PostgreSQL lets both checks pass).
+UNIQUE_FIELDS = {
+    "uq_robots_live_name": "name",
+    "uq_tools_live_name": "name",
+    "uq_tools_live_slot": "slot",
+    "uq_reference_points_robot_name": "name",
+    "uq_laser_devices_robot_name": "name",
+}
+IDEMPOTENCY_CONSTRAINT = "uq_idempotency_records_key"
+
+
+def _violated_constraint(exc: IntegrityError) -> str | None:
+    diag = getattr(exc.orig, "diag", None)
+    name = getattr(diag, "constraint_name", None)
+    if name:
+        return str(name)
+    text = str(exc.orig)
+    return next((n for n in (*UNIQUE_FIELDS, IDEMPOTENCY_CONSTRAINT) if n in text), None)
+
+
+def integrity_response(exc: IntegrityError) -> JSONResponse:
+    """409 for a unique constraint lost to a concurrent request; anything else is a bug."""
+    name = _violated_constraint(exc)
+    if name == IDEMPOTENCY_CONSTRAINT:
+        return problem_response(
+            status=409,
+            kind=IdempotencyConflict.type,
+            title=IdempotencyConflict.title,
+            detail="this Idempotency-Key was just used by another request; use a new key for a "
+            "new submission",
+        )
+    if name in UNIQUE_FIELDS:
+        field = UNIQUE_FIELDS[name]
+        return problem_response(
+            status=409,
+            kind=Conflict.type,
+            title=Conflict.title,
+            detail=f"{field} is already taken (by a request that arrived at the same time)",
+            errors=[{"loc": ["body", field], "msg": "already taken"}],
+        )
+    log.error("integrity error outside the known unique constraints: %s", exc.orig)
+    return problem_response(
+        status=500,
+        kind="internal-error",
+        title="Internal server error",
+        detail="the server failed to handle this request; it has been logged",
+    )
+
+
 def install_error_handlers(app: FastAPI) -> None:
     """Route every error the app can produce through problem_response."""
 
@@ -196,6 +248,10 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(SolveError)
     async def _solve(_: Request, exc: SolveError) -> JSONResponse:
         return solve_error_response(exc)
+
+    @app.exception_handler(IntegrityError)
+    async def _integrity(_: Request, exc: IntegrityError) -> JSONResponse:
+        return integrity_response(exc)
 
     @app.exception_handler(RequestValidationError)
     async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
