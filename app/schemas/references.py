@@ -81,11 +81,11 @@ class CheckResult(BaseModel):
     version: int
     reference_point_id: str
     deviation_mm: list[float] = Field(
-        description="mean of R t + f - r over the touches, base frame"
+        description="R t + f - r of the worst touch (largest distance), base frame"
     )
     deviation_flange_mm: list[float]
-    distance_mm: float
-    max_distance_mm: float
+    distance_mm: float = Field(description="|deviation_mm|: what within_tolerance compares")
+    mean_deviation_mm: list[float] = Field(description="mean deviation over the touches, base")
     check_mm: float
     within_tolerance: bool
     touches: list[CheckTouch]

@@ -115,6 +115,9 @@ class ActiveTcp(BaseModel):
     calibrated_at: Timestamp
     method: str
     controller: ControllerText | None = None
+    controller_error: dict[str, str] | None = Field(
+        default=None, description="why this tool has no text in the requested format"
+    )
 
 
 class ToolTable(BaseModel):

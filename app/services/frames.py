@@ -7,14 +7,14 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.kinematics.dh import kinematics_from_spec
 from app.kinematics.poses import poses_from_format
 from app.methods.base import ActiveFrame
-from app.models import Calibration, TcpVersion, Tool
+from app.models import Calibration, Tool
 from app.schemas.common import Units
+from app.services.versions import active_version_row
 
 
 def parse_poses_with(
@@ -35,11 +35,7 @@ def active_frame(session: Session, tool: Tool) -> ActiveFrame | None:
     """A tool's active TCP with the covariance its calibration reported (None: no version)."""
     if tool.active_version is None:
         return None
-    row = session.scalars(
-        select(TcpVersion).where(
-            TcpVersion.tool_id == tool.id, TcpVersion.version == tool.active_version
-        )
-    ).one()
+    row = active_version_row(session, tool)
     covariance = None
     if row.calibration_id:
         calibration = session.get(Calibration, row.calibration_id)

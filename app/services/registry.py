@@ -15,6 +15,7 @@ from app.models import Robot, Tool, utcnow
 from app.schemas.robots import RobotCreate, RobotUpdate
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.services import audit
+from app.services.etags import if_match_ok
 from app.services.kinematics import validate_kinematics
 from app.services.pagination import paginate
 from app.services.tolerance import effective_tolerance
@@ -148,10 +149,7 @@ def tool_etag(tool: Tool) -> str:
 
 def check_if_match(tool: Tool, if_match: str | None) -> None:
     """412 when an If-Match header does not name the tool's current ETag."""
-    if if_match is None:
-        return
-    candidates = {c.strip() for c in if_match.split(",")}
-    if "*" in candidates or tool_etag(tool) in candidates:
+    if if_match_ok(if_match, tool_etag(tool)):
         return
     raise PreconditionFailed(
         f"tool {tool.id} changed since you read it: its ETag is now {tool_etag(tool)}; "

@@ -5,15 +5,19 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Sequence
+from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import NoActiveVersion, NotFound
+from app.errors import NoActiveVersion, NotFound, problem_type
 from app.models import Activation, TcpVersion, Tool, utcnow
 from app.services import audit
+from app.services.etags import if_none_match_hit
+from app.services.exports import controller_text
 from app.services.registry import check_if_match, get_robot, get_tool
+from app.solvers.errors import SolveError
 
 IDENTITY_QUATERNION = [1.0, 0.0, 0.0, 0.0]
 
@@ -141,36 +145,88 @@ def active_version_row(session: Session, tool: Tool) -> TcpVersion:
     ).one()
 
 
-def tcp_etag(tool: Tool, row: TcpVersion) -> str:
-    """Strong ETag of what /tcp serves: changes when the served numbers or slot change."""
+def tcp_etag(tool: Tool, row: TcpVersion, fmt: str | None) -> str:
+    """Strong ETag of what /tcp serves: the numbers, slot, load and the representation."""
     payload = json.dumps(
-        [tool.id, tool.slot, tool.name, tool.load, row.version, row.position_mm, row.quaternion],
+        [
+            tool.id,
+            tool.slot,
+            tool.name,
+            tool.load,
+            row.version,
+            row.position_mm,
+            row.quaternion,
+            fmt,
+        ],
         sort_keys=True,
     )
     return '"' + hashlib.sha256(payload.encode()).hexdigest()[:32] + '"'
 
 
-def active_tcp(session: Session, *, tool_id: str) -> tuple[Tool, TcpVersion]:
-    """The tool and its active version (404 when archived or none)."""
+def version_document(row: TcpVersion, tool: Tool) -> dict[str, Any]:
+    """A version as the API shows it."""
+    return {
+        "version": row.version,
+        "tcp": {"position_mm": row.position_mm, "quaternion": row.quaternion},
+        "source": row.source,
+        "status": row.status,
+        "calibration_id": row.calibration_id,
+        "note": row.note,
+        "created_at": row.created_at,
+        "created_by": row.created_by,
+        "active": tool.active_version == row.version,
+    }
+
+
+def active_document(tool: Tool, row: TcpVersion, fmt: str | None) -> dict[str, Any]:
+    """What a cell controller reads: the active TCP, and its controller text when asked."""
+    out: dict[str, Any] = {
+        "tool_id": tool.id,
+        "robot_id": tool.robot_id,
+        "tool_name": tool.name,
+        "slot": tool.slot,
+        "version": row.version,
+        "tcp": {"position_mm": row.position_mm, "quaternion": row.quaternion},
+        "calibrated_at": row.created_at,
+        "method": row.source,
+    }
+    if fmt is not None:
+        out["controller"] = controller_text(fmt, tool=tool, version=row)
+    return out
+
+
+def served_tcp(
+    session: Session, *, tool_id: str, fmt: str | None, if_none_match: str | None
+) -> tuple[dict[str, Any] | None, str]:
+    """(document, ETag) of a tool's active TCP; document None when the client's copy is current."""
     tool = get_tool(session, tool_id)
-    return tool, active_version_row(session, tool)
+    row = active_version_row(session, tool)
+    etag = tcp_etag(tool, row, fmt)
+    if if_none_match_hit(if_none_match, etag):
+        return None, etag
+    return active_document(tool, row, fmt), etag
 
 
-def tool_table(
-    session: Session, *, robot_id: str
-) -> tuple[list[tuple[Tool, TcpVersion]], list[str]]:
-    """Every live tool of a robot with its active version; ids of those without one."""
+def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> dict[str, Any]:
+    """Every live tool's active TCP. A tool the format cannot express (no slot for KUKA, no
+    load for ABB) carries its own controller_error instead of failing the whole table."""
     get_robot(session, robot_id)
     tools = session.scalars(
         select(Tool)
         .where(Tool.robot_id == robot_id, Tool.archived_at.is_(None))
         .order_by(Tool.slot, Tool.name)
     ).all()
-    served: list[tuple[Tool, TcpVersion]] = []
+    items: list[dict[str, Any]] = []
     missing: list[str] = []
     for tool in tools:
         if tool.active_version is None:
             missing.append(tool.id)
-        else:
-            served.append((tool, active_version_row(session, tool)))
-    return served, missing
+            continue
+        row = active_version_row(session, tool)
+        try:
+            items.append(active_document(tool, row, fmt))
+        except SolveError as exc:
+            item = active_document(tool, row, None)
+            item["controller_error"] = {"type": problem_type(exc.kind), "detail": exc.detail}
+            items.append(item)
+    return {"robot_id": robot_id, "items": items, "without_active_version": missing}

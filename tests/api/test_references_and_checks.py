@@ -152,8 +152,9 @@ def test_checks_inside_and_outside_tolerance_leave_active_tcp(api: Api) -> None:
         scope="calibrate",
     ).json()
     assert bent["within_tolerance"] is False
-    assert abs(bent["max_distance_mm"] - 2.2) < 1e-9
-    assert np.allclose(bent["deviation_flange_mm"], [0, -2.1, 0], atol=1e-9)
+    assert abs(bent["distance_mm"] - 2.2) < 1e-9
+    assert np.allclose(bent["deviation_flange_mm"], [0, -2.2, 0], atol=1e-9)
+    assert np.allclose(bent["mean_deviation_mm"], [0, 2.1, 0], atol=1e-9)
     assert api.get(f"/v1/tools/{tool['id']}/tcp").json()["version"] == 1
     assert len(api.get(f"/v1/tools/{tool['id']}/versions").json()["items"]) == 1
 

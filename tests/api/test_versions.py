@@ -271,3 +271,37 @@ def test_solve_with_unknown_tolerance_field_is_422(api: Api) -> None:
     )
     assert response.status_code == 422
     assert response.json()["errors"][0]["loc"] == ["body", "tolerance", "foo"]
+
+
+def test_etag_differs_per_format_and_weak_if_none_match_hits(api: Api) -> None:
+    _, tool = _setup(api)
+    api.manual(tool["id"], [0, 0, 150])
+    as_json = api.get(f"/v1/tools/{tool['id']}/tcp")
+    as_kuka = api.get(f"/v1/tools/{tool['id']}/tcp?format=kuka")
+    assert as_json.headers["etag"] != as_kuka.headers["etag"]
+    # the JSON copy's tag does not validate the KUKA representation
+    cross = api.get(
+        f"/v1/tools/{tool['id']}/tcp?format=kuka",
+        headers={"If-None-Match": as_json.headers["etag"]},
+    )
+    assert cross.status_code == 200
+    assert "controller" in cross.json()
+    weak = api.get(
+        f"/v1/tools/{tool['id']}/tcp?format=kuka",
+        headers={"If-None-Match": "W/" + as_kuka.headers["etag"]},
+    )
+    assert weak.status_code == 304
+
+
+def test_tool_table_reports_a_tool_the_format_cannot_express(api: Api) -> None:
+    robot, torch = _setup(api)  # slot 3, with a load
+    bare = api.tool(robot["id"], "probe")  # no slot, no load
+    api.manual(torch["id"], [0, 0, 150])
+    api.manual(bare["id"], [0, 0, 90])
+    table = api.get(f"/v1/robots/{robot['id']}/tool-table?format=abb").json()
+    by_name = {item["tool_name"]: item for item in table["items"]}
+    assert by_name["torch"]["controller"]["text"].startswith("PERS tooldata torch:=")
+    assert by_name["torch"]["controller_error"] is None
+    assert by_name["probe"]["controller"] is None
+    assert by_name["probe"]["controller_error"]["type"].endswith("/missing-load")
+    assert by_name["probe"]["tcp"]["position_mm"] == [0, 0, 90]
