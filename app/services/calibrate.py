@@ -23,7 +23,7 @@ from app.services import audit, idempotency
 from app.services.contexts import DbContext, StatelessContext
 from app.services.kinematics import validate_kinematics
 from app.services.pagination import paginate
-from app.services.references import create_reference_point
+from app.services.references import create_reference_point, ensure_reference_name_free
 from app.services.registry import get_robot, get_tool
 from app.services.tolerance import grade
 from app.services.versions import IDENTITY_QUATERNION, activate, add_version
@@ -100,9 +100,21 @@ def submit(
             return replay, True
 
     robot = get_robot(session, tool.robot_id)
+    point_name = _reference_point_to_save(request)
+    if point_name is not None:
+        ensure_reference_name_free(
+            session,
+            robot_id=robot.id,
+            name=point_name,
+            loc=("body", "options", "save_reference_point"),
+        )
     ctx = DbContext(session, tool, robot)
     solved = run_method(request, ctx)  # SolveError -> 422 before anything is written
     doc = result_document(request, solved, ctx)
+    if point_name is not None and doc["status"] != "accepted":
+        doc["warnings"].append(
+            f"reference point {point_name!r} not saved: the calibration is out of tolerance"
+        )
 
     row = Calibration(
         tool_id=tool.id,
@@ -138,15 +150,17 @@ def submit(
             reason=f"calibration:{request.activate}",
             actor=actor,
         )
-    _save_reference_point(
-        session,
-        request=request,
-        solved=solved,
-        status=doc["status"],
-        tool=tool,
-        calibration=row,
-        actor=actor,
-    )
+    if point_name is not None and doc["status"] == "accepted" and solved.reference_point_mm:
+        create_reference_point(
+            session,
+            robot_id=tool.robot_id,
+            name=point_name,
+            position_mm=solved.reference_point_mm,
+            covariance_mm2=solved.reference_covariance_mm2,
+            source=request.method,
+            calibration_id=row.id,
+            actor=actor,
+        )
     audit.record(
         session,
         actor=actor,
@@ -177,34 +191,9 @@ def submit(
     return out, False
 
 
-def _save_reference_point(
-    session: Session,
-    *,
-    request: Any,
-    solved: SolvedTcp,
-    status: str,
-    tool: Tool,
-    calibration: Calibration,
-    actor: Principal,
-) -> None:
+def _reference_point_to_save(request: Any) -> str | None:
     name = getattr(getattr(request, "options", None), "save_reference_point", None)
-    if name is None or solved.reference_point_mm is None:
-        return
-    if status != "accepted":
-        solved.warnings.append(
-            f"reference point {name!r} not saved: the calibration is out of tolerance"
-        )
-        return
-    create_reference_point(
-        session,
-        robot_id=tool.robot_id,
-        name=name,
-        position_mm=solved.reference_point_mm,
-        covariance_mm2=solved.reference_covariance_mm2,
-        source="xyz_npoint",
-        calibration_id=calibration.id,
-        actor=actor,
-    )
+    return str(name) if name is not None else None
 
 
 def solve_stateless(session: Session, *, request: Any) -> dict[str, Any]:
@@ -217,7 +206,12 @@ def solve_stateless(session: Session, *, request: Any) -> dict[str, Any]:
     tolerance = request.tolerance.model_dump(exclude_unset=True) if request.tolerance else None
     ctx = StatelessContext(kinematics, tolerance)
     solved = run_method(request, ctx)
-    return result_document(request, solved, ctx)
+    doc = result_document(request, solved, ctx)
+    if _reference_point_to_save(request) is not None:
+        doc["warnings"].append("options.save_reference_point ignored: /v1/solve stores nothing")
+    if request.activate != "auto":
+        doc["warnings"].append(f"activate {request.activate!r} ignored: /v1/solve stores nothing")
+    return doc
 
 
 def list_calibrations(

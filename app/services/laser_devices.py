@@ -10,13 +10,14 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import Conflict, InvalidInput, NotFound
+from app.errors import InvalidInput, NotFound
 from app.methods.laser import sweeps_from
 from app.models import LaserDevice
 from app.schemas.references import LaserDeviceCreate
 from app.services import audit
 from app.services.frames import active_frame, parse_poses_with
 from app.services.pagination import paginate
+from app.services.references import ensure_name_free
 from app.services.registry import get_robot, get_tool
 from app.solvers.laser import teach_device
 
@@ -26,16 +27,7 @@ def create_laser_device(
 ) -> LaserDevice:
     """Store a device; when taught, solve its geometry from a trusted tool's sweeps."""
     robot = get_robot(session, robot_id)
-    taken = session.scalars(
-        select(LaserDevice.id).where(
-            LaserDevice.robot_id == robot_id, LaserDevice.name == data.name
-        )
-    ).first()
-    if taken:
-        raise Conflict(
-            f"robot {robot_id} already has a laser device named {data.name!r}",
-            errors=[{"loc": ["body", "name"], "msg": "already taken"}],
-        )
+    ensure_name_free(session, LaserDevice, robot_id=robot_id, name=data.name)
     if data.teach is None:
         assert data.beam_a_y_mm is not None and data.beam_b_x_mm is not None  # noqa: PT018
         assert data.plane_z_mm is not None

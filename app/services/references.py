@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.errors import Conflict, InvalidInput, NotFound
-from app.models import ReferencePoint
+from app.models import LaserDevice, ReferencePoint
 from app.schemas.references import ReferencePointCreate
 from app.services import audit
 from app.services.frames import active_frame, parse_poses_with
@@ -18,6 +18,33 @@ from app.services.pagination import paginate
 from app.services.registry import get_robot, get_tool
 from app.services.tolerance import effective_tolerance
 from app.solvers.reference import reference_point_from_touch
+
+
+def ensure_name_free(
+    session: Session,
+    model: type[ReferencePoint] | type[LaserDevice],
+    *,
+    robot_id: str,
+    name: str,
+    loc: tuple[str, ...] = ("body", "name"),
+) -> None:
+    """409 naming `loc` when the robot already has a `model` row called `name`."""
+    taken = session.scalars(
+        select(model.id).where(model.robot_id == robot_id, model.name == name)
+    ).first()
+    if taken:
+        what = "reference point" if model is ReferencePoint else "laser device"
+        raise Conflict(
+            f"robot {robot_id} already has a {what} named {name!r}",
+            errors=[{"loc": list(loc), "msg": "already taken"}],
+        )
+
+
+def ensure_reference_name_free(
+    session: Session, *, robot_id: str, name: str, loc: tuple[str, ...] = ("body", "name")
+) -> None:
+    """409 when the robot already has a reference point called `name`."""
+    ensure_name_free(session, ReferencePoint, robot_id=robot_id, name=name, loc=loc)
 
 
 def create_reference_point(
@@ -33,16 +60,7 @@ def create_reference_point(
 ) -> ReferencePoint:
     """Store a reference point (name unique per robot)."""
     get_robot(session, robot_id)
-    taken = session.scalars(
-        select(ReferencePoint.id).where(
-            ReferencePoint.robot_id == robot_id, ReferencePoint.name == name
-        )
-    ).first()
-    if taken:
-        raise Conflict(
-            f"robot {robot_id} already has a reference point named {name!r}",
-            errors=[{"loc": ["body", "name"], "msg": "already taken"}],
-        )
+    ensure_reference_name_free(session, robot_id=robot_id, name=name)
     row = ReferencePoint(
         robot_id=robot_id,
         name=name,

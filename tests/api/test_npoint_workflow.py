@@ -226,3 +226,57 @@ def test_metrics_count_calibrations_by_method_and_status(api: Api, tool: dict) -
     before = count()
     api.manual(tool["id"], [0, 0, 100])
     assert count() == before + 1
+
+
+def test_reference_point_not_saved_when_out_of_tolerance_says_so(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+    noisy = simulate_touches(8, seed=2, touch_noise_mm=1.5)
+    cal = _calibrate(
+        api,
+        tool["id"],
+        {
+            "method": "xyz_npoint",
+            "format": "xyz_wxyz",
+            "options": {"algorithm": "stacked", "save_reference_point": "pin-2"},
+            "poses": as_poses(noisy),
+        },
+    ).json()
+    assert cal["status"] == "out_of_tolerance"
+    assert any("'pin-2' not saved" in w for w in cal["warnings"])
+    stored = api.get(f"/v1/calibrations/{cal['id']}").json()
+    assert stored["warnings"] == cal["warnings"]
+    assert api.get(f"/v1/robots/{tool['robot_id']}/reference-points").json()["items"] == []
+
+
+def test_reference_point_name_clash_is_refused_before_solving(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+    api.post(
+        f"/v1/robots/{tool['robot_id']}/reference-points",
+        {"name": "pin", "position_mm": [0, 0, 0]},
+        scope="calibrate",
+    )
+    before = row_counts(TABLES)
+    response = _calibrate(
+        api,
+        tool["id"],
+        {
+            "method": "xyz_npoint",
+            "format": "xyz_wxyz",
+            "options": {"save_reference_point": "pin"},
+            "poses": as_poses(simulate_touches(8, seed=9)),
+        },
+    )
+    assert response.status_code == 409
+    assert response.json()["errors"][0]["loc"] == ["body", "options", "save_reference_point"]
+    assert row_counts(TABLES) == before
+
+
+def test_solve_says_what_it_ignores(api: Api) -> None:
+    body = {
+        "method": "xyz_npoint",
+        "format": "xyz_wxyz",
+        "activate": "always",
+        "options": {"save_reference_point": "p"},
+        "poses": as_poses(simulate_touches(8, seed=10)),
+    }
+    warnings = api.post("/v1/solve", body, scope="read").json()["warnings"]
+    assert any("save_reference_point ignored" in w for w in warnings)
+    assert any("activate 'always' ignored" in w for w in warnings)
