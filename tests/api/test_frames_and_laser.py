@@ -16,6 +16,26 @@ from tests.sim.frames import translation_directions, two_point_touches, world_al
 from tests.sim.laser import DEVICE, TOOL_STATES, simulate, tool_down_rotation
 from tests.sim.touches import simulate_touches
 
+#: The paper's tool states as tests/sim/laser.py builds them: (offset dX, dY mm), (runout
+#: tx, ty deg), length 150 mm from the flange plane to the tip.
+TRUTH = {
+    "ideal": ((0.0, 0.0), (0.0, 0.0)),
+    "offset": ((0.8, -0.5), (0.0, 0.0)),
+    "runout": ((0.0, 0.0), (1.2, -0.7)),
+    "offset_runout": ((-0.6, 0.9), (-0.9, 1.5)),
+}
+
+
+def _elementary(axis: str, deg: float) -> np.ndarray:
+    """A rotation about one axis, written out (an independent check of the exporter)."""
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return {
+        "x": np.array([[1, 0, 0], [0, c, -s], [0, s, c]]),
+        "y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]),
+        "z": np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]),
+    }[axis]
+
+
 DEVICE_NUMBERS = {
     "beam_a_y_mm": DEVICE.beam_a_y_mm,
     "beam_b_x_mm": DEVICE.beam_b_x_mm,
@@ -65,10 +85,11 @@ def test_laser_torch_version_in_kuka_and_abb(api: Api, torch: dict[str, Any], st
     assert np.allclose(cal["tcp"]["position_mm"], tip, atol=1e-6)
     z_axis = Rotation.from_quat(cal["tcp"]["quaternion"], scalar_first=True).apply([0, 0, 1])
     assert np.allclose(z_axis, tool.axis_direction, atol=1e-9)
-    assert len(cal["runout_deg"]) == 2
-    assert len(cal["offset_mm"]) == 2
-    assert cal["tool_length_mm"] > 0
-    assert len(cal["widths_mm"]) == len(data.sweeps)
+    offset, runout = TRUTH[state]
+    assert np.allclose(cal["runout_deg"], runout, atol=1e-9)
+    assert np.allclose(cal["offset_mm"], offset, atol=1e-9)
+    assert abs(cal["tool_length_mm"] - 150.0) < 1e-9
+    assert np.allclose(cal["widths_mm"], 2 * tool.radius_mm, atol=0.2)  # tilt widens slightly
 
     kuka = api.get(f"/v1/tools/{torch['id']}/tcp?format=kuka").json()["controller"]
     position, quaternion = parse_controller_text("kuka", kuka["text"])
@@ -76,16 +97,19 @@ def test_laser_torch_version_in_kuka_and_abb(api: Api, torch: dict[str, Any], st
     expected = Rotation.from_quat(cal["tcp"]["quaternion"], scalar_first=True)
     got = Rotation.from_quat(quaternion, scalar_first=True)
     assert (expected.inv() * got).magnitude() < np.radians(1e-5)
-    a, b, c = expected.as_euler("ZYX", degrees=True)
-    assert np.allclose(
-        [kuka["values"]["A"], kuka["values"]["B"], kuka["values"]["C"]], [a, b, c], atol=1e-5
-    )
+    a, b, c = (kuka["values"][k] for k in "ABC")
+    from_text = _elementary("z", a) @ _elementary("y", b) @ _elementary("x", c)
+    assert np.allclose(from_text[:, 2], tool.axis_direction, atol=1e-7)  # tool Z = the axis
+    if state in {"ideal", "offset"}:
+        assert np.allclose([a, b, c], [0.0, 0.0, 0.0], atol=1e-9)
 
     abb = api.get(f"/v1/tools/{torch['id']}/tcp?format=abb").json()["controller"]
     assert abb["text"].startswith("PERS tooldata torch:=[TRUE,[[")
     assert "[3.2,[0.0,0.0,90.0]" in abb["text"]
     _, abb_q = parse_controller_text("abb", abb["text"])
     assert (expected.inv() * Rotation.from_quat(abb_q, scalar_first=True)).magnitude() < 1e-7
+    if state in {"ideal", "offset"}:
+        assert np.allclose(abb_q, [1.0, 0.0, 0.0, 0.0], atol=1e-9)
 
 
 def test_laser_device_taught_then_used(api: Api, torch: dict[str, Any]) -> None:

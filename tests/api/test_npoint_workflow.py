@@ -170,6 +170,9 @@ def test_unsolvable_input_is_422_and_writes_nothing(
     assert problem["detail"]
     if case == "degenerate":
         assert "add a touch" in problem["detail"].lower()
+        # the unobservable direction is the flange's z axis (the common rotation axis)
+        direction = np.asarray(problem["context"]["direction_flange"])
+        assert np.allclose(np.abs(direction), [0, 0, 1], atol=1e-6)
     if case == "sentinel":
         assert problem["errors"][0]["loc"][:2] == ["poses", 3]
     assert "NaN" not in response.text

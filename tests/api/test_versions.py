@@ -120,7 +120,7 @@ def test_tool_table_lists_active_tcps(api: Api) -> None:
 
 def test_archive_tool_stops_serving_and_keeps_history(api: Api) -> None:
     robot, tool = _setup(api)
-    api.manual(tool["id"], [0, 0, 150])
+    calibration = api.manual(tool["id"], [0, 0, 150])
     assert api.delete(f"/v1/tools/{tool['id']}").status_code == 204
     gone = api.get(f"/v1/tools/{tool['id']}/tcp")
     assert gone.status_code == 404
@@ -129,8 +129,9 @@ def test_archive_tool_stops_serving_and_keeps_history(api: Api) -> None:
     # the name and slot are free again; the calibration is kept
     again = api.tool(robot["id"], "torch", slot=3)
     assert again["id"] != tool["id"]
-    cal_id = api.get(f"/v1/robots/{robot['id']}/tool-table").json()
-    assert cal_id["items"] == []
+    assert api.get(f"/v1/robots/{robot['id']}/tool-table").json()["items"] == []
+    kept = api.get(f"/v1/calibrations/{calibration['id']}").json()
+    assert (kept["tool_id"], kept["version"]) == (tool["id"], 1)
 
 
 def test_archive_robot_archives_its_tools(api: Api) -> None:
