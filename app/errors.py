@@ -18,6 +18,7 @@ from sqlalchemy.exc import IntegrityError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.config import get_settings
+from app.schemas.calibrations import METHOD_NAMES
 from app.solvers.errors import SolveError
 
 log = logging.getLogger("tcpcal.errors")
@@ -141,16 +142,11 @@ def _loc(loc: Sequence[Any]) -> list[str | int]:
     for i, part in enumerate(loc):
         if isinstance(part, str):
             is_member_tag = "[" in part or part[:1].isupper() or part.startswith("function-")
-            is_discriminator = i == 1 and loc[0] == "body" and part in _METHOD_TAGS
+            is_discriminator = i == 1 and loc[0] == "body" and part in METHOD_NAMES
             if is_member_tag or is_discriminator:
                 continue
         path.append(part)
     return path
-
-
-_METHOD_TAGS = frozenset(
-    {"xyz_npoint", "xyz_reference", "tcp_z_x", "abc_2point", "abc_world", "laser_beam", "manual"}
-)
 
 
 def validation_response(exc: RequestValidationError) -> JSONResponse:
