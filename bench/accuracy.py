@@ -26,6 +26,7 @@ import numpy as np
 
 from app.solvers.errors import SolveError
 from app.solvers.npoint import ALGORITHMS, solve_npoint
+from bench import frame_accuracy
 from tests.sim.touches import simulate_touches
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -272,7 +273,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--trials", type=int, default=None)
     parser.add_argument("--seed", type=int, default=20261122)
     parser.add_argument("--name", default="accuracy", help="results file stem")
+    parser.add_argument(
+        "--suite",
+        choices=("all", "npoint", "frames"),
+        default="all",
+        help="N-point grid, orientation and laser scenarios (bench.frame_accuracy), or both",
+    )
     args = parser.parse_args(argv)
+    if args.suite in ("all", "frames"):
+        frame_accuracy.main(["--quick"] if args.quick else [])
+    if args.suite == "frames":
+        return
     trials = args.trials or (60 if args.quick else 1000)
     start = time.perf_counter()
     rows = []
