@@ -39,7 +39,7 @@ openapi: $(STAMP)
 	$(BIN)/tcpcal openapi
 
 bench: $(STAMP)
-	$(BIN)/python -m bench.accuracy --quick
+	$(BIN)/python -m bench.accuracy
 	$(BIN)/python -m bench.solver_speed
 	$(BIN)/python -m bench.api_load
 
