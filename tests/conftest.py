@@ -6,15 +6,14 @@ TCPCAL_TEST_DATABASE_URL is set. Each backend gets a fresh database built by
 from __future__ import annotations
 
 import os
-import uuid
 from collections.abc import Iterator
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import pytest
-from sqlalchemy import create_engine, text
-from sqlalchemy.engine import make_url
+from sqlalchemy import text
+
+from tests.databases import fresh_database
 
 PG_URL = os.environ.get("TCPCAL_TEST_DATABASE_URL")
 BACKENDS = ["sqlite"] + (["postgresql"] if PG_URL else [])
@@ -36,42 +35,18 @@ class Database:
     url: str
 
 
-@pytest.fixture(scope="session")
-def _pg_database() -> Iterator[str]:
-    """A throwaway PostgreSQL database for this test session (the `test` db is left alone)."""
-    assert PG_URL
-    admin = create_engine(PG_URL, isolation_level="AUTOCOMMIT")
-    name = f"tcpcal_test_{uuid.uuid4().hex[:10]}"
-    with admin.connect() as conn:
-        conn.execute(text(f'CREATE DATABASE "{name}"'))
-    url = make_url(PG_URL).set(database=name).render_as_string(hide_password=False)
-    try:
-        yield url
-    finally:
-        with admin.connect() as conn:
-            conn.execute(
-                text("SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = :n"),
-                {"n": name},
-            )
-            conn.execute(text(f'DROP DATABASE IF EXISTS "{name}"'))
-        admin.dispose()
-
-
 @pytest.fixture(scope="session", params=BACKENDS)
 def database(
     request: pytest.FixtureRequest,
     tmp_path_factory: pytest.TempPathFactory,
-) -> Database:
+) -> Iterator[Database]:
     """A migrated database per backend, shared by the tests of the session."""
     from app.migrate import upgrade
 
-    if request.param == "sqlite":
-        path: Path = tmp_path_factory.mktemp("db") / "tcpcal.sqlite3"
-        url = f"sqlite:///{path}"
-    else:
-        url = request.getfixturevalue("_pg_database")
-    upgrade(url)
-    return Database(request.param, url)
+    tmp = tmp_path_factory.mktemp("db")
+    with fresh_database(request.param, tmp, PG_URL, prefix="tcpcal_test") as url:
+        upgrade(url)
+        yield Database(request.param, url)
 
 
 TABLES = (

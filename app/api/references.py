@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
+from app import models
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
@@ -37,8 +38,8 @@ def list_reference_points(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
-    items, next_cursor = references.list_reference_points(
-        session, robot_id=robot_id, limit=limit, cursor=cursor
+    items, next_cursor = references.list_robot_rows(
+        session, models.ReferencePoint, robot_id=robot_id, limit=limit, cursor=cursor
     )
     return {"items": items, "next_cursor": next_cursor}
 
@@ -79,8 +80,8 @@ def list_laser_devices(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
-    items, next_cursor = laser_devices.list_laser_devices(
-        session, robot_id=robot_id, limit=limit, cursor=cursor
+    items, next_cursor = references.list_robot_rows(
+        session, models.LaserDevice, robot_id=robot_id, limit=limit, cursor=cursor
     )
     return {"items": items, "next_cursor": next_cursor}
 

@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 from scipy.spatial.transform import Rotation
-from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
@@ -16,7 +13,6 @@ from app.models import LaserDevice
 from app.schemas.references import LaserDeviceCreate
 from app.services import audit
 from app.services.frames import active_frame, parse_poses_with
-from app.services.pagination import paginate
 from app.services.references import ensure_name_free
 from app.services.registry import get_robot, get_tool
 from app.solvers.laser import teach_device
@@ -94,26 +90,6 @@ def create_laser_device(
         details={"name": row.name, "source": row.source},
     )
     return row
-
-
-def list_laser_devices(
-    session: Session,
-    *,
-    robot_id: str,
-    limit: int,
-    cursor: str | None,
-) -> tuple[Sequence[LaserDevice], str | None]:
-    """A robot's laser devices."""
-    get_robot(session, robot_id)
-    stmt = select(LaserDevice).where(LaserDevice.robot_id == robot_id)
-    return paginate(
-        session,
-        stmt,
-        created_col=LaserDevice.created_at,
-        id_col=LaserDevice.id,
-        limit=limit,
-        cursor=cursor,
-    )
 
 
 def get_laser_device(session: Session, *, robot_id: str, device_id: str) -> LaserDevice:

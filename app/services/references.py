@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -84,23 +84,17 @@ def create_reference_point(
     return row
 
 
-def list_reference_points(
-    session: Session,
-    *,
-    robot_id: str,
-    limit: int,
-    cursor: str | None,
-) -> tuple[Sequence[ReferencePoint], str | None]:
-    """A robot's reference points."""
+RobotRow = TypeVar("RobotRow", ReferencePoint, LaserDevice)
+
+
+def list_robot_rows(
+    session: Session, model: type[RobotRow], *, robot_id: str, limit: int, cursor: str | None
+) -> tuple[Sequence[RobotRow], str | None]:
+    """One page of a robot's reference points or laser devices."""
     get_robot(session, robot_id)
-    stmt = select(ReferencePoint).where(ReferencePoint.robot_id == robot_id)
+    stmt = select(model).where(model.robot_id == robot_id)
     return paginate(
-        session,
-        stmt,
-        created_col=ReferencePoint.created_at,
-        id_col=ReferencePoint.id,
-        limit=limit,
-        cursor=cursor,
+        session, stmt, created_col=model.created_at, id_col=model.id, limit=limit, cursor=cursor
     )
 
 

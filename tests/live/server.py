@@ -8,7 +8,6 @@ import subprocess
 import sys
 import tempfile
 import time
-import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -16,12 +15,13 @@ from pathlib import Path
 from typing import IO
 
 import httpx
-from sqlalchemy import create_engine, text
-from sqlalchemy.engine import make_url
 
 from app.db import make_engine, session_scope
 from app.migrate import upgrade
 from app.services.keys import create_key
+from tests.databases import fresh_database
+
+__all__ = ["LiveServer", "fresh_database", "live_server"]
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -41,25 +41,6 @@ def _free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return int(sock.getsockname()[1])
-
-
-@contextmanager
-def fresh_database(backend: str, tmp: Path, pg_url: str | None) -> Iterator[str]:
-    """An empty database of the given backend, dropped afterwards."""
-    if backend == "sqlite":
-        yield f"sqlite:///{tmp / 'live.sqlite3'}"
-        return
-    assert pg_url
-    admin = create_engine(pg_url, isolation_level="AUTOCOMMIT")
-    name = f"tcpcal_live_{uuid.uuid4().hex[:10]}"
-    with admin.connect() as conn:
-        conn.execute(text(f'CREATE DATABASE "{name}"'))
-    try:
-        yield make_url(pg_url).set(database=name).render_as_string(hide_password=False)
-    finally:
-        with admin.connect() as conn:
-            conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        admin.dispose()
 
 
 @contextmanager
