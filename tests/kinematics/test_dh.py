@@ -75,6 +75,19 @@ UR_DEFAULT_KINEMATICS: dict[str, dict[str, tuple[float, ...]]] = {
             math.pi,
         ),
     },
+    # ur10e: the stored ros-industrial/universal_robot copy has no
+    # ur_description/config/ur10e/default_kinematics.yaml; these are the same fields of
+    # ros-industrial/universal_robot ur_e_description/config/ur10e_default.yaml (commit
+    # deca80cb0f5579a2a8519fc8a4d52f4f1aed586c, "hash: calib_5119701370761913513"), the
+    # file default_kinematics.yaml was later copied from (same layout and units).
+    "ur10e": {
+        "shoulder": (0, 0, 0.1807, 0, 0, 0),
+        "upper_arm": (0, 0, 0, 1.570796327, 0, 0),
+        "forearm": (-0.6127, 0, 0, 0, 0, 0),
+        "wrist_1": (-0.57155, 0, 0.17415, 0, 0, 0),
+        "wrist_2": (0, -0.11985, -2.458164590756244e-11, 1.570796327, 0, 0),
+        "wrist_3": (0, 0.11655, -2.390480459346185e-11, 1.570796326589793, math.pi, math.pi),
+    },
     "ur16e": {
         "shoulder": (0, 0, 0.1807, 0, 0, 0),
         "upper_arm": (0, 0, 0, 1.570796327, 0, 0),
