@@ -7,6 +7,7 @@ serialises version numbering and makes idempotency-key replays see the first res
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -27,6 +28,7 @@ from app.services.references import create_reference_point, ensure_reference_nam
 from app.services.registry import get_robot, get_tool
 from app.services.tolerance import grade
 from app.services.versions import IDENTITY_QUATERNION, activate, add_version
+from app.solvers.errors import SolveError
 
 
 # ---- results --------------------------------------------------------------------------------
@@ -64,7 +66,26 @@ def result_document(
     }
     for key, value in solved.extra.items():
         doc[key] = value
+    _refuse_non_finite(doc)
     return doc
+
+
+def _refuse_non_finite(value: Any, path: tuple[str | int, ...] = ()) -> None:
+    """The solvers promise finite results; should one not, the input did not determine the
+    result: answer 422 before anything is stored, never store or send a NaN."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _refuse_non_finite(item, (*path, key))
+    elif isinstance(value, list | tuple):
+        for i, item in enumerate(value):
+            _refuse_non_finite(item, (*path, i))
+    elif isinstance(value, float) and not math.isfinite(value):
+        where = ".".join(str(p) for p in path)
+        raise SolveError(
+            "non-finite",
+            f"the solution's {where} is not a finite number: these poses do not determine it",
+            loc=path,
+        )
 
 
 def _calibration_out(row: Calibration, tool: Tool) -> dict[str, Any]:
