@@ -1,16 +1,42 @@
 """Tool frames written as X Y Z and three fixed-axis angles: Fanuc, Yaskawa, Techman.
 
 All three store a tool as X, Y, Z (mm) and rotations about the fixed flange X, Y, Z axes
-(deg), R = Rz(third) Ry(second) Rx(first):
+(deg), R = Rz(third) Ry(second) Rx(first) (the project's convention for all three).
 
-- Fanuc UTOOL: X Y Z W P R (R-30iB/R-30iB Plus operator's manual, "Setting Up Coordinate
-  Systems / Tool Frame, Direct Entry Method"). A TP program cannot assign literal numbers to
-  a tool frame, so the text mirrors the Direct Entry screen, one field per value.
-- Yaskawa tool file: X Y Z Rx Ry Rz, plus W (kg) and Xg Yg Zg (centre of gravity, mm)
-  (YRC1000/DX200 operator's manual, "Tool Data Setting"); numbered 0..63.
-- Techman: X Y Z RX RY RZ in TMflow's tool list, and TMscript ``ChangeTCP(float[])``
-  with ``{X, Y, Z, RX, RY, RZ}`` (TM Expression Editor and Listen Node manual;
-  ``ChangeTCP(float[], float)`` adds the mass).
+What public evidence backs, and what it does not (checked against stored public sources;
+no vendor manual was available as a primary source, so "verified" below means "confirmed by
+independent public code or manual excerpts", not "checked on a controller"):
+
+- Fanuc. VERIFIED: the six fields X Y Z W P R in that order, mm and deg, and the angle
+  convention (RoboDK's Fanuc post, ros-industrial-attic/robodk_postprocessors
+  Fanuc_R30iA.py ``setTool`` writes ``PR[n,1..6]`` from ``Pose_2_Fanuc``, and robodk.py
+  ``pose_2_xyzrpw``: H = transl(x,y,z) rotz(R) roty(P) rotx(W)); that a TP program *can*
+  load literal numbers into a tool frame, through a position register:
+  ``PR[n,1]=x ; .. PR[n,6]=r ; UTOOL[t]=PR[n] ;`` (same file; third-party notes cite
+  HandlingTool V9.40 sec. 7.20 for "UTOOL[i]=PR[j]"). NOT VERIFIED: our one-line
+  ``UTOOL[t]: X .. W .. R ..`` text is our own layout, a transcription of the Direct Entry
+  screen, not controller syntax; UTOOL numbers 1..10 (R-30iB default; the count is a
+  system setting). The parser also reads the TP form.
+- Yaskawa. VERIFIED: Rx Ry Rz are the same fixed-axis angles as Fanuc's W P R (robodk.py
+  ``Pose_2_Motoman`` is ``pose_2_xyzrpw``); the tool file holds X Y Z (mm), Rx Ry Rz (deg),
+  the load W (kg) and its centre of gravity Xg Yg Zg (mm, flange frame) (Yaskawa manual text
+  "Tool Load Information ... registered in the tool file", mirrored at
+  https://stockdcs.com/Product/2630.html). INFORM sets a tool with ``SETTOOL TL#(n) P...``
+  whose P variable holds 0.001 mm / 0.01 deg integers (RoboDK Motoman.py ``setTool``).
+  NOT VERIFIED: our ``TOOL[n]: X .. Rz .. W .. Xg ..`` line is our own layout, neither
+  TOOL.CND nor INFORM; tool numbers 0..63 (YRC1000/DX200; NX100 had 0..23, per its job data
+  format manual "///TOOL <N>: Tool No.(0 to 23)").
+- Techman. VERIFIED: ``ChangeTCP`` takes X, Y, Z, RX, RY, RZ (mm, deg) then the mass (kg):
+  the Expression Editor manual's syntaxes (as summarised by third-party notes, manual
+  pp. 267-270) ``ChangeTCP(float[])``, ``ChangeTCP(float[], float)``,
+  ``ChangeTCP(float[], float, float[])`` and the flat ``ChangeTCP(float x6[, float])``; the
+  flat form is what a fork of TM's ROS driver writes (RAMLABNL/tmr_ros2
+  tm_driver/src/tm_command.cpp
+  ``TmCommand::change_tcp``, angles through ``deg()``) and techmanpy's ``set_tcp``
+  (jvdtoorn/techmanpy techmanpy/clients/tmsct_client.py). TMscript array literals use
+  braces (``float[] var_f = {1, 2, 3, 4}``), so our ``ChangeTCP({..},m)`` is the
+  ``(float[], float)`` syntax. The parser reads both forms. NOT VERIFIED: that RX RY RZ
+  compose as Rz Ry Rx (no public source found either way).
 """
 
 from __future__ import annotations
@@ -138,9 +164,32 @@ def _parse_labelled(fmt: str, text: str) -> tuple[FloatArray, FloatArray]:
     return _tcp_from_numbers([float(g) for g in match.groups()])
 
 
+# TP: a tool frame loaded from a position register whose six elements were set one by one,
+# ``PR[n,1]=x ; .. PR[n,6]=r ; UTOOL[t]=PR[n] ;`` (ros-industrial-attic/robodk_postprocessors
+# Fanuc_R30iA.py ``setTool``). A negative constant may be stored in parentheses, ``(-2.5)``.
+_PR_ELEMENT = re.compile(rf"PR\[\s*(\d+)\s*,\s*([1-6])\s*\]\s*=\s*\(?\s*({NUMBER})\s*\)?")
+_UTOOL_FROM_PR = re.compile(r"UTOOL\[\s*\d+\s*\]\s*=\s*PR\[\s*(\d+)\s*(?::[^\]]*)?\]")
+
+
+def _parse_fanuc_tp(text: str) -> tuple[FloatArray, FloatArray] | None:
+    assign = _UTOOL_FROM_PR.search(text)
+    if assign is None:
+        return None
+    register = assign.group(1)
+    elements: dict[int, float] = {}
+    for match in _PR_ELEMENT.finditer(text[: assign.start()]):
+        if match.group(1) == register:
+            elements[int(match.group(2))] = float(match.group(3))
+    if len(elements) < 6:
+        return None
+    return _tcp_from_numbers([elements[i] for i in range(1, 7)])
+
+
 def parse_fanuc(text: str) -> tuple[FloatArray, FloatArray]:
-    """``X .. Y .. Z .. W .. P .. R ..`` -> (position (3,) mm, quaternion wxyz (4,))."""
-    return _parse_labelled("fanuc", text)
+    """``X .. Y .. Z .. W .. P .. R ..``, or TP ``PR[n,1..6]=.. ; UTOOL[t]=PR[n]`` ->
+    (position (3,) mm, quaternion wxyz (4,))."""
+    tp = _parse_fanuc_tp(text)
+    return tp if tp is not None else _parse_labelled("fanuc", text)
 
 
 def parse_yaskawa(text: str) -> tuple[FloatArray, FloatArray]:
@@ -149,9 +198,11 @@ def parse_yaskawa(text: str) -> tuple[FloatArray, FloatArray]:
 
 
 def parse_techman(text: str) -> tuple[FloatArray, FloatArray]:
-    """``ChangeTCP({X,Y,Z,RX,RY,RZ}...)`` -> (position (3,) mm, quaternion wxyz (4,))."""
+    """``ChangeTCP({X,Y,Z,RX,RY,RZ}...)`` or the flat ``ChangeTCP(X,Y,Z,RX,RY,RZ...)`` (as
+    TM's ROS driver writes it) -> (position (3,) mm, quaternion wxyz (4,))."""
     six = r"\s*,\s*".join([f"({NUMBER})"] * 6)
-    match = re.search(rf"ChangeTCP\s*\(\s*\{{\s*{six}\s*\}}", text)
+    # Braces around the six, or none; after them only ")" or "," (mass, inertia) may follow.
+    match = re.search(rf"ChangeTCP\s*\(\s*(\{{)?\s*{six}\s*(?(1)\}})\s*[,)]", text)
     if match is None:
         raise parse_error("techman", "ChangeTCP({X,Y,Z,RX,RY,RZ})", text)
-    return _tcp_from_numbers([float(g) for g in match.groups()])
+    return _tcp_from_numbers([float(g) for g in match.groups()[1:]])

@@ -118,6 +118,54 @@ def test_fixed_axis_texts(fmt: str, start: str) -> None:
     assert out.text.startswith(start), out.text
 
 
+def test_fanuc_parses_tp_position_register_form() -> None:
+    """A TP program loads a tool frame through a position register, one element at a time
+    (ros-industrial-attic/robodk_postprocessors Fanuc_R30iA.py ``setTool``); a negative
+    constant may be stored in parentheses and the register may carry a comment."""
+    text = (
+        "PR[95,1]=10.000 ;\nPR[95,2]=(-20.5) ;\nPR[95,3]=150.000 ;\n"
+        "PR[95,4]=90.000 ;\nPR[95,5]=0.000 ;\nPR[95,6]=0.000 ;\n"
+        "PR[96,1]=999 ;\nUTOOL[1]=PR[95:tool] ;\nUTOOL_NUM=1 ;"
+    )
+    position, quaternion = parse_controller_text("fanuc", text)
+    assert_allclose(position, [10.0, -20.5, 150.0])
+    assert _angle_deg(np.array([H, H, 0, 0]), quaternion) < 1e-9
+
+
+def test_fanuc_tp_form_needs_all_six_elements() -> None:
+    text = "PR[95,1]=10 ;\nPR[95,2]=0 ;\nPR[95,3]=150 ;\nUTOOL[1]=PR[95] ;"
+    with pytest.raises(SolveError) as info:
+        parse_controller_text("fanuc", text)
+    assert info.value.kind == "invalid-pose"
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        # TM's ROS driver, TmCommand::change_tcp (RAMLABNL/tmr_ros2 tm_driver/src/tm_command.cpp)
+        "ChangeTCP(0,0,150,90,0,0)",
+        "ChangeTCP(0,0,150,90,0,0,1.5)",
+        "ChangeTCP(0,0,150,90,0,0,1.5,0.01,0.01,0.01,0,0,60,0,0,0)",
+        # the (float[], float) syntax, as we write it
+        "ChangeTCP({0, 0, 150, 90, 0, 0}, 1.5)",
+    ],
+)
+def test_techman_parses_array_and_flat_forms(text: str) -> None:
+    """ChangeTCP takes X, Y, Z, RX, RY, RZ first, in braces or flat, then mass/inertia."""
+    position, quaternion = parse_controller_text("techman", text)
+    assert_allclose(position, [0.0, 0.0, 150.0])
+    assert _angle_deg(np.array([H, H, 0, 0]), quaternion) < 1e-9
+
+
+@pytest.mark.parametrize(
+    "text", ['ChangeTCP("NOTOOL")', "ChangeTCP({0,0,150,90,0,0,1.5})", "ChangeTCP(0,0,150,90,0})"]
+)
+def test_techman_refuses_tool_names_and_bad_arrays(text: str) -> None:
+    with pytest.raises(SolveError) as info:
+        parse_controller_text("techman", text)
+    assert info.value.kind == "invalid-pose"
+
+
 def test_values_are_plain_json() -> None:
     import json
 
