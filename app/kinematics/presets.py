@@ -32,7 +32,9 @@ def _ur(name: str, d1: float, a2: float, a3: float, d4: float, d5: float, d6: fl
 # https://www.universal-robots.com/articles/ur/application-installation/dh-parameters-for-calculations-of-kinematics-and-dynamics/),
 # tables in metres converted to mm. The same numbers generate the ROS description
 # (ros-industrial/universal_robot ur_description/config/<model>/default_kinematics.yaml and
-# UniversalRobots/Universal_Robots_ROS2_Description), which tests/kinematics checks against.
+# UniversalRobots/Universal_Robots_ROS2_Description), which tests/kinematics checks against
+# (UR10e: the same fields from ur_e_description/config/ur10e_default.yaml, the stored copy
+# having no ur_description/config/ur10e/default_kinematics.yaml).
 UR3E = _ur("ur3e", d1=151.85, a2=-243.55, a3=-213.2, d4=131.05, d5=85.35, d6=92.1)
 UR5E = _ur("ur5e", d1=162.5, a2=-425.0, a3=-392.2, d4=133.3, d5=99.7, d6=99.6)
 UR10E = _ur("ur10e", d1=180.7, a2=-612.7, a3=-571.55, d4=174.15, d5=119.85, d6=116.55)
