@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from app.schemas.common import Units
+from app.solvers.orientation import angle_between_deg
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,12 @@ class MethodContext(Protocol):
     def tool_frame(self, tool_id: str) -> ActiveFrame: ...
 
     def laser_device(self, device_id: str) -> tuple[float, float, float]: ...
+
+
+def orientation_change_deg(ctx: MethodContext, quaternion: Sequence[float]) -> float | None:
+    """Angle (deg) from the tool's active orientation to a new one; None without one."""
+    frame = ctx.active_frame()
+    return None if frame is None else angle_between_deg(frame.quaternion, quaternion)
 
 
 def empty_quality(n_poses: int) -> dict[str, Any]:

@@ -6,11 +6,10 @@ from typing import Any
 
 import numpy as np
 
-from app.methods.base import MethodContext, SolvedTcp
+from app.methods.base import MethodContext, SolvedTcp, orientation_change_deg
 from app.schemas.calibrations import LaserBeamCalibration, LaserGeometry, SweepIn
 from app.solvers.errors import SolveError
 from app.solvers.laser import LaserDevice, Sweep, solve_laser
-from app.solvers.orientation import angle_between_deg
 
 
 def device_from(geometry: LaserGeometry, ctx: MethodContext) -> LaserDevice:
@@ -66,7 +65,6 @@ def run(request: LaserBeamCalibration, ctx: MethodContext) -> SolvedTcp:
         "outliers": [],
         "orientation_sigma_deg": list(sigma.rotation_deg) if with_sigma else None,
     }
-    frame = ctx.active_frame()
     return SolvedTcp(
         position_mm=result.tcp_mm,
         quaternion=np.asarray(result.quaternion_wxyz),
@@ -78,11 +76,7 @@ def run(request: LaserBeamCalibration, ctx: MethodContext) -> SolvedTcp:
             "offset_mm": list(result.offset_mm),
             "tool_length_mm": result.tool_length_mm,
             "widths_mm": list(result.widths_mm),
-            "orientation_change_deg": (
-                None
-                if frame is None
-                else angle_between_deg(frame.quaternion, result.quaternion_wxyz)
-            ),
+            "orientation_change_deg": orientation_change_deg(ctx, result.quaternion_wxyz),
             "details": {
                 "axis_point_flange_mm": [float(v) for v in result.axis_point_flange_mm],
                 "axis_direction_flange": [float(v) for v in result.axis_direction_flange],

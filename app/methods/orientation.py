@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from app.methods.base import MethodContext, SolvedTcp, empty_quality
+from app.methods.base import MethodContext, SolvedTcp, empty_quality, orientation_change_deg
 from app.methods.npoint import quality_document, solve_touches
 from app.schemas.calibrations import (
     Abc2PointCalibration,
@@ -20,16 +20,10 @@ from app.solvers.errors import SolveError
 from app.solvers.orientation import (
     Direction,
     OrientationResult,
-    angle_between_deg,
     orientation_from_touches,
     orientation_from_translations,
     orientation_from_world,
 )
-
-
-def _change_from_active(ctx: MethodContext, quaternion: tuple[float, ...]) -> float | None:
-    frame = ctx.active_frame()
-    return None if frame is None else angle_between_deg(frame.quaternion, quaternion)
 
 
 def _known_tcp(tcp_mm: list[float] | None, ctx: MethodContext) -> NDArray[np.float64]:
@@ -56,7 +50,7 @@ def _with_orientation(
         list(result.sigma_deg) if result.sigma_source != "none" else None
     )
     solved.warnings += list(result.warnings)
-    solved.extra["orientation_change_deg"] = _change_from_active(ctx, result.quaternion_wxyz)
+    solved.extra["orientation_change_deg"] = orientation_change_deg(ctx, result.quaternion_wxyz)
     return solved
 
 

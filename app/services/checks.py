@@ -14,7 +14,7 @@ from app.auth import Principal
 from app.models import utcnow
 from app.schemas.references import CheckCreate
 from app.services import audit
-from app.services.frames import active_frame, parse_poses_with
+from app.services.frames import frame_of, parse_poses_with
 from app.services.references import get_reference_point
 from app.services.registry import get_robot, get_tool
 from app.services.tolerance import effective_tolerance
@@ -32,9 +32,7 @@ def run_check(
     """Deviation of the active TCP at a reference point, against the tool's check_mm."""
     tool = get_tool(session, tool_id)
     robot = get_robot(session, tool.robot_id)
-    active_version_row(session, tool)  # 404 /no-active-version, before any other lookup
-    frame = active_frame(session, tool)
-    assert frame is not None
+    frame = frame_of(session, active_version_row(session, tool))  # 404 /no-active-version
     point = get_reference_point(session, robot_id=robot.id, point_id=data.reference_point_id)
     rotations, positions = parse_poses_with(
         robot.kinematics, data.format, data.poses, data.units, loc=("poses",)

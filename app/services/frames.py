@@ -12,7 +12,7 @@ from sqlalchemy.orm import Session
 from app.kinematics.dh import kinematics_from_spec
 from app.kinematics.poses import poses_from_format
 from app.methods.base import ActiveFrame
-from app.models import Calibration, Tool
+from app.models import Calibration, TcpVersion, Tool
 from app.schemas.common import Units
 from app.services.versions import active_version_row
 
@@ -35,7 +35,11 @@ def active_frame(session: Session, tool: Tool) -> ActiveFrame | None:
     """A tool's active TCP with the covariance its calibration reported (None: no version)."""
     if tool.active_version is None:
         return None
-    row = active_version_row(session, tool)
+    return frame_of(session, active_version_row(session, tool))
+
+
+def frame_of(session: Session, row: TcpVersion) -> ActiveFrame:
+    """A version's TCP with the covariance its calibration reported."""
     covariance = None
     if row.calibration_id:
         calibration = session.get(Calibration, row.calibration_id)

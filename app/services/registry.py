@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -20,19 +20,27 @@ from app.services.kinematics import validate_kinematics
 from app.services.pagination import paginate
 from app.services.tolerance import effective_tolerance
 
-
 # ---- robots ---------------------------------------------------------------------------------
-def get_robot(session: Session, robot_id: str, *, for_update: bool = False) -> Robot:
-    """A live robot, or 404 (/not-found, or /archived when it was deleted)."""
-    stmt = select(Robot).where(Robot.id == robot_id)
+Live = TypeVar("Live", Robot, Tool)
+
+
+def _get_live(session: Session, model: type[Live], row_id: str, *, for_update: bool) -> Live:
+    """A row that is not archived, or 404 (/not-found, or /archived when it was deleted)."""
+    what = model.__name__.lower()
+    stmt = select(model).where(model.id == row_id)
     if for_update:
         stmt = stmt.with_for_update()
-    robot = session.scalars(stmt).one_or_none()
-    if robot is None:
-        raise NotFound(f"no robot with id {robot_id}")
-    if robot.archived_at is not None:
-        raise Archived(f"robot {robot_id} ({robot.name}) was archived")
-    return robot
+    row = session.scalars(stmt).one_or_none()
+    if row is None:
+        raise NotFound(f"no {what} with id {row_id}")
+    if row.archived_at is not None:
+        raise Archived(f"{what} {row_id} ({row.name}) was archived")
+    return row
+
+
+def get_robot(session: Session, robot_id: str, *, for_update: bool = False) -> Robot:
+    """A live robot, or 404."""
+    return _get_live(session, Robot, robot_id, for_update=for_update)
 
 
 def _robot_name_free(session: Session, name: str, *, except_id: str | None = None) -> None:
@@ -129,16 +137,8 @@ def archive_robot(session: Session, *, robot_id: str, actor: Principal) -> None:
 
 # ---- tools ----------------------------------------------------------------------------------
 def get_tool(session: Session, tool_id: str, *, for_update: bool = False) -> Tool:
-    """A live tool of a live robot, or 404. `for_update` locks the row (serialises versions)."""
-    stmt = select(Tool).where(Tool.id == tool_id)
-    if for_update:
-        stmt = stmt.with_for_update()
-    tool = session.scalars(stmt).one_or_none()
-    if tool is None:
-        raise NotFound(f"no tool with id {tool_id}")
-    if tool.archived_at is not None:
-        raise Archived(f"tool {tool_id} ({tool.name}) was archived")
-    return tool
+    """A live tool, or 404. `for_update` locks the row (serialises versions)."""
+    return _get_live(session, Tool, tool_id, for_update=for_update)
 
 
 def tool_etag(tool: Tool) -> str:
