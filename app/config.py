@@ -24,11 +24,14 @@ class Settings(BaseSettings):
         default=None, description="When set, this key exists with admin scope (stored hashed)."
     )
     max_body_bytes: int = Field(default=1024 * 1024, gt=0, description="Largest request body.")
-    max_poses: int = Field(default=1000, gt=0, description="Most poses in one submission.")
     idempotency_ttl_hours: float = Field(default=24.0, gt=0)
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."
     )
+
+    def problem_type(self, kind: str) -> str:
+        """The `type` URI of a problem kind, e.g. /problems/degenerate-poses."""
+        return f"{self.problem_type_base.rstrip('/')}/{kind}"
 
 
 @lru_cache

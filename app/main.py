@@ -11,11 +11,21 @@ from fastapi.routing import APIRoute
 from sqlalchemy.exc import SQLAlchemyError
 
 from app import __version__
-from app.api import calibrations, health, keys, methods, references, robots, tools, versions
+from app.api import (
+    calibrations,
+    health,
+    keys,
+    methods,
+    references,
+    robots,
+    solve,
+    tools,
+    versions,
+)
+from app.api.problems import install_error_handlers
 from app.auth import ensure_bootstrap_key
 from app.config import get_settings
 from app.db import get_engine, session_scope
-from app.errors import install_error_handlers
 from app.middleware import BodyLimitMiddleware, MetricsMiddleware
 from app.migrate import current_revision, head_revision
 from app.openapi import build_openapi
@@ -61,7 +71,8 @@ def create_app() -> FastAPI:
         generate_unique_id_function=_operation_id,
     )
     install_error_handlers(app)
-    for module in (health, keys, robots, tools, calibrations, versions, references, methods):
+    routers = (health, keys, robots, tools, calibrations, solve, versions, references, methods)
+    for module in routers:
         app.include_router(module.router)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     app.add_middleware(MetricsMiddleware)

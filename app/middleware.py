@@ -7,7 +7,7 @@ from typing import Any
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from app.errors import problem_response
+from app.api.problems import problem_response
 from app.metrics import METRICS
 
 BODY_METHODS = frozenset({"POST", "PUT", "PATCH"})

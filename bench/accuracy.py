@@ -6,7 +6,7 @@ no orientation noise, no outliers, |t| 150 mm). For each scenario and algorithm:
 - ratio: RMS TCP error / sqrt(mean trace CRB_tt), the bound computed from the true poses and
   noise model over the inlier touches only (so with outliers it is the inlier-only bound);
 - coverage: fraction of trials whose true TCP lies inside the reported 95 % ellipsoid;
-- refused: trials answered with a SolveError (by kind), reported apart from the statistics.
+- refused: trials answered with a InvalidInput (by kind), reported apart from the statistics.
 
 Run from the repository root: `.venv/bin/python -m bench.accuracy [--quick] [--trials N]`.
 Writes bench/results/accuracy.json and bench/results/accuracy.md.
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.npoint import ALGORITHMS, solve_npoint
 from bench import frame_accuracy
 from tests.sim.touches import simulate_touches
@@ -150,7 +150,7 @@ def run_scenario(sc: Scenario, trials: int, seed0: int) -> dict[str, object]:
                     touch_noise_mm=sc.touch_noise_mm if sc.configured else None,
                     orientation_noise_deg=sc.orientation_noise_deg or None,
                 )
-            except SolveError as exc:
+            except InvalidInput as exc:
                 refused[a][exc.kind] += 1
                 continue
             e = res.tcp_mm - sim.t

@@ -1,4 +1,4 @@
-"""HTTP for calibrations: submit (with Idempotency-Key), list, read; stateless solve."""
+"""HTTP for calibrations: submit (with Idempotency-Key), list, read."""
 
 from __future__ import annotations
 
@@ -11,14 +11,9 @@ from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.errors import InvalidInput
 from app.metrics import METRICS
-from app.schemas.calibrations import (
-    Calibration,
-    CalibrationDetail,
-    CalibrationRequest,
-    SolveRequest,
-    SolveResult,
-)
+from app.schemas.calibrations import CalibrationRequest
 from app.schemas.common import Page
+from app.schemas.results import Calibration, CalibrationDetail
 from app.services import calibrate
 
 router = APIRouter(tags=["calibrations"])
@@ -34,7 +29,8 @@ IdempotencyKey = Annotated[
 
 
 def raw_json_body(request: Request) -> dict[str, Any]:
-    """The body exactly as received (the body-size middleware keeps the bytes)."""
+    """The body exactly as received (the body-size middleware keeps the bytes): raw JSON,
+    kept as it came, so `Any` is its honest type."""
     raw = request.scope.get("tcpcal.raw_body", b"")
     parsed = json.loads(raw) if raw else {}
     if not isinstance(parsed, dict):
@@ -63,7 +59,7 @@ def submit_calibration(
     if replayed:
         response.headers["Idempotent-Replayed"] = "true"
     else:
-        METRICS.observe_calibration(doc["method"], doc["status"])
+        METRICS.observe_calibration(doc.method, doc.status)
     return doc
 
 
@@ -84,8 +80,3 @@ def list_calibrations(
 @router.get("/v1/calibrations/{calibration_id}", response_model=CalibrationDetail)
 def get_calibration(calibration_id: PathId, session: SessionDep, key: ReadKey) -> object:
     return calibrate.get_calibration(session, calibration_id=calibration_id)
-
-
-@router.post("/v1/solve", response_model=SolveResult, tags=["stateless"])
-def solve(body: Annotated[SolveRequest, Body()], session: SessionDep, key: ReadKey) -> object:
-    return calibrate.solve_stateless(session, request=body)

@@ -1,14 +1,13 @@
-"""GET /v1/methods: each method's minimum poses, inputs, options and defaults."""
+"""GET /v1/methods: each method's poses, inputs, options and defaults, read off the registry."""
 
 from __future__ import annotations
-
-from typing import Any
 
 from fastapi import APIRouter
 from pydantic import BaseModel
 
 from app.deps import ReadKey
-from app.methods.catalog import describe_methods
+from app.methods import METHODS
+from app.methods.base import Method, MethodRequest, PosesRequired
 
 router = APIRouter(tags=["stateless"])
 
@@ -17,15 +16,52 @@ class MethodInfo(BaseModel):
     name: str
     description: str
     min_poses: int
-    available: bool
+    max_poses: int
     requires: list[str]
-    options: dict[str, Any]
+    options: dict[str, dict[str, object]]
 
 
 class MethodList(BaseModel):
     items: list[MethodInfo]
 
 
+_COMMON = set(PosesRequired.model_fields) | {"options"}
+
+
+def _options(method: Method[MethodRequest]) -> dict[str, dict[str, object]]:
+    model = method.options
+    if model is None:
+        return {}
+    properties = model.model_json_schema()["properties"]
+    return {
+        name: {
+            "default": None
+            if field.is_required()
+            else field.get_default(call_default_factory=True),
+            "required": field.is_required(),
+            "schema": properties[name],
+        }
+        for name, field in model.model_fields.items()
+    }
+
+
+def describe(method: Method[MethodRequest]) -> MethodInfo:
+    """What a client needs to know to call a method."""
+    count = method.pose_count
+    return MethodInfo(
+        name=method.name,
+        description=method.description,
+        min_poses=count.min,
+        max_poses=count.max,
+        requires=[
+            name
+            for name, field in method.request.model_fields.items()
+            if name not in _COMMON and field.is_required()
+        ],
+        options=_options(method),
+    )
+
+
 @router.get("/v1/methods", response_model=MethodList)
-def list_methods(key: ReadKey) -> object:
-    return {"items": describe_methods()}
+def list_methods(key: ReadKey) -> MethodList:
+    return MethodList(items=[describe(m) for m in METHODS])

@@ -10,14 +10,14 @@ from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import AdminKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.robots import Robot, RobotCreate, RobotUpdate
-from app.services import registry
+from app.services import robots
 
 router = APIRouter(prefix="/v1/robots", tags=["robots"])
 
 
 @router.post("", status_code=201, response_model=Robot)
 def create_robot(body: RobotCreate, session: SessionDep, key: AdminKey) -> object:
-    return registry.create_robot(session, data=body, actor=key)
+    return robots.create_robot(session, data=body, actor=key)
 
 
 @router.get("", response_model=Page[Robot])
@@ -29,7 +29,7 @@ def list_robots(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
-    items, next_cursor = registry.list_robots(
+    items, next_cursor = robots.list_robots(
         session, cell=cell, name=name, limit=limit, cursor=cursor
     )
     return {"items": items, "next_cursor": next_cursor}
@@ -37,15 +37,15 @@ def list_robots(
 
 @router.get("/{robot_id}", response_model=Robot)
 def get_robot(robot_id: PathId, session: SessionDep, key: ReadKey) -> object:
-    return registry.get_robot(session, robot_id)
+    return robots.get_robot(session, robot_id)
 
 
 @router.patch("/{robot_id}", response_model=Robot)
 def update_robot(robot_id: PathId, body: RobotUpdate, session: SessionDep, key: AdminKey) -> object:
-    return registry.update_robot(session, robot_id=robot_id, data=body, actor=key)
+    return robots.update_robot(session, robot_id=robot_id, data=body, actor=key)
 
 
 @router.delete("/{robot_id}", status_code=204)
 def archive_robot(robot_id: PathId, session: SessionDep, key: AdminKey) -> Response:
-    registry.archive_robot(session, robot_id=robot_id, actor=key)
+    robots.archive_robot(session, robot_id=robot_id, actor=key)
     return Response(status_code=204)

@@ -10,7 +10,7 @@ from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import AdminKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.tools import Tool, ToolCreate, ToolUpdate
-from app.services import registry
+from app.services import tools
 
 router = APIRouter(tags=["tools"])
 
@@ -21,8 +21,8 @@ IfMatch = Annotated[str | None, Header(description="the tool's ETag; 412 when st
 def create_tool(
     robot_id: PathId, body: ToolCreate, response: Response, session: SessionDep, key: AdminKey
 ) -> object:
-    tool = registry.create_tool(session, robot_id=robot_id, data=body, actor=key)
-    response.headers["ETag"] = registry.tool_etag(tool)
+    tool = tools.create_tool(session, robot_id=robot_id, data=body, actor=key)
+    response.headers["ETag"] = tools.tool_etag(tool)
     return tool
 
 
@@ -34,14 +34,14 @@ def list_tools(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
-    items, next_cursor = registry.list_tools(session, robot_id=robot_id, limit=limit, cursor=cursor)
+    items, next_cursor = tools.list_tools(session, robot_id=robot_id, limit=limit, cursor=cursor)
     return {"items": items, "next_cursor": next_cursor}
 
 
 @router.get("/v1/tools/{tool_id}", response_model=Tool)
 def get_tool(tool_id: PathId, response: Response, session: SessionDep, key: ReadKey) -> object:
-    tool = registry.get_tool(session, tool_id)
-    response.headers["ETag"] = registry.tool_etag(tool)
+    tool = tools.get_tool(session, tool_id)
+    response.headers["ETag"] = tools.tool_etag(tool)
     return tool
 
 
@@ -54,12 +54,12 @@ def update_tool(
     key: AdminKey,
     if_match: IfMatch = None,
 ) -> object:
-    tool = registry.update_tool(session, tool_id=tool_id, data=body, if_match=if_match, actor=key)
-    response.headers["ETag"] = registry.tool_etag(tool)
+    tool = tools.update_tool(session, tool_id=tool_id, data=body, if_match=if_match, actor=key)
+    response.headers["ETag"] = tools.tool_etag(tool)
     return tool
 
 
 @router.delete("/v1/tools/{tool_id}", status_code=204)
 def archive_tool(tool_id: PathId, session: SessionDep, key: AdminKey) -> Response:
-    registry.archive_tool(session, tool_id=tool_id, actor=key)
+    tools.archive_tool(session, tool_id=tool_id, actor=key)
     return Response(status_code=204)

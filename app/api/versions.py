@@ -12,7 +12,7 @@ from app.api.tools import IfMatch
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.schemas.common import ControllerFormat
 from app.schemas.tools import ActiveTcp, Tool, ToolTable, Version, VersionList
-from app.services import registry, versions
+from app.services import tools, versions
 
 router = APIRouter(tags=["versions"])
 
@@ -33,7 +33,7 @@ def get_version(
     tool_id: PathId, version: VersionNumber, session: SessionDep, key: ReadKey
 ) -> object:
     row = versions.get_version(session, tool_id=tool_id, version=version)
-    return versions.version_document(row, registry.get_tool(session, tool_id))
+    return versions.version_document(row, tools.get_tool(session, tool_id))
 
 
 @router.post("/v1/tools/{tool_id}/versions/{version}/activate", response_model=Tool)
@@ -48,7 +48,7 @@ def activate_version(
     tool = versions.activate_version(
         session, tool_id=tool_id, version=version, if_match=if_match, actor=key
     )
-    response.headers["ETag"] = registry.tool_etag(tool)
+    response.headers["ETag"] = tools.tool_etag(tool)
     return tool
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from app.errors import InvalidInput
 from app.exports.abb import export_abb, parse_abb, rapid_identifier
 from app.exports.base import ControllerExport, FloatArray, ToolData
 from app.exports.kuka import export_kuka, parse_kuka
@@ -20,7 +21,6 @@ from app.exports.wpr import (
     parse_techman,
     parse_yaskawa,
 )
-from app.solvers.errors import SolveError
 
 CONTROLLER_FORMATS: tuple[str, ...] = ("kuka", "abb", "fanuc", "ur", "yaskawa", "techman")
 
@@ -44,7 +44,7 @@ _PARSERS: dict[str, Callable[[str], tuple[FloatArray, FloatArray]]] = {
 
 def _check_format(fmt: str) -> str:
     if fmt not in CONTROLLER_FORMATS:
-        raise SolveError(
+        raise InvalidInput(
             "unknown-format",
             f"unknown controller format {fmt!r}; known: {', '.join(CONTROLLER_FORMATS)}",
             loc=("format",),
@@ -60,7 +60,7 @@ def export_tool(fmt: str, tool: ToolData) -> ControllerExport:
 def parse_controller_text(fmt: str, text: str) -> tuple[FloatArray, FloatArray]:
     """Read controller `fmt`'s tool text -> (position (3,) mm, quaternion [w, x, y, z] (4,))."""
     if not isinstance(text, str):
-        raise SolveError("invalid-pose", "controller text must be a string", loc=("text",))
+        raise InvalidInput("invalid-pose", "controller text must be a string", loc=("text",))
     return _PARSERS[_check_format(fmt)](text)
 
 

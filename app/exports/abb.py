@@ -15,6 +15,7 @@ import re
 
 import numpy as np
 
+from app.errors import InvalidInput
 from app.exports.base import (
     KG_DECIMALS,
     MM_DECIMALS,
@@ -29,7 +30,6 @@ from app.exports.base import (
     parse_error,
     rounded,
 )
-from app.solvers.errors import SolveError
 from app.solvers.validation import check_finite, normalised_quaternions
 
 FORMAT = "abb"
@@ -71,7 +71,7 @@ def rapid_identifier(name: str) -> str:
 def _checked_load(tool: ToolData) -> tuple[float, FloatArray]:
     mass = tool.mass_kg
     if mass is None or not np.isfinite(mass) or mass <= 0:
-        raise SolveError(
+        raise InvalidInput(
             "missing-load",
             f"an ABB tooldata needs the tool's mass (kg, > 0); tool {tool.name!r} has "
             f"{mass!r}. ABB controllers refuse a held tool with mass 0: set the tool's "
@@ -79,7 +79,7 @@ def _checked_load(tool: ToolData) -> tuple[float, FloatArray]:
             loc=("load", "mass_kg"),
         )
     if tool.cog_mm is None:
-        raise SolveError(
+        raise InvalidInput(
             "missing-load",
             f"an ABB tooldata needs the tool's centre of gravity (cog_mm, in the flange "
             f"frame); tool {tool.name!r} has none: set the tool's load.cog_mm",

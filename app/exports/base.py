@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.validation import check_positions_mm, normalised_quaternions
 
 MM_DECIMALS = 6
@@ -75,12 +75,12 @@ def checked_tcp(tool: ToolData) -> tuple[FloatArray, FloatArray]:
     """The tool's (position (3,) mm, unit quaternion wxyz (4,)), checked like any pose."""
     try:
         position = check_positions_mm(tool.position_mm.reshape(1, 3), loc=("tcp",))[0]
-    except SolveError as err:
-        raise SolveError(err.kind, err.detail, loc=("tcp", "position_mm")) from err
+    except InvalidInput as err:
+        raise InvalidInput(err.kind, err.detail, loc=("tcp", "position_mm")) from err
     try:
         quaternion = normalised_quaternions(tool.quaternion_wxyz.reshape(1, 4), loc=("tcp",))[0]
-    except SolveError as err:
-        raise SolveError(err.kind, err.detail, loc=("tcp", "quaternion")) from err
+    except InvalidInput as err:
+        raise InvalidInput(err.kind, err.detail, loc=("tcp", "quaternion")) from err
     return position, quaternion
 
 
@@ -117,10 +117,10 @@ def fmt_list(values: Sequence[float] | ArrayLike, decimals: int, sep: str = ",")
 NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
-def parse_error(fmt: str, expected: str, text: str) -> SolveError:
+def parse_error(fmt: str, expected: str, text: str) -> InvalidInput:
     """The error for text that is not what `fmt` looks like."""
     shown = text if len(text) <= 120 else text[:117] + "..."
-    return SolveError(
+    return InvalidInput(
         "invalid-pose",
         f"cannot read {fmt} tool data: expected {expected}, got {shown!r}",
         loc=("text",),

@@ -12,6 +12,7 @@ import re
 
 import numpy as np
 
+from app.errors import InvalidInput
 from app.exports.base import (
     DEG_DECIMALS,
     MM_DECIMALS,
@@ -30,7 +31,6 @@ from app.kinematics.poses import (
     matrix_from_quaternion_wxyz,
     quaternion_wxyz_from_matrix,
 )
-from app.solvers.errors import SolveError
 
 FORMAT = "kuka"
 MAX_SLOT = 16
@@ -44,9 +44,9 @@ _PATTERN = re.compile(
 
 
 def export_kuka(tool: ToolData) -> ControllerExport:
-    """``$TOOL_DATA[slot]={X,Y,Z (mm),A,B,C (deg)}``; SolveError if the slot is missing."""
+    """``$TOOL_DATA[slot]={X,Y,Z (mm),A,B,C (deg)}``; InvalidInput if the slot is missing."""
     if tool.slot is None or not 1 <= tool.slot <= MAX_SLOT:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"a KUKA tool needs its tool number (slot 1..{MAX_SLOT}) for $TOOL_DATA[n]; "
             f"got {tool.slot!r}",

@@ -45,6 +45,7 @@ import re
 
 import numpy as np
 
+from app.errors import InvalidInput
 from app.exports.base import (
     DEG_DECIMALS,
     KG_DECIMALS,
@@ -65,7 +66,6 @@ from app.kinematics.poses import (
     matrix_from_quaternion_wxyz,
     quaternion_wxyz_from_matrix,
 )
-from app.solvers.errors import SolveError
 
 _DECIMALS = (MM_DECIMALS,) * 3 + (DEG_DECIMALS,) * 3
 _LABELS: dict[str, tuple[str, ...]] = {
@@ -87,7 +87,7 @@ def _xyz_wpr(tool: ToolData) -> FloatArray:
 def _check_slot(fmt: str, slot: int | None) -> None:
     low, high = _SLOTS[fmt]
     if slot is not None and not low <= slot <= high:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"a {fmt} tool number must be {low}..{high}, got {slot}",
             loc=("slot",),

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.validation import check_finite
 
 Convention = Literal["dh", "mdh"]
@@ -78,16 +78,16 @@ _LINK_FIELDS = ("a", "alpha", "d", "theta_offset")
 
 
 def _number(value: Any, loc: tuple[str | int, ...], *, limit: float) -> float:
-    """A finite real number within +-limit, else SolveError("invalid-options") at `loc`."""
+    """A finite real number within +-limit, else InvalidInput("invalid-options") at `loc`."""
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"kinematics field {_dotted(loc)} must be a number, got {type(value).__name__}",
             loc=loc,
         )
     number = float(value)
     if not np.isfinite(number) or abs(number) > limit:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"kinematics field {_dotted(loc)} = {number!r} must be finite and within +-{limit:g}",
             loc=loc,
@@ -103,12 +103,12 @@ def kinematics_from_spec(spec: Mapping[str, Any]) -> Kinematics:
     """Read the API `kinematics` object: ``{"preset": name}`` or ``{"convention", "links"}``.
 
     Links are ``[{a, alpha, d, theta_offset}]`` with a, d in mm and angles in degrees
-    (``theta_offset`` may be omitted: 0). Any defect raises SolveError("invalid-options")
+    (``theta_offset`` may be omitted: 0). Any defect raises InvalidInput("invalid-options")
     whose loc names the offending field, e.g. ("kinematics", "links", 2, "alpha").
     """
     base: tuple[str | int, ...] = ("kinematics",)
     if not isinstance(spec, Mapping):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             "kinematics must be an object: {'preset': 'ur5e'} or "
             "{'convention': 'dh' | 'mdh', 'links': [{a, alpha, d, theta_offset}]}",
@@ -121,14 +121,14 @@ def kinematics_from_spec(spec: Mapping[str, Any]) -> Kinematics:
 
         extra_keys = sorted(set(spec) - {"preset"})
         if extra_keys:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 f"kinematics with a preset takes no other fields; got {extra_keys}",
                 loc=(*base, extra_keys[0]),
             )
         name = spec["preset"]
         if not isinstance(name, str) or name not in PRESETS:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 f"unknown kinematics preset {name!r}; known presets: {sorted(PRESETS)}",
                 loc=(*base, "preset"),
@@ -137,7 +137,7 @@ def kinematics_from_spec(spec: Mapping[str, Any]) -> Kinematics:
 
     unknown = sorted(set(spec) - {"convention", "links", "name"})
     if unknown:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"unknown kinematics field {unknown[0]!r}; expected 'preset' or "
             "'convention' and 'links'",
@@ -145,20 +145,20 @@ def kinematics_from_spec(spec: Mapping[str, Any]) -> Kinematics:
         )
     convention = spec.get("convention")
     if convention not in CONVENTIONS:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"kinematics.convention must be one of {list(CONVENTIONS)}, got {convention!r}",
             loc=(*base, "convention"),
         )
     links_in = spec.get("links")
     if not isinstance(links_in, Sequence) or isinstance(links_in, str | bytes):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             "kinematics.links must be a list of {a, alpha, d, theta_offset}",
             loc=(*base, "links"),
         )
     if not 1 <= len(links_in) <= MAX_LINKS:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"kinematics.links must have 1 to {MAX_LINKS} links, got {len(links_in)}",
             loc=(*base, "links"),
@@ -167,21 +167,21 @@ def kinematics_from_spec(spec: Mapping[str, Any]) -> Kinematics:
     for i, row in enumerate(links_in):
         here: tuple[str | int, ...] = (*base, "links", i)
         if not isinstance(row, Mapping):
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 f"kinematics.links.{i} must be an object {{a, alpha, d, theta_offset}}",
                 loc=here,
             )
         bad = sorted(set(row) - set(_LINK_FIELDS))
         if bad:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 f"kinematics.links.{i} has unknown field {bad[0]!r}; expected {list(_LINK_FIELDS)}",
                 loc=(*here, bad[0]),
             )
         for required in ("a", "alpha", "d"):
             if required not in row:
-                raise SolveError(
+                raise InvalidInput(
                     "invalid-options",
                     f"kinematics.links.{i}.{required} is missing",
                     loc=(*here, required),
@@ -210,7 +210,7 @@ def _check_joints(
     """(N, n) joint angles in degrees, finite, n matching the model."""
     q = check_finite(joints_deg, loc=loc)
     if q.ndim != 2 or q.shape[1] != kinematics.n_joints:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-pose",
             f"joint angles must have shape (N, {kinematics.n_joints}) for this "
             f"{kinematics.n_joints}-axis model, got {q.shape}",

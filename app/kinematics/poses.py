@@ -29,8 +29,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from app.errors import InvalidInput
 from app.kinematics.dh import Kinematics, flange_poses
-from app.solvers.errors import SolveError
 from app.solvers.validation import (
     check_finite,
     check_positions_mm,
@@ -91,7 +91,7 @@ _LABELS: dict[str, tuple[str, ...]] = {
 
 def _check_format(fmt: str) -> str:
     if fmt not in POSE_FORMATS:
-        raise SolveError(
+        raise InvalidInput(
             "unknown-format",
             f"unknown pose format {fmt!r}; known formats: {', '.join(POSE_FORMATS)}",
             loc=("format",),
@@ -110,7 +110,7 @@ def resolve_units(fmt: str, override: Mapping[str, str] | None) -> Units:
     if override is None:
         return units
     if not isinstance(override, Mapping):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             "units must be an object such as {'length': 'mm', 'angle': 'deg'}",
             loc=("units",),
@@ -118,13 +118,13 @@ def resolve_units(fmt: str, override: Mapping[str, str] | None) -> Units:
     allowed: dict[str, tuple[str, ...]] = {"length": ("mm", "m"), "angle": ("deg", "rad")}
     for key, value in override.items():
         if key not in allowed:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 f"unknown units field {key!r}; expected 'length' and/or 'angle'",
                 loc=("units", key),
             )
         if value not in allowed[key]:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 f"units.{key} must be one of {list(allowed[key])}, got {value!r}",
                 loc=("units", key),
@@ -235,9 +235,9 @@ def _expected(fmt: str, labels: Sequence[str], units: Units) -> str:
 
 
 def _rows(fmt: str, poses: Any, labels: Sequence[str], units: Units, loc: Loc) -> FloatArray:
-    """The poses as an (N, arity) float array, or SolveError("invalid-pose") naming the pose."""
+    """The poses as an (N, arity) float array, or InvalidInput("invalid-pose") naming the pose."""
     if not isinstance(poses, Sequence) or isinstance(poses, str | bytes):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-pose", f"poses must be a list of poses in format {fmt!r}", loc=loc
         )
     arity = len(labels)
@@ -251,7 +251,7 @@ def _rows(fmt: str, poses: Any, labels: Sequence[str], units: Units, loc: Loc) -
             and all(isinstance(r, Sequence) and not isinstance(r, str) for r in pose)
         ):
             if any(len(r) != 4 for r in pose):
-                raise SolveError(
+                raise InvalidInput(
                     "invalid-pose",
                     f"pose {i}: expected {_expected(fmt, labels, units)}, got rows of "
                     f"lengths {[len(r) for r in pose]}",
@@ -259,23 +259,23 @@ def _rows(fmt: str, poses: Any, labels: Sequence[str], units: Units, loc: Loc) -
                 )
             flat = [v for r in pose for v in r]
         if not isinstance(flat, Sequence) or isinstance(flat, str | bytes):
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-pose",
                 f"pose {i}: expected {_expected(fmt, labels, units)} for format {fmt!r}, "
                 f"got {type(pose).__name__}",
                 loc=(*loc, i),
             )
         if len(flat) != arity:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-pose",
                 f"pose {i}: expected {_expected(fmt, labels, units)} for format {fmt!r}, "
                 f"got {len(flat)} values",
                 loc=(*loc, i),
-                extra={"expected_arity": arity, "got_arity": len(flat)},
+                context={"expected_arity": arity, "got_arity": len(flat)},
             )
         for j, value in enumerate(flat):
             if not _is_number(value):
-                raise SolveError(
+                raise InvalidInput(
                     "invalid-pose",
                     f"pose {i}: {labels[j]} must be a number, got {value!r}",
                     loc=(*loc, i, j),
@@ -302,9 +302,9 @@ def _check_values(fmt: str, values: FloatArray, labels: Sequence[str], loc: Loc)
         for field, where in _fields(fmt, values.shape[1]):
             try:
                 check_finite(values[i, where], loc=(*loc, i, field))
-            except SolveError as err:
+            except InvalidInput as err:
                 j = where.start + int(err.loc[-1])
-                raise SolveError(
+                raise InvalidInput(
                     "non-finite",
                     f"pose {i}: {labels[j]} = {values[i, j]} is not a finite number",
                     loc=err.loc,
@@ -315,7 +315,7 @@ def _check_angles_deg(angles_deg: FloatArray, labels: Sequence[str], field: str,
     too_big = np.abs(angles_deg) > MAX_ABS_ANGLE_DEG
     if too_big.any():
         i, j = (int(k) for k in np.argwhere(too_big)[0])
-        raise SolveError(
+        raise InvalidInput(
             "out-of-range",
             f"pose {i}: {labels[j]} = {angles_deg[i, j]:.6g} deg is beyond "
             f"+-{MAX_ABS_ANGLE_DEG:g} deg (wrong units, or a sentinel value)",
@@ -334,7 +334,7 @@ def poses_from_format(
     """Read N poses in format `fmt` -> (base_from_flange (N, 3, 3), flange positions (N, 3) mm).
 
     `units` (the API `units` object) overrides the format's default length and angle units.
-    `kinematics` is needed for ``joints``. Bad input raises SolveError whose loc names the
+    `kinematics` is needed for ``joints``. Bad input raises InvalidInput whose loc names the
     pose index and field, e.g. ("poses", 3, "quaternion").
     """
     _check_format(fmt)
@@ -342,7 +342,7 @@ def poses_from_format(
     loc = tuple(loc)
     if fmt == "joints":
         if kinematics is None:
-            raise SolveError(
+            raise InvalidInput(
                 "missing-kinematics",
                 "the robot has no kinematics; set robot.kinematics (a preset such as ur5e, "
                 "or DH links) to submit joint angles",
@@ -369,7 +369,7 @@ def poses_from_format(
         bad = np.flatnonzero(bottom_err > BOTTOM_ROW_ATOL)
         if bad.size:
             i = int(bad[0])
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-pose",
                 f"pose {i}: the last row of a 4x4 pose matrix must be [0, 0, 0, 1], got "
                 f"{m[i, 3].tolist()}",
@@ -432,7 +432,7 @@ def pose_to_format(
     _check_format(fmt)
     u = _as_units(fmt, units)
     if fmt == "joints":
-        raise SolveError(
+        raise InvalidInput(
             "unsupported",
             "a pose cannot be written as joint angles: that needs inverse kinematics",
             loc=("format",),

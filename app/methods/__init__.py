@@ -1,34 +1,31 @@
-"""The method registry: each calibration method is one run() over one solver and one schema."""
+"""The method registry: one entry per calibration method, and everything derived from it.
+
+Adding a method is one module (its request model, its `run`, its `Method` entry) plus one
+line in METHODS. The request unions of the HTTP API, the method names and GET /v1/methods
+are all read off this tuple.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
-from app.errors import InvalidInput
 from app.methods import laser, manual, npoint, orientation, reference
-from app.methods.base import MethodContext, SolvedTcp
+from app.methods.base import Method, MethodRequest
 
-Runner = Callable[[Any, MethodContext], SolvedTcp]
+#: Every calibration method this server runs, in the order /v1/methods lists them.
+METHODS: tuple[Method[Any], ...] = (
+    npoint.XYZ_NPOINT,
+    reference.XYZ_REFERENCE,
+    orientation.TCP_Z_X,
+    orientation.ABC_2POINT,
+    orientation.ABC_WORLD,
+    laser.LASER_BEAM,
+    manual.MANUAL,
+)
+METHODS_BY_NAME: dict[str, Method[Any]] = {m.name: m for m in METHODS}
+METHOD_NAMES: tuple[str, ...] = tuple(METHODS_BY_NAME)
 
-RUNNERS: dict[str, Runner] = {
-    "manual": manual.run,
-    "xyz_npoint": npoint.run,
-    "xyz_reference": reference.run,
-    "tcp_z_x": orientation.run_tcp_z_x,
-    "abc_2point": orientation.run_abc_2point,
-    "abc_world": orientation.run_abc_world,
-    "laser_beam": laser.run,
-}
 
-
-def run_method(request: Any, ctx: MethodContext) -> SolvedTcp:
-    """Solve a submission with the method it names."""
-    runner = RUNNERS.get(request.method)
-    if runner is None:
-        raise InvalidInput(
-            "unsupported",
-            f"method {request.method!r} is not available on this server yet",
-            loc=("body", "method"),
-        )
-    return runner(request, ctx)
+def method_of(request: MethodRequest) -> Method[Any]:
+    """The registry entry of a validated request."""
+    return METHODS_BY_NAME[request.method]

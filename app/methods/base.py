@@ -1,68 +1,139 @@
-"""What every calibration method shares: its context (lookups it may need) and its outcome.
+"""What every calibration method shares: its registry entry, request base, context and outcome.
 
-A method is one function `run(request, ctx) -> SolvedTcp` over one solver module and one
-request schema. It reads what it needs from the context (the tool's active TCP, a stored
-reference point, the robot's kinematics), so the same function serves stored calibrations
-(a database-backed context) and POST /v1/solve (a stateless one).
+A method is one module: a request model (a `MethodRequest` with `method: Literal[name]`), a
+pure-ish `run(request, ctx) -> Solved` over one solver, and a `Method` entry naming both.
+`run` reads what it needs from the context (the tool's active TCP, a stored reference
+point, the robot's kinematics), so the same function serves stored calibrations (a
+database-backed context) and POST /v1/solve (a stateless one). Every `loc` a method raises
+is relative to the request body; the service roots it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import typing
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Annotated, Generic, Literal, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import BaseModel, GetCoreSchemaHandler, GetJsonSchemaHandler
+from pydantic.json_schema import JsonSchemaValue
+from pydantic_core import PydanticCustomError, core_schema
 
-from app.schemas.common import Units
+from app.schemas.common import (
+    MAX_POSES,
+    LongText,
+    Pose,
+    PoseFormat,
+    StrictModel,
+    Units,
+)
+from app.schemas.results import QualityOut, ResultExtras
+from app.schemas.tools import Tolerance
 from app.solvers.orientation import angle_between_deg
 
+Activate = Literal["auto", "always", "never"]
+FloatArray = NDArray[np.float64]
 
+
+# ---- the request ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PoseCount:
+    """How many poses a method takes; checked by the schema, shown in /v1/methods.
+
+    Too few is answered as `too-few-poses`, too many (for a method that takes an exact
+    number) as `invalid-pose`, each with the method's own sentence saying what to send.
+    """
+
+    min: int
+    max: int = MAX_POSES
+    hint: str = ""
+
+    def _check(self, poses: list[Pose]) -> list[Pose]:
+        n = len(poses)
+        wanted = f"exactly {self.min}" if self.min == self.max else f"at least {self.min}"
+        if n < self.min:
+            raise PydanticCustomError(
+                "too-few-poses",
+                "{wanted} poses needed, got {n}{hint}",
+                {"wanted": wanted, "n": n, "hint": f": {self.hint}" if self.hint else ""},
+            )
+        if n > self.max:
+            kind = "invalid-pose" if self.min == self.max else "validation"
+            raise PydanticCustomError(
+                kind,
+                "{wanted} poses allowed, got {n}{hint}",
+                {
+                    "wanted": wanted if self.min == self.max else f"at most {self.max}",
+                    "n": n,
+                    "hint": f": {self.hint}" if self.hint else "",
+                },
+            )
+        return poses
+
+    def __get_pydantic_core_schema__(
+        self, source: type[object], handler: GetCoreSchemaHandler
+    ) -> core_schema.CoreSchema:
+        return core_schema.no_info_after_validator_function(self._check, handler(source))
+
+    def __get_pydantic_json_schema__(
+        self, schema: core_schema.CoreSchema, handler: GetJsonSchemaHandler
+    ) -> JsonSchemaValue:
+        out = handler(schema)
+        if out.get("type") == "array":
+            out["minItems"], out["maxItems"] = self.min, self.max
+        return out
+
+
+class MethodRequest(StrictModel):
+    """The fields every calibration submission shares; each method adds its own."""
+
+    method: str
+    format: PoseFormat | None = None
+    poses: list[Pose] | None = None
+    units: Units | None = None
+    activate: Activate = "auto"
+    note: LongText | None = None
+
+
+class PosesRequired(MethodRequest):
+    """A submission whose input is a pose list (every method but `manual`)."""
+
+    format: PoseFormat
+    poses: Annotated[list[Pose], PoseCount(1)]
+
+
+# ---- what a method may look up --------------------------------------------------------------
 @dataclass(frozen=True)
 class ActiveFrame:
     """A tool's trusted TCP: position (mm, flange), orientation [w, x, y, z], 3x3 covariance."""
 
-    position_mm: NDArray[np.float64]
-    quaternion: NDArray[np.float64]
-    covariance_mm2: NDArray[np.float64] | None
+    position_mm: FloatArray
+    quaternion: FloatArray
+    covariance_mm2: FloatArray | None
     version: int | None = None
 
 
 @dataclass(frozen=True)
 class StoredPoint:
-    """A reference point in the robot base frame (mm) and its covariance when known."""
+    """A point in the robot base frame (mm) and its 3x3 covariance (mm^2) when known."""
 
-    position_mm: NDArray[np.float64]
-    covariance_mm2: NDArray[np.float64] | None
-
-
-@dataclass
-class SolvedTcp:
-    """What a method computed, before grading, versioning and storage."""
-
-    position_mm: NDArray[np.float64]
-    quaternion: NDArray[np.float64] | None  # None: position-only method, keep orientation
-    algorithm: str | None
-    quality: dict[str, Any]
-    warnings: list[str] = field(default_factory=list)
-    reference_point_mm: list[float] | None = None
-    reference_covariance_mm2: list[list[float]] | None = None
-    graded: bool = True  # False for numbers entered by hand: no residuals to grade
-    extra: dict[str, Any] = field(default_factory=dict)
+    position_mm: FloatArray
+    covariance_mm2: FloatArray | None
 
 
 class MethodContext(Protocol):
     """Lookups a method may need; the stateless context refuses those that need storage."""
 
     @property
-    def tolerance(self) -> dict[str, Any]: ...
+    def tolerance(self) -> Tolerance: ...
 
     def active_frame(self) -> ActiveFrame | None: ...
 
     def parse_poses(
-        self, fmt: str, poses: Sequence[Any], units: Units | None, *, loc: Sequence[str | int]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
+        self, fmt: str, poses: Sequence[Pose], units: Units | None, *, loc: Sequence[str | int]
+    ) -> tuple[FloatArray, FloatArray]: ...
 
     def reference_point(self, reference_point_id: str) -> StoredPoint: ...
 
@@ -71,23 +142,71 @@ class MethodContext(Protocol):
     def laser_device(self, device_id: str) -> tuple[float, float, float]: ...
 
 
+# ---- what a method computes -----------------------------------------------------------------
+@dataclass
+class Solved:
+    """A method's outcome, before grading, versioning and storage."""
+
+    position_mm: FloatArray
+    quaternion: FloatArray | None  # None: a position-only method, the orientation is kept
+    quality: QualityOut
+    algorithm: str | None = None
+    warnings: list[str] = field(default_factory=list)
+    reference_point: StoredPoint | None = None  # the touched point, for xyz_npoint & co.
+    graded: bool = True  # False for numbers entered by hand: no residuals to grade
+    extras: ResultExtras = field(default_factory=ResultExtras)
+
+
+# ---- the registry entry ---------------------------------------------------------------------
+R = TypeVar("R", bound=MethodRequest)
+
+
+@dataclass(frozen=True)
+class Method(Generic[R]):
+    """One calibration method: its request schema, its runner and what /v1/methods says."""
+
+    request: type[R]
+    run: Callable[[R, MethodContext], Solved]
+    description: str
+
+    @property
+    def name(self) -> str:
+        """The `method` value that selects this method (its request's Literal)."""
+        (name,) = typing.get_args(self.request.model_fields["method"].annotation)
+        return str(name)
+
+    @property
+    def pose_count(self) -> PoseCount:
+        """How many poses the request's schema accepts (min 0 where poses are optional)."""
+        field = self.request.model_fields["poses"]
+        metadata = list(field.metadata)
+        for member in typing.get_args(field.annotation):  # `Annotated[...] | None`
+            metadata += getattr(member, "__metadata__", ())
+        count = next((m for m in metadata if isinstance(m, PoseCount)), PoseCount(0))
+        return count if field.is_required() else PoseCount(0, count.max, count.hint)
+
+    @property
+    def options(self) -> type[BaseModel] | None:
+        """The model of `options`, when the method has options."""
+        annotation = self.request.model_fields["options"].annotation
+        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            return annotation
+        return None
+
+    def solve(self, request: MethodRequest, ctx: MethodContext) -> Solved:
+        """Run this method on a request validated by its schema."""
+        if not isinstance(request, self.request):
+            raise TypeError(f"{self.name} cannot run a {type(request).__name__}")
+        return self.run(request, ctx)
+
+
+# ---- small helpers the methods share ---------------------------------------------------------
 def orientation_change_deg(ctx: MethodContext, quaternion: Sequence[float]) -> float | None:
     """Angle (deg) from the tool's active orientation to a new one; None without one."""
     frame = ctx.active_frame()
     return None if frame is None else angle_between_deg(frame.quaternion, quaternion)
 
 
-def empty_quality(n_poses: int) -> dict[str, Any]:
-    """Quality of a result that has no redundancy to measure (numbers entered by hand)."""
-    return {
-        "n_poses": n_poses,
-        "rms_mm": None,
-        "max_mm": None,
-        "residuals_mm": [],
-        "tcp_sigma_mm": None,
-        "tcp_covariance_mm2": None,
-        "sigma_source": None,
-        "orientation_spread_deg": None,
-        "condition_number": None,
-        "outliers": [],
-    }
+def touch_noise(option: float | None, ctx: MethodContext) -> float | None:
+    """The touch noise (mm): the request's option, else the tool's configured one."""
+    return option or ctx.tolerance.touch_noise_mm

@@ -2,14 +2,60 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field, model_validator
 
-from app.methods.base import MethodContext, SolvedTcp, orientation_change_deg
-from app.schemas.calibrations import LaserBeamCalibration, LaserGeometry, SweepIn
-from app.solvers.errors import SolveError
-from app.solvers.laser import LaserDevice, Sweep, solve_laser
+from app.methods.base import (
+    Method,
+    MethodContext,
+    PoseCount,
+    PosesRequired,
+    Solved,
+    orientation_change_deg,
+)
+from app.schemas.common import FiniteFloat, Pose, PositiveFloat, ResourceId, StrictModel, Vec3
+from app.schemas.results import LaserDetails, LaserSigma, QualityOut, ResultExtras
+from app.solvers.laser import LaserDevice, LaserResult, Sweep, solve_laser
+
+
+class LaserGeometry(StrictModel):
+    device_id: ResourceId | None = None
+    beam_a_y_mm: FiniteFloat | None = None
+    beam_b_x_mm: FiniteFloat | None = None
+    plane_z_mm: FiniteFloat | None = None
+
+    @model_validator(mode="after")
+    def _device_or_numbers(self) -> LaserGeometry:
+        numbers = [self.beam_a_y_mm, self.beam_b_x_mm, self.plane_z_mm]
+        if self.device_id is not None and any(n is not None for n in numbers):
+            raise ValueError("give device_id or the three beam numbers, not both")
+        if self.device_id is None and any(n is None for n in numbers):
+            raise ValueError("give device_id, or all of beam_a_y_mm, beam_b_x_mm, plane_z_mm")
+        return self
+
+
+class SweepIn(StrictModel):
+    beam: Literal["a", "b"]
+    break_mm: Vec3
+    restore_mm: Vec3
+
+
+class LaserOptions(StrictModel):
+    trigger_noise_mm: PositiveFloat | None = None
+
+
+class LaserBeamCalibration(PosesRequired):
+    method: Literal["laser_beam"]
+    poses: Annotated[
+        list[Pose],
+        PoseCount(1, 1, hint="the flange pose held during the sweeps (its rotation is used)"),
+    ]
+    laser: LaserGeometry
+    sweeps: Annotated[list[SweepIn], Field(min_length=4, max_length=200)]
+    descent_mm: Vec3
+    options: LaserOptions = Field(default_factory=LaserOptions)
 
 
 def device_from(geometry: LaserGeometry, ctx: MethodContext) -> LaserDevice:
@@ -17,10 +63,10 @@ def device_from(geometry: LaserGeometry, ctx: MethodContext) -> LaserDevice:
     if geometry.device_id is not None:
         a_y, b_x, z = ctx.laser_device(geometry.device_id)
         return LaserDevice(beam_a_y_mm=a_y, beam_b_x_mm=b_x, plane_z_mm=z)
-    if geometry.beam_a_y_mm is None or geometry.beam_b_x_mm is None or geometry.plane_z_mm is None:
-        raise SolveError(
-            "invalid-options", "laser needs device_id or the three beam numbers", loc=("laser",)
-        )
+    # the schema guarantees all three numbers when there is no device_id
+    assert geometry.beam_a_y_mm is not None
+    assert geometry.beam_b_x_mm is not None
+    assert geometry.plane_z_mm is not None
     return LaserDevice(
         beam_a_y_mm=geometry.beam_a_y_mm,
         beam_b_x_mm=geometry.beam_b_x_mm,
@@ -33,15 +79,26 @@ def sweeps_from(sweeps: list[SweepIn]) -> list[Sweep]:
     return [Sweep(beam=s.beam, break_mm=s.break_mm, restore_mm=s.restore_mm) for s in sweeps]
 
 
-def run(request: LaserBeamCalibration, ctx: MethodContext) -> SolvedTcp:
+def _quality(result: LaserResult, n_sweeps: int) -> QualityOut:
+    sigma = result.sigma
+    with_sigma = sigma.source != "none"
+    residuals = list(result.residuals_mm)
+    return QualityOut(
+        n_poses=n_sweeps,
+        rms_mm=float(np.sqrt(np.mean(np.square(residuals)))) if residuals else 0.0,
+        max_mm=max(residuals, default=0.0),
+        residuals_mm=residuals,
+        tcp_sigma_mm=list(sigma.tcp_mm) if with_sigma else None,
+        sigma_source=sigma.source if with_sigma else None,
+        orientation_spread_deg=None,
+        condition_number=None,
+        outliers=[],
+        orientation_sigma_deg=list(sigma.rotation_deg) if with_sigma else None,
+    )
+
+
+def run(request: LaserBeamCalibration, ctx: MethodContext) -> Solved:
     """Solve the laser procedure held at one flange orientation (poses[0])."""
-    if len(request.poses) != 1:
-        raise SolveError(
-            "invalid-pose",
-            f"laser_beam takes one pose, the flange pose held during the sweeps (its rotation "
-            f"is used); got {len(request.poses)}",
-            loc=("poses",),
-        )
     rotations, _ = ctx.parse_poses(request.format, request.poses, request.units, loc=("poses",))
     result = solve_laser(
         flange_rotation=rotations[0],
@@ -51,46 +108,35 @@ def run(request: LaserBeamCalibration, ctx: MethodContext) -> SolvedTcp:
         trigger_noise_mm=request.options.trigger_noise_mm,
     )
     sigma = result.sigma
-    with_sigma = sigma.source != "none"
-    quality: dict[str, Any] = {
-        "n_poses": len(request.sweeps),
-        "rms_mm": _rms(result.residuals_mm),
-        "max_mm": max(result.residuals_mm, default=0.0),
-        "residuals_mm": list(result.residuals_mm),
-        "tcp_sigma_mm": list(sigma.tcp_mm) if with_sigma else None,
-        "tcp_covariance_mm2": None,
-        "sigma_source": sigma.source if with_sigma else None,
-        "orientation_spread_deg": None,
-        "condition_number": None,
-        "outliers": [],
-        "orientation_sigma_deg": list(sigma.rotation_deg) if with_sigma else None,
-    }
-    return SolvedTcp(
+    return Solved(
         position_mm=result.tcp_mm,
         quaternion=np.asarray(result.quaternion_wxyz),
-        algorithm=None,
-        quality=quality,
+        quality=_quality(result, len(request.sweeps)),
         warnings=list(result.warnings),
-        extra={
-            "runout_deg": list(result.runout_deg),
-            "offset_mm": list(result.offset_mm),
-            "tool_length_mm": result.tool_length_mm,
-            "widths_mm": list(result.widths_mm),
-            "orientation_change_deg": orientation_change_deg(ctx, result.quaternion_wxyz),
-            "details": {
-                "axis_point_flange_mm": [float(v) for v in result.axis_point_flange_mm],
-                "axis_direction_flange": [float(v) for v in result.axis_direction_flange],
-                "heights_mm": list(result.heights_mm),
-                "sigma": {
-                    "runout_deg": list(sigma.runout_deg),
-                    "offset_mm": list(sigma.offset_mm),
-                    "tool_length_mm": sigma.tool_length_mm,
-                    "source": sigma.source,
-                },
-            },
-        },
+        extras=ResultExtras(
+            runout_deg=list(result.runout_deg),
+            offset_mm=list(result.offset_mm),
+            tool_length_mm=result.tool_length_mm,
+            widths_mm=list(result.widths_mm),
+            orientation_change_deg=orientation_change_deg(ctx, result.quaternion_wxyz),
+            details=LaserDetails(
+                axis_point_flange_mm=[float(v) for v in result.axis_point_flange_mm],
+                axis_direction_flange=[float(v) for v in result.axis_direction_flange],
+                heights_mm=list(result.heights_mm),
+                sigma=LaserSigma(
+                    runout_deg=list(sigma.runout_deg),
+                    offset_mm=list(sigma.offset_mm),
+                    tool_length_mm=sigma.tool_length_mm,
+                    source=sigma.source,
+                ),
+            ),
+        ),
     )
 
 
-def _rms(values: tuple[float, ...]) -> float:
-    return float(sum(v * v for v in values) / len(values)) ** 0.5 if values else 0.0
+LASER_BEAM = Method(
+    request=LaserBeamCalibration,
+    run=run,
+    description="beam break/restore sweeps at two or more heights and a final descent -> "
+    "tool axis, runout, offset, length",
+)

@@ -2,45 +2,70 @@
 
 from __future__ import annotations
 
-import dataclasses
-from typing import Any
+from collections.abc import Sequence
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field
 
-from app.methods.base import MethodContext, SolvedTcp
-from app.schemas.calibrations import NPointOptions, XyzNpointCalibration
-from app.schemas.common import Units
-from app.solvers.errors import SolveError
-from app.solvers.npoint import NPointResult, solve_npoint
-from app.solvers.quality import Quality, format_vector
+from app.errors import InvalidInput
+from app.methods.base import (
+    Method,
+    MethodContext,
+    PoseCount,
+    PosesRequired,
+    Solved,
+    StoredPoint,
+    touch_noise,
+)
+from app.schemas.common import Name, NonNegativeFloat, Pose, PositiveFloat, StrictModel, Units
+from app.schemas.results import QualityOut
+from app.solvers.npoint import MIN_POSES, NPointResult, solve_npoint
+from app.solvers.quality import format_vector
+
+Algorithm = Literal["robust", "stacked", "pairwise", "sphere", "gls"]
+#: N touches of one fixed point, each from another orientation.
+Touches = Annotated[
+    list[Pose],
+    PoseCount(MIN_POSES, hint="touch one fixed point from 4 or more different orientations"),
+]
 
 
-def quality_document(quality: Quality) -> dict[str, Any]:
-    """A solver's Quality as the API's quality object (warnings travel separately)."""
-    doc = dataclasses.asdict(quality)
-    doc.pop("warnings")
-    return doc
+class NPointOptions(StrictModel):
+    algorithm: Algorithm = "robust"
+    touch_noise_mm: PositiveFloat | None = None
+    orientation_noise_deg: NonNegativeFloat | None = None
+    save_reference_point: Name | None = None
+
+
+class XyzNpointCalibration(PosesRequired):
+    method: Literal["xyz_npoint"]
+    poses: Touches
+    options: NPointOptions = Field(default_factory=NPointOptions)
 
 
 def solve_touches(
-    ctx: MethodContext, fmt: str, poses: list[Any], units: Units | None, options: NPointOptions
+    ctx: MethodContext,
+    fmt: str,
+    poses: Sequence[Pose],
+    units: Units | None,
+    options: NPointOptions,
 ) -> NPointResult:
     """Parse the touches and run the chosen estimator with the tool's noise and tolerance."""
     rotations, positions = ctx.parse_poses(fmt, poses, units, loc=("poses",))
-    tolerance = ctx.tolerance
-    limit = float(tolerance["max_rms_mm"])
-    touch_noise = options.touch_noise_mm or tolerance.get("touch_noise_mm")
+    limit = ctx.tolerance.max_rms_mm
+    noise = touch_noise(options.touch_noise_mm, ctx)
     # With a configured noise the solver refuses, before anything else, a pose set whose
     # geometry cannot reach the tolerance (its predicted TCP 1-sigma exceeds max_rms_mm).
     result = solve_npoint(
         rotations,
         positions,
         algorithm=options.algorithm,
-        touch_noise_mm=touch_noise,
+        touch_noise_mm=noise,
         orientation_noise_deg=options.orientation_noise_deg,
-        max_tcp_sigma_mm=limit if touch_noise is not None else None,
+        max_tcp_sigma_mm=limit if noise is not None else None,
     )
-    if touch_noise is None:
+    if noise is None:
         _refuse_weak_geometry(result, limit)
     return result
 
@@ -57,14 +82,14 @@ def _refuse_weak_geometry(result: NPointResult, limit: float) -> None:
     if worst <= limit:
         return
     direction = evecs[:, -1] * (1.0 if evecs[np.argmax(np.abs(evecs[:, -1])), -1] > 0 else -1.0)
-    raise SolveError(
+    raise InvalidInput(
         "insufficient-spread",
         f"the touches agree to {quality.rms_mm:.3g} mm rms, but their orientations are so "
         f"alike that the TCP is only determined to {worst:.3g} mm (1 sigma) along the flange "
         f"direction {format_vector(direction)}, more than the tool's max_rms_mm {limit:g} mm: "
         "touch from orientations further apart (tilt the tool more, about different axes)",
         loc=("poses",),
-        extra={
+        context={
             "predicted_sigma_mm": worst,
             "max_tcp_sigma_mm": limit,
             "direction_flange": [float(x) for x in direction],
@@ -72,15 +97,31 @@ def _refuse_weak_geometry(result: NPointResult, limit: float) -> None:
     )
 
 
-def run(request: XyzNpointCalibration, ctx: MethodContext) -> SolvedTcp:
-    """TCP position from N touches; the touched point becomes `reference_point_mm`."""
-    result = solve_touches(ctx, request.format, request.poses, request.units, request.options)
-    return SolvedTcp(
+def solved_from_touches(result: NPointResult) -> Solved:
+    """The TCP position of an N-point fit; the touched point becomes the reference point."""
+    return Solved(
         position_mm=result.tcp_mm,
         quaternion=None,
+        quality=QualityOut.from_solver(result.quality),
         algorithm=result.algorithm,
-        quality=quality_document(result.quality),
         warnings=list(result.quality.warnings),
-        reference_point_mm=[float(v) for v in result.pivot_mm],
-        reference_covariance_mm2=[[float(v) for v in row] for row in result.pivot_covariance_mm2],
+        reference_point=StoredPoint(
+            np.asarray(result.pivot_mm, dtype=float),
+            np.asarray(result.pivot_covariance_mm2, dtype=float),
+        ),
     )
+
+
+def run(request: XyzNpointCalibration, ctx: MethodContext) -> Solved:
+    """TCP position from N touches; the touched point becomes `reference_point_mm`."""
+    return solved_from_touches(
+        solve_touches(ctx, request.format, request.poses, request.units, request.options)
+    )
+
+
+XYZ_NPOINT = Method(
+    request=XyzNpointCalibration,
+    run=run,
+    description="N >= 4 touches of one fixed point from different orientations -> TCP "
+    "position and the touched point (the XYZ 4-point method, generalised)",
+)

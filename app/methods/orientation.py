@@ -6,17 +6,25 @@ active TCP (abc_*). When the tool had an active orientation, the angle to it is 
 
 from __future__ import annotations
 
-import numpy as np
-from numpy.typing import NDArray
+from typing import Annotated, Literal
 
-from app.methods.base import MethodContext, SolvedTcp, empty_quality, orientation_change_deg
-from app.methods.npoint import quality_document, solve_touches
-from app.schemas.calibrations import (
-    Abc2PointCalibration,
-    AbcWorldCalibration,
-    TcpZxCalibration,
+import numpy as np
+from pydantic import ConfigDict, Field
+
+from app.errors import InvalidInput
+from app.methods.base import (
+    FloatArray,
+    Method,
+    MethodContext,
+    PoseCount,
+    PosesRequired,
+    Solved,
+    orientation_change_deg,
+    touch_noise,
 )
-from app.solvers.errors import SolveError
+from app.methods.npoint import NPointOptions, Touches, solve_touches, solved_from_touches
+from app.schemas.common import Pose, PositiveFloat, StrictModel, Vec3
+from app.schemas.results import QualityOut
 from app.solvers.orientation import (
     Direction,
     OrientationResult,
@@ -25,13 +33,68 @@ from app.solvers.orientation import (
     orientation_from_world,
 )
 
+WorkingAxis = Literal["x", "z"]
+Axis = Literal["+z", "-z", "+x", "-x"]
+AxisName = Literal["x", "y", "z"]
+SignedAxis = Literal["+x", "-x", "+y", "-y", "+z", "-z"]
 
-def _known_tcp(tcp_mm: list[float] | None, ctx: MethodContext) -> NDArray[np.float64]:
+
+# ---- requests -------------------------------------------------------------------------------
+class DirectionIn(StrictModel):
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+    axis: Axis
+    from_: Pose = Field(alias="from")
+    to: Pose
+
+
+class TcpZxCalibration(PosesRequired):
+    method: Literal["tcp_z_x"]
+    poses: Touches
+    directions: Annotated[list[DirectionIn], Field(min_length=1, max_length=4)]
+    options: NPointOptions = Field(default_factory=NPointOptions)
+
+
+class Abc2PointOptions(StrictModel):
+    working_axis: WorkingAxis = "x"
+    tcp_mm: Vec3 | None = None
+    touch_noise_mm: PositiveFloat | None = None
+
+
+class Abc2PointCalibration(PosesRequired):
+    method: Literal["abc_2point"]
+    poses: Annotated[
+        list[Pose],
+        PoseCount(3, 3, hint="the TCP touch, a point on the working axis behind it, a point on +Y"),
+    ]
+    options: Abc2PointOptions = Field(default_factory=Abc2PointOptions)
+
+
+class AbcWorldOptions(StrictModel):
+    align: dict[AxisName, SignedAxis] = Field(
+        description='tool axis -> base axis, e.g. {"x": "-z"} (5D) or {"x": "-z", "y": "+y"}',
+        min_length=1,
+        max_length=2,
+    )
+    working_axis: WorkingAxis = "x"
+    tcp_mm: Vec3 | None = None
+
+
+class AbcWorldCalibration(PosesRequired):
+    method: Literal["abc_world"]
+    poses: Annotated[
+        list[Pose], PoseCount(1, 1, hint="one pose with the tool aligned to base axes")
+    ]
+    options: AbcWorldOptions
+
+
+# ---- runners --------------------------------------------------------------------------------
+def _known_tcp(tcp_mm: list[float] | None, ctx: MethodContext) -> FloatArray:
     if tcp_mm is not None:
         return np.asarray(tcp_mm, dtype=float)
     frame = ctx.active_frame()
     if frame is None:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             "this method needs the TCP position: give options.tcp_mm, or calibrate the "
             "position first (xyz_npoint) so the tool has an active TCP",
@@ -40,21 +103,24 @@ def _known_tcp(tcp_mm: list[float] | None, ctx: MethodContext) -> NDArray[np.flo
     return frame.position_mm
 
 
-def _with_orientation(
-    solved: SolvedTcp,
-    result: OrientationResult,
-    ctx: MethodContext,
-) -> SolvedTcp:
+def _with_orientation(solved: Solved, result: OrientationResult, ctx: MethodContext) -> Solved:
     solved.quaternion = np.asarray(result.quaternion_wxyz)
-    solved.quality["orientation_sigma_deg"] = (
+    solved.quality.orientation_sigma_deg = (
         list(result.sigma_deg) if result.sigma_source != "none" else None
     )
     solved.warnings += list(result.warnings)
-    solved.extra["orientation_change_deg"] = orientation_change_deg(ctx, result.quaternion_wxyz)
+    solved.extras.orientation_change_deg = orientation_change_deg(ctx, result.quaternion_wxyz)
     return solved
 
 
-def run_tcp_z_x(request: TcpZxCalibration, ctx: MethodContext) -> SolvedTcp:
+def _given_position(tcp: FloatArray, n_poses: int) -> Solved:
+    """An orientation-only result: the position is the given one, nothing to grade."""
+    return Solved(
+        position_mm=tcp, quaternion=None, quality=QualityOut.ungraded(n_poses), graded=False
+    )
+
+
+def run_tcp_z_x(request: TcpZxCalibration, ctx: MethodContext) -> Solved:
     """Position from the N-point touches, frame from pure translations along tool Z (and X)."""
     touches = solve_touches(ctx, request.format, request.poses, request.units, request.options)
     directions = []
@@ -71,55 +137,29 @@ def run_tcp_z_x(request: TcpZxCalibration, ctx: MethodContext) -> SolvedTcp:
                 position_to_mm=positions[1],
             )
         )
-    noise = request.options.touch_noise_mm or ctx.tolerance.get("touch_noise_mm")
+    noise = touch_noise(request.options.touch_noise_mm, ctx)
     result = orientation_from_translations(directions, position_noise_mm=noise)
-    solved = SolvedTcp(
-        position_mm=touches.tcp_mm,
-        quaternion=None,
-        algorithm=touches.algorithm,
-        quality=quality_document(touches.quality),
-        warnings=list(touches.quality.warnings),
-        reference_point_mm=[float(v) for v in touches.pivot_mm],
-        reference_covariance_mm2=[[float(v) for v in r] for r in touches.pivot_covariance_mm2],
-    )
-    return _with_orientation(solved, result, ctx)
+    return _with_orientation(solved_from_touches(touches), result, ctx)
 
 
-def run_abc_2point(request: Abc2PointCalibration, ctx: MethodContext) -> SolvedTcp:
+def run_abc_2point(request: Abc2PointCalibration, ctx: MethodContext) -> Solved:
     """Orientation from three touches of one point (KUKA ABC 2-point); position unchanged."""
-    if len(request.poses) != 3:
-        raise SolveError(
-            "invalid-pose",
-            f"abc_2point takes exactly 3 touches (TCP, a point on the working axis behind it, "
-            f"a point on +Y), got {len(request.poses)}",
-            loc=("poses",),
-        )
     tcp = _known_tcp(request.options.tcp_mm, ctx)
     rotations, positions = ctx.parse_poses(
         request.format, request.poses, request.units, loc=("poses",)
     )
-    noise = request.options.touch_noise_mm or ctx.tolerance.get("touch_noise_mm")
     result = orientation_from_touches(
         tcp_mm=tcp,
         rotations=rotations,
         positions_mm=positions,
         working_axis=request.options.working_axis,
-        touch_noise_mm=noise,
+        touch_noise_mm=touch_noise(request.options.touch_noise_mm, ctx),
     )
-    solved = SolvedTcp(
-        position_mm=tcp, quaternion=None, algorithm=None, quality=empty_quality(3), graded=False
-    )
-    return _with_orientation(solved, result, ctx)
+    return _with_orientation(_given_position(tcp, 3), result, ctx)
 
 
-def run_abc_world(request: AbcWorldCalibration, ctx: MethodContext) -> SolvedTcp:
+def run_abc_world(request: AbcWorldCalibration, ctx: MethodContext) -> Solved:
     """Orientation from one pose aligned to base axes (KUKA ABC world 5D/6D)."""
-    if len(request.poses) != 1:
-        raise SolveError(
-            "invalid-pose",
-            f"abc_world takes exactly one aligned pose, got {len(request.poses)}",
-            loc=("poses",),
-        )
     tcp = _known_tcp(request.options.tcp_mm, ctx)
     rotations, _ = ctx.parse_poses(request.format, request.poses, request.units, loc=("poses",))
     result = orientation_from_world(
@@ -127,7 +167,23 @@ def run_abc_world(request: AbcWorldCalibration, ctx: MethodContext) -> SolvedTcp
         align={str(k): str(v) for k, v in request.options.align.items()},
         working_axis=request.options.working_axis,
     )
-    solved = SolvedTcp(
-        position_mm=tcp, quaternion=None, algorithm=None, quality=empty_quality(1), graded=False
-    )
-    return _with_orientation(solved, result, ctx)
+    return _with_orientation(_given_position(tcp, 1), result, ctx)
+
+
+TCP_Z_X = Method(
+    request=TcpZxCalibration,
+    run=run_tcp_z_x,
+    description="N-point touches plus pure translations along tool +-Z (and X) -> full "
+    "frame (ABB TCP&Z,X; Fanuc six-point)",
+)
+ABC_2POINT = Method(
+    request=Abc2PointCalibration,
+    run=run_abc_2point,
+    description="TCP touch, a point behind it on the working axis, a point on +Y -> "
+    "orientation (KUKA ABC 2-point)",
+)
+ABC_WORLD = Method(
+    request=AbcWorldCalibration,
+    run=run_abc_world,
+    description="one pose with the tool aligned to base axes -> orientation (KUKA ABC world 5D/6D)",
+)

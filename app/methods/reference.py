@@ -1,28 +1,72 @@
-"""`xyz_reference`: one touch of a known point by the new tool (the lecture's second method)."""
+"""`xyz_reference`: one touch of a known point by the new tool -> TCP position."""
 
 from __future__ import annotations
 
-import numpy as np
+from typing import Annotated, Literal
 
-from app.methods.base import MethodContext, SolvedTcp, StoredPoint
-from app.methods.npoint import quality_document
-from app.schemas.calibrations import XyzReferenceCalibration
-from app.solvers.errors import SolveError
+import numpy as np
+from pydantic import model_validator
+
+from app.methods.base import (
+    Method,
+    MethodContext,
+    PoseCount,
+    PosesRequired,
+    Solved,
+    StoredPoint,
+    touch_noise,
+)
+from app.schemas.common import Pose, PositiveFloat, ResourceId, StrictModel, Vec3
+from app.schemas.results import QualityOut
 from app.solvers.reference import reference_point_from_touch, solve_reference
 
 
+class ReferenceOptions(StrictModel):
+    reference_point_id: ResourceId | None = None
+    reference_tool_id: ResourceId | None = None
+    reference_pose: Pose | None = None
+    reference_point_mm: Vec3 | None = None
+    touch_noise_mm: PositiveFloat | None = None
+
+    @model_validator(mode="after")
+    def _one_source(self) -> ReferenceOptions:
+        sources = [
+            self.reference_point_id is not None,
+            self.reference_tool_id is not None or self.reference_pose is not None,
+            self.reference_point_mm is not None,
+        ]
+        if sum(sources) != 1:
+            raise ValueError(
+                "give exactly one of reference_point_id, reference_tool_id + reference_pose, "
+                "or reference_point_mm"
+            )
+        if (self.reference_tool_id is None) != (self.reference_pose is None):
+            raise ValueError("reference_tool_id and reference_pose go together")
+        return self
+
+
+class XyzReferenceCalibration(PosesRequired):
+    method: Literal["xyz_reference"]
+    poses: Annotated[
+        list[Pose],
+        PoseCount(
+            1, 1, hint="one touch by the new tool; for several touches of one point use xyz_npoint"
+        ),
+    ]
+    options: ReferenceOptions
+
+
 def _reference(
-    request: XyzReferenceCalibration, ctx: MethodContext, touch_noise: float | None
+    request: XyzReferenceCalibration, ctx: MethodContext, noise: float | None
 ) -> StoredPoint:
     options = request.options
     if options.reference_point_id is not None:
         return ctx.reference_point(options.reference_point_id)
     if options.reference_point_mm is not None:
         return StoredPoint(np.asarray(options.reference_point_mm, dtype=float), None)
-    if options.reference_tool_id is None or options.reference_pose is None:  # schema ensures
-        raise SolveError(
-            "invalid-options", "give a reference point or a reference tool touch", loc=("options",)
-        )
+    # the schema guarantees the third source: another tool's touch of the same point
+    assert options.reference_tool_id is not None
+    assert options.reference_pose is not None
     frame = ctx.tool_frame(options.reference_tool_id)
     rotations, positions = ctx.parse_poses(
         request.format, [options.reference_pose], request.units, loc=("options", "reference_pose")
@@ -32,22 +76,15 @@ def _reference(
         tcp_covariance_mm2=frame.covariance_mm2,
         rotation=rotations[0],
         position_mm=positions[0],
-        touch_noise_mm=touch_noise,
+        touch_noise_mm=noise,
     )
     return StoredPoint(point, covariance)
 
 
-def run(request: XyzReferenceCalibration, ctx: MethodContext) -> SolvedTcp:
+def run(request: XyzReferenceCalibration, ctx: MethodContext) -> Solved:
     """t2 = R^T (r - f) with the uncertainty of r and of the touch propagated."""
-    if len(request.poses) != 1:
-        raise SolveError(
-            "invalid-pose",
-            f"xyz_reference takes exactly one touch by the new tool, got {len(request.poses)}; "
-            "for several touches of one point use xyz_npoint",
-            loc=("poses",),
-        )
-    touch_noise = request.options.touch_noise_mm or ctx.tolerance.get("touch_noise_mm")
-    reference = _reference(request, ctx, touch_noise)
+    noise = touch_noise(request.options.touch_noise_mm, ctx)
+    reference = _reference(request, ctx, noise)
     rotations, positions = ctx.parse_poses(
         request.format, request.poses, request.units, loc=("poses",)
     )
@@ -56,13 +93,20 @@ def run(request: XyzReferenceCalibration, ctx: MethodContext) -> SolvedTcp:
         reference_covariance_mm2=reference.covariance_mm2,
         rotation=rotations[0],
         position_mm=positions[0],
-        touch_noise_mm=touch_noise,
+        touch_noise_mm=noise,
     )
-    return SolvedTcp(
+    return Solved(
         position_mm=result.tcp_mm,
         quaternion=None,
-        algorithm=None,
-        quality=quality_document(result.quality),
+        quality=QualityOut.from_solver(result.quality),
         warnings=list(result.quality.warnings),
-        reference_point_mm=[float(v) for v in reference.position_mm],
+        reference_point=StoredPoint(reference.position_mm, None),
     )
+
+
+XYZ_REFERENCE = Method(
+    request=XyzReferenceCalibration,
+    run=run,
+    description="one touch of a known point (a stored reference point, another tool's touch "
+    "of it, or its coordinates) -> TCP position",
+)

@@ -6,7 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field, model_validator
 
-from app.schemas.calibrations import SweepIn
+from app.methods.laser import SweepIn
 from app.schemas.common import (
     FiniteFloat,
     Name,

@@ -1,5 +1,7 @@
 """Submitting a calibration: solve, grade, version, activate, store, all in one transaction.
 
+The path is typed end to end: a request model (one per method, app.methods) -> the
+method's run -> `Solved` -> one `CalibrationResult`, which is what is stored and served.
 Nothing is written before the solver succeeds, so unsolvable input (a 422) leaves no row.
 The tool row is locked first (SELECT ... FOR UPDATE; BEGIN IMMEDIATE on SQLite), which
 serialises version numbering and makes idempotency-key replays see the first response.
@@ -8,109 +10,123 @@ serialises version numbering and makes idempotency-key replays see the first res
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import NotFound
-from app.methods import run_method
-from app.methods.base import SolvedTcp
-from app.models import Calibration, IdempotencyRecord, Tool
-from app.schemas.calibrations import Calibration as CalibrationOut
+from app.errors import InvalidInput, NotFound, located_in
+from app.methods import method_of
+from app.methods.base import MethodContext, MethodRequest, Solved, StoredPoint
+from app.methods.npoint import NPointOptions
+from app.models import Calibration as CalibrationRow
+from app.models import IdempotencyRecord, Tool
+from app.schemas.calibrations import StatelessFields
+from app.schemas.results import Calibration, CalibrationDetail, CalibrationResult, SolveResult
+from app.schemas.tools import Tcp
 from app.services import audit, idempotency
 from app.services.contexts import DbContext, StatelessContext
-from app.services.kinematics import validate_kinematics
 from app.services.pagination import paginate
 from app.services.references import create_reference_point, ensure_reference_name_free
-from app.services.registry import get_robot, get_tool
+from app.services.robots import get_robot, validate_kinematics
 from app.services.tolerance import grade
+from app.services.tools import get_tool
 from app.services.versions import IDENTITY_QUATERNION, activate, add_version
-from app.solvers.errors import SolveError
+
+RawBody = dict[str, object]  # a submission exactly as received, kept with its calibration
 
 
-# ---- results --------------------------------------------------------------------------------
-def result_document(
-    request: Any,
-    solved: SolvedTcp,
-    ctx: DbContext | StatelessContext,
-) -> dict[str, Any]:
-    """The CalibrationResult of a solve, graded against the tolerance in the context."""
+# ---- solve and grade ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Outcome:
+    """A graded result, and the point the touches met when the method finds one."""
+
+    result: CalibrationResult
+    touched_point: StoredPoint | None
+
+
+def solve(request: MethodRequest, ctx: MethodContext) -> Outcome:
+    """Run the request's method and grade its outcome against the context's tolerance."""
+    with located_in("body"):
+        solved = method_of(request).solve(request, ctx)
+        return Outcome(graded_result(request.method, solved, ctx), solved.reference_point)
+
+
+def graded_result(method: str, solved: Solved, ctx: MethodContext) -> CalibrationResult:
+    """The result of a method's outcome: graded, orientation completed, every number finite."""
     status, reasons = grade(solved.quality, ctx.tolerance, graded=solved.graded)
     quaternion = solved.quaternion
-    warnings = list(solved.warnings) + reasons
-    if quaternion is None:
+    if quaternion is None:  # a position-only method keeps the active orientation
         frame = ctx.active_frame()
-        if frame is not None:
-            quaternion = frame.quaternion
-            warnings.append(
-                f"orientation kept from active version {frame.version}: "
-                f"{request.method} calibrates the position only"
-            )
-        else:
-            quaternion = np.asarray(IDENTITY_QUATERNION)
-    doc: dict[str, Any] = {
-        "method": request.method,
-        "algorithm": solved.algorithm,
-        "status": status,
-        "tcp": {
-            "position_mm": [float(v) for v in solved.position_mm],
-            "quaternion": [float(v) for v in quaternion],
-        },
-        "reference_point_mm": solved.reference_point_mm,
-        "quality": solved.quality,
-        "warnings": warnings,
-        "details": {},
-    }
-    for key, value in solved.extra.items():
-        doc[key] = value
-    _refuse_non_finite(doc)
-    return doc
+        quaternion = frame.quaternion if frame is not None else np.asarray(IDENTITY_QUATERNION)
+    point = solved.reference_point
+    result = CalibrationResult(
+        **solved.extras.model_dump(),
+        method=method,
+        algorithm=solved.algorithm,
+        status=status,
+        tcp=Tcp(
+            position_mm=[float(v) for v in solved.position_mm],
+            quaternion=[float(v) for v in quaternion],
+        ),
+        reference_point_mm=[float(v) for v in point.position_mm] if point else None,
+        quality=solved.quality,
+        warnings=[*solved.warnings, *reasons],
+    )
+    _refuse_non_finite(result.model_dump())  # python mode: a NaN stays a NaN
+    return result
 
 
-def _refuse_non_finite(value: Any, path: tuple[str | int, ...] = ()) -> None:
+def _refuse_non_finite(value: object, path: tuple[str | int, ...] = ()) -> None:
     """The solvers promise finite results; should one not, the input did not determine the
     result: answer 422 before anything is stored, never store or send a NaN."""
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):
         for key, item in value.items():
-            _refuse_non_finite(item, (*path, key))
+            _refuse_non_finite(item, (*path, str(key)))
     elif isinstance(value, list | tuple):
         for i, item in enumerate(value):
             _refuse_non_finite(item, (*path, i))
     elif isinstance(value, float) and not math.isfinite(value):
         where = ".".join(str(p) for p in path)
-        raise SolveError(
+        raise InvalidInput(
             "non-finite",
             f"the solution's {where} is not a finite number: these poses do not determine it",
             loc=path,
         )
 
 
-def _calibration_out(row: Calibration, tool: Tool) -> dict[str, Any]:
-    return {
-        **row.result,
-        "id": row.id,
-        "tool_id": row.tool_id,
-        "version": row.version,
-        "active": row.version is not None and tool.active_version == row.version,
-        "created_at": row.created_at,
-        "created_by": row.created_by,
-    }
+# ---- stored calibrations --------------------------------------------------------------------
+def calibration_out(row: CalibrationRow, tool: Tool) -> Calibration:
+    """A stored calibration as served."""
+    return Calibration(
+        **CalibrationResult.model_validate(row.result).model_dump(),
+        id=row.id,
+        tool_id=row.tool_id,
+        version=row.version,
+        active=row.version is not None and tool.active_version == row.version,
+        created_at=row.created_at,
+        created_by=row.created_by,
+    )
 
 
-# ---- use cases ------------------------------------------------------------------------------
+def _reference_point_to_save(request: MethodRequest) -> str | None:
+    options = getattr(request, "options", None)
+    return options.save_reference_point if isinstance(options, NPointOptions) else None
+
+
 def submit(
     session: Session,
     *,
     tool_id: str,
-    request: Any,
-    raw_body: dict[str, Any],
+    request: MethodRequest,
+    raw_body: RawBody,
     idempotency_key: str | None,
     actor: Principal,
-) -> tuple[dict[str, Any], bool]:
-    """Solve and store a calibration; (Calibration document, replayed?)."""
+) -> tuple[Calibration, bool]:
+    """Solve and store a calibration; (the stored Calibration, replayed?)."""
     tool = get_tool(session, tool_id, for_update=True)
     fingerprint = idempotency.request_fingerprint(tool_id, raw_body)
     if idempotency_key is not None:
@@ -118,66 +134,33 @@ def submit(
             session, actor=actor, key=idempotency_key, fingerprint=fingerprint
         )
         if replay is not None:
-            return replay, True
+            return Calibration.model_validate(replay), True
 
-    robot = get_robot(session, tool.robot_id)
     point_name = _reference_point_to_save(request)
     if point_name is not None:
         ensure_reference_name_free(
             session,
-            robot_id=robot.id,
+            robot_id=tool.robot_id,
             name=point_name,
             loc=("body", "options", "save_reference_point"),
         )
-    ctx = DbContext(session, tool, robot)
-    solved = run_method(request, ctx)  # SolveError -> 422 before anything is written
-    doc = result_document(request, solved, ctx)
-    if point_name is not None and doc["status"] != "accepted":
-        doc["warnings"].append(
+    outcome = solve(request, DbContext(session, tool, get_robot(session, tool.robot_id)))
+    result, point = outcome.result, outcome.touched_point
+    keep_point = point_name is not None and result.status == "accepted"
+    if point_name is not None and not keep_point:
+        result.warnings.append(
             f"reference point {point_name!r} not saved: the calibration is out of tolerance"
         )
 
-    row = Calibration(
-        tool_id=tool.id,
-        method=request.method,
-        algorithm=solved.algorithm,
-        status=doc["status"],
-        request=raw_body,
-        result=doc,
-        created_by=actor.name,
-    )
-    session.add(row)
-    session.flush()
-    version = add_version(
-        session,
-        tool=tool,
-        position_mm=doc["tcp"]["position_mm"],
-        quaternion=doc["tcp"]["quaternion"],
-        source=request.method,
-        status=doc["status"],
-        calibration_id=row.id,
-        note=request.note,
-        actor=actor,
-    )
-    row.version = version.version
-    should_activate = request.activate == "always" or (
-        request.activate == "auto" and doc["status"] == "accepted"
-    )
-    if should_activate:
-        activate(
-            session,
-            tool=tool,
-            version=version.version,
-            reason=f"calibration:{request.activate}",
-            actor=actor,
-        )
-    if point_name is not None and doc["status"] == "accepted" and solved.reference_point_mm:
+    row = _store(session, tool=tool, request=request, raw_body=raw_body, result=result, actor=actor)
+    activated = _activate_if_due(session, tool=tool, request=request, result=result, actor=actor)
+    if keep_point and point_name is not None and point is not None:
         create_reference_point(
             session,
             robot_id=tool.robot_id,
             name=point_name,
-            position_mm=solved.reference_point_mm,
-            covariance_mm2=solved.reference_covariance_mm2,
+            position_mm=point.position_mm.tolist(),
+            covariance_mm2=None if point.covariance_mm2 is None else point.covariance_mm2.tolist(),
             source=request.method,
             calibration_id=row.id,
             actor=actor,
@@ -192,12 +175,12 @@ def submit(
         tool_id=tool.id,
         details={
             "method": request.method,
-            "status": doc["status"],
-            "version": version.version,
-            "activated": should_activate,
+            "status": result.status,
+            "version": row.version,
+            "activated": activated,
         },
     )
-    out = _calibration_out(row, tool)
+    out = calibration_out(row, tool)
     if idempotency_key is not None:
         session.add(
             IdempotencyRecord(
@@ -205,61 +188,109 @@ def submit(
                 key=idempotency_key,
                 request_hash=fingerprint,
                 status_code=201,
-                response=CalibrationOut.model_validate(out).model_dump(mode="json"),
+                response=out.model_dump(mode="json"),
             )
         )
         session.flush()
     return out, False
 
 
-def _reference_point_to_save(request: Any) -> str | None:
-    name = getattr(getattr(request, "options", None), "save_reference_point", None)
-    return str(name) if name is not None else None
+def _store(
+    session: Session,
+    *,
+    tool: Tool,
+    request: MethodRequest,
+    raw_body: RawBody,
+    result: CalibrationResult,
+    actor: Principal,
+) -> CalibrationRow:
+    """The calibration row and the tool's next version (every result is versioned)."""
+    row = CalibrationRow(
+        tool_id=tool.id,
+        method=request.method,
+        algorithm=result.algorithm,
+        status=result.status,
+        request=raw_body,
+        result=result.model_dump(mode="json"),
+        created_by=actor.name,
+    )
+    session.add(row)
+    session.flush()
+    version = add_version(
+        session,
+        tool=tool,
+        position_mm=result.tcp.position_mm,
+        quaternion=result.tcp.quaternion,
+        source=request.method,
+        status=result.status,
+        calibration_id=row.id,
+        note=request.note,
+        actor=actor,
+    )
+    row.version = version.version
+    return row
 
 
-def solve_stateless(session: Session, *, request: Any) -> dict[str, Any]:
+def _activate_if_due(
+    session: Session,
+    *,
+    tool: Tool,
+    request: MethodRequest,
+    result: CalibrationResult,
+    actor: Principal,
+) -> bool:
+    """Activate the new version as `activate` asks ("auto": only within tolerance)."""
+    due = request.activate == "always" or (
+        request.activate == "auto" and result.status == "accepted"
+    )
+    if due:
+        activate(
+            session,
+            tool=tool,
+            version=tool.last_version,
+            reason=f"calibration:{request.activate}",
+            actor=actor,
+        )
+    return due
+
+
+def solve_stateless(session: Session, *, request: MethodRequest) -> SolveResult:
     """Solve without storing anything (POST /v1/solve)."""
-    kinematics: dict[str, Any] | None = None
+    assert isinstance(request, StatelessFields)  # the /v1/solve union's models all are
+    kinematics = None
     if request.kinematics is not None:
         kinematics = validate_kinematics(request.kinematics)
     elif request.robot_id is not None:
         kinematics = get_robot(session, request.robot_id).kinematics
-    tolerance = request.tolerance.model_dump(exclude_unset=True) if request.tolerance else None
-    ctx = StatelessContext(kinematics, tolerance)
-    solved = run_method(request, ctx)
-    doc = result_document(request, solved, ctx)
+    result = solve(request, StatelessContext(kinematics, request.tolerance)).result
     if _reference_point_to_save(request) is not None:
-        doc["warnings"].append("options.save_reference_point ignored: /v1/solve stores nothing")
+        result.warnings.append("options.save_reference_point ignored: /v1/solve stores nothing")
     if request.activate != "auto":
-        doc["warnings"].append(f"activate {request.activate!r} ignored: /v1/solve stores nothing")
-    return doc
+        result.warnings.append(f"activate {request.activate!r} ignored: /v1/solve stores nothing")
+    return SolveResult(**result.model_dump())
 
 
 def list_calibrations(
-    session: Session,
-    *,
-    tool_id: str,
-    limit: int,
-    cursor: str | None,
-) -> tuple[list[dict[str, Any]], str | None]:
+    session: Session, *, tool_id: str, limit: int, cursor: str | None
+) -> tuple[list[Calibration], str | None]:
     """A tool's calibrations, oldest first."""
     tool = get_tool(session, tool_id)
     rows, next_cursor = paginate(
         session,
-        select(Calibration).where(Calibration.tool_id == tool_id),
-        created_col=Calibration.created_at,
-        id_col=Calibration.id,
+        select(CalibrationRow).where(CalibrationRow.tool_id == tool_id),
+        created_col=CalibrationRow.created_at,
+        id_col=CalibrationRow.id,
         limit=limit,
         cursor=cursor,
     )
-    return [_calibration_out(r, tool) for r in rows], next_cursor
+    return [calibration_out(r, tool) for r in rows], next_cursor
 
 
-def get_calibration(session: Session, *, calibration_id: str) -> dict[str, Any]:
+def get_calibration(session: Session, *, calibration_id: str) -> CalibrationDetail:
     """One calibration with the submission as received."""
-    row = session.get(Calibration, calibration_id)
+    row = session.get(CalibrationRow, calibration_id)
     if row is None:
         raise NotFound(f"no calibration with id {calibration_id}")
     tool = session.get(Tool, row.tool_id)
     assert tool is not None
-    return {**_calibration_out(row, tool), "request": row.request}
+    return CalibrationDetail(**calibration_out(row, tool).model_dump(), request=row.request)

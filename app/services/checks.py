@@ -11,13 +11,15 @@ import numpy as np
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
+from app.errors import located_in
 from app.models import utcnow
 from app.schemas.references import CheckCreate
 from app.services import audit
 from app.services.frames import frame_of, parse_poses_with
 from app.services.references import get_reference_point
-from app.services.registry import get_robot, get_tool
+from app.services.robots import get_robot
 from app.services.tolerance import effective_tolerance
+from app.services.tools import get_tool
 from app.services.versions import active_version_row
 from app.solvers.reference import check_tcp
 
@@ -34,9 +36,10 @@ def run_check(
     robot = get_robot(session, tool.robot_id)
     frame = frame_of(session, active_version_row(session, tool))  # 404 /no-active-version
     point = get_reference_point(session, robot_id=robot.id, point_id=data.reference_point_id)
-    rotations, positions = parse_poses_with(
-        robot.kinematics, data.format, data.poses, data.units, loc=("poses",)
-    )
+    with located_in("body"):
+        rotations, positions = parse_poses_with(
+            robot.kinematics, data.format, data.poses, data.units, loc=("poses",)
+        )
     touches = [
         check_tcp(
             tcp_mm=frame.position_mm, rotation=R, position_mm=f, reference_mm=point.position_mm
@@ -47,7 +50,7 @@ def run_check(
     # a bent tool seen from several orientations would average towards zero.
     worst = max(touches, key=lambda t: t.distance_mm)
     mean_base = np.mean([t.deviation_base_mm for t in touches], axis=0)
-    limit = float(effective_tolerance(tool.tolerance)["check_mm"])
+    limit = effective_tolerance(tool.tolerance).check_mm
     within = float(worst.distance_mm) <= limit
     result: dict[str, Any] = {
         "tool_id": tool.id,

@@ -1,13 +1,15 @@
 """Method contexts: what a calibration method may look up, from the database or from nothing.
 
+Locations in the errors they raise are body-relative, like every error raised inside a
+method; the calibration service roots them.
+
 DbContext serves stored calibrations (one tool of one robot); StatelessContext serves
 POST /v1/solve and refuses every lookup that would need storage, naming the field to fill.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,7 +18,8 @@ from sqlalchemy.orm import Session
 from app.errors import InvalidInput
 from app.methods.base import ActiveFrame, StoredPoint
 from app.models import LaserDevice, ReferencePoint, Robot, Tool
-from app.schemas.common import Units
+from app.schemas.common import Pose, Units
+from app.schemas.tools import Tolerance
 from app.services.frames import active_frame, parse_poses_with
 from app.services.tolerance import effective_tolerance
 
@@ -28,14 +31,14 @@ class DbContext:
         self.session, self.tool, self.robot = session, tool, robot
 
     @property
-    def tolerance(self) -> dict[str, Any]:
+    def tolerance(self) -> Tolerance:
         return effective_tolerance(self.tool.tolerance)
 
     def active_frame(self) -> ActiveFrame | None:
         return active_frame(self.session, self.tool)
 
     def parse_poses(
-        self, fmt: str, poses: Sequence[Any], units: Units | None, *, loc: Sequence[str | int]
+        self, fmt: str, poses: Sequence[Pose], units: Units | None, *, loc: Sequence[str | int]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         return parse_poses_with(self.robot.kinematics, fmt, poses, units, loc=loc)
 
@@ -45,7 +48,7 @@ class DbContext:
             raise InvalidInput(
                 "unknown-reference",
                 f"robot {self.robot.id} has no reference point {reference_point_id}",
-                loc=("body", "options", "reference_point_id"),
+                loc=("options", "reference_point_id"),
             )
         cov = np.asarray(row.covariance_mm2, dtype=float) if row.covariance_mm2 else None
         return StoredPoint(np.asarray(row.position_mm, dtype=float), cov)
@@ -56,14 +59,14 @@ class DbContext:
             raise InvalidInput(
                 "unknown-reference",
                 f"robot {self.robot.id} has no live tool {tool_id}",
-                loc=("body", "options", "reference_tool_id"),
+                loc=("options", "reference_tool_id"),
             )
         frame = active_frame(self.session, other)
         if frame is None:
             raise InvalidInput(
                 "unknown-reference",
                 f"reference tool {tool_id} has no active TCP to trust",
-                loc=("body", "options", "reference_tool_id"),
+                loc=("options", "reference_tool_id"),
             )
         return frame
 
@@ -73,7 +76,7 @@ class DbContext:
             raise InvalidInput(
                 "unknown-reference",
                 f"robot {self.robot.id} has no laser device {device_id}",
-                loc=("body", "laser", "device_id"),
+                loc=("laser", "device_id"),
             )
         return row.beam_a_y_mm, row.beam_b_x_mm, row.plane_z_mm
 
@@ -81,19 +84,21 @@ class DbContext:
 class StatelessContext:
     """Method context for POST /v1/solve: nothing stored is read except an optional robot."""
 
-    def __init__(self, kinematics: dict[str, Any] | None, tolerance: dict[str, Any] | None) -> None:
+    def __init__(
+        self, kinematics: Mapping[str, object] | None, tolerance: Tolerance | None
+    ) -> None:
         self._kinematics = kinematics
         self._tolerance = effective_tolerance(tolerance)
 
     @property
-    def tolerance(self) -> dict[str, Any]:
+    def tolerance(self) -> Tolerance:
         return self._tolerance
 
     def active_frame(self) -> ActiveFrame | None:
         return None
 
     def parse_poses(
-        self, fmt: str, poses: Sequence[Any], units: Units | None, *, loc: Sequence[str | int]
+        self, fmt: str, poses: Sequence[Pose], units: Units | None, *, loc: Sequence[str | int]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         return parse_poses_with(self._kinematics, fmt, poses, units, loc=loc)
 
@@ -101,7 +106,7 @@ class StatelessContext:
         return InvalidInput(
             "needs-storage",
             f"/v1/solve stores nothing and cannot look up {what}; {instead}",
-            loc=("body", *field),
+            loc=field,
         )
 
     def reference_point(self, reference_point_id: str) -> StoredPoint:

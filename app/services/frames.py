@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -13,14 +12,14 @@ from app.kinematics.dh import kinematics_from_spec
 from app.kinematics.poses import poses_from_format
 from app.methods.base import ActiveFrame
 from app.models import Calibration, TcpVersion, Tool
-from app.schemas.common import Units
+from app.schemas.common import Pose, Units
 from app.services.versions import active_version_row
 
 
 def parse_poses_with(
-    kinematics: dict[str, Any] | None,
+    kinematics: Mapping[str, object] | None,
     fmt: str,
-    poses: Sequence[Any],
+    poses: Sequence[Pose],
     units: Units | None,
     *,
     loc: Sequence[str | int],

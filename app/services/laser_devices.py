@@ -7,14 +7,15 @@ from scipy.spatial.transform import Rotation
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import InvalidInput, NotFound
+from app.errors import InvalidInput, NotFound, located_in
 from app.methods.laser import sweeps_from
 from app.models import LaserDevice
 from app.schemas.references import LaserDeviceCreate
 from app.services import audit
 from app.services.frames import active_frame, parse_poses_with
 from app.services.references import ensure_name_free
-from app.services.registry import get_robot, get_tool
+from app.services.robots import get_robot
+from app.services.tools import get_tool
 from app.solvers.laser import teach_device
 
 
@@ -48,18 +49,19 @@ def create_laser_device(
                 "teach the device with a tool whose TCP is trusted",
                 loc=("body", "teach", "tool_id"),
             )
-        rotations, _ = parse_poses_with(
-            robot.kinematics, teach.format, teach.poses, teach.units, loc=("teach", "poses")
-        )
         axis = Rotation.from_quat(frame.quaternion, scalar_first=True).apply([0.0, 0.0, 1.0])
-        device, fit = teach_device(
-            flange_rotation=rotations[0],
-            sweeps=sweeps_from(teach.sweeps),
-            descent_mm=teach.descent_mm,
-            tcp_mm=frame.position_mm,
-            tool_axis_flange=np.asarray(axis),
-            trigger_noise_mm=teach.trigger_noise_mm,
-        )
+        with located_in("body", "teach"):
+            rotations, _ = parse_poses_with(
+                robot.kinematics, teach.format, teach.poses, teach.units, loc=("poses",)
+            )
+            device, fit = teach_device(
+                flange_rotation=rotations[0],
+                sweeps=sweeps_from(teach.sweeps),
+                descent_mm=teach.descent_mm,
+                tcp_mm=frame.position_mm,
+                tool_axis_flange=np.asarray(axis),
+                trigger_noise_mm=teach.trigger_noise_mm,
+            )
         row = LaserDevice(
             robot_id=robot_id,
             name=data.name,

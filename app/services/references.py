@@ -9,14 +9,15 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import Conflict, InvalidInput, NotFound
+from app.errors import Conflict, InvalidInput, NotFound, located_in
 from app.models import LaserDevice, ReferencePoint
 from app.schemas.references import ReferencePointCreate
 from app.services import audit
 from app.services.frames import active_frame, parse_poses_with
 from app.services.pagination import paginate
-from app.services.registry import get_robot, get_tool
+from app.services.robots import get_robot
 from app.services.tolerance import effective_tolerance
+from app.services.tools import get_tool
 from app.solvers.reference import reference_point_from_touch
 
 
@@ -36,7 +37,8 @@ def ensure_name_free(
         what = "reference point" if model is ReferencePoint else "laser device"
         raise Conflict(
             f"robot {robot_id} already has a {what} named {name!r}",
-            errors=[{"loc": list(loc), "msg": "already taken"}],
+            loc=loc,
+            msg="already taken",
         )
 
 
@@ -145,17 +147,17 @@ def register_reference_point(
             f"tool {tool.id} has no active TCP to touch the point with",
             loc=("body", "touch", "tool_id"),
         )
-    rotations, positions = parse_poses_with(
-        robot.kinematics, touch.format, [touch.pose], touch.units, loc=("touch", "pose")
-    )
-    tolerance = effective_tolerance(tool.tolerance)
-    point, covariance = reference_point_from_touch(
-        tcp_mm=frame.position_mm,
-        tcp_covariance_mm2=frame.covariance_mm2,
-        rotation=rotations[0],
-        position_mm=positions[0],
-        touch_noise_mm=tolerance.get("touch_noise_mm"),
-    )
+    with located_in("body"):
+        rotations, positions = parse_poses_with(
+            robot.kinematics, touch.format, [touch.pose], touch.units, loc=("touch", "pose")
+        )
+        point, covariance = reference_point_from_touch(
+            tcp_mm=frame.position_mm,
+            tcp_covariance_mm2=frame.covariance_mm2,
+            rotation=rotations[0],
+            position_mm=positions[0],
+            touch_noise_mm=effective_tolerance(tool.tolerance).touch_noise_mm,
+        )
     return create_reference_point(
         session,
         robot_id=robot_id,

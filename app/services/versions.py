@@ -11,13 +11,14 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import NoActiveVersion, NotFound, problem_type
+from app.config import get_settings
+from app.errors import InvalidInput, NoActiveVersion, NotFound
 from app.models import Activation, TcpVersion, Tool, utcnow
 from app.services import audit
 from app.services.etags import if_none_match_hit
 from app.services.exports import controller_text
-from app.services.registry import check_if_match, get_robot, get_tool
-from app.solvers.errors import SolveError
+from app.services.robots import get_robot
+from app.services.tools import check_if_match, get_tool
 
 IDENTITY_QUATERNION = [1.0, 0.0, 0.0, 0.0]
 
@@ -225,8 +226,11 @@ def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> dict[str,
         row = active_version_row(session, tool)
         try:
             items.append(active_document(tool, row, fmt))
-        except SolveError as exc:
+        except InvalidInput as exc:
             item = active_document(tool, row, None)
-            item["controller_error"] = {"type": problem_type(exc.kind), "detail": exc.detail}
+            item["controller_error"] = {
+                "type": get_settings().problem_type(exc.kind),
+                "detail": exc.detail,
+            }
             items.append(item)
     return {"robot_id": robot_id, "items": items, "without_active_version": missing}

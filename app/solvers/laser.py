@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.orientation import (
     SigmaSource,
     linear_sigma,
@@ -177,20 +177,20 @@ def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: Arra
     down = float(-R0[2, 2])  # flange +Z in base, z component, negated
     tilt = float(np.degrees(np.arccos(np.clip(down, -1.0, 1.0))))
     if tilt > MAX_TOOL_TILT_DEG:
-        raise SolveError(
+        raise InvalidInput(
             "degenerate-poses",
             f"the flange's Z axis is {tilt:.0f} deg from straight down; the laser method needs "
             f"the tool pointing down (within {MAX_TOOL_TILT_DEG:g} deg) to cross the beam plane",
             loc=("poses", 0, "rotation"),
-            extra={"tilt_deg": tilt},
+            context={"tilt_deg": tilt},
         )
     descent = np.asarray(descent_mm, dtype=np.float64)
     if descent.shape != (3,):
-        raise SolveError("invalid-sweep", "descent_mm needs 3 values (mm)", loc=("descent_mm",))
+        raise InvalidInput("invalid-sweep", "descent_mm needs 3 values (mm)", loc=("descent_mm",))
     descent = check_positions_mm(descent[None], loc=("descent_mm",))[0]
     n = len(sweeps)
     if n == 0:
-        raise SolveError(
+        raise InvalidInput(
             "too-few-poses",
             "no sweeps: sweep both beams at two or more flange heights",
             loc=("sweeps",),
@@ -201,7 +201,7 @@ def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: Arra
     warnings: list[str] = []
     for i, s in enumerate(sweeps):
         if s.beam not in ("a", "b"):
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-sweep",
                 f"sweep {i}: beam must be 'a' (parallel to base X) or 'b' (parallel to base Y), "
                 f"got {s.beam!r}",
@@ -212,7 +212,7 @@ def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: Arra
             ("restore_mm", s.restore_mm, restores),
         ):
             if value is None:
-                raise SolveError(
+                raise InvalidInput(
                     "invalid-sweep",
                     f"sweep {i}: no {name.removesuffix('_mm')} position: the tool must break "
                     f"and then restore beam {s.beam.upper()}; a beam the tool never crossed "
@@ -221,7 +221,7 @@ def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: Arra
                 )
             arr = np.asarray(value, dtype=np.float64)
             if arr.shape != (3,):
-                raise SolveError(
+                raise InvalidInput(
                     "invalid-sweep",
                     f"sweep {i}: {name} needs 3 values (mm)",
                     loc=("sweeps", i, name),
@@ -233,21 +233,21 @@ def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: Arra
         along = abs(float(d[a]))
         off = abs(float(d[1 - a]))
         if float(np.linalg.norm(d)) < MIN_WIDTH_MM:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-sweep",
                 f"sweep {i}: break and restore are the same position; the flange must move "
                 f"across beam {s.beam.upper()} between them",
                 loc=("sweeps", i, "restore_mm"),
             )
         if abs(float(d[2])) > HEIGHT_TOL_MM:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-sweep",
                 f"sweep {i}: the flange height changed by {d[2]:.2f} mm between break and "
                 f"restore; sweep horizontally (within {HEIGHT_TOL_MM:g} mm)",
                 loc=("sweeps", i, "restore_mm"),
             )
         if off > along or along < MIN_WIDTH_MM:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-sweep",
                 f"sweep {i}: the flange moved mostly along base {'xy'[1 - a].upper()}; "
                 f"beam {s.beam.upper()} is crossed by moving along base {'xy'[a].upper()}",
@@ -271,7 +271,7 @@ def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: Arra
     for k in range(1, len(groups)):
         gap = heights[k] - heights[k - 1]
         if gap < MIN_HEIGHT_SEPARATION_MM:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-sweep",
                 f"sweep {groups[k][0]} is {gap:.2f} mm above the sweeps at flange z "
                 f"{heights[k - 1]:.2f} mm: sweeps at one height must agree within "
@@ -283,14 +283,14 @@ def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: Arra
         present = {beams[i] for i in g}
         for beam in ("a", "b"):
             if beam not in present:
-                raise SolveError(
+                raise InvalidInput(
                     "invalid-sweep",
                     f"at flange z {h:.2f} mm there is no sweep across beam {beam.upper()}; "
                     "every height needs a sweep across both beams",
                     loc=("sweeps", g[0], "beam"),
                 )
     if len(groups) < 2:
-        raise SolveError(
+        raise InvalidInput(
             "too-few-poses",
             f"all sweeps are at one flange height ({heights[0]:.2f} mm); sweep both beams at "
             f"two or more heights at least {MIN_HEIGHT_SEPARATION_MM:g} mm apart",
@@ -382,7 +382,7 @@ def _solve_tool(p: _Parsed, x: NDArray[np.float64], dev: LaserDevice) -> _Tool:
     u_b = line.direction_base()
     u = R0.T @ u_b
     if abs(float(u[2])) < 0.5:
-        raise SolveError(
+        raise InvalidInput(
             "degenerate-poses",
             "the sweeps put the tool axis within 30 deg of the flange plane: the laser method "
             "needs a tool that points away from the flange (check the sweep positions)",
@@ -423,7 +423,7 @@ def _check_noise(value: float | None) -> float | None:
         return None
     v = float(check_finite(value, loc=("options", "trigger_noise_mm")))
     if v < 0.0:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"trigger_noise_mm must be zero or positive, got {v:g}",
             loc=("options", "trigger_noise_mm"),
@@ -451,13 +451,13 @@ def _check_line_residuals(p: _Parsed, line: _Line, widths: NDArray[np.float64]) 
     for k, g in enumerate(p.groups):
         half = 0.5 * float(min(widths[i] for i in g))
         if res[k] > half:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-sweep",
                 f"at flange z {p.heights[k]:.2f} mm the sweeps put the tool axis {res[k]:.2f} mm "
                 f"off the straight line through the other heights, more than the tool's "
                 f"half-width ({half:.2f} mm): a sweep did not cross the tool it should have",
                 loc=("sweeps", g[0], "break_mm"),
-                extra={"residual_mm": float(res[k])},
+                context={"residual_mm": float(res[k])},
             )
 
 
@@ -489,7 +489,7 @@ def solve_laser(
     warnings = list(p.warnings)
     for k, h in enumerate(p.heights):
         if h <= dev.plane_z_mm:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-sweep",
                 f"at flange z {h:.2f} mm the flange is not above the beam plane "
                 f"(z = {dev.plane_z_mm:.2f} mm): the tool cannot have crossed the beams there",
@@ -504,7 +504,7 @@ def solve_laser(
     u_b = R0 @ tool.u
     s_k = (tool.line.c[:, 2] - (R0 @ tool.axis_point)[2]) / u_b[2]
     if tool.length <= float(s_k.max()):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-sweep",
             f"the descent puts the tip {float(s_k.max()) - tool.length:.2f} mm above the "
             "lowest swept section of the tool: the final move down must start above the beam "
@@ -515,13 +515,13 @@ def solve_laser(
     miss = min(abs(tip_b[1] - dev.beam_a_y_mm), abs(tip_b[0] - dev.beam_b_x_mm))
     allowed = 0.5 * float(widths.mean()) + DESCENT_TOL_MM
     if miss > allowed:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-sweep",
             f"at the descent the tip is {miss:.2f} mm from the nearest beam (at most "
             f"{allowed:.2f} mm for this tool): it cannot have broken a beam there; place the "
             "tool axis over the beam crossing before moving down",
             loc=("descent_mm",),
-            extra={"miss_mm": float(miss)},
+            context={"miss_mm": float(miss)},
         )
     noise, source = _noise(p, tool.line, noise_in, warnings)
 
@@ -605,7 +605,7 @@ def teach_device(
     noise_in = _check_noise(trigger_noise_mm)
     t = check_finite(tcp_mm, loc=("teach", "tcp_mm"))
     if t.shape != (3,):
-        raise SolveError("invalid-options", "tcp_mm needs 3 values (mm)", loc=("teach", "tcp_mm"))
+        raise InvalidInput("invalid-options", "tcp_mm needs 3 values (mm)", loc=("teach", "tcp_mm"))
     p = _parse(flange_rotation, sweeps, descent_mm)
     warnings = list(p.warnings)
     x0 = p.noisy_inputs()
@@ -618,7 +618,7 @@ def teach_device(
         u = check_finite(tool_axis_flange, loc=("teach", "tool_axis_flange"))
         norm = float(np.linalg.norm(u)) if u.shape == (3,) else 0.0
         if norm < 1e-9:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 "tool_axis_flange must be a non-zero 3-vector",
                 loc=("teach", "tool_axis_flange"),
@@ -631,7 +631,7 @@ def teach_device(
                 "is the trusted tool bent or mounted differently?"
             )
     if abs(float(u[2])) < 0.5 or float((p.R0 @ u)[2]) >= 0.0:
-        raise SolveError(
+        raise InvalidInput(
             "degenerate-poses",
             "the tool axis does not point down through the beam plane at this flange "
             "rotation: the laser method needs the tool pointing down",
@@ -641,7 +641,7 @@ def teach_device(
     dev_vec, per = _teach(p, x0, t, u)
     for k, h in enumerate(p.heights):
         if h <= dev_vec[2]:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-sweep",
                 f"at flange z {h:.2f} mm the flange is not above the beam plane found from "
                 f"the descent (z = {dev_vec[2]:.2f} mm)",

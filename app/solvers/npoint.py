@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 from scipy.stats import f as f_dist
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.quality import (
     SIGMA_CONFIGURED,
     SIGMA_RESIDUALS,
@@ -126,12 +126,12 @@ def solve_npoint(
     residuals. orientation_noise_deg: 1-sigma flange orientation error per axis (deg); used
     as a weight model by "gls" and "robust". max_tcp_sigma_mm: refuse ("insufficient-spread")
     when the predicted TCP 1-sigma along its weakest direction exceeds it.
-    Raises SolveError for input that cannot give a trustworthy TCP.
+    Raises InvalidInput for input that cannot give a trustworthy TCP.
     """
     R = check_rotation_matrices(rotations, loc=("poses",))
     f = check_positions_mm(positions_mm, loc=("poses",))
     if R.shape[0] != f.shape[0]:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-pose",
             f"got {R.shape[0]} rotations but {f.shape[0]} positions; each touch needs both",
             loc=("poses",),
@@ -139,12 +139,12 @@ def solve_npoint(
     noise = _check_options(algorithm, touch_noise_mm, orientation_noise_deg, max_tcp_sigma_mm)
     n = R.shape[0]
     if n < MIN_POSES:
-        raise SolveError(
+        raise InvalidInput(
             "too-few-poses",
             f"{n} touch(es) given; the N-point method needs at least {MIN_POSES} touches of "
             "the same point from clearly different orientations",
             loc=("poses",),
-            extra={"n_poses": n, "min_poses": MIN_POSES},
+            context={"n_poses": n, "min_poses": MIN_POSES},
         )
     cosines = _relative_cosines(R)
     warnings = _check_repeated(cosines)
@@ -166,7 +166,7 @@ def solve_npoint(
         not (np.isfinite(t).all() and np.isfinite(p).all())
         or max(float(np.abs(t).max()), float(np.abs(p).max())) > MAX_ABS_MM
     ):
-        raise SolveError(
+        raise InvalidInput(
             "degenerate-poses",
             "the touches do not determine the TCP (the solution is unbounded); "
             "add touches rotated about different axes",
@@ -233,14 +233,14 @@ def solve_npoint(
                 if noise.touch_mm is not None
                 else f"the touch noise estimated from the residuals ({s_p:.3g} mm)"
             )
-            raise SolveError(
+            raise InvalidInput(
                 "insufficient-spread",
                 f"with {source} the TCP is only determined to {worst:.3g} mm (1 sigma) along "
                 f"the flange direction {format_vector(direction)}, more than the allowed "
                 f"{max_tcp_sigma_mm:g} mm: touch from orientations further apart (tilt the "
                 "tool more, about different axes)",
                 loc=("poses",),
-                extra={
+                context={
                     "predicted_sigma_mm": worst,
                     "max_tcp_sigma_mm": float(max_tcp_sigma_mm),
                     "direction_flange": [float(x) for x in direction],
@@ -304,7 +304,7 @@ def _check_options(
     max_tcp_sigma_mm: float | None,
 ) -> _Noise:
     if algorithm not in ALGORITHMS:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"unknown algorithm {algorithm!r}; choose one of {', '.join(ALGORITHMS)}",
             loc=("options", "algorithm"),
@@ -321,7 +321,7 @@ def _check_options(
         low_ok = v >= 0.0 if zero_ok else v > 0.0
         if not (math.isfinite(v) and low_ok and v <= upper):
             bound = "at least 0" if zero_ok else "greater than 0"
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 f"{name} = {value!r} is not usable: it must be a number {bound} and at most "
                 f"{upper:g} {unit}",
@@ -353,13 +353,13 @@ def _check_repeated(cosines: FloatArray) -> list[str]:
     shown = ", ".join(f"{i} and {j}" for i, j in pairs[:10])
     more = f" (and {len(pairs) - 10} more pairs)" if len(pairs) > 10 else ""
     if distinct < MIN_POSES:
-        raise SolveError(
+        raise InvalidInput(
             "repeated-poses",
             f"touches {shown}{more} have the same orientation (within {REPEATED_POSE_DEG:g} "
             f"deg) and add nothing about the TCP: only {distinct} distinct orientations "
             f"remain, at least {MIN_POSES} are needed; re-touch from different orientations",
             loc=("poses", pairs[0][1]),
-            extra={"pairs": [list(pr) for pr in pairs], "distinct_orientations": distinct},
+            context={"pairs": [list(pr) for pr in pairs], "distinct_orientations": distinct},
         )
     return [
         f"touches {shown}{more} repeat an orientation (within {REPEATED_POSE_DEG:g} deg): "
@@ -404,13 +404,13 @@ def _canonical_direction(v: FloatArray) -> FloatArray:
 
 def _check_degenerate(block: _Block, *, context: str) -> None:
     if block.ratio < DEGENERACY_RATIO:
-        raise SolveError(
+        raise InvalidInput(
             "degenerate-poses",
             f"{context}the touches rotate (almost) about one common axis, so the TCP along the "
             f"flange direction {format_vector(block.weakest)} cannot be determined (singular "
             f"value ratio {block.ratio:.1e}): add a touch rotated about a different axis",
             loc=("poses",),
-            extra={
+            context={
                 "direction_flange": [float(x) for x in block.weakest],
                 "singular_value_ratio": block.ratio,
             },

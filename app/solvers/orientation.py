@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.validation import check_finite, check_positions_mm, check_rotation_matrices
 
 AxisName = Literal["+z", "-z", "+x", "-x"]
@@ -104,7 +104,7 @@ def angle_between_deg(q1_wxyz: ArrayLike, q2_wxyz: ArrayLike) -> float:
     q2 = check_finite(q2_wxyz, loc=("q2",))
     for name, q in (("q1", q1), ("q2", q2)):
         if q.shape != (4,) or not 0.5 < float(np.linalg.norm(q)) < 2.0:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-rotation",
                 f"{name} must be a unit quaternion [w, x, y, z], got {q.tolist()}",
                 loc=(name,),
@@ -202,7 +202,7 @@ def _check_noise(value: float | None, name: str) -> float | None:
         return None
     v = float(check_finite(value, loc=("options", name)))
     if v < 0.0:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options", f"{name} must be zero or positive, got {v:g}", loc=("options", name)
         )
     return v
@@ -211,9 +211,9 @@ def _check_noise(value: float | None, name: str) -> float | None:
 def _checked_rotation(R: ArrayLike, loc: tuple[str | int, ...], what: str) -> NDArray[np.float64]:
     try:
         arr = check_rotation_matrices(np.asarray(R, dtype=np.float64)[None], loc=loc)
-    except SolveError as exc:
+    except InvalidInput as exc:
         detail = exc.detail.replace("pose 0", what)
-        raise SolveError(exc.kind, detail, loc=loc) from None
+        raise InvalidInput(exc.kind, detail, loc=loc) from None
     out: NDArray[np.float64] = arr[0]
     return out
 
@@ -221,11 +221,11 @@ def _checked_rotation(R: ArrayLike, loc: tuple[str | int, ...], what: str) -> ND
 def _checked_position(p: ArrayLike, loc: tuple[str | int, ...], what: str) -> NDArray[np.float64]:
     arr = np.asarray(p, dtype=np.float64)
     if arr.shape != (3,):
-        raise SolveError("invalid-pose", f"{what}: a position needs 3 values (mm)", loc=loc)
+        raise InvalidInput("invalid-pose", f"{what}: a position needs 3 values (mm)", loc=loc)
     try:
         out = check_positions_mm(arr[None], loc=loc)
-    except SolveError as exc:
-        raise SolveError(exc.kind, exc.detail.replace("pose 0", what), loc=loc) from None
+    except InvalidInput as exc:
+        raise InvalidInput(exc.kind, exc.detail.replace("pose 0", what), loc=loc) from None
     pos: NDArray[np.float64] = out[0]
     return pos
 
@@ -278,7 +278,7 @@ def orientation_from_translations(
     """
     noise = _check_noise(position_noise_mm, "position_noise_mm")
     if len(directions) == 0:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-direction",
             "no directions given: move the TCP along the tool's Z axis (at least one pair)",
             loc=("directions",),
@@ -290,7 +290,7 @@ def orientation_from_translations(
     ends = np.empty((len(directions), 3))
     for i, d in enumerate(directions):
         if d.axis not in ("+z", "-z", "+x", "-x"):
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-direction",
                 f"direction {i}: axis must be one of +z, -z, +x, -x, got {d.axis!r}",
                 loc=("directions", i, "axis"),
@@ -306,28 +306,28 @@ def orientation_from_translations(
         pair = Rotation.from_matrix(np.stack([Ra, Rb]))
         change = float(np.degrees((pair[0].inv() * pair[1]).magnitude()))
         if change > MAX_ORIENTATION_CHANGE_DEG:
-            raise SolveError(
+            raise InvalidInput(
                 "orientation-changed",
                 f"direction {i} ({d.axis}): the flange orientation changed by {change:.2f} deg "
                 f"between 'from' and 'to'; a pure translation keeps it within "
                 f"{MAX_ORIENTATION_CHANGE_DEG} deg: jog in linear mode without rotating",
                 loc=("directions", i, "to"),
-                extra={"change_deg": change},
+                context={"change_deg": change},
             )
         length = float(np.linalg.norm(ends[i] - starts[i]))
         if length < MIN_TRANSLATION_MM:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-direction",
                 f"direction {i} ({d.axis}): the flange moved only {length:.2f} mm; move at "
                 f"least {MIN_TRANSLATION_MM:g} mm along the tool axis",
                 loc=("directions", i, "to"),
-                extra={"length_mm": length},
+                context={"length_mm": length},
             )
         mids.append(pair.mean().as_matrix())
         signs[i] = 1.0 if d.axis[0] == "+" else -1.0
         is_z[i] = d.axis[1] == "z"
     if not is_z.any():
-        raise SolveError(
+        raise InvalidInput(
             "invalid-direction",
             "no move along the tool's Z axis: the Z direction is required (X is optional)",
             loc=("directions",),
@@ -341,7 +341,7 @@ def orientation_from_translations(
         first = int(np.flatnonzero(is_z == is_z[i])[0])
         off = float(np.degrees(np.arccos(np.clip(axes[i] @ axes[first], -1.0, 1.0))))
         if off > MAX_SAME_AXIS_DISAGREEMENT_DEG:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-direction",
                 f"direction {i} ({directions[i].axis}) points {off:.0f} deg away from "
                 f"direction {first} ({directions[first].axis}) along the same tool axis: check "
@@ -355,12 +355,12 @@ def orientation_from_translations(
         line_angle = float(np.degrees(np.arccos(min(1.0, abs(float(x @ z))))))
         if line_angle < MIN_X_Z_ANGLE_DEG:
             i_x = int(np.flatnonzero(~is_z)[0])
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-direction",
                 f"the X move is only {line_angle:.1f} deg from the Z move: X and Z are (nearly) "
                 "parallel; jog along the tool's X axis, perpendicular to Z",
                 loc=("directions", i_x, "to"),
-                extra={"angle_deg": line_angle},
+                context={"angle_deg": line_angle},
             )
         defect = 90.0 - float(np.degrees(np.arccos(float(np.clip(x @ z, -1.0, 1.0)))))
         if abs(defect) > WARN_ORTHOGONALITY_DEG:
@@ -436,7 +436,7 @@ def orientation_from_touches(
     The solution is exactly determined: the residuals are zeros.
     """
     if working_axis not in ("x", "z"):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"working_axis must be 'x' or 'z', got {working_axis!r}",
             loc=("options", "working_axis"),
@@ -444,11 +444,13 @@ def orientation_from_touches(
     noise = _check_noise(touch_noise_mm, "touch_noise_mm")
     t = check_finite(tcp_mm, loc=("options", "tcp_mm"))
     if t.shape != (3,):
-        raise SolveError("invalid-options", "tcp_mm needs 3 values (mm)", loc=("options", "tcp_mm"))
+        raise InvalidInput(
+            "invalid-options", "tcp_mm needs 3 values (mm)", loc=("options", "tcp_mm")
+        )
     R = np.asarray(rotations, dtype=np.float64)
     f = np.asarray(positions_mm, dtype=np.float64)
     if R.shape[0] != 3 or f.shape[0] != 3:
-        raise SolveError(
+        raise InvalidInput(
             "too-few-poses" if min(R.shape[0], f.shape[0]) < 3 else "invalid-pose",
             "the 2-point method takes exactly 3 touches: TCP, a point on the working axis "
             "behind it, a point on +Y",
@@ -459,23 +461,23 @@ def orientation_from_touches(
     Q, w, y = _frame_from_touch_points(t, R, f, working_axis)
     lever_axis = float(np.linalg.norm(w))
     if lever_axis < MIN_LEVER_MM:
-        raise SolveError(
+        raise InvalidInput(
             "degenerate-poses",
             f"touch 1 puts the working-axis point only {lever_axis:.2f} mm from the TCP: touch "
             f"the point with a spot on the {working_axis.upper()} axis at least "
             f"{MIN_LEVER_MM:g} mm behind the TCP",
             loc=("poses", 1),
-            extra={"lever_mm": lever_axis},
+            context={"lever_mm": lever_axis},
         )
     lever_y = float(np.linalg.norm(_orthogonalised(y, w / lever_axis)))
     if lever_y < MIN_LEVER_MM:
-        raise SolveError(
+        raise InvalidInput(
             "degenerate-poses",
             f"the three touched tool points are (nearly) collinear: touch 2 is only "
             f"{lever_y:.2f} mm off the working axis; touch with a point on the tool's +Y "
             f"side at least {MIN_LEVER_MM:g} mm away from the axis",
             loc=("poses", 2),
-            extra={"lever_mm": lever_y},
+            context={"lever_mm": lever_y},
         )
     warnings: list[str] = []
     for name, lever in (("working-axis", lever_axis), ("+Y", lever_y)):
@@ -507,7 +509,7 @@ def _parse_base_direction(value: object, key: str) -> NDArray[np.float64]:
     if len(text) == 1:
         text = "+" + text
     if len(text) != 2 or text[0] not in "+-" or text[1] not in _UNIT:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"align.{key}: a base direction is one of +x, -x, +y, -y, +z, -z; got {value!r}",
             loc=("options", "align", key),
@@ -535,14 +537,14 @@ def orientation_from_world(
     and no noise model (sigma_source "none").
     """
     if working_axis not in ("x", "z"):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"working_axis must be 'x' or 'z', got {working_axis!r}",
             loc=("options", "working_axis"),
         )
     R = check_rotation_matrices(np.asarray(rotation, dtype=np.float64)[None], loc=("poses",))[0]
     if not isinstance(align, Mapping) or not 1 <= len(align) <= 3:
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             "align must name one (5D) or two (6D) tool axes, e.g. {'x': '-z', 'y': '+y'}",
             loc=("options", "align"),
@@ -551,13 +553,13 @@ def orientation_from_world(
     for key, value in align.items():
         k = str(key).strip().lower()
         if k not in _UNIT:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 f"align: {key!r} is not a tool axis; use x, y or z",
                 loc=("options", "align", str(key)),
             )
         if _UNIT[k] in named:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 f"align names the tool axis {k} twice",
                 loc=("options", "align", str(key)),
@@ -565,7 +567,7 @@ def orientation_from_world(
         v = _parse_base_direction(value, k)
         for other, ov in named.items():
             if abs(float(v @ ov)) > 0.5:
-                raise SolveError(
+                raise InvalidInput(
                     "invalid-options",
                     f"align maps tool {'xyz'[other]} and tool {k} onto the same base axis; "
                     "tool axes are perpendicular, so they must go to different base axes",
@@ -610,7 +612,7 @@ def orientation_from_world(
             i, j = (missing + 1) % 3, (missing + 2) % 3
             M[:, missing] = np.cross(M[:, i], M[:, j])
         elif np.linalg.det(M) < 0:
-            raise SolveError(
+            raise InvalidInput(
                 "invalid-options",
                 "align names a left-handed set of axes (x cross y must equal z); name two "
                 "axes and let the third follow",

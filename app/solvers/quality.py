@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Final, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -17,8 +18,9 @@ from scipy.stats import chi2, f
 #: Probability content of the reported uncertainty ellipsoid.
 ELLIPSOID_PROBABILITY = 0.95
 
-SIGMA_CONFIGURED = "configured"
-SIGMA_RESIDUALS = "residuals"
+SigmaSource = Literal["configured", "residuals"]
+SIGMA_CONFIGURED: Final = "configured"
+SIGMA_RESIDUALS: Final = "residuals"
 
 
 @dataclass(frozen=True)
@@ -31,7 +33,7 @@ class Quality:
     residuals_mm: tuple[float, ...]
     tcp_sigma_mm: tuple[float, float, float]
     tcp_covariance_mm2: tuple[tuple[float, ...], ...]
-    sigma_source: str
+    sigma_source: SigmaSource
     orientation_spread_deg: float
     condition_number: float
     outliers: tuple[int, ...]
@@ -87,7 +89,7 @@ def make_quality(
     residuals_mm: ArrayLike,
     used: ArrayLike | None = None,
     tcp_covariance_mm2: ArrayLike,
-    sigma_source: str,
+    sigma_source: SigmaSource,
     orientation_spread_deg: float,
     condition_number: float,
     outliers: tuple[int, ...] = (),

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.quality import SIGMA_CONFIGURED, Quality, make_quality
 from app.solvers.validation import (
     MAX_ABS_MM,
@@ -84,7 +84,7 @@ def solve_reference(
     s = _touch_noise(touch_noise_mm)
     t2 = R.T @ (r - f)
     if float(np.abs(t2).max()) > MAX_ABS_MM:
-        raise SolveError(
+        raise InvalidInput(
             "out-of-range",
             f"the touch puts the TCP {float(np.linalg.norm(t2)):.6g} mm from the flange: the "
             "reference point or the pose is wrong",
@@ -133,7 +133,7 @@ def check_tcp(
 def _vector(value: ArrayLike, name: str) -> FloatArray:
     arr = check_finite(value, loc=(name,))
     if arr.shape != (3,):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-pose", f"{name} must be 3 numbers (mm), got shape {arr.shape}", loc=(name,)
         )
     out: FloatArray = check_positions_mm(arr[None, :], loc=(name,))[0]
@@ -145,7 +145,7 @@ def _covariance(value: ArrayLike | None, name: str) -> FloatArray:
         return np.zeros((3, 3))
     arr = check_finite(value, loc=(name,))
     if arr.shape != (3, 3):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"{name} must be a 3x3 matrix (mm^2), got shape {arr.shape}",
             loc=(name,),
@@ -155,7 +155,7 @@ def _covariance(value: ArrayLike | None, name: str) -> FloatArray:
         float(np.abs(arr - arr.T).max()) > 1e-9 * scale
         or float(np.linalg.eigvalsh(0.5 * (arr + arr.T))[0]) < -1e-9 * scale
     ):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"{name} is not a covariance: it must be symmetric with no negative variance",
             loc=(name,),
@@ -174,7 +174,7 @@ def _touch_noise(value: float | None) -> float:
         return 0.0
     v = float(value)
     if not (np.isfinite(v) and 0.0 <= v <= MAX_TOUCH_NOISE_MM):
-        raise SolveError(
+        raise InvalidInput(
             "invalid-options",
             f"touch_noise_mm = {value!r} is not usable: it must be between 0 and "
             f"{MAX_TOUCH_NOISE_MM:g} mm",

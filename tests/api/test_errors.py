@@ -204,7 +204,7 @@ def test_non_unit_quaternion_is_422_invalid_rotation(api: Api) -> None:
         scope="calibrate",
     )
     body = _problem(response, 422, "invalid-rotation")
-    assert body["errors"][0]["loc"][:2] == ["tcp", "quaternion"]
+    assert body["errors"][0]["loc"][:3] == ["body", "tcp", "quaternion"]
     assert json.dumps(body).count("NaN") == 0
 
 

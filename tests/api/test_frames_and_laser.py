@@ -222,7 +222,7 @@ def test_abc_2point_without_tcp_is_422(api: Api, torch: dict[str, Any]) -> None:
     }
     response = api.post(f"/v1/tools/{torch['id']}/calibrations", body, scope="calibrate")
     assert response.status_code == 422
-    assert response.json()["errors"][0]["loc"] == ["options", "tcp_mm"]
+    assert response.json()["errors"][0]["loc"] == ["body", "options", "tcp_mm"]
 
 
 def test_abc_world_6d(api: Api, torch: dict[str, Any]) -> None:

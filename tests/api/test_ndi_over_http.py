@@ -58,5 +58,5 @@ def test_a_row_that_is_not_ok_is_refused(api: Api) -> None:
     assert response.status_code == 422
     problem = response.json()
     assert problem["type"].rsplit("/", 1)[1] in {"out-of-range", "invalid-rotation"}
-    assert problem["errors"][0]["loc"][:2] == ["poses", 10]
+    assert problem["errors"][0]["loc"][:3] == ["body", "poses", 10]
     assert "NaN" not in response.text

@@ -174,7 +174,7 @@ def test_unsolvable_input_is_422_and_writes_nothing(
         direction = np.asarray(problem["context"]["direction_flange"])
         assert np.allclose(np.abs(direction), [0, 0, 1], atol=1e-6)
     if case == "sentinel":
-        assert problem["errors"][0]["loc"][:2] == ["poses", 3]
+        assert problem["errors"][0]["loc"][:3] == ["body", "poses", 3]
     assert "NaN" not in response.text
     assert row_counts(TABLES) == before
 

@@ -205,7 +205,7 @@ def test_bad_rotations_are_refused_with_pose_index(api: Api, fmt: str) -> None:
     assert response.status_code == 422
     problem = response.json()
     assert problem["type"].endswith("/invalid-rotation")
-    assert problem["errors"][0]["loc"][:2] == ["poses", 2]
+    assert problem["errors"][0]["loc"][:3] == ["body", "poses", 2]
 
 
 def test_methods_lists_every_method_with_defaults(api: Api) -> None:
@@ -223,4 +223,5 @@ def test_methods_lists_every_method_with_defaults(api: Api) -> None:
     assert items["xyz_npoint"]["options"]["algorithm"]["default"] == "robust"
     assert items["abc_2point"]["options"]["working_axis"]["default"] == "x"
     assert "directions" in items["tcp_z_x"]["requires"]
-    assert items["xyz_npoint"]["available"] is True
+    assert items["xyz_reference"]["max_poses"] == 1
+    assert items["manual"]["min_poses"] == 0

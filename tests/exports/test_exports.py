@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
+from app.errors import InvalidInput
 from app.exports import (
     CONTROLLER_FORMATS,
     ToolData,
@@ -18,7 +19,6 @@ from app.exports import (
     parse_controller_text,
     rapid_identifier,
 )
-from app.solvers.errors import SolveError
 
 H = math.sqrt(0.5)
 
@@ -134,7 +134,7 @@ def test_fanuc_parses_tp_position_register_form() -> None:
 
 def test_fanuc_tp_form_needs_all_six_elements() -> None:
     text = "PR[95,1]=10 ;\nPR[95,2]=0 ;\nPR[95,3]=150 ;\nUTOOL[1]=PR[95] ;"
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         parse_controller_text("fanuc", text)
     assert info.value.kind == "invalid-pose"
 
@@ -161,7 +161,7 @@ def test_techman_parses_array_and_flat_forms(text: str) -> None:
     "text", ['ChangeTCP("NOTOOL")', "ChangeTCP({0,0,150,90,0,0,1.5})", "ChangeTCP(0,0,150,90,0})"]
 )
 def test_techman_refuses_tool_names_and_bad_arrays(text: str) -> None:
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         parse_controller_text("techman", text)
     assert info.value.kind == "invalid-pose"
 
@@ -243,7 +243,7 @@ def test_export_parse_gimbal_lock(fmt: str, quaternion: list[float]) -> None:
 
 @pytest.mark.parametrize("mass", [None, 0.0, -1.0, float("nan")])
 def test_abb_refuses_missing_or_zero_mass(mass: float | None) -> None:
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         export_tool("abb", tool(mass=mass))
     assert info.value.kind == "missing-load"
     assert info.value.loc == ("load", "mass_kg")
@@ -257,40 +257,40 @@ def test_abb_refuses_missing_cog() -> None:
         quaternion_wxyz=np.array([1.0, 0, 0, 0]),
         mass_kg=2.0,
     )
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         export_tool("abb", t)
     assert info.value.kind == "missing-load"
     assert info.value.loc == ("load", "cog_mm")
 
 
 def test_kuka_refuses_missing_slot() -> None:
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         export_tool("kuka", tool(slot=None))
     assert info.value.kind == "invalid-options"
     assert info.value.loc == ("slot",)
 
 
 def test_refuses_unknown_controller_format() -> None:
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         export_tool("staubli", tool())
     assert info.value.kind == "unknown-format"
-    with pytest.raises(SolveError):
+    with pytest.raises(InvalidInput):
         parse_controller_text("staubli", "")
 
 
 def test_refuses_bad_quaternion_and_sentinel() -> None:
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         export_tool("ur", tool(quaternion=[2, 0, 0, 0]))
     assert info.value.kind == "invalid-rotation"
     assert info.value.loc == ("tcp", "quaternion")
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         export_tool("ur", tool(position=[-3.7e28, 0, 0]))
     assert info.value.kind == "out-of-range"
 
 
 @pytest.mark.parametrize("fmt", CONTROLLER_FORMATS)
 def test_parse_refuses_garbage(fmt: str) -> None:
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         parse_controller_text(fmt, "hello robot")
     assert info.value.kind == "invalid-pose"
     assert info.value.loc == ("text",)

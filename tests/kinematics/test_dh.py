@@ -10,9 +10,9 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
+from app.errors import InvalidInput
 from app.kinematics.dh import DHLink, Kinematics, flange_pose, flange_poses, kinematics_from_spec
 from app.kinematics.presets import PRESETS
-from app.solvers.errors import SolveError
 
 HALF_PI = math.pi / 2
 
@@ -281,14 +281,14 @@ def test_spec_preset_and_links() -> None:
 )
 def test_refuses_bad_kinematics_spec(spec: dict[str, Any], loc: tuple[str | int, ...]) -> None:
     """A bad kinematics spec -> invalid-options naming the field."""
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         kinematics_from_spec(spec)
     assert info.value.kind == "invalid-options"
     assert info.value.loc == loc, info.value
 
 
 def test_refuses_non_finite_joints() -> None:
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         flange_poses(PRESETS["ur5e"], [[0, 0, float("nan"), 0, 0, 0]])
     assert info.value.kind == "non-finite"
 

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
+from app.errors import InvalidInput
 from app.kinematics.poses import (
     POSE_FORMATS,
     Units,
@@ -24,7 +25,6 @@ from app.kinematics.poses import (
     resolve_units,
 )
 from app.kinematics.presets import PRESETS
-from app.solvers.errors import SolveError
 
 FAST = settings(
     max_examples=150, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
@@ -267,8 +267,8 @@ def test_matrix_to_format_and_back(fmt: str, seed: int, x: float, y: float, z: f
 # --- refusals: one test per kind --------------------------------------------------------------
 
 
-def _refused(kind: str, *args: object, **kwargs: object) -> SolveError:
-    with pytest.raises(SolveError) as info:
+def _refused(kind: str, *args: object, **kwargs: object) -> InvalidInput:
+    with pytest.raises(InvalidInput) as info:
         poses_from_format(*args, **kwargs)  # type: ignore[arg-type]
     assert info.value.kind == kind, info.value
     return info.value
@@ -352,7 +352,7 @@ def test_normalises_nearly_unit_quaternion() -> None:
 def test_refuses_unknown_format() -> None:
     err = _refused("unknown-format", "euler_zyz", [[0] * 6])
     assert err.loc == ("format",)
-    with pytest.raises(SolveError, match="unknown pose format"):
+    with pytest.raises(InvalidInput, match="unknown pose format"):
         pose_to_format("nope", np.eye(3), [0, 0, 0])
 
 
@@ -368,7 +368,7 @@ def test_refuses_bad_units() -> None:
 
 
 def test_pose_to_joints_is_unsupported() -> None:
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         pose_to_format("joints", np.eye(3), [0, 0, 0])
     assert info.value.kind == "unsupported"
 

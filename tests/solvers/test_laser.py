@@ -9,7 +9,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.laser import LaserDevice, LaserResult, Sweep, solve_laser, teach_device
 from tests.sim.laser import (
     DEVICE,
@@ -277,8 +277,8 @@ def _with_sweep(data: LaserData, i: int, sweep: Sweep) -> LaserData:
     return dataclasses.replace(data, sweeps=sweeps)
 
 
-def _refused(data: LaserData, kind: str, device: LaserDevice = DEVICE) -> SolveError:
-    with pytest.raises(SolveError) as exc:
+def _refused(data: LaserData, kind: str, device: LaserDevice = DEVICE) -> InvalidInput:
+    with pytest.raises(InvalidInput) as exc:
         _solve(data, device=device)
     assert exc.value.kind == kind, exc.value
     assert exc.value.detail
@@ -405,7 +405,7 @@ def test_refuses_non_finite_and_bad_rotation() -> None:
     _refused(
         dataclasses.replace(data, flange_rotation=data.flange_rotation * 1.1), "invalid-rotation"
     )
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         _solve(data, trigger_noise_mm=-0.1)
     assert exc.value.kind == "invalid-options"
 
@@ -427,7 +427,7 @@ def test_never_a_nan_on_scrambled_input() -> None:
         data = dataclasses.replace(base, sweeps=sweeps, descent_mm=descent)
         try:
             result = _solve(data, trigger_noise_mm=0.01)
-        except SolveError:
+        except InvalidInput:
             continue
         solved += 1
         values = np.concatenate(
@@ -439,7 +439,7 @@ def test_never_a_nan_on_scrambled_input() -> None:
 
 def test_teach_refuses_like_solve() -> None:
     data = _data(heights_mm=(220.0,))
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         teach_device(
             flange_rotation=data.flange_rotation,
             sweeps=data.sweeps,
@@ -448,7 +448,7 @@ def test_teach_refuses_like_solve() -> None:
         )
     assert exc.value.kind == "too-few-poses"
     data = _data()
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         teach_device(
             flange_rotation=data.flange_rotation,
             sweeps=data.sweeps,

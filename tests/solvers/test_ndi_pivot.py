@@ -18,7 +18,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.npoint import ALGORITHMS, NPointResult, solve_npoint
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "ndi-pivot"
@@ -110,7 +110,7 @@ def test_a_lost_tool_row_is_refused_not_averaged() -> None:
     R, f = ok_rows("pivot_3.csv")
     R, f = R[:40:4].copy(), f[:40:4].copy()
     f[5] = [-3.7e28, -3.7e28, -3.7e28]  # what the tracker reports for a missing tool
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         solve_npoint(R, f)
     assert info.value.kind == "out-of-range"
     assert info.value.loc == ("poses", 5, "position")
@@ -120,6 +120,6 @@ def test_a_lost_tool_rotation_is_refused() -> None:
     R, f = ok_rows("pivot_2.csv")
     R = R[:40:4].copy()
     R[2] = -3.7e28
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         solve_npoint(R, f[:40:4])
     assert info.value.kind == "invalid-rotation"

@@ -10,7 +10,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.npoint import ALGORITHMS, solve_npoint
 from app.solvers.quality import Quality, ellipsoid95_scale, orientation_spread_deg
 from tests.sim.touches import TOOL_DOWN, coaxial_rotations, simulate_touches
@@ -260,8 +260,8 @@ def test_four_touches_with_a_miss_are_flagged_not_guessed() -> None:
 # ------------------------------------------------------------------------------ refusals
 
 
-def _raises(kind: str, *args: object, **kwargs: object) -> SolveError:
-    with pytest.raises(SolveError) as info:
+def _raises(kind: str, *args: object, **kwargs: object) -> InvalidInput:
+    with pytest.raises(InvalidInput) as info:
         solve_npoint(*args, **kwargs)  # type: ignore[arg-type]
     assert info.value.kind == kind, info.value.detail
     assert info.value.detail
@@ -280,7 +280,7 @@ def test_repeated_orientations_are_named() -> None:
     R = sim.R.copy()
     R[2] = R[0] @ Rotation.from_euler("x", 0.2, degrees=True).as_matrix()
     err = _raises("repeated-poses", R, sim.f)
-    assert err.extra["pairs"] == [[0, 2]]
+    assert err.context["pairs"] == [[0, 2]]
     assert err.loc == ("poses", 2)
     assert "0 and 2" in err.detail
 
@@ -301,7 +301,7 @@ def test_rotations_about_one_axis_are_degenerate_and_the_direction_is_named(
     t, p = np.array([10.0, 5.0, 150.0]), np.array([700.0, 0.0, 200.0])
     f = p - R @ t
     err = _raises("degenerate-poses", R, f)
-    direction = np.array(err.extra["direction_flange"])
+    direction = np.array(err.context["direction_flange"])
     assert_allclose(np.abs(direction @ np.array(axis)), 1.0, atol=1e-6)
     assert "add a touch rotated about a different axis" in err.detail
     if axis == (0, 0, 1):
@@ -319,7 +319,7 @@ def test_almost_coaxial_rotations_with_noise_are_still_degenerate() -> None:
 def test_small_spread_is_refused_against_the_tolerance() -> None:
     sim = simulate_touches(6, seed=3, tilt_deg=3.0, spin=False)
     err = _raises("insufficient-spread", sim.R, sim.f, touch_noise_mm=0.05, max_tcp_sigma_mm=0.1)
-    assert err.extra["predicted_sigma_mm"] > 0.1
+    assert err.context["predicted_sigma_mm"] > 0.1
     assert "tilt the tool more" in err.detail
     # a wide spread with the same tolerance passes
     wide = simulate_touches(6, seed=3, tilt_deg=45.0)

@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.orientation import (
     Direction,
     angle_between_deg,
@@ -213,7 +213,7 @@ def test_refuses_orientation_change() -> None:
     d = dirs[1]
     turned = R @ Rotation.from_euler("z", 0.8, degrees=True).as_matrix()
     dirs[1] = Direction(d.axis, d.rotation_from, d.position_from_mm, turned, d.position_to_mm)
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_translations(dirs)
     assert exc.value.kind == "orientation-changed"
     assert exc.value.loc == ("directions", 1, "to")
@@ -222,7 +222,7 @@ def test_refuses_orientation_change() -> None:
 
 def test_refuses_short_translation() -> None:
     Q, R = _case(0)
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_translations(translation_directions(Q, R, length_mm=8.0))
     assert exc.value.kind == "invalid-direction"
     assert exc.value.loc == ("directions", 0, "to")
@@ -238,7 +238,7 @@ def test_refuses_x_parallel_to_z() -> None:
         z_move.rotation_to,
         z_move.position_to_mm + R @ Q[:, 0] * 3.0,  # mostly along Z again
     )
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_translations([z_move, x_wrong])
     assert exc.value.kind == "invalid-direction"
     assert exc.value.loc == ("directions", 1, "to")
@@ -246,11 +246,11 @@ def test_refuses_x_parallel_to_z() -> None:
 
 def test_refuses_missing_z() -> None:
     Q, R = _case(0)
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_translations(translation_directions(Q, R, axes=("+x",)))
     assert exc.value.kind == "invalid-direction"
     assert "Z" in exc.value.detail
-    with pytest.raises(SolveError):
+    with pytest.raises(InvalidInput):
         orientation_from_translations([])
 
 
@@ -259,7 +259,7 @@ def test_refuses_contradicting_moves_on_one_axis() -> None:
     dirs = translation_directions(Q, R, axes=("+z", "+z"))
     d = dirs[1]
     dirs[1] = Direction("-z", d.rotation_from, d.position_from_mm, d.rotation_to, d.position_to_mm)
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_translations(dirs)
     assert exc.value.kind == "invalid-direction"
 
@@ -271,7 +271,7 @@ def test_refuses_bad_direction_rotation_and_nan() -> None:
     dirs[0] = Direction(
         d.axis, d.rotation_from * 1.01, d.position_from_mm, d.rotation_to, d.position_to_mm
     )
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_translations(dirs)
     assert exc.value.kind == "invalid-rotation"
     assert exc.value.loc == ("directions", 0, "from")
@@ -280,7 +280,7 @@ def test_refuses_bad_direction_rotation_and_nan() -> None:
     dirs[1] = Direction(
         d.axis, d.rotation_from, d.position_from_mm, d.rotation_to, np.array([1.0, np.nan, 0])
     )
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_translations(dirs)
     assert exc.value.kind == "non-finite"
 
@@ -297,7 +297,7 @@ def test_refuses_bad_direction_rotation_and_nan() -> None:
     ],
 )
 def test_world_refuses_bad_alignments(align: dict[str, str], where: str | None) -> None:
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_world(rotation=np.eye(3), align=align)
     assert exc.value.kind == "invalid-options"
     assert exc.value.loc[:2] == ("options", "align")
@@ -308,12 +308,12 @@ def test_world_refuses_bad_alignments(align: dict[str, str], where: str | None) 
 def test_touches_refuse_collinear_points() -> None:
     Q, _ = _case(0)
     rotations, positions = two_point_touches(Q, TCP, lever_y_mm=0.0)
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_touches(tcp_mm=TCP, rotations=rotations, positions_mm=positions)
     assert exc.value.kind == "degenerate-poses"
     assert exc.value.loc == ("poses", 2)
     rotations, positions = two_point_touches(Q, TCP, lever_axis_mm=1.0)
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_touches(tcp_mm=TCP, rotations=rotations, positions_mm=positions)
     assert exc.value.kind == "degenerate-poses"
     assert exc.value.loc == ("poses", 1)
@@ -322,10 +322,10 @@ def test_touches_refuse_collinear_points() -> None:
 def test_touches_refuse_wrong_count_and_bad_options() -> None:
     Q, _ = _case(0)
     rotations, positions = two_point_touches(Q, TCP)
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_touches(tcp_mm=TCP, rotations=rotations[:2], positions_mm=positions[:2])
     assert exc.value.kind == "too-few-poses"
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_touches(
             tcp_mm=TCP,
             rotations=rotations,
@@ -333,7 +333,7 @@ def test_touches_refuse_wrong_count_and_bad_options() -> None:
             working_axis="y",  # type: ignore[arg-type]
         )
     assert exc.value.kind == "invalid-options"
-    with pytest.raises(SolveError) as exc:
+    with pytest.raises(InvalidInput) as exc:
         orientation_from_touches(
             tcp_mm=TCP, rotations=rotations, positions_mm=positions, touch_noise_mm=-1.0
         )

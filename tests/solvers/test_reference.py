@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from app.solvers.errors import SolveError
+from app.errors import InvalidInput
 from app.solvers.npoint import solve_npoint
 from app.solvers.reference import check_tcp, reference_point_from_touch, solve_reference
 from tests.sim.touches import simulate_touches, touch_rotations
@@ -151,12 +151,12 @@ def test_bad_inputs_are_refused(kwargs: dict[str, object], kind: str) -> None:
         "touch_noise_mm": 0.05,
     }
     args.update(kwargs)
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         solve_reference(**args)  # type: ignore[arg-type]
     assert info.value.kind == kind
 
 
 def test_check_refuses_sentinel_positions() -> None:
-    with pytest.raises(SolveError) as info:
+    with pytest.raises(InvalidInput) as info:
         check_tcp(tcp_mm=TOOL_A, rotation=np.eye(3), position_mm=[-3.7e28] * 3, reference_mm=POINT)
     assert info.value.kind == "out-of-range"

@@ -1,144 +1,29 @@
-"""Robots and tools: the fleet registry (create, read, update, archive)."""
+"""Tools of a robot: register, list, update, archive; the tool's ETag and If-Match."""
 
 from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from typing import Any, TypeVar
+from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import Archived, Conflict, NotFound, PreconditionFailed
-from app.models import Robot, Tool, utcnow
-from app.schemas.robots import RobotCreate, RobotUpdate
+from app.errors import Conflict, PreconditionFailed
+from app.models import Tool, utcnow
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.services import audit
 from app.services.etags import if_match_ok
-from app.services.kinematics import validate_kinematics
+from app.services.live import get_live
 from app.services.pagination import paginate
+from app.services.robots import get_robot
 from app.services.tolerance import effective_tolerance
 
-# ---- robots ---------------------------------------------------------------------------------
-Live = TypeVar("Live", Robot, Tool)
 
-
-def _get_live(session: Session, model: type[Live], row_id: str, *, for_update: bool) -> Live:
-    """A row that is not archived, or 404 (/not-found, or /archived when it was deleted)."""
-    what = model.__name__.lower()
-    stmt = select(model).where(model.id == row_id)
-    if for_update:
-        stmt = stmt.with_for_update()
-    row = session.scalars(stmt).one_or_none()
-    if row is None:
-        raise NotFound(f"no {what} with id {row_id}")
-    if row.archived_at is not None:
-        raise Archived(f"{what} {row_id} ({row.name}) was archived")
-    return row
-
-
-def get_robot(session: Session, robot_id: str, *, for_update: bool = False) -> Robot:
-    """A live robot, or 404."""
-    return _get_live(session, Robot, robot_id, for_update=for_update)
-
-
-def _robot_name_free(session: Session, name: str, *, except_id: str | None = None) -> None:
-    stmt = select(Robot.id).where(Robot.name == name, Robot.archived_at.is_(None))
-    if except_id:
-        stmt = stmt.where(Robot.id != except_id)
-    if session.scalars(stmt).first():
-        raise Conflict(
-            f"a robot named {name!r} already exists",
-            errors=[{"loc": ["body", "name"], "msg": "already taken"}],
-        )
-
-
-def create_robot(session: Session, *, data: RobotCreate, actor: Principal) -> Robot:
-    """Register a robot (name unique among live robots)."""
-    _robot_name_free(session, data.name)
-    values = data.model_dump()
-    values["kinematics"] = validate_kinematics(data.kinematics)
-    robot = Robot(**values)
-    session.add(robot)
-    session.flush()
-    audit.record(
-        session,
-        actor=actor,
-        action="robot.create",
-        resource_type="robot",
-        resource_id=robot.id,
-        robot_id=robot.id,
-        details={"name": robot.name},
-    )
-    return robot
-
-
-def list_robots(
-    session: Session, *, cell: str | None, name: str | None, limit: int, cursor: str | None
-) -> tuple[Sequence[Robot], str | None]:
-    """Live robots, optionally filtered by cell or exact name."""
-    stmt = select(Robot).where(Robot.archived_at.is_(None))
-    if cell is not None:
-        stmt = stmt.where(Robot.cell == cell)
-    if name is not None:
-        stmt = stmt.where(Robot.name == name)
-    return paginate(
-        session, stmt, created_col=Robot.created_at, id_col=Robot.id, limit=limit, cursor=cursor
-    )
-
-
-def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: Principal) -> Robot:
-    """Change the fields given in the PATCH body."""
-    robot = get_robot(session, robot_id, for_update=True)
-    changes = data.model_dump(exclude_unset=True)
-    if changes.get("name") is None:
-        changes.pop("name", None)
-    if "name" in changes:
-        _robot_name_free(session, changes["name"], except_id=robot.id)
-    if "kinematics" in changes:
-        changes["kinematics"] = validate_kinematics(data.kinematics)
-    for key, value in changes.items():
-        setattr(robot, key, value)
-    robot.updated_at = utcnow()
-    audit.record(
-        session,
-        actor=actor,
-        action="robot.update",
-        resource_type="robot",
-        resource_id=robot.id,
-        robot_id=robot.id,
-        details={"changed": sorted(changes)},
-    )
-    return robot
-
-
-def archive_robot(session: Session, *, robot_id: str, actor: Principal) -> None:
-    """Archive a robot and its tools; their history stays."""
-    robot = get_robot(session, robot_id, for_update=True)
-    now = utcnow()
-    robot.archived_at = now
-    tools = session.scalars(
-        select(Tool).where(Tool.robot_id == robot.id, Tool.archived_at.is_(None))
-    ).all()
-    for tool in tools:
-        tool.archived_at = now
-        tool.revision += 1
-    audit.record(
-        session,
-        actor=actor,
-        action="robot.archive",
-        resource_type="robot",
-        resource_id=robot.id,
-        robot_id=robot.id,
-        details={"archived_tools": [t.id for t in tools]},
-    )
-
-
-# ---- tools ----------------------------------------------------------------------------------
 def get_tool(session: Session, tool_id: str, *, for_update: bool = False) -> Tool:
     """A live tool, or 404. `for_update` locks the row (serialises versions)."""
-    return _get_live(session, Tool, tool_id, for_update=for_update)
+    return get_live(session, Tool, tool_id, for_update=for_update)
 
 
 def tool_etag(tool: Tool) -> str:
@@ -172,12 +57,14 @@ def _tool_unique(
     if name is not None and session.scalars(live.where(Tool.name == name)).first():
         raise Conflict(
             f"robot {robot_id} already has a tool named {name!r}",
-            errors=[{"loc": ["body", "name"], "msg": "already taken"}],
+            loc=("body", "name"),
+            msg="already taken",
         )
     if slot is not None and session.scalars(live.where(Tool.slot == slot)).first():
         raise Conflict(
             f"slot {slot} of robot {robot_id} is already taken by another tool",
-            errors=[{"loc": ["body", "slot"], "msg": "already taken"}],
+            loc=("body", "slot"),
+            msg="already taken",
         )
 
 
@@ -235,7 +122,10 @@ def update_tool(
         if changes["tolerance"] is None:
             changes.pop("tolerance")
         else:
-            changes["tolerance"] = {**effective_tolerance(tool.tolerance), **changes["tolerance"]}
+            changes["tolerance"] = {
+                **effective_tolerance(tool.tolerance).model_dump(),
+                **changes["tolerance"],
+            }
     if changes.get("load") is not None and tool.load is not None:
         changes["load"] = Load.model_validate({**tool.load, **changes["load"]}).model_dump()
     for key, value in changes.items():

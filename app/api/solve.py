@@ -1,0 +1,19 @@
+"""POST /v1/solve: a calibration's answer without storing anything."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Body
+
+from app.deps import ReadKey, SessionDep
+from app.schemas.calibrations import SolveRequest
+from app.schemas.results import SolveResult
+from app.services import calibrate
+
+router = APIRouter(tags=["stateless"])
+
+
+@router.post("/v1/solve", response_model=SolveResult)
+def solve(body: Annotated[SolveRequest, Body()], session: SessionDep, key: ReadKey) -> SolveResult:
+    return calibrate.solve_stateless(session, request=body)

@@ -1,0 +1,128 @@
+"""What a calibration produces: the one `CalibrationResult` that is stored and served."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from app.schemas.common import StrictModel, Timestamp
+from app.schemas.tools import Tcp
+from app.solvers.quality import Quality, SigmaSource
+
+Status = Literal["accepted", "out_of_tolerance"]
+
+
+class QualityOut(BaseModel):
+    n_poses: int
+    rms_mm: float | None
+    max_mm: float | None
+    residuals_mm: list[float]
+    tcp_sigma_mm: list[float] | None
+    tcp_covariance_mm2: list[list[float]] | None = None
+    sigma_source: SigmaSource | None
+    orientation_spread_deg: float | None
+    condition_number: float | None
+    outliers: list[int]
+    ellipsoid95_scale: float | None = Field(
+        default=None,
+        description="multiply the 1-sigma ellipsoid by this for 95 % (F-based when the noise "
+        "is estimated from the residuals)",
+    )
+    orientation_sigma_deg: list[float] | None = None
+
+    @classmethod
+    def from_solver(cls, quality: Quality) -> QualityOut:
+        """A solver's Quality (its warnings travel separately)."""
+        return cls(
+            n_poses=quality.n_poses,
+            rms_mm=quality.rms_mm,
+            max_mm=quality.max_mm,
+            residuals_mm=list(quality.residuals_mm),
+            tcp_sigma_mm=list(quality.tcp_sigma_mm),
+            tcp_covariance_mm2=[list(row) for row in quality.tcp_covariance_mm2],
+            sigma_source=quality.sigma_source,
+            orientation_spread_deg=quality.orientation_spread_deg,
+            condition_number=quality.condition_number,
+            outliers=list(quality.outliers),
+            ellipsoid95_scale=quality.ellipsoid95_scale,
+        )
+
+    @classmethod
+    def ungraded(cls, n_poses: int) -> QualityOut:
+        """Quality of a result with no redundancy to measure (numbers entered by hand)."""
+        return cls(
+            n_poses=n_poses,
+            rms_mm=None,
+            max_mm=None,
+            residuals_mm=[],
+            tcp_sigma_mm=None,
+            sigma_source=None,
+            orientation_spread_deg=None,
+            condition_number=None,
+            outliers=[],
+        )
+
+
+class LaserSigma(BaseModel):
+    runout_deg: list[float]
+    offset_mm: list[float]
+    tool_length_mm: float
+    source: str
+
+
+class LaserDetails(BaseModel):
+    """The laser method's intermediate geometry, for a report."""
+
+    axis_point_flange_mm: list[float]
+    axis_direction_flange: list[float]
+    heights_mm: list[float]
+    sigma: LaserSigma
+
+
+class NoDetails(StrictModel):
+    """Methods without intermediate figures report `details: {}`."""
+
+
+class ResultExtras(BaseModel):
+    """Figures only some methods report (orientation methods, the laser method)."""
+
+    orientation_change_deg: float | None = Field(
+        default=None, description="angle to the previously active orientation"
+    )
+    runout_deg: list[float] | None = None
+    offset_mm: list[float] | None = None
+    tool_length_mm: float | None = None
+    widths_mm: list[float] | None = None
+    details: LaserDetails | NoDetails = Field(default_factory=NoDetails)
+
+
+class CalibrationResult(ResultExtras):
+    """What a solve produced; a stored Calibration adds its storage fields."""
+
+    method: str
+    algorithm: str | None
+    status: Status
+    tcp: Tcp
+    reference_point_mm: list[float] | None
+    quality: QualityOut
+    warnings: list[str]
+
+
+class Calibration(CalibrationResult):
+    id: str
+    tool_id: str
+    version: int | None
+    active: bool
+    created_at: Timestamp
+    created_by: str
+
+
+class CalibrationDetail(Calibration):
+    request: dict[str, object] = Field(description="the submission exactly as received")
+
+
+class SolveResult(CalibrationResult):
+    id: None = None
+    version: None = None
+    active: bool = False

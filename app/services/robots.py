@@ -1,0 +1,129 @@
+"""Robots: register, list, update, archive; their kinematics validated once, at the door."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.auth import Principal
+from app.errors import Conflict, InvalidInput
+from app.kinematics.dh import kinematics_from_spec
+from app.models import Robot, Tool, utcnow
+from app.schemas.robots import Kinematics, RobotCreate, RobotUpdate
+from app.services import audit
+from app.services.live import get_live
+from app.services.pagination import paginate
+
+
+def get_robot(session: Session, robot_id: str, *, for_update: bool = False) -> Robot:
+    """A live robot, or 404."""
+    return get_live(session, Robot, robot_id, for_update=for_update)
+
+
+def _robot_name_free(session: Session, name: str, *, except_id: str | None = None) -> None:
+    stmt = select(Robot.id).where(Robot.name == name, Robot.archived_at.is_(None))
+    if except_id:
+        stmt = stmt.where(Robot.id != except_id)
+    if session.scalars(stmt).first():
+        raise Conflict(
+            f"a robot named {name!r} already exists",
+            loc=("body", "name"),
+            msg="already taken",
+        )
+
+
+def create_robot(session: Session, *, data: RobotCreate, actor: Principal) -> Robot:
+    """Register a robot (name unique among live robots)."""
+    _robot_name_free(session, data.name)
+    values = data.model_dump()
+    values["kinematics"] = validate_kinematics(data.kinematics)
+    robot = Robot(**values)
+    session.add(robot)
+    session.flush()
+    audit.record(
+        session,
+        actor=actor,
+        action="robot.create",
+        resource_type="robot",
+        resource_id=robot.id,
+        robot_id=robot.id,
+        details={"name": robot.name},
+    )
+    return robot
+
+
+def list_robots(
+    session: Session, *, cell: str | None, name: str | None, limit: int, cursor: str | None
+) -> tuple[Sequence[Robot], str | None]:
+    """Live robots, optionally filtered by cell or exact name."""
+    stmt = select(Robot).where(Robot.archived_at.is_(None))
+    if cell is not None:
+        stmt = stmt.where(Robot.cell == cell)
+    if name is not None:
+        stmt = stmt.where(Robot.name == name)
+    return paginate(
+        session, stmt, created_col=Robot.created_at, id_col=Robot.id, limit=limit, cursor=cursor
+    )
+
+
+def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: Principal) -> Robot:
+    """Change the fields given in the PATCH body."""
+    robot = get_robot(session, robot_id, for_update=True)
+    changes = data.model_dump(exclude_unset=True)
+    if changes.get("name") is None:
+        changes.pop("name", None)
+    if "name" in changes:
+        _robot_name_free(session, changes["name"], except_id=robot.id)
+    if "kinematics" in changes:
+        changes["kinematics"] = validate_kinematics(data.kinematics)
+    for key, value in changes.items():
+        setattr(robot, key, value)
+    robot.updated_at = utcnow()
+    audit.record(
+        session,
+        actor=actor,
+        action="robot.update",
+        resource_type="robot",
+        resource_id=robot.id,
+        robot_id=robot.id,
+        details={"changed": sorted(changes)},
+    )
+    return robot
+
+
+def archive_robot(session: Session, *, robot_id: str, actor: Principal) -> None:
+    """Archive a robot and its tools; their history stays."""
+    robot = get_robot(session, robot_id, for_update=True)
+    now = utcnow()
+    robot.archived_at = now
+    tools = session.scalars(
+        select(Tool).where(Tool.robot_id == robot.id, Tool.archived_at.is_(None))
+    ).all()
+    for tool in tools:
+        tool.archived_at = now
+        tool.revision += 1
+    audit.record(
+        session,
+        actor=actor,
+        action="robot.archive",
+        resource_type="robot",
+        resource_id=robot.id,
+        robot_id=robot.id,
+        details={"archived_tools": [t.id for t in tools]},
+    )
+
+
+def validate_kinematics(spec: Kinematics | None) -> dict[str, Any] | None:
+    """The kinematics to store for a robot; 422 naming the field when it is unusable."""
+    if spec is None:
+        return None
+    as_dict = spec.model_dump()
+    try:
+        kinematics_from_spec(as_dict)
+    except InvalidInput as exc:
+        loc = ("body", "kinematics", *[p for p in exc.loc if p != "kinematics"])
+        raise InvalidInput("invalid-kinematics", exc.detail, loc=loc) from exc
+    return as_dict
