@@ -107,6 +107,14 @@ class CalibrationResult(ResultExtras):
     reference_point_mm: list[float] | None
     quality: QualityOut
     warnings: list[str]
+    change_from_active_mm: float | None = Field(
+        default=None,
+        description="distance (mm) from the active version's TCP position; null when the tool "
+        "had no active version",
+    )
+    summary: str = Field(
+        default="", description="the verdict in one sentence, what to do next included"
+    )
 
 
 class Calibration(CalibrationResult):

@@ -33,6 +33,11 @@ class Tolerance(StrictModel):
     max_residual_mm: PositiveFloat = 1.0
     touch_noise_mm: PositiveFloat | None = None
     check_mm: PositiveFloat = 1.0
+    max_change_mm: PositiveFloat = Field(
+        default=5.0,
+        description="a result whose TCP lies further than this from the active one is stored "
+        'but not activated by "auto"',
+    )
 
 
 class ToolCreate(StrictModel):

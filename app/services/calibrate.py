@@ -32,8 +32,9 @@ from app.services.contexts import DbContext, StatelessContext
 from app.services.pagination import paginate
 from app.services.references import create_reference_point, ensure_reference_name_free
 from app.services.robots import get_robot, validate_kinematics
-from app.services.tolerance import grade
+from app.services.tolerance import effective_tolerance, grade
 from app.services.tools import get_tool
+from app.services.verdict import change_warning, held_for_change, summarise
 from app.services.versions import IDENTITY_QUATERNION, activate, add_version
 
 RawBody = dict[str, object]  # a submission exactly as received, kept with its calibration
@@ -56,12 +57,20 @@ def solve(request: MethodRequest, ctx: MethodContext) -> Outcome:
 
 
 def graded_result(method: str, solved: Solved, ctx: MethodContext) -> CalibrationResult:
-    """The result of a method's outcome: graded, orientation completed, every number finite."""
-    status, reasons = grade(solved.quality, ctx.tolerance, graded=solved.graded)
+    """The result of a method's outcome: graded, orientation completed, compared with the
+    active version, summed up in a sentence, every number finite."""
+    tolerance = ctx.tolerance
+    status, reasons = grade(solved.quality, tolerance, graded=solved.graded)
+    previous = ctx.active_frame()
     quaternion = solved.quaternion
     if quaternion is None:  # a position-only method keeps the active orientation
-        frame = ctx.active_frame()
-        quaternion = frame.quaternion if frame is not None else np.asarray(IDENTITY_QUATERNION)
+        quaternion = previous.quaternion if previous else np.asarray(IDENTITY_QUATERNION)
+    change = None
+    if previous is not None:
+        change = float(np.linalg.norm(solved.position_mm - previous.position_mm))
+    held = held_for_change(change, tolerance)
+    if held and change is not None and previous is not None:
+        reasons.append(change_warning(change, previous, tolerance))
     point = solved.reference_point
     result = CalibrationResult(
         **solved.extras.model_dump(),
@@ -75,7 +84,9 @@ def graded_result(method: str, solved: Solved, ctx: MethodContext) -> Calibratio
         reference_point_mm=[float(v) for v in point.position_mm] if point else None,
         quality=solved.quality,
         warnings=[*solved.warnings, *reasons],
+        change_from_active_mm=change,
     )
+    result.summary = summarise(result, previous=previous, tolerance=tolerance, held=held)
     _refuse_non_finite(result.model_dump())  # python mode: a NaN stays a NaN
     return result
 
@@ -239,9 +250,13 @@ def _activate_if_due(
     result: CalibrationResult,
     actor: Principal,
 ) -> bool:
-    """Activate the new version as `activate` asks ("auto": only within tolerance)."""
+    """Activate the new version as `activate` asks ("auto": only within tolerance and not
+    too far from the active version)."""
+    tolerance = effective_tolerance(tool.tolerance)
     due = request.activate == "always" or (
-        request.activate == "auto" and result.status == "accepted"
+        request.activate == "auto"
+        and result.status == "accepted"
+        and not held_for_change(result.change_from_active_mm, tolerance)
     )
     if due:
         activate(

@@ -1,0 +1,87 @@
+"""The verdict of a result in one sentence, and the rule that holds a large jump back.
+
+A technician reads `summary` first, so it says what happened and what to do next. Touches
+are numbered from 1 in every sentence (arrays stay 0-based).
+"""
+
+from __future__ import annotations
+
+from app.methods.base import ActiveFrame
+from app.schemas.results import CalibrationResult, QualityOut
+from app.schemas.tools import Tolerance
+
+
+def held_for_change(change_mm: float | None, tolerance: Tolerance) -> bool:
+    """Whether a result moved the TCP too far from the active one to activate it by "auto"."""
+    return change_mm is not None and change_mm > tolerance.max_change_mm
+
+
+def change_warning(change_mm: float, previous: ActiveFrame, tolerance: Tolerance) -> str:
+    """Why a result that moved the TCP far was not activated, and how to activate it."""
+    return (
+        f"the TCP moved {change_mm:.2f} mm from active version {previous.version}, more than "
+        f"the tool's max_change_mm {tolerance.max_change_mm:g} mm: stored but not activated. "
+        "If the tool really changed (a new tool, a crash), activate this version "
+        "(POST /v1/tools/{tool_id}/versions/{version}/activate) or resend with "
+        'activate: "always"; otherwise check the units and the tool number'
+    )
+
+
+def _touches(n: int) -> str:
+    return f"{n} touch" if n == 1 else f"{n} touches"
+
+
+def _worst_touch(quality: QualityOut) -> tuple[int, float] | None:
+    """The 0-based index and residual of the worst touch that was used in the fit."""
+    used = [(i, r) for i, r in enumerate(quality.residuals_mm) if i not in set(quality.outliers)]
+    return max(used, key=lambda item: item[1]) if used else None
+
+
+def _out_of_tolerance(result: CalibrationResult, tolerance: Tolerance) -> str:
+    quality = result.quality
+    worst = _worst_touch(quality)
+    if worst is not None and worst[1] > tolerance.max_residual_mm:
+        index, residual = worst
+        return (
+            f"out of tolerance: touch #{index + 1} is {residual:.2f} mm off the others "
+            f"(max_residual_mm {tolerance.max_residual_mm:g}), touch it again"
+        )
+    rms = quality.rms_mm or 0.0
+    return (
+        f"out of tolerance: {rms:.2f} mm rms over {_touches(quality.n_poses)} exceeds "
+        f"max_rms_mm {tolerance.max_rms_mm:g}; touch again with care, from orientations "
+        "further apart"
+    )
+
+
+def summarise(
+    result: CalibrationResult,
+    *,
+    previous: ActiveFrame | None,
+    tolerance: Tolerance,
+    held: bool,
+) -> str:
+    """One sentence: the verdict, the TCP, the fit, the move from the active version."""
+    if result.status == "out_of_tolerance":
+        return _out_of_tolerance(result, tolerance)
+    x, y, z = result.tcp.position_mm
+    parts = [f"TCP ({x:.2f}, {y:.2f}, {z:.2f}) mm"]
+    quality = result.quality
+    if quality.rms_mm is not None:
+        parts.append(f"{quality.rms_mm:.2f} mm rms over {_touches(quality.n_poses)}")
+    elif quality.n_poses <= 1:
+        parts.append("entered by hand" if result.method == "manual" else "from one pose")
+    if quality.outliers:
+        numbers = ", ".join(f"#{i + 1}" for i in quality.outliers)
+        parts.append(f"touch {numbers} set aside as off the others")
+    if result.orientation_change_deg is not None:
+        parts.append(f"turned {result.orientation_change_deg:.2f} deg")
+    if previous is not None and result.change_from_active_mm is not None:
+        parts.append(f"moved {result.change_from_active_mm:.2f} mm from version {previous.version}")
+    sentence = ", ".join(parts)
+    if held:
+        return (
+            f"accepted but not activated: {sentence}, more than max_change_mm "
+            f"{tolerance.max_change_mm:g} mm; activate it if the tool really changed"
+        )
+    return f"accepted: {sentence}"
