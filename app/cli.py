@@ -6,9 +6,12 @@ import json
 import os
 import sys
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated
 
 import typer
+
+if TYPE_CHECKING:
+    import httpx
 
 cli = typer.Typer(help="tcpcal: Tool Center Point calibration service.", no_args_is_help=True)
 db_cli = typer.Typer(help="Database migrations.", no_args_is_help=True)
@@ -130,7 +133,7 @@ def openapi(
     typer.echo(f"wrote {out}")
 
 
-def _client() -> Any:
+def _client() -> httpx.Client:
     import httpx
 
     url = os.environ.get("TCPCAL_URL", "http://127.0.0.1:8000")
@@ -141,7 +144,7 @@ def _client() -> Any:
     return httpx.Client(base_url=url, headers={"Authorization": f"Bearer {key}"}, timeout=30)
 
 
-def _print_response(response: Any) -> None:
+def _print_response(response: httpx.Response) -> None:
     typer.echo(json.dumps(response.json(), indent=2) if response.content else "")
     if response.status_code >= 400:
         raise typer.Exit(1)

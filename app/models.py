@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import uuid
 from datetime import UTC, datetime
-from typing import Any
 
 from sqlalchemy import (
     JSON,
@@ -28,6 +27,8 @@ from sqlalchemy import (
 from sqlalchemy.engine import Dialect
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.types import TypeDecorator
+
+from app.jsontypes import JsonArray, JsonObject
 
 NAMING_CONVENTION = {
     "ix": "ix_%(column_0_label)s",
@@ -75,8 +76,8 @@ class Base(DeclarativeBase):
     # SQLAlchemy reads this off the class; it is never mutated.
     type_annotation_map = {  # noqa: RUF012
         datetime: UTCDateTime(),
-        dict[str, Any]: JSON(),
-        list[Any]: JSON(),
+        JsonObject: JSON(),
+        JsonArray: JSON(),
     }
 
 
@@ -99,7 +100,7 @@ class Robot(Base):
     model: Mapped[str | None] = mapped_column(String(200))
     serial: Mapped[str | None] = mapped_column(String(200))
     cell: Mapped[str | None] = mapped_column(String(200), index=True)
-    kinematics: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    kinematics: Mapped[JsonObject | None] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
     archived_at: Mapped[datetime | None] = mapped_column()
@@ -133,8 +134,8 @@ class Tool(Base):
     slot: Mapped[int | None] = mapped_column(Integer)
     serial: Mapped[str | None] = mapped_column(String(200))
     description: Mapped[str | None] = mapped_column(Text)
-    load: Mapped[dict[str, Any] | None] = mapped_column(JSON)
-    tolerance: Mapped[dict[str, Any]] = mapped_column(JSON)
+    load: Mapped[JsonObject | None] = mapped_column(JSON)
+    tolerance: Mapped[JsonObject] = mapped_column(JSON)
     active_version: Mapped[int | None] = mapped_column(Integer)
     last_version: Mapped[int] = mapped_column(Integer, default=0)
     revision: Mapped[int] = mapped_column(Integer, default=1)
@@ -154,8 +155,8 @@ class Calibration(Base):
     method: Mapped[str] = mapped_column(String(40))
     algorithm: Mapped[str | None] = mapped_column(String(40))
     status: Mapped[str] = mapped_column(String(40))
-    request: Mapped[dict[str, Any]] = mapped_column(JSON)
-    result: Mapped[dict[str, Any]] = mapped_column(JSON)
+    request: Mapped[JsonObject] = mapped_column(JSON)
+    result: Mapped[JsonObject] = mapped_column(JSON)
     version: Mapped[int | None] = mapped_column(Integer)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str] = mapped_column(String(200))
@@ -170,8 +171,8 @@ class TcpVersion(Base):
     id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
     version: Mapped[int] = mapped_column(Integer)
-    position_mm: Mapped[list[Any]] = mapped_column(JSON)
-    quaternion: Mapped[list[Any]] = mapped_column(JSON)
+    position_mm: Mapped[JsonArray] = mapped_column(JSON)
+    quaternion: Mapped[JsonArray] = mapped_column(JSON)
     source: Mapped[str] = mapped_column(String(40))
     status: Mapped[str] = mapped_column(String(40))
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
@@ -205,8 +206,8 @@ class ReferencePoint(Base):
     id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
     robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"))
     name: Mapped[str] = mapped_column(String(200))
-    position_mm: Mapped[list[Any]] = mapped_column(JSON)
-    covariance_mm2: Mapped[list[Any] | None] = mapped_column(JSON)
+    position_mm: Mapped[JsonArray] = mapped_column(JSON)
+    covariance_mm2: Mapped[JsonArray | None] = mapped_column(JSON)
     source: Mapped[str] = mapped_column(String(100))
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
@@ -227,7 +228,7 @@ class LaserDevice(Base):
     beam_b_x_mm: Mapped[float] = mapped_column(Float)
     plane_z_mm: Mapped[float] = mapped_column(Float)
     source: Mapped[str] = mapped_column(String(40))
-    details: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    details: Mapped[JsonObject | None] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str] = mapped_column(String(200))
 
@@ -258,7 +259,7 @@ class IdempotencyRecord(Base):
     key: Mapped[str] = mapped_column(String(200))
     request_hash: Mapped[str] = mapped_column(String(64))
     status_code: Mapped[int] = mapped_column(Integer)
-    response: Mapped[dict[str, Any]] = mapped_column(JSON)
+    response: Mapped[JsonObject] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(default=utcnow, index=True)
 
 
@@ -277,4 +278,4 @@ class AuditEvent(Base):
     resource_id: Mapped[str] = mapped_column(String(36))
     robot_id: Mapped[str | None] = mapped_column(String(36))
     tool_id: Mapped[str | None] = mapped_column(String(36), index=True)
-    details: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    details: Mapped[JsonObject | None] = mapped_column(JSON)

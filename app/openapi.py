@@ -7,11 +7,10 @@ answer (401/403 on /v1, 404 with a path id, 409/413 on writes, 412 with If-Match
 
 from __future__ import annotations
 
-from typing import Any
-
 from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 
+from app.jsontypes import JsonObject
 from app.schemas.problems import Problem
 
 PROBLEM_REF = {"$ref": "#/components/schemas/Problem"}
@@ -26,14 +25,14 @@ DESCRIPTIONS = {
 }
 
 
-def _problem(code: str) -> dict[str, Any]:
+def _problem(code: str) -> JsonObject:
     return {
         "description": DESCRIPTIONS[code],
         "content": {"application/problem+json": {"schema": PROBLEM_REF}},
     }
 
 
-def _codes(path: str, method: str, operation: dict[str, Any]) -> list[str]:
+def _codes(path: str, method: str, operation: JsonObject) -> list[str]:
     codes = ["422"]
     if path == "/metrics":
         return ["401", "403"]
@@ -48,7 +47,7 @@ def _codes(path: str, method: str, operation: dict[str, Any]) -> list[str]:
     return codes
 
 
-def build_openapi(app: FastAPI) -> dict[str, Any]:
+def build_openapi(app: FastAPI) -> JsonObject:
     """The app's OpenAPI document with problem+json error responses."""
     if app.openapi_schema:
         return app.openapi_schema

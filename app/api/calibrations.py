@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Body, Header, Request, Response
 
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.errors import InvalidInput
+from app.jsontypes import JsonObject
 from app.metrics import METRICS
 from app.schemas.calibrations import CalibrationRequest
 from app.schemas.common import Page
@@ -28,9 +29,8 @@ IdempotencyKey = Annotated[
 ]
 
 
-def raw_json_body(request: Request) -> dict[str, Any]:
-    """The body exactly as received (the body-size middleware keeps the bytes): raw JSON,
-    kept as it came, so `Any` is its honest type."""
+def raw_json_body(request: Request) -> JsonObject:
+    """The body exactly as received (the body-size middleware keeps the bytes)."""
     raw = request.scope.get("tcpcal.raw_body", b"")
     parsed = json.loads(raw) if raw else {}
     if not isinstance(parsed, dict):

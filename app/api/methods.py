@@ -7,7 +7,7 @@ from pydantic import BaseModel
 
 from app.deps import ReadKey
 from app.methods import METHODS
-from app.methods.base import Method, MethodRequest, PosesRequired
+from app.methods.base import PosesRequired, RegisteredMethod
 
 router = APIRouter(tags=["stateless"])
 
@@ -28,7 +28,7 @@ class MethodList(BaseModel):
 _COMMON = set(PosesRequired.model_fields) | {"options"}
 
 
-def _options(method: Method[MethodRequest]) -> dict[str, dict[str, object]]:
+def _options(method: RegisteredMethod) -> dict[str, dict[str, object]]:
     model = method.options
     if model is None:
         return {}
@@ -45,7 +45,7 @@ def _options(method: Method[MethodRequest]) -> dict[str, dict[str, object]]:
     }
 
 
-def describe(method: Method[MethodRequest]) -> MethodInfo:
+def describe(method: RegisteredMethod) -> MethodInfo:
     """What a client needs to know to call a method."""
     count = method.pose_count
     return MethodInfo(

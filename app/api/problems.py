@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
-from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -78,7 +77,7 @@ def internal_error_response() -> JSONResponse:
     )
 
 
-def _loc(loc: Sequence[Any]) -> list[str | int]:
+def _loc(loc: Sequence[str | int]) -> list[str | int]:
     """A field path without pydantic's union-member tags ("manual", "list[float]", ...)."""
     path: list[str | int] = []
     for i, part in enumerate(loc):

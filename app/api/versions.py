@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Header, Query, Response
 from fastapi.responses import JSONResponse
@@ -63,14 +63,13 @@ def get_active_tcp(
     key: ReadKey,
     format: FormatQuery = None,
     if_none_match: Annotated[str | None, Header()] = None,
-) -> Any:
+) -> Response:
     document, etag = versions.served_tcp(
         session, tool_id=tool_id, fmt=format, if_none_match=if_none_match
     )
     if document is None:
         return Response(status_code=304, headers={"ETag": etag})
-    body = ActiveTcp.model_validate(document)
-    return JSONResponse(body.model_dump(mode="json"), headers={"ETag": etag})
+    return JSONResponse(document.model_dump(mode="json"), headers={"ETag": etag})
 
 
 @router.get("/v1/robots/{robot_id}/tool-table", response_model=ToolTable)

@@ -15,12 +15,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from app.errors import InvalidInput
+from app.jsontypes import JsonObject
 from app.solvers.validation import check_positions_mm, normalised_quaternions
 
 MM_DECIMALS = 6
@@ -68,7 +68,7 @@ class ControllerExport:
 
     format: str
     text: str
-    values: dict[str, Any]
+    values: JsonObject
 
 
 def checked_tcp(tool: ToolData) -> tuple[FloatArray, FloatArray]:

@@ -18,13 +18,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, cast
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
+from app.jsontypes import JsonObject
 from app.solvers.validation import check_finite
 
 Convention = Literal["dh", "mdh"]
@@ -58,7 +59,7 @@ class Kinematics:
         """Number of revolute joints."""
         return len(self.links)
 
-    def to_spec(self) -> dict[str, Any]:
+    def to_spec(self) -> JsonObject:
         """The API `kinematics` object that `kinematics_from_spec` reads back to this model."""
         return {
             "convention": self.convention,
@@ -77,7 +78,7 @@ class Kinematics:
 _LINK_FIELDS = ("a", "alpha", "d", "theta_offset")
 
 
-def _number(value: Any, loc: tuple[str | int, ...], *, limit: float) -> float:
+def _number(value: object, loc: tuple[str | int, ...], *, limit: float) -> float:
     """A finite real number within +-limit, else InvalidInput("invalid-options") at `loc`."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise InvalidInput(
@@ -99,11 +100,11 @@ def _dotted(loc: Sequence[str | int]) -> str:
     return ".".join(str(part) for part in loc)
 
 
-def kinematics_from_spec(spec: Mapping[str, Any]) -> Kinematics:
+def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics:
     """Read the API `kinematics` object: ``{"preset": name}`` or ``{"convention", "links"}``.
 
     Links are ``[{a, alpha, d, theta_offset}]`` with a, d in mm and angles in degrees
-    (``theta_offset`` may be omitted: 0). Any defect raises InvalidInput("invalid-options")
+    (``theta_offset`` may be omitted: 0). A defect raises InvalidInput("invalid-options")
     whose loc names the offending field, e.g. ("kinematics", "links", 2, "alpha").
     """
     base: tuple[str | int, ...] = ("kinematics",)
@@ -198,7 +199,7 @@ def kinematics_from_spec(spec: Mapping[str, Any]) -> Kinematics:
         )
     name = spec.get("name")
     return Kinematics(
-        convention=cast(Convention, convention),
+        convention=convention,
         links=tuple(links),
         name=name if isinstance(name, str) else None,
     )

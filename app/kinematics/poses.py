@@ -23,7 +23,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, cast
+from typing import Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -222,7 +222,7 @@ def quaternion_xyzw_from_matrix(rotation: ArrayLike) -> FloatArray:
 # --- parsing -----------------------------------------------------------------------------
 
 
-def _is_number(value: Any) -> bool:
+def _is_number(value: object) -> bool:
     return isinstance(value, int | float | np.floating | np.integer) and not isinstance(value, bool)
 
 
@@ -234,7 +234,7 @@ def _expected(fmt: str, labels: Sequence[str], units: Units) -> str:
     return f"{len(labels)} numbers [{', '.join(labels)}]"
 
 
-def _rows(fmt: str, poses: Any, labels: Sequence[str], units: Units, loc: Loc) -> FloatArray:
+def _rows(fmt: str, poses: object, labels: Sequence[str], units: Units, loc: Loc) -> FloatArray:
     """The poses as an (N, arity) float array, or InvalidInput("invalid-pose") naming the pose."""
     if not isinstance(poses, Sequence) or isinstance(poses, str | bytes):
         raise InvalidInput(
@@ -243,7 +243,7 @@ def _rows(fmt: str, poses: Any, labels: Sequence[str], units: Units, loc: Loc) -
     arity = len(labels)
     out = np.empty((len(poses), arity))
     for i, pose in enumerate(poses):
-        flat: Any = pose
+        flat: object = pose
         if (
             fmt == "matrix"
             and isinstance(pose, Sequence)
@@ -325,7 +325,7 @@ def _check_angles_deg(angles_deg: FloatArray, labels: Sequence[str], field: str,
 
 def poses_from_format(
     fmt: str,
-    poses: Sequence[Any],
+    poses: Sequence[object],
     *,
     units: Units | Mapping[str, str] | None = None,
     kinematics: Kinematics | None = None,
@@ -403,7 +403,7 @@ def poses_from_format(
 
 def pose_from_format(
     fmt: str,
-    pose: Sequence[Any],
+    pose: Sequence[object],
     *,
     units: Units | Mapping[str, str] | None = None,
     kinematics: Kinematics | None = None,

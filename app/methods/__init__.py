@@ -7,13 +7,11 @@ are all read off this tuple.
 
 from __future__ import annotations
 
-from typing import Any
-
 from app.methods import laser, manual, npoint, orientation, reference
-from app.methods.base import Method, MethodRequest
+from app.methods.base import MethodRequest, RegisteredMethod
 
 #: Every calibration method this server runs, in the order /v1/methods lists them.
-METHODS: tuple[Method[Any], ...] = (
+METHODS: tuple[RegisteredMethod, ...] = (
     npoint.XYZ_NPOINT,
     reference.XYZ_REFERENCE,
     orientation.TCP_Z_X,
@@ -22,10 +20,10 @@ METHODS: tuple[Method[Any], ...] = (
     laser.LASER_BEAM,
     manual.MANUAL,
 )
-METHODS_BY_NAME: dict[str, Method[Any]] = {m.name: m for m in METHODS}
+METHODS_BY_NAME: dict[str, RegisteredMethod] = {m.name: m for m in METHODS}
 METHOD_NAMES: tuple[str, ...] = tuple(METHODS_BY_NAME)
 
 
-def method_of(request: MethodRequest) -> Method[Any]:
+def method_of(request: MethodRequest) -> RegisteredMethod:
     """The registry entry of a validated request."""
     return METHODS_BY_NAME[request.method]

@@ -200,6 +200,27 @@ class Method(Generic[R]):
         return self.run(request, ctx)
 
 
+class RegisteredMethod(Protocol):
+    """A registry entry seen from outside: any Method, whatever its own request model."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def request(self) -> type[MethodRequest]: ...
+
+    @property
+    def description(self) -> str: ...
+
+    @property
+    def pose_count(self) -> PoseCount: ...
+
+    @property
+    def options(self) -> type[BaseModel] | None: ...
+
+    def solve(self, request: MethodRequest, ctx: MethodContext) -> Solved: ...
+
+
 # ---- small helpers the methods share ---------------------------------------------------------
 def orientation_change_deg(ctx: MethodContext, quaternion: Sequence[float]) -> float | None:
     """Angle (deg) from the tool's active orientation to a new one; None without one."""

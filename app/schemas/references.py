@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, Field, model_validator
 
+from app.jsontypes import JsonObject
 from app.methods.laser import SweepIn
 from app.schemas.common import (
     FiniteFloat,
@@ -136,6 +137,6 @@ class LaserDevice(BaseModel):
     beam_b_x_mm: float
     plane_z_mm: float
     source: str
-    details: dict[str, Any] | None
+    details: JsonObject | None
     created_at: Timestamp
     created_by: str

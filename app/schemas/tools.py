@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 from pydantic import BaseModel, Field
 
+from app.jsontypes import JsonObject
 from app.schemas.common import (
     LongText,
     Name,
@@ -107,7 +108,7 @@ class ActivationOut(BaseModel):
 class ControllerText(BaseModel):
     format: str
     text: str
-    values: dict[str, Any]
+    values: JsonObject
 
 
 class ActiveTcp(BaseModel):

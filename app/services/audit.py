@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
+from app.jsontypes import JsonObject
 from app.models import AuditEvent
 
 
@@ -19,7 +18,7 @@ def record(
     resource_id: str,
     robot_id: str | None = None,
     tool_id: str | None = None,
-    details: dict[str, Any] | None = None,
+    details: JsonObject | None = None,
 ) -> None:
     """Append an audit event to the current transaction."""
     session.add(

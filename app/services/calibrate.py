@@ -19,6 +19,7 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.errors import InvalidInput, NotFound, located_in
+from app.jsontypes import JsonObject
 from app.methods import method_of
 from app.methods.base import MethodContext, MethodRequest, Solved, StoredPoint
 from app.methods.npoint import NPointOptions
@@ -36,8 +37,6 @@ from app.services.tolerance import effective_tolerance, grade
 from app.services.tools import get_tool
 from app.services.verdict import change_warning, held_for_change, summarise
 from app.services.versions import IDENTITY_QUATERNION, activate, add_version
-
-RawBody = dict[str, object]  # a submission exactly as received, kept with its calibration
 
 
 # ---- solve and grade ------------------------------------------------------------------------
@@ -133,7 +132,7 @@ def submit(
     *,
     tool_id: str,
     request: MethodRequest,
-    raw_body: RawBody,
+    raw_body: JsonObject,
     idempotency_key: str | None,
     actor: Principal,
 ) -> tuple[Calibration, bool]:
@@ -211,7 +210,7 @@ def _store(
     *,
     tool: Tool,
     request: MethodRequest,
-    raw_body: RawBody,
+    raw_body: JsonObject,
     result: CalibrationResult,
     actor: Principal,
 ) -> CalibrationRow:

@@ -5,15 +5,13 @@ A check never changes the active TCP; it is recorded in the audit trail either w
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.errors import located_in
 from app.models import utcnow
-from app.schemas.references import CheckCreate
+from app.schemas.references import CheckCreate, CheckResult, CheckTouch
 from app.services import audit
 from app.services.frames import frame_of, parse_poses_with
 from app.services.references import get_reference_point
@@ -30,7 +28,7 @@ def run_check(
     tool_id: str,
     data: CheckCreate,
     actor: Principal,
-) -> dict[str, Any]:
+) -> CheckResult:
     """Deviation of the active TCP at a reference point, against the tool's check_mm."""
     tool = get_tool(session, tool_id)
     robot = get_robot(session, tool.robot_id)
@@ -52,27 +50,28 @@ def run_check(
     mean_base = np.mean([t.deviation_base_mm for t in touches], axis=0)
     limit = effective_tolerance(tool.tolerance).check_mm
     within = float(worst.distance_mm) <= limit
-    result: dict[str, Any] = {
-        "tool_id": tool.id,
-        "version": frame.version,
-        "reference_point_id": point.id,
-        "deviation_mm": [float(v) for v in worst.deviation_base_mm],
-        "deviation_flange_mm": [float(v) for v in worst.deviation_flange_mm],
-        "distance_mm": float(worst.distance_mm),
-        "mean_deviation_mm": [float(v) for v in mean_base],
-        "check_mm": limit,
-        "within_tolerance": within,
-        "touches": [
-            {
-                "deviation_mm": [float(v) for v in t.deviation_base_mm],
-                "deviation_flange_mm": [float(v) for v in t.deviation_flange_mm],
-                "distance_mm": float(t.distance_mm),
-            }
+    assert frame.version is not None  # a stored version's frame
+    result = CheckResult(
+        tool_id=tool.id,
+        version=frame.version,
+        reference_point_id=point.id,
+        deviation_mm=[float(v) for v in worst.deviation_base_mm],
+        deviation_flange_mm=[float(v) for v in worst.deviation_flange_mm],
+        distance_mm=float(worst.distance_mm),
+        mean_deviation_mm=[float(v) for v in mean_base],
+        check_mm=limit,
+        within_tolerance=within,
+        touches=[
+            CheckTouch(
+                deviation_mm=[float(v) for v in t.deviation_base_mm],
+                deviation_flange_mm=[float(v) for v in t.deviation_flange_mm],
+                distance_mm=float(t.distance_mm),
+            )
             for t in touches
         ],
-        "checked_at": utcnow(),
-        "checked_by": actor.name,
-    }
+        checked_at=utcnow(),
+        checked_by=actor.name,
+    )
     audit.record(
         session,
         actor=actor,
@@ -81,16 +80,16 @@ def run_check(
         resource_id=tool.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
-        details={
-            k: result[k]
-            for k in (
+        details=result.model_dump(
+            mode="json",
+            include={
                 "version",
                 "reference_point_id",
                 "deviation_mm",
                 "distance_mm",
                 "check_mm",
                 "within_tolerance",
-            )
-        },
+            },
+        ),
     )
     return result

@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from app.exports import ToolData, export_tool
 from app.models import TcpVersion, Tool
+from app.schemas.tools import ControllerText
 
 
-def controller_text(fmt: str, *, tool: Tool, version: TcpVersion) -> dict[str, Any]:
+def controller_text(fmt: str, *, tool: Tool, version: TcpVersion) -> ControllerText:
     """{format, text, values} of a tool's version in a controller's own syntax."""
     load = tool.load or {}
     data = ToolData(
@@ -22,4 +21,4 @@ def controller_text(fmt: str, *, tool: Tool, version: TcpVersion) -> dict[str, A
         cog_mm=np.asarray(load["cog_mm"], dtype=float) if load.get("cog_mm") else None,
     )
     export = export_tool(fmt, data)
-    return {"format": export.format, "text": export.text, "values": export.values}
+    return ControllerText(format=export.format, text=export.text, values=export.values)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import hashlib
 import json
 from datetime import timedelta
-from typing import Any
 
 from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
@@ -13,10 +12,11 @@ from sqlalchemy.orm import Session
 from app.auth import Principal
 from app.config import get_settings
 from app.errors import IdempotencyConflict
+from app.jsontypes import JsonObject
 from app.models import IdempotencyRecord, utcnow
 
 
-def request_fingerprint(tool_id: str, raw_body: dict[str, Any]) -> str:
+def request_fingerprint(tool_id: str, raw_body: JsonObject) -> str:
     """Hash of what a retry must repeat exactly: the target and the body."""
     canonical = json.dumps([tool_id, raw_body], sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(canonical.encode()).hexdigest()
@@ -28,7 +28,7 @@ def replay(
     actor: Principal,
     key: str,
     fingerprint: str,
-) -> dict[str, Any] | None:
+) -> JsonObject | None:
     ttl = timedelta(hours=get_settings().idempotency_ttl_hours)
     session.execute(delete(IdempotencyRecord).where(IdempotencyRecord.created_at < utcnow() - ttl))
     record = session.scalars(

@@ -6,7 +6,7 @@ import base64
 import json
 from collections.abc import Sequence
 from datetime import datetime
-from typing import Any, TypeVar
+from typing import TypeVar
 
 from sqlalchemy import Select, and_, or_
 from sqlalchemy.orm import InstrumentedAttribute, Session
@@ -46,8 +46,8 @@ def paginate(
     session: Session,
     stmt: Select[M],
     *,
-    created_col: InstrumentedAttribute[Any],
-    id_col: InstrumentedAttribute[Any],
+    created_col: InstrumentedAttribute[datetime],
+    id_col: InstrumentedAttribute[str],
     limit: int,
     cursor: str | None,
 ) -> tuple[Sequence[M], str | None]:

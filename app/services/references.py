@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, TypeVar
+from typing import TypeVar
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -98,21 +98,6 @@ def list_robot_rows(
     return paginate(
         session, stmt, created_col=model.created_at, id_col=model.id, limit=limit, cursor=cursor
     )
-
-
-def reference_point_out(row: ReferencePoint) -> dict[str, Any]:
-    """Response document of a reference point."""
-    return {
-        "id": row.id,
-        "robot_id": row.robot_id,
-        "name": row.name,
-        "position_mm": row.position_mm,
-        "covariance_mm2": row.covariance_mm2,
-        "source": row.source,
-        "calibration_id": row.calibration_id,
-        "created_at": row.created_at,
-        "created_by": row.created_by,
-    }
 
 
 def register_reference_point(

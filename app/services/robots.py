@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.errors import Conflict, InvalidInput
+from app.jsontypes import JsonObject
 from app.kinematics.dh import kinematics_from_spec
 from app.models import Robot, Tool, utcnow
 from app.schemas.robots import Kinematics, RobotCreate, RobotUpdate
@@ -116,7 +116,7 @@ def archive_robot(session: Session, *, robot_id: str, actor: Principal) -> None:
     )
 
 
-def validate_kinematics(spec: Kinematics | None) -> dict[str, Any] | None:
+def validate_kinematics(spec: Kinematics | None) -> JsonObject | None:
     """The kinematics to store for a robot; 422 naming the field when it is unusable."""
     if spec is None:
         return None

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -72,7 +71,7 @@ def create_tool(session: Session, *, robot_id: str, data: ToolCreate, actor: Pri
     """Register a tool on a robot (name and slot unique among the robot's live tools)."""
     get_robot(session, robot_id, for_update=True)
     _tool_unique(session, robot_id=robot_id, name=data.name, slot=data.slot)
-    values: dict[str, Any] = data.model_dump()
+    values = data.model_dump()
     tool = Tool(robot_id=robot_id, last_version=0, revision=1, **values)
     session.add(tool)
     session.flush()

@@ -5,7 +5,6 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Sequence
-from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -14,6 +13,7 @@ from app.auth import Principal
 from app.config import get_settings
 from app.errors import InvalidInput, NoActiveVersion, NotFound
 from app.models import Activation, TcpVersion, Tool, utcnow
+from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.services import audit
 from app.services.etags import if_none_match_hit
 from app.services.exports import controller_text
@@ -164,41 +164,39 @@ def tcp_etag(tool: Tool, row: TcpVersion, fmt: str | None) -> str:
     return '"' + hashlib.sha256(payload.encode()).hexdigest()[:32] + '"'
 
 
-def version_document(row: TcpVersion, tool: Tool) -> dict[str, Any]:
+def version_document(row: TcpVersion, tool: Tool) -> Version:
     """A version as the API shows it."""
-    return {
-        "version": row.version,
-        "tcp": {"position_mm": row.position_mm, "quaternion": row.quaternion},
-        "source": row.source,
-        "status": row.status,
-        "calibration_id": row.calibration_id,
-        "note": row.note,
-        "created_at": row.created_at,
-        "created_by": row.created_by,
-        "active": tool.active_version == row.version,
-    }
+    return Version(
+        version=row.version,
+        tcp=Tcp(position_mm=row.position_mm, quaternion=row.quaternion),
+        source=row.source,
+        status=row.status,
+        calibration_id=row.calibration_id,
+        note=row.note,
+        created_at=row.created_at,
+        created_by=row.created_by,
+        active=tool.active_version == row.version,
+    )
 
 
-def active_document(tool: Tool, row: TcpVersion, fmt: str | None) -> dict[str, Any]:
+def active_document(tool: Tool, row: TcpVersion, fmt: str | None) -> ActiveTcp:
     """What a cell controller reads: the active TCP, and its controller text when asked."""
-    out: dict[str, Any] = {
-        "tool_id": tool.id,
-        "robot_id": tool.robot_id,
-        "tool_name": tool.name,
-        "slot": tool.slot,
-        "version": row.version,
-        "tcp": {"position_mm": row.position_mm, "quaternion": row.quaternion},
-        "calibrated_at": row.created_at,
-        "method": row.source,
-    }
-    if fmt is not None:
-        out["controller"] = controller_text(fmt, tool=tool, version=row)
-    return out
+    return ActiveTcp(
+        tool_id=tool.id,
+        robot_id=tool.robot_id,
+        tool_name=tool.name,
+        slot=tool.slot,
+        version=row.version,
+        tcp=Tcp(position_mm=row.position_mm, quaternion=row.quaternion),
+        calibrated_at=row.created_at,
+        method=row.source,
+        controller=None if fmt is None else controller_text(fmt, tool=tool, version=row),
+    )
 
 
 def served_tcp(
     session: Session, *, tool_id: str, fmt: str | None, if_none_match: str | None
-) -> tuple[dict[str, Any] | None, str]:
+) -> tuple[ActiveTcp | None, str]:
     """(document, ETag) of a tool's active TCP; document None when the client's copy is current."""
     tool = get_tool(session, tool_id)
     row = active_version_row(session, tool)
@@ -208,7 +206,7 @@ def served_tcp(
     return active_document(tool, row, fmt), etag
 
 
-def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> dict[str, Any]:
+def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> ToolTable:
     """Every live tool's active TCP. A tool the format cannot express (no slot for KUKA, no
     load for ABB) carries its own controller_error instead of failing the whole table."""
     get_robot(session, robot_id)
@@ -217,7 +215,7 @@ def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> dict[str,
         .where(Tool.robot_id == robot_id, Tool.archived_at.is_(None))
         .order_by(Tool.slot, Tool.name)
     ).all()
-    items: list[dict[str, Any]] = []
+    items: list[ActiveTcp] = []
     missing: list[str] = []
     for tool in tools:
         if tool.active_version is None:
@@ -228,9 +226,9 @@ def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> dict[str,
             items.append(active_document(tool, row, fmt))
         except InvalidInput as exc:
             item = active_document(tool, row, None)
-            item["controller_error"] = {
+            item.controller_error = {
                 "type": get_settings().problem_type(exc.kind),
                 "detail": exc.detail,
             }
             items.append(item)
-    return {"robot_id": robot_id, "items": items, "without_active_version": missing}
+    return ToolTable(robot_id=robot_id, items=items, without_active_version=missing)

@@ -50,7 +50,7 @@ def test_150_mm_to_0_15_mm_is_versioned_not_active_with_the_move_named(api: Api)
 def test_a_small_move_is_activated_and_said_in_the_summary(api: Api) -> None:
     tool_id = _tool(api)
     touches = simulate_touches(8, seed=11, touch_noise_mm=0.05)
-    before = [float(v) for v in [*touches.t, 0.3, -0.2, 0.1]]
+    before = [float(v) for v in np.add(touches.t, [0.3, -0.2, 0.1])]
     _calibrate(api, tool_id, {"method": "manual", "tcp": {"position_mm": before}})
     result = _calibrate(
         api, tool_id, {"method": "xyz_npoint", "format": "xyz_wxyz", "poses": as_poses(touches)}
