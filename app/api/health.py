@@ -36,6 +36,6 @@ def ready() -> JSONResponse:
 
 @router.get("/metrics", response_class=PlainTextResponse)
 def metrics(key: ReadKey) -> PlainTextResponse:
-    """Prometheus text; scrape with a read key (bearer token), as API.md opens only
-    /health and /ready."""
+    """Prometheus text; scrape with a read key (bearer token): only /health and /ready are
+    open without one."""
     return PlainTextResponse(METRICS.render(), media_type="text/plain; version=0.0.4")

@@ -6,8 +6,8 @@ from typing import Annotated
 
 from fastapi import Path, Query
 
+from app.helpers.pagination import DEFAULT_LIMIT, MAX_LIMIT
 from app.schemas.common import ID_PATTERN
-from app.services.pagination import DEFAULT_LIMIT, MAX_LIMIT
 
 Limit = Annotated[int, Query(ge=1, le=MAX_LIMIT, description="page size (max 500)")]
 Cursor = Annotated[str | None, Query(max_length=400, description="next_cursor of the last page")]

@@ -102,8 +102,9 @@ def rounded(value: float, decimals: int) -> float:
 def fmt_number(value: float, decimals: int) -> str:
     """`value` to `decimals` places, trailing zeros dropped ("150.0", not "150.000000").
 
-    Short text is what a technician reads on the pendant (API.md's KRL example); the
-    rounding, and so the round-trip precision, is the same either way. No negative zero.
+    Short text is what a technician reads on the pendant ($TOOL_DATA[3]={X 0.0,Y 0.0,Z 150.0,
+    A 0.0,B 0.0,C 0.0}); the rounding, and so the round-trip precision, is the same either
+    way. No negative zero.
     """
     text = f"{rounded(value, decimals):.{decimals}f}".rstrip("0")
     return text + "0" if text.endswith(".") else text

@@ -1,4 +1,4 @@
-"""Pose formats of the API (shared/METHODS.md section 6) <-> rotation matrices and positions.
+"""Pose formats of the API <-> rotation matrices and positions.
 
 A pose is the flange in the robot base frame: ``base_from_flange`` as a rotation matrix
 (3, 3) and a position (3,) in mm. Every conversion goes through
@@ -66,15 +66,15 @@ _MM_PER: dict[str, float] = {"mm": 1.0, "m": 1000.0}
 
 
 @dataclass(frozen=True)
-class Units:
-    """Units of a pose's length values and angle values."""
+class PoseUnits:
+    """PoseUnits of a pose's length values and angle values."""
 
     length: Length = "mm"
     angle: Angle = "deg"
 
 
-_DEFAULT_UNITS: dict[str, Units] = {fmt: Units("mm", "deg") for fmt in POSE_FORMATS}
-_DEFAULT_UNITS["ur_rotvec"] = Units("m", "rad")
+_DEFAULT_UNITS: dict[str, PoseUnits] = {fmt: PoseUnits("mm", "deg") for fmt in POSE_FORMATS}
+_DEFAULT_UNITS["ur_rotvec"] = PoseUnits("m", "rad")
 
 # Component labels per format; arity = number of labels (joints: from the model).
 _LABELS: dict[str, tuple[str, ...]] = {
@@ -99,12 +99,12 @@ def _check_format(fmt: str) -> str:
     return fmt
 
 
-def default_units(fmt: str) -> Units:
+def default_units(fmt: str) -> PoseUnits:
     """The units a format's values are in unless a `units` object overrides them."""
     return _DEFAULT_UNITS[_check_format(fmt)]
 
 
-def resolve_units(fmt: str, override: Mapping[str, str] | None) -> Units:
+def resolve_units(fmt: str, override: Mapping[str, str] | None) -> PoseUnits:
     """The format's default units with the API `units` object's fields applied on top."""
     units = default_units(fmt)
     if override is None:
@@ -129,14 +129,14 @@ def resolve_units(fmt: str, override: Mapping[str, str] | None) -> Units:
                 f"units.{key} must be one of {list(allowed[key])}, got {value!r}",
                 loc=("units", key),
             )
-    return Units(
+    return PoseUnits(
         length=cast(Length, override.get("length", units.length)),
         angle=cast(Angle, override.get("angle", units.angle)),
     )
 
 
-def _as_units(fmt: str, units: Units | Mapping[str, str] | None) -> Units:
-    if isinstance(units, Units):
+def _as_units(fmt: str, units: PoseUnits | Mapping[str, str] | None) -> PoseUnits:
+    if isinstance(units, PoseUnits):
         return units
     return resolve_units(fmt, units)
 
@@ -226,7 +226,7 @@ def _is_number(value: object) -> bool:
     return isinstance(value, int | float | np.floating | np.integer) and not isinstance(value, bool)
 
 
-def _expected(fmt: str, labels: Sequence[str], units: Units) -> str:
+def _expected(fmt: str, labels: Sequence[str], units: PoseUnits) -> str:
     if fmt == "matrix":
         return "a 4x4 matrix (4 rows of 4 numbers, or 16 numbers row-major)"
     if fmt == "joints":
@@ -234,7 +234,7 @@ def _expected(fmt: str, labels: Sequence[str], units: Units) -> str:
     return f"{len(labels)} numbers [{', '.join(labels)}]"
 
 
-def _rows(fmt: str, poses: object, labels: Sequence[str], units: Units, loc: Loc) -> FloatArray:
+def _rows(fmt: str, poses: object, labels: Sequence[str], units: PoseUnits, loc: Loc) -> FloatArray:
     """The poses as an (N, arity) float array, or InvalidInput("invalid-pose") naming the pose."""
     if not isinstance(poses, Sequence) or isinstance(poses, str | bytes):
         raise InvalidInput(
@@ -327,7 +327,7 @@ def poses_from_format(
     fmt: str,
     poses: Sequence[object],
     *,
-    units: Units | Mapping[str, str] | None = None,
+    units: PoseUnits | Mapping[str, str] | None = None,
     kinematics: Kinematics | None = None,
     loc: Loc = ("poses",),
 ) -> tuple[FloatArray, FloatArray]:
@@ -405,7 +405,7 @@ def pose_from_format(
     fmt: str,
     pose: Sequence[object],
     *,
-    units: Units | Mapping[str, str] | None = None,
+    units: PoseUnits | Mapping[str, str] | None = None,
     kinematics: Kinematics | None = None,
     loc: Loc = ("pose",),
 ) -> tuple[FloatArray, FloatArray]:
@@ -421,7 +421,7 @@ def pose_to_format(
     rotation: ArrayLike,
     position_mm: ArrayLike,
     *,
-    units: Units | Mapping[str, str] | None = None,
+    units: PoseUnits | Mapping[str, str] | None = None,
 ) -> list[float] | list[list[float]]:
     """Write one pose (R (3, 3), position (3,) mm) in format `fmt` as plain floats.
 

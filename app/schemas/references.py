@@ -94,12 +94,6 @@ class CheckResult(BaseModel):
     checked_by: str
 
 
-class LaserDeviceNumbers(StrictModel):
-    beam_a_y_mm: FiniteFloat
-    beam_b_x_mm: FiniteFloat
-    plane_z_mm: FiniteFloat
-
-
 class LaserTeachIn(StrictModel):
     """Sweeps and descent by a tool whose active TCP (and axis) is trusted."""
 

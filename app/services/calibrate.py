@@ -19,6 +19,8 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.errors import InvalidInput, NotFound, located_in
+from app.helpers.pagination import paginate
+from app.helpers.tolerance import effective_tolerance, grade
 from app.jsontypes import JsonObject
 from app.methods import method_of
 from app.methods.base import MethodContext, MethodRequest, Solved, StoredPoint
@@ -30,10 +32,8 @@ from app.schemas.results import Calibration, CalibrationDetail, CalibrationResul
 from app.schemas.tools import Tcp
 from app.services import audit, idempotency
 from app.services.contexts import DbContext, StatelessContext
-from app.services.pagination import paginate
 from app.services.references import create_reference_point, ensure_reference_name_free
 from app.services.robots import get_robot, validate_kinematics
-from app.services.tolerance import effective_tolerance, grade
 from app.services.tools import get_tool
 from app.services.verdict import change_warning, held_for_change, summarise
 from app.services.versions import IDENTITY_QUATERNION, activate, add_version

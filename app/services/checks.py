@@ -10,13 +10,13 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.errors import located_in
+from app.helpers.tolerance import effective_tolerance
 from app.models import utcnow
 from app.schemas.references import CheckCreate, CheckResult, CheckTouch
 from app.services import audit
 from app.services.frames import frame_of, parse_poses_with
 from app.services.references import get_reference_point
 from app.services.robots import get_robot
-from app.services.tolerance import effective_tolerance
 from app.services.tools import get_tool
 from app.services.versions import active_version_row
 from app.solvers.reference import check_tcp

@@ -16,12 +16,12 @@ from numpy.typing import NDArray
 from sqlalchemy.orm import Session
 
 from app.errors import InvalidInput
+from app.helpers.tolerance import effective_tolerance
 from app.methods.base import ActiveFrame, StoredPoint
 from app.models import LaserDevice, ReferencePoint, Robot, Tool
 from app.schemas.common import Pose, Units
 from app.schemas.tools import Tolerance
 from app.services.frames import active_frame, parse_poses_with
-from app.services.tolerance import effective_tolerance
 
 
 class DbContext:

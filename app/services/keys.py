@@ -9,9 +9,9 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal, generate_key, hash_key
 from app.errors import Conflict, NotFound
+from app.helpers.pagination import paginate
 from app.models import ApiKey, utcnow
 from app.services import audit
-from app.services.pagination import paginate
 
 
 def create_key(

@@ -10,13 +10,13 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.errors import Conflict, InvalidInput, NotFound, located_in
+from app.helpers.pagination import paginate
+from app.helpers.tolerance import effective_tolerance
 from app.models import LaserDevice, ReferencePoint
 from app.schemas.references import ReferencePointCreate
 from app.services import audit
 from app.services.frames import active_frame, parse_poses_with
-from app.services.pagination import paginate
 from app.services.robots import get_robot
-from app.services.tolerance import effective_tolerance
 from app.services.tools import get_tool
 from app.solvers.reference import reference_point_from_touch
 

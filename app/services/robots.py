@@ -9,13 +9,13 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.errors import Conflict, InvalidInput
+from app.helpers.pagination import paginate
 from app.jsontypes import JsonObject
 from app.kinematics.dh import kinematics_from_spec
 from app.models import Robot, Tool, utcnow
 from app.schemas.robots import Kinematics, RobotCreate, RobotUpdate
 from app.services import audit
 from app.services.live import get_live
-from app.services.pagination import paginate
 
 
 def get_robot(session: Session, robot_id: str, *, for_update: bool = False) -> Robot:

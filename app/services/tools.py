@@ -10,14 +10,14 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.errors import Conflict, PreconditionFailed
+from app.helpers.etags import if_match_ok
+from app.helpers.pagination import paginate
+from app.helpers.tolerance import effective_tolerance
 from app.models import Tool, utcnow
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.services import audit
-from app.services.etags import if_match_ok
 from app.services.live import get_live
-from app.services.pagination import paginate
 from app.services.robots import get_robot
-from app.services.tolerance import effective_tolerance
 
 
 def get_tool(session: Session, tool_id: str, *, for_update: bool = False) -> Tool:

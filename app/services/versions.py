@@ -12,10 +12,10 @@ from sqlalchemy.orm import Session
 from app.auth import Principal
 from app.config import get_settings
 from app.errors import InvalidInput, NoActiveVersion, NotFound
+from app.helpers.etags import if_none_match_hit
 from app.models import Activation, TcpVersion, Tool, utcnow
 from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.services import audit
-from app.services.etags import if_none_match_hit
 from app.services.exports import controller_text
 from app.services.robots import get_robot
 from app.services.tools import check_if_match, get_tool

@@ -1,4 +1,4 @@
-"""Laser-beam runout and offset calibration (shared/METHODS.md section 5).
+"""Laser-beam runout and offset calibration with two crossed beams.
 
 Device: two beams in the horizontal base plane z = z_L: beam A parallel to base X at
 y = y_A, beam B parallel to base Y at x = x_B. The robot holds the flange rotation R0 fixed

@@ -1,6 +1,6 @@
 """XYZ N-point TCP calibration: N >= 4 touches of one fixed point from distinct orientations.
 
-Model (METHODS.md section 1): R_i t + f_i = p + e_i, with R_i (3, 3) flange -> base, f_i (3,)
+Model: R_i t + f_i = p + e_i, with R_i (3, 3) flange -> base, f_i (3,)
 flange position in mm (base frame), t (3,) the TCP in the flange frame, p (3,) the touched
 point in the base frame and e_i the touch error. Every estimator returns (t, p) together with
 its sensitivity to the touch errors, so that each one reports the covariance it really has
@@ -10,8 +10,8 @@ under the stated noise model (touch noise sigma_p, optional orientation noise si
 
 Estimators: "stacked" (one linear least squares, the maximum-likelihood estimate under
 isotropic noise), "gls" (iterated weighted least squares under the full noise model),
-"pairwise" (the lecture's differences of consecutive touches), "sphere" (the lecture's
-algebraic sphere fit, biased, a baseline) and "robust" (default: stacked or gls on the
+"pairwise" (differences of consecutive touches, the textbook 4-point method), "sphere"
+(the textbook algebraic sphere fit, biased, a baseline) and "robust" (default: stacked or gls on the
 consistent majority of touches found by a deterministic minimal-set search).
 """
 
@@ -44,7 +44,7 @@ BoolArray = NDArray[np.bool_]
 
 ALGORITHMS = ("robust", "stacked", "pairwise", "sphere", "gls")
 
-#: Fewest touches the method accepts (the lecture's "XYZ 4-point").
+#: Fewest touches the method accepts (the "XYZ 4-point" method of the pendants).
 MIN_POSES = 4
 #: Two touches whose orientations differ by less than this (deg) count as one orientation.
 REPEATED_POSE_DEG = 0.5
@@ -221,7 +221,10 @@ def solve_npoint(
             "a different axis"
         )
     if algorithm == "sphere":
-        warnings.append("the sphere fit is the lecture's baseline; it is biased under touch noise")
+        warnings.append(
+            "the sphere fit is a textbook baseline, biased under touch noise: use the default "
+            "algorithm (robust) for a TCP to keep"
+        )
 
     if max_tcp_sigma_mm is not None:
         evals, evecs = np.linalg.eigh(0.5 * (cov_t + cov_t.T))
@@ -709,8 +712,9 @@ def _fit_gls(R: FloatArray, f: FloatArray, noise: _Noise) -> _Fit:
 def _fit_pairwise(R: FloatArray, f: FloatArray) -> _Fit:
     """(R_i - R_i+1) t = -(f_i - f_i+1) over consecutive touches; then p = mean(R_i t + f_i).
 
-    Consecutive pairs, as in the lecture's pairing: over all pairs the normal equations are
-    exactly N times the stacked ones, which would make this option a copy of "stacked".
+    Consecutive pairs, as the textbook 4-point method pairs them: over all pairs the normal
+    equations are exactly N times the stacked ones, which would make this option a copy of
+    "stacked".
     """
     m = R.shape[0]
     D = R[:-1] - R[1:]

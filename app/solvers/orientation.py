@@ -1,4 +1,4 @@
-"""Orientation of the tool frame relative to the flange (shared/METHODS.md section 4).
+"""Orientation of the tool frame relative to the flange.
 
 Frames: a flange pose is (R, f), R the rotation flange -> base, f the flange position in mm
 (base). The TCP is t (mm, flange frame); the tool orientation is Q, the rotation

@@ -11,7 +11,7 @@ from functools import lru_cache
 from typing import Final, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2, f
 
@@ -59,14 +59,6 @@ def _scale(dof: float | None) -> float:
     if dof is None:
         return float(np.sqrt(chi2.ppf(ELLIPSOID_PROBABILITY, 3)))
     return float(np.sqrt(3.0 * f.ppf(ELLIPSOID_PROBABILITY, 3, dof)))
-
-
-def rotation_angles_deg(rotations: ArrayLike) -> NDArray[np.float64]:
-    """(N, N) rotation angle between every pair of (N, 3, 3) rotations, degrees."""
-    quats = Rotation.from_matrix(np.asarray(rotations, dtype=np.float64)).as_quat()
-    dots = np.clip(np.abs(quats @ quats.T), 0.0, 1.0)
-    angles: NDArray[np.float64] = np.degrees(2.0 * np.arccos(dots))
-    return angles
 
 
 def orientation_spread_deg(rotations: ArrayLike) -> float:

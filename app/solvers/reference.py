@@ -1,4 +1,4 @@
-"""XYZ reference method and TCP check (METHODS.md sections 2 and 3).
+"""XYZ reference method and TCP check: one touch of a known point by a tool.
 
 A trusted tool touches a fixed point once: r = R_1 t1 + f_1 registers the point in the base
 frame. A new tool on the same flange touches it once: t2 = R_2^T (r - f_2). A check touch with

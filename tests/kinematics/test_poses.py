@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from app.errors import InvalidInput
 from app.kinematics.poses import (
     POSE_FORMATS,
-    Units,
+    PoseUnits,
     default_units,
     kuka_abc_from_matrix,
     matrix_from_fanuc_wpr,
@@ -126,10 +126,10 @@ def test_joints_use_forward_kinematics() -> None:
 
 
 def test_default_units() -> None:
-    assert default_units("ur_rotvec") == Units("m", "rad")
-    assert default_units("kuka_abc") == Units("mm", "deg")
-    assert resolve_units("ur_rotvec", {"angle": "deg"}) == Units("m", "deg")
-    assert resolve_units("kuka_abc", None) == Units("mm", "deg")
+    assert default_units("ur_rotvec") == PoseUnits("m", "rad")
+    assert default_units("kuka_abc") == PoseUnits("mm", "deg")
+    assert resolve_units("ur_rotvec", {"angle": "deg"}) == PoseUnits("m", "deg")
+    assert resolve_units("kuka_abc", None) == PoseUnits("mm", "deg")
 
 
 def test_units_override_ur_pendant_in_degrees_and_mm() -> None:
