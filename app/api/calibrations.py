@@ -11,6 +11,7 @@ from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.errors import InvalidInput
 from app.jsontypes import JsonObject
+from app.methods import openapi_examples
 from app.metrics import METRICS
 from app.schemas.calibrations import CalibrationRequest
 from app.schemas.common import Page
@@ -41,7 +42,7 @@ def raw_json_body(request: Request) -> JsonObject:
 @router.post("/v1/tools/{tool_id}/calibrations", status_code=201, response_model=Calibration)
 def submit_calibration(
     tool_id: PathId,
-    body: Annotated[CalibrationRequest, Body()],
+    body: Annotated[CalibrationRequest, Body(openapi_examples=openapi_examples())],
     request: Request,
     response: Response,
     session: SessionDep,

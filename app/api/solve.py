@@ -7,6 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Body
 
 from app.deps import ReadKey, SessionDep
+from app.methods import openapi_examples
 from app.schemas.calibrations import SolveRequest
 from app.schemas.results import SolveResult
 from app.services import calibrate
@@ -15,5 +16,9 @@ router = APIRouter(tags=["stateless"])
 
 
 @router.post("/v1/solve", response_model=SolveResult)
-def solve(body: Annotated[SolveRequest, Body()], session: SessionDep, key: ReadKey) -> SolveResult:
+def solve(
+    body: Annotated[SolveRequest, Body(openapi_examples=openapi_examples())],
+    session: SessionDep,
+    key: ReadKey,
+) -> SolveResult:
     return calibrate.solve_stateless(session, request=body)

@@ -27,3 +27,8 @@ METHOD_NAMES: tuple[str, ...] = tuple(METHODS_BY_NAME)
 def method_of(request: MethodRequest) -> RegisteredMethod:
     """The registry entry of a validated request."""
     return METHODS_BY_NAME[request.method]
+
+
+def openapi_examples() -> dict[str, dict[str, object]]:
+    """One example body per method, for the request bodies in the OpenAPI spec."""
+    return {m.name: {"summary": m.description, "value": m.example} for m in METHODS}

@@ -21,6 +21,7 @@ from pydantic import BaseModel, GetCoreSchemaHandler, GetJsonSchemaHandler
 from pydantic.json_schema import JsonSchemaValue
 from pydantic_core import PydanticCustomError, core_schema
 
+from app.jsontypes import JsonObject
 from app.schemas.common import (
     MAX_POSES,
     LongText,
@@ -168,6 +169,8 @@ class Method(Generic[R]):
     request: type[R]
     run: Callable[[R, MethodContext], Solved]
     description: str
+    #: a body that solves (tests post it), shown in the OpenAPI spec
+    example: JsonObject
 
     @property
     def name(self) -> str:
@@ -211,6 +214,9 @@ class RegisteredMethod(Protocol):
 
     @property
     def description(self) -> str: ...
+
+    @property
+    def example(self) -> JsonObject: ...
 
     @property
     def pose_count(self) -> PoseCount: ...

@@ -139,4 +139,43 @@ LASER_BEAM = Method(
     run=run,
     description="beam break/restore sweeps at two or more heights and a final descent -> "
     "tool axis, runout, offset, length",
+    example={
+        "method": "laser_beam",
+        "format": "xyz_wxyz",
+        "poses": [[420.0, -150.0, 250.0, 0.014599, -0.965781, 0.258623, 0.012945]],
+        "laser": {"beam_a_y_mm": -150.0, "beam_b_x_mm": 420.0, "plane_z_mm": 100.0},
+        "sweeps": [
+            {
+                "beam": "a",
+                "break_mm": [391.232, -153.342, 200.0],
+                "restore_mm": [391.232, -147.342, 200.0],
+            },
+            {
+                "beam": "b",
+                "break_mm": [418.232, -180.342, 200.0],
+                "restore_mm": [424.232, -180.342, 200.0],
+            },
+            {
+                "beam": "a",
+                "break_mm": [391.285, -153.506, 220.0],
+                "restore_mm": [391.285, -147.506, 220.0],
+            },
+            {
+                "beam": "b",
+                "break_mm": [418.285, -180.506, 220.0],
+                "restore_mm": [424.285, -180.506, 220.0],
+            },
+            {
+                "beam": "a",
+                "break_mm": [391.337, -153.671, 240.0],
+                "restore_mm": [391.337, -147.671, 240.0],
+            },
+            {
+                "beam": "b",
+                "break_mm": [418.337, -180.671, 240.0],
+                "restore_mm": [424.337, -180.671, 240.0],
+            },
+        ],
+        "descent_mm": [421.364, -150.753, 249.994],
+    },
 )

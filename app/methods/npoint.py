@@ -124,4 +124,17 @@ XYZ_NPOINT = Method(
     run=run,
     description="N >= 4 touches of one fixed point from different orientations -> TCP "
     "position and the touched point (the XYZ 4-point method, generalised)",
+    example={
+        "method": "xyz_npoint",
+        "format": "kuka_abc",
+        "poses": [
+            [753.897, -81.965, 320.965, -108.243, -25.048, -167.066],
+            [726.441, -182.084, 364.264, -43.964, -1.541, 178.498],
+            [769.644, -132.861, 362.962, -173.468, 24.67, -168.342],
+            [765.433, -235.479, 370.082, 101.353, 4.856, 153.693],
+            [794.554, -232.496, 372.164, 121.53, 4.518, 160.09],
+            [767.49, -192.016, 376.066, -41.68, 12.681, 169.542],
+        ],
+        "note": "after torch change",
+    },
 )

@@ -175,15 +175,54 @@ TCP_Z_X = Method(
     run=run_tcp_z_x,
     description="N-point touches plus pure translations along tool +-Z (and X) -> full "
     "frame (ABB TCP&Z,X; Fanuc six-point)",
+    example={
+        "method": "tcp_z_x",
+        "format": "kuka_abc",
+        "poses": [
+            [791.988, -94.321, 330.308, -171.92, 4.509, 162.959],
+            [808.758, -95.827, 330.533, -153.106, -5.058, 159.248],
+            [808.147, -18.577, 289.107, 161.295, 18.239, -165.445],
+            [695.577, -94.48, 287.304, -96.25, -5.861, -163.662],
+            [816.714, -124.35, 332.689, 123.336, -0.248, 156.449],
+        ],
+        "directions": [
+            {
+                "axis": "+z",
+                "from": [500.0, 100.0, 300.0, -10.423, -4.035, -174.194],
+                "to": [549.053, 90.977, 303.519, -10.423, -4.035, -174.194],
+            },
+            {
+                "axis": "+x",
+                "from": [505.0, 105.0, 305.0, -10.423, -4.035, -174.194],
+                "to": [500.642, 100.659, 354.62, -10.423, -4.035, -174.194],
+            },
+        ],
+    },
 )
 ABC_2POINT = Method(
     request=Abc2PointCalibration,
     run=run_abc_2point,
     description="TCP touch, a point behind it on the working axis, a point on +Y -> "
     "orientation (KUKA ABC 2-point)",
+    example={
+        "method": "abc_2point",
+        "format": "kuka_abc",
+        "poses": [
+            [599.743, -50.246, 300.0, 0.397, -0.082, -179.922],
+            [614.686, -19.671, 357.623, 16.084, 5.412, 174.003],
+            [599.837, -9.899, 309.979, -0.027, -0.055, 179.969],
+        ],
+        "options": {"tcp_mm": [0.0, 0.0, 180.0]},
+    },
 )
 ABC_WORLD = Method(
     request=AbcWorldCalibration,
     run=run_abc_world,
     description="one pose with the tool aligned to base axes -> orientation (KUKA ABC world 5D/6D)",
+    example={
+        "method": "abc_world",
+        "format": "kuka_abc",
+        "poses": [[400.0, 0.0, 300.0, -16.102, 25.659, -23.69]],
+        "options": {"align": {"x": "-z", "y": "+y"}, "tcp_mm": [0.0, 0.0, 200.0]},
+    },
 )

@@ -109,4 +109,10 @@ XYZ_REFERENCE = Method(
     run=run,
     description="one touch of a known point (a stored reference point, another tool's touch "
     "of it, or its coordinates) -> TCP position",
+    example={
+        "method": "xyz_reference",
+        "format": "kuka_abc",
+        "poses": [[753.897, -81.965, 320.965, -108.243, -25.048, -167.066]],
+        "options": {"reference_point_mm": [786.293, -194.53, 227.266]},
+    },
 )
