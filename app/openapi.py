@@ -10,6 +10,7 @@ from __future__ import annotations
 from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 
+from app.api.glossary import GLOSSARY
 from app.jsontypes import JsonObject
 from app.schemas.problems import Problem
 
@@ -47,6 +48,15 @@ def _codes(path: str, method: str, operation: JsonObject) -> list[str]:
     return codes
 
 
+def _describe_properties(model: str, schema: JsonObject) -> None:
+    """Give every property without a description its meaning from the glossary."""
+    for field, prop in schema.get("properties", {}).items():
+        if "description" not in prop:
+            meaning = GLOSSARY.get(f"{model}.{field}") or GLOSSARY.get(field)
+            if meaning is not None:
+                prop["description"] = meaning
+
+
 def build_openapi(app: FastAPI) -> JsonObject:
     """The app's OpenAPI document with problem+json error responses."""
     if app.openapi_schema:
@@ -65,5 +75,7 @@ def build_openapi(app: FastAPI) -> JsonObject:
                 responses[code] = _problem(code)
     for unused in ("HTTPValidationError", "ValidationError"):
         schemas.pop(unused, None)
+    for model, schema in schemas.items():
+        _describe_properties(model, schema)
     app.openapi_schema = spec
     return spec

@@ -35,3 +35,23 @@ def test_spec_has_the_contract_paths() -> None:
         "/metrics",
     ):
         assert path in paths, path
+
+
+def test_every_operation_and_every_field_is_described() -> None:
+    from app.main import create_app
+
+    spec = create_app().openapi()
+    undescribed_ops = [
+        f"{verb.upper()} {path}"
+        for path, item in spec["paths"].items()
+        for verb, operation in item.items()
+        if not operation.get("description")
+    ]
+    undescribed_fields = [
+        f"{model}.{field}"
+        for model, schema in spec["components"]["schemas"].items()
+        for field, prop in schema.get("properties", {}).items()
+        if not prop.get("description")
+    ]
+    assert undescribed_ops == []
+    assert undescribed_fields == []

@@ -49,6 +49,10 @@ def submit_calibration(
     key: CalibrateKey,
     idempotency_key: IdempotencyKey = None,
 ) -> object:
+    """Solve a submission with its method, grade it against the tool's tolerance and store it as
+    the tool's next version. Activated when `activate` allows ("auto": within tolerance and
+    within max_change_mm of the active TCP). Unsolvable input is a 422
+    and writes nothing. Retry-safe with `Idempotency-Key`."""
     doc, replayed = calibrate.submit(
         session,
         tool_id=tool_id,
@@ -72,6 +76,8 @@ def list_calibrations(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
+    """A tool's calibrations, oldest first, each with its result, version and whether it is
+    active."""
     items, next_cursor = calibrate.list_calibrations(
         session, tool_id=tool_id, limit=limit, cursor=cursor
     )
@@ -80,4 +86,5 @@ def list_calibrations(
 
 @router.get("/v1/calibrations/{calibration_id}", response_model=CalibrationDetail)
 def get_calibration(calibration_id: PathId, session: SessionDep, key: ReadKey) -> object:
+    """One calibration with its result and the submission exactly as received."""
     return calibrate.get_calibration(session, calibration_id=calibration_id)

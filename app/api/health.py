@@ -16,11 +16,14 @@ router = APIRouter(tags=["operations"])
 
 @router.get("/health")
 def health() -> dict[str, str]:
+    """Liveness: the process answers. No key needed."""
     return {"status": "ok"}
 
 
 @router.get("/ready", responses={503: {"description": "not ready"}})
 def ready() -> JSONResponse:
+    """Readiness: the database answers and its migrations are at head (503 otherwise). No key
+    needed."""
     head = head_revision()
     try:
         current = current_revision(get_engine())

@@ -15,6 +15,7 @@ router = APIRouter(prefix="/v1/keys", tags=["keys"])
 
 @router.post("", status_code=201, response_model=KeyCreated)
 def create_key(body: KeyCreate, session: SessionDep, key: AdminKey) -> object:
+    """Create an API key of a scope; the key is shown in this answer only (stored as a hash)."""
     row, secret = keys.create_key(session, name=body.name, scope=body.scope, actor=key)
     return {**KeyOut.model_validate(row, from_attributes=True).model_dump(), "key": secret}
 
@@ -23,11 +24,13 @@ def create_key(body: KeyCreate, session: SessionDep, key: AdminKey) -> object:
 def list_keys(
     session: SessionDep, key: AdminKey, limit: Limit = DEFAULT_PAGE, cursor: Cursor = None
 ) -> object:
+    """Every API key with its name, scope, prefix and revocation time (never the key itself)."""
     items, next_cursor = keys.list_keys(session, limit=limit, cursor=cursor)
     return {"items": items, "next_cursor": next_cursor}
 
 
 @router.delete("/{key_id}", status_code=204)
 def revoke_key(key_id: PathId, session: SessionDep, key: AdminKey) -> Response:
+    """Revoke a key: it is refused from the next request on."""
     keys.revoke_key(session, key_id=key_id, actor=key)
     return Response(status_code=204)

@@ -64,4 +64,6 @@ def describe(method: RegisteredMethod) -> MethodInfo:
 
 @router.get("/v1/methods", response_model=MethodList)
 def list_methods(key: ReadKey) -> MethodList:
+    """Every calibration method: what it computes, how many poses it takes, its required fields
+    and its options with their defaults."""
     return MethodList(items=[describe(m) for m in METHODS])

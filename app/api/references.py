@@ -27,6 +27,8 @@ router = APIRouter(tags=["reference points and checks"])
 def create_reference_point(
     robot_id: PathId, body: ReferencePointCreate, session: SessionDep, key: CalibrateKey
 ) -> object:
+    """Register a fixed point in the robot base frame: as numbers, or touched by a tool whose
+    active TCP is trusted."""
     return references.register_reference_point(session, robot_id=robot_id, data=body, actor=key)
 
 
@@ -38,6 +40,7 @@ def list_reference_points(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
+    """A robot's reference points, oldest first."""
     items, next_cursor = references.list_robot_rows(
         session, models.ReferencePoint, robot_id=robot_id, limit=limit, cursor=cursor
     )
@@ -48,6 +51,7 @@ def list_reference_points(
 def get_reference_point(
     robot_id: PathId, point_id: PathId, session: SessionDep, key: ReadKey
 ) -> object:
+    """One reference point of a robot."""
     return references.get_reference_point(session, robot_id=robot_id, point_id=point_id)
 
 
@@ -55,6 +59,8 @@ def get_reference_point(
 def check_tool(
     tool_id: PathId, body: CheckCreate, session: SessionDep, key: CalibrateKey
 ) -> object:
+    """Touch a reference point with the active TCP and measure the drift against the tool's
+    check_mm; the active TCP is not changed."""
     return checks.run_check(session, tool_id=tool_id, data=body, actor=key)
 
 
@@ -67,6 +73,8 @@ def check_tool(
 def create_laser_device(
     robot_id: PathId, body: LaserDeviceCreate, session: SessionDep, key: CalibrateKey
 ) -> object:
+    """Register a crossed-beam laser device: as numbers, or taught by sweeps of a tool whose
+    active TCP is trusted."""
     return laser_devices.create_laser_device(session, robot_id=robot_id, data=body, actor=key)
 
 
@@ -80,6 +88,7 @@ def list_laser_devices(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
+    """A robot's laser devices, oldest first."""
     items, next_cursor = references.list_robot_rows(
         session, models.LaserDevice, robot_id=robot_id, limit=limit, cursor=cursor
     )
@@ -94,4 +103,5 @@ def list_laser_devices(
 def get_laser_device(
     robot_id: PathId, device_id: PathId, session: SessionDep, key: ReadKey
 ) -> object:
+    """One laser device of a robot."""
     return laser_devices.get_laser_device(session, robot_id=robot_id, device_id=device_id)

@@ -17,6 +17,8 @@ router = APIRouter(prefix="/v1/robots", tags=["robots"])
 
 @router.post("", status_code=201, response_model=Robot)
 def create_robot(body: RobotCreate, session: SessionDep, key: AdminKey) -> object:
+    """Register a robot (its name unique among live robots), with kinematics when the `joints`
+    pose format will be used."""
     return robots.create_robot(session, data=body, actor=key)
 
 
@@ -29,6 +31,7 @@ def list_robots(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
+    """Live robots, oldest first; filter by cell or name."""
     items, next_cursor = robots.list_robots(
         session, cell=cell, name=name, limit=limit, cursor=cursor
     )
@@ -37,15 +40,19 @@ def list_robots(
 
 @router.get("/{robot_id}", response_model=Robot)
 def get_robot(robot_id: PathId, session: SessionDep, key: ReadKey) -> object:
+    """One live robot (404 `/archived` once deleted)."""
     return robots.get_robot(session, robot_id)
 
 
 @router.patch("/{robot_id}", response_model=Robot)
 def update_robot(robot_id: PathId, body: RobotUpdate, session: SessionDep, key: AdminKey) -> object:
+    """Change a robot's fields; only the fields sent change."""
     return robots.update_robot(session, robot_id=robot_id, data=body, actor=key)
 
 
 @router.delete("/{robot_id}", status_code=204)
 def archive_robot(robot_id: PathId, session: SessionDep, key: AdminKey) -> Response:
+    """Archive a robot and its tools: they leave lists and stop serving a TCP; their history is
+    kept."""
     robots.archive_robot(session, robot_id=robot_id, actor=key)
     return Response(status_code=204)

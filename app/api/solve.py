@@ -21,4 +21,6 @@ def solve(
     session: SessionDep,
     key: ReadKey,
 ) -> SolveResult:
+    """Solve a calibration body without storing anything: the result a stored calibration would
+    have, graded against the given (or default) tolerance."""
     return calibrate.solve_stateless(session, request=body)

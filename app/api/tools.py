@@ -21,6 +21,8 @@ IfMatch = Annotated[str | None, Header(description="the tool's ETag; 412 when st
 def create_tool(
     robot_id: PathId, body: ToolCreate, response: Response, session: SessionDep, key: AdminKey
 ) -> object:
+    """Register a tool on a robot (name and slot unique among the robot's live tools); the
+    answer carries the tool's ETag."""
     tool = tools.create_tool(session, robot_id=robot_id, data=body, actor=key)
     response.headers["ETag"] = tools.tool_etag(tool)
     return tool
@@ -34,12 +36,15 @@ def list_tools(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> object:
+    """A robot's live tools, oldest first."""
     items, next_cursor = tools.list_tools(session, robot_id=robot_id, limit=limit, cursor=cursor)
     return {"items": items, "next_cursor": next_cursor}
 
 
 @router.get("/v1/tools/{tool_id}", response_model=Tool)
 def get_tool(tool_id: PathId, response: Response, session: SessionDep, key: ReadKey) -> object:
+    """One live tool, with its ETag (it changes with every change to the tool, its versions or
+    its activation)."""
     tool = tools.get_tool(session, tool_id)
     response.headers["ETag"] = tools.tool_etag(tool)
     return tool
@@ -54,6 +59,8 @@ def update_tool(
     key: AdminKey,
     if_match: IfMatch = None,
 ) -> object:
+    """Change a tool's fields (tolerance and load merge with what is stored); honours If-Match
+    with the tool's ETag."""
     tool = tools.update_tool(session, tool_id=tool_id, data=body, if_match=if_match, actor=key)
     response.headers["ETag"] = tools.tool_etag(tool)
     return tool
@@ -61,5 +68,7 @@ def update_tool(
 
 @router.delete("/v1/tools/{tool_id}", status_code=204)
 def archive_tool(tool_id: PathId, session: SessionDep, key: AdminKey) -> Response:
+    """Archive a tool: it stops serving a TCP; its calibrations, versions and audit trail are
+    kept."""
     tools.archive_tool(session, tool_id=tool_id, actor=key)
     return Response(status_code=204)

@@ -21,6 +21,7 @@ FormatQuery = Annotated[ControllerFormat | None, Query(description="controller t
 
 @router.get("/v1/tools/{tool_id}/versions", response_model=VersionList)
 def list_versions(tool_id: PathId, session: SessionDep, key: ReadKey) -> object:
+    """Every version of a tool's TCP with who made it and why, and the history of activations."""
     tool, rows, history = versions.list_versions(session, tool_id=tool_id)
     return {
         "items": [versions.version_document(r, tool) for r in rows],
@@ -32,6 +33,7 @@ def list_versions(tool_id: PathId, session: SessionDep, key: ReadKey) -> object:
 def get_version(
     tool_id: PathId, version: VersionNumber, session: SessionDep, key: ReadKey
 ) -> object:
+    """One version of a tool's TCP."""
     row = versions.get_version(session, tool_id=tool_id, version=version)
     return versions.version_document(row, tools.get_tool(session, tool_id))
 
@@ -45,6 +47,8 @@ def activate_version(
     key: CalibrateKey,
     if_match: IfMatch = None,
 ) -> object:
+    """Make a version the active TCP (roll back by activating an older one); honours If-Match
+    with the tool's ETag, 412 when stale."""
     tool = versions.activate_version(
         session, tool_id=tool_id, version=version, if_match=if_match, actor=key
     )
@@ -64,6 +68,8 @@ def get_active_tcp(
     format: FormatQuery = None,
     if_none_match: Annotated[str | None, Header()] = None,
 ) -> Response:
+    """The active TCP a cell controller reads, with a strong ETag (If-None-Match -> 304);
+    `?format=` adds the controller's own text."""
     document, etag = versions.served_tcp(
         session, tool_id=tool_id, fmt=format, if_none_match=if_none_match
     )
@@ -76,4 +82,6 @@ def get_active_tcp(
 def tool_table(
     robot_id: PathId, session: SessionDep, key: ReadKey, format: FormatQuery = None
 ) -> object:
+    """Every live tool of a robot with its active TCP, in one answer; tools without one are
+    listed apart."""
     return versions.tool_table(session, robot_id=robot_id, fmt=format)
