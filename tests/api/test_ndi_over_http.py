@@ -6,15 +6,13 @@ stream's consecutive frames share their errors; see tests/solvers/test_ndi_pivot
 from __future__ import annotations
 
 import csv
-from pathlib import Path
 
 import numpy as np
-import pytest
 
 from tests.conftest import Api
+from tests.realdata import NDI_PIVOT
 
-DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "ndi-pivot"
-pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason=f"{DATA} not present")
+DATA = NDI_PIVOT
 
 
 def _rows(name: str) -> list[tuple[str, list[float]]]:

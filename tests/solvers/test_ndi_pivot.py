@@ -1,4 +1,4 @@
-"""Real pivot recordings of one NDI Polaris stylus (shared/data/ndi-pivot): same maths as N-point.
+"""Real pivot recordings of one NDI Polaris stylus (tests/data/ndi-pivot): same maths as N-point.
 
 The marker body plays the flange, the camera the robot base. Two recordings of the same
 stylus must give the same tip offset within their uncertainty. The stream is sampled at a
@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import csv
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,12 +19,11 @@ from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
 from app.solvers.npoint import ALGORITHMS, NPointResult, solve_npoint
+from tests.realdata import NDI_PIVOT
 
-DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "ndi-pivot"
+DATA = NDI_PIVOT
 FILES = ("pivot_2.csv", "pivot_3.csv")
 STRIDE = 50
-
-pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason=f"{DATA} not present")
 
 
 @cache
