@@ -8,12 +8,16 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+import httpx
 import pytest
 from sqlalchemy import text
 
 from tests.databases import fresh_database
+
+if TYPE_CHECKING:
+    from fastapi.testclient import TestClient
 
 PG_URL = os.environ.get("TCPCAL_TEST_DATABASE_URL")
 BACKENDS = ["sqlite"] + (["postgresql"] if PG_URL else [])
@@ -85,30 +89,29 @@ def db(database: Database, monkeypatch: pytest.MonkeyPatch) -> Iterator[Database
 class Api:
     """A TestClient with a key of each scope and small helpers for common set-up."""
 
-    def __init__(self, client: Any, keys: dict[str, str]) -> None:
+    def __init__(self, client: TestClient, keys: dict[str, str]) -> None:
         self.client = client
         self.keys = keys
 
     def headers(self, scope: str = "admin", **extra: str) -> dict[str, str]:
         return {"Authorization": f"Bearer {self.keys[scope]}", **extra}
 
-    def get(self, path: str, scope: str = "read", **kw: Any) -> Any:
-        return self.client.get(path, headers={**self.headers(scope), **kw.pop("headers", {})}, **kw)
+    def request(self, method: str, path: str, scope: str, **kw: Any) -> httpx.Response:
+        headers = {**self.headers(scope), **kw.pop("headers", {})}
+        response: httpx.Response = self.client.request(method, path, headers=headers, **kw)
+        return response
 
-    def post(self, path: str, json: Any = None, scope: str = "admin", **kw: Any) -> Any:
-        return self.client.post(
-            path, json=json, headers={**self.headers(scope), **kw.pop("headers", {})}, **kw
-        )
+    def get(self, path: str, scope: str = "read", **kw: Any) -> httpx.Response:
+        return self.request("GET", path, scope, **kw)
 
-    def patch(self, path: str, json: Any = None, scope: str = "admin", **kw: Any) -> Any:
-        return self.client.patch(
-            path, json=json, headers={**self.headers(scope), **kw.pop("headers", {})}, **kw
-        )
+    def post(self, path: str, json: Any = None, scope: str = "admin", **kw: Any) -> httpx.Response:
+        return self.request("POST", path, scope, json=json, **kw)
 
-    def delete(self, path: str, scope: str = "admin", **kw: Any) -> Any:
-        return self.client.delete(
-            path, headers={**self.headers(scope), **kw.pop("headers", {})}, **kw
-        )
+    def patch(self, path: str, json: Any = None, scope: str = "admin", **kw: Any) -> httpx.Response:
+        return self.request("PATCH", path, scope, json=json, **kw)
+
+    def delete(self, path: str, scope: str = "admin", **kw: Any) -> httpx.Response:
+        return self.request("DELETE", path, scope, **kw)
 
     def robot(self, name: str = "r1", **fields: Any) -> dict[str, Any]:
         response = self.post("/v1/robots", {"name": name, **fields})

@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 
+import httpx
 import pytest
 
+from app.jsontypes import JsonObject
 from tests.conftest import Api
 
 PROBLEM = "application/problem+json"
 
 
-def _problem(response, status: int, type_suffix: str) -> dict:  # type: ignore[no-untyped-def]
+def _problem(response: httpx.Response, status: int, type_suffix: str) -> JsonObject:
     assert response.status_code == status, response.text
     assert response.headers["content-type"].startswith(PROBLEM)
     body = response.json()
@@ -121,7 +124,7 @@ def test_body_over_one_mib_is_413(api: Api) -> None:
 
 
 def test_chunked_body_over_limit_is_413(api: Api) -> None:
-    def chunks():  # type: ignore[no-untyped-def]
+    def chunks() -> Iterator[bytes]:
         yield b'{"name": "'
         for _ in range(20):
             yield b"y" * 65536

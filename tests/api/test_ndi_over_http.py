@@ -9,6 +9,7 @@ import csv
 
 import numpy as np
 
+from app.jsontypes import JsonObject
 from tests.conftest import Api
 from tests.realdata import NDI_PIVOT
 
@@ -22,7 +23,7 @@ def _rows(name: str) -> list[tuple[str, list[float]]]:
         return [(r[4], [float(x) for x in (*r[9:12], *r[5:9])]) for r in reader]
 
 
-def _solve(api: Api, poses: list[list[float]]) -> dict:  # type: ignore[type-arg]
+def _solve(api: Api, poses: list[list[float]]) -> JsonObject:
     response = api.post(
         "/v1/solve", {"method": "xyz_npoint", "format": "xyz_wxyz", "poses": poses}, scope="read"
     )

@@ -2,25 +2,29 @@
 
 from __future__ import annotations
 
+from typing import Any
+
+import httpx
 import numpy as np
 import pytest
 
+from app.jsontypes import JsonObject
 from tests.api.touches import as_poses, row_counts, within
 from tests.conftest import TABLES, Api
 from tests.sim.touches import simulate_touches
 
 
 @pytest.fixture
-def tool(api: Api) -> dict:  # type: ignore[type-arg]
+def tool(api: Api) -> JsonObject:
     robot = api.robot("kr16")
     return api.tool(robot["id"], "torch", slot=3)
 
 
-def _calibrate(api: Api, tool_id: str, body: dict, **kw):  # type: ignore[no-untyped-def,type-arg]
+def _calibrate(api: Api, tool_id: str, body: JsonObject, **kw: Any) -> httpx.Response:
     return api.post(f"/v1/tools/{tool_id}/calibrations", body, scope="calibrate", **kw)
 
 
-def test_eight_noisy_touches_accepted_active_and_served_as_kuka(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+def test_eight_noisy_touches_accepted_active_and_served_as_kuka(api: Api, tool: JsonObject) -> None:
     touches = simulate_touches(8, seed=11, touch_noise_mm=0.05)
     response = _calibrate(
         api, tool["id"], {"method": "xyz_npoint", "format": "xyz_wxyz", "poses": as_poses(touches)}
@@ -48,7 +52,7 @@ def test_eight_noisy_touches_accepted_active_and_served_as_kuka(api: Api, tool: 
 
 def test_worse_result_is_out_of_tolerance_then_activated_then_rolled_back(
     api: Api,
-    tool: dict,  # type: ignore[type-arg]
+    tool: JsonObject,
 ) -> None:
     good = _calibrate(
         api,
@@ -90,7 +94,7 @@ def test_worse_result_is_out_of_tolerance_then_activated_then_rolled_back(
     ]
 
 
-def test_activate_always_activates_out_of_tolerance(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+def test_activate_always_activates_out_of_tolerance(api: Api, tool: JsonObject) -> None:
     noisy = simulate_touches(8, seed=3, touch_noise_mm=1.5)
     cal = _calibrate(
         api,
@@ -106,7 +110,7 @@ def test_activate_always_activates_out_of_tolerance(api: Api, tool: dict) -> Non
     assert (cal["status"], cal["active"]) == ("out_of_tolerance", True)
 
 
-def test_idempotent_retry_creates_one_version(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+def test_idempotent_retry_creates_one_version(api: Api, tool: JsonObject) -> None:
     body = {
         "method": "xyz_npoint",
         "format": "xyz_wxyz",
@@ -139,9 +143,9 @@ def test_idempotent_retry_creates_one_version(api: Api, tool: dict) -> None:  # 
 )
 def test_unsolvable_input_is_422_and_writes_nothing(
     api: Api,
-    tool: dict,
+    tool: JsonObject,
     case: str,
-    kind: str,  # type: ignore[type-arg]
+    kind: str,
 ) -> None:
     from scipy.spatial.transform import Rotation
 
@@ -179,7 +183,7 @@ def test_unsolvable_input_is_422_and_writes_nothing(
     assert row_counts(TABLES) == before
 
 
-def test_save_reference_point_registers_the_pivot(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+def test_save_reference_point_registers_the_pivot(api: Api, tool: JsonObject) -> None:
     touches = simulate_touches(8, seed=6)
     cal = _calibrate(
         api,
@@ -198,7 +202,7 @@ def test_save_reference_point_registers_the_pivot(api: Api, tool: dict) -> None:
     assert points[0]["covariance_mm2"] is not None
 
 
-def test_idempotency_keys_expire_after_their_ttl(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+def test_idempotency_keys_expire_after_their_ttl(api: Api, tool: JsonObject) -> None:
     from datetime import timedelta
 
     from sqlalchemy import update
@@ -216,7 +220,7 @@ def test_idempotency_keys_expire_after_their_ttl(api: Api, tool: dict) -> None: 
     assert again.json()["version"] == 2
 
 
-def test_metrics_count_calibrations_by_method_and_status(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+def test_metrics_count_calibrations_by_method_and_status(api: Api, tool: JsonObject) -> None:
     import re
 
     def count() -> int:
@@ -231,7 +235,9 @@ def test_metrics_count_calibrations_by_method_and_status(api: Api, tool: dict) -
     assert count() == before + 1
 
 
-def test_reference_point_not_saved_when_out_of_tolerance_says_so(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+def test_reference_point_not_saved_when_out_of_tolerance_says_so(
+    api: Api, tool: JsonObject
+) -> None:
     noisy = simulate_touches(8, seed=2, touch_noise_mm=1.5)
     cal = _calibrate(
         api,
@@ -250,7 +256,7 @@ def test_reference_point_not_saved_when_out_of_tolerance_says_so(api: Api, tool:
     assert api.get(f"/v1/robots/{tool['robot_id']}/reference-points").json()["items"] == []
 
 
-def test_reference_point_name_clash_is_refused_before_solving(api: Api, tool: dict) -> None:  # type: ignore[type-arg]
+def test_reference_point_name_clash_is_refused_before_solving(api: Api, tool: JsonObject) -> None:
     api.post(
         f"/v1/robots/{tool['robot_id']}/reference-points",
         {"name": "pin", "position_mm": [0, 0, 0]},

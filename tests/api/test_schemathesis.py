@@ -108,7 +108,9 @@ class ResponseOnly:
                 raise
 
 
-def problem_details(ctx: Any, response: schemathesis.Response, case: schemathesis.Case) -> None:
+def problem_details(
+    ctx: Any, response: schemathesis.Response, case: schemathesis.Case[Any]
+) -> None:
     """Every 4xx is application/problem+json carrying type, title, status and detail."""
     if not 400 <= response.status_code < 500:
         return
@@ -147,7 +149,7 @@ ERROR_CHECKS = [
     suppress_health_check=list(HealthCheck),
 )
 def test_api_conforms_to_its_schema(
-    case: schemathesis.Case,
+    case: schemathesis.Case[Any],
     data: st.DataObject,
     api: Api,
     seeded_ids: dict[str, Any],

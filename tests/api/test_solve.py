@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from app.jsontypes import JsonObject
 from app.kinematics.dh import flange_poses
 from app.kinematics.presets import PRESETS
 from tests.api.touches import as_poses, row_counts
@@ -23,7 +24,7 @@ FORMATS = [
 ]
 
 
-def _solve(api: Api, body: dict) -> dict:  # type: ignore[type-arg]
+def _solve(api: Api, body: JsonObject) -> JsonObject:
     response = api.post("/v1/solve", body, scope="read")
     assert response.status_code == 200, response.text
     return dict(response.json())

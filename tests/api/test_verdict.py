@@ -6,6 +6,7 @@ import re
 
 import numpy as np
 
+from app.jsontypes import JsonObject
 from tests.api.touches import as_poses
 from tests.conftest import Api
 from tests.sim.touches import simulate_touches
@@ -16,10 +17,10 @@ def _tool(api: Api) -> str:
     return str(api.tool(robot["id"], "torch", slot=3)["id"])
 
 
-def _calibrate(api: Api, tool_id: str, body: dict[str, object]) -> dict[str, object]:
+def _calibrate(api: Api, tool_id: str, body: JsonObject) -> JsonObject:
     response = api.post(f"/v1/tools/{tool_id}/calibrations", body, scope="calibrate")
     assert response.status_code == 201, response.text
-    result: dict[str, object] = response.json()
+    result: JsonObject = response.json()
     return result
 
 
@@ -30,8 +31,8 @@ def test_150_mm_to_0_15_mm_is_versioned_not_active_with_the_move_named(api: Api)
 
     slip = _calibrate(api, tool_id, {"method": "manual", "tcp": {"position_mm": [0, 0, 0.15]}})
     assert (slip["status"], slip["version"], slip["active"]) == ("accepted", 2, False)
-    assert abs(float(slip["change_from_active_mm"]) - 149.85) < 1e-9  # type: ignore[arg-type]
-    warning = " ".join(slip["warnings"])  # type: ignore[arg-type]
+    assert abs(float(slip["change_from_active_mm"]) - 149.85) < 1e-9
+    warning = " ".join(slip["warnings"])
     assert "moved 149.85 mm from active version 1" in warning
     assert "max_change_mm 5 mm" in warning
     assert 'activate: "always"' in warning
@@ -63,11 +64,11 @@ def test_a_small_move_is_activated_and_said_in_the_summary(api: Api) -> None:
         summary,
     )
     assert match, summary
-    position = result["tcp"]["position_mm"]  # type: ignore[index]
+    position = result["tcp"]["position_mm"]
     assert [float(v) for v in match.groups()[:3]] == [round(float(v), 2) for v in position]
     expected_change = float(np.linalg.norm(np.asarray(position) - before))
     assert float(match.group(5)) == round(expected_change, 2)
-    assert not any("orientation kept" in w for w in result["warnings"])  # type: ignore[union-attr]
+    assert not any("orientation kept" in w for w in result["warnings"])
 
 
 def test_out_of_tolerance_names_the_missed_touch_from_one(api: Api) -> None:

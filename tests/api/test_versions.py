@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from app.jsontypes import JsonObject
 from tests.conftest import Api
 
 
-def _setup(api: Api) -> tuple[dict, dict]:  # type: ignore[type-arg]
+def _setup(api: Api) -> tuple[JsonObject, JsonObject]:
     robot = api.robot("kr16", vendor="KUKA")
     tool = api.tool(robot["id"], "torch", slot=3, load={"mass_kg": 2.5, "cog_mm": [0, 0, 80]})
     return robot, tool

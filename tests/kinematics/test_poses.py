@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -267,9 +268,9 @@ def test_matrix_to_format_and_back(fmt: str, seed: int, x: float, y: float, z: f
 # --- refusals: one test per kind --------------------------------------------------------------
 
 
-def _refused(kind: str, *args: object, **kwargs: object) -> InvalidInput:
+def _refused(kind: str, *args: Any, **kwargs: Any) -> InvalidInput:
     with pytest.raises(InvalidInput) as info:
-        poses_from_format(*args, **kwargs)  # type: ignore[arg-type]
+        poses_from_format(*args, **kwargs)
     assert info.value.kind == kind, info.value
     return info.value
 

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import itertools
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import TypeVar
 
 import pytest
 
@@ -16,6 +17,7 @@ from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = pytest.mark.live
 N = 20
+T = TypeVar("T")
 
 
 @pytest.fixture(params=BACKENDS)
@@ -24,10 +26,10 @@ def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[LiveServe
         yield srv
 
 
-def _all_at_once(fn, n: int) -> list:  # type: ignore[no-untyped-def,type-arg]
+def _all_at_once(fn: Callable[[int], T], n: int) -> list[T]:
     barrier = threading.Barrier(n)
 
-    def run(i: int):  # type: ignore[no-untyped-def]
+    def run(i: int) -> T:
         barrier.wait()
         return fn(i)
 
@@ -41,13 +43,13 @@ def test_concurrent_calibrations_and_activations(server: LiveServer) -> None:
         tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "t", "slot": 1}).json()
     tool_path = f"/v1/tools/{tool['id']}"
 
-    def submit(i: int) -> tuple[int, int | None]:
+    def submit(i: int) -> tuple[int, int]:
         with server.client() as http:
             r = http.post(
                 f"{tool_path}/calibrations",
                 json={"method": "manual", "tcp": {"position_mm": [0, 0, 100 + i]}, "note": str(i)},
             )
-            return r.status_code, r.json().get("version")
+            return r.status_code, int(r.json().get("version", 0))
 
     results = _all_at_once(submit, N)
     assert [status for status, _ in results] == [201] * N

@@ -36,7 +36,8 @@ class Touches:
 def random_tcp(rng: np.random.Generator, norm_mm: float, max_tilt_deg: float = 30.0) -> FloatArray:
     """A TCP of length `norm_mm` (mm) within `max_tilt_deg` of the flange z axis."""
     axis = _cone_directions(rng, 1, max_tilt_deg)[0]
-    return norm_mm * axis
+    tcp: FloatArray = norm_mm * axis
+    return tcp
 
 
 def _cone_directions(rng: np.random.Generator, n: int, half_angle_deg: float) -> FloatArray:
@@ -106,4 +107,5 @@ def coaxial_rotations(n: int, *, axis_flange: FloatArray, seed: int = 0) -> Floa
     rng = np.random.default_rng(seed)
     axis = np.asarray(axis_flange, dtype=float) / np.linalg.norm(axis_flange)
     angles = np.radians(np.linspace(-60.0, 60.0, n) + rng.uniform(-5, 5, n))
-    return (TOOL_DOWN * Rotation.from_rotvec(angles[:, None] * axis)).as_matrix()
+    matrices: FloatArray = (TOOL_DOWN * Rotation.from_rotvec(angles[:, None] * axis)).as_matrix()
+    return matrices

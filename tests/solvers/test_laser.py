@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 import pytest
@@ -28,13 +29,13 @@ ROTATIONS = {
 }
 
 
-def _solve(data: LaserData, device: LaserDevice = DEVICE, **kw: object) -> LaserResult:
+def _solve(data: LaserData, device: LaserDevice = DEVICE, **kw: Any) -> LaserResult:
     return solve_laser(
         flange_rotation=data.flange_rotation,
         sweeps=data.sweeps,
         descent_mm=data.descent_mm,
         device=device,
-        **kw,  # type: ignore[arg-type]
+        **kw,
     )
 
 
@@ -267,8 +268,8 @@ def test_taught_device_sigma_matches_the_scatter() -> None:
 # ------------------------------------------------------------------ refusals
 
 
-def _data(**kw: object) -> LaserData:
-    return simulate(TOOL_STATES["offset_runout"], **kw)  # type: ignore[arg-type]
+def _data(**kw: Any) -> LaserData:
+    return simulate(TOOL_STATES["offset_runout"], **kw)
 
 
 def _with_sweep(data: LaserData, i: int, sweep: Sweep) -> LaserData:
@@ -422,7 +423,7 @@ def test_never_a_nan_on_scrambled_input() -> None:
             b = np.asarray(s.break_mm) + rng.normal(0, scale, 3)
             r = np.asarray(s.restore_mm) + rng.normal(0, scale, 3)
             beam = s.beam if rng.random() > 0.02 else ("a" if s.beam == "b" else "b")
-            sweeps.append(Sweep(beam, b, r))  # type: ignore[arg-type]
+            sweeps.append(Sweep(beam, b, r))
         descent = base.descent_mm + rng.normal(0, rng.choice([0.0, 0.3, 50.0]), 3)
         data = dataclasses.replace(base, sweeps=sweeps, descent_mm=descent)
         try:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from typing import Any, TypedDict
 
 import numpy as np
 import pytest
@@ -15,7 +16,14 @@ from app.solvers.npoint import ALGORITHMS, solve_npoint
 from app.solvers.quality import Quality, ellipsoid95_scale, orientation_spread_deg
 from tests.sim.touches import TOOL_DOWN, coaxial_rotations, simulate_touches
 
-SCENARIOS = [
+
+class Scenario(TypedDict, total=False):
+    tilt_deg: float
+    spin: bool
+    tcp_norm_mm: float
+
+
+SCENARIOS: list[Scenario] = [
     {"tilt_deg": 30.0, "spin": True},
     {"tilt_deg": 10.0, "spin": False},
     {"tilt_deg": 60.0, "spin": True, "tcp_norm_mm": 300.0},
@@ -180,7 +188,7 @@ def test_residuals_are_distances_of_the_tcp_from_the_pivot() -> None:
 
 
 def test_gls_beats_stacked_under_orientation_noise() -> None:
-    err = {"gls": [], "stacked": []}
+    err: dict[str, list[float]] = {"gls": [], "stacked": []}
     for seed in range(60):
         sim = simulate_touches(20, seed=seed, touch_noise_mm=0.02, orientation_noise_deg=0.1)
         for algorithm in err:
@@ -260,9 +268,9 @@ def test_four_touches_with_a_miss_are_flagged_not_guessed() -> None:
 # ------------------------------------------------------------------------------ refusals
 
 
-def _raises(kind: str, *args: object, **kwargs: object) -> InvalidInput:
+def _raises(kind: str, *args: Any, **kwargs: Any) -> InvalidInput:
     with pytest.raises(InvalidInput) as info:
-        solve_npoint(*args, **kwargs)  # type: ignore[arg-type]
+        solve_npoint(*args, **kwargs)
     assert info.value.kind == kind, info.value.detail
     assert info.value.detail
     return info.value
@@ -319,7 +327,9 @@ def test_almost_coaxial_rotations_with_noise_are_still_degenerate() -> None:
 def test_small_spread_is_refused_against_the_tolerance() -> None:
     sim = simulate_touches(6, seed=3, tilt_deg=3.0, spin=False)
     err = _raises("insufficient-spread", sim.R, sim.f, touch_noise_mm=0.05, max_tcp_sigma_mm=0.1)
-    assert err.context["predicted_sigma_mm"] > 0.1
+    sigma = err.context["predicted_sigma_mm"]
+    assert isinstance(sigma, float)
+    assert sigma > 0.1
     assert "tilt the tool more" in err.detail
     # a wide spread with the same tolerance passes
     wide = simulate_touches(6, seed=3, tilt_deg=45.0)

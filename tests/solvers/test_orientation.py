@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -9,7 +11,10 @@ from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
 from app.solvers.orientation import (
+    AxisName,
     Direction,
+    OrientationResult,
+    WorkingAxis,
     angle_between_deg,
     orientation_from_touches,
     orientation_from_translations,
@@ -26,6 +31,7 @@ from tests.sim.frames import (
 )
 
 TCP = np.array([12.0, -7.5, 185.0])
+Trial = Callable[[np.random.Generator], tuple[np.ndarray, OrientationResult]]
 
 
 def _case(seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -44,9 +50,9 @@ def _angle_deg(Q1: np.ndarray, Q2: np.ndarray) -> float:
 @pytest.mark.parametrize(
     "axes", [("+z", "+x"), ("-z", "-x"), ("+z", "-z", "+x"), ("+x", "-z", "-x")]
 )
-def test_translations_recover_the_frame(seed: int, axes: tuple[str, ...]) -> None:
+def test_translations_recover_the_frame(seed: int, axes: tuple[AxisName, ...]) -> None:
     Q, R = _case(seed)
-    result = orientation_from_translations(translation_directions(Q, R, axes=axes))  # type: ignore[arg-type]
+    result = orientation_from_translations(translation_directions(Q, R, axes=axes))
     assert _angle_deg(result.rotation, Q) < 1e-9
     assert_allclose(result.residuals, 0.0, atol=1e-9)
     assert result.sigma_source == "none"
@@ -80,7 +86,7 @@ def test_translations_allow_a_small_orientation_change() -> None:
 
 @pytest.mark.parametrize("seed", range(5))
 @pytest.mark.parametrize("working_axis", ["x", "z"])
-def test_touches_recover_the_frame(seed: int, working_axis: str) -> None:
+def test_touches_recover_the_frame(seed: int, working_axis: WorkingAxis) -> None:
     Q, _ = _case(seed)
     rotations, positions = two_point_touches(
         Q, TCP, working_axis=working_axis, rng=np.random.default_rng(seed)
@@ -89,7 +95,7 @@ def test_touches_recover_the_frame(seed: int, working_axis: str) -> None:
         tcp_mm=TCP,
         rotations=rotations,
         positions_mm=positions,
-        working_axis=working_axis,  # type: ignore[arg-type]
+        working_axis=working_axis,
     )
     assert _angle_deg(result.rotation, Q) < 1e-9
     assert result.residuals == (0.0, 0.0, 0.0)
@@ -116,11 +122,13 @@ def test_world_6d_recovers_the_frame(seed: int, align: dict[str, str]) -> None:
 
 @pytest.mark.parametrize("seed", range(3))
 @pytest.mark.parametrize("axis", ["x", "z"])
-def test_world_5d_fixes_the_axis_and_stays_closest_to_the_flange(seed: int, axis: str) -> None:
+def test_world_5d_fixes_the_axis_and_stays_closest_to_the_flange(
+    seed: int, axis: WorkingAxis
+) -> None:
     Q, _ = _case(seed)
-    align = {axis: "-z"}
+    align: dict[str, str] = {axis: "-z"}
     R = world_aligned_rotation(Q, align, spin_deg=37.0 * (seed + 1))
-    result = orientation_from_world(rotation=R, align=align, working_axis=axis)  # type: ignore[arg-type]
+    result = orientation_from_world(rotation=R, align=align, working_axis=axis)
     a = "xyz".index(axis)
     assert_allclose(R @ result.rotation[:, a], [0.0, 0.0, -1.0], atol=1e-12)
     # No other twist about that axis is closer to the flange frame.
@@ -152,7 +160,7 @@ def test_angle_between_matches_scipy() -> None:
 # ------------------------------------------------------------------ noise and uncertainty
 
 
-def _normalised_errors(make, trials: int) -> np.ndarray:  # type: ignore[no-untyped-def]
+def _normalised_errors(make: Trial, trials: int) -> np.ndarray:
     out = []
     for i in range(trials):
         Q, result = make(np.random.default_rng(1000 + i))
@@ -169,7 +177,7 @@ def _assert_calibrated(z: np.ndarray) -> None:
 
 
 def test_translation_sigma_matches_the_scatter() -> None:
-    def make(rng):  # type: ignore[no-untyped-def]
+    def make(rng: np.random.Generator) -> tuple[np.ndarray, OrientationResult]:
         Q, R = random_rotation(rng, 60.0), tool_down(rng, 35.0)
         dirs = translation_directions(
             Q, R, axes=("+z", "+x"), length_mm=40.0, noise_mm=0.05, rng=rng
@@ -180,7 +188,7 @@ def test_translation_sigma_matches_the_scatter() -> None:
 
 
 def test_touch_sigma_matches_the_scatter() -> None:
-    def make(rng):  # type: ignore[no-untyped-def]
+    def make(rng: np.random.Generator) -> tuple[np.ndarray, OrientationResult]:
         Q = random_rotation(rng, 60.0)
         rotations, positions = two_point_touches(Q, TCP, noise_mm=0.1, rng=rng)
         result = orientation_from_touches(
@@ -330,7 +338,7 @@ def test_touches_refuse_wrong_count_and_bad_options() -> None:
             tcp_mm=TCP,
             rotations=rotations,
             positions_mm=positions,
-            working_axis="y",  # type: ignore[arg-type]
+            working_axis="y",  # type: ignore[arg-type]  # deliberately not a WorkingAxis
         )
     assert exc.value.kind == "invalid-options"
     with pytest.raises(InvalidInput) as exc:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -143,7 +145,7 @@ def test_check_of_a_good_tool_is_zero_and_a_bent_tool_shows_its_bend() -> None:
     ],
 )
 def test_bad_inputs_are_refused(kwargs: dict[str, object], kind: str) -> None:
-    args: dict[str, object] = {
+    args: dict[str, Any] = {
         "reference_mm": POINT,
         "reference_covariance_mm2": None,
         "rotation": np.eye(3),
@@ -152,7 +154,7 @@ def test_bad_inputs_are_refused(kwargs: dict[str, object], kind: str) -> None:
     }
     args.update(kwargs)
     with pytest.raises(InvalidInput) as info:
-        solve_reference(**args)  # type: ignore[arg-type]
+        solve_reference(**args)
     assert info.value.kind == kind
 
 
