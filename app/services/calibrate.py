@@ -26,7 +26,7 @@ from app.methods import method_of
 from app.methods.base import MethodContext, MethodRequest, Solved, StoredPoint
 from app.methods.npoint import NPointOptions
 from app.models import Calibration as CalibrationRow
-from app.models import IdempotencyRecord, Tool
+from app.models import Tool
 from app.schemas.calibrations import StatelessFields
 from app.schemas.results import Calibration, CalibrationDetail, CalibrationResult, SolveResult
 from app.schemas.tools import Tcp
@@ -165,16 +165,7 @@ def submit(
     row = _store(session, tool=tool, request=request, raw_body=raw_body, result=result, actor=actor)
     activated = _activate_if_due(session, tool=tool, request=request, result=result, actor=actor)
     if keep_point and point_name is not None and point is not None:
-        create_reference_point(
-            session,
-            robot_id=tool.robot_id,
-            name=point_name,
-            position_mm=point.position_mm.tolist(),
-            covariance_mm2=None if point.covariance_mm2 is None else point.covariance_mm2.tolist(),
-            source=request.method,
-            calibration_id=row.id,
-            actor=actor,
-        )
+        _save_touched_point(session, tool, point_name, point, request.method, row.id, actor)
     audit.record(
         session,
         actor=actor,
@@ -192,17 +183,36 @@ def submit(
     )
     out = calibration_out(row, tool)
     if idempotency_key is not None:
-        session.add(
-            IdempotencyRecord(
-                api_key_id=actor.key_id,
-                key=idempotency_key,
-                request_hash=fingerprint,
-                status_code=201,
-                response=out.model_dump(mode="json"),
-            )
+        idempotency.remember(
+            session,
+            actor=actor,
+            key=idempotency_key,
+            fingerprint=fingerprint,
+            response=out.model_dump(mode="json"),
         )
-        session.flush()
     return out, False
+
+
+def _save_touched_point(
+    session: Session,
+    tool: Tool,
+    name: str,
+    point: StoredPoint,
+    method: str,
+    calibration_id: str,
+    actor: Principal,
+) -> None:
+    """Register the point the touches met as a named reference point of the tool's robot."""
+    create_reference_point(
+        session,
+        robot_id=tool.robot_id,
+        name=name,
+        position_mm=point.position_mm.tolist(),
+        covariance_mm2=None if point.covariance_mm2 is None else point.covariance_mm2.tolist(),
+        source=method,
+        calibration_id=calibration_id,
+        actor=actor,
+    )
 
 
 def _store(

@@ -44,3 +44,19 @@ def replay(
             "use a new key for a new submission"
         )
     return record.response
+
+
+def remember(
+    session: Session, *, actor: Principal, key: str, fingerprint: str, response: JsonObject
+) -> None:
+    """Keep the answer to (actor, key) so that a retry with the same body replays it."""
+    session.add(
+        IdempotencyRecord(
+            api_key_id=actor.key_id,
+            key=key,
+            request_hash=fingerprint,
+            status_code=201,
+            response=response,
+        )
+    )
+    session.flush()

@@ -52,6 +52,8 @@ from app.solvers.orientation import (
 )
 from app.solvers.validation import check_finite, check_positions_mm, check_rotation_matrices
 
+FloatArray = NDArray[np.float64]
+
 Beam = Literal["a", "b"]
 
 #: Sweeps (and a sweep's break and restore) at one flange height agree in z within this, mm.
@@ -171,7 +173,42 @@ class _Parsed:
 
 
 def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: ArrayLike) -> _Parsed:
-    R0 = check_rotation_matrices(
+    """Check the pose, the descent and every sweep, and group the sweeps by flange height."""
+    R0 = _checked_flange_rotation(flange_rotation)
+    descent = np.asarray(descent_mm, dtype=np.float64)
+    if descent.shape != (3,):
+        raise InvalidInput("invalid-sweep", "descent_mm needs 3 values (mm)", loc=("descent_mm",))
+    descent = check_positions_mm(descent[None], loc=("descent_mm",))[0]
+    if not sweeps:
+        raise InvalidInput(
+            "too-few-poses",
+            "no sweeps: sweep both beams at two or more flange heights",
+            loc=("sweeps",),
+        )
+    breaks = np.empty((len(sweeps), 3))
+    restores = np.empty((len(sweeps), 3))
+    warnings: list[str] = []
+    for i, sweep in enumerate(sweeps):
+        breaks[i], restores[i], warning = _checked_sweep(i, sweep)
+        if warning:
+            warnings.append(warning)
+    beams = tuple(s.beam for s in sweeps)
+    groups, heights = _height_groups(0.5 * (breaks[:, 2] + restores[:, 2]), beams)
+    return _Parsed(
+        R0=R0,
+        beams=beams,
+        breaks=breaks,
+        restores=restores,
+        groups=groups,
+        heights=heights,
+        descent=descent,
+        warnings=tuple(warnings),
+    )
+
+
+def _checked_flange_rotation(flange_rotation: ArrayLike) -> FloatArray:
+    """The flange orientation (3, 3), refused unless the tool points down into the beams."""
+    R0: FloatArray = check_rotation_matrices(
         np.asarray(flange_rotation, dtype=np.float64)[None], loc=("poses",)
     )[0]
     down = float(-R0[2, 2])  # flange +Z in base, z component, negated
@@ -184,85 +221,84 @@ def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: Arra
             loc=("poses", 0, "rotation"),
             context={"tilt_deg": tilt},
         )
-    descent = np.asarray(descent_mm, dtype=np.float64)
-    if descent.shape != (3,):
-        raise InvalidInput("invalid-sweep", "descent_mm needs 3 values (mm)", loc=("descent_mm",))
-    descent = check_positions_mm(descent[None], loc=("descent_mm",))[0]
-    n = len(sweeps)
-    if n == 0:
+    return R0
+
+
+def _checked_position(i: int, sweep: Sweep, name: str) -> FloatArray:
+    """Sweep i's break_mm or restore_mm as (3,) mm, refused when missing or malformed."""
+    value = sweep.break_mm if name == "break_mm" else sweep.restore_mm
+    if value is None:
         raise InvalidInput(
-            "too-few-poses",
-            "no sweeps: sweep both beams at two or more flange heights",
-            loc=("sweeps",),
+            "invalid-sweep",
+            f"sweep {i}: no {name.removesuffix('_mm')} position: the tool must break "
+            f"and then restore beam {sweep.beam.upper()}; a beam the tool never crossed "
+            "cannot be used",
+            loc=("sweeps", i, name),
         )
-    breaks = np.empty((n, 3))
-    restores = np.empty((n, 3))
-    beams: list[str] = []
-    warnings: list[str] = []
-    for i, s in enumerate(sweeps):
-        if s.beam not in ("a", "b"):
-            raise InvalidInput(
-                "invalid-sweep",
-                f"sweep {i}: beam must be 'a' (parallel to base X) or 'b' (parallel to base Y), "
-                f"got {s.beam!r}",
-                loc=("sweeps", i, "beam"),
-            )
-        for name, value, out in (
-            ("break_mm", s.break_mm, breaks),
-            ("restore_mm", s.restore_mm, restores),
-        ):
-            if value is None:
-                raise InvalidInput(
-                    "invalid-sweep",
-                    f"sweep {i}: no {name.removesuffix('_mm')} position: the tool must break "
-                    f"and then restore beam {s.beam.upper()}; a beam the tool never crossed "
-                    "cannot be used",
-                    loc=("sweeps", i, name),
-                )
-            arr = np.asarray(value, dtype=np.float64)
-            if arr.shape != (3,):
-                raise InvalidInput(
-                    "invalid-sweep",
-                    f"sweep {i}: {name} needs 3 values (mm)",
-                    loc=("sweeps", i, name),
-                )
-            out[i] = check_positions_mm(arr[None], loc=("sweeps", i, name))[0]
-        beams.append(s.beam)
-        d = restores[i] - breaks[i]
-        a = _ALONG[s.beam]
-        along = abs(float(d[a]))
-        off = abs(float(d[1 - a]))
-        if float(np.linalg.norm(d)) < MIN_WIDTH_MM:
-            raise InvalidInput(
-                "invalid-sweep",
-                f"sweep {i}: break and restore are the same position; the flange must move "
-                f"across beam {s.beam.upper()} between them",
-                loc=("sweeps", i, "restore_mm"),
-            )
-        if abs(float(d[2])) > HEIGHT_TOL_MM:
-            raise InvalidInput(
-                "invalid-sweep",
-                f"sweep {i}: the flange height changed by {d[2]:.2f} mm between break and "
-                f"restore; sweep horizontally (within {HEIGHT_TOL_MM:g} mm)",
-                loc=("sweeps", i, "restore_mm"),
-            )
-        if off > along or along < MIN_WIDTH_MM:
-            raise InvalidInput(
-                "invalid-sweep",
-                f"sweep {i}: the flange moved mostly along base {'xy'[1 - a].upper()}; "
-                f"beam {s.beam.upper()} is crossed by moving along base {'xy'[a].upper()}",
-                loc=("sweeps", i, "restore_mm"),
-            )
-        angle = float(np.degrees(np.arctan2(off, along)))
-        if angle > WARN_SWEEP_ANGLE_DEG:
-            warnings.append(
-                f"sweep {i} strays {angle:.1f} deg from base {'xy'[a].upper()}; only its "
-                f"{'xy'[a].upper()} motion is used"
-            )
-    z = 0.5 * (breaks[:, 2] + restores[:, 2])
-    order = np.argsort(z, kind="stable")
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape != (3,):
+        raise InvalidInput(
+            "invalid-sweep", f"sweep {i}: {name} needs 3 values (mm)", loc=("sweeps", i, name)
+        )
+    position: FloatArray = check_positions_mm(arr[None], loc=("sweeps", i, name))[0]
+    return position
+
+
+def _checked_sweep(i: int, sweep: Sweep) -> tuple[FloatArray, FloatArray, str | None]:
+    """Break and restore of sweep i, refused unless a horizontal move across its beam;
+    a warning when the move strays from the beam's crossing direction."""
+    if sweep.beam not in ("a", "b"):
+        raise InvalidInput(
+            "invalid-sweep",
+            f"sweep {i}: beam must be 'a' (parallel to base X) or 'b' (parallel to base Y), "
+            f"got {sweep.beam!r}",
+            loc=("sweeps", i, "beam"),
+        )
+    brk = _checked_position(i, sweep, "break_mm")
+    restore = _checked_position(i, sweep, "restore_mm")
+    d = restore - brk
+    a = _ALONG[sweep.beam]
+    along, off = abs(float(d[a])), abs(float(d[1 - a]))
+    beam, axis, other = sweep.beam.upper(), "xy"[a].upper(), "xy"[1 - a].upper()
+    if float(np.linalg.norm(d)) < MIN_WIDTH_MM:
+        raise InvalidInput(
+            "invalid-sweep",
+            f"sweep {i}: break and restore are the same position; the flange must move "
+            f"across beam {beam} between them",
+            loc=("sweeps", i, "restore_mm"),
+        )
+    if abs(float(d[2])) > HEIGHT_TOL_MM:
+        raise InvalidInput(
+            "invalid-sweep",
+            f"sweep {i}: the flange height changed by {d[2]:.2f} mm between break and "
+            f"restore; sweep horizontally (within {HEIGHT_TOL_MM:g} mm)",
+            loc=("sweeps", i, "restore_mm"),
+        )
+    if off > along or along < MIN_WIDTH_MM:
+        raise InvalidInput(
+            "invalid-sweep",
+            f"sweep {i}: the flange moved mostly along base {other}; "
+            f"beam {beam} is crossed by moving along base {axis}",
+            loc=("sweeps", i, "restore_mm"),
+        )
+    angle = float(np.degrees(np.arctan2(off, along)))
+    warning = None
+    if angle > WARN_SWEEP_ANGLE_DEG:
+        warning = (
+            f"sweep {i} strays {angle:.1f} deg from base {axis}; only its {axis} motion is used"
+        )
+    return brk, restore, warning
+
+
+def _height_groups(
+    z: FloatArray, beams: tuple[str, ...]
+) -> tuple[tuple[tuple[int, ...], ...], FloatArray]:
+    """Sweeps grouped by flange height z (mm), lowest first, and each group's height.
+
+    Refused unless there are two or more heights, clearly apart, each with both beams swept.
+    """
     groups: list[list[int]] = []
-    for i in order:
+    for i in np.argsort(z, kind="stable"):
         if groups and z[i] - z[groups[-1][0]] <= HEIGHT_TOL_MM:
             groups[-1].append(int(i))
         else:
@@ -296,16 +332,7 @@ def _parse(flange_rotation: ArrayLike, sweeps: Sequence[Sweep], descent_mm: Arra
             f"two or more heights at least {MIN_HEIGHT_SEPARATION_MM:g} mm apart",
             loc=("sweeps",),
         )
-    return _Parsed(
-        R0=R0,
-        beams=tuple(beams),
-        breaks=breaks,
-        restores=restores,
-        groups=tuple(tuple(g) for g in groups),
-        heights=heights,
-        descent=descent,
-        warnings=tuple(warnings),
-    )
+    return tuple(tuple(g) for g in groups), heights
 
 
 # --------------------------------------------------------------------------------------

@@ -128,6 +128,49 @@ def solve_npoint(
     when the predicted TCP 1-sigma along its weakest direction exceeds it.
     Raises InvalidInput for input that cannot give a trustworthy TCP.
     """
+    R, f = _checked_touches(rotations, positions_mm)
+    noise = _check_options(algorithm, touch_noise_mm, orientation_noise_deg, max_tcp_sigma_mm)
+    cosines = _relative_cosines(R)
+    warnings = _check_repeated(cosines)
+    block = _block_conditioning(R)
+    _check_degenerate(block, context="")
+
+    fit, used, block, fit_warnings = _fit(R, f, algorithm, noise, block)
+    res_vec = _residual_vectors(R, f, fit.t, fit.p)
+    spread = _uncertainty(R[used], res_vec[used], fit, noise)
+    warnings += fit_warnings
+    warnings += _noise_warnings(res_vec[used], R[used], fit.t, spread, noise)
+    warnings += _geometry_warnings(block, algorithm)
+    cov_t = spread.cov6[:3, :3]
+    if max_tcp_sigma_mm is not None:
+        _check_predicted_sigma(cov_t, max_tcp_sigma_mm, spread.s_p, noise)
+
+    quality = make_quality(
+        residuals_mm=np.linalg.norm(res_vec, axis=1),
+        used=used,
+        tcp_covariance_mm2=cov_t,
+        sigma_source=SIGMA_CONFIGURED if noise.touch_mm is not None else SIGMA_RESIDUALS,
+        orientation_spread_deg=math.degrees(math.acos(float(np.clip(cosines.min(), -1.0, 1.0)))),
+        condition_number=block.design_condition,
+        outliers=tuple(int(i) for i in np.flatnonzero(~used)),
+        warnings=tuple(warnings),
+        dof=spread.dof,
+        ellipsoid_scale=spread.ellipsoid_scale,
+    )
+    cov_p = spread.cov6[3:, 3:]
+    return NPointResult(
+        algorithm=algorithm,
+        tcp_mm=np.array(fit.t, dtype=np.float64),
+        pivot_mm=np.array(fit.p, dtype=np.float64),
+        pivot_covariance_mm2=np.array(0.5 * (cov_p + cov_p.T), dtype=np.float64),
+        quality=quality,
+    )
+
+
+def _checked_touches(
+    rotations: ArrayLike, positions_mm: ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """The touches as (N, 3, 3) rotations and (N, 3) positions, at least MIN_POSES of them."""
     R = check_rotation_matrices(rotations, loc=("poses",))
     f = check_positions_mm(positions_mm, loc=("poses",))
     if R.shape[0] != f.shape[0]:
@@ -136,7 +179,6 @@ def solve_npoint(
             f"got {R.shape[0]} rotations but {f.shape[0]} positions; each touch needs both",
             loc=("poses",),
         )
-    noise = _check_options(algorithm, touch_noise_mm, orientation_noise_deg, max_tcp_sigma_mm)
     n = R.shape[0]
     if n < MIN_POSES:
         raise InvalidInput(
@@ -146,25 +188,29 @@ def solve_npoint(
             loc=("poses",),
             context={"n_poses": n, "min_poses": MIN_POSES},
         )
-    cosines = _relative_cosines(R)
-    warnings = _check_repeated(cosines)
-    block = _block_conditioning(R)
-    _check_degenerate(block, context="")
+    return R, f
 
-    used: BoolArray = np.ones(n, dtype=bool)
+
+def _fit(
+    R: FloatArray, f: FloatArray, algorithm: str, noise: _Noise, block: _Block
+) -> tuple[_Fit, BoolArray, _Block, list[str]]:
+    """Run the estimator: the fit, the touches it used, their conditioning and its warnings.
+
+    The robust fit may set touches aside; the remaining ones must still determine the TCP.
+    """
+    used: BoolArray = np.ones(R.shape[0], dtype=bool)
+    warnings: list[str] = []
     if algorithm == "robust":
-        fit, used, robust_warnings = _robust(R, f, noise)
-        warnings += robust_warnings
+        fit, used, warnings = _robust(R, f, noise)
         if not used.all():
             rejected = [int(i) for i in np.flatnonzero(~used)]
             block = _block_conditioning(R[used])
             _check_degenerate(block, context=f"after setting aside the missed touches {rejected}, ")
     else:
         fit = _ESTIMATORS[algorithm](R, f, noise)
-    t, p = fit.t, fit.p
     if (
-        not (np.isfinite(t).all() and np.isfinite(p).all())
-        or max(float(np.abs(t).max()), float(np.abs(p).max())) > MAX_ABS_MM
+        not (np.isfinite(fit.t).all() and np.isfinite(fit.p).all())
+        or max(float(np.abs(fit.t).max()), float(np.abs(fit.p).max())) > MAX_ABS_MM
     ):
         raise InvalidInput(
             "degenerate-poses",
@@ -172,39 +218,56 @@ def solve_npoint(
             "add touches rotated about different axes",
             loc=("poses",),
         )
+    return fit, used, block, warnings
 
-    res_vec = _residual_vectors(R, f, t, p)
-    res = np.linalg.norm(res_vec, axis=1)
-    Ru, resu = R[used], res_vec[used]
-    m = Ru.shape[0]
+
+@dataclass(frozen=True)
+class _Spread:
+    """The uncertainty of a fit: Cov(t, p) (6, 6) mm^2 and how it was obtained."""
+
+    cov6: FloatArray
+    s_p: float  # touch noise used (configured or estimated), mm
+    nu: float | None  # degrees of freedom of an estimated touch noise
+    dof: float | None  # degrees of freedom behind the 95 % ellipsoid
+    ellipsoid_scale: float | None  # its scale when not the chi2/F default
+
+
+def _uncertainty(Ru: FloatArray, resu: FloatArray, fit: _Fit, noise: _Noise) -> _Spread:
+    """Covariance of (t, p) from the used touches Ru (m, 3, 3) and their residuals (m, 3)."""
+    t = fit.t
     s_p, nu = _touch_noise_level(resu, Ru, t, noise, fit)
     cov6 = _covariance(fit.jac, Ru, t, s_p, noise.orientation_rad)
-    scale_dof = nu
-    scale: float | None = None
+    dof, scale = nu, None
     if fit.touch_var is not None:
         c = (noise.orientation_rad * float(np.linalg.norm(t))) ** 2
         lam6, m_dof, lam = _kenward_roger(Ru, t, fit.touch_var, c)
         cov6 = cov6 + 2.0 * lam6
-        scale_dof = m_dof
-        scale = ellipsoid95_scale(m_dof) / math.sqrt(lam)
+        dof, scale = m_dof, ellipsoid95_scale(m_dof) / math.sqrt(lam)
     elif nu is not None and noise.orientation_rad > 0.0:
-        scale_dof = _ellipsoid_dof(
-            nu, s_p, cov6[:3, :3], _covariance(fit.jac, Ru, t, 1.0, 0.0)[:3, :3]
-        )
-    cov_t = cov6[:3, :3]
+        dof = _ellipsoid_dof(nu, s_p, cov6[:3, :3], _covariance(fit.jac, Ru, t, 1.0, 0.0)[:3, :3])
+    return _Spread(cov6=cov6, s_p=s_p, nu=nu, dof=dof, ellipsoid_scale=scale)
 
+
+def _noise_warnings(
+    resu: FloatArray, Ru: FloatArray, t: FloatArray, spread: _Spread, noise: _Noise
+) -> list[str]:
+    """Say when the residuals contradict the noise model the uncertainty rests on."""
+    warnings = []
+    m = Ru.shape[0]
     if noise.touch_mm is not None:
-        sse = float(_mahalanobis_sq(resu, _noise_cov(Ru, t, s_p, noise.orientation_rad)).sum())
+        cov = _noise_cov(Ru, t, spread.s_p, noise.orientation_rad)
+        sse = float(_mahalanobis_sq(resu, cov).sum())
         if sse > float(chi2.ppf(1.0 - 1e-3, 3 * m - 6)):
+            rms = float(np.sqrt(np.mean(np.sum(resu**2, axis=1))))
             warnings.append(
-                f"the residuals (rms {np.sqrt(np.mean(res[used] ** 2)):.3f} mm) are larger "
+                f"the residuals (rms {rms:.3f} mm) are larger "
                 f"than the configured touch noise of {noise.touch_mm:g} mm explains: the "
                 "reported uncertainty is probably optimistic"
             )
-    elif nu is not None and nu < FEW_DOF:
+    elif spread.nu is not None and spread.nu < FEW_DOF:
         warnings.append(
-            f"the touch noise was estimated from only {nu:.0f} degrees of freedom; configure the "
-            "tool's touch noise (or add touches) for a firmer uncertainty"
+            f"the touch noise was estimated from only {spread.nu:.0f} degrees of freedom; "
+            "configure the tool's touch noise (or add touches) for a firmer uncertainty"
         )
     if m >= SERIAL_MIN_POSES:
         lag1 = _lag1_correlation(resu)
@@ -214,6 +277,12 @@ def solve_npoint(
                 f"{lag1:.2f}), as in a tracker stream: the uncertainty assumes independent "
                 "touches and is too small; use frames further apart in time"
             )
+    return warnings
+
+
+def _geometry_warnings(block: _Block, algorithm: str) -> list[str]:
+    """Say when the touch geometry or the chosen estimator limits the result."""
+    warnings = []
     if block.ratio < WEAK_DIRECTION_RATIO:
         warnings.append(
             f"the TCP along the flange direction {format_vector(block.weakest)} is weakly "
@@ -225,51 +294,35 @@ def solve_npoint(
             "the sphere fit is a textbook baseline, biased under touch noise: use the default "
             "algorithm (robust) for a TCP to keep"
         )
+    return warnings
 
-    if max_tcp_sigma_mm is not None:
-        evals, evecs = np.linalg.eigh(0.5 * (cov_t + cov_t.T))
-        worst = float(np.sqrt(max(float(evals[-1]), 0.0)))
-        if worst > max_tcp_sigma_mm:
-            direction = _canonical_direction(evecs[:, -1])
-            source = (
-                f"the configured touch noise of {s_p:g} mm"
-                if noise.touch_mm is not None
-                else f"the touch noise estimated from the residuals ({s_p:.3g} mm)"
-            )
-            raise InvalidInput(
-                "insufficient-spread",
-                f"with {source} the TCP is only determined to {worst:.3g} mm (1 sigma) along "
-                f"the flange direction {format_vector(direction)}, more than the allowed "
-                f"{max_tcp_sigma_mm:g} mm: touch from orientations further apart (tilt the "
-                "tool more, about different axes)",
-                loc=("poses",),
-                context={
-                    "predicted_sigma_mm": worst,
-                    "max_tcp_sigma_mm": float(max_tcp_sigma_mm),
-                    "direction_flange": [float(x) for x in direction],
-                },
-            )
 
-    spread = math.degrees(math.acos(float(np.clip(cosines.min(), -1.0, 1.0))))
-    quality = make_quality(
-        residuals_mm=res,
-        used=used,
-        tcp_covariance_mm2=cov_t,
-        sigma_source=SIGMA_CONFIGURED if noise.touch_mm is not None else SIGMA_RESIDUALS,
-        orientation_spread_deg=spread,
-        condition_number=block.design_condition,
-        outliers=tuple(int(i) for i in np.flatnonzero(~used)),
-        warnings=tuple(warnings),
-        dof=scale_dof,
-        ellipsoid_scale=scale,
+def _check_predicted_sigma(
+    cov_t: FloatArray, max_tcp_sigma_mm: float, s_p: float, noise: _Noise
+) -> None:
+    """Refuse when the TCP's 1-sigma along its weakest direction exceeds the tolerance."""
+    evals, evecs = np.linalg.eigh(0.5 * (cov_t + cov_t.T))
+    worst = float(np.sqrt(max(float(evals[-1]), 0.0)))
+    if worst <= max_tcp_sigma_mm:
+        return
+    direction = _canonical_direction(evecs[:, -1])
+    source = (
+        f"the configured touch noise of {s_p:g} mm"
+        if noise.touch_mm is not None
+        else f"the touch noise estimated from the residuals ({s_p:.3g} mm)"
     )
-    cov_p = cov6[3:, 3:]
-    return NPointResult(
-        algorithm=algorithm,
-        tcp_mm=np.array(t, dtype=np.float64),
-        pivot_mm=np.array(p, dtype=np.float64),
-        pivot_covariance_mm2=np.array(0.5 * (cov_p + cov_p.T), dtype=np.float64),
-        quality=quality,
+    raise InvalidInput(
+        "insufficient-spread",
+        f"with {source} the TCP is only determined to {worst:.3g} mm (1 sigma) along "
+        f"the flange direction {format_vector(direction)}, more than the allowed "
+        f"{max_tcp_sigma_mm:g} mm: touch from orientations further apart (tilt the "
+        "tool more, about different axes)",
+        loc=("poses",),
+        context={
+            "predicted_sigma_mm": worst,
+            "max_tcp_sigma_mm": float(max_tcp_sigma_mm),
+            "direction_flange": [float(x) for x in direction],
+        },
     )
 
 

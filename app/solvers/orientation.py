@@ -283,94 +283,26 @@ def orientation_from_translations(
             "no directions given: move the TCP along the tool's Z axis (at least one pair)",
             loc=("directions",),
         )
-    mids: list[NDArray[np.float64]] = []
-    signs = np.empty(len(directions))
-    is_z = np.zeros(len(directions), dtype=bool)
-    starts = np.empty((len(directions), 3))
-    ends = np.empty((len(directions), 3))
-    for i, d in enumerate(directions):
-        if d.axis not in ("+z", "-z", "+x", "-x"):
-            raise InvalidInput(
-                "invalid-direction",
-                f"direction {i}: axis must be one of +z, -z, +x, -x, got {d.axis!r}",
-                loc=("directions", i, "axis"),
-            )
-        Ra = _checked_rotation(d.rotation_from, ("directions", i, "from"), f"direction {i} 'from'")
-        Rb = _checked_rotation(d.rotation_to, ("directions", i, "to"), f"direction {i} 'to'")
-        starts[i] = _checked_position(
-            d.position_from_mm, ("directions", i, "from"), f"direction {i} 'from'"
-        )
-        ends[i] = _checked_position(
-            d.position_to_mm, ("directions", i, "to"), f"direction {i} 'to'"
-        )
-        pair = Rotation.from_matrix(np.stack([Ra, Rb]))
-        change = float(np.degrees((pair[0].inv() * pair[1]).magnitude()))
-        if change > MAX_ORIENTATION_CHANGE_DEG:
-            raise InvalidInput(
-                "orientation-changed",
-                f"direction {i} ({d.axis}): the flange orientation changed by {change:.2f} deg "
-                f"between 'from' and 'to'; a pure translation keeps it within "
-                f"{MAX_ORIENTATION_CHANGE_DEG} deg: jog in linear mode without rotating",
-                loc=("directions", i, "to"),
-                context={"change_deg": change},
-            )
-        length = float(np.linalg.norm(ends[i] - starts[i]))
-        if length < MIN_TRANSLATION_MM:
-            raise InvalidInput(
-                "invalid-direction",
-                f"direction {i} ({d.axis}): the flange moved only {length:.2f} mm; move at "
-                f"least {MIN_TRANSLATION_MM:g} mm along the tool axis",
-                loc=("directions", i, "to"),
-                context={"length_mm": length},
-            )
-        mids.append(pair.mean().as_matrix())
-        signs[i] = 1.0 if d.axis[0] == "+" else -1.0
-        is_z[i] = d.axis[1] == "z"
+    moves = [_checked_move(i, d) for i, d in enumerate(directions)]
+    mids = [m.rotation for m in moves]
+    signs = np.array([1.0 if d.axis[0] == "+" else -1.0 for d in directions])
+    is_z = np.array([d.axis[1] == "z" for d in directions], dtype=bool)
     if not is_z.any():
         raise InvalidInput(
             "invalid-direction",
             "no move along the tool's Z axis: the Z direction is required (X is optional)",
             loc=("directions",),
         )
-    moves = ends - starts
-    axes = _translation_axes(mids, signs, moves)
-    lengths = np.linalg.norm(moves, axis=1)
-    for i in range(len(directions)):
-        # Compare with the first move along the same axis, before averaging: two moves that
-        # contradict each other could cancel and leave no direction at all.
-        first = int(np.flatnonzero(is_z == is_z[i])[0])
-        off = float(np.degrees(np.arccos(np.clip(axes[i] @ axes[first], -1.0, 1.0))))
-        if off > MAX_SAME_AXIS_DISAGREEMENT_DEG:
-            raise InvalidInput(
-                "invalid-direction",
-                f"direction {i} ({directions[i].axis}) points {off:.0f} deg away from "
-                f"direction {first} ({directions[first].axis}) along the same tool axis: check "
-                "the sign and that the right axis was jogged",
-                loc=("directions", i, "axis"),
-            )
+    starts = np.array([m.start for m in moves])
+    ends = np.array([m.end for m in moves])
+    vectors = ends - starts
+    axes = _translation_axes(mids, signs, vectors)
+    lengths = np.linalg.norm(vectors, axis=1)
+    _check_same_axis_agreement(directions, axes, is_z)
     z = _combine(axes[is_z], lengths[is_z])
     x = _combine(axes[~is_z], lengths[~is_z]) if (~is_z).any() else None
-    warnings: list[str] = []
-    if x is not None:
-        line_angle = float(np.degrees(np.arccos(min(1.0, abs(float(x @ z))))))
-        if line_angle < MIN_X_Z_ANGLE_DEG:
-            i_x = int(np.flatnonzero(~is_z)[0])
-            raise InvalidInput(
-                "invalid-direction",
-                f"the X move is only {line_angle:.1f} deg from the Z move: X and Z are (nearly) "
-                "parallel; jog along the tool's X axis, perpendicular to Z",
-                loc=("directions", i_x, "to"),
-                context={"angle_deg": line_angle},
-            )
-        defect = 90.0 - float(np.degrees(np.arccos(float(np.clip(x @ z, -1.0, 1.0)))))
-        if abs(defect) > WARN_ORTHOGONALITY_DEG:
-            warnings.append(
-                f"the X move is {abs(defect):.2f} deg from perpendicular to Z; X was made "
-                "orthogonal to Z (check that the moves were pure tool-axis moves)"
-            )
-    else:
-        warnings.append("no X move: the tool X axis is the flange X axis made orthogonal to Z")
-    Q = _frame_from_moves(mids, signs, is_z, moves)
+    warnings = _x_against_z(x, z, int(np.argmin(is_z)))
+    Q = _frame_from_moves(mids, signs, is_z, vectors)
     # Sideways deviation of each move from the fitted axis, mm.
     fitted = np.where(is_z[:, None], Q[:, 2][None, :], Q[:, 0][None, :])
     residuals = [
@@ -388,6 +320,96 @@ def orientation_from_translations(
 
         sigma = linear_sigma(fn, x0, np.full(x0.size, noise))
     return _result(Q, sigma, residuals, warnings, "configured" if noise is not None else "none")
+
+
+@dataclass(frozen=True)
+class _Move:
+    """One checked translation: flange positions (3,) mm and the mean rotation (3, 3)."""
+
+    start: NDArray[np.float64]
+    end: NDArray[np.float64]
+    rotation: NDArray[np.float64]
+
+
+def _checked_move(i: int, d: Direction) -> _Move:
+    """Direction i as a move, refused unless a long enough translation without rotation."""
+    if d.axis not in ("+z", "-z", "+x", "-x"):
+        raise InvalidInput(
+            "invalid-direction",
+            f"direction {i}: axis must be one of +z, -z, +x, -x, got {d.axis!r}",
+            loc=("directions", i, "axis"),
+        )
+    Ra = _checked_rotation(d.rotation_from, ("directions", i, "from"), f"direction {i} 'from'")
+    Rb = _checked_rotation(d.rotation_to, ("directions", i, "to"), f"direction {i} 'to'")
+    start = _checked_position(
+        d.position_from_mm, ("directions", i, "from"), f"direction {i} 'from'"
+    )
+    end = _checked_position(d.position_to_mm, ("directions", i, "to"), f"direction {i} 'to'")
+    pair = Rotation.from_matrix(np.stack([Ra, Rb]))
+    change = float(np.degrees((pair[0].inv() * pair[1]).magnitude()))
+    if change > MAX_ORIENTATION_CHANGE_DEG:
+        raise InvalidInput(
+            "orientation-changed",
+            f"direction {i} ({d.axis}): the flange orientation changed by {change:.2f} deg "
+            f"between 'from' and 'to'; a pure translation keeps it within "
+            f"{MAX_ORIENTATION_CHANGE_DEG} deg: jog in linear mode without rotating",
+            loc=("directions", i, "to"),
+            context={"change_deg": change},
+        )
+    length = float(np.linalg.norm(end - start))
+    if length < MIN_TRANSLATION_MM:
+        raise InvalidInput(
+            "invalid-direction",
+            f"direction {i} ({d.axis}): the flange moved only {length:.2f} mm; move at "
+            f"least {MIN_TRANSLATION_MM:g} mm along the tool axis",
+            loc=("directions", i, "to"),
+            context={"length_mm": length},
+        )
+    return _Move(start=start, end=end, rotation=pair.mean().as_matrix())
+
+
+def _check_same_axis_agreement(
+    directions: Sequence[Direction], axes: NDArray[np.float64], is_z: NDArray[np.bool_]
+) -> None:
+    """Refuse a move that points away from the first move along the same tool axis.
+
+    Compared before averaging: two moves that contradict each other could cancel and leave
+    no direction at all.
+    """
+    for i in range(len(directions)):
+        first = int(np.flatnonzero(is_z == is_z[i])[0])
+        off = float(np.degrees(np.arccos(np.clip(axes[i] @ axes[first], -1.0, 1.0))))
+        if off > MAX_SAME_AXIS_DISAGREEMENT_DEG:
+            raise InvalidInput(
+                "invalid-direction",
+                f"direction {i} ({directions[i].axis}) points {off:.0f} deg away from "
+                f"direction {first} ({directions[first].axis}) along the same tool axis: check "
+                "the sign and that the right axis was jogged",
+                loc=("directions", i, "axis"),
+            )
+
+
+def _x_against_z(x: NDArray[np.float64] | None, z: NDArray[np.float64], i_x: int) -> list[str]:
+    """Refuse an X move (first at index i_x) nearly parallel to Z; warn when it is not
+    perpendicular, or when there is none."""
+    if x is None:
+        return ["no X move: the tool X axis is the flange X axis made orthogonal to Z"]
+    line_angle = float(np.degrees(np.arccos(min(1.0, abs(float(x @ z))))))
+    if line_angle < MIN_X_Z_ANGLE_DEG:
+        raise InvalidInput(
+            "invalid-direction",
+            f"the X move is only {line_angle:.1f} deg from the Z move: X and Z are (nearly) "
+            "parallel; jog along the tool's X axis, perpendicular to Z",
+            loc=("directions", i_x, "to"),
+            context={"angle_deg": line_angle},
+        )
+    defect = 90.0 - float(np.degrees(np.arccos(float(np.clip(x @ z, -1.0, 1.0)))))
+    if abs(defect) > WARN_ORTHOGONALITY_DEG:
+        return [
+            f"the X move is {abs(defect):.2f} deg from perpendicular to Z; X was made "
+            "orthogonal to Z (check that the moves were pure tool-axis moves)"
+        ]
+    return []
 
 
 # --------------------------------------------------------------------------------------
