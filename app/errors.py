@@ -109,6 +109,7 @@ INPUT_KINDS: dict[str, str] = {
     "needs-storage": "Needs stored data",
     "invalid-cursor": "Invalid cursor",
     "unsupported": "Not supported",
+    "convention-mismatch": "Convention mismatch",
 }
 
 

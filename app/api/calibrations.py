@@ -51,8 +51,10 @@ def submit_calibration(
 ) -> object:
     """Solve a submission with its method, grade it against the tool's tolerance and store it as
     the tool's next version. Activated when `activate` allows ("auto": within tolerance and
-    within max_change_mm of the active TCP). Unsolvable input is a 422
-    and writes nothing. Retry-safe with `Idempotency-Key`."""
+    within max_change_mm of the active TCP). Unsolvable input is a 422 and writes nothing;
+    so are poses that fit far better under another unit or convention than the one sent
+    (`convention-mismatch`, with the `suggestion` to resend). Retry-safe with
+    `Idempotency-Key`."""
     doc, replayed = calibrate.submit(
         session,
         tool_id=tool_id,

@@ -60,7 +60,9 @@ def check_tool(
     tool_id: PathId, body: CheckCreate, session: SessionDep, key: CalibrateKey
 ) -> object:
     """Touch a reference point with the active TCP and measure the drift against the tool's
-    check_mm; the active TCP is not changed."""
+    check_mm; the active TCP is not changed. `deviation_flange_mm` is how the tool moved
+    (new minus active, flange frame) and `summary` says it in a sentence. Poses that fit
+    far better under another unit or convention are refused (`convention-mismatch`)."""
     return checks.run_check(session, tool_id=tool_id, data=body, actor=key)
 
 

@@ -22,5 +22,6 @@ def solve(
     key: ReadKey,
 ) -> SolveResult:
     """Solve a calibration body without storing anything: the result a stored calibration would
-    have, graded against the given (or default) tolerance."""
+    have, graded against the given (or default) tolerance; a unit or convention mix-up is
+    refused with the reading that fits (`convention-mismatch`)."""
     return calibrate.solve_stateless(session, request=body)

@@ -82,14 +82,19 @@ class CheckResult(BaseModel):
     version: int
     reference_point_id: str
     deviation_mm: list[float] = Field(
-        description="R t + f - r of the worst touch (largest distance), base frame"
+        description="where the tool tip is minus where the active TCP puts it, r - (R t + f), "
+        "for the worst touch (largest distance), base frame, mm"
     )
-    deviation_flange_mm: list[float]
+    deviation_flange_mm: list[float] = Field(
+        description="the same deviation in the flange frame: how the tool moved since the "
+        "active version, new TCP minus active TCP (+Y: the tip moved along flange +Y), mm"
+    )
     distance_mm: float = Field(description="|deviation_mm|: what within_tolerance compares")
     mean_deviation_mm: list[float] = Field(description="mean deviation over the touches, base")
     check_mm: float
     within_tolerance: bool
     touches: list[CheckTouch]
+    summary: str = Field(description="the verdict and which way the tool moved, one sentence")
     checked_at: Timestamp
     checked_by: str
 

@@ -23,15 +23,17 @@ from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance, grade
 from app.jsontypes import JsonObject
 from app.methods import method_of
-from app.methods.base import MethodContext, MethodRequest, Solved, StoredPoint
+from app.methods.base import FloatArray, MethodContext, MethodRequest, Solved, StoredPoint
 from app.methods.npoint import NPointOptions
 from app.models import Calibration as CalibrationRow
 from app.models import Tool
 from app.schemas.calibrations import StatelessFields
+from app.schemas.common import Units
 from app.schemas.results import Calibration, CalibrationDetail, CalibrationResult, SolveResult
 from app.schemas.tools import Tcp
 from app.services import audit, idempotency
 from app.services.contexts import DbContext, StatelessContext
+from app.services.diagnosis import EXPLAINABLE, Fit, implausible_flanges, refuse_mix_up
 from app.services.references import create_reference_point, ensure_reference_name_free
 from app.services.robots import get_robot, validate_kinematics
 from app.services.tools import get_tool
@@ -49,7 +51,34 @@ class Outcome:
 
 
 def solve(request: MethodRequest, ctx: MethodContext) -> Outcome:
-    """Run the request's method and grade its outcome against the context's tolerance."""
+    """Run the request's method and grade its outcome against the context's tolerance;
+    refuse a unit or convention mix-up (app.services.diagnosis) instead of grading it."""
+
+    def attempt(fmt: str, units: Units) -> Fit:
+        changed = request.model_copy(update={"format": fmt, "units": units})
+        result = _solve_as_given(changed, ctx).result
+        return Fit(result.quality.rms_mm or 0.0, result.status == "accepted")
+
+    def positions(fmt: str, units: Units | None) -> FloatArray:
+        return ctx.parse_poses(fmt, request.poses or [], units, loc=())[1]
+
+    fmt, units = request.format, request.units
+    try:
+        outcome = _solve_as_given(request, ctx)
+    except InvalidInput as refusal:
+        if refusal.kind in EXPLAINABLE:
+            near_base = implausible_flanges(positions, fmt, units)
+            refuse_mix_up(fmt, units, attempt, positions, as_given=None, near_base=near_base)
+        raise
+    result = outcome.result
+    near_base = implausible_flanges(positions, fmt, units)
+    if result.status != "accepted" or near_base:
+        as_given = Fit(result.quality.rms_mm or 0.0, good=False)
+        refuse_mix_up(fmt, units, attempt, positions, as_given=as_given, near_base=near_base)
+    return outcome
+
+
+def _solve_as_given(request: MethodRequest, ctx: MethodContext) -> Outcome:
     with located_in("body"):
         solved = method_of(request).solve(request, ctx)
         return Outcome(graded_result(request.method, solved, ctx), solved.reference_point)

@@ -6,20 +6,26 @@ A check never changes the active TCP; it is recorded in the audit trail either w
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.errors import located_in
 from app.helpers.tolerance import effective_tolerance
 from app.models import utcnow
+from app.schemas.common import Units
 from app.schemas.references import CheckCreate, CheckResult, CheckTouch
 from app.services import audit
+from app.services.diagnosis import Fit, implausible_flanges, refuse_mix_up
 from app.services.frames import frame_of, parse_poses_with
 from app.services.references import get_reference_point
 from app.services.robots import get_robot
 from app.services.tools import get_tool
+from app.services.verdict import check_summary
 from app.services.versions import active_version_row
-from app.solvers.reference import check_tcp
+from app.solvers.reference import TcpDeviation, check_tcp
+
+FloatArray = NDArray[np.float64]
 
 
 def run_check(
@@ -34,21 +40,39 @@ def run_check(
     robot = get_robot(session, tool.robot_id)
     frame = frame_of(session, active_version_row(session, tool))  # 404 /no-active-version
     point = get_reference_point(session, robot_id=robot.id, point_id=data.reference_point_id)
+    limit = effective_tolerance(tool.tolerance).check_mm
+
+    def positions(fmt: str, units: Units | None) -> FloatArray:
+        return parse_poses_with(robot.kinematics, fmt, data.poses, units, loc=("poses",))[1]
+
+    def measure(fmt: str, units: Units | None) -> list[TcpDeviation]:
+        rotations, flanges = parse_poses_with(
+            robot.kinematics, fmt, data.poses, units, loc=("poses",)
+        )
+        return [
+            check_tcp(
+                tcp_mm=frame.position_mm, rotation=R, position_mm=f, reference_mm=point.position_mm
+            )
+            for R, f in zip(rotations, flanges, strict=True)
+        ]
+
+    def attempt(fmt: str, units: Units) -> Fit:
+        worst = max(t.distance_mm for t in measure(fmt, units))
+        return Fit(float(worst), float(worst) <= limit)
+
     with located_in("body"):
-        rotations, positions = parse_poses_with(
-            robot.kinematics, data.format, data.poses, data.units, loc=("poses",)
+        touches = measure(data.format, data.units)
+    worst_mm = max(float(t.distance_mm) for t in touches)
+    near_base = implausible_flanges(positions, data.format, data.units)
+    if worst_mm > limit or near_base:
+        as_given = Fit(worst_mm, good=False)
+        refuse_mix_up(
+            data.format, data.units, attempt, positions, as_given=as_given, near_base=near_base
         )
-    touches = [
-        check_tcp(
-            tcp_mm=frame.position_mm, rotation=R, position_mm=f, reference_mm=point.position_mm
-        )
-        for R, f in zip(rotations, positions, strict=True)
-    ]
     # The headline figures are the worst touch's, so they are the ones the verdict rests on:
     # a bent tool seen from several orientations would average towards zero.
     worst = max(touches, key=lambda t: t.distance_mm)
     mean_base = np.mean([t.deviation_base_mm for t in touches], axis=0)
-    limit = effective_tolerance(tool.tolerance).check_mm
     within = float(worst.distance_mm) <= limit
     assert frame.version is not None  # a stored version's frame
     result = CheckResult(
@@ -61,6 +85,13 @@ def run_check(
         mean_deviation_mm=[float(v) for v in mean_base],
         check_mm=limit,
         within_tolerance=within,
+        summary=check_summary(
+            distance_mm=float(worst.distance_mm),
+            deviation_flange_mm=[float(v) for v in worst.deviation_flange_mm],
+            version=frame.version,
+            n_touches=len(touches),
+            check_mm=limit,
+        ),
         touches=[
             CheckTouch(
                 deviation_mm=[float(v) for v in t.deviation_base_mm],

@@ -85,3 +85,34 @@ def summarise(
             f"{tolerance.max_change_mm:g} mm; activate it if the tool really changed"
         )
     return f"accepted: {sentence}"
+
+
+def _flange_direction(deviation_flange_mm: list[float], distance_mm: float) -> str:
+    """E.g. "2.20 mm along flange +Y" or "0.80 mm along flange +X and 0.30 mm along flange -Y":
+    the components that make up at least a tenth of the distance, largest first."""
+    parts = sorted(
+        ((abs(v), f"{abs(v):.2f} mm along flange {'+' if v >= 0 else '-'}{axis}")
+         for v, axis in zip(deviation_flange_mm, "XYZ", strict=True)
+         if abs(v) >= 0.1 * distance_mm),
+        reverse=True,
+    )  # fmt: skip
+    return " and ".join(text for _, text in parts) if parts else "no measurable direction"
+
+
+def check_summary(
+    *,
+    distance_mm: float,
+    deviation_flange_mm: list[float],
+    version: int,
+    n_touches: int,
+    check_mm: float,
+) -> str:
+    """A check's verdict: how far and which way (flange frame, new minus old) the tip moved."""
+    within = distance_mm <= check_mm
+    worst = f"worst of {_touches(n_touches)}, " if n_touches > 1 else ""
+    sentence = (
+        f"{'within tolerance' if within else 'out of tolerance'}: the tool tip is "
+        f"{distance_mm:.2f} mm from where version {version} puts it, "
+        f"{_flange_direction(deviation_flange_mm, distance_mm)} ({worst}limit {check_mm:g} mm)"
+    )
+    return sentence if within else sentence + "; recalibrate the tool or look for a bend"

@@ -36,8 +36,11 @@ class ReferenceResult:
 
 
 @dataclass(frozen=True)
-class CheckResult:
-    """Deviation of the active TCP from a reference point: base (3,) and flange (3,) mm."""
+class TcpDeviation:
+    """How far the real tool tip is from where the active TCP puts it, at one touch of a
+    reference point: actual minus expected, base (3,) and flange (3,) mm. In the flange frame
+    it is the tool's shift, new TCP minus active TCP: +y means the tip moved along flange +Y.
+    """
 
     deviation_base_mm: FloatArray
     deviation_flange_mm: FloatArray
@@ -117,13 +120,17 @@ def check_tcp(
     rotation: ArrayLike,
     position_mm: ArrayLike,
     reference_mm: ArrayLike,
-) -> CheckResult:
-    """Deviation d = R t + f - r of the active TCP at a touch of reference point r, mm."""
+) -> TcpDeviation:
+    """Deviation d = r - (R t + f) at a touch of reference point r with active TCP t, mm.
+
+    The tip touches r, so r = R t_real + f and d = R (t_real - t): in the flange frame,
+    R^T d = t_real - t is how the tool moved since t was calibrated (new minus old).
+    """
     t = _vector(tcp_mm, "tcp_mm")
     r = _vector(reference_mm, "reference_mm")
     R, f = _pose(rotation, position_mm)
-    d = R @ t + f - r
-    return CheckResult(
+    d = r - (R @ t + f)
+    return TcpDeviation(
         deviation_base_mm=d,
         deviation_flange_mm=R.T @ d,
         distance_mm=float(np.linalg.norm(d)),

@@ -139,7 +139,7 @@ def test_checks_inside_and_outside_tolerance_leave_active_tcp(api: Api) -> None:
         scope="calibrate",
     ).json()
     assert good["within_tolerance"] is True
-    assert np.allclose(good["deviation_mm"], [0.1, 0, 0], atol=1e-9)
+    assert np.allclose(good["deviation_mm"], [-0.1, 0, 0], atol=1e-9)  # tip is 0.1 mm at -x
     assert abs(good["distance_mm"] - 0.1) < 1e-9
     # a bent torch: 2 mm off along the flange's y axis
     bent = api.post(
@@ -153,8 +153,20 @@ def test_checks_inside_and_outside_tolerance_leave_active_tcp(api: Api) -> None:
     ).json()
     assert bent["within_tolerance"] is False
     assert abs(bent["distance_mm"] - 2.2) < 1e-9
-    assert np.allclose(bent["deviation_flange_mm"], [0, -2.2, 0], atol=1e-9)
-    assert np.allclose(bent["mean_deviation_mm"], [0, 2.1, 0], atol=1e-9)
+    # the flange is 2.2 mm further along base +y than the active TCP needs, so the tip has
+    # moved along base -y, which is flange +y (the flange is turned 180 deg about x)
+    assert np.allclose(bent["deviation_mm"], [0, -2.2, 0], atol=1e-9)
+    assert np.allclose(bent["deviation_flange_mm"], [0, 2.2, 0], atol=1e-9)
+    assert np.allclose(bent["mean_deviation_mm"], [0, -2.1, 0], atol=1e-9)
+    assert bent["summary"] == (
+        "out of tolerance: the tool tip is 2.20 mm from where version 1 puts it, "
+        "2.20 mm along flange +Y (worst of 2 touches, limit 0.5 mm); "
+        "recalibrate the tool or look for a bend"
+    )
+    assert good["summary"] == (
+        "within tolerance: the tool tip is 0.10 mm from where version 1 puts it, "
+        "0.10 mm along flange -X (limit 0.5 mm)"
+    )
     assert api.get(f"/v1/tools/{tool['id']}/tcp").json()["version"] == 1
     assert len(api.get(f"/v1/tools/{tool['id']}/versions").json()["items"]) == 1
 

@@ -123,8 +123,8 @@ def test_check_of_a_good_tool_is_zero_and_a_bent_tool_shows_its_bend() -> None:
     bend = np.array([0.8, -0.3, 0.0])  # the real tip moved 0.8 / -0.3 mm in the flange frame
     f_bent = POINT - R @ (TOOL_A + bend)
     bent = check_tcp(tcp_mm=TOOL_A, rotation=R, position_mm=f_bent, reference_mm=POINT)
-    assert_allclose(bent.deviation_flange_mm, -bend, atol=1e-10)
-    assert_allclose(bent.deviation_base_mm, -R @ bend, atol=1e-10)
+    assert_allclose(bent.deviation_flange_mm, bend, atol=1e-10)  # new minus old
+    assert_allclose(bent.deviation_base_mm, R @ bend, atol=1e-10)
     assert bent.distance_mm == pytest.approx(np.linalg.norm(bend))
 
 

@@ -1,0 +1,161 @@
+"""Refuse a submission whose numbers fit far better under another reading than the one given.
+
+When the poses fit badly as given (out of tolerance, refused as too little spread, repeated,
+degenerate or out of range, or every flange within a few mm of the robot base), the same
+numbers are tried under every other reading of their units and convention
+(app.kinematics.readings). If one reading fits within tolerance, and far better than the
+given one, the submission is refused with 422 `convention-mismatch` naming that reading;
+nothing is stored. Resending with the suggested `format` and `units` solves.
+
+A correct submission is never refused: the diagnosis only runs when the given reading has
+already failed, and it only speaks when exactly one simplest reading fits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from app.errors import InvalidInput
+from app.kinematics.readings import (
+    NEAR_BASE_MM,
+    Reading,
+    flange_near_base,
+    given_reading,
+    other_readings,
+)
+from app.schemas.common import Units
+
+#: Refusals of the given reading that another reading may explain (a malformed request,
+#: a missing value or an unknown reference are not).
+EXPLAINABLE = frozenset(
+    {"out-of-range", "insufficient-spread", "repeated-poses", "degenerate-poses"}
+)
+#: Another reading is suggested only when its rms is this many times smaller than the given
+#: reading's (when that one could be solved and its flanges are not at the base).
+BETTER_BY = 10.0
+#: Rms below this (mm) counts as this: below any robot's repeatability, it is rounding.
+RMS_FLOOR_MM = 0.005
+
+
+@dataclass(frozen=True)
+class Fit:
+    """How well the poses fit under one reading: a figure in mm and whether it is good."""
+
+    rms_mm: float
+    good: bool
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    reading: Reading
+    fit: Fit
+    changes: int
+
+
+#: Reads the submission's poses under a reading: flange positions (N, 3) mm.
+Positions = Callable[[str, Units | None], NDArray[np.float64]]
+#: Solves (or checks) the submission under a reading.
+Attempt = Callable[[str, Units], Fit]
+
+
+def implausible_flanges(positions: Positions, fmt: str | None, units: Units | None) -> bool:
+    """Read as given, every flange lies within a few mm of the base: not millimetres."""
+    if fmt is None:
+        return False
+    try:
+        return flange_near_base(positions(fmt, units))
+    except InvalidInput:
+        return False
+
+
+def refuse_mix_up(
+    fmt: str | None,
+    units: Units | None,
+    attempt: Attempt,
+    positions: Positions,
+    *,
+    as_given: Fit | None,
+    near_base: bool,
+) -> None:
+    """Raise `convention-mismatch` when one other reading of the poses clearly fits.
+
+    `attempt` solves the submission under a reading; `as_given` is the given reading's fit
+    (None when it was refused); `near_base`: read as given, its flanges are at the base.
+    """
+    if fmt is None:
+        return
+    given = given_reading(fmt, None if units is None else units.model_dump(exclude_none=True))
+    candidates = []
+    for reading in other_readings(given):
+        other_units = Units(length=reading.length, angle=reading.angle)
+        try:
+            if implausible_flanges(positions, reading.format, other_units):
+                continue
+            fit = attempt(reading.format, other_units)
+        except InvalidInput:
+            continue
+        if fit.good:
+            candidates.append(_Candidate(reading, fit, reading.changes_from(given)))
+    best = _clear_winner(candidates)
+    if best is None:
+        if near_base:
+            raise _at_the_base(given)
+        return
+    given_rms = None if as_given is None else as_given.rms_mm
+    if not near_base and given_rms is not None and given_rms < BETTER_BY * _floored(best):
+        return
+    raise _mismatch(given, best, given_rms)
+
+
+def _clear_winner(candidates: Sequence[_Candidate]) -> _Candidate | None:
+    """The best-fitting of the simplest readings that fit, unless another as simple fits
+    about as well (then the numbers cannot tell which reading was meant)."""
+    if not candidates:
+        return None
+    fewest = min(c.changes for c in candidates)
+    simplest = sorted((c for c in candidates if c.changes == fewest), key=lambda c: c.fit.rms_mm)
+    best = simplest[0]
+    if len(simplest) > 1 and _floored(simplest[1]) < BETTER_BY * _floored(best):
+        return None
+    return best
+
+
+def _floored(candidate: _Candidate) -> float:
+    return max(candidate.fit.rms_mm, RMS_FLOOR_MM)
+
+
+def _at_the_base(given: Reading) -> InvalidInput:
+    """No reading fits, but millimetres cannot be right either: never grade these."""
+    return InvalidInput(
+        "out-of-range",
+        f"read as {given.describe()}, every flange position lies within {NEAR_BASE_MM:g} mm "
+        "of the robot base origin, where no flange can be: the lengths are not in millimetres "
+        "(metres? send units {'length': 'm'}), and no other reading of the numbers fits "
+        "within tolerance either; nothing was stored",
+        loc=("body", "poses"),
+    )
+
+
+def _mismatch(given: Reading, best: _Candidate, given_rms: float | None) -> InvalidInput:
+    suggested = best.reading
+    as_given = (
+        f"rms {given_rms:.3g} mm" if given_rms is not None else "they cannot be solved at all"
+    )
+    return InvalidInput(
+        "convention-mismatch",
+        f"the poses fit read as {suggested.describe()} (rms {best.fit.rms_mm:.3g} mm) far "
+        f"better than as sent, {given.describe()} ({as_given}): they were probably recorded "
+        f"that way. Resend with format {suggested.format!r} and units "
+        f"{{'length': {suggested.length!r}, 'angle': {suggested.angle!r}}} if so; nothing "
+        "was stored",
+        loc=("body", "format"),
+        members={
+            "suggestion": suggested.as_request(),
+            "rms_as_given_mm": given_rms,
+            "rms_as_suggested_mm": best.fit.rms_mm,
+        },
+    )
