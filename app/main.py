@@ -13,6 +13,7 @@ from sqlalchemy.exc import SQLAlchemyError
 from app import __version__
 from app.api import (
     calibrations,
+    formats,
     health,
     keys,
     methods,
@@ -71,7 +72,18 @@ def create_app() -> FastAPI:
         generate_unique_id_function=_operation_id,
     )
     install_error_handlers(app)
-    routers = (health, keys, robots, tools, calibrations, solve, versions, references, methods)
+    routers = (
+        health,
+        keys,
+        robots,
+        tools,
+        calibrations,
+        solve,
+        versions,
+        references,
+        methods,
+        formats,
+    )
     for module in routers:
         app.include_router(module.router)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)

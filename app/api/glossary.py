@@ -85,6 +85,7 @@ GLOSSARY: dict[str, str] = {
     "touch": "a touch of the point by a tool whose active TCP is trusted",
     "min_poses": "fewest poses the method takes",
     "max_poses": "most poses the method takes",
+    "formats": "pose formats: for a method the names it accepts, for a list each format in full",
     "requires": "fields the method needs besides method, format and poses",
     # results
     "status": "accepted or out_of_tolerance",

@@ -5,9 +5,12 @@ from __future__ import annotations
 from fastapi import APIRouter
 from pydantic import BaseModel
 
+from app.api.formats import all_formats
 from app.deps import ReadKey
+from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHODS
 from app.methods.base import PosesRequired, RegisteredMethod
+from app.schemas.formats import FormatInfo
 
 router = APIRouter(tags=["stateless"])
 
@@ -17,12 +20,14 @@ class MethodInfo(BaseModel):
     description: str
     min_poses: int
     max_poses: int
+    formats: list[str]
     requires: list[str]
     options: dict[str, dict[str, object]]
 
 
 class MethodList(BaseModel):
     items: list[MethodInfo]
+    formats: list[FormatInfo]
 
 
 _COMMON = set(PosesRequired.model_fields) | {"options"}
@@ -53,6 +58,7 @@ def describe(method: RegisteredMethod) -> MethodInfo:
         description=method.description,
         min_poses=count.min,
         max_poses=count.max,
+        formats=list(POSE_FORMATS) if issubclass(method.request, PosesRequired) else [],
         requires=[
             name
             for name, field in method.request.model_fields.items()
@@ -64,6 +70,7 @@ def describe(method: RegisteredMethod) -> MethodInfo:
 
 @router.get("/v1/methods", response_model=MethodList)
 def list_methods(key: ReadKey) -> MethodList:
-    """Every calibration method: what it computes, how many poses it takes, its required fields
-    and its options with their defaults."""
-    return MethodList(items=[describe(m) for m in METHODS])
+    """Every calibration method: what it computes, how many poses it takes and in which
+    formats, its required fields and its options with their defaults; and every pose format
+    (as GET /v1/formats)."""
+    return MethodList(items=[describe(m) for m in METHODS], formats=all_formats())

@@ -89,6 +89,30 @@ _LABELS: dict[str, tuple[str, ...]] = {
 }
 
 
+#: How each format's numbers make a rotation (what GET /v1/formats tells clients).
+ROTATION_CONVENTIONS: dict[str, str] = {
+    "matrix": "the upper-left 3x3 block of the 4x4 homogeneous matrix base_from_flange, "
+    "row-major; last row 0 0 0 1",
+    "xyz_wxyz": "unit quaternion, scalar first (w, x, y, z), as ABB RAPID and NDI write it",
+    "xyz_xyzw": "unit quaternion, scalar last (x, y, z, w), as ROS writes it",
+    "kuka_abc": "R = Rz(A) Ry(B) Rx(C): intrinsic Z-Y'-X'' Euler angles, A about Z first",
+    "fanuc_wpr": "R = Rz(R) Ry(P) Rx(W): fixed-axis X-Y-Z angles, W about base X first "
+    "(the same matrix as KUKA's, angles listed in the opposite order)",
+    "yaskawa_rxyz": "fixed-axis X-Y-Z angles Rx, Ry, Rz, as fanuc_wpr",
+    "techman_rxyz": "fixed-axis X-Y-Z angles RX, RY, RZ, as fanuc_wpr",
+    "ur_rotvec": "rotation vector (axis times angle), as UR's pose [x, y, z, rx, ry, rz]; "
+    "not the pendant's RPY view (send that as fanuc_wpr)",
+    "joints": "joint angles through the robot's forward kinematics (the robot needs a model)",
+}
+
+
+def format_components(fmt: str) -> tuple[str, ...]:
+    """The names of one pose's numbers in order; `joints` has one per joint (q1 .. qn)."""
+    if _check_format(fmt) == "joints":
+        return ("q1", "...", "qn")
+    return _LABELS[fmt]
+
+
 def _check_format(fmt: str) -> str:
     if fmt not in POSE_FORMATS:
         raise InvalidInput(

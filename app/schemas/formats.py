@@ -1,0 +1,21 @@
+"""What a client needs to know of each pose format: its numbers, units and rotation."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, Field
+
+from app.schemas.common import Units
+
+
+class FormatInfo(BaseModel):
+    name: str
+    components: list[str] = Field(
+        description="the names of one pose's numbers in order (joints: q1 .. qn, one per joint)"
+    )
+    arity: int | None = Field(description="numbers per pose; null for joints (the robot's axes)")
+    default_units: Units = Field(description="units used unless the request's `units` overrides")
+    rotation: str = Field(description="how the numbers make the flange orientation")
+
+
+class FormatList(BaseModel):
+    items: list[FormatInfo]
