@@ -27,13 +27,16 @@ import numpy as np
 import scipy
 
 from app.solvers.laser import solve_laser
+from app.solvers.npoint import solve_npoint
 from app.solvers.orientation import (
     orientation_from_touches,
     orientation_from_translations,
     rotation_error_deg,
 )
+from app.solvers.reference import solve_reference
 from tests.sim.frames import random_rotation, tool_down, translation_directions, two_point_touches
-from tests.sim.laser import DEVICE, TOOL_STATES, simulate, tool_down_rotation
+from tests.sim.laser import DEVICE, HEIGHTS_MM, TOOL_STATES, simulate, tool_down_rotation
+from tests.sim.touches import simulate_touches, touch_rotations
 
 LASER_NOISE_MM = (0.005, 0.01, 0.02, 0.05)
 POSITION_NOISE_MM = (0.01, 0.02, 0.05, 0.1)
@@ -54,50 +57,67 @@ def _summary(errors: np.ndarray, sigmas: np.ndarray) -> dict[str, float]:
     }
 
 
+#: Estimated-noise laser cases: (heights, noise mm). Three heights leave 2 degrees of freedom.
+LASER_ESTIMATED = ((3, 0.01), (3, 0.05), (4, 0.02), (6, 0.02))
+
+
 def bench_laser(trials: int, seed: int) -> list[dict[str, Any]]:
-    """Laser method, offset+runout tool, tilted flange, three heights."""
+    """Laser method, offset+runout tool, tilted flange: noise given (three heights, every
+    noise level) and noise estimated from the sweeps (3, 4 and 6 heights)."""
+    rows = []
+    for level, noise in enumerate(LASER_NOISE_MM):
+        rows += _laser_rows(trials, [seed, level], noise, HEIGHTS_MM, given=True)
+    for k, (n_heights, noise) in enumerate(LASER_ESTIMATED):
+        heights = tuple(float(h) for h in np.linspace(200.0, 240.0, n_heights))
+        rows += _laser_rows(trials, [seed, 100 + k], noise, heights, given=False)
+    return rows
+
+
+def _laser_rows(
+    trials: int, seed: list[int], noise: float, heights: tuple[float, ...], *, given: bool
+) -> list[dict[str, Any]]:
     tool = TOOL_STATES["offset_runout"]
     R0 = tool_down_rotation((0.7, -0.4), spin_deg=30.0)
     u = tool.axis_direction
     true_runout = np.degrees([np.arctan2(-u[1], u[2]), np.arcsin(u[0])])
+    method = "laser_beam" if given else f"laser_beam, noise estimated, {len(heights)} heights"
     rows = []
-    for level, noise in enumerate(LASER_NOISE_MM):
-        rng = np.random.default_rng([seed, level])  # independent draws per noise level
-        parts: dict[str, tuple[list[np.ndarray], list[np.ndarray]]] = {
-            k: ([], []) for k in ("tcp_mm", "runout_deg", "offset_mm", "tool_length_mm")
+    rng = np.random.default_rng(seed)  # independent draws per case
+    parts: dict[str, tuple[list[np.ndarray], list[np.ndarray]]] = {
+        k: ([], []) for k in ("tcp_mm", "runout_deg", "offset_mm", "tool_length_mm")
+    }
+    for _ in range(trials):
+        data = simulate(tool, flange_rotation=R0, noise_mm=noise, rng=rng, heights_mm=heights)
+        r = solve_laser(
+            flange_rotation=data.flange_rotation,
+            sweeps=data.sweeps,
+            descent_mm=data.descent_mm,
+            device=DEVICE,
+            trigger_noise_mm=noise if given else None,
+        )
+        s = r.sigma
+        pairs = {
+            "tcp_mm": (r.tcp_mm - tool.tcp_mm, s.tcp_mm),
+            "runout_deg": (np.array(r.runout_deg) - true_runout, s.runout_deg),
+            "offset_mm": (np.array(r.offset_mm) - tool.axis_point_mm[:2], s.offset_mm),
+            "tool_length_mm": (
+                np.array([r.tool_length_mm - tool.length_mm]),
+                (s.tool_length_mm,),
+            ),
         }
-        for _ in range(trials):
-            data = simulate(tool, flange_rotation=R0, noise_mm=noise, rng=rng)
-            r = solve_laser(
-                flange_rotation=data.flange_rotation,
-                sweeps=data.sweeps,
-                descent_mm=data.descent_mm,
-                device=DEVICE,
-                trigger_noise_mm=noise,
-            )
-            s = r.sigma
-            pairs = {
-                "tcp_mm": (r.tcp_mm - tool.tcp_mm, s.tcp_mm),
-                "runout_deg": (np.array(r.runout_deg) - true_runout, s.runout_deg),
-                "offset_mm": (np.array(r.offset_mm) - tool.axis_point_mm[:2], s.offset_mm),
-                "tool_length_mm": (
-                    np.array([r.tool_length_mm - tool.length_mm]),
-                    (s.tool_length_mm,),
-                ),
+        for k, (e, sg) in pairs.items():
+            parts[k][0].append(np.asarray(e))
+            parts[k][1].append(np.asarray(sg))
+    for k, (e, sg) in parts.items():
+        rows.append(
+            {
+                "method": method,
+                "quantity": k,
+                "noise_mm": noise,
+                "trials": trials,
+                **_summary(np.array(e), np.array(sg)),
             }
-            for k, (e, sg) in pairs.items():
-                parts[k][0].append(np.asarray(e))
-                parts[k][1].append(np.asarray(sg))
-        for k, (e, sg) in parts.items():
-            rows.append(
-                {
-                    "method": "laser_beam",
-                    "quantity": k,
-                    "noise_mm": noise,
-                    "trials": trials,
-                    **_summary(np.array(e), np.array(sg)),
-                }
-            )
+        )
     return rows
 
 
@@ -149,6 +169,46 @@ def bench_orientation(trials: int, seed: int) -> list[dict[str, Any]]:
     )
 
 
+REFERENCE_NOISE_MM = (0.02, 0.05, 0.1)
+
+
+def bench_reference(trials: int, seed: int) -> list[dict[str, Any]]:
+    """XYZ reference chain as the service runs it: tool A calibrated by 8 N-point touches, its
+    pivot kept as the reference point with its covariance, then tool B from one touch of that
+    point; the tools' touch noise is configured (one touch has no residual to estimate it)."""
+    tool_a, tool_b = np.array([12.0, -4.0, 180.0]), np.array([-30.0, 8.0, 95.0])
+    rows = []
+    for level, noise in enumerate(REFERENCE_NOISE_MM):
+        rng = np.random.default_rng([seed, 200 + level])
+        errors, sigmas = [], []
+        for _ in range(trials):
+            a = simulate_touches(
+                8, seed=int(rng.integers(2**31)), touch_noise_mm=noise, tcp_mm=tool_a
+            )
+            fit = solve_npoint(a.R, a.f, touch_noise_mm=noise)
+            R = touch_rotations(rng, 1, tilt_deg=30.0, spin=True).as_matrix()[0]
+            f = a.p - R @ tool_b + rng.normal(0.0, noise, 3)
+            b = solve_reference(
+                reference_mm=fit.pivot_mm,
+                reference_covariance_mm2=fit.pivot_covariance_mm2,
+                rotation=R,
+                position_mm=f,
+                touch_noise_mm=noise,
+            )
+            errors.append(b.tcp_mm - tool_b)
+            sigmas.append(np.array(b.quality.tcp_sigma_mm))
+        rows.append(
+            {
+                "method": "xyz_reference",
+                "quantity": "tcp_mm",
+                "noise_mm": noise,
+                "trials": trials,
+                **_summary(np.array(errors), np.array(sigmas)),
+            }
+        )
+    return rows
+
+
 def _table(rows: list[dict[str, Any]]) -> str:
     head = (
         "| method | quantity | noise mm | RMS error | RMS sigma | ratio | 95% coverage |\n"
@@ -172,7 +232,11 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     trials = args.trials or (60 if args.quick else 400)
     start = time.perf_counter()
-    rows = bench_laser(trials, args.seed) + bench_orientation(trials, args.seed)
+    rows = (
+        bench_laser(trials, args.seed)
+        + bench_orientation(trials, args.seed)
+        + bench_reference(trials, args.seed)
+    )
     elapsed = time.perf_counter() - start
     table = _table(rows)
     print(table)

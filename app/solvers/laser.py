@@ -30,7 +30,9 @@ Definitions used throughout:
   form one height; heights must be MIN_HEIGHT_SEPARATION_MM apart; each needs both beams.
 - Uncertainty: trigger noise (1-sigma, mm, along each sweep for break and restore, and
   vertical for the descent) propagated linearly through the whole solution. Without a
-  given noise figure and with >= 3 heights it is estimated from the line-fit residuals.
+  given noise figure and with >= 3 heights it is estimated from the line-fit residuals, on
+  2 (K - 2) degrees of freedom, and the sigma is widened by t(0.975, nu) / 1.96 so that
+  +-1.96 sigma remains a 95 % interval (Student's t).
 """
 
 from __future__ import annotations
@@ -42,6 +44,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
+from scipy.stats import norm
+from scipy.stats import t as student_t
 
 from app.errors import InvalidInput
 from app.solvers.orientation import (
@@ -428,21 +432,30 @@ def _solve_tool(p: _Parsed, x: NDArray[np.float64], dev: LaserDevice) -> _Tool:
 
 def _noise(
     p: _Parsed, line: _Line, trigger_noise_mm: float | None, warnings: list[str]
-) -> tuple[float, SigmaSource]:
+) -> tuple[float, SigmaSource, float]:
+    """The trigger noise to propagate, where it came from, and the factor that widens the
+    propagated 1-sigma so that +-1.96 sigma stays a 95 % interval (1 for a given figure).
+
+    Estimated from K heights the noise has only 2 (K - 2) degrees of freedom (2 with three
+    heights): the error over the estimated sigma then follows Student's t, not the normal
+    law, and its 97.5 % point is t(0.975, nu) / 1.96 times larger (2.2x for nu = 2).
+    """
     if trigger_noise_mm is not None:
-        return trigger_noise_mm, "configured"
+        return trigger_noise_mm, "configured", 1.0
     K = len(p.groups)
     if K >= 3:
         res = line.residuals()
         chi2 = float(np.sum(line.weights * res**2))
-        sigma_mid = np.sqrt(chi2 / (2 * (K - 2)))
+        nu = 2 * (K - 2)
+        sigma_mid = np.sqrt(chi2 / nu)
+        widen = float(student_t.ppf(0.975, nu) / norm.ppf(0.975))
         # A midpoint averages two triggers: sigma_mid = sigma_trigger / sqrt(2).
-        return float(np.sqrt(2.0) * sigma_mid), "residuals"
+        return float(np.sqrt(2.0) * sigma_mid), "residuals", widen
     warnings.append(
         "no trigger noise given and only two heights: the uncertainty was not estimated "
         "(give trigger_noise_mm or sweep a third height)"
     )
-    return 0.0, "none"
+    return 0.0, "none", 1.0
 
 
 def _check_noise(value: float | None) -> float | None:
@@ -550,7 +563,7 @@ def solve_laser(
             loc=("descent_mm",),
             context={"miss_mm": float(miss)},
         )
-    noise, source = _noise(p, tool.line, noise_in, warnings)
+    noise, source, widen = _noise(p, tool.line, noise_in, warnings)
 
     def outputs(x: NDArray[np.float64]) -> NDArray[np.float64]:
         t = _solve_tool(p, x, dev)
@@ -565,6 +578,7 @@ def solve_laser(
         )
 
     sig = linear_sigma(outputs, x0, np.full(x0.size, noise)) if noise > 0 else np.zeros(11)
+    sig = widen * sig
     sigma = LaserSigma(
         tcp_mm=(float(sig[0]), float(sig[1]), float(sig[2])),
         runout_deg=(float(sig[3]), float(sig[4])),

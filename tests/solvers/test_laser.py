@@ -234,6 +234,22 @@ def test_sigma_from_residuals_with_three_or_more_heights() -> None:
     assert np.sqrt(np.mean(np.square(noise))) == pytest.approx(0.01, rel=0.12)
 
 
+def test_estimated_sigma_from_three_heights_still_covers_95_percent() -> None:
+    """Three heights leave 2 degrees of freedom: the sigma is widened (Student's t) so that
+    +-1.96 sigma holds the truth 95 % of the time, as with a given noise figure."""
+    tool = TOOL_STATES["offset_runout"]
+    rng = np.random.default_rng(5)
+    z = []
+    for _ in range(300):
+        data = simulate(tool, flange_rotation=ROTATIONS["tilted"], noise_mm=0.02, rng=rng)
+        result = _solve(data)
+        assert result.sigma.source == "residuals"
+        err, sig = _errors(tool, result)
+        z.append(err / sig)
+    cover = (np.abs(np.array(z)) < 1.96).mean(axis=0)
+    assert np.all((cover > 0.92) & (cover < 0.985)), cover
+
+
 def test_two_heights_without_noise_say_so() -> None:
     result = _solve(simulate(TOOL_STATES["ideal"], heights_mm=(200.0, 240.0)))
     assert result.sigma.source == "none"
