@@ -80,11 +80,14 @@ def refuse_mix_up(
     *,
     as_given: Fit | None,
     near_base: bool,
+    within: tuple[str, ...] = ("body",),
+    poses_field: str = "poses",
 ) -> None:
     """Raise `convention-mismatch` when one other reading of the poses clearly fits.
 
     `attempt` solves the submission under a reading; `as_given` is the given reading's fit
     (None when it was refused); `near_base`: read as given, its flanges are at the base.
+    `within` and `poses_field` locate the submission's fields in the request.
     """
     if fmt is None:
         return
@@ -93,7 +96,7 @@ def refuse_mix_up(
     for reading in other_readings(given):
         other_units = Units(length=reading.length, angle=reading.angle)
         try:
-            if implausible_flanges(positions, reading.format, other_units):
+            if flange_near_base(positions(reading.format, other_units)):
                 continue
             fit = attempt(reading.format, other_units)
         except InvalidInput:
@@ -103,12 +106,12 @@ def refuse_mix_up(
     best = _clear_winner(candidates)
     if best is None:
         if near_base:
-            raise _at_the_base(given)
+            raise _at_the_base(given, loc=(*within, poses_field))
         return
     given_rms = None if as_given is None else as_given.rms_mm
     if not near_base and given_rms is not None and given_rms < BETTER_BY * _floored(best):
         return
-    raise _mismatch(given, best, given_rms)
+    raise _mismatch(given, best, given_rms, loc=(*within, "format"))
 
 
 def _clear_winner(candidates: Sequence[_Candidate]) -> _Candidate | None:
@@ -128,7 +131,7 @@ def _floored(candidate: _Candidate) -> float:
     return max(candidate.fit.rms_mm, RMS_FLOOR_MM)
 
 
-def _at_the_base(given: Reading) -> InvalidInput:
+def _at_the_base(given: Reading, loc: tuple[str, ...]) -> InvalidInput:
     """No reading fits, but millimetres cannot be right either: never grade these."""
     return InvalidInput(
         "out-of-range",
@@ -136,11 +139,13 @@ def _at_the_base(given: Reading) -> InvalidInput:
         "of the robot base origin, where no flange can be: the lengths are not in millimetres "
         "(metres? send units {'length': 'm'}), and no other reading of the numbers fits "
         "within tolerance either; nothing was stored",
-        loc=("body", "poses"),
+        loc=loc,
     )
 
 
-def _mismatch(given: Reading, best: _Candidate, given_rms: float | None) -> InvalidInput:
+def _mismatch(
+    given: Reading, best: _Candidate, given_rms: float | None, loc: tuple[str, ...]
+) -> InvalidInput:
     suggested = best.reading
     as_given = (
         f"rms {given_rms:.3g} mm" if given_rms is not None else "they cannot be solved at all"
@@ -152,7 +157,7 @@ def _mismatch(given: Reading, best: _Candidate, given_rms: float | None) -> Inva
         f"that way. Resend with format {suggested.format!r} and units "
         f"{{'length': {suggested.length!r}, 'angle': {suggested.angle!r}}} if so; nothing "
         "was stored",
-        loc=("body", "format"),
+        loc=loc,
         members={
             "suggestion": suggested.as_request(),
             "rms_as_given_mm": given_rms,

@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TypeVar
 
+import numpy as np
+from numpy.typing import NDArray
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
@@ -13,12 +15,16 @@ from app.errors import Conflict, InvalidInput, NotFound, located_in
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance
 from app.models import LaserDevice, ReferencePoint
+from app.schemas.common import Units
 from app.schemas.references import ReferencePointCreate
 from app.services import audit
+from app.services.diagnosis import Fit, implausible_flanges, refuse_mix_up
 from app.services.frames import active_frame, parse_poses_with
 from app.services.robots import get_robot
 from app.services.tools import get_tool
 from app.solvers.reference import reference_point_from_touch
+
+FloatArray = NDArray[np.float64]
 
 
 def ensure_name_free(
@@ -131,6 +137,24 @@ def register_reference_point(
             "unknown-reference",
             f"tool {tool.id} has no active TCP to touch the point with",
             loc=("body", "touch", "tool_id"),
+        )
+
+    def flange(fmt: str, units: Units | None) -> FloatArray:
+        return parse_poses_with(robot.kinematics, fmt, [touch.pose], units, loc=("touch", "pose"))[
+            1
+        ]
+
+    if implausible_flanges(flange, touch.format, touch.units):
+        # One touch has no redundancy: only where the flange is tells a mix-up apart.
+        refuse_mix_up(
+            touch.format,
+            touch.units,
+            lambda fmt, units: Fit(0.0, good=True),
+            flange,
+            as_given=None,
+            near_base=True,
+            within=("body", "touch"),
+            poses_field="pose",
         )
     with located_in("body"):
         rotations, positions = parse_poses_with(

@@ -204,3 +204,26 @@ def test_check_with_radians_sent_as_degrees_is_refused_and_not_recorded(api: Api
     )
     assert resent.status_code == 200, resent.text
     assert resent.json()["within_tolerance"] is True
+
+
+def test_reference_touch_in_metres_is_refused_with_the_reading_in_metres(api: Api) -> None:
+    robot = api.robot("kr16")
+    tool = api.tool(robot["id"], "torch", slot=3)
+    api.manual(tool["id"], [0, 0, 100])
+    # KUKA pose of the flange at (0.5, 0, 0.4) m, tool down: one touch, no residual to
+    # judge; the flange "at the robot base" read as mm is what tells.
+    pose = [0.5, 0.0, 0.4, 0.0, 0.0, 180.0]
+    body = {"name": "pin", "touch": {"tool_id": tool["id"], "format": "kuka_abc", "pose": pose}}
+    before = row_counts(TABLES)
+    response = api.post(f"/v1/robots/{robot['id']}/reference-points", body, scope="calibrate")
+    assert response.status_code == 422, response.text
+    problem = response.json()
+    assert problem["type"].endswith("/convention-mismatch")
+    assert problem["suggestion"] == {"format": "kuka_abc", "units": {"length": "m", "angle": "deg"}}
+    assert problem["errors"][0]["loc"] == ["body", "touch", "format"]
+    assert row_counts(TABLES) == before
+
+    body["touch"] = {**body["touch"], **problem["suggestion"]}  # type: ignore[dict-item]
+    created = api.post(f"/v1/robots/{robot['id']}/reference-points", body, scope="calibrate")
+    assert created.status_code == 201, created.text
+    assert np.allclose(created.json()["position_mm"], [500, 0, 300], atol=1e-6)
