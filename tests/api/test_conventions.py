@@ -227,3 +227,22 @@ def test_reference_touch_in_metres_is_refused_with_the_reading_in_metres(api: Ap
     created = api.post(f"/v1/robots/{robot['id']}/reference-points", body, scope="calibrate")
     assert created.status_code == 201, created.text
     assert np.allclose(created.json()["position_mm"], [500, 0, 300], atol=1e-6)
+
+
+@pytest.mark.parametrize("method", ["xyz_reference", "abc_2point", "abc_world", "laser_beam"])
+def test_every_pose_method_refuses_metres_sent_as_millimetres(api: Api, method: str) -> None:
+    """Single-touch methods have no residual to judge by; where the flange is still tells."""
+    from app.methods import METHODS_BY_NAME
+
+    example = METHODS_BY_NAME[method].example
+    poses = [[v / 1000 if i < 3 else v for i, v in enumerate(p)] for p in example["poses"]]
+    body = {**example, "poses": poses}
+    response = api.post("/v1/solve", body, scope="read")
+    assert response.status_code == 422, response.text
+    problem = response.json()
+    assert problem["type"].endswith("/convention-mismatch"), problem
+    assert problem["suggestion"]["units"]["length"] == "m"
+    resent = api.post("/v1/solve", {**body, **problem["suggestion"]}, scope="read")
+    assert resent.status_code == 200, resent.text
+    solved = api.post("/v1/solve", example, scope="read").json()
+    assert np.allclose(resent.json()["tcp"]["position_mm"], solved["tcp"]["position_mm"], atol=1e-6)
