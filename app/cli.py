@@ -33,7 +33,11 @@ def serve(
     """Serve the API with uvicorn (migrate first: `tcpcal db upgrade`)."""
     import uvicorn
 
+    _fresh_metrics_directory()
+    from app.logs import SERVING_ENV
     from app.server import HTTP_PROTOCOL
+
+    os.environ[SERVING_ENV] = "1"  # each worker sets up structured logging (app.logs)
 
     uvicorn.run(
         "app.main:app",
@@ -42,7 +46,29 @@ def serve(
         workers=workers,
         proxy_headers=True,
         http=HTTP_PROTOCOL,
+        log_config=None,
+        access_log=False,
     )
+
+
+def _fresh_metrics_directory() -> None:
+    """Point prometheus-client's multiprocess mode at an empty directory before any worker
+    imports it, so that /metrics adds up every worker (app.metrics). An operator may choose
+    the directory with PROMETHEUS_MULTIPROC_DIR; its old samples are removed at start."""
+    import tempfile
+
+    directory = os.environ.get("PROMETHEUS_MULTIPROC_DIR")
+    if directory:
+        Path(directory).mkdir(parents=True, exist_ok=True)
+        for stale in Path(directory).glob("*.db"):
+            stale.unlink()
+    else:
+        import atexit
+        import shutil
+
+        created = tempfile.mkdtemp(prefix="tcpcal-metrics-")
+        os.environ["PROMETHEUS_MULTIPROC_DIR"] = created
+        atexit.register(shutil.rmtree, created, ignore_errors=True)
 
 
 @db_cli.command("upgrade")

@@ -7,6 +7,7 @@ gets the same guarantee from SELECT ... FOR UPDATE on the tool row (see services
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from functools import lru_cache
@@ -19,6 +20,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from sqlalchemy.pool import ConnectionPoolEntry
 
 from app.config import get_settings
+from app.metrics import DB_SECONDS, SESSIONS_OPEN
 
 SQLITE_BUSY_TIMEOUT_MS = 30_000
 
@@ -29,13 +31,27 @@ def _prepare_sqlite_file(url: str) -> None:
         Path(database).parent.mkdir(parents=True, exist_ok=True)
 
 
+def _timed(engine: Engine) -> Engine:
+    """Observe every statement's database time (tcpcal_db_statement_duration_seconds)."""
+
+    @event.listens_for(engine, "before_cursor_execute")
+    def _start(conn: Connection, *_: object) -> None:
+        conn.info.setdefault("tcpcal.started", []).append(time.perf_counter())
+
+    @event.listens_for(engine, "after_cursor_execute")
+    def _stop(conn: Connection, *_: object) -> None:
+        DB_SECONDS.observe(time.perf_counter() - conn.info["tcpcal.started"].pop())
+
+    return engine
+
+
 def make_engine(url: str) -> Engine:
     """Create an engine with the per-dialect settings this service relies on."""
     if not url.startswith("sqlite"):
-        return create_engine(url, pool_pre_ping=True, future=True)
+        return _timed(create_engine(url, pool_pre_ping=True, future=True))
 
     _prepare_sqlite_file(url)
-    engine = create_engine(url, connect_args={"check_same_thread": False}, future=True)
+    engine = _timed(create_engine(url, connect_args={"check_same_thread": False}, future=True))
 
     @event.listens_for(engine, "connect")
     def _on_connect(dbapi_conn: DBAPIConnection, _record: ConnectionPoolEntry) -> None:
@@ -82,7 +98,7 @@ def _session_factory(engine: Engine, write: bool) -> sessionmaker[Session]:
 def session_scope(*, write: bool, engine: Engine | None = None) -> Iterator[Session]:
     """A session whose transaction commits on success and rolls back on any error."""
     factory = _session_factory(engine or get_engine(), write)
-    with factory() as session:
+    with SESSIONS_OPEN.track_inprogress(), factory() as session:
         try:
             yield session
             session.commit()

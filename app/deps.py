@@ -10,6 +10,7 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal, authenticate
 from app.db import session_scope
+from app.middleware import KEY_NAME
 
 READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 
@@ -29,7 +30,9 @@ SessionDep = Annotated[Session, Depends(get_session, scope="function")]
 
 def _principal(scope: str) -> object:
     def dependency(request: Request, session: SessionDep) -> Principal:
-        return authenticate(session, request.headers.get("authorization"), required=scope)
+        principal = authenticate(session, request.headers.get("authorization"), required=scope)
+        request.scope[KEY_NAME] = principal.name  # for the access log line; never the key
+        return principal
 
     dependency.__name__ = f"require_{scope}"
     return Depends(dependency)

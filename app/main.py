@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
+from asgi_correlation_id import CorrelationIdMiddleware
 from fastapi import FastAPI
 from fastapi.routing import APIRoute
 from sqlalchemy.exc import SQLAlchemyError
@@ -27,7 +29,8 @@ from app.api.problems import install_error_handlers
 from app.auth import ensure_bootstrap_key
 from app.config import get_settings
 from app.db import get_engine, session_scope
-from app.middleware import BodyLimitMiddleware, MetricsMiddleware
+from app.logs import SERVING_ENV, configure_logging
+from app.middleware import BodyLimitMiddleware, RequestLogMiddleware, valid_request_id
 from app.migrate import current_revision, head_revision
 from app.openapi import build_openapi
 
@@ -64,6 +67,8 @@ async def lifespan(_: FastAPI) -> AsyncIterator[None]:
 def create_app() -> FastAPI:
     """A new tcpcal application."""
     settings = get_settings()
+    if os.environ.get(SERVING_ENV):  # set by `tcpcal serve` for every worker it starts
+        configure_logging()
     app = FastAPI(
         title="tcpcal",
         version=__version__,
@@ -87,7 +92,14 @@ def create_app() -> FastAPI:
     for module in routers:
         app.include_router(module.router)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
-    app.add_middleware(MetricsMiddleware)
+    app.add_middleware(RequestLogMiddleware)
+    # Outermost: every log line of the request, the access line included, has its id.
+    app.add_middleware(
+        CorrelationIdMiddleware,
+        header_name="X-Request-ID",
+        validator=valid_request_id,
+        update_request_header=True,
+    )
     app.openapi = lambda: build_openapi(app)  # type: ignore[method-assign]
     return app
 

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import re
 import time
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from app.api.problems import problem_response
-from app.metrics import METRICS
+from app.logs import get_logger
+from app.metrics import REQUEST_SECONDS, REQUESTS
+
+#: Where the authenticated key's name is left in the ASGI scope for the access line.
+KEY_NAME = "tcpcal.key_name"
+_access = get_logger("tcpcal.access")
 
 BODY_METHODS = frozenset({"POST", "PUT", "PATCH"})
 
@@ -75,8 +81,18 @@ class BodyLimitMiddleware:
         await self.app(scope, replay, send)
 
 
-class MetricsMiddleware:
-    """Count requests by route template (not raw path, so ids do not explode the labels)."""
+#: Request ids accepted from clients: what a tracing header holds, nothing that could
+#: break a log line. Anything else is replaced by a generated id.
+_REQUEST_ID = re.compile(r"[A-Za-z0-9._:-]{1,128}")
+
+
+def valid_request_id(value: str) -> bool:
+    return _REQUEST_ID.fullmatch(value) is not None
+
+
+class RequestLogMiddleware:
+    """One access log line and the request metrics per request, by route template (not the
+    raw path, so ids do not explode the labels), with the name of the key that was used."""
 
     def __init__(self, app: ASGIApp) -> None:
         self.app = app
@@ -97,5 +113,17 @@ class MetricsMiddleware:
         try:
             await self.app(scope, receive, send_wrapper)
         finally:
+            seconds = time.perf_counter() - start
             template = getattr(scope.get("route"), "path", None) or "unmatched"
-            METRICS.observe_request(scope["method"], template, status, time.perf_counter() - start)
+            method = scope["method"]
+            REQUESTS.labels(method, template, str(status)).inc()
+            REQUEST_SECONDS.labels(method, template).observe(seconds)
+            _access.info(
+                "request",
+                method=method,
+                route=template,
+                path=scope["path"],
+                status=status,
+                duration_ms=round(1000.0 * seconds, 3),
+                key=scope.get(KEY_NAME),
+            )

@@ -12,7 +12,7 @@ from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.errors import InvalidInput
 from app.jsontypes import JsonObject
 from app.methods import openapi_examples
-from app.metrics import METRICS
+from app.metrics import CALIBRATIONS
 from app.schemas.calibrations import CalibrationRequest
 from app.schemas.common import Page
 from app.schemas.results import Calibration, CalibrationDetail
@@ -66,7 +66,7 @@ def submit_calibration(
     if replayed:
         response.headers["Idempotent-Replayed"] = "true"
     else:
-        METRICS.observe_calibration(doc.method, doc.status)
+        CALIBRATIONS.labels(doc.method, doc.status).inc()
     return doc
 
 

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from fastapi import APIRouter
-from fastapi.responses import JSONResponse, PlainTextResponse
+from fastapi.responses import JSONResponse, PlainTextResponse, Response
 from sqlalchemy.exc import SQLAlchemyError
 
 from app.db import get_engine
 from app.deps import ReadKey
-from app.metrics import METRICS
+from app.metrics import render
 from app.migrate import current_revision, head_revision
 
 router = APIRouter(tags=["operations"])
@@ -38,7 +38,8 @@ def ready() -> JSONResponse:
 
 
 @router.get("/metrics", response_class=PlainTextResponse)
-def metrics(key: ReadKey) -> PlainTextResponse:
-    """Prometheus text; scrape with a read key (bearer token): only /health and /ready are
-    open without one."""
-    return PlainTextResponse(METRICS.render(), media_type="text/plain; version=0.0.4")
+def metrics(key: ReadKey) -> Response:
+    """Prometheus text of the whole server (every worker); scrape with a read key (bearer
+    token): only /health and /ready are open without one."""
+    body, content_type = render()
+    return Response(body, media_type=content_type)

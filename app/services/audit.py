@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from sqlalchemy import event as sa_event
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.jsontypes import JsonObject
+from app.logs import get_logger
 from app.models import AuditEvent
 
 
@@ -33,3 +35,28 @@ def record(
             details=details,
         )
     )
+    event: JsonObject = {
+        "actor": actor.name,
+        "resource_type": resource_type,
+        "resource_id": resource_id,
+        "robot_id": robot_id,
+        "tool_id": tool_id,
+        **(details or {}),
+    }
+    session.info.setdefault(_PENDING, []).append((action, event))
+
+
+#: Events of the open transaction, logged once it commits (a rolled-back one never happened).
+_PENDING = "tcpcal.audit_events"
+_log = get_logger("tcpcal.events")
+
+
+@sa_event.listens_for(Session, "after_commit")
+def _log_committed(session: Session) -> None:
+    for action, fields in session.info.pop(_PENDING, []):
+        _log.info(action, **fields)
+
+
+@sa_event.listens_for(Session, "after_rollback")
+def _forget_rolled_back(session: Session) -> None:
+    session.info.pop(_PENDING, None)

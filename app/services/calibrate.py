@@ -25,6 +25,7 @@ from app.jsontypes import JsonObject
 from app.methods import method_of
 from app.methods.base import FloatArray, MethodContext, MethodRequest, Solved, StoredPoint
 from app.methods.npoint import NPointOptions
+from app.metrics import SOLVE_SECONDS
 from app.models import Calibration as CalibrationRow
 from app.models import Tool
 from app.schemas.calibrations import StatelessFields
@@ -79,7 +80,7 @@ def solve(request: MethodRequest, ctx: MethodContext) -> Outcome:
 
 
 def _solve_as_given(request: MethodRequest, ctx: MethodContext) -> Outcome:
-    with located_in("body"):
+    with SOLVE_SECONDS.labels(request.method).time(), located_in("body"):
         solved = method_of(request).solve(request, ctx)
         return Outcome(graded_result(request.method, solved, ctx), solved.reference_point)
 

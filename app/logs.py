@@ -1,0 +1,74 @@
+"""Structured logs with structlog: JSON lines for machines, readable lines on a terminal.
+
+Every line carries the request id of the request it belongs to (asgi-correlation-id reads
+`X-Request-ID` or makes one, and echoes it). Uvicorn's and the libraries' stdlib logging goes
+through the same renderer, so an operator's log shipper sees one format. Set
+TCPCAL_LOG_FORMAT=json or =console to choose; by default JSON unless stderr is a terminal.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from typing import Any
+
+import structlog
+from asgi_correlation_id import correlation_id
+
+LOG_FORMAT_ENV = "TCPCAL_LOG_FORMAT"
+#: Set by `tcpcal serve`: each worker configures logging when it builds the app (uvicorn is
+#: told to leave logging alone). Tests and embedding applications keep their own logging.
+SERVING_ENV = "TCPCAL_SERVING"
+
+
+def _request_id(_: Any, __: str, event: dict[str, Any]) -> dict[str, Any]:
+    request_id = correlation_id.get()
+    if request_id is not None:
+        event.setdefault("request_id", request_id)
+    return event
+
+
+def configure_logging(level: int = logging.INFO) -> None:
+    """Route structlog and stdlib logging through one renderer on stderr."""
+    fmt = os.environ.get(LOG_FORMAT_ENV) or ("console" if sys.stderr.isatty() else "json")
+    renderer: Any = (
+        structlog.dev.ConsoleRenderer() if fmt == "console" else structlog.processors.JSONRenderer()
+    )
+    shared: list[Any] = [
+        structlog.contextvars.merge_contextvars,
+        _request_id,
+        structlog.stdlib.add_log_level,
+        structlog.stdlib.add_logger_name,
+        structlog.processors.TimeStamper(fmt="iso", utc=True),
+    ]
+    structlog.configure(
+        processors=[*shared, structlog.stdlib.ProcessorFormatter.wrap_for_formatter],
+        logger_factory=structlog.stdlib.LoggerFactory(),
+        wrapper_class=structlog.stdlib.BoundLogger,
+        cache_logger_on_first_use=True,
+    )
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(
+        structlog.stdlib.ProcessorFormatter(
+            foreign_pre_chain=shared,
+            processors=[
+                structlog.stdlib.ProcessorFormatter.remove_processors_meta,
+                structlog.processors.format_exc_info,
+                renderer,
+            ],
+        )
+    )
+    root = logging.getLogger()
+    root.handlers[:] = [handler]
+    root.setLevel(level)
+    for name in ("uvicorn", "uvicorn.error"):
+        logging.getLogger(name).handlers[:] = []
+        logging.getLogger(name).propagate = True
+    # One access line per request comes from app.middleware, with the route and key name.
+    logging.getLogger("uvicorn.access").disabled = True
+
+
+def get_logger(name: str) -> Any:
+    """A structlog logger; bind fields with keyword arguments: log.info("event", k=v)."""
+    return structlog.stdlib.get_logger(name)

@@ -1,0 +1,91 @@
+"""Operations against a real 2-worker server: whole-server metrics, request ids in the logs,
+graceful shutdown."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tests.conftest import BACKENDS, PG_URL
+from tests.live.server import LiveServer, fresh_database, live_server
+
+pytestmark = pytest.mark.live
+
+
+@pytest.fixture(params=BACKENDS)
+def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[LiveServer]:
+    with fresh_database(request.param, tmp_path, PG_URL) as url, live_server(url) as srv:
+        yield srv
+
+
+def _calibrations_counted(text: str) -> float:
+    return sum(
+        float(v) for v in re.findall(r"^tcpcal_calibrations_total\{[^}]*\} (\S+)$", text, re.M)
+    )
+
+
+def test_every_scrape_counts_the_whole_server(server: LiveServer) -> None:
+    with server.client() as http:
+        robot = http.post("/v1/robots", json={"name": "live"}).json()
+        tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "t", "slot": 1}).json()
+        for i in range(7):
+            body = {"method": "manual", "tcp": {"position_mm": [0, 0, 100 + i / 10]}}
+            created = http.post(f"/v1/tools/{tool['id']}/calibrations", json=body)
+            assert created.status_code == 201, created.text
+    counts = []
+    for _ in range(20):
+        # a new connection each time, so that both workers answer scrapes
+        with server.client() as http:
+            scrape = http.get("/metrics")
+        assert scrape.status_code == 200
+        counts.append(_calibrations_counted(scrape.text))
+    assert counts == [7.0] * 20, counts
+    assert "tcpcal_http_request_duration_seconds_bucket" in scrape.text
+    assert "tcpcal_db_statement_duration_seconds_count" in scrape.text
+    assert "tcpcal_solve_duration_seconds_count" in scrape.text
+    assert "tcpcal_db_sessions_open" in scrape.text
+
+
+def test_metrics_need_a_key(server: LiveServer) -> None:
+    assert httpx.get(f"{server.url}/metrics").status_code == 401
+
+
+def test_one_json_log_line_per_request_carries_the_clients_request_id(tmp_path: Path) -> None:
+    import json
+    import tempfile
+
+    with (
+        tempfile.TemporaryFile() as log,
+        fresh_database("sqlite", tmp_path, None) as url,
+    ):
+        with live_server(url, log=log) as srv, srv.client() as http:
+            robot = http.post(
+                "/v1/robots", json={"name": "logged"}, headers={"X-Request-ID": "cell-7.a1"}
+            )
+            echoed = robot.headers["X-Request-ID"]
+            made = http.get("/v1/robots").headers["X-Request-ID"]
+            bad = http.get("/v1/robots", headers={"X-Request-ID": "x{y}" + "z" * 200})
+        log.seek(0)
+        text = log.read().decode()
+    lines = [json.loads(line) for line in text.splitlines() if line.startswith("{")]
+    assert echoed == "cell-7.a1"
+    assert made
+    assert made != "cell-7.a1"
+    # an id that is not a plain token is replaced, never copied into a header or a log line
+    assert bad.headers["X-Request-ID"] != "x{y}" + "z" * 200
+    assert "x{y}" not in text
+    access = [e for e in lines if e.get("event") == "request" and e["request_id"] == "cell-7.a1"]
+    assert len(access) == 1, access
+    line = access[0]
+    assert (line["method"], line["route"], line["status"]) == ("POST", "/v1/robots", 201)
+    assert line["duration_ms"] > 0
+    assert line["key"] == "live-admin"
+    created = [e for e in lines if e.get("event") == "robot.create"]
+    assert created[0]["request_id"] == "cell-7.a1"
+    assert created[0]["resource_id"] == robot.json()["id"]
+    assert srv.admin_key not in text  # the key's name is logged, never the key
+    assert all("timestamp" in e and "level" in e for e in lines)
