@@ -20,6 +20,9 @@ WORKDIR /srv/tcpcal
 COPY alembic.ini ./
 COPY migrations ./migrations
 USER tcpcal
+# The SQLite database (TCPCAL_DATABASE_URL above) lives here: keep it on a volume so that it
+# outlives the container. With PostgreSQL (compose.yaml) nothing is written here.
+VOLUME ["/var/lib/tcpcal"]
 EXPOSE 8000
 HEALTHCHECK --interval=30s --timeout=3s CMD python -c "import urllib.request,sys; sys.exit(urllib.request.urlopen('http://127.0.0.1:8000/health').status != 200)"
 # Same two steps as `make run`: migrate, then serve (on all interfaces inside the container).

@@ -13,6 +13,8 @@ import typer
 if TYPE_CHECKING:
     import httpx
 
+    from app.auth import Principal
+
 cli = typer.Typer(help="tcpcal: Tool Center Point calibration service.", no_args_is_help=True)
 db_cli = typer.Typer(help="Database migrations.", no_args_is_help=True)
 keys_cli = typer.Typer(help="API keys (writes the database directly).", no_args_is_help=True)
@@ -22,6 +24,7 @@ cli.add_typer(keys_cli, name="keys")
 cli.add_typer(client_cli, name="client")
 
 OPENAPI_PATH = Path("openapi") / "openapi.json"
+KeyId = Annotated[str, typer.Argument(help="the key's id (tcpcal keys list)")]
 
 
 @cli.command()
@@ -114,7 +117,7 @@ def keys_create(
         typer.echo(f"scope must be one of {', '.join(SCOPES)}", err=True)
         raise typer.Exit(2)
     with session_scope(write=True) as session:
-        row, secret = create_key(session, name=name, scope=scope, actor=None)
+        row, secret = create_key(session, name=name, scope=scope, actor=_cli_principal())
         key_id = row.id
     typer.echo(f"id:    {key_id}\nscope: {scope}\nkey:   {secret}")
 
@@ -137,6 +140,82 @@ def keys_list() -> None:
         for row in rows:
             state = "revoked" if row.revoked_at else "active"
             typer.echo(f"{row.id}  {row.scope:<9}  {state:<7}  {row.prefix}...  {row.name}")
+
+
+@keys_cli.command("revoke")
+def keys_revoke(
+    key_id: Annotated[str, typer.Argument(help="the key's id (tcpcal keys list)")],
+) -> None:
+    """Revoke a key: it answers 401 from now on, on every worker and instance."""
+    from app.db import session_scope
+    from app.errors import DomainError
+    from app.services.keys import revoke_key
+
+    try:
+        with session_scope(write=True) as session:
+            revoke_key(session, key_id=key_id, actor=_cli_principal())
+    except DomainError as exc:
+        typer.echo(f"error: {exc.detail}", err=True)
+        raise typer.Exit(1) from exc
+    typer.echo(f"revoked {key_id}")
+
+
+@keys_cli.command("rotate")
+def keys_rotate(
+    key_id: Annotated[str, typer.Argument(help="the key's id (tcpcal keys list)")],
+) -> None:
+    """Replace a key by a new one of the same name and scope; print the new key once."""
+    from app.db import session_scope
+    from app.errors import DomainError
+    from app.services.keys import rotate_key
+
+    try:
+        with session_scope(write=True) as session:
+            row, secret = rotate_key(session, key_id=key_id, actor=_cli_principal())
+            new_id, scope = row.id, row.scope
+    except DomainError as exc:
+        typer.echo(f"error: {exc.detail}", err=True)
+        raise typer.Exit(1) from exc
+    typer.echo(f"revoked {key_id}\nid:    {new_id}\nscope: {scope}\nkey:   {secret}")
+
+
+def _cli_principal() -> Principal:
+    """Who acts from the command line, as the audit trail records it."""
+    import getpass
+
+    from app.auth import Principal
+
+    return Principal(key_id="cli", name=f"cli:{getpass.getuser()}", scope="admin")
+
+
+@db_cli.command("backup")
+def db_backup(
+    path: Annotated[Path, typer.Argument(help="file to write (SQLite file or pg_dump archive)")],
+) -> None:
+    """Write a consistent backup of the database while the servers keep running."""
+    from app.backup import BackupError, backup
+    from app.config import get_settings
+
+    try:
+        typer.echo(backup(get_settings().database_url, path))
+    except BackupError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(1) from exc
+
+
+@db_cli.command("restore")
+def db_restore(
+    path: Annotated[Path, typer.Argument(help="a backup written by `tcpcal db backup`")],
+) -> None:
+    """Replace the database's content with a backup (stop the servers first)."""
+    from app.backup import BackupError, restore
+    from app.config import get_settings
+
+    try:
+        typer.echo(restore(get_settings().database_url, path))
+    except BackupError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(1) from exc
 
 
 @cli.command()

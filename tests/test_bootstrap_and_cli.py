@@ -52,3 +52,65 @@ def test_cli_keys_create_prints_a_working_key(db: Database) -> None:
         assert client.post("/v1/robots", json={"name": "x"}, headers=headers).status_code == 403
     bad = CliRunner().invoke(cli, ["keys", "create", "--scope", "root", "--name", "x"])
     assert bad.exit_code == 2
+
+
+def _key_of(output: str) -> str:
+    return next(line.split()[-1] for line in output.splitlines() if line.startswith("key:"))
+
+
+def _id_of(output: str) -> str:
+    return next(line.split()[-1] for line in output.splitlines() if line.startswith("id:"))
+
+
+def test_cli_keys_list_revoke_rotate(db: Database) -> None:
+    from fastapi.testclient import TestClient
+
+    from app.main import create_app
+    from app.models import AuditEvent
+
+    runner = CliRunner()
+    made = runner.invoke(cli, ["keys", "create", "--scope", "calibrate", "--name", "cell-3"])
+    first_id, first_key = _id_of(made.output), _key_of(made.output)
+
+    rotated = runner.invoke(cli, ["keys", "rotate", first_id])
+    assert rotated.exit_code == 0, rotated.output
+    second_id, second_key = _id_of(rotated.output), _key_of(rotated.output)
+    assert second_id != first_id
+    assert f"revoked {first_id}" in rotated.output
+
+    listing = runner.invoke(cli, ["keys", "list"])
+    lines = {line.split()[0]: line for line in listing.output.splitlines()}
+    assert "revoked" in lines[first_id]
+    assert "active" in lines[second_id]
+    assert "calibrate" in lines[second_id]
+    assert "cell-3" in lines[second_id]
+    assert first_key not in listing.output
+    assert second_key not in listing.output
+
+    with TestClient(create_app()) as client:
+        assert (
+            client.get("/v1/robots", headers={"Authorization": f"Bearer {first_key}"}).status_code
+            == 401
+        )
+        assert (
+            client.get("/v1/robots", headers={"Authorization": f"Bearer {second_key}"}).status_code
+            == 200
+        )
+        revoked = runner.invoke(cli, ["keys", "revoke", second_id])
+        assert revoked.exit_code == 0, revoked.output
+        assert (
+            client.get("/v1/robots", headers={"Authorization": f"Bearer {second_key}"}).status_code
+            == 401
+        )
+
+    again = runner.invoke(cli, ["keys", "revoke", second_id])
+    assert again.exit_code == 1
+    assert "already revoked" in again.output
+    unknown = runner.invoke(cli, ["keys", "rotate", "no-such-key"])
+    assert unknown.exit_code == 1
+    with session_scope(write=False) as session:
+        actions = [e.action for e in session.scalars(select(AuditEvent).order_by(AuditEvent.at))]
+        actors = {e.actor for e in session.scalars(select(AuditEvent))}
+    assert actions.count("key.revoke") == 2
+    assert actions.count("key.create") == 2
+    assert all(a.startswith("cli:") for a in actors)

@@ -66,6 +66,41 @@ def test_dockerignore_keeps_local_state_out() -> None:
     assert {".venv", "var", ".git"} <= set(ignored)
 
 
+def test_sqlite_data_directory_is_a_volume() -> None:
+    env = " ".join(_instructions("ENV"))
+    database = re.search(r"TCPCAL_DATABASE_URL=sqlite:///(\S+)", env)
+    assert database, env
+    volumes = [v.strip('[]"') for v in _instructions("VOLUME")]
+    assert str(Path(database.group(1)).parent) in volumes
+
+
+def test_compose_runs_two_workers_against_postgres_with_a_volume_and_health_check() -> None:
+    import yaml
+    from sqlalchemy.engine import make_url
+
+    compose = yaml.safe_load((REPO / "compose.yaml").read_text())
+    db, app = compose["services"]["db"], compose["services"]["tcpcal"]
+    # the database keeps its data on a named volume, at the path the postgres image uses
+    volume, target = db["volumes"][0].split(":")
+    assert volume in compose["volumes"]
+    assert target == "/var/lib/postgresql/data"
+    assert "pg_isready" in " ".join(db["healthcheck"]["test"])
+    # tcpcal: this repository's image, its own start command (make run's), two workers
+    assert app["build"] == "."
+    assert "command" not in app
+    assert app["environment"]["TCPCAL_WORKERS"] == "2"
+    assert "--workers ${TCPCAL_WORKERS" in _instructions("CMD")[-1]
+    assert app["depends_on"]["db"]["condition"] == "service_healthy"
+    url = make_url(
+        app["environment"]["TCPCAL_DATABASE_URL"].replace("${TCPCAL_DB_PASSWORD:-tcpcal}", "pw")
+    )
+    assert url.drivername == "postgresql+psycopg"
+    assert (url.host, url.port) == ("db", 5432)
+    assert url.username == db["environment"]["POSTGRES_USER"]
+    assert url.database == db["environment"]["POSTGRES_DB"]
+    assert db["environment"]["POSTGRES_PASSWORD"] == "${TCPCAL_DB_PASSWORD:-tcpcal}"
+
+
 @pytest.mark.live
 def test_image_steps_run_outside_docker(tmp_path: Path) -> None:
     """What the image does at start, from a copy holding only what the Dockerfile copies."""

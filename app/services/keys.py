@@ -72,3 +72,13 @@ def revoke_key(session: Session, *, key_id: str, actor: Principal) -> None:
         resource_id=row.id,
         details={"name": row.name},
     )
+
+
+def rotate_key(session: Session, *, key_id: str, actor: Principal) -> tuple[ApiKey, str]:
+    """Replace a key by a new one of the same name and scope, in one transaction: the old
+    key answers 401 from the commit on, the new secret is returned once."""
+    old = session.get(ApiKey, key_id)
+    if old is None:
+        raise NotFound(f"no API key with id {key_id}")
+    revoke_key(session, key_id=key_id, actor=actor)
+    return create_key(session, name=old.name, scope=old.scope, actor=actor)

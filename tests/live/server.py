@@ -30,6 +30,7 @@ REPO = Path(__file__).resolve().parents[2]
 class LiveServer:
     url: str
     admin_key: str
+    process: subprocess.Popen[bytes] | None = None
 
     def client(self) -> httpx.Client:
         return httpx.Client(
@@ -92,7 +93,7 @@ def live_server(
             if time.monotonic() > deadline:
                 raise RuntimeError("server did not become ready within 60 s")
             time.sleep(0.2)
-        yield LiveServer(url, key)
+        yield LiveServer(url, key, proc)
     finally:
         proc.terminate()
         try:

@@ -89,3 +89,41 @@ def test_one_json_log_line_per_request_carries_the_clients_request_id(tmp_path: 
     assert created[0]["resource_id"] == robot.json()["id"]
     assert srv.admin_key not in text  # the key's name is logged, never the key
     assert all("timestamp" in e and "level" in e for e in lines)
+
+
+def test_sigterm_lets_the_request_in_flight_finish(server: LiveServer) -> None:
+    """Stopping the server (SIGTERM, as Docker and systemd do) while a client is still
+    uploading a calibration: the calibration is answered and stored, then the server exits."""
+    import signal
+    import threading
+    import time
+
+    with server.client() as http:
+        robot = http.post("/v1/robots", json={"name": "stop"}).json()
+        tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "t"}).json()
+    body = b'{"method": "manual", "tcp": {"position_mm": [0, 0, 123]}, "note": "slow upload"}'
+
+    def slowly() -> Iterator[bytes]:
+        for i in range(0, len(body), 8):
+            time.sleep(0.1)
+            yield body[i : i + 8]
+
+    answer: dict[str, httpx.Response] = {}
+
+    def upload() -> None:
+        with server.client() as http:
+            answer["r"] = http.post(
+                f"/v1/tools/{tool['id']}/calibrations",
+                content=slowly(),
+                headers={"Content-Type": "application/json"},
+            )
+
+    thread = threading.Thread(target=upload)
+    thread.start()
+    time.sleep(0.4)  # the upload has begun and takes ~1 s more
+    assert server.process is not None
+    server.process.send_signal(signal.SIGTERM)
+    thread.join(timeout=30)
+    assert answer["r"].status_code == 201, answer["r"].text
+    assert answer["r"].json()["tcp"]["position_mm"] == [0, 0, 123]
+    assert server.process.wait(timeout=30) == 0
