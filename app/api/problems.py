@@ -15,6 +15,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy.exc import IntegrityError
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
 from app.config import get_settings
 from app.errors import INPUT_KINDS, Conflict, DomainError, IdempotencyConflict
@@ -161,6 +162,22 @@ def integrity_response(exc: IntegrityError) -> JSONResponse:
     return internal_error_response()
 
 
+_METHODS = ("DELETE", "GET", "HEAD", "OPTIONS", "PATCH", "POST", "PUT")
+
+
+def _allowed_methods(request: Request) -> list[str]:
+    """Every method some route of the app serves at the request's path, asked of the routes
+    themselves (Starlette's matching), so that nested routers are covered too."""
+    return [
+        method
+        for method in _METHODS
+        if any(
+            route.matches({**request.scope, "method": method})[0] == Match.FULL
+            for route in request.app.router.routes
+        )
+    ]
+
+
 def install_error_handlers(app: FastAPI) -> None:
     """Route every error the app can produce through problem_response."""
 
@@ -177,7 +194,7 @@ def install_error_handlers(app: FastAPI) -> None:
         return validation_response(exc)
 
     @app.exception_handler(StarletteHTTPException)
-    async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+    async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
         if exc.status_code == 400:
             # Starlette's "error parsing the body" (not UTF-8, not JSON): malformed input,
             # which the contract answers with 422 like every other malformed body
@@ -190,12 +207,16 @@ def install_error_handlers(app: FastAPI) -> None:
             )
         kinds = {404: ("not-found", "Not found"), 405: ("method-not-allowed", "Method not allowed")}
         kind, title = kinds.get(exc.status_code, ("http-error", "HTTP error"))
+        headers = dict(getattr(exc, "headers", None) or {})
+        detail = str(exc.detail)
+        if exc.status_code == 405:
+            # Starlette names only the first route that matched the path; a path may have
+            # several (GET and POST /v1/robots are two routes): list every method it has.
+            allowed = _allowed_methods(request)
+            headers["Allow"] = ", ".join(allowed)
+            detail = f"{request.method} is not allowed here; this path allows {', '.join(allowed)}"
         return problem_response(
-            status=exc.status_code,
-            kind=kind,
-            title=title,
-            detail=str(exc.detail),
-            headers=getattr(exc, "headers", None),
+            status=exc.status_code, kind=kind, title=title, detail=detail, headers=headers or None
         )
 
     @app.exception_handler(Exception)

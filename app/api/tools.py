@@ -8,13 +8,17 @@ from fastapi import APIRouter, Header, Response
 
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import AdminKey, ReadKey, SessionDep
+from app.helpers.etags import IF_MATCH_PATTERN
 from app.schemas.common import Page
 from app.schemas.tools import Tool, ToolCreate, ToolUpdate
 from app.services import tools
 
 router = APIRouter(tags=["tools"])
 
-IfMatch = Annotated[str | None, Header(description="the tool's ETag; 412 when stale")]
+IfMatch = Annotated[
+    str | None,
+    Header(pattern=IF_MATCH_PATTERN, description="the tool's ETag (or *); 412 when stale"),
+]
 
 
 @router.post("/v1/robots/{robot_id}/tools", status_code=201, response_model=Tool)

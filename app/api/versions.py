@@ -10,6 +10,7 @@ from fastapi.responses import JSONResponse
 from app.api.params import PathId, VersionNumber
 from app.api.tools import IfMatch
 from app.deps import CalibrateKey, ReadKey, SessionDep
+from app.helpers.etags import IF_NONE_MATCH_PATTERN
 from app.schemas.common import ControllerFormat
 from app.schemas.tools import ActiveTcp, Tool, ToolTable, Version, VersionList
 from app.services import tools, versions
@@ -66,7 +67,7 @@ def get_active_tcp(
     session: SessionDep,
     key: ReadKey,
     format: FormatQuery = None,
-    if_none_match: Annotated[str | None, Header()] = None,
+    if_none_match: Annotated[str | None, Header(pattern=IF_NONE_MATCH_PATTERN)] = None,
 ) -> Response:
     """The active TCP a cell controller reads, with a strong ETag (If-None-Match -> 304);
     `?format=` adds the controller's own text."""

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+#: An If-Match header as this service's ETags can satisfy it: "*" or a list of strong tags.
+IF_MATCH_PATTERN = r'^(\*|"[0-9a-f]{16,64}"( *, *"[0-9a-f]{16,64}")*)$'
+#: An If-None-Match header: "*" or a list of tags, weak (W/) ones included.
+IF_NONE_MATCH_PATTERN = r'^(\*|(W/)?"[0-9a-f]{16,64}"( *, *(W/)?"[0-9a-f]{16,64}")*)$'
+
 
 def _tags(header: str) -> set[str]:
     return {tag.strip() for tag in header.split(",") if tag.strip()}

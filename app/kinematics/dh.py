@@ -34,6 +34,8 @@ CONVENTIONS: tuple[Convention, ...] = ("dh", "mdh")
 MAX_LINKS = 12
 #: Largest link length or offset accepted, mm.
 MAX_LINK_MM = 10_000.0
+#: Largest |angle| (deg) of a link's twist or joint offset.
+MAX_LINK_DEG = 360.0
 
 
 @dataclass(frozen=True)
@@ -190,10 +192,10 @@ def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics:
         links.append(
             DHLink(
                 a_mm=_number(row["a"], (*here, "a"), limit=MAX_LINK_MM),
-                alpha_deg=_number(row["alpha"], (*here, "alpha"), limit=360.0),
+                alpha_deg=_number(row["alpha"], (*here, "alpha"), limit=MAX_LINK_DEG),
                 d_mm=_number(row["d"], (*here, "d"), limit=MAX_LINK_MM),
                 theta_offset_deg=_number(
-                    row.get("theta_offset", 0.0), (*here, "theta_offset"), limit=360.0
+                    row.get("theta_offset", 0.0), (*here, "theta_offset"), limit=MAX_LINK_DEG
                 ),
             )
         )

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import ConfigDict, Field, model_validator
 
 from app.methods.base import (
     Method,
@@ -15,12 +15,27 @@ from app.methods.base import (
     Solved,
     orientation_change_deg,
 )
-from app.schemas.common import FiniteFloat, Pose, PositiveFloat, ResourceId, StrictModel, Vec3
+from app.schemas.common import (
+    FiniteFloat,
+    Pose,
+    PositiveFloat,
+    ResourceId,
+    StrictModel,
+    Vec3,
+    one_of,
+)
 from app.schemas.results import LaserDetails, LaserSigma, QualityOut, ResultExtras
 from app.solvers.laser import LaserDevice, LaserResult, Sweep, solve_laser
 
 
 class LaserGeometry(StrictModel):
+    model_config = ConfigDict(
+        json_schema_extra=one_of(
+            (("device_id",), ("beam_a_y_mm", "beam_b_x_mm", "plane_z_mm")),
+            (("beam_a_y_mm", "beam_b_x_mm", "plane_z_mm"), ("device_id",)),
+        )
+    )
+
     device_id: ResourceId | None = None
     beam_a_y_mm: FiniteFloat | None = None
     beam_b_x_mm: FiniteFloat | None = None

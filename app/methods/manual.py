@@ -5,11 +5,11 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import ConfigDict, Field, model_validator
 from scipy.spatial.transform import Rotation
 
 from app.methods.base import Method, MethodContext, MethodRequest, PoseCount, Solved
-from app.schemas.common import Pose, Quaternion, StrictModel, Vec3
+from app.schemas.common import Pose, Quaternion, StrictModel, Vec3, one_of
 from app.schemas.results import QualityOut
 from app.solvers.validation import check_positions_mm, normalised_quaternions
 
@@ -24,6 +24,10 @@ class NoOptions(StrictModel):
 
 
 class ManualCalibration(MethodRequest):
+    model_config = ConfigDict(
+        json_schema_extra=one_of((("tcp",), ("format", "poses")), (("format", "poses"), ("tcp",)))
+    )
+
     method: Literal["manual"]
     poses: (
         Annotated[list[Pose], PoseCount(1, 1, hint="the tool frame relative to the flange")] | None

@@ -18,7 +18,14 @@ from app.methods.base import (
     StoredPoint,
     touch_noise,
 )
-from app.schemas.common import Name, NonNegativeFloat, Pose, PositiveFloat, StrictModel, Units
+from app.schemas.common import (
+    Name,
+    NonNegativeFloat,
+    Pose,
+    StrictModel,
+    TouchNoise,
+    Units,
+)
 from app.schemas.results import QualityOut
 from app.solvers.npoint import MIN_POSES, NPointResult, solve_npoint
 from app.solvers.quality import format_vector
@@ -33,7 +40,7 @@ Touches = Annotated[
 
 class NPointOptions(StrictModel):
     algorithm: Algorithm = "robust"
-    touch_noise_mm: PositiveFloat | None = None
+    touch_noise_mm: TouchNoise | None = None
     orientation_noise_deg: NonNegativeFloat | None = None
     save_reference_point: Name | None = None
 

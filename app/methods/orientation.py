@@ -23,7 +23,7 @@ from app.methods.base import (
     touch_noise,
 )
 from app.methods.npoint import NPointOptions, Touches, solve_touches, solved_from_touches
-from app.schemas.common import Pose, PositiveFloat, StrictModel, Vec3
+from app.schemas.common import Pose, StrictModel, TouchNoise, Vec3
 from app.schemas.results import QualityOut
 from app.solvers.orientation import (
     Direction,
@@ -58,7 +58,7 @@ class TcpZxCalibration(PosesRequired):
 class Abc2PointOptions(StrictModel):
     working_axis: WorkingAxis = "x"
     tcp_mm: Vec3 | None = None
-    touch_noise_mm: PositiveFloat | None = None
+    touch_noise_mm: TouchNoise | None = None
 
 
 class Abc2PointCalibration(PosesRequired):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import model_validator
+from pydantic import ConfigDict, model_validator
 
 from app.methods.base import (
     Method,
@@ -16,17 +16,40 @@ from app.methods.base import (
     StoredPoint,
     touch_noise,
 )
-from app.schemas.common import Pose, PositiveFloat, ResourceId, StrictModel, Vec3
+from app.schemas.common import (
+    Pose,
+    ResourceId,
+    StrictModel,
+    TouchNoise,
+    Vec3,
+    one_of,
+)
 from app.schemas.results import QualityOut
 from app.solvers.reference import reference_point_from_touch, solve_reference
 
+_TOUCHED = ("reference_tool_id", "reference_pose")
+
 
 class ReferenceOptions(StrictModel):
+    model_config = ConfigDict(
+        json_schema_extra=one_of(
+            (
+                ("reference_point_id",),
+                ("reference_tool_id", "reference_pose", "reference_point_mm"),
+            ),
+            (("reference_tool_id", "reference_pose"), ("reference_point_id", "reference_point_mm")),
+            (
+                ("reference_point_mm",),
+                ("reference_point_id", "reference_tool_id", "reference_pose"),
+            ),
+        )
+    )
+
     reference_point_id: ResourceId | None = None
     reference_tool_id: ResourceId | None = None
     reference_pose: Pose | None = None
     reference_point_mm: Vec3 | None = None
-    touch_noise_mm: PositiveFloat | None = None
+    touch_noise_mm: TouchNoise | None = None
 
     @model_validator(mode="after")
     def _one_source(self) -> ReferenceOptions:

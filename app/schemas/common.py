@@ -5,23 +5,43 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Annotated, Generic, Literal, TypeVar
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PlainSerializer
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer
 
-#: A float that refuses NaN and +-Infinity at the door (422 /non-finite).
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+from app.jsontypes import JsonObject
+from app.solvers.npoint import MAX_TOUCH_NOISE_MM, MIN_TOUCH_NOISE_MM
+
+#: A number that refuses NaN and +-Infinity at the door (422 /non-finite), and is strict: a
+#: boolean or a string is refused, not read as 0/1 or parsed (the spec says "number").
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False, strict=True)]
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False, strict=True)]
+NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False, strict=True)]
+
+
+def _json_integer(value: object) -> object:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError("must be an integer (a JSON number), not a boolean or a string")
+    return value
+
+
+#: An integer as JSON Schema has it: 3 and 3.0 are integers; true and "3" are not.
+JsonInteger = Annotated[int, BeforeValidator(_json_integer)]
+#: A touch noise figure (1-sigma per axis, mm) in the range the solvers accept.
+TouchNoise = Annotated[
+    float, Field(ge=MIN_TOUCH_NOISE_MM, le=MAX_TOUCH_NOISE_MM, allow_inf_nan=False, strict=True)
+]
 Vec3 = Annotated[list[FiniteFloat], Field(min_length=3, max_length=3)]
 Quaternion = Annotated[
     list[FiniteFloat], Field(min_length=4, max_length=4, description="unit quaternion [w, x, y, z]")
 ]
-# No control characters in names (PostgreSQL refuses NUL; a newline would break exports).
+# No control characters in names (PostgreSQL refuses NUL; a newline would break exports),
+# C1 ones included, and no space at either end. Spelled without \s, whose meaning differs
+# between Python's and JSON Schema's (ECMA) regular expressions.
 Name = Annotated[
     str,
     Field(
         min_length=1,
         max_length=200,
-        pattern=r"^[^\s\x00-\x1f\x7f]([^\x00-\x1f\x7f]*[^\s\x00-\x1f\x7f])?$",
+        pattern=r"^[^\x00-\x20\x7f-\x9f]([^\x00-\x1f\x7f-\x9f]*[^\x00-\x20\x7f-\x9f])?$",
     ),
 ]
 ShortText = Annotated[str, Field(max_length=200, pattern=r"^[^\x00-\x1f\x7f]*$")]
@@ -88,3 +108,21 @@ class Page(BaseModel, Generic[T]):
 
     items: list[T]
     next_cursor: str | None = None
+
+
+def one_of(*alternatives: tuple[tuple[str, ...], tuple[str, ...]]) -> JsonObject:
+    """`json_schema_extra` for a model whose fields come in exclusive groups: each alternative
+    is (fields that must be given, fields that must be absent or null). The spec then says
+    what the model's validator enforces, so a generated body the schema allows is accepted."""
+    return {
+        "oneOf": [
+            {
+                "required": list(given),
+                "properties": {
+                    **{f: {"not": {"type": "null"}} for f in given},
+                    **{f: {"type": "null"} for f in absent},
+                },
+            }
+            for given, absent in alternatives
+        ]
+    }

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.jsontypes import JsonObject
 from app.methods.laser import SweepIn
@@ -14,11 +14,13 @@ from app.schemas.common import (
     Pose,
     PoseFormat,
     Poses,
+    PositiveFloat,
     ResourceId,
     StrictModel,
     Timestamp,
     Units,
     Vec3,
+    one_of,
 )
 
 Matrix3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
@@ -34,6 +36,12 @@ class TouchIn(StrictModel):
 
 
 class ReferencePointCreate(StrictModel):
+    model_config = ConfigDict(
+        json_schema_extra=one_of(
+            (("position_mm",), ("touch",)), (("touch",), ("position_mm", "covariance_mm2"))
+        )
+    )
+
     name: Name
     position_mm: Vec3 | None = None
     covariance_mm2: Matrix3 | None = None
@@ -108,10 +116,17 @@ class LaserTeachIn(StrictModel):
     units: Units | None = None
     sweeps: Annotated[list[SweepIn], Field(min_length=4, max_length=200)]
     descent_mm: Vec3
-    trigger_noise_mm: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = None
+    trigger_noise_mm: PositiveFloat | None = None
 
 
 class LaserDeviceCreate(StrictModel):
+    model_config = ConfigDict(
+        json_schema_extra=one_of(
+            (("beam_a_y_mm", "beam_b_x_mm", "plane_z_mm"), ("teach",)),
+            (("teach",), ("beam_a_y_mm", "beam_b_x_mm", "plane_z_mm")),
+        )
+    )
+
     name: Name
     beam_a_y_mm: FiniteFloat | None = None
     beam_b_x_mm: FiniteFloat | None = None

@@ -6,18 +6,23 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, Field
 
+from app.kinematics.dh import MAX_LINK_DEG, MAX_LINK_MM
+from app.kinematics.presets import PRESETS
 from app.schemas.common import FiniteFloat, Name, ShortText, StrictModel, Timestamp
+
+LinkMm = Annotated[FiniteFloat, Field(ge=-MAX_LINK_MM, le=MAX_LINK_MM)]
+LinkDeg = Annotated[FiniteFloat, Field(ge=-MAX_LINK_DEG, le=MAX_LINK_DEG)]
 
 
 class DHLinkIn(StrictModel):
-    a: FiniteFloat = Field(description="link length, mm")
-    alpha: FiniteFloat = Field(description="link twist, deg")
-    d: FiniteFloat = Field(description="link offset, mm")
-    theta_offset: FiniteFloat = Field(default=0.0, description="joint zero offset, deg")
+    a: LinkMm = Field(description="link length, mm")
+    alpha: LinkDeg = Field(description="link twist, deg")
+    d: LinkMm = Field(description="link offset, mm")
+    theta_offset: LinkDeg = Field(default=0.0, description="joint zero offset, deg")
 
 
 class PresetKinematics(StrictModel):
-    preset: Annotated[str, Field(min_length=1, max_length=40, examples=["ur5e"])]
+    preset: Annotated[str, Field(examples=["ur5e"], json_schema_extra={"enum": sorted(PRESETS)})]
 
 
 class DHKinematics(StrictModel):

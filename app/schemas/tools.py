@@ -8,6 +8,7 @@ from pydantic import BaseModel, Field
 
 from app.jsontypes import JsonObject
 from app.schemas.common import (
+    JsonInteger,
     LongText,
     Name,
     NonNegativeFloat,
@@ -16,10 +17,11 @@ from app.schemas.common import (
     ShortText,
     StrictModel,
     Timestamp,
+    TouchNoise,
     Vec3,
 )
 
-Slot = Annotated[int, Field(ge=0, le=10_000, description="the controller's tool number")]
+Slot = Annotated[JsonInteger, Field(ge=0, le=10_000, description="the controller's tool number")]
 
 
 class Load(StrictModel):
@@ -32,7 +34,7 @@ class Tolerance(StrictModel):
 
     max_rms_mm: PositiveFloat = 0.5
     max_residual_mm: PositiveFloat = 1.0
-    touch_noise_mm: PositiveFloat | None = None
+    touch_noise_mm: TouchNoise | None = None
     check_mm: PositiveFloat = 1.0
     max_change_mm: PositiveFloat = Field(
         default=5.0,

@@ -11,7 +11,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import Conflict, InvalidInput, NotFound, located_in
+from app.errors import Archived, Conflict, InvalidInput, NotFound, located_in
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance
 from app.models import LaserDevice, ReferencePoint
@@ -124,7 +124,14 @@ def register_reference_point(
             actor=actor,
         )
     touch = data.touch
-    tool = get_tool(session, touch.tool_id)
+    try:
+        tool = get_tool(session, touch.tool_id)
+    except (NotFound, Archived) as exc:  # a bad body field, not a missing URL resource
+        raise InvalidInput(
+            "unknown-reference",
+            f"{exc.detail}: touch with a tool of this robot that is in service",
+            loc=("body", "touch", "tool_id"),
+        ) from exc
     if tool.robot_id != robot_id:
         raise InvalidInput(
             "unknown-reference",

@@ -75,6 +75,8 @@ _REML_FLOOR_REL = 1e-8
 _CHI2_DOF = 10**6
 #: Upper bounds on the noise options, to catch unit mistakes (m for mm, rad for deg).
 MAX_TOUCH_NOISE_MM = 100.0
+#: Below this (mm) a noise figure is no measurement, and its square vanishes in the weights.
+MIN_TOUCH_NOISE_MM = 1e-6
 MAX_ORIENTATION_NOISE_DEG = 10.0
 #: From this many touches on, correlated residuals of consecutive touches are flagged.
 SERIAL_MIN_POSES = 30
@@ -366,20 +368,18 @@ def _check_options(
             loc=("options", "algorithm"),
         )
     checks = (
-        ("touch_noise_mm", touch_noise_mm, MAX_TOUCH_NOISE_MM, "mm", False),
-        ("orientation_noise_deg", orientation_noise_deg, MAX_ORIENTATION_NOISE_DEG, "deg", True),
-        ("max_tcp_sigma_mm", max_tcp_sigma_mm, MAX_ABS_MM, "mm", False),
+        ("touch_noise_mm", touch_noise_mm, MAX_TOUCH_NOISE_MM, "mm", MIN_TOUCH_NOISE_MM),
+        ("orientation_noise_deg", orientation_noise_deg, MAX_ORIENTATION_NOISE_DEG, "deg", 0.0),
+        ("max_tcp_sigma_mm", max_tcp_sigma_mm, MAX_ABS_MM, "mm", MIN_TOUCH_NOISE_MM),
     )
-    for name, value, upper, unit, zero_ok in checks:
+    for name, value, upper, unit, lower in checks:
         if value is None:
             continue
         v = float(value)
-        low_ok = v >= 0.0 if zero_ok else v > 0.0
-        if not (math.isfinite(v) and low_ok and v <= upper):
-            bound = "at least 0" if zero_ok else "greater than 0"
+        if not (math.isfinite(v) and lower <= v <= upper):
             raise InvalidInput(
                 "invalid-options",
-                f"{name} = {value!r} is not usable: it must be a number {bound} and at most "
+                f"{name} = {value!r} is not usable: it must be a number from {lower:g} to "
                 f"{upper:g} {unit}",
                 loc=("options", name),
             )

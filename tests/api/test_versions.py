@@ -244,14 +244,20 @@ def test_patch_of_one_tolerance_field_keeps_the_others(api: Api) -> None:
     assert patched["load"] == {"mass_kg": 2.5, "cog_mm": [0, 0, 50]}
 
 
-def test_crafted_naive_cursor_is_422(api: Api) -> None:
-    import base64
-    import json
-
-    cursor = base64.urlsafe_b64encode(json.dumps(["2020-01-01T00:00:00", "x"]).encode())
-    response = api.get(f"/v1/robots?cursor={cursor.decode().rstrip('=')}")
-    assert response.status_code == 422
-    assert response.json()["type"].endswith("/invalid-cursor")
+def test_every_cursor_of_the_documented_shape_is_a_position(api: Api) -> None:
+    """A cursor is 48 hex digits (creation time and id of the row it follows): any such
+    string is answered, so the spec's pattern says exactly what the server accepts."""
+    for name in ("a", "b", "c"):
+        api.robot(name)
+    first = api.get("/v1/robots?limit=2").json()
+    assert len(first["next_cursor"]) == 48
+    rest = api.get(f"/v1/robots?cursor={first['next_cursor']}").json()
+    assert [r["name"] for r in first["items"] + rest["items"]] == ["a", "b", "c"]
+    assert len(api.get(f"/v1/robots?cursor={'0' * 48}").json()["items"]) == 3  # before all
+    assert api.get(f"/v1/robots?cursor={'f' * 48}").json()["items"] == []  # after all
+    old_style = api.get("/v1/robots?cursor=WyIyMDIwLTAxLTAxVDAwOjAwOjAwIiwgIngiXQ")
+    assert old_style.status_code == 422
+    assert old_style.json()["errors"][0]["loc"] == ["query", "cursor"]
 
 
 def test_keys_are_paginated(api: Api) -> None:
