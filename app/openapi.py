@@ -57,6 +57,20 @@ def _describe_properties(model: str, schema: JsonObject) -> None:
                 prop["description"] = meaning
 
 
+def _not_nullable(parameter: JsonObject) -> None:
+    """An optional query or header parameter is absent when not given, never `null`: a
+    client cannot send null in a header or a query string (it would arrive as the text
+    "null"), so the spec lists only the value's own schema."""
+    schema = parameter.get("schema", {})
+    branches = schema.get("anyOf")
+    if not branches or {"type": "null"} not in branches:
+        return
+    rest = [b for b in branches if b != {"type": "null"}]
+    if len(rest) == 1:
+        del schema["anyOf"]
+        schema.update(rest[0])
+
+
 def build_openapi(app: FastAPI) -> JsonObject:
     """The app's OpenAPI document with problem+json error responses."""
     if app.openapi_schema:
@@ -70,6 +84,8 @@ def build_openapi(app: FastAPI) -> JsonObject:
         for method, operation in item.items():
             if path in {"/health", "/ready"}:
                 continue
+            for parameter in operation.get("parameters", []):
+                _not_nullable(parameter)
             responses = operation.setdefault("responses", {})
             for code in _codes(path, method, operation):
                 responses[code] = _problem(code)

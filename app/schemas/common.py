@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Annotated, Generic, Literal, TypeVar
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PlainSerializer
 
 from app.jsontypes import JsonObject
 from app.solvers.npoint import MAX_TOUCH_NOISE_MM, MIN_TOUCH_NOISE_MM
@@ -17,14 +17,15 @@ PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False, strict=True)]
 NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False, strict=True)]
 
 
-def _json_integer(value: object) -> object:
+def json_integer(value: object) -> object:
+    """An integer as JSON Schema has it: 3 and 3.0 are integers; true and "3" are not. Use as
+    the last item of an Annotated, after the Field with its bounds (so that the bounds stay
+    JSON Schema's minimum/maximum)."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ValueError("must be an integer (a JSON number), not a boolean or a string")
     return value
 
 
-#: An integer as JSON Schema has it: 3 and 3.0 are integers; true and "3" are not.
-JsonInteger = Annotated[int, BeforeValidator(_json_integer)]
 #: A touch noise figure (1-sigma per axis, mm) in the range the solvers accept.
 TouchNoise = Annotated[
     float, Field(ge=MIN_TOUCH_NOISE_MM, le=MAX_TOUCH_NOISE_MM, allow_inf_nan=False, strict=True)

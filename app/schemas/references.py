@@ -35,12 +35,16 @@ class TouchIn(StrictModel):
     units: Units | None = None
 
 
+def _numbers_or_touch_schema() -> JsonObject:
+    """Numbers (source "numeric" if given) or a touch (source "touch"), never both."""
+    extra = one_of((("position_mm",), ("touch",)), (("touch",), ("position_mm", "covariance_mm2")))
+    for alternative, source in zip(extra["oneOf"], ("numeric", "touch"), strict=True):
+        alternative["properties"]["source"] = {"enum": [source, None]}
+    return extra
+
+
 class ReferencePointCreate(StrictModel):
-    model_config = ConfigDict(
-        json_schema_extra=one_of(
-            (("position_mm",), ("touch",)), (("touch",), ("position_mm", "covariance_mm2"))
-        )
-    )
+    model_config = ConfigDict(json_schema_extra=_numbers_or_touch_schema())
 
     name: Name
     position_mm: Vec3 | None = None

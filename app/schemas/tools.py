@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, BeforeValidator, Field
 
 from app.jsontypes import JsonObject
 from app.schemas.common import (
-    JsonInteger,
     LongText,
     Name,
     NonNegativeFloat,
@@ -19,9 +18,14 @@ from app.schemas.common import (
     Timestamp,
     TouchNoise,
     Vec3,
+    json_integer,
 )
 
-Slot = Annotated[JsonInteger, Field(ge=0, le=10_000, description="the controller's tool number")]
+Slot = Annotated[
+    int,
+    Field(ge=0, le=10_000, description="the controller's tool number"),
+    BeforeValidator(json_integer),
+]
 
 
 class Load(StrictModel):

@@ -15,7 +15,7 @@ from app.services import audit
 from app.services.frames import active_frame, parse_poses_with
 from app.services.references import ensure_name_free
 from app.services.robots import get_robot
-from app.services.tools import get_tool
+from app.services.tools import tool_named_in_body
 from app.solvers.laser import teach_device
 
 
@@ -40,8 +40,10 @@ def create_laser_device(
         )
     else:
         teach = data.teach
-        tool = get_tool(session, teach.tool_id)
-        frame = active_frame(session, tool) if tool.robot_id == robot_id else None
+        tool = tool_named_in_body(
+            session, teach.tool_id, robot_id=robot_id, loc=("body", "teach", "tool_id")
+        )
+        frame = active_frame(session, tool)
         if frame is None:
             raise InvalidInput(
                 "unknown-reference",

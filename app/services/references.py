@@ -11,7 +11,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import Archived, Conflict, InvalidInput, NotFound, located_in
+from app.errors import Conflict, InvalidInput, NotFound, located_in
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance
 from app.models import LaserDevice, ReferencePoint
@@ -21,7 +21,7 @@ from app.services import audit
 from app.services.diagnosis import Fit, implausible_flanges, refuse_mix_up
 from app.services.frames import active_frame, parse_poses_with
 from app.services.robots import get_robot
-from app.services.tools import get_tool
+from app.services.tools import tool_named_in_body
 from app.solvers.reference import reference_point_from_touch
 
 FloatArray = NDArray[np.float64]
@@ -124,20 +124,9 @@ def register_reference_point(
             actor=actor,
         )
     touch = data.touch
-    try:
-        tool = get_tool(session, touch.tool_id)
-    except (NotFound, Archived) as exc:  # a bad body field, not a missing URL resource
-        raise InvalidInput(
-            "unknown-reference",
-            f"{exc.detail}: touch with a tool of this robot that is in service",
-            loc=("body", "touch", "tool_id"),
-        ) from exc
-    if tool.robot_id != robot_id:
-        raise InvalidInput(
-            "unknown-reference",
-            f"tool {tool.id} is not on robot {robot_id}",
-            loc=("body", "touch", "tool_id"),
-        )
+    tool = tool_named_in_body(
+        session, touch.tool_id, robot_id=robot_id, loc=("body", "touch", "tool_id")
+    )
     frame = active_frame(session, tool)
     if frame is None:
         raise InvalidInput(
@@ -147,9 +136,8 @@ def register_reference_point(
         )
 
     def flange(fmt: str, units: Units | None) -> FloatArray:
-        return parse_poses_with(robot.kinematics, fmt, [touch.pose], units, loc=("touch", "pose"))[
-            1
-        ]
+        pose = [touch.pose]
+        return parse_poses_with(robot.kinematics, fmt, pose, units, loc=("touch", "pose"))[1]
 
     if implausible_flanges(flange, touch.format, touch.units):
         # One touch has no redundancy: only where the flange is tells a mix-up apart.

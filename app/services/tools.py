@@ -9,7 +9,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import Conflict, PreconditionFailed
+from app.errors import Conflict, InvalidInput, PreconditionFailed
 from app.helpers.etags import if_match_ok
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance
@@ -23,6 +23,21 @@ from app.services.robots import get_robot
 def get_tool(session: Session, tool_id: str, *, for_update: bool = False) -> Tool:
     """A live tool, or 404. `for_update` locks the row (serialises versions)."""
     return get_live(session, Tool, tool_id, for_update=for_update)
+
+
+def tool_named_in_body(
+    session: Session, tool_id: str, *, robot_id: str, loc: tuple[str, ...]
+) -> Tool:
+    """A live tool of the robot that a request body names (a reference tool, a teaching
+    tool): when there is none, the body field is wrong (422 at `loc`), not the URL (404)."""
+    tool = session.get(Tool, tool_id)
+    if tool is None or tool.archived_at is not None or tool.robot_id != robot_id:
+        raise InvalidInput(
+            "unknown-reference",
+            f"robot {robot_id} has no tool {tool_id} in service; name one of its live tools",
+            loc=loc,
+        )
+    return tool
 
 
 def tool_etag(tool: Tool) -> str:
