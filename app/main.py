@@ -15,6 +15,8 @@ from sqlalchemy.exc import SQLAlchemyError
 from app import __version__
 from app.api import (
     calibrations,
+    docs,
+    fleet,
     formats,
     health,
     keys,
@@ -75,6 +77,8 @@ def create_app() -> FastAPI:
         summary="Tool Center Point calibration as a fleet service",
         lifespan=lifespan,
         generate_unique_id_function=_operation_id,
+        docs_url=None,  # app.api.docs serves /docs from the installed Swagger UI, offline
+        redoc_url=None,  # ReDoc would load its script from a CDN
     )
     install_error_handlers(app)
     routers = (
@@ -88,9 +92,12 @@ def create_app() -> FastAPI:
         references,
         methods,
         formats,
+        fleet,
+        docs,
     )
     for module in routers:
         app.include_router(module.router)
+    docs.mount_assets(app)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     app.add_middleware(RequestLogMiddleware)
     # Outermost: every log line of the request, the access line included, has its id.

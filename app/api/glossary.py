@@ -87,6 +87,10 @@ GLOSSARY: dict[str, str] = {
     "max_poses": "most poses the method takes",
     "formats": "pose formats: for a method the names it accepts, for a list each format in full",
     "requires": "fields the method needs besides method, format and poses",
+    # fleet
+    "robot_name": "the robot's name",
+    "last_calibration": "the tool's newest calibration (any status); null: none yet",
+    "last_check": "the tool's newest check against a reference point; null: none yet",
     # results
     "status": "accepted or out_of_tolerance",
     "tcp": "tool frame relative to the flange: position (mm) and unit quaternion [w, x, y, z]",

@@ -5,11 +5,12 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Header, Query, Response
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, PlainTextResponse
 
 from app.api.params import PathId, VersionNumber
 from app.api.tools import IfMatch
 from app.deps import CalibrateKey, ReadKey, SessionDep
+from app.exports import file_name
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
 from app.schemas.common import ControllerFormat
 from app.schemas.tools import ActiveTcp, Tool, ToolTable, Version, VersionList
@@ -60,7 +61,10 @@ def activate_version(
 @router.get(
     "/v1/tools/{tool_id}/tcp",
     response_model=ActiveTcp,
-    responses={304: {"description": "not modified (If-None-Match)"}},
+    responses={
+        200: {"content": {"text/plain": {"schema": {"type": "string"}}}},
+        304: {"description": "not modified (If-None-Match)"},
+    },
 )
 def get_active_tcp(
     tool_id: PathId,
@@ -68,15 +72,23 @@ def get_active_tcp(
     key: ReadKey,
     format: FormatQuery = None,
     if_none_match: Annotated[str | None, Header(pattern=IF_NONE_MATCH_PATTERN)] = None,
+    accept: Annotated[str | None, Header(max_length=1000)] = None,
 ) -> Response:
     """The active TCP a cell controller reads, with a strong ETag (If-None-Match -> 304);
-    `?format=` adds the controller's own text."""
+    `?format=` adds the controller's own text. With `Accept: text/plain` (and `?format=`) the
+    controller text alone, as a file to save and load (Content-Disposition names it)."""
+    as_text = "text/plain" in (accept or "")
     document, etag = versions.served_tcp(
-        session, tool_id=tool_id, fmt=format, if_none_match=if_none_match
+        session, tool_id=tool_id, fmt=format, if_none_match=if_none_match, as_text=as_text
     )
+    headers = {"ETag": etag, "Vary": "Accept"}
     if document is None:
-        return Response(status_code=304, headers={"ETag": etag})
-    return JSONResponse(document.model_dump(mode="json"), headers={"ETag": etag})
+        return Response(status_code=304, headers=headers)
+    if as_text and document.controller is not None and format is not None:
+        name = file_name(format, document.tool_name, document.slot)
+        headers["Content-Disposition"] = f'attachment; filename="{name}"'
+        return PlainTextResponse(document.controller.text, headers=headers)
+    return JSONResponse(document.model_dump(mode="json"), headers=headers)
 
 
 @router.get("/v1/robots/{robot_id}/tool-table", response_model=ToolTable)

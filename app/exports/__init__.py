@@ -32,6 +32,24 @@ _EXPORTERS: dict[str, Callable[[ToolData], ControllerExport]] = {
     "yaskawa": export_yaskawa,
     "techman": export_techman,
 }
+#: The file a technician saves the text as: what each controller's tooling loads.
+FILE_EXTENSIONS: dict[str, str] = {
+    "kuka": "dat",  # a $config.dat / TOOL_DATA fragment
+    "abb": "mod",  # a RAPID module's tooldata declaration
+    "fanuc": "ls",  # a TP program source
+    "ur": "script",  # URScript
+    "yaskawa": "cnd",  # TOOL.CND
+    "techman": "txt",
+}
+
+
+def file_name(fmt: str, tool_name: str, slot: int | None) -> str:
+    """A file name for a tool's controller text: e.g. tool3_torch.dat (letters kept safe)."""
+    safe = "".join(c if c.isascii() and (c.isalnum() or c in "-_") else "_" for c in tool_name)
+    prefix = f"tool{slot}_" if slot is not None else ""
+    return f"{prefix}{safe.strip('_') or 'tool'}.{FILE_EXTENSIONS[_check_format(fmt)]}"
+
+
 _PARSERS: dict[str, Callable[[str], tuple[FloatArray, FloatArray]]] = {
     "kuka": parse_kuka,
     "abb": parse_abb,

@@ -25,6 +25,7 @@ M = TypeVar("M")
 CURSOR_PATTERN = r"^[0-9a-f]{48}$"
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 _LAST = datetime.max.replace(tzinfo=UTC)
+_MAX_ID = 2**63 - 1
 
 
 def encode_cursor(created_at: datetime, row_id: str) -> str:
@@ -75,4 +76,26 @@ def paginate(
         rows = rows[:limit]
         last = rows[-1]
         next_cursor = encode_cursor(getattr(last, "created_at"), getattr(last, "id"))  # noqa: B009
+    return rows, next_cursor
+
+
+def paginate_newest_first(
+    session: Session,
+    stmt: Select[M],
+    *,
+    id_col: InstrumentedAttribute[int],
+    limit: int,
+    cursor: str | None,
+) -> tuple[Sequence[M], str | None]:
+    """One page of `stmt` newest first, keyed on an increasing integer id (audit rows); the
+    cursor has the same 48-hex shape as the others, the id in its last 32 digits."""
+    if cursor:
+        decode_cursor(cursor)  # the shape check and its 422
+        # ids beyond the database's 64-bit integers all mean "after every row"
+        stmt = stmt.where(id_col < min(int(cursor[16:], 16), _MAX_ID))
+    rows: list[M] = list(session.scalars(stmt.order_by(id_col.desc()).limit(limit + 1)))
+    next_cursor = None
+    if len(rows) > limit:
+        rows = rows[:limit]
+        next_cursor = f"{0:016x}{int(getattr(rows[-1], 'id')):032x}"  # noqa: B009
     return rows, next_cursor

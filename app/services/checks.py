@@ -120,6 +120,8 @@ def run_check(
                 "distance_mm",
                 "check_mm",
                 "within_tolerance",
+                "deviation_flange_mm",
+                "summary",
             },
         ),
     )

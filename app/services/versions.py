@@ -146,8 +146,9 @@ def active_version_row(session: Session, tool: Tool) -> TcpVersion:
     ).one()
 
 
-def tcp_etag(tool: Tool, row: TcpVersion, fmt: str | None) -> str:
-    """Strong ETag of what /tcp serves: the numbers, slot, load and the representation."""
+def tcp_etag(tool: Tool, row: TcpVersion, fmt: str | None, as_text: bool = False) -> str:
+    """Strong ETag of what /tcp serves: the numbers, slot, load and the representation
+    (the JSON document or the controller text alone)."""
     payload = json.dumps(
         [
             tool.id,
@@ -158,6 +159,7 @@ def tcp_etag(tool: Tool, row: TcpVersion, fmt: str | None) -> str:
             row.position_mm,
             row.quaternion,
             fmt,
+            as_text,
         ],
         sort_keys=True,
     )
@@ -195,12 +197,25 @@ def active_document(tool: Tool, row: TcpVersion, fmt: str | None) -> ActiveTcp:
 
 
 def served_tcp(
-    session: Session, *, tool_id: str, fmt: str | None, if_none_match: str | None
+    session: Session,
+    *,
+    tool_id: str,
+    fmt: str | None,
+    if_none_match: str | None,
+    as_text: bool = False,
 ) -> tuple[ActiveTcp | None, str]:
-    """(document, ETag) of a tool's active TCP; document None when the client's copy is current."""
+    """(document, ETag) of a tool's active TCP; document None when the client's copy is current.
+    `as_text`: the controller text alone will be served (its own ETag)."""
+    if as_text and fmt is None:
+        raise InvalidInput(
+            "invalid-options",
+            "Accept: text/plain serves a controller's text: give ?format= (kuka, abb, fanuc, "
+            "ur, yaskawa or techman), or accept application/json",
+            loc=("query", "format"),
+        )
     tool = get_tool(session, tool_id)
     row = active_version_row(session, tool)
-    etag = tcp_etag(tool, row, fmt)
+    etag = tcp_etag(tool, row, fmt, as_text)
     if if_none_match_hit(if_none_match, etag):
         return None, etag
     return active_document(tool, row, fmt), etag

@@ -1,0 +1,33 @@
+"""/docs served offline: Swagger UI from the swagger-ui-bundle package, no CDN."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import swagger_ui_bundle
+from fastapi import APIRouter, FastAPI
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import HTMLResponse
+from fastapi.staticfiles import StaticFiles
+
+ASSETS = "/static/swagger-ui"
+router = APIRouter(include_in_schema=False)
+
+
+@router.get("/docs")
+def docs() -> HTMLResponse:
+    """Swagger UI for the OpenAPI spec, every asset from this server."""
+    return get_swagger_ui_html(
+        openapi_url="/openapi.json",
+        title="tcpcal API",
+        swagger_js_url=f"{ASSETS}/swagger-ui-bundle.js",
+        swagger_css_url=f"{ASSETS}/swagger-ui.css",
+        swagger_favicon_url=f"{ASSETS}/favicon-32x32.png",
+    )
+
+
+def mount_assets(app: FastAPI) -> None:
+    """Serve the installed Swagger UI files under ASSETS."""
+    app.mount(
+        ASSETS, StaticFiles(directory=Path(swagger_ui_bundle.swagger_ui_path)), name="swagger"
+    )

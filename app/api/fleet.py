@@ -1,0 +1,75 @@
+"""The fleet view (every tool of every robot, JSON or CSV) and a tool's checks read back."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Request
+from fastapi.responses import Response
+
+from app.api.params import Cursor, Limit, PathId
+from app.deps import ReadKey, SessionDep
+from app.helpers.pagination import DEFAULT_LIMIT, MAX_LIMIT
+from app.schemas.common import ID_PATTERN, Page
+from app.schemas.fleet import CalibrationStatus, CheckRecord, FleetTool
+from app.services import fleet
+
+router = APIRouter(tags=["fleet"])
+
+CSV = "text/csv"
+
+
+@router.get(
+    "/v1/tools",
+    response_model=Page[FleetTool],
+    responses={200: {"content": {CSV: {"schema": {"type": "string"}}}}},
+)
+def list_fleet(
+    request: Request,
+    session: SessionDep,
+    key: ReadKey,
+    cell: Annotated[str | None, Query(max_length=200, description="the robots' cell")] = None,
+    robot_id: Annotated[str | None, Query(pattern=ID_PATTERN)] = None,
+    q: Annotated[
+        str | None, Query(max_length=200, description="prefix of the tool's or robot's name")
+    ] = None,
+    status: Annotated[
+        CalibrationStatus | None, Query(description="status of the last calibration")
+    ] = None,
+    limit: Limit = DEFAULT_LIMIT,
+    cursor: Cursor = None,
+) -> object:
+    """Every live tool of every robot with its robot, cell, active version, last calibration
+    and last check, oldest first, filtered. With `Accept: text/csv` every matching tool (not
+    one page) as a CSV file, one row per tool."""
+    filters = {"cell": cell, "robot_id": robot_id, "q": q, "status": status}
+    if CSV in request.headers.get("accept", ""):
+        rows: list[FleetTool] = []
+        page_cursor = None
+        while True:
+            page, page_cursor = fleet.list_fleet(
+                session, **filters, limit=MAX_LIMIT, cursor=page_cursor
+            )
+            rows += page
+            if page_cursor is None:
+                break
+        return Response(
+            fleet.fleet_csv(rows),
+            media_type="text/csv; charset=utf-8",
+            headers={"Content-Disposition": 'attachment; filename="tcpcal-fleet.csv"'},
+        )
+    items, next_cursor = fleet.list_fleet(session, **filters, limit=limit, cursor=cursor)
+    return {"items": items, "next_cursor": next_cursor}
+
+
+@router.get("/v1/tools/{tool_id}/checks", response_model=Page[CheckRecord])
+def list_checks(
+    tool_id: PathId,
+    session: SessionDep,
+    key: ReadKey,
+    limit: Limit = DEFAULT_LIMIT,
+    cursor: Cursor = None,
+) -> object:
+    """A tool's checks, newest first: the deviation, the verdict and who checked when."""
+    items, next_cursor = fleet.list_checks(session, tool_id=tool_id, limit=limit, cursor=cursor)
+    return {"items": items, "next_cursor": next_cursor}

@@ -1,0 +1,73 @@
+"""The fleet view: every tool with its robot, its last calibration and its last check."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from app.schemas.common import Timestamp
+
+CalibrationStatus = Literal["accepted", "out_of_tolerance"]
+
+
+class LastCalibration(BaseModel):
+    id: str
+    status: str
+    created_at: Timestamp
+    rms_mm: float | None
+
+
+class LastCheck(BaseModel):
+    id: str = Field(description="the check's id (its audit record)")
+    within_tolerance: bool
+    distance_mm: float
+    created_at: Timestamp
+
+
+class FleetTool(BaseModel):
+    id: str
+    name: str
+    slot: int | None
+    robot_id: str
+    robot_name: str
+    cell: str | None
+    active_version: int | None
+    last_calibration: LastCalibration | None
+    last_check: LastCheck | None
+
+
+class CheckRecord(BaseModel):
+    """A check as recorded: what the technician saw, read back."""
+
+    id: str
+    tool_id: str
+    version: int | None
+    reference_point_id: str | None
+    deviation_mm: list[float] | None
+    deviation_flange_mm: list[float] | None = None
+    distance_mm: float
+    check_mm: float | None
+    within_tolerance: bool
+    summary: str | None = Field(
+        default=None, description="the verdict in one sentence (checks recorded since v1.1)"
+    )
+    checked_at: Timestamp
+    checked_by: str
+
+
+#: The CSV columns of GET /v1/tools with Accept: text/csv, in order.
+CSV_COLUMNS = (
+    "tool_id",
+    "tool",
+    "slot",
+    "robot",
+    "cell",
+    "active_version",
+    "last_calibration_status",
+    "last_calibration_rms_mm",
+    "last_calibration_at",
+    "last_check_within_tolerance",
+    "last_check_distance_mm",
+    "last_check_at",
+)

@@ -1,0 +1,183 @@
+"""The fleet: every live tool of every robot with its last calibration and last check, and
+a tool's checks read back (a check is recorded once, in the audit trail)."""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Sequence
+
+from sqlalchemy import ScalarSelect, Select, func, or_, select
+from sqlalchemy.orm import Session
+
+from app.helpers.pagination import paginate, paginate_newest_first
+from app.models import AuditEvent, Calibration, Robot, Tool
+from app.schemas.fleet import CSV_COLUMNS, CheckRecord, FleetTool, LastCalibration, LastCheck
+from app.services.tools import get_tool
+
+CHECK_ACTION = "tool.check"
+
+
+def _last_calibration_status() -> ScalarSelect[str]:
+    latest = (
+        select(Calibration.status)
+        .where(Calibration.tool_id == Tool.id)
+        .order_by(Calibration.created_at.desc(), Calibration.id.desc())
+        .limit(1)
+    )
+    return latest.scalar_subquery()
+
+
+def _fleet_query(
+    *, cell: str | None, robot_id: str | None, q: str | None, status: str | None
+) -> Select[Tool]:
+    stmt = (
+        select(Tool)
+        .join(Robot, Robot.id == Tool.robot_id)
+        .where(Tool.archived_at.is_(None), Robot.archived_at.is_(None))
+    )
+    if cell is not None:
+        stmt = stmt.where(Robot.cell == cell)
+    if robot_id is not None:
+        stmt = stmt.where(Tool.robot_id == robot_id)
+    if q:
+        prefix = q.lower().replace("\\", "\\\\").replace("%", "\\%").replace("_", "\\_") + "%"
+        stmt = stmt.where(
+            or_(
+                func.lower(Tool.name).like(prefix, escape="\\"),
+                func.lower(Robot.name).like(prefix, escape="\\"),
+            )
+        )
+    if status is not None:
+        stmt = stmt.where(_last_calibration_status() == status)
+    return stmt
+
+
+def list_fleet(
+    session: Session,
+    *,
+    cell: str | None,
+    robot_id: str | None,
+    q: str | None,
+    status: str | None,
+    limit: int,
+    cursor: str | None,
+) -> tuple[list[FleetTool], str | None]:
+    """One page of the fleet, oldest tool first; three queries per page whatever its size."""
+    stmt = _fleet_query(cell=cell, robot_id=robot_id, q=q, status=status)
+    tools, next_cursor = paginate(
+        session, stmt, created_col=Tool.created_at, id_col=Tool.id, limit=limit, cursor=cursor
+    )
+    return _rows(session, tools), next_cursor
+
+
+def _rows(session: Session, tools: Sequence[Tool]) -> list[FleetTool]:
+    ids = [t.id for t in tools]
+    robots = {
+        r.id: r
+        for r in session.scalars(select(Robot).where(Robot.id.in_({t.robot_id for t in tools})))
+    }
+    last_cal: dict[str, Calibration] = {}
+    for cal in session.scalars(
+        select(Calibration).where(Calibration.tool_id.in_(ids)).order_by(Calibration.created_at)
+    ):
+        last_cal[cal.tool_id] = cal
+    last_check: dict[str, AuditEvent] = {}
+    for event in session.scalars(
+        select(AuditEvent)
+        .where(AuditEvent.tool_id.in_(ids), AuditEvent.action == CHECK_ACTION)
+        .order_by(AuditEvent.id)
+    ):
+        assert event.tool_id is not None
+        last_check[event.tool_id] = event
+    return [
+        FleetTool(
+            id=t.id,
+            name=t.name,
+            slot=t.slot,
+            robot_id=t.robot_id,
+            robot_name=robots[t.robot_id].name,
+            cell=robots[t.robot_id].cell,
+            active_version=t.active_version,
+            last_calibration=_last_calibration(last_cal.get(t.id)),
+            last_check=_last_check(last_check.get(t.id)),
+        )
+        for t in tools
+    ]
+
+
+def _last_calibration(row: Calibration | None) -> LastCalibration | None:
+    if row is None:
+        return None
+    rms = (row.result.get("quality") or {}).get("rms_mm")
+    return LastCalibration(id=row.id, status=row.status, created_at=row.created_at, rms_mm=rms)
+
+
+def _last_check(event: AuditEvent | None) -> LastCheck | None:
+    if event is None:
+        return None
+    details = event.details or {}
+    return LastCheck(
+        id=str(event.id),
+        within_tolerance=bool(details.get("within_tolerance")),
+        distance_mm=float(details.get("distance_mm", 0.0)),
+        created_at=event.at,
+    )
+
+
+def fleet_csv(rows: Sequence[FleetTool]) -> str:
+    """The rows as CSV, one line per tool, columns CSV_COLUMNS."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\r\n")
+    writer.writerow(CSV_COLUMNS)
+    for r in rows:
+        cal, chk = r.last_calibration, r.last_check
+        writer.writerow(
+            [
+                r.id,
+                r.name,
+                "" if r.slot is None else r.slot,
+                r.robot_name,
+                r.cell or "",
+                "" if r.active_version is None else r.active_version,
+                cal.status if cal else "",
+                "" if cal is None or cal.rms_mm is None else f"{cal.rms_mm:.3f}",
+                cal.created_at.isoformat() if cal else "",
+                "" if chk is None else str(chk.within_tolerance).lower(),
+                "" if chk is None else f"{chk.distance_mm:.3f}",
+                chk.created_at.isoformat() if chk else "",
+            ]
+        )
+    return out.getvalue()
+
+
+def list_checks(
+    session: Session, *, tool_id: str, limit: int, cursor: str | None
+) -> tuple[list[CheckRecord], str | None]:
+    """A tool's checks, newest first."""
+    tool = get_tool(session, tool_id)
+    stmt = select(AuditEvent).where(
+        AuditEvent.tool_id == tool.id, AuditEvent.action == CHECK_ACTION
+    )
+    events, next_cursor = paginate_newest_first(
+        session, stmt, id_col=AuditEvent.id, limit=limit, cursor=cursor
+    )
+    return [_check_record(e) for e in events], next_cursor
+
+
+def _check_record(event: AuditEvent) -> CheckRecord:
+    d = event.details or {}
+    return CheckRecord(
+        id=str(event.id),
+        tool_id=str(event.tool_id),
+        version=d.get("version"),
+        reference_point_id=d.get("reference_point_id"),
+        deviation_mm=d.get("deviation_mm"),
+        deviation_flange_mm=d.get("deviation_flange_mm"),
+        distance_mm=float(d.get("distance_mm", 0.0)),
+        check_mm=d.get("check_mm"),
+        within_tolerance=bool(d.get("within_tolerance")),
+        summary=d.get("summary"),
+        checked_at=event.at,
+        checked_by=event.actor,
+    )
