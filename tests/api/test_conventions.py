@@ -213,7 +213,8 @@ def test_reference_touch_in_metres_is_refused_with_the_reading_in_metres(api: Ap
     # KUKA pose of the flange at (0.5, 0, 0.4) m, tool down: one touch, no residual to
     # judge; the flange "at the robot base" read as mm is what tells.
     pose = [0.5, 0.0, 0.4, 0.0, 0.0, 180.0]
-    body = {"name": "pin", "touch": {"tool_id": tool["id"], "format": "kuka_abc", "pose": pose}}
+    touch: JsonObject = {"tool_id": tool["id"], "format": "kuka_abc", "pose": pose}
+    body: JsonObject = {"name": "pin", "touch": touch}
     before = row_counts(TABLES)
     response = api.post(f"/v1/robots/{robot['id']}/reference-points", body, scope="calibrate")
     assert response.status_code == 422, response.text
@@ -223,7 +224,7 @@ def test_reference_touch_in_metres_is_refused_with_the_reading_in_metres(api: Ap
     assert problem["errors"][0]["loc"] == ["body", "touch", "format"]
     assert row_counts(TABLES) == before
 
-    body["touch"] = {**body["touch"], **problem["suggestion"]}  # type: ignore[dict-item]
+    body["touch"] = {**touch, **problem["suggestion"]}
     created = api.post(f"/v1/robots/{robot['id']}/reference-points", body, scope="calibrate")
     assert created.status_code == 201, created.text
     assert np.allclose(created.json()["position_mm"], [500, 0, 300], atol=1e-6)
