@@ -448,7 +448,7 @@ def _noise(
         chi2 = float(np.sum(line.weights * res**2))
         nu = 2 * (K - 2)
         sigma_mid = np.sqrt(chi2 / nu)
-        widen = float(student_t.ppf(0.975, nu) / norm.ppf(0.975))
+        widen = _widening(nu)
         # A midpoint averages two triggers: sigma_mid = sigma_trigger / sqrt(2).
         return float(np.sqrt(2.0) * sigma_mid), "residuals", widen
     warnings.append(
@@ -456,6 +456,12 @@ def _noise(
         "(give trigger_noise_mm or sweep a third height)"
     )
     return 0.0, "none", 1.0
+
+
+def _widening(nu: float) -> float:
+    """t(0.975, nu) / 1.96: the factor that keeps +-1.96 sigma a 95 % interval when the
+    noise behind sigma was estimated on nu degrees of freedom (Student's t)."""
+    return float(student_t.ppf(0.975, nu) / norm.ppf(0.975))
 
 
 def _check_noise(value: float | None) -> float | None:
@@ -692,16 +698,17 @@ def teach_device(
     residuals = np.linalg.norm(res_vec, axis=1)
     K = len(p.groups)
     source: SigmaSource
+    widen = 1.0
     if noise_in is not None:
         noise, source = noise_in, "configured"
     elif K >= 2 and tool_axis_flange is not None:
         # Given axis: each height estimates x_B, y_A independently: K - 1 dof per beam.
         noise = float(np.sqrt(2.0 * np.sum(res_vec**2) / (2 * (K - 1))))
-        source = "residuals"
+        source, widen = "residuals", _widening(2 * (K - 1))
     elif K >= 3:
         res = probe.residuals()
         noise = float(np.sqrt(2.0 * np.sum(probe.weights * res**2) / (2 * (K - 2))))
-        source = "residuals"
+        source, widen = "residuals", _widening(2 * (K - 2))
     else:
         noise, source = 0.0, "none"
         warnings.append("no trigger noise given: the device's uncertainty was not estimated")
@@ -714,7 +721,7 @@ def teach_device(
                 uu = p.R0.T @ _fit_line(p, p.mids(x), 0.0, 0.0, 0.0).direction_base()
             return _teach(p, x, t, uu)[0]
 
-        sigma = linear_sigma(outputs, x0, np.full(x0.size, noise))
+        sigma = widen * linear_sigma(outputs, x0, np.full(x0.size, noise))
     device = LaserDevice(
         beam_a_y_mm=float(dev_vec[0]), beam_b_x_mm=float(dev_vec[1]), plane_z_mm=float(dev_vec[2])
     )

@@ -281,6 +281,34 @@ def test_taught_device_sigma_matches_the_scatter() -> None:
     assert np.all((std > 0.85) & (std < 1.15)), std
 
 
+@pytest.mark.parametrize("axis_given", [True, False])
+def test_taught_device_sigma_from_estimated_noise_covers_95_percent(axis_given: bool) -> None:
+    """Three heights leave 4 (axis given) or 2 degrees of freedom: Student's t widening."""
+    ideal = TOOL_STATES["ideal"]
+    rng = np.random.default_rng(13)
+    z = []
+    for _ in range(300):
+        data = simulate(ideal, noise_mm=0.02, rng=rng)
+        device, fit = teach_device(
+            flange_rotation=data.flange_rotation,
+            sweeps=data.sweeps,
+            descent_mm=data.descent_mm,
+            tcp_mm=ideal.tcp_mm,
+            tool_axis_flange=ideal.axis_direction if axis_given else None,
+        )
+        assert fit.sigma_source == "residuals"
+        err = np.array(
+            [
+                device.beam_a_y_mm - DEVICE.beam_a_y_mm,
+                device.beam_b_x_mm - DEVICE.beam_b_x_mm,
+                device.plane_z_mm - DEVICE.plane_z_mm,
+            ]
+        )
+        z.append(err / np.array(fit.sigma_mm))
+    cover = (np.abs(np.array(z)) < 1.96).mean(axis=0)
+    assert np.all((cover > 0.92) & (cover < 0.985)), cover
+
+
 # ------------------------------------------------------------------ refusals
 
 
