@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from app.client import register as register_client
+
 if TYPE_CHECKING:
     import httpx
 
@@ -276,3 +278,6 @@ def client_post(
 def main() -> None:
     """Console-script entry point."""
     cli()
+
+
+register_client(cli)

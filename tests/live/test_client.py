@@ -1,0 +1,126 @@
+"""The cell PC's client (`tcpcal tools|calibrate|history|activate|rollback|check|export`)
+against a live server, through typer's runner: tables, the verdict sentence, exit codes."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from app.cli import cli
+from app.kinematics.poses import pose_to_format
+from tests.live.server import LiveServer, fresh_database, live_server
+from tests.sim.touches import Touches, simulate_touches
+
+pytestmark = pytest.mark.live
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveServer]:
+    tmp = tmp_path_factory.mktemp("client")
+    with fresh_database("sqlite", tmp, None) as url, live_server(url, workers=1) as srv:
+        yield srv
+
+
+@pytest.fixture
+def run(server: LiveServer, monkeypatch: pytest.MonkeyPatch) -> CliRunner:
+    monkeypatch.setenv("TCPCAL_URL", server.url)
+    monkeypatch.setenv("TCPCAL_API_KEY", server.admin_key)
+    monkeypatch.setenv("COLUMNS", "200")
+    return CliRunner()
+
+
+def _write_csv(path: Path, touches: Touches, fmt: str, units: dict[str, str] | None = None) -> Path:
+    with path.open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(["X", "Y", "Z", "A", "B", "C"])  # a pendant export's header line
+        for R, f in zip(touches.R, touches.f, strict=True):
+            writer.writerow(pose_to_format(fmt, R, f, units=units))
+    return path
+
+
+def test_client_calibrates_lists_rolls_back_exports_and_checks(
+    server: LiveServer, run: CliRunner, tmp_path: Path
+) -> None:
+    with server.client() as http:
+        robot = http.post("/v1/robots", json={"name": "kr16", "cell": "weld-3"}).json()
+        tool = http.post(
+            f"/v1/robots/{robot['id']}/tools", json={"name": "torch", "slot": 3}
+        ).json()
+    tid = tool["id"]
+    touches = simulate_touches(8, seed=11, touch_noise_mm=0.05)
+
+    good = _write_csv(tmp_path / "good.csv", touches, "kuka_abc")
+    result = run.invoke(
+        cli, ["calibrate", tid, str(good), "--format", "kuka_abc", "--note", "new torch"]
+    )
+    assert result.exit_code == 0, result.output
+    assert "accepted: TCP (" in result.output
+    with server.client() as http:
+        stored = http.get(f"/v1/tools/{tid}/calibrations").json()["items"][0]
+    z = stored["tcp"]["position_mm"][2]
+    assert f"{z:.3f}" in result.output  # the table shows mm to 3 decimals
+    assert abs(z - touches.t[2]) < 0.5
+
+    # the same touches written in metres: refused with the suggestion, exit 4, nothing stored
+    metres = _write_csv(tmp_path / "m.csv", touches, "kuka_abc", {"length": "m"})
+    refused = run.invoke(cli, ["calibrate", tid, str(metres), "--format", "kuka_abc"])
+    assert refused.exit_code == 4, refused.output
+    assert '"length": "m"' in refused.output
+    accepted_in_m = run.invoke(
+        cli, ["calibrate", tid, str(metres), "--format", "kuka_abc", "--length", "m"]
+    )
+    assert accepted_in_m.exit_code == 0, accepted_in_m.output
+
+    noisy = _write_csv(
+        tmp_path / "noisy.csv", simulate_touches(8, seed=3, touch_noise_mm=1.5), "kuka_abc"
+    )
+    out_of_tol = run.invoke(cli, ["calibrate", tid, str(noisy), "--format", "kuka_abc"])
+    assert out_of_tol.exit_code == 3, out_of_tol.output
+    assert "out of tolerance" in out_of_tol.output
+
+    bad = tmp_path / "bad.csv"
+    bad.write_text("1,2,3,4,5\n1,2,3,4,5\n1,2,3,4,5\n1,2,3,4,5\n")
+    local = run.invoke(cli, ["calibrate", tid, str(bad), "--format", "kuka_abc"])
+    assert local.exit_code == 2
+    assert "expected 6 numbers" in local.output
+
+    fleet = run.invoke(cli, ["tools", "--cell", "weld-3"])
+    assert fleet.exit_code == 0, fleet.output
+    assert "torch" in fleet.output
+    assert "out_of_tolerance" in fleet.output
+    exported_csv = tmp_path / "fleet.csv"
+    assert run.invoke(cli, ["tools", "--csv", str(exported_csv)]).exit_code == 0
+    assert len(list(csv.DictReader(exported_csv.open()))) == 1
+
+    history = run.invoke(cli, ["history", tid])
+    assert history.exit_code == 0
+    assert "new torch" in history.output
+    rolled = run.invoke(cli, ["rollback", tid])
+    assert rolled.exit_code == 0, rolled.output
+    assert "version 1 is active" in rolled.output
+    assert run.invoke(cli, ["rollback", tid]).exit_code == 4  # nothing before version 1
+    assert run.invoke(cli, ["activate", tid, "2"]).exit_code == 0
+
+    exported = run.invoke(cli, ["export", tid, "--format", "kuka", "-o", str(tmp_path)])
+    assert exported.exit_code == 0, exported.output
+    text = (tmp_path / "tool3_torch.dat").read_text()
+    assert text.startswith("$TOOL_DATA[3]={X ")
+
+    with server.client() as http:
+        pin = http.post(
+            f"/v1/robots/{robot['id']}/reference-points",
+            json={"name": "pin", "position_mm": [float(v) for v in touches.p]},
+        ).json()
+    one = simulate_touches(2, seed=11, touch_noise_mm=0.0, tcp_mm=touches.t, pivot_mm=touches.p)
+    checked = run.invoke(
+        cli, ["check", tid, pin["id"], str(_write_csv(tmp_path / "c.csv", one, "kuka_abc")),
+              "--format", "kuka_abc"],
+    )  # fmt: skip
+    assert checked.exit_code == 0, checked.output
+    assert "within tolerance" in checked.output
+
+    assert run.invoke(cli, ["history", "no-such-tool"]).exit_code == 5
