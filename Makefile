@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
-.PHONY: run test lint typecheck openapi bench clean
+.PHONY: run test lint typecheck openapi bench screenshots demo clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -25,8 +25,8 @@ run: $(STAMP)
 	$(BIN)/tcpcal serve --host $(HOST) --port $(PORT)
 
 lint: $(STAMP)
-	$(BIN)/ruff check app tests bench migrations
-	$(BIN)/ruff format --check app tests bench migrations
+	$(BIN)/ruff check app tests bench scripts migrations
+	$(BIN)/ruff format --check app tests bench scripts migrations
 	$(BIN)/lint-imports
 
 typecheck: $(STAMP)
@@ -44,6 +44,14 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.conventions
 	$(BIN)/python -m bench.solver_speed
 	$(BIN)/python -m bench.api_load
+
+screenshots: $(STAMP)
+	$(BIN)/python scripts/screenshots.py
+
+demo: $(STAMP)
+	mkdir -p var
+	TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal demo
+	@echo "serve it: TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal serve"
 
 clean:
 	rm -rf $(VENV) var .pytest_cache .mypy_cache .ruff_cache .hypothesis

@@ -105,6 +105,27 @@ def db_current() -> None:
     typer.echo(f"current: {current_revision(get_engine())}  head: {head_revision()}")
 
 
+@cli.command()
+def demo() -> None:
+    """Migrate the database (TCPCAL_DATABASE_URL) and fill it, if empty, with a small
+    realistic fleet: 5 robots, 10 tools, 14 months of calibrations and checks."""
+    from app.config import get_settings
+    from app.db import session_scope
+    from app.demo import FleetNotEmpty, fill
+    from app.migrate import upgrade
+
+    upgrade(get_settings().database_url)
+    try:
+        with session_scope(write=True) as session:
+            counts = fill(session)
+    except FleetNotEmpty as exc:
+        typer.echo(f"{exc}; point TCPCAL_DATABASE_URL at a new database", err=True)
+        raise typer.Exit(4) from None
+    made = ", ".join(f"{n} {what}" for what, n in counts.items())
+    typer.echo(f"demo fleet written: {made}")
+    typer.echo("sign in to the console with a key: tcpcal keys create --scope admin --name me")
+
+
 @keys_cli.command("create")
 def keys_create(
     scope: Annotated[str, typer.Option(help="read | calibrate | admin")],

@@ -15,6 +15,7 @@ from sqlalchemy.exc import SQLAlchemyError
 from app import __version__
 from app.api import (
     calibrations,
+    console,
     docs,
     fleet,
     formats,
@@ -94,10 +95,12 @@ def create_app() -> FastAPI:
         formats,
         fleet,
         docs,
+        console,
     )
     for module in routers:
         app.include_router(module.router)
     docs.mount_assets(app)
+    console.mount_assets(app)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     app.add_middleware(RequestLogMiddleware)
     # Outermost: every log line of the request, the access line included, has its id.

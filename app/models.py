@@ -8,6 +8,8 @@ activation; the tool's ETag is derived from it.
 from __future__ import annotations
 
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import UTC, datetime
 
 from sqlalchemy import (
@@ -42,9 +44,24 @@ NAMING_CONVENTION = {
 AutoId = BigInteger().with_variant(Integer(), "sqlite")
 
 
+#: Set only by `clock_at` (the demo writes a history that spans months); None: the real time.
+_frozen_now: datetime | None = None
+
+
 def utcnow() -> datetime:
     """The current time, timezone-aware UTC."""
-    return datetime.now(UTC)
+    return _frozen_now or datetime.now(UTC)
+
+
+@contextmanager
+def clock_at(moment: datetime) -> Iterator[None]:
+    """Stamp every row written inside the block with `moment` (single-threaded use only)."""
+    global _frozen_now
+    _frozen_now = moment
+    try:
+        yield
+    finally:
+        _frozen_now = None
 
 
 def new_id() -> str:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Annotated, Union
 
-from pydantic import Field, create_model
+from pydantic import Field, TypeAdapter, create_model
 
 from app.methods import METHODS
 from app.methods.base import MethodRequest
@@ -45,3 +45,6 @@ else:
         Field(discriminator="method"),
     ]
     SolveRequest = Annotated[Union[SOLVE_MODELS], Field(discriminator="method")]  # noqa: UP007
+
+#: Validates a submission given as Python data (a stored request read back, the demo's).
+CALIBRATION_REQUESTS: TypeAdapter[CalibrationRequest] = TypeAdapter(CalibrationRequest)

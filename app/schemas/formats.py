@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from typing import get_args
+
 from pydantic import BaseModel, Field
 
-from app.schemas.common import Units
+from app.schemas.common import ControllerFormat, Units
 
 
 class FormatInfo(BaseModel):
@@ -19,3 +21,7 @@ class FormatInfo(BaseModel):
 
 class FormatList(BaseModel):
     items: list[FormatInfo]
+    controllers: list[ControllerFormat] = Field(
+        default_factory=lambda: list(get_args(ControllerFormat)),
+        description="the controller text formats of GET /v1/tools/{id}/tcp?format=",
+    )

@@ -126,8 +126,28 @@ class Calibration(CalibrationResult):
     created_by: str
 
 
+class TouchGeometry(BaseModel):
+    """Where the touches were, for a report's 3-D view (methods that take poses)."""
+
+    flange_positions_mm: list[list[float]] = Field(
+        description="each pose's flange position in the base frame, in submission order"
+    )
+    tip_positions_mm: list[list[float]] = Field(
+        description="where the calibrated TCP was at each pose (flange pose applied to the TCP)"
+    )
+    ellipsoid95_semi_axes_mm: list[float] | None = Field(
+        default=None, description="the TCP's 95 % uncertainty ellipsoid's semi-axes, longest first"
+    )
+    ellipsoid95_axes: list[list[float]] | None = Field(
+        default=None, description="the unit direction (flange frame) of each semi-axis"
+    )
+
+
 class CalibrationDetail(Calibration):
     request: dict[str, object] = Field(description="the submission exactly as received")
+    geometry: TouchGeometry | None = Field(
+        default=None, description="the touches in space; null for numbers entered by hand"
+    )
 
 
 class SolveResult(CalibrationResult):

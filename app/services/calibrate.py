@@ -28,18 +28,26 @@ from app.methods.npoint import NPointOptions
 from app.metrics import SOLVE_SECONDS
 from app.models import Calibration as CalibrationRow
 from app.models import Tool
-from app.schemas.calibrations import StatelessFields
+from app.schemas.calibrations import CALIBRATION_REQUESTS, StatelessFields
 from app.schemas.common import Units
-from app.schemas.results import Calibration, CalibrationDetail, CalibrationResult, SolveResult
+from app.schemas.results import (
+    Calibration,
+    CalibrationDetail,
+    CalibrationResult,
+    SolveResult,
+    TouchGeometry,
+)
 from app.schemas.tools import Tcp
 from app.services import audit, idempotency
 from app.services.contexts import DbContext, StatelessContext
 from app.services.diagnosis import EXPLAINABLE, Fit, implausible_flanges, refuse_mix_up
+from app.services.frames import parse_poses_with
 from app.services.references import create_reference_point, ensure_reference_name_free
 from app.services.robots import get_robot, validate_kinematics
 from app.services.tools import get_tool
 from app.services.verdict import change_warning, held_for_change, summarise
 from app.services.versions import IDENTITY_QUATERNION, activate, add_version
+from app.solvers.quality import ellipsoid_semi_axes
 
 
 # ---- solve and grade ------------------------------------------------------------------------
@@ -347,4 +355,30 @@ def get_calibration(session: Session, *, calibration_id: str) -> CalibrationDeta
         raise NotFound(f"no calibration with id {calibration_id}")
     tool = session.get(Tool, row.tool_id)
     assert tool is not None
-    return CalibrationDetail(**calibration_out(row, tool).model_dump(), request=row.request)
+    out = calibration_out(row, tool)
+    return CalibrationDetail(
+        **out.model_dump(), request=row.request, geometry=_geometry(session, row, tool, out)
+    )
+
+
+def _geometry(
+    session: Session, row: CalibrationRow, tool: Tool, out: Calibration
+) -> TouchGeometry | None:
+    """The touches of a stored submission in space, read again from the request."""
+    request = CALIBRATION_REQUESTS.validate_python(row.request)
+    if not request.poses or request.format is None:
+        return None
+    robot = get_robot(session, tool.robot_id)
+    try:
+        rotations, flanges = parse_poses_with(
+            robot.kinematics, request.format, request.poses, request.units, loc=()
+        )
+    except InvalidInput:  # the robot's kinematics changed since: no picture, the rest stands
+        return None
+    tips = flanges + rotations @ np.asarray(out.tcp.position_mm)
+    geometry = TouchGeometry(flange_positions_mm=flanges.tolist(), tip_positions_mm=tips.tolist())
+    quality = out.quality
+    if quality.tcp_covariance_mm2 is not None and quality.ellipsoid95_scale is not None:
+        semi, axes = ellipsoid_semi_axes(quality.tcp_covariance_mm2, quality.ellipsoid95_scale)
+        geometry.ellipsoid95_semi_axes_mm, geometry.ellipsoid95_axes = semi.tolist(), axes.tolist()
+    return geometry

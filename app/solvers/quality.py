@@ -11,9 +11,11 @@ from functools import lru_cache
 from typing import Final, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2, f
+
+FloatArray = NDArray[np.float64]
 
 #: Probability content of the reported uncertainty ellipsoid.
 ELLIPSOID_PROBABILITY = 0.95
@@ -59,6 +61,15 @@ def _scale(dof: float | None) -> float:
     if dof is None:
         return float(np.sqrt(chi2.ppf(ELLIPSOID_PROBABILITY, 3)))
     return float(np.sqrt(3.0 * f.ppf(ELLIPSOID_PROBABILITY, 3, dof)))
+
+
+def ellipsoid_semi_axes(covariance: ArrayLike, scale: float) -> tuple[FloatArray, FloatArray]:
+    """The uncertainty ellipsoid's semi-axes (3,), longest first, and their unit directions
+    (3, 3), one per row: sqrt of the covariance's eigenvalues times `scale`."""
+    values, vectors = np.linalg.eigh(np.asarray(covariance, dtype=float))
+    order = np.argsort(values)[::-1]
+    semi = scale * np.sqrt(np.clip(values[order], 0.0, None))
+    return semi, vectors[:, order].T
 
 
 def orientation_spread_deg(rotations: ArrayLike) -> float:

@@ -155,3 +155,58 @@ def test_docs_work_offline(api: Api) -> None:
         assert api.get(url).status_code == 200, url
     assert "//cdn" not in page.text
     assert api.get("/redoc").status_code == 404
+
+
+def test_console_is_served_by_the_app_and_names_no_other_host(api: Api) -> None:
+    root = api.client.get("/", follow_redirects=False)
+    assert root.status_code == 307
+    assert root.headers["location"] == "/ui/"
+    for path in ("/ui/", "/ui/tools/some-id", "/ui/calibrations/some-id"):
+        page = api.get(path)
+        assert page.status_code == 200, path
+        assert page.headers["content-type"].startswith("text/html")
+        csp = page.headers["content-security-policy"]
+        assert "default-src 'self'" in csp
+        assert "script-src 'self';" in csp  # no inline script, no other host
+    shell = api.get("/ui/").text
+    assets = re.findall(r'(?:src|href)="([^"]+)"', shell)
+    assert "/ui/vendor/plotly.min.js" in assets
+    for url in assets:
+        assert url.startswith(("/", "data:")), f"the console loads {url} from another host"
+    for url in ("/ui/assets/console.js", "/ui/assets/console.css", "/ui/vendor/plotly.min.js"):
+        asset = api.get(url)
+        assert asset.status_code == 200, url
+    script = api.get("/ui/assets/console.js").text
+    assert re.findall(r"https?://", script) == []  # the console calls only its own origin
+
+
+def test_a_report_gets_the_touches_in_space_and_the_95_percent_ellipsoid(api: Api) -> None:
+    import numpy as np
+
+    tool = api.tool(api.robot("kr")["id"])
+    touches = simulate_touches(8, seed=5, touch_noise_mm=0.05, outlier_fraction=1 / 8, outlier_mm=3)
+    cal = api.post(
+        f"/v1/tools/{tool['id']}/calibrations",
+        json={"method": "xyz_npoint", "format": "kuka_abc", "poses": as_poses(touches, "kuka_abc")},
+    ).json()
+    detail = api.get(f"/v1/calibrations/{cal['id']}").json()
+    geometry = detail["geometry"]
+    assert np.allclose(geometry["flange_positions_mm"], touches.f, atol=1e-6)
+    tips = np.asarray(geometry["tip_positions_mm"])
+    miss = np.linalg.norm(tips - np.asarray(detail["reference_point_mm"]), axis=1)
+    # The tips scatter around the point by the residuals the solver reported, the miss too.
+    assert np.allclose(miss, detail["quality"]["residuals_mm"], atol=1e-6)
+    assert detail["quality"]["outliers"] == [int(np.flatnonzero(touches.outliers)[0])]
+    # The ellipsoid: semi-axes^2 are the covariance's eigenvalues times the 95 % factor^2.
+    cov = np.asarray(detail["quality"]["tcp_covariance_mm2"])
+    k = detail["quality"]["ellipsoid95_scale"]
+    semi = np.asarray(geometry["ellipsoid95_semi_axes_mm"])
+    assert np.allclose(np.sort(semi**2), np.sort(np.linalg.eigvalsh(cov)) * k**2)
+    axes = np.asarray(geometry["ellipsoid95_axes"])
+    assert np.allclose(axes @ cov @ axes.T, np.diag(semi**2 / k**2), atol=1e-12)
+
+    manual = api.post(
+        f"/v1/tools/{tool['id']}/calibrations",
+        json={"method": "manual", "tcp": {"position_mm": [0, 0, 150]}},
+    ).json()
+    assert api.get(f"/v1/calibrations/{manual['id']}").json()["geometry"] is None

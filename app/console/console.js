@@ -1,0 +1,485 @@
+// The tcpcal console: three pages over the JSON API (fleet, tool, calibration report).
+// The API key is asked for once, kept in sessionStorage (this browser tab's session) and sent
+// as a Bearer header; it never appears in a URL. Every figure is in mm to 3 decimals.
+
+const KEY_STORE = "tcpcal.api_key";
+const OLD_DAYS = 180; // a last calibration older than this needs attention
+const main = document.getElementById("main");
+
+// ---- DOM ------------------------------------------------------------------------------------
+function h(tag, attrs = {}, ...children) {
+  const el = document.createElement(tag);
+  for (const [name, value] of Object.entries(attrs)) {
+    if (value === null || value === undefined || value === false) continue;
+    if (name.startsWith("on")) el.addEventListener(name.slice(2), value);
+    else if (name === "class") el.className = value;
+    else el.setAttribute(name, value === true ? "" : String(value));
+  }
+  for (const child of children.flat()) {
+    if (child === null || child === undefined || child === false) continue;
+    el.append(child instanceof Node ? child : document.createTextNode(String(child)));
+  }
+  return el;
+}
+
+function show(...nodes) {
+  main.replaceChildren(...nodes);
+}
+
+const mm = (v) => (v === null || v === undefined ? "—" : Number(v).toFixed(3));
+const vec = (v) => (v ? v.map(mm).join(", ") : "—");
+const when = (iso) => (iso ? new Date(iso).toLocaleString() : "—");
+
+function age(iso) {
+  if (!iso) return "—";
+  const days = (Date.now() - new Date(iso).getTime()) / 86400000;
+  if (days < 1) return `${Math.max(1, Math.round(days * 24))} h`;
+  if (days < 60) return `${Math.round(days)} d`;
+  return `${Math.round(days / 30.4)} mo`;
+}
+
+function badge(status) {
+  const label = { accepted: "accepted", out_of_tolerance: "out of tolerance" }[status] ?? status;
+  return h("span", { class: `badge ${status}` }, label);
+}
+
+// ---- API ------------------------------------------------------------------------------------
+class Problem extends Error {
+  constructor(status, doc) {
+    super(doc.detail || doc.title || `HTTP ${status}`);
+    this.status = status;
+    this.doc = doc;
+  }
+}
+
+async function api(path, { method = "GET", body, headers = {}, accept = "application/json" } = {}) {
+  const init = {
+    method,
+    headers: { Authorization: `Bearer ${sessionStorage.getItem(KEY_STORE)}`, Accept: accept, ...headers },
+  };
+  if (body !== undefined) {
+    init.body = JSON.stringify(body);
+    init.headers["Content-Type"] = "application/json";
+  }
+  const response = await fetch(path, init);
+  if (!response.ok) {
+    let doc = {};
+    try {
+      doc = await response.json();
+    } catch {
+      doc = { title: response.statusText };
+    }
+    if (response.status === 401) sessionStorage.removeItem(KEY_STORE);
+    throw new Problem(response.status, doc);
+  }
+  return response;
+}
+
+const json = async (path, options) => (await api(path, options)).json();
+
+async function everyPage(path) {
+  const items = [];
+  let cursor = null;
+  do {
+    const sep = path.includes("?") ? "&" : "?";
+    const page = await json(`${path}${sep}limit=500${cursor ? `&cursor=${cursor}` : ""}`);
+    items.push(...page.items);
+    cursor = page.next_cursor;
+  } while (cursor);
+  return items;
+}
+
+function problemBox(error) {
+  if (!(error instanceof Problem)) return h("div", { class: "problem", role: "alert" }, String(error));
+  const doc = error.doc;
+  const fields = (doc.errors || []).map((e) =>
+    h("li", {}, `${(e.loc || []).join(".")}: ${e.msg || e.message || ""}`),
+  );
+  return h(
+    "div",
+    { class: "problem", role: "alert" },
+    h("strong", {}, `${error.status} ${doc.title || ""}`),
+    h("p", {}, doc.detail || ""),
+    fields.length ? h("ul", {}, fields) : null,
+  );
+}
+
+async function download(path, accept, fallbackName) {
+  const response = await api(path, { accept });
+  const disposition = response.headers.get("Content-Disposition") || "";
+  const match = disposition.match(/filename="([^"]+)"/);
+  const url = URL.createObjectURL(await response.blob());
+  const link = h("a", { href: url, download: match ? match[1] : fallbackName });
+  document.body.append(link);
+  link.click();
+  link.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 1000);
+}
+
+async function copyText(text, button) {
+  try {
+    await navigator.clipboard.writeText(text);
+  } catch {
+    // Plain http on a cell network is not a secure context: fall back to a selection.
+    const area = h("textarea", { class: "offscreen" }, text);
+    document.body.append(area);
+    area.select();
+    document.execCommand("copy");
+    area.remove();
+  }
+  button.textContent = "Copied";
+  setTimeout(() => (button.textContent = "Copy"), 1500);
+}
+
+// ---- sign in --------------------------------------------------------------------------------
+function signIn(then, message) {
+  const form = h(
+    "form",
+    { id: "sign-in", class: "card narrow", autocomplete: "off" },
+    h("h1", {}, "Sign in"),
+    h("p", {}, "Paste an API key (read scope is enough to look; calibrate to activate). It is kept for this browser session only."),
+    h("label", { for: "api_key" }, "API key"),
+    h("input", { id: "api_key", name: "api_key", type: "password", required: true, autofocus: true }),
+    h("button", { type: "submit" }, "Sign in"),
+    message ? h("p", { class: "problem", role: "alert" }, message) : null,
+  );
+  form.addEventListener("submit", async (event) => {
+    event.preventDefault();
+    sessionStorage.setItem(KEY_STORE, form.elements.api_key.value.trim());
+    try {
+      await api("/v1/tools?limit=1");
+      then();
+    } catch (error) {
+      sessionStorage.removeItem(KEY_STORE);
+      signIn(then, error instanceof Problem && error.status === 401
+        ? "This key is not accepted: it is unknown or revoked. Ask an admin for a key (tcpcal keys create)."
+        : error.message);
+    }
+  });
+  show(form);
+  document.getElementById("sign-out").hidden = true;
+}
+
+// ---- fleet ----------------------------------------------------------------------------------
+function attention(tool) {
+  const reasons = [];
+  const last = tool.last_calibration;
+  if (tool.active_version === null) reasons.push("no active TCP");
+  if (last && last.status === "out_of_tolerance") reasons.push("last calibration out of tolerance");
+  if (tool.last_check && !tool.last_check.within_tolerance) reasons.push("check failed");
+  if (last && (Date.now() - new Date(last.created_at).getTime()) / 86400000 > OLD_DAYS)
+    reasons.push(`calibrated over ${OLD_DAYS} days ago`);
+  return reasons;
+}
+
+async function fleetPage() {
+  document.title = "Fleet · tcpcal";
+  const all = await everyPage("/v1/tools");
+  const cells = [...new Set(all.map((t) => t.cell).filter(Boolean))].sort();
+  const filters = h(
+    "form",
+    { class: "filters", role: "search" },
+    h("label", {}, "Search ", h("input", { name: "q", type: "search", placeholder: "tool or robot name" })),
+    h("label", {}, "Cell ", h("select", { name: "cell" }, h("option", { value: "" }, "all"), cells.map((c) => h("option", { value: c }, c)))),
+    h(
+      "label",
+      {},
+      "Last calibration ",
+      h("select", { name: "status" }, h("option", { value: "" }, "any"), h("option", { value: "accepted" }, "accepted"), h("option", { value: "out_of_tolerance" }, "out of tolerance")),
+    ),
+    h("label", {}, h("input", { name: "attention", type: "checkbox" }), " needs attention only"),
+    h("button", { type: "button", id: "csv" }, "Download CSV"),
+  );
+  const summary = h("p", { id: "fleet-summary" });
+  const body = h("tbody");
+  const table = h(
+    "table",
+    { id: "fleet" },
+    h("thead", {}, h("tr", {}, ["Tool", "Robot", "Cell", "Slot", "Active", "Last calibration", "rms mm", "Age", "Last check", "Attention"].map((c) => h("th", {}, c)))),
+    body,
+  );
+  show(h("h1", {}, "Fleet"), filters, summary, table);
+
+  const query = () => {
+    const params = new URLSearchParams();
+    for (const name of ["q", "cell", "status"]) {
+      const value = filters.elements[name].value.trim();
+      if (value) params.set(name, value);
+    }
+    return params.toString();
+  };
+  const render = (tools) => {
+    const onlyAttention = filters.elements.attention.checked;
+    const rows = tools
+      .map((t) => [t, attention(t)])
+      .filter(([, reasons]) => !onlyAttention || reasons.length);
+    const flagged = tools.filter((t) => attention(t).length).length;
+    summary.textContent = `${tools.length} tools, ${flagged} need attention`;
+    body.replaceChildren(...rows.map(([t, reasons]) => fleetRow(t, reasons)));
+  };
+  let pending = 0;
+  const refresh = async () => {
+    const mine = ++pending;
+    const q = query();
+    const tools = q ? await everyPage(`/v1/tools?${q}`) : all;
+    if (mine === pending) render(tools);
+  };
+  filters.addEventListener("input", () => refresh().catch((e) => summary.replaceChildren(problemBox(e))));
+  filters.addEventListener("submit", (e) => e.preventDefault());
+  filters.querySelector("#csv").addEventListener("click", () => {
+    const q = query();
+    download(`/v1/tools${q ? `?${q}` : ""}`, "text/csv", "tcpcal-fleet.csv").catch((e) => summary.replaceChildren(problemBox(e)));
+  });
+  render(all);
+}
+
+function fleetRow(tool, reasons) {
+  const last = tool.last_calibration;
+  const check = tool.last_check;
+  return h(
+    "tr",
+    { class: reasons.length ? "attention" : null, "data-tool-id": tool.id },
+    h("td", {}, h("a", { href: `/ui/tools/${tool.id}` }, tool.name)),
+    h("td", {}, tool.robot_name),
+    h("td", {}, tool.cell ?? "—"),
+    h("td", { class: "num" }, tool.slot ?? "—"),
+    h("td", { class: "num" }, tool.active_version ?? "none"),
+    h("td", {}, last ? h("a", { href: `/ui/calibrations/${last.id}` }, badge(last.status)) : "never"),
+    h("td", { class: "num" }, last ? mm(last.rms_mm) : "—"),
+    h("td", { class: "num", title: last ? when(last.created_at) : "" }, last ? age(last.created_at) : "—"),
+    h("td", {}, check ? h("span", { class: `badge ${check.within_tolerance ? "accepted" : "out_of_tolerance"}` }, `${check.within_tolerance ? "pass" : "fail"} ${mm(check.distance_mm)}`) : "—"),
+    h("td", { class: "reasons" }, reasons.join("; ")),
+  );
+}
+
+// ---- tool -----------------------------------------------------------------------------------
+async function toolPage(toolId) {
+  const toolResponse = await api(`/v1/tools/${toolId}`);
+  const etag = toolResponse.headers.get("ETag");
+  const tool = await toolResponse.json();
+  document.title = `${tool.name} · tcpcal`;
+  const [robot, versions, calibrations, checks, formats] = await Promise.all([
+    json(`/v1/robots/${tool.robot_id}`),
+    json(`/v1/tools/${toolId}/versions`),
+    everyPage(`/v1/tools/${toolId}/calibrations`),
+    everyPage(`/v1/tools/${toolId}/checks`),
+    json("/v1/formats"),
+  ]);
+  const sigmaOf = new Map(calibrations.filter((c) => c.version !== null).map((c) => [c.version, c.quality.tcp_sigma_mm]));
+  const message = h("div", { id: "message" });
+
+  const activate = async (version) => {
+    try {
+      await api(`/v1/tools/${toolId}/versions/${version}/activate`, { method: "POST", headers: { "If-Match": etag } });
+      route();
+    } catch (error) {
+      if (error instanceof Problem && error.status === 412) {
+        message.replaceChildren(
+          h("div", { class: "problem", role: "alert" },
+            h("strong", {}, "Not activated: this page is out of date."),
+            h("p", {}, "The tool changed since this page was loaded (another activation or a new calibration). Nothing was changed. Reload to see the current versions, then decide again."),
+            h("button", { type: "button", onclick: () => route() }, "Reload")),
+        );
+      } else message.replaceChildren(problemBox(error));
+    }
+  };
+
+  const versionRows = versions.items.slice().reverse().map((v) =>
+    h(
+      "tr",
+      { class: v.active ? "active" : null, "data-version": v.version },
+      h("td", { class: "num" }, v.version),
+      h("td", {}, badge(v.status)),
+      h("td", { class: "num" }, vec(v.tcp.position_mm)),
+      h("td", {}, v.source),
+      h("td", {}, v.note ?? ""),
+      h("td", {}, v.created_by),
+      h("td", {}, when(v.created_at)),
+      h("td", {}, v.calibration_id ? h("a", { href: `/ui/calibrations/${v.calibration_id}` }, "report") : "—"),
+      h("td", {}, v.active ? h("strong", {}, "active")
+        : h("button", { type: "button", class: "activate", onclick: () => activate(v.version) },
+          tool.active_version !== null && v.version < tool.active_version ? "Roll back to this" : "Activate")),
+    ),
+  );
+  const activationRows = versions.activations.slice().reverse().map((a) =>
+    h("tr", {}, h("td", {}, when(a.activated_at)), h("td", { class: "num" }, a.version), h("td", { class: "num" }, a.previous_version ?? "—"), h("td", {}, a.reason), h("td", {}, a.activated_by)),
+  );
+
+  const controllers = formats.controllers;
+  const controllerBox = h("div", { id: "controllers", class: "grid" });
+  show(
+    h("h1", {}, `${tool.name} `, h("span", { class: "muted" }, `on ${robot.name}`)),
+    h("p", {}, `Cell ${robot.cell ?? "—"} · slot ${tool.slot ?? "—"} · active version ${tool.active_version ?? "none"} · tolerance rms ${mm(tool.tolerance.max_rms_mm)} mm, residual ${mm(tool.tolerance.max_residual_mm)} mm, check ${mm(tool.tolerance.check_mm)} mm`),
+    message,
+    h("section", {}, h("h2", {}, "Active TCP for the controllers"), tool.active_version === null ? h("p", {}, "No active TCP: calibrate or activate a version.") : controllerBox),
+    h("section", {}, h("h2", {}, "TCP over the versions"), h("div", { id: "plot-tcp", class: "plot" })),
+    h("section", {}, h("h2", {}, "Checks over time"), checks.length ? h("div", { id: "plot-checks", class: "plot" }) : h("p", {}, "No checks recorded yet.")),
+    h("section", {}, h("h2", {}, "Versions"),
+      h("table", { id: "versions" }, h("thead", {}, h("tr", {}, ["Version", "Status", "TCP x, y, z mm", "Source", "Why", "By", "When", "", ""].map((c) => h("th", {}, c)))), h("tbody", {}, versionRows))),
+    h("section", {}, h("h2", {}, "Activation history"),
+      h("table", { id: "activations" }, h("thead", {}, h("tr", {}, ["When", "Version", "Previous", "Why", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, activationRows))),
+  );
+
+  plotTcp(versions.items, sigmaOf);
+  if (checks.length) plotChecks(checks, tool.tolerance.check_mm);
+  if (tool.active_version !== null) await fillControllers(toolId, controllers, controllerBox);
+}
+
+async function fillControllers(toolId, controllers, box) {
+  const cards = await Promise.all(controllers.map(async (fmt) => {
+    const name = fmt;
+    let doc;
+    try {
+      doc = await json(`/v1/tools/${toolId}/tcp?format=${name}`);
+    } catch (error) {
+      if (!(error instanceof Problem)) throw error;
+      return h("div", { class: "card", "data-format": name }, h("h3", {}, name), h("p", { class: "muted" }, error.message));
+    }
+    const text = doc.controller.text;
+    const copy = h("button", { type: "button", class: "copy" }, "Copy");
+    copy.addEventListener("click", () => copyText(text, copy));
+    const save = h("button", { type: "button", class: "download" }, "Download");
+    save.addEventListener("click", () => download(`/v1/tools/${toolId}/tcp?format=${name}`, "text/plain", `${name}.txt`));
+    return h("div", { class: "card", "data-format": name }, h("h3", {}, name), h("pre", {}, text), h("div", { class: "actions" }, copy, save));
+  }));
+  box.replaceChildren(...cards);
+}
+
+function plotTcp(versions, sigmaOf) {
+  const axes = ["x", "y", "z"];
+  const traces = axes.map((axis, i) => ({
+    type: "scatter",
+    mode: "lines+markers",
+    name: `${axis} mm`,
+    x: versions.map((v) => v.created_at),
+    y: versions.map((v) => v.tcp.position_mm[i]),
+    text: versions.map((v) => `version ${v.version}`),
+    error_y: { type: "data", array: versions.map((v) => sigmaOf.get(v.version)?.[i] ?? 0), visible: true },
+    xaxis: "x",
+    yaxis: `y${i === 0 ? "" : i + 1}`,
+  }));
+  Plotly.newPlot("plot-tcp", traces, {
+    grid: { rows: 3, columns: 1, shared_xaxes: true },
+    height: 480,
+    margin: { t: 10, r: 10, b: 40, l: 70 },
+    yaxis: { title: { text: "x mm" }, tickformat: ".3f" },
+    yaxis2: { title: { text: "y mm" }, tickformat: ".3f" },
+    yaxis3: { title: { text: "z mm" }, tickformat: ".3f" },
+    showlegend: false,
+  }, { displaylogo: false, responsive: true });
+}
+
+function plotChecks(checks, limit) {
+  const ordered = checks.slice().reverse();
+  Plotly.newPlot("plot-checks", [
+    { type: "scatter", mode: "lines+markers", name: "distance mm", x: ordered.map((c) => c.checked_at), y: ordered.map((c) => c.distance_mm),
+      marker: { color: ordered.map((c) => (c.within_tolerance ? "#2e7d32" : "#c62828")), size: 10 } },
+    { type: "scatter", mode: "lines", name: "check_mm", x: [ordered[0].checked_at, ordered.at(-1).checked_at], y: [limit, limit], line: { dash: "dash", color: "#c62828" } },
+  ], { height: 280, margin: { t: 10, r: 10, b: 40, l: 70 }, yaxis: { title: { text: "distance mm" }, rangemode: "tozero" } }, { displaylogo: false, responsive: true });
+}
+
+// ---- calibration report ---------------------------------------------------------------------
+async function reportPage(calibrationId) {
+  const cal = await json(`/v1/calibrations/${calibrationId}`);
+  const tool = await json(`/v1/tools/${cal.tool_id}`);
+  document.title = `Report ${tool.name} v${cal.version ?? "-"} · tcpcal`;
+  const q = cal.quality;
+  const geometry = cal.geometry;
+  const row = (label, value, field) => h("tr", {}, h("th", {}, label), h("td", { class: "num", "data-field": field }, value));
+  const figures = h(
+    "table",
+    { id: "figures", class: "figures" },
+    h("tbody", {},
+      row("TCP position x, y, z (mm)", vec(cal.tcp.position_mm), "tcp_mm"),
+      row("TCP orientation (w, x, y, z)", cal.tcp.quaternion.map((v) => v.toFixed(6)).join(", "), "quaternion"),
+      row("rms residual (mm)", mm(q.rms_mm), "rms_mm"),
+      row("max residual (mm)", mm(q.max_mm), "max_mm"),
+      row("1-sigma x, y, z (mm)", vec(q.tcp_sigma_mm), "tcp_sigma_mm"),
+      row("95 % ellipsoid semi-axes (mm)", geometry?.ellipsoid95_semi_axes_mm ? vec(geometry.ellipsoid95_semi_axes_mm) : "—", "ellipsoid95"),
+      row("touched point x, y, z (mm)", vec(cal.reference_point_mm), "point_mm"),
+      row("touches", q.n_poses, "n_poses"),
+      row("outliers (touch numbers)", q.outliers.length ? q.outliers.map((i) => i + 1).join(", ") : "none", "outliers"),
+      row("orientation spread (deg)", q.orientation_spread_deg === null ? "—" : q.orientation_spread_deg.toFixed(1), "spread"),
+      row("change from active (mm)", mm(cal.change_from_active_mm), "change_mm"),
+      row("method", `${cal.method}${cal.algorithm ? ` (${cal.algorithm})` : ""}`, "method"),
+      row("version", `${cal.version ?? "—"}${cal.active ? " (active)" : ""}`, "version"),
+      row("by, when", `${cal.created_by}, ${when(cal.created_at)}`, "created"),
+    ),
+  );
+  show(
+    h("div", { class: "report-head" },
+      h("h1", {}, `Calibration report: ${tool.name}`),
+      h("button", { type: "button", class: "no-print", onclick: () => window.print() }, "Print")),
+    h("p", { class: "muted" }, h("a", { href: `/ui/tools/${tool.id}` }, `${tool.name}`), ` · calibration ${cal.id}`),
+    h("p", { id: "summary", class: `summary ${cal.status}` }, cal.summary),
+    cal.warnings.length ? h("section", {}, h("h2", {}, "Warnings"), h("ul", { id: "warnings" }, cal.warnings.map((w) => h("li", {}, w)))) : null,
+    h("section", {}, h("h2", {}, "Figures"), figures),
+    q.residuals_mm.length ? h("section", { class: "plot-section" }, h("h2", {}, "Residual per touch"), h("div", { id: "plot-residuals", class: "plot" })) : null,
+    geometry ? h("section", { class: "plot-section" }, h("h2", {}, "Touches in space (base frame, mm)"), h("div", { id: "plot-3d", class: "plot tall" })) : null,
+    h("section", {}, h("h2", {}, "Request as received"), h("pre", { id: "raw-request", class: "raw" }, JSON.stringify(cal.request, null, 2))),
+  );
+  if (q.residuals_mm.length) plotResiduals(q, tool.tolerance);
+  if (geometry) plot3d(cal, geometry);
+}
+
+function plotResiduals(q, tolerance) {
+  const outliers = new Set(q.outliers);
+  const n = q.residuals_mm.length;
+  const touch = q.residuals_mm.map((_, i) => i + 1);
+  Plotly.newPlot("plot-residuals", [
+    { type: "bar", name: "residual mm", x: touch, y: q.residuals_mm,
+      marker: { color: q.residuals_mm.map((_, i) => (outliers.has(i) ? "#c62828" : "#1565c0")) },
+      text: q.residuals_mm.map((v, i) => (outliers.has(i) ? `${mm(v)} outlier` : mm(v))), textposition: "outside",
+      hovertemplate: "touch %{x}: %{y:.3f} mm<extra></extra>" },
+    { type: "scatter", mode: "lines", name: "max_residual_mm", x: [0.5, n + 0.5], y: [tolerance.max_residual_mm, tolerance.max_residual_mm], line: { dash: "dash", color: "#c62828" } },
+  ], { height: 300, margin: { t: 20, r: 10, b: 40, l: 70 }, xaxis: { title: { text: "touch" }, tickmode: "linear", dtick: 1 }, yaxis: { title: { text: "mm" }, rangemode: "tozero" }, showlegend: false }, { displaylogo: false, responsive: true, staticPlot: false });
+}
+
+function plot3d(cal, geometry) {
+  const outliers = new Set(cal.quality.outliers);
+  const flanges = geometry.flange_positions_mm;
+  const tips = geometry.tip_positions_mm;
+  const label = flanges.map((_, i) => `touch ${i + 1}${outliers.has(i) ? " (outlier)" : ""}`);
+  const col = (points, i) => points.map((p) => p[i]);
+  const shafts = { x: [], y: [], z: [] };
+  flanges.forEach((f, i) => {
+    for (const [k, axis] of ["x", "y", "z"].entries()) shafts[axis].push(f[k], tips[i][k], null);
+  });
+  const traces = [
+    { type: "scatter3d", mode: "lines", name: "tool (flange to TCP)", ...shafts, line: { color: "#90a4ae", width: 3 }, hoverinfo: "skip" },
+    { type: "scatter3d", mode: "markers+text", name: "flange", x: col(flanges, 0), y: col(flanges, 1), z: col(flanges, 2), text: flanges.map((_, i) => String(i + 1)),
+      marker: { size: 4, color: flanges.map((_, i) => (outliers.has(i) ? "#c62828" : "#1565c0")) }, hovertext: label },
+    { type: "scatter3d", mode: "markers", name: "TCP at each touch", x: col(tips, 0), y: col(tips, 1), z: col(tips, 2),
+      marker: { size: 3, color: tips.map((_, i) => (outliers.has(i) ? "#c62828" : "#2e7d32")) }, hovertext: label },
+  ];
+  if (cal.reference_point_mm) {
+    const [x, y, z] = cal.reference_point_mm;
+    traces.push({ type: "scatter3d", mode: "markers", name: "touched point", x: [x], y: [y], z: [z], marker: { size: 6, symbol: "diamond", color: "#ff8f00" } });
+  }
+  Plotly.newPlot("plot-3d", traces, { height: 520, margin: { t: 0, r: 0, b: 0, l: 0 }, scene: { aspectmode: "data" }, legend: { x: 0, y: 1 } }, { displaylogo: false, responsive: true });
+}
+
+// ---- routing --------------------------------------------------------------------------------
+async function route() {
+  if (!sessionStorage.getItem(KEY_STORE)) return signIn(route);
+  document.getElementById("sign-out").hidden = false;
+  const path = window.location.pathname;
+  const tool = path.match(/^\/ui\/tools\/([^/]+)$/);
+  const report = path.match(/^\/ui\/calibrations\/([^/]+)$/);
+  try {
+    if (tool) await toolPage(decodeURIComponent(tool[1]));
+    else if (report) await reportPage(decodeURIComponent(report[1]));
+    else await fleetPage();
+  } catch (error) {
+    if (error instanceof Problem && error.status === 401) return signIn(route, "Your key is no longer accepted; sign in again.");
+    show(h("h1", {}, "Could not load this page"), problemBox(error), h("p", {}, h("a", { href: "/ui/" }, "Back to the fleet")));
+  }
+}
+
+document.getElementById("sign-out").addEventListener("click", () => {
+  sessionStorage.removeItem(KEY_STORE);
+  signIn(route);
+});
+
+// Plotly is a deferred classic script; module scripts run after it, so it is ready here.
+route();
