@@ -110,6 +110,7 @@ INPUT_KINDS: dict[str, str] = {
     "invalid-cursor": "Invalid cursor",
     "unsupported": "Not supported",
     "convention-mismatch": "Convention mismatch",
+    "target-unreachable": "Target out of reach",
 }
 
 

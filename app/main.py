@@ -24,6 +24,7 @@ from app.api import (
     methods,
     references,
     robots,
+    sessions,
     solve,
     tools,
     versions,
@@ -94,6 +95,7 @@ def create_app() -> FastAPI:
         methods,
         formats,
         fleet,
+        sessions,
         docs,
         console,
     )

@@ -296,3 +296,30 @@ class AuditEvent(Base):
     robot_id: Mapped[str | None] = mapped_column(String(36))
     tool_id: Mapped[str | None] = mapped_column(String(36), index=True)
     details: Mapped[JsonObject | None] = mapped_column(JSON)
+
+
+class GuidedSession(Base):
+    """A guided calibration in progress: its settings and the touches made so far.
+
+    Everything a client sees (estimate, outliers, next pose, done) is computed from these
+    rows, so any worker or instance continues a session where another left it.
+    """
+
+    __tablename__ = "guided_sessions"
+    __table_args__ = (Index("ix_guided_sessions_tool_created", "tool_id", "created_at", "id"),)
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
+    method: Mapped[str] = mapped_column(String(40))
+    format: Mapped[str] = mapped_column(String(40))
+    units: Mapped[JsonObject | None] = mapped_column(JSON)
+    target_sigma_mm: Mapped[float | None] = mapped_column(Float)
+    max_tilt_deg: Mapped[float] = mapped_column(Float)
+    max_spin_deg: Mapped[float] = mapped_column(Float)
+    options: Mapped[JsonObject] = mapped_column(JSON)
+    poses: Mapped[JsonArray] = mapped_column(JSON)
+    status: Mapped[str] = mapped_column(String(20), default="open")
+    calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by: Mapped[str] = mapped_column(String(200))

@@ -54,6 +54,7 @@ def database(
 
 
 TABLES = (
+    "guided_sessions",
     "audit_events",
     "idempotency_records",
     "activations",

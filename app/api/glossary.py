@@ -155,4 +155,10 @@ GLOSSARY: dict[str, str] = {
     "MethodInfo.name": "the method's name, as `method` in a request",
     "MethodInfo.description": "what the method computes from what",
     "MethodInfo.options": "each option with its default, whether required, and its schema",
+    "Session.estimate": "the TCP from the touches so far (null below 4 touches): position, "
+    "1-sigma per axis and rms residual, in mm",
+    "Session.done": "true when the TCP's largest 1-sigma is at or below target_sigma_mm, the "
+    "touches agree within their noise and no miss is left: finish now",
+    "Session.target_sigma_mm": "the 1-sigma (largest axis, mm) at which the session is done",
+    "Session.messages": "what the operator should know or do next, in sentences",
 }

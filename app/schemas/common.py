@@ -111,6 +111,22 @@ class Page(BaseModel, Generic[T]):
     next_cursor: str | None = None
 
 
+def not_both(*pairs: tuple[str, str]) -> JsonObject:
+    """`json_schema_extra` for a model where each pair of fields excludes each other (either,
+    or neither, but never both given non-null), so the spec says what the validator enforces."""
+    return {
+        "allOf": [
+            {
+                "not": {
+                    "required": [a, b],
+                    "properties": {a: {"not": {"type": "null"}}, b: {"not": {"type": "null"}}},
+                }
+            }
+            for a, b in pairs
+        ]
+    }
+
+
 def one_of(*alternatives: tuple[tuple[str, ...], tuple[str, ...]]) -> JsonObject:
     """`json_schema_extra` for a model whose fields come in exclusive groups: each alternative
     is (fields that must be given, fields that must be absent or null). The spec then says

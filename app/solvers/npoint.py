@@ -250,6 +250,11 @@ def _uncertainty(Ru: FloatArray, resu: FloatArray, fit: _Fit, noise: _Noise) -> 
     return _Spread(cov6=cov6, s_p=s_p, nu=nu, dof=dof, ellipsoid_scale=scale)
 
 
+#: Part of the warning given when the residuals contradict a configured touch noise (a guided
+#: session is not done while it stands: its sigma rests on that noise).
+NOISE_CONTRADICTED = "are larger than the configured touch noise"
+
+
 def _noise_warnings(
     resu: FloatArray, Ru: FloatArray, t: FloatArray, spread: _Spread, noise: _Noise
 ) -> list[str]:
@@ -262,9 +267,8 @@ def _noise_warnings(
         if sse > float(chi2.ppf(1.0 - 1e-3, 3 * m - 6)):
             rms = float(np.sqrt(np.mean(np.sum(resu**2, axis=1))))
             warnings.append(
-                f"the residuals (rms {rms:.3f} mm) are larger "
-                f"than the configured touch noise of {noise.touch_mm:g} mm explains: the "
-                "reported uncertainty is probably optimistic"
+                f"the residuals (rms {rms:.3f} mm) {NOISE_CONTRADICTED} of "
+                f"{noise.touch_mm:g} mm explains: the reported uncertainty is probably optimistic"
             )
     elif spread.nu is not None and spread.nu < FEW_DOF:
         warnings.append(

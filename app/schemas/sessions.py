@@ -1,0 +1,138 @@
+"""Planning a touch set (POST /v1/plan) and guided sessions (calibrate touch by touch)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from app.methods.base import Activate
+from app.methods.npoint import NPointOptions
+from app.schemas.common import (
+    FiniteFloat,
+    LongText,
+    Pose,
+    PoseFormat,
+    PositiveFloat,
+    ResourceId,
+    StrictModel,
+    Timestamp,
+    TouchNoise,
+    Units,
+    Vec3,
+    json_integer,
+    not_both,
+)
+from app.solvers.planning import MAX_TOUCHES, MIN_TOUCHES
+
+TiltDeg = Annotated[
+    float,
+    Field(ge=0.0, le=90.0, allow_inf_nan=False, strict=True, description="max tilt (deg)"),
+]
+SpinDeg = Annotated[
+    float,
+    Field(ge=0.0, le=180.0, allow_inf_nan=False, strict=True, description="max |spin| (deg)"),
+]
+TouchCount = Annotated[int, Field(ge=MIN_TOUCHES, le=MAX_TOUCHES), json_integer]
+DEFAULT_PLAN_TOUCHES = 6
+
+
+class PlanRequest(StrictModel):
+    model_config = ConfigDict(
+        json_schema_extra=not_both(("n_poses", "target_sigma_mm"), ("tcp_mm", "tool_id"))
+    )
+
+    format: PoseFormat
+    units: Units | None = None
+    start: Pose = Field(
+        description="one flange pose touching the point; its tool axis is the cone's centre"
+    )
+    tcp_mm: Vec3 | None = Field(
+        default=None, description="approximate TCP (default: the tool's active TCP, else 0 0 150)"
+    )
+    tool_id: ResourceId | None = None
+    touch_noise_mm: TouchNoise = 0.05
+    max_tilt_deg: TiltDeg = 40.0
+    max_spin_deg: SpinDeg = 90.0
+    n_poses: TouchCount | None = Field(
+        default=None, description=f"how many touches (default {DEFAULT_PLAN_TOUCHES})"
+    )
+    target_sigma_mm: PositiveFloat | None = Field(
+        default=None,
+        description="pick the fewest touches whose predicted_sigma_mm reaches this (mm)",
+    )
+
+    @model_validator(mode="after")
+    def _one_of_each(self) -> PlanRequest:
+        if self.n_poses is not None and self.target_sigma_mm is not None:
+            raise ValueError("give n_poses or target_sigma_mm, not both")
+        if self.tcp_mm is not None and self.tool_id is not None:
+            raise ValueError("give tcp_mm or tool_id (its active TCP), not both")
+        return self
+
+
+class PlannedTouch(BaseModel):
+    tilt_deg: float = Field(description="angle of the tool axis from the start's")
+    azimuth_deg: float = Field(description="direction of the tilt in the start's flange x-y")
+    spin_deg: float = Field(description="rotation about the tool axis")
+
+
+class Plan(BaseModel):
+    n_poses: int
+    poses: list[Pose]
+    predicted_tcp_sigma_mm: list[float] = Field(description="1-sigma per flange axis (mm)")
+    predicted_sigma_mm: float = Field(description="sqrt(sx^2 + sy^2 + sz^2): RMS TCP error")
+    criterion: Literal["A-optimal"] = Field(
+        default="A-optimal", description="the touches minimise the trace of the TCP covariance"
+    )
+    touches: list[PlannedTouch] = Field(description="each pose as tilt, azimuth, spin")
+
+
+class SessionCreate(StrictModel):
+    method: Literal["xyz_npoint"]
+    format: PoseFormat
+    units: Units | None = None
+    target_sigma_mm: PositiveFloat | None = Field(
+        default=None, description="done at this 1-sigma, largest axis (default max_rms_mm / 2)"
+    )
+    max_tilt_deg: TiltDeg = 40.0
+    max_spin_deg: SpinDeg = 90.0
+    options: NPointOptions = Field(default_factory=NPointOptions)
+
+
+class TouchAdd(StrictModel):
+    pose: Pose
+
+
+class SessionFinish(StrictModel):
+    activate: Activate = "auto"
+    note: LongText | None = None
+
+
+class Estimate(BaseModel):
+    tcp_mm: list[float]
+    tcp_sigma_mm: list[float]
+    rms_mm: float
+
+
+class Session(BaseModel):
+    id: str
+    tool_id: str
+    status: Literal["open", "finished"]
+    method: str
+    format: str
+    units: Units | None
+    n_poses: int
+    poses: list[Pose] = Field(description="the touches kept so far, in order (index from 0)")
+    estimate: Estimate | None
+    outliers: list[int] = Field(description="indices of touches the others say were missed")
+    next_pose: list[FiniteFloat] | list[list[FiniteFloat]] | None = Field(
+        description="the touch that shrinks the largest remaining uncertainty most, in the "
+        "session's format; null before the first touch, when done or finished"
+    )
+    done: bool
+    target_sigma_mm: float
+    messages: list[str]
+    calibration_id: str | None
+    created_at: Timestamp
+    updated_at: Timestamp
