@@ -42,6 +42,7 @@ openapi: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python -m bench.accuracy
 	$(BIN)/python -m bench.conventions
+	$(BIN)/python -m bench.planner
 	$(BIN)/python -m bench.solver_speed
 	$(BIN)/python -m bench.api_load
 

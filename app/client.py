@@ -37,7 +37,7 @@ err = Console(stderr=True)
 
 def register(cli: typer.Typer) -> None:
     """Add the client's commands to the `tcpcal` command."""
-    for command in (tools, calibrate, history, activate, rollback, check, export):
+    for command in (tools, plan, calibrate, history, activate, rollback, check, export):
         cli.command(rich_help_panel="Client (talks to a server)")(command)
 
 
@@ -159,16 +159,33 @@ def tools(
 
 def calibrate(
     tool_id: Annotated[str, typer.Argument(help="the tool's id (tcpcal tools)")],
-    poses_file: Annotated[Path, typer.Argument(help="CSV or JSON file of flange poses")],
-    fmt: Annotated[str, typer.Option("--format", help="pose format, e.g. kuka_abc")],
+    poses_file: Annotated[
+        Path | None, typer.Argument(help="CSV or JSON file of flange poses (not with --guided)")
+    ] = None,
+    fmt: Annotated[str, typer.Option("--format", help="pose format, e.g. kuka_abc")] = "",
     length: Annotated[str | None, typer.Option(help="mm | m (default: the format's)")] = None,
     angle: Annotated[str | None, typer.Option(help="deg | rad (default: the format's)")] = None,
     method: Annotated[str, typer.Option(help="calibration method")] = "xyz_npoint",
     activate: Annotated[str, typer.Option(help="auto | always | never")] = "auto",
     note: Annotated[str | None, typer.Option(help="why, for the tool's history")] = None,
+    guided: Annotated[
+        bool, typer.Option(help="touch by touch: read each pose from stdin, show the next")
+    ] = False,
+    target: Annotated[float | None, typer.Option(help="--guided: done at this sigma, mm")] = None,
+    session: Annotated[str | None, typer.Option(help="--guided: continue this session")] = None,
 ) -> None:
-    """Calibrate a tool from a pendant's pose export; prints the verdict sentence."""
+    """Calibrate a tool from a pendant's pose export, or --guided touch by touch (the server
+    says which orientation to touch next and when the TCP is known well enough); prints the
+    verdict sentence."""
     units = _units(length, angle)
+    if not fmt:
+        _fail(EXIT_BAD_USE, "give --format, the pendant's pose format (e.g. kuka_abc)")
+    if guided:
+        cal = guided_session(tool_id, fmt, units, target, session, activate, note)
+        _print_calibration(cal)
+        return
+    if poses_file is None:
+        _fail(EXIT_BAD_USE, "give a poses file, or --guided to touch one pose at a time")
     poses = read_poses(poses_file, fmt, units)
     body: dict[str, Any] = {"method": method, "format": fmt, "poses": poses, "activate": activate}
     if units:
@@ -179,6 +196,10 @@ def calibrate(
                   console=err, transient=True) as progress:  # fmt: skip
         progress.add_task(f"sending {len(poses)} poses and solving", total=None)
         cal = _send("POST", f"/v1/tools/{tool_id}/calibrations", json=body).json()
+    _print_calibration(cal)
+
+
+def _print_calibration(cal: dict[str, Any]) -> None:
     table = Table("version", "status", "active", "x mm", "y mm", "z mm", "rms mm", "touches")
     x, y, z = cal["tcp"]["position_mm"]
     rms = cal["quality"].get("rms_mm")
@@ -193,6 +214,150 @@ def calibrate(
         err.print(f"[yellow]warning[/]: {warning}", highlight=False)
     if cal["status"] != "accepted":
         raise typer.Exit(EXIT_OUT_OF_TOLERANCE)
+
+
+def guided_session(
+    tool_id: str,
+    fmt: str,
+    units: dict[str, str],
+    target: float | None,
+    session_id: str | None,
+    activate: str,
+    note: str | None,
+) -> dict[str, Any]:
+    """Touch by touch: each line on stdin is one pose as the pendant shows it; `d N` deletes
+    touch N (from 1), `f` finishes, `q` leaves the session open to continue later."""
+    if session_id is None:
+        body: dict[str, Any] = {"method": "xyz_npoint", "format": fmt}
+        if units:
+            body["units"] = units
+        if target is not None:
+            body["target_sigma_mm"] = target
+        state = _send("POST", f"/v1/tools/{tool_id}/sessions", json=body).json()
+    else:
+        state = _send("GET", f"/v1/sessions/{session_id}").json()
+    sid = state["id"]
+    err.print(
+        f"session {sid}: type each touch's pose ({fmt}) as shown on the pendant, one line of "
+        "numbers; 'd N' deletes touch N, 'f' finishes, 'q' leaves it open "
+        f"(continue with --session {sid})",
+        highlight=False,
+    )
+    _print_session(state)
+    for line in _input_lines():
+        command = line.strip().lower()
+        if not command or command.startswith("#"):
+            continue
+        if command == "q":
+            err.print(f"left open: tcpcal calibrate {tool_id} --guided --session {sid}")
+            raise typer.Exit(0)
+        if command == "f":
+            break
+        if command.startswith("d "):
+            index = int(command.split()[1]) - 1
+            state = _send("DELETE", f"/v1/sessions/{sid}/poses/{index}").json()
+        else:
+            pose = [float(v) for v in line.replace(",", " ").split()]
+            state = _send_touch(sid, pose, state)
+        _print_session(state)
+        if state["done"]:
+            err.print("[green]done[/]: type 'f' to store it (or touch more)")
+    finish: dict[str, Any] = {"activate": activate}
+    if note:
+        finish["note"] = note
+    result: dict[str, Any] = _send("POST", f"/v1/sessions/{sid}/finish", json=finish).json()
+    return result
+
+
+def _input_lines() -> Any:
+    import sys
+
+    yield from sys.stdin
+
+
+def _send_touch(sid: str, pose: list[float], state: dict[str, Any]) -> dict[str, Any]:
+    """Post one touch; a refused touch is explained and the session goes on as it was."""
+    try:
+        with _http() as http:
+            response = http.post(f"/v1/sessions/{sid}/poses", json={"pose": pose})
+    except httpx.HTTPError as exc:
+        _fail(EXIT_UNREACHABLE, f"could not reach the server: {exc}")
+    if response.status_code == 422:
+        problem = response.json()
+        err.print(f"[red]touch refused[/]: {problem.get('detail')}", highlight=False)
+        return state
+    if response.status_code >= 400:
+        _refused(response)
+    new_state: dict[str, Any] = response.json()
+    return new_state
+
+
+def _print_session(state: dict[str, Any]) -> None:
+    estimate = state["estimate"]
+    if estimate:
+        x, y, z = estimate["tcp_mm"]
+        sigma = max(estimate["tcp_sigma_mm"])
+        out.print(
+            f"{state['n_poses']} touches: TCP {x:.3f} {y:.3f} {z:.3f} mm, 1-sigma {sigma:.3f} mm "
+            f"(target {state['target_sigma_mm']:g}), rms {estimate['rms_mm']:.3f} mm",
+            highlight=False,
+        )
+    for message in state["messages"]:
+        out.print(f"  {message}", highlight=False)
+    if state["next_pose"] is not None:
+        numbers = " ".join(f"{v:.3f}" for v in _flatten(state["next_pose"]))
+        out.print(f"next: {numbers}", highlight=False)
+
+
+def _flatten(pose: list[Any]) -> list[float]:
+    return [float(v) for row in pose for v in (row if isinstance(row, list) else [row])]
+
+
+def plan(
+    start: Annotated[str, typer.Option(help="the start pose touching the point, as numbers")],
+    fmt: Annotated[str, typer.Option("--format", help="pose format, e.g. kuka_abc")],
+    tool: Annotated[str | None, typer.Option(help="use this tool's active TCP")] = None,
+    tcp: Annotated[str | None, typer.Option(help="approximate TCP 'x y z' mm")] = None,
+    noise: Annotated[float, typer.Option(help="touch noise, mm 1-sigma")] = 0.05,
+    tilt: Annotated[float, typer.Option(help="max tilt from the start's tool axis, deg")] = 40,
+    spin: Annotated[float, typer.Option(help="max spin about the tool axis, deg")] = 90,
+    n: Annotated[int | None, typer.Option(help="how many touches")] = None,
+    target: Annotated[float | None, typer.Option(help="fewest touches reaching this, mm")] = None,
+    csv_file: Annotated[Path | None, typer.Option("--csv", help="write the poses here")] = None,
+) -> None:
+    """Which touches to make before the robot moves: poses within the reachable cone that
+    determine the TCP best, with the predicted uncertainty."""
+    body: dict[str, Any] = {
+        "format": fmt,
+        "start": [float(v) for v in start.replace(",", " ").split()],
+        "touch_noise_mm": noise,
+        "max_tilt_deg": tilt,
+        "max_spin_deg": spin,
+    }
+    if tool:
+        body["tool_id"] = tool
+    if tcp:
+        body["tcp_mm"] = [float(v) for v in tcp.replace(",", " ").split()]
+    if n is not None:
+        body["n_poses"] = n
+    if target is not None:
+        body["target_sigma_mm"] = target
+    result = _send("POST", "/v1/plan", json=body).json()
+    table = Table("touch", *[f"v{i + 1}" for i in range(len(_flatten(result["poses"][0])))])
+    rows = [_flatten(p) for p in result["poses"]]
+    for i, row in enumerate(rows, start=1):
+        table.add_row(str(i), *[f"{v:.3f}" for v in row])
+    out.print(table)
+    sx, sy, sz = result["predicted_tcp_sigma_mm"]
+    out.print(
+        f"{result['n_poses']} touches: predicted TCP 1-sigma {sx:.4f} {sy:.4f} {sz:.4f} mm, "
+        f"RMS error {result['predicted_sigma_mm']:.4f} mm",
+        highlight=False,
+    )
+    if csv_file is not None:
+        with csv_file.open("w", newline="") as fh:
+            csv.writer(fh).writerows(rows)
+        out.print(f"wrote {csv_file}")
 
 
 def history(tool_id: Annotated[str, typer.Argument(help="the tool's id")]) -> None:

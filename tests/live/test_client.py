@@ -7,6 +7,7 @@ import csv
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -124,3 +125,52 @@ def test_client_calibrates_lists_rolls_back_exports_and_checks(
     assert "within tolerance" in checked.output
 
     assert run.invoke(cli, ["history", "no-such-tool"]).exit_code == 5
+
+
+def test_client_plans_then_calibrates_touch_by_touch(
+    server: LiveServer, run: CliRunner, tmp_path: Path
+) -> None:
+    from scipy.spatial.transform import Rotation
+
+    from app.kinematics.poses import pose_from_format
+
+    with server.client() as http:
+        robot = http.post("/v1/robots", json={"name": "kr16-guided"}).json()
+        tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "probe"}).json()
+    tcp, point = np.array([2.0, -1.0, 160.0]), np.array([780.0, 30.0, 240.0])
+    down = Rotation.from_euler("x", 180.0, degrees=True)
+    start = pose_to_format("kuka_abc", down.as_matrix(), point - down.apply(tcp))
+    planned_csv = tmp_path / "plan.csv"
+    planned = run.invoke(
+        cli,
+        ["plan", "--format", "kuka_abc", "--start", " ".join(f"{v}" for v in start),
+         "--tcp", "2 -1 160", "--noise", "0.02", "--n", "8", "--csv", str(planned_csv)],
+    )  # fmt: skip
+    assert planned.exit_code == 0, planned.output
+    assert "8 touches: predicted TCP 1-sigma" in planned.output
+    rows = list(csv.reader(planned_csv.open()))
+    assert len(rows) == 8
+
+    # The operator touches each planned orientation (the real tip on the point, 0.02 mm noise)
+    # and types what the pendant shows, one line per touch, then finishes.
+    rng = np.random.default_rng(5)
+    lines = []
+    for row in rows:
+        R, _ = pose_from_format("kuka_abc", [float(v) for v in row])
+        f = point - np.asarray(R) @ tcp + rng.normal(0.0, 0.02, 3)
+        lines.append(" ".join(f"{v:.4f}" for v in pose_to_format("kuka_abc", R, f)))
+    guided = run.invoke(
+        cli,
+        ["calibrate", tool["id"], "--guided", "--format", "kuka_abc", "--target", "0.05",
+         "--note", "guided"],
+        input="\n".join([*lines, "f"]) + "\n",
+    )  # fmt: skip
+    assert guided.exit_code == 0, guided.output
+    assert "next: " in guided.output
+    assert "4 touches: TCP" in guided.output
+    assert "done" in guided.output
+    assert "accepted: TCP (" in guided.output
+    with server.client() as http:
+        stored = http.get(f"/v1/tools/{tool['id']}/calibrations").json()["items"][0]
+    assert stored["quality"]["n_poses"] == 8
+    assert np.allclose(stored["tcp"]["position_mm"], tcp, atol=0.1)
