@@ -99,7 +99,8 @@ def markdown(rows: list[dict[str, float]], sessions: int) -> str:
         "simulated sessions per design (robust N-point solver, noise configured).",
         "",
         "| N | tilt | spin | predicted planned (mm) | median random (mm) | planned / random "
-        "| achieved planned (mm) | achieved / predicted | same for one random set | plan time (s) |",
+        "| achieved planned (mm) | achieved / predicted | same for one random set "
+        "| plan time (s) |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
