@@ -59,9 +59,18 @@ def _bearer(header: str | None) -> str:
 
 def authenticate(session: Session, header: str | None, *, required: str) -> Principal:
     """The caller behind an Authorization header, checked against the required scope."""
-    token = _bearer(header)
-    digest = hash_key(token)
+    digest = digest_of(header)
     row = session.scalars(select(ApiKey).where(ApiKey.key_hash == digest)).one_or_none()
+    return admit(row, digest, required=required)
+
+
+def digest_of(header: str | None) -> str:
+    """The hash to look a key up by, from an Authorization header (401 when malformed)."""
+    return hash_key(_bearer(header))
+
+
+def admit(row: ApiKey | None, digest: str, *, required: str) -> Principal:
+    """The caller a looked-up key row stands for: 401 unknown or revoked, 403 scope too small."""
     if row is None or row.revoked_at is not None or not hmac.compare_digest(row.key_hash, digest):
         raise Unauthorized(
             "unknown or revoked API key",

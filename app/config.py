@@ -25,6 +25,12 @@ class Settings(BaseSettings):
     )
     max_body_bytes: int = Field(default=1024 * 1024, gt=0, description="Largest request body.")
     idempotency_ttl_hours: float = Field(default=24.0, gt=0)
+    solve_processes: int | None = Field(
+        default=None,
+        ge=0,
+        description="processes that solve /v1/solve bodies off the event loop (per server "
+        "worker); default: one per core; 0 solves in the request's thread",
+    )
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."
     )

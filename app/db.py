@@ -67,7 +67,8 @@ def make_engine(url: str) -> Engine:
     @event.listens_for(engine, "begin")
     def _on_begin(conn: Connection) -> None:
         mode = conn.get_execution_options().get("sqlite_begin", "DEFERRED")
-        conn.exec_driver_sql(f"BEGIN {mode}")
+        if mode is not None:  # None: single-statement reads (read_engine) need no transaction
+            conn.exec_driver_sql(f"BEGIN {mode}")
 
     return engine
 
@@ -81,6 +82,15 @@ def get_engine() -> Engine:
 def is_sqlite(engine: Engine) -> bool:
     """True when the engine talks to SQLite."""
     return engine.dialect.name == "sqlite"
+
+
+@lru_cache(maxsize=16)
+def read_engine(engine: Engine) -> Engine:
+    """The engine for reads made of one statement (the hot active-TCP read): no BEGIN and no
+    ROLLBACK around it (autocommit), since one SELECT sees one consistent snapshot anyway."""
+    if is_sqlite(engine):
+        return engine.execution_options(sqlite_begin=None)
+    return engine.execution_options(isolation_level="AUTOCOMMIT")
 
 
 @lru_cache(maxsize=16)

@@ -53,6 +53,18 @@ class DomainError(Exception):
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.kind!r}, {self.detail!r}, loc={self.loc!r})"
 
+    def __reduce__(self) -> tuple[object, tuple[type[DomainError], dict[str, object]]]:
+        """Picklable with every field, so an error raised in the solver pool (app.solve_pool)
+        reaches the request as it was raised."""
+        return _rebuild, (type(self), dict(self.__dict__))
+
+
+def _rebuild(cls: type[DomainError], state: dict[str, object]) -> DomainError:
+    error = cls.__new__(cls)
+    Exception.__init__(error, state["detail"])
+    error.__dict__.update(state)
+    return error
+
 
 class NotFound(DomainError):
     status, kind, title = 404, "not-found", "Not found"

@@ -83,14 +83,15 @@ def create_app() -> FastAPI:
         redoc_url=None,  # ReDoc would load its script from a CDN
     )
     install_error_handlers(app)
+    # Routes are matched in order: the paths cell controllers poll come first.
     routers = (
+        versions,
         health,
         keys,
         robots,
         tools,
         calibrations,
         solve,
-        versions,
         references,
         methods,
         formats,

@@ -4,14 +4,16 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Header, Query, Response
+from fastapi import APIRouter, Header, Query, Request, Response
 from fastapi.responses import JSONResponse, PlainTextResponse
 
 from app.api.params import PathId, VersionNumber
 from app.api.tools import IfMatch
+from app.db import get_engine
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.exports import file_name
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
+from app.middleware import KEY_NAME
 from app.schemas.common import ControllerFormat
 from app.schemas.tools import ActiveTcp, Tool, ToolTable, Version, VersionList
 from app.services import tools, versions
@@ -66,21 +68,29 @@ def activate_version(
         304: {"description": "not modified (If-None-Match)"},
     },
 )
-def get_active_tcp(
+async def get_active_tcp(
     tool_id: PathId,
-    session: SessionDep,
-    key: ReadKey,
+    request: Request,
     format: FormatQuery = None,
     if_none_match: Annotated[str | None, Header(pattern=IF_NONE_MATCH_PATTERN)] = None,
     accept: Annotated[str | None, Header(max_length=1000)] = None,
+    authorization: Annotated[str | None, Header(include_in_schema=False)] = None,
 ) -> Response:
     """The active TCP a cell controller reads, with a strong ETag (If-None-Match -> 304);
     `?format=` adds the controller's own text. With `Accept: text/plain` (and `?format=`) the
     controller text alone, as a file to save and load (Content-Disposition names it)."""
     as_text = "text/plain" in (accept or "")
-    document, etag = versions.served_tcp(
-        session, tool_id=tool_id, fmt=format, if_none_match=if_none_match, as_text=as_text
+    # The hot path, on the event loop without a threadpool hop: the key check and the read
+    # are one indexed statement (tens of microseconds on SQLite, one round trip on PostgreSQL).
+    key, document, etag = versions.served_tcp_for_key(
+        get_engine(),
+        authorization=authorization,
+        tool_id=tool_id,
+        fmt=format,
+        if_none_match=if_none_match,
+        as_text=as_text,
     )
+    request.scope[KEY_NAME] = key.name  # for the access log line; never the key
     headers = {"ETag": etag, "Vary": "Accept"}
     if document is None:
         return Response(status_code=304, headers=headers)

@@ -9,7 +9,7 @@ base `MethodRequest`; services find the method's own model through the registry.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated, Union
+from typing import TYPE_CHECKING, Annotated, Union, cast
 
 from pydantic import Field, TypeAdapter, create_model
 
@@ -31,7 +31,9 @@ class StatelessFields(StrictModel):
 def _stateless(model: type[MethodRequest]) -> type[MethodRequest]:
     name = "Solve" + model.__name__.removesuffix("Calibration")
     bases: tuple[type[MethodRequest], ...] = (model, StatelessFields)  # type: ignore[assignment]
-    return create_model(name, __base__=bases, __module__=__name__)
+    # Kept as a module attribute: importable by name, so a body pickles to a solver process.
+    globals()[name] = create_model(name, __base__=bases, __module__=__name__)
+    return cast("type[MethodRequest]", globals()[name])
 
 
 SOLVE_MODELS: tuple[type[MethodRequest], ...] = tuple(_stateless(m.request) for m in METHODS)

@@ -316,14 +316,19 @@ def _activate_if_due(
     return due
 
 
-def solve_stateless(session: Session, *, request: MethodRequest) -> SolveResult:
-    """Solve without storing anything (POST /v1/solve)."""
+def stateless_kinematics(session: Session, request: MethodRequest) -> JsonObject | None:
+    """The robot model a /v1/solve body uses: given inline, or a stored robot's."""
     assert isinstance(request, StatelessFields)  # the /v1/solve union's models all are
-    kinematics = None
     if request.kinematics is not None:
-        kinematics = validate_kinematics(request.kinematics)
-    elif request.robot_id is not None:
-        kinematics = get_robot(session, request.robot_id).kinematics
+        return validate_kinematics(request.kinematics)
+    if request.robot_id is not None:
+        return get_robot(session, request.robot_id).kinematics
+    return None
+
+
+def solve_detached(request: MethodRequest, kinematics: JsonObject | None) -> SolveResult:
+    """Solve a /v1/solve body with nothing stored (runs in a solver process: app.solve_pool)."""
+    assert isinstance(request, StatelessFields)
     result = solve(request, StatelessContext(kinematics, request.tolerance)).result
     if _reference_point_to_save(request) is not None:
         result.warnings.append("options.save_reference_point ignored: /v1/solve stores nothing")

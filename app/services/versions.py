@@ -6,14 +6,15 @@ import hashlib
 import json
 from collections.abc import Sequence
 
-from sqlalchemy import select
+from sqlalchemy import Engine, and_, bindparam, select
 from sqlalchemy.orm import Session
 
-from app.auth import Principal
+from app.auth import Principal, admit, digest_of
 from app.config import get_settings
-from app.errors import InvalidInput, NoActiveVersion, NotFound
+from app.db import read_engine
+from app.errors import Archived, InvalidInput, NoActiveVersion, NotFound
 from app.helpers.etags import if_none_match_hit
-from app.models import Activation, TcpVersion, Tool, utcnow
+from app.models import Activation, ApiKey, TcpVersion, Tool, utcnow
 from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.services import audit
 from app.services.exports import controller_text
@@ -196,6 +197,16 @@ def active_document(tool: Tool, row: TcpVersion, fmt: str | None) -> ActiveTcp:
     )
 
 
+def _text_needs_format(as_text: bool, fmt: str | None) -> None:
+    if as_text and fmt is None:
+        raise InvalidInput(
+            "invalid-options",
+            "Accept: text/plain serves a controller's text: give ?format= (kuka, abb, fanuc, "
+            "ur, yaskawa or techman), or accept application/json",
+            loc=("query", "format"),
+        )
+
+
 def served_tcp(
     session: Session,
     *,
@@ -206,13 +217,7 @@ def served_tcp(
 ) -> tuple[ActiveTcp | None, str]:
     """(document, ETag) of a tool's active TCP; document None when the client's copy is current.
     `as_text`: the controller text alone will be served (its own ETag)."""
-    if as_text and fmt is None:
-        raise InvalidInput(
-            "invalid-options",
-            "Accept: text/plain serves a controller's text: give ?format= (kuka, abb, fanuc, "
-            "ur, yaskawa or techman), or accept application/json",
-            loc=("query", "format"),
-        )
+    _text_needs_format(as_text, fmt)
     tool = get_tool(session, tool_id)
     row = active_version_row(session, tool)
     etag = tcp_etag(tool, row, fmt, as_text)
@@ -247,3 +252,91 @@ def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> ToolTable
             }
             items.append(item)
     return ToolTable(robot_id=robot_id, items=items, without_active_version=missing)
+
+
+# ---- the hot read: one statement for the key, the tool and its active version -------------
+_KEY = ApiKey.__table__
+_TOOL = Tool.__table__
+_VERSION = TcpVersion.__table__
+HOT_READ = (
+    select(
+        _KEY.c.id.label("key_id"),
+        _KEY.c.name.label("key_name"),
+        _KEY.c.scope,
+        _KEY.c.key_hash,
+        _KEY.c.revoked_at,
+        _TOOL.c.id.label("tool_id"),
+        _TOOL.c.robot_id,
+        _TOOL.c.name.label("tool_name"),
+        _TOOL.c.slot,
+        _TOOL.c.load,
+        _TOOL.c.archived_at,
+        _VERSION.c.version,
+        _VERSION.c.position_mm,
+        _VERSION.c.quaternion,
+        _VERSION.c.source,
+        _VERSION.c.created_at,
+    )
+    .select_from(_KEY)
+    .outerjoin(_TOOL, _TOOL.c.id == bindparam("tool_id"))
+    .outerjoin(
+        _VERSION,
+        and_(_VERSION.c.tool_id == _TOOL.c.id, _VERSION.c.version == _TOOL.c.active_version),
+    )
+    .where(_KEY.c.key_hash == bindparam("digest"))
+)
+
+
+def served_tcp_for_key(
+    engine: Engine,
+    *,
+    authorization: str | None,
+    tool_id: str,
+    fmt: str | None,
+    if_none_match: str | None,
+    as_text: bool = False,
+) -> tuple[Principal, ActiveTcp | None, str]:
+    """`served_tcp` for the caller behind `authorization`: the key check, the tool and its
+    active version in one statement on a pooled connection, no ORM, no transaction around it.
+    (who, document or None when the client's copy is current, ETag). Nothing is cached, so a
+    revoked key or a new activation is seen by the very next request."""
+    digest = digest_of(authorization)
+    with read_engine(engine).connect() as conn:
+        found = conn.execute(HOT_READ, {"digest": digest, "tool_id": tool_id}).one_or_none()
+    key = None
+    if found is not None:
+        key = ApiKey(
+            id=found.key_id,
+            name=found.key_name,
+            scope=found.scope,
+            key_hash=found.key_hash,
+            revoked_at=found.revoked_at,
+        )
+    principal = admit(key, digest, required="read")
+    assert found is not None
+    _text_needs_format(as_text, fmt)
+    if found.tool_id is None:
+        raise NotFound(f"no tool with id {tool_id}")
+    if found.archived_at is not None:
+        raise Archived(f"tool {tool_id} ({found.tool_name}) was archived")
+    if found.version is None:
+        raise NoActiveVersion(f"tool {tool_id} ({found.tool_name}) has no active TCP version yet")
+    tool = Tool(
+        id=found.tool_id,
+        robot_id=found.robot_id,
+        name=found.tool_name,
+        slot=found.slot,
+        load=found.load,
+        active_version=found.version,
+    )
+    row = TcpVersion(
+        version=found.version,
+        position_mm=found.position_mm,
+        quaternion=found.quaternion,
+        source=found.source,
+        created_at=found.created_at,
+    )
+    etag = tcp_etag(tool, row, fmt, as_text)
+    if if_none_match_hit(if_none_match, etag):
+        return principal, None, etag
+    return principal, active_document(tool, row, fmt), etag

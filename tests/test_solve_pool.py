@@ -1,0 +1,64 @@
+"""The solver pool: a /v1/solve body and its errors cross the process boundary intact, and
+a pool of 0 processes solves in the request's thread with the same answer."""
+
+from __future__ import annotations
+
+import asyncio
+import pickle
+from collections.abc import Callable, Coroutine
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, TypeVar
+
+import pytest
+
+from app import solve_pool
+from app.config import get_settings
+from app.errors import InvalidInput, NotFound
+from app.schemas.calibrations import SOLVE_MODELS
+from app.services.calibrate import solve_detached
+from tests.api.touches import as_poses
+from tests.sim.touches import simulate_touches
+
+T = TypeVar("T")
+
+
+def run_async(make: Callable[[], Coroutine[Any, Any, T]]) -> T:
+    """asyncio.run in a thread of its own (another test's browser may own this thread's loop)."""
+    with ThreadPoolExecutor(1) as thread:
+        return thread.submit(lambda: asyncio.run(make())).result()
+
+
+def test_domain_errors_pickle_with_every_field() -> None:
+    error = InvalidInput(
+        "convention-mismatch", "fits better as metres", loc=("body", "poses"),
+        members={"suggestion": {"format": "kuka_abc"}}, context={"rms": 1.5},
+    )  # fmt: skip
+    back = pickle.loads(pickle.dumps(error))
+    assert type(back) is InvalidInput
+    assert (back.kind, back.detail, back.loc) == (error.kind, error.detail, error.loc)
+    assert back.members == error.members
+    assert back.context == error.context
+    assert str(pickle.loads(pickle.dumps(NotFound("no tool x")))) == "no tool x"
+
+
+@pytest.mark.parametrize("processes", ["2", "0"])
+def test_a_solve_in_the_pool_equals_the_solve_in_process(
+    processes: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("TCPCAL_SOLVE_PROCESSES", processes)
+    get_settings.cache_clear()
+    model = next(m for m in SOLVE_MODELS if m.__name__ == "SolveXyzNpoint")
+    body = model.model_validate(
+        {"method": "xyz_npoint", "format": "kuka_abc",
+         "poses": as_poses(simulate_touches(8, seed=4), "kuka_abc")}
+    )  # fmt: skip
+    pooled = run_async(lambda: solve_pool.run(solve_detached, body, None))
+    assert pooled == solve_detached(body, None)
+    bad = model.model_validate(
+        {"method": "xyz_npoint", "format": "kuka_abc", "poses": [[0] * 6] * 4}
+    )
+    with pytest.raises(InvalidInput) as raised:
+        run_async(lambda: solve_pool.run(solve_detached, bad, None))
+    assert raised.value.kind == "out-of-range"  # every flange at the base: not a pose
+    assert raised.value.loc[0] == "body"
+    get_settings.cache_clear()
