@@ -12,7 +12,7 @@ from fastapi import FastAPI
 from fastapi.routing import APIRoute
 from sqlalchemy.exc import SQLAlchemyError
 
-from app import __version__
+from app import __version__, solve_pool
 from app.api import (
     calibrations,
     console,
@@ -65,6 +65,8 @@ def _bootstrap() -> None:
 @asynccontextmanager
 async def lifespan(_: FastAPI) -> AsyncIterator[None]:
     _bootstrap()
+    if os.environ.get(SERVING_ENV):  # a server (not a test's app): start solvers up front
+        solve_pool.start()
     yield
 
 

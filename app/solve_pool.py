@@ -18,6 +18,7 @@ import multiprocessing
 import os
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from functools import partial
 from typing import ParamSpec, TypeVar
 
@@ -41,8 +42,24 @@ def _get_pool() -> ProcessPoolExecutor:
     global _pool
     if _pool is None:
         context = multiprocessing.get_context("forkserver")
-        _pool = ProcessPoolExecutor(max_workers=processes(), mp_context=context)
+        _pool = ProcessPoolExecutor(
+            max_workers=processes(), mp_context=context, initializer=_import_solvers
+        )
     return _pool
+
+
+def _import_solvers() -> None:
+    """Each solver process imports the solve path as it starts (numpy, scipy, the methods:
+    about a second), not in the middle of its first request."""
+    import app.services.calibrate  # noqa: F401
+
+
+def start() -> None:
+    """Start the solver processes now (at server start-up) so that no request waits for them."""
+    if processes() > 0:
+        pool = _get_pool()
+        for future in [pool.submit(int) for _ in range(processes())]:
+            future.result()
 
 
 async def run(fn: Callable[P, T], *args: P.args, **kwargs: P.kwargs) -> T:
@@ -50,4 +67,18 @@ async def run(fn: Callable[P, T], *args: P.args, **kwargs: P.kwargs) -> T:
     if processes() == 0:
         return await run_in_threadpool(fn, *args, **kwargs)
     loop = asyncio.get_running_loop()
-    return await loop.run_in_executor(_get_pool(), partial(fn, *args, **kwargs))
+    call = partial(fn, *args, **kwargs)
+    try:
+        return await loop.run_in_executor(_get_pool(), call)
+    except BrokenProcessPool:
+        # A solver process died (killed, out of memory): a broken pool refuses all work, so
+        # replace it and give this solve one more try before answering 500.
+        _discard_pool()
+        return await loop.run_in_executor(_get_pool(), call)
+
+
+def _discard_pool() -> None:
+    global _pool
+    if _pool is not None:
+        _pool.shutdown(wait=False, cancel_futures=True)
+        _pool = None

@@ -274,6 +274,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, help="override the rounds")
     parser.add_argument("--no-save", action="store_true", help="print only (profiling runs)")
     args = parser.parse_args()
+    # The server as deployed: one solver process per core (the live-test helper uses one).
+    os.environ.setdefault("TCPCAL_SOLVE_PROCESSES", str(os.cpu_count() or 1))
     settings = dict(QUICK if args.quick else FULL)
     if args.rounds:
         settings["rounds"] = args.rounds

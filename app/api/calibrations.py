@@ -6,17 +6,24 @@ import json
 from typing import Annotated
 
 from fastapi import APIRouter, Body, Header, Request, Response
+from starlette.concurrency import run_in_threadpool
 
+from app import solve_pool
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
-from app.deps import CalibrateKey, ReadKey, SessionDep
+from app.auth import Principal, authenticate
+from app.db import session_scope
+from app.deps import ReadKey, SessionDep
 from app.errors import InvalidInput
 from app.jsontypes import JsonObject
 from app.methods import openapi_examples
 from app.metrics import CALIBRATIONS
+from app.middleware import KEY_NAME
 from app.schemas.calibrations import CalibrationRequest
 from app.schemas.common import Page
 from app.schemas.results import Calibration, CalibrationDetail
 from app.services import calibrate
+from app.services.calibrate import Presolved, Snapshot
+from app.services.contexts import SnapshotContext
 
 router = APIRouter(tags=["calibrations"])
 
@@ -40,14 +47,13 @@ def raw_json_body(request: Request) -> JsonObject:
 
 
 @router.post("/v1/tools/{tool_id}/calibrations", status_code=201, response_model=Calibration)
-def submit_calibration(
+async def submit_calibration(
     tool_id: PathId,
     body: Annotated[CalibrationRequest, Body(openapi_examples=openapi_examples())],
     request: Request,
     response: Response,
-    session: SessionDep,
-    key: CalibrateKey,
     idempotency_key: IdempotencyKey = None,
+    authorization: Annotated[str | None, Header(include_in_schema=False)] = None,
 ) -> object:
     """Solve a submission with its method, grade it against the tool's tolerance and store it as
     the tool's next version. Activated when `activate` allows ("auto": within tolerance and
@@ -55,14 +61,41 @@ def submit_calibration(
     so are poses that fit far better under another unit or convention than the one sent
     (`convention-mismatch`, with the `suggestion` to resend). Retry-safe with
     `Idempotency-Key`."""
-    doc, replayed = calibrate.submit(
-        session,
-        tool_id=tool_id,
-        request=body,
-        raw_body=raw_json_body(request),
-        idempotency_key=idempotency_key,
-        actor=key,
-    )
+    raw_body = raw_json_body(request)
+
+    def prepare() -> tuple[Principal, Calibration | None, Snapshot | None, SnapshotContext | None]:
+        with session_scope(write=False) as session:
+            key = authenticate(session, authorization, required="calibrate")
+            replay = calibrate.replayed(session, tool_id, raw_body, idempotency_key, key)
+            if replay is not None:
+                return key, replay, None, None
+            return key, None, *calibrate.snapshot_context(session, tool_id)
+
+    # 1. Who, and what the solve reads (a short read); 2. the solve, in a solver process with
+    # no transaction open; 3. the write, under the tool's lock (re-solved there only if what
+    # the solve read has changed meanwhile).
+    key, replay, snapshot, ctx = await run_in_threadpool(prepare)
+    request.scope[KEY_NAME] = key.name
+    if replay is not None:
+        response.headers["Idempotent-Replayed"] = "true"
+        return replay
+    assert snapshot is not None
+    assert ctx is not None
+    outcome = await solve_pool.run(calibrate.solve_snapshot, body, ctx)
+
+    def store() -> tuple[Calibration, bool]:
+        with session_scope(write=True) as session:
+            return calibrate.submit(
+                session,
+                tool_id=tool_id,
+                request=body,
+                raw_body=raw_body,
+                idempotency_key=idempotency_key,
+                actor=key,
+                solved=None if outcome is None else Presolved(snapshot, outcome),
+            )
+
+    doc, replayed = await run_in_threadpool(store)
     if replayed:
         response.headers["Idempotent-Replayed"] = "true"
     else:

@@ -27,7 +27,7 @@ from app.methods.base import FloatArray, MethodContext, MethodRequest, Solved, S
 from app.methods.npoint import NPointOptions
 from app.metrics import SOLVE_SECONDS
 from app.models import Calibration as CalibrationRow
-from app.models import Tool
+from app.models import Robot, Tool
 from app.schemas.calibrations import CALIBRATION_REQUESTS, StatelessFields
 from app.schemas.common import Units
 from app.schemas.results import (
@@ -39,9 +39,9 @@ from app.schemas.results import (
 )
 from app.schemas.tools import Tcp
 from app.services import audit, idempotency
-from app.services.contexts import DbContext, StatelessContext
+from app.services.contexts import DbContext, SnapshotContext, StatelessContext
 from app.services.diagnosis import EXPLAINABLE, Fit, implausible_flanges, refuse_mix_up
-from app.services.frames import parse_poses_with
+from app.services.frames import active_frame, parse_poses_with
 from app.services.references import create_reference_point, ensure_reference_name_free
 from app.services.robots import get_robot, validate_kinematics
 from app.services.tools import get_tool
@@ -165,6 +165,65 @@ def _reference_point_to_save(request: MethodRequest) -> str | None:
     return options.save_reference_point if isinstance(options, NPointOptions) else None
 
 
+@dataclass(frozen=True)
+class Snapshot:
+    """What a calibration's solve reads from the database: equal snapshots, equal results."""
+
+    tolerance: JsonObject | None
+    active_version: int | None
+    kinematics: JsonObject | None
+
+    @classmethod
+    def of(cls, session: Session, tool: Tool, robot: Robot | None = None) -> Snapshot:
+        robot = robot or get_robot(session, tool.robot_id)
+        return cls(tool.tolerance, tool.active_version, robot.kinematics)
+
+
+@dataclass(frozen=True)
+class Presolved:
+    """A calibration solved before its transaction, with what the solve read."""
+
+    snapshot: Snapshot
+    outcome: Outcome
+
+
+def replayed(
+    session: Session,
+    tool_id: str,
+    raw_body: JsonObject,
+    idempotency_key: str | None,
+    actor: Principal,
+) -> Calibration | None:
+    """The first response to this key and body, if there was one (409 for another body)."""
+    if idempotency_key is None:
+        return None
+    fingerprint = idempotency.request_fingerprint(tool_id, raw_body)
+    replay = idempotency.replay(
+        session, actor=actor, key=idempotency_key, fingerprint=fingerprint, purge=False
+    )
+    return None if replay is None else Calibration.model_validate(replay)
+
+
+def snapshot_context(session: Session, tool_id: str) -> tuple[Snapshot, SnapshotContext]:
+    """Read what a calibration of this tool will solve against (a short read, no lock)."""
+    tool = get_tool(session, tool_id)
+    robot = get_robot(session, tool.robot_id)
+    frame = active_frame(session, tool)
+    snapshot = Snapshot.of(session, tool, robot)
+    return snapshot, SnapshotContext(robot.kinematics, effective_tolerance(tool.tolerance), frame)
+
+
+def solve_snapshot(request: MethodRequest, ctx: SnapshotContext) -> Outcome | None:
+    """Solve against a snapshot (in a solver process); None when the method needs to look
+    up more stored data (reference points, other tools, laser devices): solve it in place."""
+    try:
+        return solve(request, ctx)
+    except InvalidInput as refusal:
+        if refusal.kind == "needs-storage":
+            return None
+        raise
+
+
 def submit(
     session: Session,
     *,
@@ -173,8 +232,11 @@ def submit(
     raw_body: JsonObject,
     idempotency_key: str | None,
     actor: Principal,
+    solved: Presolved | None = None,
 ) -> tuple[Calibration, bool]:
-    """Solve and store a calibration; (the stored Calibration, replayed?)."""
+    """Solve and store a calibration; (the stored Calibration, replayed?). With `solved` (from
+    `presolve`, made before the lock) the stored result is that one, unless what it read has
+    changed since."""
     tool = get_tool(session, tool_id, for_update=True)
     fingerprint = idempotency.request_fingerprint(tool_id, raw_body)
     if idempotency_key is not None:
@@ -192,7 +254,13 @@ def submit(
             name=point_name,
             loc=("body", "options", "save_reference_point"),
         )
-    outcome = solve(request, DbContext(session, tool, get_robot(session, tool.robot_id)))
+    robot = get_robot(session, tool.robot_id)
+    if solved is None or solved.snapshot != Snapshot.of(session, tool, robot):
+        # Solved here under the tool's lock: nothing was solved beforehand, or the tool's
+        # tolerance, active version or robot model changed since (the result would differ).
+        outcome = solve(request, DbContext(session, tool, robot))
+    else:
+        outcome = solved.outcome
     result, point = outcome.result, outcome.touched_point
     keep_point = point_name is not None and result.status == "accepted"
     if point_name is not None and not keep_point:

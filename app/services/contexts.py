@@ -127,3 +127,22 @@ class StatelessContext:
         raise self._stored(
             "a laser device", ("laser", "device_id"), "give beam_a_y_mm, beam_b_x_mm and plane_z_mm"
         )
+
+
+class SnapshotContext(StatelessContext):
+    """What a stored calibration's solve reads, copied out of the database beforehand (the
+    tool's tolerance and active frame, the robot's model), so that it can solve in a solver
+    process with no session. Lookups of other stored things are refused as `needs-storage`;
+    the caller then solves with a DbContext instead."""
+
+    def __init__(
+        self,
+        kinematics: Mapping[str, object] | None,
+        tolerance: Tolerance | None,
+        active: ActiveFrame | None,
+    ) -> None:
+        super().__init__(kinematics, tolerance)
+        self._active = active
+
+    def active_frame(self) -> ActiveFrame | None:
+        return self._active

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from datetime import timedelta
+from datetime import UTC, datetime, timedelta
 
 from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
@@ -28,15 +28,21 @@ def replay(
     actor: Principal,
     key: str,
     fingerprint: str,
+    purge: bool = True,
 ) -> JsonObject | None:
+    """The first response to (actor, key), None if there is none (or it expired); 409 when
+    the key came with another request. `purge`: also delete expired records (a write: only
+    inside a write transaction)."""
     ttl = timedelta(hours=get_settings().idempotency_ttl_hours)
-    session.execute(delete(IdempotencyRecord).where(IdempotencyRecord.created_at < utcnow() - ttl))
+    oldest = utcnow() - ttl
+    if purge:
+        session.execute(delete(IdempotencyRecord).where(IdempotencyRecord.created_at < oldest))
     record = session.scalars(
         select(IdempotencyRecord).where(
             IdempotencyRecord.api_key_id == actor.key_id, IdempotencyRecord.key == key
         )
     ).one_or_none()
-    if record is None:
+    if record is None or _aware(record.created_at) < oldest:
         return None
     if record.request_hash != fingerprint:
         raise IdempotencyConflict(
@@ -60,3 +66,7 @@ def remember(
         )
     )
     session.flush()
+
+
+def _aware(moment: datetime) -> datetime:
+    return moment if moment.tzinfo is not None else moment.replace(tzinfo=UTC)

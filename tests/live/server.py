@@ -59,7 +59,9 @@ def live_server(
         _, key = create_key(session, name="live-admin", scope="admin", actor=None)
     engine.dispose()
     port = _free_port()
-    env = {**os.environ, "TCPCAL_DATABASE_URL": database_url}
+    # One solver process per server worker keeps start-up short on a 2-core CI machine (the
+    # pool itself is exercised all the same); production defaults to one per core.
+    env = {"TCPCAL_SOLVE_PROCESSES": "1", **os.environ, "TCPCAL_DATABASE_URL": database_url}
     tcpcal = Path(sys.executable).parent / "tcpcal"
     output = log if log is not None else tempfile.TemporaryFile()  # noqa: SIM115 (closed below)
     proc = subprocess.Popen(

@@ -1,0 +1,86 @@
+"""A calibration solved before its transaction is stored as solved only if what the solve read
+(tolerance, active version, robot model) is unchanged at the lock; otherwise it is solved
+again there, so the stored result never rests on a stale active TCP."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from app.auth import Principal
+from app.db import session_scope
+from app.schemas.calibrations import CALIBRATION_REQUESTS
+from app.services import calibrate
+from app.services.calibrate import Presolved
+from tests.api.touches import as_poses
+from tests.conftest import Api
+from tests.sim.touches import simulate_touches
+
+ACTOR = Principal(key_id="test", name="test", scope="admin")
+
+
+def _manual(api: Api, tool_id: str, tcp: list[float]) -> None:
+    api.post(
+        f"/v1/tools/{tool_id}/calibrations",
+        json={"method": "manual", "tcp": {"position_mm": tcp}},
+    )
+
+
+def test_a_stale_presolve_is_solved_again_under_the_lock(api: Api) -> None:
+    tool = api.tool(api.robot("kr")["id"])
+    tid = tool["id"]
+    touches = simulate_touches(8, seed=2, tcp_mm=None)
+    _manual(api, tid, [*map(float, touches.t[:2]), float(touches.t[2]) + 1.0])  # 1 mm off
+    body: dict[str, Any] = {
+        "method": "xyz_npoint",
+        "format": "kuka_abc",
+        "poses": as_poses(touches, "kuka_abc"),
+        "activate": "never",
+    }
+    request = CALIBRATION_REQUESTS.validate_python(body)
+    with session_scope(write=False) as session:
+        snapshot, ctx = calibrate.snapshot_context(session, tid)
+    outcome = calibrate.solve_snapshot(request, ctx)
+    assert outcome is not None
+    before = outcome.result.change_from_active_mm
+    assert before is not None
+    assert abs(before - 1.0) < 0.2
+
+    _manual(api, tid, [*map(float, touches.t[:2]), float(touches.t[2]) + 3.0])  # now v2
+    with session_scope(write=True) as session:
+        stored, _ = calibrate.submit(
+            session, tool_id=tid, request=request, raw_body=body, idempotency_key=None,
+            actor=ACTOR, solved=Presolved(snapshot, outcome),
+        )  # fmt: skip
+    assert stored.change_from_active_mm is not None
+    assert abs(stored.change_from_active_mm - 3.0) < 0.2  # against version 2, not 1
+
+    with session_scope(write=False) as session:
+        snapshot, ctx = calibrate.snapshot_context(session, tid)
+    fresh = calibrate.solve_snapshot(request, ctx)
+    assert fresh is not None
+    with session_scope(write=True) as session:
+        kept, _ = calibrate.submit(
+            session, tool_id=tid, request=request, raw_body=body, idempotency_key=None,
+            actor=ACTOR, solved=Presolved(snapshot, fresh),
+        )  # fmt: skip
+    assert kept.model_dump(exclude={"id", "version", "created_at"}) == {
+        **fresh.result.model_dump(), "tool_id": tid, "active": False, "created_by": "test"
+    }  # fmt: skip
+
+
+def test_methods_that_look_up_stored_data_are_solved_in_place(api: Api) -> None:
+    robot = api.robot("kr2")
+    tool = api.tool(robot["id"])
+    point = api.post(
+        f"/v1/robots/{robot['id']}/reference-points",
+        json={"name": "pin", "position_mm": [800, 0, 250]},
+    ).json()
+    body = {"method": "xyz_reference", "format": "kuka_abc",
+            "poses": [[800, 0, 400, 0, 0, 180]],
+            "options": {"reference_point_id": point["id"]}}  # fmt: skip
+    request = CALIBRATION_REQUESTS.validate_python(body)
+    with session_scope(write=False) as session:
+        _, ctx = calibrate.snapshot_context(session, tool["id"])
+    assert calibrate.solve_snapshot(request, ctx) is None
+    done = api.post(f"/v1/tools/{tool['id']}/calibrations", json=body)
+    assert done.status_code == 201, done.text
