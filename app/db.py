@@ -46,13 +46,16 @@ def _timed(engine: Engine) -> Engine:
     return engine
 
 
-def make_engine(url: str) -> Engine:
-    """Create an engine with the per-dialect settings this service relies on."""
+def make_engine(url: str, **pool: int) -> Engine:
+    """Create an engine with the per-dialect settings this service relies on (`pool`: sizes
+    of its connection pool, e.g. pool_size=1)."""
     if not url.startswith("sqlite"):
-        return _timed(create_engine(url, pool_pre_ping=True, future=True))
+        return _timed(create_engine(url, pool_pre_ping=True, future=True, **pool))
 
     _prepare_sqlite_file(url)
-    engine = _timed(create_engine(url, connect_args={"check_same_thread": False}, future=True))
+    engine = _timed(
+        create_engine(url, connect_args={"check_same_thread": False}, future=True, **pool)
+    )
 
     @event.listens_for(engine, "connect")
     def _on_connect(dbapi_conn: DBAPIConnection, _record: ConnectionPoolEntry) -> None:
@@ -78,6 +81,26 @@ def make_engine(url: str) -> Engine:
 def get_engine() -> Engine:
     """The process-wide engine for the configured database URL."""
     return make_engine(get_settings().database_url)
+
+
+@lru_cache
+def loop_engine() -> Engine:
+    """The event loop's own connection, apart from the pool the request threads share.
+
+    Code on the event loop (the hot active-TCP read, a solve's key check) holds a connection
+    only while it runs without awaiting, so one connection is enough and the loop never waits
+    for it. Taken from the threads' pool instead, the loop could wait for a connection held by
+    a request that is itself waiting for the loop: under load that stalled the whole server.
+    """
+    return make_engine(get_settings().database_url, pool_size=1, max_overflow=0)
+
+
+def dispose_engines() -> None:
+    """Close every pooled connection and forget the engines (settings changed, tests)."""
+    for cached in (get_engine, loop_engine):
+        if cached.cache_info().currsize:
+            cached().dispose()
+        cached.cache_clear()
 
 
 def is_sqlite(engine: Engine) -> bool:

@@ -284,7 +284,10 @@ class AuditEvent(Base):
     """Every write, with who and when: the audit trail."""
 
     __tablename__ = "audit_events"
-    __table_args__ = (Index("ix_audit_events_resource", "resource_type", "resource_id"),)
+    __table_args__ = (
+        Index("ix_audit_events_resource", "resource_type", "resource_id"),
+        Index("ix_audit_events_tool_action", "tool_id", "action", "id"),
+    )
 
     id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
     at: Mapped[datetime] = mapped_column(default=utcnow)

@@ -115,6 +115,8 @@ def run_wrk(s: Scenario, seconds: float, tmp: Path) -> Run:
         capture_output=True,
         text=True,
     ).stdout
+    if os.environ.get("WRK_DEBUG"):
+        print(out)
     rps = float(re.search(r"Requests/sec:\s+([\d.]+)", out).group(1))  # type: ignore[union-attr]
     bad = int(re.search(r"BAD (\d+)", out).group(1))  # type: ignore[union-attr]
     errors = re.search(r"Socket errors: connect (\d+), read (\d+), write (\d+), timeout (\d+)", out)
@@ -210,7 +212,9 @@ def scenarios(srv: live.LiveServer, bare_url: str) -> dict[str, Scenario]:
 def measure(
     backend: str, workers: int, settings: dict[str, float], tmp: Path, names: tuple[str, ...]
 ) -> dict[str, Any]:
-    log = (tmp / f"{backend}-{workers}.log").open("wb")
+    logs = Path(tempfile.gettempdir()) / "tcpcal-wrk-logs"
+    logs.mkdir(exist_ok=True)
+    log = (logs / f"{backend}-{workers}.log").open("wb")  # kept for a look after the run
     pg = PG_URL if backend == "postgresql" else None
     with (
         fresh_database(backend, tmp, pg, prefix="tcpcal_bench") as url,

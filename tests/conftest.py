@@ -25,11 +25,9 @@ BACKENDS = ["sqlite"] + (["postgresql"] if PG_URL else [])
 
 def _reset_app_caches() -> None:
     from app.config import get_settings
-    from app.db import get_engine
+    from app.db import dispose_engines
 
-    if get_engine.cache_info().currsize:
-        get_engine().dispose()
-    get_engine.cache_clear()
+    dispose_engines()
     get_settings.cache_clear()
 
 

@@ -49,12 +49,12 @@ def test_ready_is_false_until_migrated(empty_url: str, monkeypatch: pytest.Monke
     from fastapi.testclient import TestClient
 
     from app.config import get_settings
-    from app.db import get_engine
+    from app.db import dispose_engines
     from app.main import create_app
 
     monkeypatch.setenv("TCPCAL_DATABASE_URL", empty_url)
     get_settings.cache_clear()
-    get_engine.cache_clear()
+    dispose_engines()
     try:
         with TestClient(create_app()) as client:
             before = client.get("/ready")
@@ -65,6 +65,5 @@ def test_ready_is_false_until_migrated(empty_url: str, monkeypatch: pytest.Monke
             assert after.status_code == 200
             assert after.json()["ready"] is True
     finally:
-        get_engine().dispose()
-        get_engine.cache_clear()
+        dispose_engines()
         get_settings.cache_clear()

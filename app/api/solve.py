@@ -8,7 +8,7 @@ from fastapi import APIRouter, Body, Header, Request
 
 from app import solve_pool
 from app.auth import authenticate
-from app.db import session_scope
+from app.db import loop_engine, session_scope
 from app.methods import openapi_examples
 from app.middleware import KEY_NAME
 from app.schemas.calibrations import SolveRequest
@@ -29,7 +29,7 @@ async def solve(
     refused with the reading that fits (`convention-mismatch`)."""
     # The key and the robot model are read first in a short transaction; the solve then runs
     # in a solver process (app.solve_pool) with no database connection held.
-    with session_scope(write=False) as session:
+    with session_scope(write=False, engine=loop_engine()) as session:
         key = authenticate(session, authorization, required="read")
         kinematics = calibrate.stateless_kinematics(session, body)
     request.scope[KEY_NAME] = key.name

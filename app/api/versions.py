@@ -9,7 +9,7 @@ from fastapi.responses import JSONResponse, PlainTextResponse
 
 from app.api.params import PathId, VersionNumber
 from app.api.tools import IfMatch
-from app.db import get_engine
+from app.db import loop_engine
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.exports import file_name
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
@@ -83,7 +83,7 @@ async def get_active_tcp(
     # The hot path, on the event loop without a threadpool hop: the key check and the read
     # are one indexed statement (tens of microseconds on SQLite, one round trip on PostgreSQL).
     key, document, etag = versions.served_tcp_for_key(
-        get_engine(),
+        loop_engine(),
         authorization=authorization,
         tool_id=tool_id,
         fmt=format,
