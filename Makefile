@@ -44,7 +44,7 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.conventions
 	$(BIN)/python -m bench.planner
 	$(BIN)/python -m bench.solver_speed
-	$(BIN)/python -m bench.api_load
+	$(BIN)/python -m bench.wrk_load
 
 screenshots: $(STAMP)
 	$(BIN)/python scripts/screenshots.py

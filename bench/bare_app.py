@@ -1,4 +1,4 @@
-"""The baseline for bench.api_load: a bare FastAPI app answering a constant JSON."""
+"""The baseline for bench.wrk_load: a bare FastAPI app answering a constant JSON."""
 
 from __future__ import annotations
 

@@ -115,8 +115,6 @@ def run_wrk(s: Scenario, seconds: float, tmp: Path) -> Run:
         capture_output=True,
         text=True,
     ).stdout
-    if os.environ.get("WRK_DEBUG"):
-        print(out)
     rps = float(re.search(r"Requests/sec:\s+([\d.]+)", out).group(1))  # type: ignore[union-attr]
     bad = int(re.search(r"BAD (\d+)", out).group(1))  # type: ignore[union-attr]
     errors = re.search(r"Socket errors: connect (\d+), read (\d+), write (\d+), timeout (\d+)", out)
