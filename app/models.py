@@ -143,6 +143,14 @@ class Tool(Base):
             postgresql_where=text("archived_at IS NULL AND slot IS NOT NULL"),
         ),
         Index("ix_tools_robot_created", "robot_id", "created_at", "id"),
+        # The fleet list pages through live tools oldest first (bench/scale.py).
+        Index(
+            "ix_tools_live_created",
+            "created_at",
+            "id",
+            sqlite_where=text("archived_at IS NULL"),
+            postgresql_where=text("archived_at IS NULL"),
+        ),
     )
 
     id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)

@@ -6,9 +6,9 @@ import re
 import uuid
 from collections.abc import Sequence
 from datetime import UTC, datetime, timedelta
-from typing import TypeVar
+from typing import TypeVar, TypeVarTuple
 
-from sqlalchemy import Select, and_, or_
+from sqlalchemy import Row, Select, literal, tuple_
 from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from app.errors import InvalidInput
@@ -17,6 +17,8 @@ DEFAULT_LIMIT = 50
 MAX_LIMIT = 500
 
 M = TypeVar("M")
+R = TypeVar("R")
+Ts = TypeVarTuple("Ts")
 
 
 #: A cursor: the position after a row, as 16 hex digits of its creation time (microseconds
@@ -52,6 +54,32 @@ def decode_cursor(cursor: str) -> tuple[datetime, str]:
     return after, str(uuid.UUID(cursor[16:]))
 
 
+def _after(
+    stmt: Select[*Ts],
+    created_col: InstrumentedAttribute[datetime],
+    id_col: InstrumentedAttribute[str],
+    cursor: str | None,
+) -> Select[*Ts]:
+    """`stmt` from the row after the cursor on, in (created_at, id) order."""
+    if cursor:
+        after_created, after_id = decode_cursor(cursor)
+        # A row value: both SQLite and PostgreSQL seek to it in a (created_at, id) index,
+        # where the equivalent OR of two conditions scanned every row before it.
+        stmt = stmt.where(
+            tuple_(created_col, id_col)
+            > tuple_(literal(after_created, created_col.type), literal(after_id, id_col.type))
+        )
+    return stmt.order_by(created_col, id_col)
+
+
+def _cut(rows: list[R], limit: int) -> tuple[list[R], str | None]:
+    """The first `limit` of limit + 1 rows and the cursor after them (None: no more)."""
+    if len(rows) <= limit:
+        return rows, None
+    last = rows[limit - 1]
+    return rows[:limit], encode_cursor(getattr(last, "created_at"), getattr(last, "id"))  # noqa: B009
+
+
 def paginate(
     session: Session,
     stmt: Select[M],
@@ -61,22 +89,24 @@ def paginate(
     limit: int,
     cursor: str | None,
 ) -> tuple[Sequence[M], str | None]:
-    """One page of `stmt` ordered by (created_at, id) and the cursor of the next page."""
-    if cursor:
-        after_created, after_id = decode_cursor(cursor)
-        stmt = stmt.where(
-            or_(
-                created_col > after_created,
-                and_(created_col == after_created, id_col > after_id),
-            )
-        )
-    rows: list[M] = list(session.scalars(stmt.order_by(created_col, id_col).limit(limit + 1)))
-    next_cursor = None
-    if len(rows) > limit:
-        rows = rows[:limit]
-        last = rows[-1]
-        next_cursor = encode_cursor(getattr(last, "created_at"), getattr(last, "id"))  # noqa: B009
-    return rows, next_cursor
+    """One page of `stmt` (one entity) ordered by (created_at, id) and the next cursor."""
+    stmt = _after(stmt, created_col, id_col, cursor).limit(limit + 1)
+    return _cut(list(session.scalars(stmt)), limit)
+
+
+def paginate_rows(
+    session: Session,
+    stmt: Select[*Ts],
+    *,
+    created_col: InstrumentedAttribute[datetime],
+    id_col: InstrumentedAttribute[str],
+    limit: int,
+    cursor: str | None,
+) -> tuple[list[Row[*Ts]], str | None]:
+    """`paginate` for a select of columns (rows with `created_at` and `id` among them): no
+    ORM objects, for pages that show a few columns of many rows."""
+    stmt = _after(stmt, created_col, id_col, cursor).limit(limit + 1)
+    return _cut(list(session.execute(stmt)), limit)
 
 
 def paginate_newest_first(

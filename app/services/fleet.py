@@ -11,7 +11,8 @@ from datetime import datetime
 from sqlalchemy import Row, ScalarSelect, Select, func, or_, select
 from sqlalchemy.orm import Session
 
-from app.helpers.pagination import paginate, paginate_newest_first
+from app.helpers.pagination import paginate_newest_first, paginate_rows
+from app.jsontypes import JsonObject
 from app.models import AuditEvent, Calibration, Robot, Tool
 from app.schemas.fleet import CSV_COLUMNS, CheckRecord, FleetTool, LastCalibration, LastCheck
 from app.services.tools import get_tool
@@ -29,11 +30,24 @@ def _last_calibration_status() -> ScalarSelect[str]:
     return latest.scalar_subquery()
 
 
+#: The columns a fleet row shows of its tool and robot (created_at: the page's cursor).
+_TOOL_COLUMNS = (
+    Tool.id,
+    Tool.name,
+    Tool.slot,
+    Tool.robot_id,
+    Tool.active_version,
+    Tool.created_at,
+    Robot.name.label("robot_name"),
+    Robot.cell,
+)
+
+
 def _fleet_query(
     *, cell: str | None, robot_id: str | None, q: str | None, status: str | None
-) -> Select[Tool]:
+) -> Select[str, str, int | None, str, int | None, datetime, str, str | None]:
     stmt = (
-        select(Tool)
+        select(*_TOOL_COLUMNS)
         .join(Robot, Robot.id == Tool.robot_id)
         .where(Tool.archived_at.is_(None), Robot.archived_at.is_(None))
     )
@@ -64,24 +78,41 @@ def list_fleet(
     limit: int,
     cursor: str | None,
 ) -> tuple[list[FleetTool], str | None]:
-    """One page of the fleet, oldest tool first; three queries per page whatever its size."""
+    """One page of the fleet, oldest tool first; three queries per page whatever its size,
+    each reading only the columns a row shows (rows, not ORM objects: a page is read-only)."""
     stmt = _fleet_query(cell=cell, robot_id=robot_id, q=q, status=status)
-    tools, next_cursor = paginate(
+    tools, next_cursor = paginate_rows(
         session, stmt, created_col=Tool.created_at, id_col=Tool.id, limit=limit, cursor=cursor
     )
-    return _rows(session, tools), next_cursor
-
-
-def _rows(session: Session, tools: Sequence[Tool]) -> list[FleetTool]:
     ids = [t.id for t in tools]
-    robots = {
-        r.id: r
-        for r in session.scalars(select(Robot).where(Robot.id.in_({t.robot_id for t in tools})))
-    }
-    # The newest calibration and the newest check of each tool of the page, found through the
-    # (tool_id, created_at, id) and (tool_id, action, id) indexes: the page costs the same
-    # whether a tool has one calibration or a hundred thousand.
-    newest_calibration = (
+    last_cal = {c.tool_id: c for c in session.execute(_newest_calibrations(ids))}
+    last_check = {e.tool_id: e for e in session.execute(_newest_checks(ids))}
+    rows = [
+        FleetTool(
+            id=t.id,
+            name=t.name,
+            slot=t.slot,
+            robot_id=t.robot_id,
+            robot_name=t.robot_name,
+            cell=t.cell,
+            active_version=t.active_version,
+            last_calibration=_last_calibration(last_cal.get(t.id)),
+            last_check=_last_check(last_check.get(t.id)),
+        )
+        for t in tools
+    ]
+    return rows, next_cursor
+
+
+# The newest calibration and the newest check of each tool of a page, found through the
+# (tool_id, created_at, id) and (tool_id, action, id) indexes: a page costs the same whether
+# a tool has one calibration or a hundred thousand (bench/scale.py). Only the columns the row
+# shows: a calibration's stored request and result are kilobytes of JSON each, and decoding
+# 50 of them cost more than the rest of the page.
+def _newest_calibrations(
+    ids: list[str],
+) -> Select[str, str, str, datetime, float | None]:
+    newest = (
         select(Calibration.id)
         .where(Calibration.tool_id == Tool.id)
         .order_by(Calibration.created_at.desc(), Calibration.id.desc())
@@ -89,50 +120,29 @@ def _rows(session: Session, tools: Sequence[Tool]) -> list[FleetTool]:
         .correlate(Tool)
         .scalar_subquery()
     )
-    # Only the columns the row shows: a calibration's stored request and result are kilobytes
-    # of JSON each, and decoding 50 of them cost more than the rest of the page.
-    last_cal = {
-        c.tool_id: c
-        for c in session.execute(
-            select(
-                Calibration.id,
-                Calibration.tool_id,
-                Calibration.status,
-                Calibration.created_at,
-                Calibration.result["quality"]["rms_mm"].as_float().label("rms_mm"),
-            ).where(Calibration.id.in_(select(newest_calibration).where(Tool.id.in_(ids))))
-        )
-    }
-    newest_check = (
+    return select(
+        Calibration.id,
+        Calibration.tool_id,
+        Calibration.status,
+        Calibration.created_at,
+        Calibration.result["quality"]["rms_mm"].as_float().label("rms_mm"),
+    ).where(Calibration.id.in_(select(newest).where(Tool.id.in_(ids))))
+
+
+def _newest_checks(ids: list[str]) -> Select[int, str | None, datetime, JsonObject | None]:
+    newest = (
         select(func.max(AuditEvent.id))
         .where(AuditEvent.tool_id == Tool.id, AuditEvent.action == CHECK_ACTION)
         .correlate(Tool)
         .scalar_subquery()
     )
-    last_check: dict[str, AuditEvent] = {}
-    for event in session.scalars(
-        select(AuditEvent).where(AuditEvent.id.in_(select(newest_check).where(Tool.id.in_(ids))))
-    ):
-        assert event.tool_id is not None
-        last_check[event.tool_id] = event
-    return [
-        FleetTool(
-            id=t.id,
-            name=t.name,
-            slot=t.slot,
-            robot_id=t.robot_id,
-            robot_name=robots[t.robot_id].name,
-            cell=robots[t.robot_id].cell,
-            active_version=t.active_version,
-            last_calibration=_last_calibration(last_cal.get(t.id)),
-            last_check=_last_check(last_check.get(t.id)),
-        )
-        for t in tools
-    ]
+    return select(AuditEvent.id, AuditEvent.tool_id, AuditEvent.at, AuditEvent.details).where(
+        AuditEvent.id.in_(select(newest).where(Tool.id.in_(ids)))
+    )
 
 
 def _last_calibration(
-    row: Row[tuple[str, str, str, datetime, float | None]] | None,
+    row: Row[str, str, str, datetime, float | None] | None,
 ) -> LastCalibration | None:
     if row is None:
         return None
@@ -141,15 +151,15 @@ def _last_calibration(
     )
 
 
-def _last_check(event: AuditEvent | None) -> LastCheck | None:
-    if event is None:
+def _last_check(row: Row[int, str | None, datetime, JsonObject | None] | None) -> LastCheck | None:
+    if row is None:
         return None
-    details = event.details or {}
+    details = row.details or {}
     return LastCheck(
-        id=str(event.id),
+        id=str(row.id),
         within_tolerance=bool(details.get("within_tolerance")),
         distance_mm=float(details.get("distance_mm", 0.0)),
-        created_at=event.at,
+        created_at=row.at,
     )
 
 

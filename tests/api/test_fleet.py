@@ -5,10 +5,12 @@ from __future__ import annotations
 import csv
 import io
 import re
+from datetime import UTC, datetime
 
 import pytest
 
 from app.jsontypes import JsonObject
+from app.models import clock_at
 from tests.api.touches import as_poses
 from tests.conftest import Api
 from tests.sim.touches import simulate_touches
@@ -212,3 +214,19 @@ def test_a_report_gets_the_touches_in_space_and_the_95_percent_ellipsoid(api: Ap
         json={"method": "manual", "tcp": {"position_mm": [0, 0, 150]}},
     ).json()
     assert api.get(f"/v1/calibrations/{manual['id']}").json()["geometry"] is None
+
+
+def test_fleet_pages_tools_made_at_the_same_instant_each_once_in_id_order(api: Api) -> None:
+    """The cursor is (created_at, id): rows sharing a timestamp are told apart by id."""
+    rid = api.robot("same-instant")["id"]
+    with clock_at(datetime(2026, 1, 1, tzinfo=UTC)):
+        made = sorted(api.tool(rid, f"t{i}")["id"] for i in range(7))
+    seen: list[str] = []
+    cursor = None
+    while True:
+        page = api.get("/v1/tools?limit=2" + (f"&cursor={cursor}" if cursor else "")).json()
+        seen += [row["id"] for row in page["items"]]
+        cursor = page["next_cursor"]
+        if cursor is None:
+            break
+    assert seen == made
