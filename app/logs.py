@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import os
 import sys
+from collections.abc import MutableMapping
 from typing import Any
 
 import structlog
@@ -22,7 +23,7 @@ LOG_FORMAT_ENV = "TCPCAL_LOG_FORMAT"
 SERVING_ENV = "TCPCAL_SERVING"
 
 
-def _request_id(_: Any, __: str, event: dict[str, Any]) -> dict[str, Any]:
+def _request_id(_: Any, __: str, event: MutableMapping[str, Any]) -> MutableMapping[str, Any]:
     request_id = correlation_id.get()
     if request_id is not None:
         event.setdefault("request_id", request_id)
@@ -47,11 +48,43 @@ structlog.configure(
 )
 
 
+ACCESS_LOGGER = "tcpcal.access"
+#: The access line's logger: stdlib logging's until configure_logging gives it a direct one.
+_access: Any = structlog.stdlib.get_logger(ACCESS_LOGGER)
+
+
+def access_logger() -> Any:
+    """The logger of the one access line per request (app.middleware)."""
+    return _access
+
+
+def _access_name(_: Any, __: str, event: MutableMapping[str, Any]) -> MutableMapping[str, Any]:
+    event["logger"] = ACCESS_LOGGER
+    return event
+
+
 def configure_logging(level: int = logging.INFO) -> None:
     """Route structlog and stdlib logging through one renderer on stderr."""
+    global _access
     fmt = os.environ.get(LOG_FORMAT_ENV) or ("console" if sys.stderr.isatty() else "json")
     renderer: Any = (
         structlog.dev.ConsoleRenderer() if fmt == "console" else structlog.processors.JSONRenderer()
+    )
+    # The access line, written on every request, goes straight to stderr with the same fields
+    # and renderer: through stdlib logging (a LogRecord, a handler, the formatter's processor
+    # chain) it cost 125 us of CPU a request, more than the rest of the hot read's middleware.
+    _access = structlog.wrap_logger(
+        structlog.WriteLogger(sys.stderr),
+        processors=[
+            structlog.contextvars.merge_contextvars,
+            _request_id,
+            structlog.processors.add_log_level,
+            _access_name,
+            structlog.processors.TimeStamper(fmt="iso", utc=True),
+            renderer,
+        ],
+        wrapper_class=structlog.make_filtering_bound_logger(level),
+        cache_logger_on_first_use=True,
     )
     shared = _SHARED
     handler = logging.StreamHandler(sys.stderr)

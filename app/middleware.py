@@ -8,12 +8,11 @@ import time
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from app.api.problems import problem_response
-from app.logs import get_logger
+from app.logs import access_logger
 from app.metrics import REQUEST_SECONDS, REQUESTS
 
 #: Where the authenticated key's name is left in the ASGI scope for the access line.
 KEY_NAME = "tcpcal.key_name"
-_access = get_logger("tcpcal.access")
 
 BODY_METHODS = frozenset({"POST", "PUT", "PATCH"})
 
@@ -118,7 +117,7 @@ class RequestLogMiddleware:
             method = scope["method"]
             REQUESTS.labels(method, template, str(status)).inc()
             REQUEST_SECONDS.labels(method, template).observe(seconds)
-            _access.info(
+            access_logger().info(
                 "request",
                 method=method,
                 route=template,
