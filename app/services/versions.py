@@ -11,7 +11,7 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal, admit, digest_of
 from app.config import get_settings
-from app.db import read_engine
+from app.db import HeldRead
 from app.errors import Archived, InvalidInput, NoActiveVersion, NotFound
 from app.helpers.etags import if_none_match_hit
 from app.models import Activation, ApiKey, TcpVersion, Tool, utcnow
@@ -258,7 +258,7 @@ def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> ToolTable
 _KEY = ApiKey.__table__
 _TOOL = Tool.__table__
 _VERSION = TcpVersion.__table__
-HOT_READ = (
+HOT_READ = HeldRead(
     select(
         _KEY.c.id.label("key_id"),
         _KEY.c.name.label("key_name"),
@@ -297,12 +297,12 @@ def served_tcp_for_key(
     as_text: bool = False,
 ) -> tuple[Principal, ActiveTcp | None, str]:
     """`served_tcp` for the caller behind `authorization`: the key check, the tool and its
-    active version in one statement on a pooled connection, no ORM, no transaction around it.
-    (who, document or None when the client's copy is current, ETag). Nothing is cached, so a
-    revoked key or a new activation is seen by the very next request."""
+    active version in one statement on the thread's held connection (app.db.HeldRead), no ORM,
+    no transaction around it: (who, document or None when the client's copy is current,
+    ETag). Nothing is cached, so a revoked key or a new activation is seen by the very next
+    request."""
     digest = digest_of(authorization)
-    with read_engine(engine).connect() as conn:
-        found = conn.execute(HOT_READ, {"digest": digest, "tool_id": tool_id}).one_or_none()
+    found = HOT_READ.one_or_none(engine, digest=digest, tool_id=tool_id)
     key = None
     if found is not None:
         key = ApiKey(

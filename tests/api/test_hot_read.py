@@ -4,7 +4,10 @@ refusal is the same problem document as on any other route."""
 
 from __future__ import annotations
 
-from tests.conftest import Api
+from sqlalchemy import create_engine, text
+
+from app.db import HELD_CONNECTIONS
+from tests.conftest import Api, Database
 
 
 def test_the_hot_read_sees_revocations_and_activations_at_once(api: Api) -> None:
@@ -46,3 +49,56 @@ def test_the_hot_read_sees_revocations_and_activations_at_once(api: Api) -> None
     archived = api.get(f"/v1/tools/{tid}/tcp")
     assert archived.status_code == 404
     assert archived.json()["type"].endswith("/archived")
+
+
+def _tool_with_tcp(api: Api) -> str:
+    tid: str = api.tool(api.robot("held")["id"], slot=1)["id"]
+    api.manual(tid, [0, 0, 150])
+    return tid
+
+
+def test_the_held_connection_keeps_no_transaction_open(api: Api, db: Database) -> None:
+    """A SELECT on the held connection leaves no snapshot behind. PostgreSQL: no session of
+    the database stays 'idle in transaction' (it would hold back vacuum and TRUNCATE).
+    SQLite: a checkpoint can empty the whole write-ahead log (a reader's snapshot pins it)."""
+    tid = _tool_with_tcp(api)
+    for _ in range(3):
+        assert api.get(f"/v1/tools/{tid}/tcp").status_code == 200
+    api.manual(tid, [0, 0, 151])  # something in the log
+    assert api.get(f"/v1/tools/{tid}/tcp").json()["version"] == 2
+    with create_engine(db.url).connect() as conn:
+        if db.backend == "postgresql":
+            stuck = conn.execute(
+                text(
+                    "SELECT count(*) FROM pg_stat_activity WHERE datname = current_database() "
+                    "AND state LIKE 'idle in transaction%'"
+                )
+            ).scalar_one()
+            assert stuck == 0
+        else:
+            busy, _, _ = conn.exec_driver_sql("PRAGMA wal_checkpoint(TRUNCATE)").one()
+            assert busy == 0
+
+
+def test_the_hot_read_survives_a_dropped_connection(api: Api, db: Database) -> None:
+    """The held connection dropped under it (PostgreSQL restarted: every other session of
+    the database terminated; SQLite: the handle closed): the next read is answered on a new
+    connection, not with a 500."""
+    tid = _tool_with_tcp(api)
+    assert api.get(f"/v1/tools/{tid}/tcp").status_code == 200
+    if db.backend == "postgresql":
+        with create_engine(db.url, isolation_level="AUTOCOMMIT").connect() as conn:
+            killed = conn.execute(
+                text(
+                    "SELECT count(pg_terminate_backend(pid)) FROM pg_stat_activity "
+                    "WHERE datname = current_database() AND pid <> pg_backend_pid()"
+                )
+            ).scalar_one()
+        assert killed >= 1
+    else:
+        assert HELD_CONNECTIONS, "the read above should hold a connection"
+        for conn in HELD_CONNECTIONS:
+            conn.dbapi_connection.close()
+    answer = api.get(f"/v1/tools/{tid}/tcp")
+    assert answer.status_code == 200, answer.text
+    assert answer.json()["tcp"]["position_mm"] == [0.0, 0.0, 150.0]
