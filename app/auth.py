@@ -6,6 +6,8 @@ import hashlib
 import hmac
 import secrets
 from dataclasses import dataclass
+from datetime import datetime
+from typing import Protocol
 
 from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
@@ -69,7 +71,22 @@ def digest_of(header: str | None) -> str:
     return hash_key(_bearer(header))
 
 
-def admit(row: ApiKey | None, digest: str, *, required: str) -> Principal:
+class KeyRow(Protocol):
+    """What admitting a caller reads of a key: a models.ApiKey, or the hot read's columns."""
+
+    @property
+    def id(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def scope(self) -> str: ...
+    @property
+    def key_hash(self) -> str: ...
+    @property
+    def revoked_at(self) -> datetime | None: ...
+
+
+def admit(row: KeyRow | None, digest: str, *, required: str) -> Principal:
     """The caller a looked-up key row stands for: 401 unknown or revoked, 403 scope too small."""
     if row is None or row.revoked_at is not None or not hmac.compare_digest(row.key_hash, digest):
         raise Unauthorized(

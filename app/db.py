@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from sqlalchemy import Connection, Engine, Select, create_engine, event
-from sqlalchemy.engine import make_url
+from sqlalchemy.engine import URL, make_url
 from sqlalchemy.engine.interfaces import DBAPIConnection
 from sqlalchemy.orm import Session, sessionmaker
 from sqlalchemy.pool import ConnectionPoolEntry, NullPool
@@ -138,19 +138,19 @@ class HeldRead:
         return cache[name]
 
     def _connection(self, engine: Engine) -> Any:
-        held: dict[str, Any] = self._local.__dict__.setdefault("held", {})
-        url = engine.url.render_as_string(hide_password=False)
-        if url not in held:
-            conn = _held_engine(url).raw_connection()
+        held: dict[URL, Any] = self._local.__dict__.setdefault("held", {})
+        conn = held.get(engine.url)
+        if conn is None:
+            conn = _held_engine(engine.url.render_as_string(hide_password=False)).raw_connection()
             if not is_sqlite(engine):
                 conn.dbapi_connection.autocommit = True  # type: ignore[union-attr]
-            held[url] = conn
+            held[engine.url] = conn
             HELD_CONNECTIONS.append(conn)
-        return held[url]
+        return conn
 
     def _drop(self, engine: Engine) -> None:
-        held: dict[str, Any] = self._local.__dict__.get("held", {})
-        conn = held.pop(engine.url.render_as_string(hide_password=False), None)
+        held: dict[URL, Any] = self._local.__dict__.get("held", {})
+        conn = held.pop(engine.url, None)
         if conn is not None:
             HELD_CONNECTIONS.remove(conn)
             with contextlib.suppress(Exception):

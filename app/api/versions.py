@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Header, Query, Request, Response
-from fastapi.responses import JSONResponse, PlainTextResponse
+from fastapi.responses import PlainTextResponse
 
 from app.api.params import PathId, VersionNumber
 from app.api.tools import IfMatch
@@ -98,7 +98,8 @@ async def get_active_tcp(
         name = file_name(format, document.tool_name, document.slot)
         headers["Content-Disposition"] = f'attachment; filename="{name}"'
         return PlainTextResponse(document.controller.text, headers=headers)
-    return JSONResponse(document.model_dump(mode="json"), headers=headers)
+    # Serialised by pydantic in one pass (no dict, no json.dumps); validated when it was built.
+    return Response(document.model_dump_json(), media_type="application/json", headers=headers)
 
 
 @router.get("/v1/robots/{robot_id}/tool-table", response_model=ToolTable)

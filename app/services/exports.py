@@ -2,14 +2,47 @@
 
 from __future__ import annotations
 
+from datetime import datetime
+from typing import Protocol
+
 import numpy as np
 
 from app.exports import ToolData, export_tool
-from app.models import TcpVersion, Tool
+from app.jsontypes import JsonArray, JsonObject
 from app.schemas.tools import ControllerText
 
 
-def controller_text(fmt: str, *, tool: Tool, version: TcpVersion) -> ControllerText:
+class ServedTool(Protocol):
+    """What serving a TCP reads of a tool: a models.Tool, or the hot read's few columns."""
+
+    @property
+    def id(self) -> str: ...
+    @property
+    def robot_id(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def slot(self) -> int | None: ...
+    @property
+    def load(self) -> JsonObject | None: ...
+
+
+class ServedVersion(Protocol):
+    """What serving a TCP reads of a version: a models.TcpVersion, or the hot read's columns."""
+
+    @property
+    def version(self) -> int: ...
+    @property
+    def position_mm(self) -> JsonArray: ...
+    @property
+    def quaternion(self) -> JsonArray: ...
+    @property
+    def source(self) -> str: ...
+    @property
+    def created_at(self) -> datetime: ...
+
+
+def controller_text(fmt: str, *, tool: ServedTool, version: ServedVersion) -> ControllerText:
     """{format, text, values} of a tool's version in a controller's own syntax."""
     load = tool.load or {}
     data = ToolData(

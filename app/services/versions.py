@@ -5,6 +5,8 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime
 
 from sqlalchemy import Engine, and_, bindparam, select
 from sqlalchemy.orm import Session
@@ -14,10 +16,11 @@ from app.config import get_settings
 from app.db import HeldRead
 from app.errors import Archived, InvalidInput, NoActiveVersion, NotFound
 from app.helpers.etags import if_none_match_hit
+from app.jsontypes import JsonArray, JsonObject
 from app.models import Activation, ApiKey, TcpVersion, Tool, utcnow
 from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.services import audit
-from app.services.exports import controller_text
+from app.services.exports import ServedTool, ServedVersion, controller_text
 from app.services.robots import get_robot
 from app.services.tools import check_if_match, get_tool
 
@@ -147,7 +150,7 @@ def active_version_row(session: Session, tool: Tool) -> TcpVersion:
     ).one()
 
 
-def tcp_etag(tool: Tool, row: TcpVersion, fmt: str | None, as_text: bool = False) -> str:
+def tcp_etag(tool: ServedTool, row: ServedVersion, fmt: str | None, as_text: bool = False) -> str:
     """Strong ETag of what /tcp serves: the numbers, slot, load and the representation
     (the JSON document or the controller text alone)."""
     payload = json.dumps(
@@ -182,7 +185,7 @@ def version_document(row: TcpVersion, tool: Tool) -> Version:
     )
 
 
-def active_document(tool: Tool, row: TcpVersion, fmt: str | None) -> ActiveTcp:
+def active_document(tool: ServedTool, row: ServedVersion, fmt: str | None) -> ActiveTcp:
     """What a cell controller reads: the active TCP, and its controller text when asked."""
     return ActiveTcp(
         tool_id=tool.id,
@@ -303,15 +306,11 @@ def served_tcp_for_key(
     request."""
     digest = digest_of(authorization)
     found = HOT_READ.one_or_none(engine, digest=digest, tool_id=tool_id)
-    key = None
-    if found is not None:
-        key = ApiKey(
-            id=found.key_id,
-            name=found.key_name,
-            scope=found.scope,
-            key_hash=found.key_hash,
-            revoked_at=found.revoked_at,
-        )
+    key = (
+        None
+        if found is None
+        else _HotKey(found.key_id, found.key_name, found.scope, found.key_hash, found.revoked_at)
+    )
     principal = admit(key, digest, required="read")
     assert found is not None
     _text_needs_format(as_text, fmt)
@@ -321,22 +320,39 @@ def served_tcp_for_key(
         raise Archived(f"tool {tool_id} ({found.tool_name}) was archived")
     if found.version is None:
         raise NoActiveVersion(f"tool {tool_id} ({found.tool_name}) has no active TCP version yet")
-    tool = Tool(
-        id=found.tool_id,
-        robot_id=found.robot_id,
-        name=found.tool_name,
-        slot=found.slot,
-        load=found.load,
-        active_version=found.version,
-    )
-    row = TcpVersion(
-        version=found.version,
-        position_mm=found.position_mm,
-        quaternion=found.quaternion,
-        source=found.source,
-        created_at=found.created_at,
+    # Plain records, not ORM objects: an instrumented __init__ cost 50 us a request here.
+    tool = _HotTool(found.tool_id, found.robot_id, found.tool_name, found.slot, found.load)
+    row = _HotVersion(
+        found.version, found.position_mm, found.quaternion, found.source, found.created_at
     )
     etag = tcp_etag(tool, row, fmt, as_text)
     if if_none_match_hit(if_none_match, etag):
         return principal, None, etag
     return principal, active_document(tool, row, fmt), etag
+
+
+@dataclass(frozen=True, slots=True)
+class _HotKey:
+    id: str
+    name: str
+    scope: str
+    key_hash: str
+    revoked_at: datetime | None
+
+
+@dataclass(frozen=True, slots=True)
+class _HotTool:
+    id: str
+    robot_id: str
+    name: str
+    slot: int | None
+    load: JsonObject | None
+
+
+@dataclass(frozen=True, slots=True)
+class _HotVersion:
+    version: int
+    position_mm: JsonArray
+    quaternion: JsonArray
+    source: str
+    created_at: datetime
