@@ -9,10 +9,11 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Protocol
 
-from sqlalchemy import select
+from sqlalchemy import Engine, bindparam, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
+from app.db import HeldRead
 from app.errors import Forbidden, Unauthorized
 from app.models import ApiKey
 
@@ -64,6 +65,25 @@ def authenticate(session: Session, header: str | None, *, required: str) -> Prin
     digest = digest_of(header)
     row = session.scalars(select(ApiKey).where(ApiKey.key_hash == digest)).one_or_none()
     return admit(row, digest, required=required)
+
+
+#: The key lookup as one statement on the calling thread's held connection (app.db.HeldRead):
+#: for routes on the event loop that need no session before their work (POST /v1/solve).
+KEY_READ = HeldRead(
+    select(
+        ApiKey.__table__.c.id,
+        ApiKey.__table__.c.name,
+        ApiKey.__table__.c.scope,
+        ApiKey.__table__.c.key_hash,
+        ApiKey.__table__.c.revoked_at,
+    ).where(ApiKey.__table__.c.key_hash == bindparam("digest"))
+)
+
+
+def authenticate_held(engine: Engine, header: str | None, *, required: str) -> Principal:
+    """`authenticate` without a session: the key read on the thread's held connection."""
+    digest = digest_of(header)
+    return admit(KEY_READ.one_or_none(engine, digest=digest), digest, required=required)
 
 
 def digest_of(header: str | None) -> str:

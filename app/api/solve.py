@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Header, Request
+from fastapi import APIRouter, Body, Header, Request, Response
 
 from app import solve_pool
-from app.auth import authenticate
+from app.auth import authenticate_held
 from app.db import loop_engine, session_scope
 from app.methods import openapi_examples
 from app.middleware import KEY_NAME
@@ -23,14 +23,20 @@ async def solve(
     body: Annotated[SolveRequest, Body(openapi_examples=openapi_examples())],
     request: Request,
     authorization: Annotated[str | None, Header(include_in_schema=False)] = None,
-) -> SolveResult:
+) -> Response:
     """Solve a calibration body without storing anything: the result a stored calibration would
     have, graded against the given (or default) tolerance; a unit or convention mix-up is
     refused with the reading that fits (`convention-mismatch`)."""
-    # The key and the robot model are read first in a short transaction; the solve then runs
-    # in a solver process (app.solve_pool) with no database connection held.
-    with session_scope(write=False, engine=loop_engine()) as session:
-        key = authenticate(session, authorization, required="read")
-        kinematics = calibrate.stateless_kinematics(session, body)
+    # On the event loop, nothing awaited until the solve: the key is one statement on the
+    # loop's held connection; a session is opened only for a stored robot's model. The solve
+    # then runs in a solver process (app.solve_pool) with no database connection held.
+    key = authenticate_held(loop_engine(), authorization, required="read")
     request.scope[KEY_NAME] = key.name
-    return await solve_pool.run(calibrate.solve_detached, body, kinematics)
+    if calibrate.stateless_robot_id(body) is None:
+        kinematics = calibrate.stateless_kinematics(None, body)
+    else:
+        with session_scope(write=False, engine=loop_engine()) as session:
+            kinematics = calibrate.stateless_kinematics(session, body)
+    result = await solve_pool.run(calibrate.solve_detached, body, kinematics)
+    # Built and validated in the solver process: serialised once, not validated again.
+    return Response(result.model_dump_json(), media_type="application/json")

@@ -384,12 +384,20 @@ def _activate_if_due(
     return due
 
 
-def stateless_kinematics(session: Session, request: MethodRequest) -> JsonObject | None:
-    """The robot model a /v1/solve body uses: given inline, or a stored robot's."""
+def stateless_robot_id(request: MethodRequest) -> str | None:
+    """The stored robot whose model a /v1/solve body uses (None: inline or no model)."""
     assert isinstance(request, StatelessFields)  # the /v1/solve union's models all are
+    return request.robot_id if request.kinematics is None else None
+
+
+def stateless_kinematics(session: Session | None, request: MethodRequest) -> JsonObject | None:
+    """The robot model a /v1/solve body uses: given inline, or a stored robot's (`session`
+    is needed only when `stateless_robot_id` names one)."""
+    assert isinstance(request, StatelessFields)
     if request.kinematics is not None:
         return validate_kinematics(request.kinematics)
     if request.robot_id is not None:
+        assert session is not None
         return get_robot(session, request.robot_id).kinematics
     return None
 
