@@ -59,7 +59,9 @@ def list_fleet(
             headers={"Content-Disposition": 'attachment; filename="tcpcal-fleet.csv"'},
         )
     items, next_cursor = fleet.list_fleet(session, **filters, limit=limit, cursor=cursor)
-    return {"items": items, "next_cursor": next_cursor}
+    # The rows were validated as they were built: serialised once, not validated again.
+    answer = Page[FleetTool](items=items, next_cursor=next_cursor)
+    return Response(answer.model_dump_json(), media_type="application/json")
 
 
 @router.get("/v1/tools/{tool_id}/checks", response_model=Page[CheckRecord])
