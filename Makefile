@@ -45,6 +45,7 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.planner
 	$(BIN)/python -m bench.solver_speed
 	$(BIN)/python -m bench.wrk_load
+	$(BIN)/python -m bench.scale
 
 screenshots: $(STAMP)
 	$(BIN)/python scripts/screenshots.py

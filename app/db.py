@@ -120,7 +120,6 @@ class HeldRead:
     def __init__(self, stmt: Select[Any]) -> None:
         self._stmt = stmt
         self._row = namedtuple("HeldRow", list(stmt.selected_columns.keys()))  # type: ignore[misc]
-        self._local = threading.local()
 
     def _compiled(self, engine: Engine) -> tuple[str, list[str] | None, list[Any]]:
         cache: dict[str, tuple[str, list[str] | None, list[Any]]] = self.__dict__.setdefault(
@@ -138,7 +137,7 @@ class HeldRead:
         return cache[name]
 
     def _connection(self, engine: Engine) -> Any:
-        held: dict[URL, Any] = self._local.__dict__.setdefault("held", {})
+        held: dict[URL, Any] = _HELD_BY_THREAD.__dict__.setdefault("held", {})
         conn = held.get(engine.url)
         if conn is None:
             conn = _held_engine(engine.url.render_as_string(hide_password=False)).raw_connection()
@@ -149,7 +148,7 @@ class HeldRead:
         return conn
 
     def _drop(self, engine: Engine) -> None:
-        held: dict[URL, Any] = self._local.__dict__.get("held", {})
+        held: dict[URL, Any] = _HELD_BY_THREAD.__dict__.get("held", {})
         conn = held.pop(engine.url, None)
         if conn is not None:
             HELD_CONNECTIONS.remove(conn)
@@ -189,6 +188,9 @@ class HeldRead:
         )
 
 
+#: Each thread's held connections by database URL, shared by every HeldRead (one connection
+#: per thread and database, however many statements are held).
+_HELD_BY_THREAD = threading.local()
 #: Every held connection of the process, closed by dispose_engines.
 HELD_CONNECTIONS: list[Any] = []
 

@@ -7,7 +7,9 @@ from __future__ import annotations
 from sqlalchemy import create_engine, text
 
 from app.db import HELD_CONNECTIONS
+from tests.api.touches import as_poses
 from tests.conftest import Api, Database
+from tests.sim.touches import simulate_touches
 
 
 def test_the_hot_read_sees_revocations_and_activations_at_once(api: Api) -> None:
@@ -102,3 +104,16 @@ def test_the_hot_read_survives_a_dropped_connection(api: Api, db: Database) -> N
     answer = api.get(f"/v1/tools/{tid}/tcp")
     assert answer.status_code == 200, answer.text
     assert answer.json()["tcp"]["position_mm"] == [0.0, 0.0, 150.0]
+
+
+def test_the_held_reads_share_one_connection_per_thread(api: Api) -> None:
+    """The TCP read and /v1/solve's key check both run on the event loop: one connection."""
+    tid = _tool_with_tcp(api)
+    assert api.get(f"/v1/tools/{tid}/tcp").status_code == 200
+    body = {
+        "method": "xyz_npoint",
+        "format": "xyz_wxyz",
+        "poses": as_poses(simulate_touches(6, seed=3)),
+    }
+    assert api.post("/v1/solve", body, scope="read").status_code == 200
+    assert len(HELD_CONNECTIONS) == 1
