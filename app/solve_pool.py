@@ -50,8 +50,14 @@ def _get_pool() -> ProcessPoolExecutor:
 
 def _import_solvers() -> None:
     """Each solver process imports the solve path as it starts (numpy, scipy, the methods:
-    about a second), not in the middle of its first request."""
+    about a second), not in the middle of its first request, and leaves what it imported
+    out of later garbage collections (see app.main.settle_heap)."""
+    import gc
+
     import app.services.calibrate  # noqa: F401
+
+    gc.collect()
+    gc.freeze()
 
 
 def start() -> None:
