@@ -29,7 +29,8 @@ class Settings(BaseSettings):
         default=None,
         ge=0,
         description="processes that solve /v1/solve bodies off the event loop (per server "
-        "worker); default: one per core; 0 solves in the request's thread",
+        "worker); default: one per core but one (the event loop's); 0 solves in the request's "
+        "thread",
     )
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."

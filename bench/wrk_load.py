@@ -42,6 +42,7 @@ from typing import Any
 import httpx
 
 import tests.live.server as live
+from app import solve_pool
 from app.kinematics.poses import pose_to_format
 from tests.live.server import fresh_database, live_server
 from tests.sim.touches import simulate_touches
@@ -276,8 +277,9 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, help="override the rounds")
     parser.add_argument("--no-save", action="store_true", help="print only (profiling runs)")
     args = parser.parse_args()
-    # The server as deployed: one solver process per core (the live-test helper uses one).
-    os.environ.setdefault("TCPCAL_SOLVE_PROCESSES", str(os.cpu_count() or 1))
+    # The server as deployed: its default number of solver processes (the live-test helper
+    # would start one); an explicit TCPCAL_SOLVE_PROCESSES is passed through.
+    os.environ.setdefault("TCPCAL_SOLVE_PROCESSES", str(solve_pool.default_processes()))
     settings = dict(QUICK if args.quick else FULL)
     if args.rounds:
         settings["rounds"] = args.rounds

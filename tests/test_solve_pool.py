@@ -62,3 +62,16 @@ def test_a_solve_in_the_pool_equals_the_solve_in_process(
     assert raised.value.kind == "out-of-range"  # every flange at the base: not a pose
     assert raised.value.loc[0] == "body"
     get_settings.cache_clear()
+
+
+@pytest.mark.parametrize(("cores", "solvers"), [(1, 1), (2, 1), (8, 7), (None, 1)])
+def test_the_default_leaves_one_core_to_the_event_loop(
+    monkeypatch: pytest.MonkeyPatch, cores: int | None, solvers: int
+) -> None:
+    monkeypatch.delenv("TCPCAL_SOLVE_PROCESSES", raising=False)
+    monkeypatch.setattr("os.cpu_count", lambda: cores)
+    get_settings.cache_clear()
+    try:
+        assert solve_pool.processes() == solvers
+    finally:
+        get_settings.cache_clear()
