@@ -75,3 +75,41 @@ def test_the_default_leaves_one_core_to_the_event_loop(
         assert solve_pool.processes() == solvers
     finally:
         get_settings.cache_clear()
+
+
+def test_solvers_end_with_a_killed_server_worker() -> None:
+    """A worker killed with SIGKILL (uvicorn's health check, the OOM killer) tells its pool
+    nothing: the solvers must notice on their own and end, not live on forever."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    code = (
+        "import os, time\n"
+        "os.environ['TCPCAL_SOLVE_PROCESSES'] = '2'\n"
+        "from app import solve_pool\n"
+        "solve_pool.start()\n"
+        "print(*solve_pool._get_pool()._processes, flush=True)\n"
+        "time.sleep(120)\n"
+    )
+    worker = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    assert worker.stdout is not None
+    solvers = [int(pid) for pid in worker.stdout.readline().split()]
+    assert len(solvers) == 2
+
+    def alive(pid: int) -> bool:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+    assert all(alive(pid) for pid in solvers)
+    worker.send_signal(signal.SIGKILL)
+    worker.wait()
+    deadline = time.monotonic() + 10
+    while any(alive(pid) for pid in solvers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(alive(pid) for pid in solvers)
