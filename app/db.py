@@ -139,7 +139,7 @@ class HeldRead:
     def _connection(self, engine: Engine) -> Any:
         held: dict[URL, Any] = _HELD_BY_THREAD.__dict__.setdefault("held", {})
         conn = held.get(engine.url)
-        if conn is None:
+        if conn is None or conn.dbapi_connection is None:  # none yet, or closed by dispose_engines
             conn = _held_engine(engine.url.render_as_string(hide_password=False)).raw_connection()
             if not is_sqlite(engine):
                 conn.dbapi_connection.autocommit = True  # type: ignore[union-attr]

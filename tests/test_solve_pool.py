@@ -92,6 +92,8 @@ def test_solvers_end_with_a_killed_server_worker() -> None:
         "from app import solve_pool\n"
         "solve_pool.start()\n"
         "print(*solve_pool._get_pool()._processes, flush=True)\n"
+        "time.sleep(2.5)\n"  # the watchdogs have looked at least twice
+        "print(solve_pool._get_pool().submit(abs, -7).result(), flush=True)\n"
         "time.sleep(120)\n"
     )
     worker = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
@@ -106,6 +108,7 @@ def test_solvers_end_with_a_killed_server_worker() -> None:
             return False
         return True
 
+    assert worker.stdout.readline().strip() == "7"  # a live worker's solvers keep serving
     assert all(alive(pid) for pid in solvers)
     worker.send_signal(signal.SIGKILL)
     worker.wait()

@@ -117,3 +117,14 @@ def test_the_held_reads_share_one_connection_per_thread(api: Api) -> None:
     }
     assert api.post("/v1/solve", body, scope="read").status_code == 200
     assert len(HELD_CONNECTIONS) == 1
+
+
+def test_the_hot_read_after_the_engines_were_disposed(api: Api) -> None:
+    """dispose_engines closes the held connections (settings changed, tests): the next read
+    takes a new one instead of failing on the closed one."""
+    from app.db import dispose_engines
+
+    tid = _tool_with_tcp(api)
+    assert api.get(f"/v1/tools/{tid}/tcp").status_code == 200
+    dispose_engines()
+    assert api.get(f"/v1/tools/{tid}/tcp").status_code == 200
