@@ -120,11 +120,11 @@ class HeldRead:
     def __init__(self, stmt: Select[Any]) -> None:
         self._stmt = stmt
         self._row = namedtuple("HeldRow", list(stmt.selected_columns.keys()))  # type: ignore[misc]
+        self._by_dialect: dict[str, tuple[str, list[str] | None, list[Any]]] = {}
 
     def _compiled(self, engine: Engine) -> tuple[str, list[str] | None, list[Any]]:
-        cache: dict[str, tuple[str, list[str] | None, list[Any]]] = self.__dict__.setdefault(
-            "_by_dialect", {}
-        )
+        """(SQL, the order of positional parameters or None, each column's processor)."""
+        cache = self._by_dialect
         name = engine.dialect.name
         if name not in cache:
             compiled = self._stmt.compile(dialect=engine.dialect)
@@ -158,12 +158,12 @@ class HeldRead:
     def statement(self, engine: Engine, **params: str) -> tuple[str, Any]:
         """The SQL and the driver's parameters sent for `params` (for EXPLAIN in bench/)."""
         sql, order, _ = self._compiled(engine)
-        return sql, tuple(params[k] for k in order) if order is not None else params
+        return sql, _driver_params(order, params)
 
     def one_or_none(self, engine: Engine, **params: str) -> Any:
         """The statement's row for `params` (attributes named as its columns), or None."""
-        sql, args = self.statement(engine, **params)
-        processors = self._compiled(engine)[2]
+        sql, order, processors = self._compiled(engine)
+        args = _driver_params(order, params)
         started = time.perf_counter()
         for attempt in (1, 2):
             try:
@@ -186,6 +186,11 @@ class HeldRead:
         return self._row(
             *(v if p is None else p(v) for v, p in zip(rows[0], processors, strict=True))
         )
+
+
+def _driver_params(order: list[str] | None, params: dict[str, str]) -> Any:
+    """Parameters as the driver takes them: positional in `order` (SQLite), or by name."""
+    return tuple(params[k] for k in order) if order is not None else params
 
 
 #: Each thread's held connections by database URL, shared by every HeldRead (one connection
