@@ -7,9 +7,10 @@ import csv
 import io
 from collections.abc import Sequence
 from datetime import datetime
+from typing import TypeVar
 
 from sqlalchemy import Row, ScalarSelect, Select, func, or_, select
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from app.helpers.pagination import paginate_newest_first, paginate_rows
 from app.jsontypes import JsonObject
@@ -18,16 +19,20 @@ from app.schemas.fleet import CSV_COLUMNS, CheckRecord, FleetTool, LastCalibrati
 from app.services.tools import get_tool
 
 CHECK_ACTION = "tool.check"
+T = TypeVar("T")
 
 
-def _last_calibration_status() -> ScalarSelect[str]:
-    latest = (
-        select(Calibration.status)
+def _newest_calibration(column: InstrumentedAttribute[T]) -> ScalarSelect[T]:
+    """`column` of the tool's newest calibration, correlated to Tool: a seek in the
+    (tool_id, created_at, id) index whatever the length of the tool's history."""
+    return (
+        select(column)
         .where(Calibration.tool_id == Tool.id)
         .order_by(Calibration.created_at.desc(), Calibration.id.desc())
         .limit(1)
+        .correlate(Tool)
+        .scalar_subquery()
     )
-    return latest.scalar_subquery()
 
 
 #: The columns a fleet row shows of its tool and robot (created_at: the page's cursor).
@@ -64,7 +69,7 @@ def _fleet_query(
             )
         )
     if status is not None:
-        stmt = stmt.where(_last_calibration_status() == status)
+        stmt = stmt.where(_newest_calibration(Calibration.status) == status)
     return stmt
 
 
@@ -112,14 +117,7 @@ def list_fleet(
 def _newest_calibrations(
     ids: list[str],
 ) -> Select[str, str, str, datetime, float | None]:
-    newest = (
-        select(Calibration.id)
-        .where(Calibration.tool_id == Tool.id)
-        .order_by(Calibration.created_at.desc(), Calibration.id.desc())
-        .limit(1)
-        .correlate(Tool)
-        .scalar_subquery()
-    )
+    newest = _newest_calibration(Calibration.id)
     return select(
         Calibration.id,
         Calibration.tool_id,
