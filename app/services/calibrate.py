@@ -193,13 +193,16 @@ def replayed(
     raw_body: JsonObject,
     idempotency_key: str | None,
     actor: Principal,
+    *,
+    purge: bool = False,
 ) -> Calibration | None:
-    """The first response to this key and body, if there was one (409 for another body)."""
+    """The first response to this key and body, if there was one (409 for another body).
+    `purge`: also delete expired records (inside a write transaction only)."""
     if idempotency_key is None:
         return None
     fingerprint = idempotency.request_fingerprint(tool_id, raw_body)
     replay = idempotency.replay(
-        session, actor=actor, key=idempotency_key, fingerprint=fingerprint, purge=False
+        session, actor=actor, key=idempotency_key, fingerprint=fingerprint, purge=purge
     )
     return None if replay is None else Calibration.model_validate(replay)
 
@@ -235,16 +238,12 @@ def submit(
     solved: Presolved | None = None,
 ) -> tuple[Calibration, bool]:
     """Solve and store a calibration; (the stored Calibration, replayed?). With `solved` (from
-    `presolve`, made before the lock) the stored result is that one, unless what it read has
-    changed since."""
+    `solve_snapshot`, made before the lock) the stored result is that one, unless what it
+    read has changed since."""
     tool = get_tool(session, tool_id, for_update=True)
-    fingerprint = idempotency.request_fingerprint(tool_id, raw_body)
-    if idempotency_key is not None:
-        replay = idempotency.replay(
-            session, actor=actor, key=idempotency_key, fingerprint=fingerprint
-        )
-        if replay is not None:
-            return Calibration.model_validate(replay), True
+    replay = replayed(session, tool_id, raw_body, idempotency_key, actor, purge=True)
+    if replay is not None:
+        return replay, True
 
     point_name = _reference_point_to_save(request)
     if point_name is not None:
@@ -293,7 +292,7 @@ def submit(
             session,
             actor=actor,
             key=idempotency_key,
-            fingerprint=fingerprint,
+            fingerprint=idempotency.request_fingerprint(tool_id, raw_body),
             response=out.model_dump(mode="json"),
         )
     return out, False
