@@ -57,7 +57,7 @@ from app.models import (
     Tool,
 )
 from app.services import fleet, versions
-from bench.wrk_load import PG_URL, _pg_reachable, _wrk, touches_body
+from bench.wrk_load import PG_URL, _percentile, _pg_reachable, _wrk, touches_body
 from tests.live.server import LiveServer, fresh_database, live_server
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -330,14 +330,13 @@ def wrk_latency(url: str, headers: dict[str, str], seconds: int) -> dict[str, fl
     if "Non-2xx" in out:
         raise RuntimeError(f"non-2xx answers from {url}:\n{out}")
 
-    def pct(label: str) -> float:
-        m = re.search(rf"^\s+{label}\s+([\d.]+)(us|ms|s)\s*$", out, re.M)
-        assert m, out
-        return float(m.group(1)) * {"us": 1e-3, "ms": 1.0, "s": 1e3}[m.group(2)]
-
     rps = re.search(r"Requests/sec:\s+([\d.]+)", out)
     assert rps, out
-    return {"p50_ms": pct("50%"), "p99_ms": pct("99%"), "requests_per_s": float(rps.group(1))}
+    return {
+        "p50_ms": _percentile(out, "50%"),
+        "p99_ms": _percentile(out, "99%"),
+        "requests_per_s": float(rps.group(1)),
+    }
 
 
 def http_reads(db: Seeded) -> dict[str, tuple[str, dict[str, str]]]:
