@@ -1,8 +1,9 @@
 """Structured logs with structlog: JSON lines for machines, readable lines on a terminal.
 
-Every line carries the request id of the request it belongs to (asgi-correlation-id reads
-`X-Request-ID` or makes one, and echoes it). Uvicorn's and the libraries' stdlib logging goes
-through the same renderer, so an operator's log shipper sees one format. Set
+Every line carries the request id of the request it belongs to (app.middleware reads
+`X-Request-ID` or makes one, echoes it, and leaves it in REQUEST_ID). Uvicorn's and the
+libraries' stdlib logging goes through the same renderer, so an operator's log shipper sees
+one format. Set
 TCPCAL_LOG_FORMAT=json or =console to choose; by default JSON unless stderr is a terminal.
 """
 
@@ -12,19 +13,21 @@ import logging
 import os
 import sys
 from collections.abc import MutableMapping
+from contextvars import ContextVar
 from typing import Any
 
 import structlog
-from asgi_correlation_id import correlation_id
 
 LOG_FORMAT_ENV = "TCPCAL_LOG_FORMAT"
 #: Set by `tcpcal serve`: each worker configures logging when it builds the app (uvicorn is
 #: told to leave logging alone). Tests and embedding applications keep their own logging.
 SERVING_ENV = "TCPCAL_SERVING"
+#: The id of the request being served (None outside one), for every log line it causes.
+REQUEST_ID: ContextVar[str | None] = ContextVar("tcpcal.request_id", default=None)
 
 
 def _request_id(_: Any, __: str, event: MutableMapping[str, Any]) -> MutableMapping[str, Any]:
-    request_id = correlation_id.get()
+    request_id = REQUEST_ID.get()
     if request_id is not None:
         event.setdefault("request_id", request_id)
     return event

@@ -8,7 +8,6 @@ import os
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from asgi_correlation_id import CorrelationIdMiddleware
 from fastapi import FastAPI
 from fastapi.routing import APIRoute
 from sqlalchemy.exc import SQLAlchemyError
@@ -35,7 +34,7 @@ from app.auth import ensure_bootstrap_key
 from app.config import get_settings
 from app.db import get_engine, session_scope
 from app.logs import SERVING_ENV, configure_logging
-from app.middleware import BodyLimitMiddleware, RequestLogMiddleware, valid_request_id
+from app.middleware import BodyLimitMiddleware, RequestLogMiddleware
 from app.migrate import current_revision, head_revision
 from app.openapi import build_openapi
 
@@ -117,14 +116,8 @@ def create_app() -> FastAPI:
     docs.mount_assets(app)
     console.mount_assets(app)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
-    app.add_middleware(RequestLogMiddleware)
     # Outermost: every log line of the request, the access line included, has its id.
-    app.add_middleware(
-        CorrelationIdMiddleware,
-        header_name="X-Request-ID",
-        validator=valid_request_id,
-        update_request_header=True,
-    )
+    app.add_middleware(RequestLogMiddleware)
     app.openapi = lambda: build_openapi(app)  # type: ignore[method-assign]
     return app
 

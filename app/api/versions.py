@@ -2,25 +2,94 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, cast
 
-from fastapi import APIRouter, Header, Query, Request, Response
+from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import PlainTextResponse
 
-from app.api.params import PathId, VersionNumber
+from app.api.params import PathId, RawParam, VersionNumber
 from app.api.tools import IfMatch
 from app.db import loop_engine
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.exports import file_name
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
 from app.middleware import KEY_NAME
-from app.schemas.common import ControllerFormat
+from app.schemas.common import CONTROLLER_FORMATS, ID_PATTERN, ControllerFormat
 from app.schemas.tools import ActiveTcp, Tool, ToolTable, Version, VersionList
 from app.services import tools, versions
 
 router = APIRouter(tags=["versions"])
 
+#: The parameters of the hot read, read by hand (see RawParam).
+TOOL_ID = RawParam(
+    "path",
+    "tool_id",
+    "Tool Id",
+    "an id this service issued (1-64 of A-Za-z0-9_-); take it from GET /v1/tools",
+    description="resource id",
+    pattern=ID_PATTERN,
+)
+FORMAT = RawParam(
+    "query",
+    "format",
+    "Format",
+    f"one of {', '.join(CONTROLLER_FORMATS)}, or leave it out for JSON alone",
+    description="controller text format",
+    choices=CONTROLLER_FORMATS,
+)
+IF_NONE_MATCH = RawParam(
+    "header",
+    "if-none-match",
+    "If-None-Match",
+    'the ETag of an earlier answer (a quoted hex string, e.g. "3f2a...") or *; '
+    "send back the ETag header you were given",
+    pattern=IF_NONE_MATCH_PATTERN,
+)
+ACCEPT = RawParam(
+    "header", "accept", "Accept", "at most 1000 characters (e.g. text/plain)", max_length=1000
+)
 FormatQuery = Annotated[ControllerFormat | None, Query(description="controller text format")]
+
+
+# First: the route cell controllers poll is matched before the others.
+@router.get(
+    "/v1/tools/{tool_id}/tcp",
+    response_model=ActiveTcp,
+    responses={
+        200: {"content": {"text/plain": {"schema": {"type": "string"}}}},
+        304: {"description": "not modified (If-None-Match)"},
+    },
+    openapi_extra={"parameters": [p.openapi() for p in (TOOL_ID, FORMAT, IF_NONE_MATCH, ACCEPT)]},
+)
+async def get_active_tcp(request: Request) -> Response:
+    """The active TCP a cell controller reads, with a strong ETag (If-None-Match -> 304);
+    `?format=` adds the controller's own text. With `Accept: text/plain` (and `?format=`) the
+    controller text alone, as a file to save and load (Content-Disposition names it)."""
+    tool_id = TOOL_ID.read(request)
+    assert tool_id is not None  # a path parameter
+    format = cast(ControllerFormat | None, FORMAT.read(request))
+    if_none_match = IF_NONE_MATCH.read(request)
+    as_text = "text/plain" in (ACCEPT.read(request) or "")
+    # The hot path, on the event loop without a threadpool hop: the key check and the read
+    # are one indexed statement (tens of microseconds on SQLite, one round trip on PostgreSQL).
+    key, document, etag = versions.served_tcp_for_key(
+        loop_engine(),
+        authorization=request.headers.get("authorization"),
+        tool_id=tool_id,
+        fmt=format,
+        if_none_match=if_none_match,
+        as_text=as_text,
+    )
+    request.scope[KEY_NAME] = key.name  # for the access log line; never the key
+    headers = {"ETag": etag, "Vary": "Accept"}
+    if document is None:
+        return Response(status_code=304, headers=headers)
+    if as_text and document.controller is not None and format is not None:
+        name = file_name(format, document.tool_name, document.slot)
+        headers["Content-Disposition"] = f'attachment; filename="{name}"'
+        return PlainTextResponse(document.controller.text, headers=headers)
+    # Serialised by pydantic in one pass (no dict, no json.dumps); validated when it was built.
+    return Response(document.model_dump_json(), media_type="application/json", headers=headers)
 
 
 @router.get("/v1/tools/{tool_id}/versions", response_model=VersionList)
@@ -58,48 +127,6 @@ def activate_version(
     )
     response.headers["ETag"] = tools.tool_etag(tool)
     return tool
-
-
-@router.get(
-    "/v1/tools/{tool_id}/tcp",
-    response_model=ActiveTcp,
-    responses={
-        200: {"content": {"text/plain": {"schema": {"type": "string"}}}},
-        304: {"description": "not modified (If-None-Match)"},
-    },
-)
-async def get_active_tcp(
-    tool_id: PathId,
-    request: Request,
-    format: FormatQuery = None,
-    if_none_match: Annotated[str | None, Header(pattern=IF_NONE_MATCH_PATTERN)] = None,
-    accept: Annotated[str | None, Header(max_length=1000)] = None,
-    authorization: Annotated[str | None, Header(include_in_schema=False)] = None,
-) -> Response:
-    """The active TCP a cell controller reads, with a strong ETag (If-None-Match -> 304);
-    `?format=` adds the controller's own text. With `Accept: text/plain` (and `?format=`) the
-    controller text alone, as a file to save and load (Content-Disposition names it)."""
-    as_text = "text/plain" in (accept or "")
-    # The hot path, on the event loop without a threadpool hop: the key check and the read
-    # are one indexed statement (tens of microseconds on SQLite, one round trip on PostgreSQL).
-    key, document, etag = versions.served_tcp_for_key(
-        loop_engine(),
-        authorization=authorization,
-        tool_id=tool_id,
-        fmt=format,
-        if_none_match=if_none_match,
-        as_text=as_text,
-    )
-    request.scope[KEY_NAME] = key.name  # for the access log line; never the key
-    headers = {"ETag": etag, "Vary": "Accept"}
-    if document is None:
-        return Response(status_code=304, headers=headers)
-    if as_text and document.controller is not None and format is not None:
-        name = file_name(format, document.tool_name, document.slot)
-        headers["Content-Disposition"] = f'attachment; filename="{name}"'
-        return PlainTextResponse(document.controller.text, headers=headers)
-    # Serialised by pydantic in one pass (no dict, no json.dumps); validated when it was built.
-    return Response(document.model_dump_json(), media_type="application/json", headers=headers)
 
 
 @router.get("/v1/robots/{robot_id}/tool-table", response_model=ToolTable)

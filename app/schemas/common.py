@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Annotated, Generic, Literal, TypeVar
+from typing import Annotated, Generic, Literal, TypeVar, get_args
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PlainSerializer
 
@@ -68,6 +68,7 @@ PoseFormat = Literal[
     "joints",
 ]
 ControllerFormat = Literal["kuka", "abb", "fanuc", "ur", "yaskawa", "techman"]
+CONTROLLER_FORMATS: tuple[ControllerFormat, ...] = get_args(ControllerFormat)
 
 
 def _rfc3339(value: datetime) -> str:

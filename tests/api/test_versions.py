@@ -302,6 +302,31 @@ def test_etag_differs_per_format_and_weak_if_none_match_hits(api: Api) -> None:
     assert weak.status_code == 304
 
 
+def test_malformed_parameters_of_the_hot_read_are_422_naming_them(api: Api) -> None:
+    # The hot read checks its parameters itself (app.api.params.RawParam): the same 422 as a
+    # declared parameter's, with the parameter named and what to send instead.
+    _, tool = _setup(api)
+    api.manual(tool["id"], [0, 0, 150])
+    path = f"/v1/tools/{tool['id']}/tcp"
+    for url, headers, loc in (
+        (path, {"If-None-Match": "not-an-etag"}, ["header", "if-none-match"]),
+        (path, {"If-None-Match": '"abc", garbage'}, ["header", "if-none-match"]),
+        (path, {"Accept": "text/plain," * 100}, ["header", "accept"]),
+        (f"{path}?format=KUKA", {}, ["query", "format"]),
+        (f"{path}?format=", {}, ["query", "format"]),
+        ("/v1/tools/robot%3Bdrop/tcp", {}, ["path", "tool_id"]),
+        (f"/v1/tools/{'a' * 65}/tcp", {}, ["path", "tool_id"]),
+    ):
+        response = api.get(url, headers=headers)
+        assert response.status_code == 422, (url, headers)
+        problem = response.json()
+        assert response.headers["content-type"] == "application/problem+json"
+        assert problem["errors"][0]["loc"] == loc
+        assert loc[0] in problem["detail"]
+    star = api.get(path, headers={"If-None-Match": "*"})
+    assert star.status_code == 304
+
+
 def test_tool_table_reports_a_tool_the_format_cannot_express(api: Api) -> None:
     robot, torch = _setup(api)  # slot 3, with a load
     bare = api.tool(robot["id"], "probe")  # no slot, no load
