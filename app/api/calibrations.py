@@ -10,8 +10,8 @@ from starlette.concurrency import run_in_threadpool
 
 from app import solve_pool
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
-from app.auth import Principal, authenticate
-from app.db import session_scope
+from app.auth import Principal, authenticate_held
+from app.db import loop_engine, session_scope
 from app.deps import ReadKey, SessionDep
 from app.errors import InvalidInput
 from app.jsontypes import JsonObject
@@ -22,8 +22,7 @@ from app.schemas.calibrations import CalibrationRequest
 from app.schemas.common import Page
 from app.schemas.results import Calibration, CalibrationDetail
 from app.services import calibrate
-from app.services.calibrate import Presolved, Snapshot
-from app.services.contexts import SnapshotContext
+from app.services.calibrate import Presolved
 
 router = APIRouter(tags=["calibrations"])
 
@@ -62,25 +61,17 @@ async def submit_calibration(
     (`convention-mismatch`, with the `suggestion` to resend). Retry-safe with
     `Idempotency-Key`."""
     raw_body = raw_json_body(request)
-
-    def prepare() -> tuple[Principal, Calibration | None, Snapshot | None, SnapshotContext | None]:
-        with session_scope(write=False) as session:
-            key = authenticate(session, authorization, required="calibrate")
-            replay = calibrate.replayed(session, tool_id, raw_body, idempotency_key, key)
-            if replay is not None:
-                return key, replay, None, None
-            return key, None, *calibrate.snapshot_context(session, tool_id)
-
-    # 1. Who, and what the solve reads (a short read); 2. the solve, in a solver process with
-    # no transaction open; 3. the write, under the tool's lock (re-solved there only if what
-    # the solve read has changed meanwhile).
-    key, replay, snapshot, ctx = await run_in_threadpool(prepare)
+    # 1. Who, and what the solve reads: held reads on the event loop (a replay needs a session
+    # in a worker thread); 2. the solve, in a solver process with no transaction open; 3. the
+    # write, under the tool's lock (re-solved there only if what the solve read has changed).
+    key = authenticate_held(loop_engine(), authorization, required="calibrate")
     request.scope[KEY_NAME] = key.name
-    if replay is not None:
-        response.headers["Idempotent-Replayed"] = "true"
-        return replay
-    assert snapshot is not None
-    assert ctx is not None
+    if idempotency_key is not None:
+        replay = await run_in_threadpool(_replay, tool_id, raw_body, idempotency_key, key)
+        if replay is not None:
+            response.headers["Idempotent-Replayed"] = "true"
+            return replay
+    snapshot, ctx = calibrate.snapshot_held(loop_engine(), tool_id)
     outcome = await solve_pool.run(calibrate.solve_snapshot, body, ctx)
 
     def store() -> tuple[Calibration, bool]:
@@ -101,6 +92,13 @@ async def submit_calibration(
     else:
         CALIBRATIONS.labels(doc.method, doc.status).inc()
     return doc
+
+
+def _replay(
+    tool_id: str, raw_body: JsonObject, idempotency_key: str, key: Principal
+) -> Calibration | None:
+    with session_scope(write=False) as session:
+        return calibrate.replayed(session, tool_id, raw_body, idempotency_key, key)
 
 
 @router.get("/v1/tools/{tool_id}/calibrations", response_model=Page[Calibration])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,16 +40,24 @@ def active_frame(session: Session, tool: Tool) -> ActiveFrame | None:
 
 def frame_of(session: Session, row: TcpVersion) -> ActiveFrame:
     """A version's TCP with the covariance its calibration reported."""
-    covariance = None
-    if row.calibration_id:
-        calibration = session.get(Calibration, row.calibration_id)
-        cov = (
-            calibration.result.get("quality", {}).get("tcp_covariance_mm2") if calibration else None
-        )
-        covariance = np.asarray(cov, dtype=float) if cov else None
+    calibration = session.get(Calibration, row.calibration_id) if row.calibration_id else None
+    return frame_from(
+        row.position_mm, row.quaternion, row.version, calibration.result if calibration else None
+    )
+
+
+def frame_from(
+    position_mm: Sequence[float],
+    quaternion: Sequence[float],
+    version: int,
+    calibration_result: Mapping[str, Any] | None,
+) -> ActiveFrame:
+    """A stored version's frame, with the covariance from its calibration's result if any."""
+    quality = calibration_result.get("quality") if calibration_result else None
+    cov = quality.get("tcp_covariance_mm2") if isinstance(quality, Mapping) else None
     return ActiveFrame(
-        position_mm=np.asarray(row.position_mm, dtype=float),
-        quaternion=np.asarray(row.quaternion, dtype=float),
-        covariance_mm2=covariance,
-        version=row.version,
+        position_mm=np.asarray(position_mm, dtype=float),
+        quaternion=np.asarray(quaternion, dtype=float),
+        covariance_mm2=np.asarray(cov, dtype=float) if cov else None,
+        version=version,
     )

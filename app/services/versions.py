@@ -54,8 +54,7 @@ def add_version(
         note=note,
         created_by=actor.name,
     )
-    session.add(row)
-    session.flush()
+    session.add(row)  # written at the next flush (autoflush, or commit)
     audit.record(
         session,
         actor=actor,
@@ -85,7 +84,6 @@ def activate(
     tool.revision += 1
     tool.updated_at = utcnow()
     session.add(row)
-    session.flush()
     audit.record(
         session,
         actor=actor,

@@ -6,8 +6,12 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+import pytest
+
 from app.auth import Principal
-from app.db import session_scope
+from app.db import get_engine, session_scope
+from app.errors import Archived, NotFound
 from app.schemas.calibrations import CALIBRATION_REQUESTS
 from app.services import calibrate
 from app.services.calibrate import Presolved
@@ -37,8 +41,7 @@ def test_a_stale_presolve_is_solved_again_under_the_lock(api: Api) -> None:
         "activate": "never",
     }
     request = CALIBRATION_REQUESTS.validate_python(body)
-    with session_scope(write=False) as session:
-        snapshot, ctx = calibrate.snapshot_context(session, tid)
+    snapshot, ctx = calibrate.snapshot_held(get_engine(), tid)
     outcome = calibrate.solve_snapshot(request, ctx)
     assert outcome is not None
     before = outcome.result.change_from_active_mm
@@ -54,8 +57,7 @@ def test_a_stale_presolve_is_solved_again_under_the_lock(api: Api) -> None:
     assert stored.change_from_active_mm is not None
     assert abs(stored.change_from_active_mm - 3.0) < 0.2  # against version 2, not 1
 
-    with session_scope(write=False) as session:
-        snapshot, ctx = calibrate.snapshot_context(session, tid)
+    snapshot, ctx = calibrate.snapshot_held(get_engine(), tid)
     fresh = calibrate.solve_snapshot(request, ctx)
     assert fresh is not None
     with session_scope(write=True) as session:
@@ -79,8 +81,35 @@ def test_methods_that_look_up_stored_data_are_solved_in_place(api: Api) -> None:
             "poses": [[800, 0, 400, 0, 0, 180]],
             "options": {"reference_point_id": point["id"]}}  # fmt: skip
     request = CALIBRATION_REQUESTS.validate_python(body)
-    with session_scope(write=False) as session:
-        _, ctx = calibrate.snapshot_context(session, tool["id"])
+    _, ctx = calibrate.snapshot_held(get_engine(), tool["id"])
     assert calibrate.solve_snapshot(request, ctx) is None
     done = api.post(f"/v1/tools/{tool['id']}/calibrations", json=body)
     assert done.status_code == 201, done.text
+
+
+def test_the_held_snapshot_reads_the_active_frame_with_its_reported_covariance(api: Api) -> None:
+    tool = api.tool(api.robot("kr3")["id"])
+    tid = tool["id"]
+    _, ctx = calibrate.snapshot_held(get_engine(), tid)
+    assert ctx.active_frame() is None  # no version yet
+    touches = simulate_touches(8, seed=4, tcp_mm=None, touch_noise_mm=0.05)
+    done = api.post(
+        f"/v1/tools/{tid}/calibrations",
+        json={"method": "xyz_npoint", "format": "kuka_abc", "poses": as_poses(touches, "kuka_abc"),
+              "activate": "always"},
+    )  # fmt: skip
+    assert done.status_code == 201, done.text
+    result = done.json()
+    snapshot, ctx = calibrate.snapshot_held(get_engine(), tid)
+    frame = ctx.active_frame()
+    assert frame is not None
+    assert snapshot.active_version == frame.version == result["version"]
+    np.testing.assert_allclose(frame.position_mm, result["tcp"]["position_mm"])
+    np.testing.assert_allclose(frame.quaternion, result["tcp"]["quaternion"])
+    assert frame.covariance_mm2 is not None
+    np.testing.assert_allclose(frame.covariance_mm2, result["quality"]["tcp_covariance_mm2"])
+    with pytest.raises(NotFound):
+        calibrate.snapshot_held(get_engine(), "no-such-tool")
+    assert api.delete(f"/v1/tools/{tid}").status_code == 204
+    with pytest.raises(Archived):
+        calibrate.snapshot_held(get_engine(), tid)
