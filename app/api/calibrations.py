@@ -88,10 +88,14 @@ async def submit_calibration(
 
     doc, replayed = await run_in_threadpool(store)
     if replayed:
-        response.headers["Idempotent-Replayed"] = "true"
+        headers = {"Idempotent-Replayed": "true"}
     else:
+        headers = {}
         CALIBRATIONS.labels(doc.method, doc.status).inc()
-    return doc
+    # Serialised by pydantic in one pass; `doc` was validated when it was built.
+    return Response(
+        doc.model_dump_json(), status_code=201, media_type="application/json", headers=headers
+    )
 
 
 def _replay(

@@ -149,10 +149,13 @@ def _refuse_non_finite(value: object, path: tuple[str | int, ...] = ()) -> None:
 
 
 # ---- stored calibrations --------------------------------------------------------------------
-def calibration_out(row: CalibrationRow, tool: Tool) -> Calibration:
-    """A stored calibration as served."""
+def calibration_out(
+    row: CalibrationRow, tool: Tool, result: CalibrationResult | None = None
+) -> Calibration:
+    """A stored calibration as served (`result`: its result when in hand, not read back)."""
+    result = result or CalibrationResult.model_validate(row.result)
     return Calibration(
-        **CalibrationResult.model_validate(row.result).model_dump(),
+        **result.model_dump(),
         id=row.id,
         tool_id=row.tool_id,
         version=row.version,
@@ -174,11 +177,6 @@ class Snapshot:
     tolerance: JsonObject | None
     active_version: int | None
     kinematics: JsonObject | None
-
-    @classmethod
-    def of(cls, session: Session, tool: Tool, robot: Robot | None = None) -> Snapshot:
-        robot = robot or get_robot(session, tool.robot_id)
-        return cls(tool.tolerance, tool.active_version, robot.kinematics)
 
 
 @dataclass(frozen=True)
@@ -286,11 +284,12 @@ def submit(
             name=point_name,
             loc=("body", "options", "save_reference_point"),
         )
-    robot = get_robot(session, tool.robot_id)
-    if solved is None or solved.snapshot != Snapshot.of(session, tool, robot):
+    kinematics = session.scalars(select(Robot.kinematics).where(Robot.id == tool.robot_id)).one()
+    now = Snapshot(tool.tolerance, tool.active_version, kinematics)
+    if solved is None or solved.snapshot != now:
         # Solved here under the tool's lock: nothing was solved beforehand, or the tool's
         # tolerance, active version or robot model changed since (the result would differ).
-        outcome = solve(request, DbContext(session, tool, robot))
+        outcome = solve(request, DbContext(session, tool, get_robot(session, tool.robot_id)))
     else:
         outcome = solved.outcome
     result, point = outcome.result, outcome.touched_point
@@ -319,7 +318,7 @@ def submit(
             "activated": activated,
         },
     )
-    out = calibration_out(row, tool)
+    out = calibration_out(row, tool, result)
     if idempotency_key is not None:
         idempotency.remember(
             session,
