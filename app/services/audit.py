@@ -8,7 +8,7 @@ from sqlalchemy.orm import Session
 from app.auth import Principal
 from app.jsontypes import JsonObject
 from app.logs import get_logger
-from app.models import AuditEvent
+from app.models import AuditEvent, utcnow
 
 
 def record(
@@ -25,6 +25,7 @@ def record(
     """Append an audit event to the current transaction."""
     session.add(
         AuditEvent(
+            at=utcnow(),  # now, not when the session flushes it
             actor=actor.name,
             api_key_id=actor.key_id,
             action=action,

@@ -52,6 +52,7 @@ def add_version(
         status=status,
         calibration_id=calibration_id,
         note=note,
+        created_at=tool.updated_at,
         created_by=actor.name,
     )
     session.add(row)  # written at the next flush (autoflush, or commit)
