@@ -28,7 +28,7 @@ from app.methods.base import FloatArray, MethodContext, MethodRequest, Solved, S
 from app.methods.npoint import NPointOptions
 from app.metrics import SOLVE_SECONDS
 from app.models import Calibration as CalibrationRow
-from app.models import Robot, TcpVersion, Tool, new_id, utcnow
+from app.models import Robot, TcpVersion, Tool, new_id
 from app.schemas.calibrations import CALIBRATION_REQUESTS, StatelessFields
 from app.schemas.common import Units
 from app.schemas.results import (
@@ -362,32 +362,34 @@ def _store(
     actor: Principal,
 ) -> CalibrationRow:
     """The calibration row and the tool's next version (every result is versioned)."""
-    # Ids and the version number are made here, so that every row goes to the database in
-    # the one flush at commit (a flush per row cost a unit-of-work pass each).
-    row = CalibrationRow(
-        id=new_id(),
-        tool_id=tool.id,
-        method=request.method,
-        algorithm=result.algorithm,
-        status=result.status,
-        request=raw_body,
-        result=result.model_dump(mode="json"),
-        version=tool.last_version + 1,
-        created_at=utcnow(),
-        created_by=actor.name,
-    )
-    session.add(row)
-    add_version(
+    # The calibration's id is made here, so that both rows go to the database in the one
+    # flush at commit (a flush per row cost a unit-of-work pass each); the version number
+    # and the time are the new version's.
+    calibration_id = new_id()
+    version = add_version(
         session,
         tool=tool,
         position_mm=result.tcp.position_mm,
         quaternion=result.tcp.quaternion,
         source=request.method,
         status=result.status,
-        calibration_id=row.id,
+        calibration_id=calibration_id,
         note=request.note,
         actor=actor,
     )
+    row = CalibrationRow(
+        id=calibration_id,
+        tool_id=tool.id,
+        method=request.method,
+        algorithm=result.algorithm,
+        status=result.status,
+        request=raw_body,
+        result=result.model_dump(mode="json"),
+        version=version.version,
+        created_at=version.created_at,
+        created_by=actor.name,
+    )
+    session.add(row)
     return row
 
 
