@@ -22,6 +22,7 @@ from sqlalchemy import (
     Integer,
     MetaData,
     String,
+    Table,
     Text,
     UniqueConstraint,
     text,
@@ -96,6 +97,12 @@ class Base(DeclarativeBase):
         JsonObject: JSON(),
         JsonArray: JSON(),
     }
+
+
+def table_of(model: type[Base]) -> Table:
+    """A model's table, typed as the Table it is (for Core insert and update statements, which
+    the hot write paths use instead of ORM objects)."""
+    return Base.metadata.tables[model.__tablename__]
 
 
 class Robot(Base):

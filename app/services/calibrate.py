@@ -12,9 +12,10 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from datetime import datetime
 
 import numpy as np
-from sqlalchemy import Engine, and_, bindparam, select
+from sqlalchemy import Engine, and_, bindparam, insert, select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
@@ -28,7 +29,7 @@ from app.methods.base import FloatArray, MethodContext, MethodRequest, Solved, S
 from app.methods.npoint import NPointOptions
 from app.metrics import SOLVE_SECONDS
 from app.models import Calibration as CalibrationRow
-from app.models import Robot, TcpVersion, Tool, new_id
+from app.models import Robot, TcpVersion, Tool, new_id, table_of, utcnow
 from app.schemas.calibrations import CALIBRATION_REQUESTS, StatelessFields
 from app.schemas.common import Units
 from app.schemas.results import (
@@ -48,7 +49,13 @@ from app.services.references import create_reference_point, ensure_reference_nam
 from app.services.robots import get_robot, validate_kinematics
 from app.services.tools import get_tool
 from app.services.verdict import change_warning, held_for_change, summarise
-from app.services.versions import IDENTITY_QUATERNION, activate, add_version
+from app.services.versions import (
+    IDENTITY_QUATERNION,
+    LockedTool,
+    activate,
+    add_version,
+    lock_tool,
+)
 from app.solvers.quality import ellipsoid_semi_axes
 
 
@@ -149,19 +156,37 @@ def _refuse_non_finite(value: object, path: tuple[str | int, ...] = ()) -> None:
 
 
 # ---- stored calibrations --------------------------------------------------------------------
-def calibration_out(
-    row: CalibrationRow, tool: Tool, result: CalibrationResult | None = None
-) -> Calibration:
-    """A stored calibration as served (`result`: its result when in hand, not read back)."""
-    result = result or CalibrationResult.model_validate(row.result)
-    return Calibration(
-        **result.model_dump(),
+def calibration_out(row: CalibrationRow, tool: Tool) -> Calibration:
+    """A stored calibration as served."""
+    return _served(
+        CalibrationResult.model_validate(row.result),
         id=row.id,
         tool_id=row.tool_id,
         version=row.version,
-        active=row.version is not None and tool.active_version == row.version,
+        active_version=tool.active_version,
         created_at=row.created_at,
         created_by=row.created_by,
+    )
+
+
+def _served(
+    result: CalibrationResult,
+    *,
+    id: str,
+    tool_id: str,
+    version: int | None,
+    active_version: int | None,
+    created_at: datetime,
+    created_by: str,
+) -> Calibration:
+    return Calibration(
+        **result.model_dump(),
+        id=id,
+        tool_id=tool_id,
+        version=version,
+        active=version is not None and active_version == version,
+        created_at=created_at,
+        created_by=created_by,
     )
 
 
@@ -207,8 +232,8 @@ def replayed(
     return None if replay is None else Calibration.model_validate(replay)
 
 
-_TOOL, _ROBOT = Tool.__table__, Robot.__table__
-_VERSION, _CALIBRATION = TcpVersion.__table__, CalibrationRow.__table__
+_TOOL, _ROBOT = table_of(Tool), table_of(Robot)
+_VERSION, _CALIBRATION = table_of(TcpVersion), table_of(CalibrationRow)
 #: What a calibration's solve reads, as one statement on the event loop's held connection
 #: (app.db.HeldRead): the tool, its robot's model, its active version and the covariance
 #: its calibration reported. Read in a worker thread through a session, the same took three
@@ -271,7 +296,7 @@ def submit(
     """Solve and store a calibration; (the stored Calibration, replayed?). With `solved` (from
     `solve_snapshot`, made before the lock) the stored result is that one, unless what it
     read has changed since."""
-    tool = get_tool(session, tool_id, for_update=True)
+    tool = lock_tool(session, tool_id)
     replay = replayed(session, tool_id, raw_body, idempotency_key, actor, purge=True)
     if replay is not None:
         return replay, True
@@ -284,12 +309,12 @@ def submit(
             name=point_name,
             loc=("body", "options", "save_reference_point"),
         )
-    kinematics = session.scalars(select(Robot.kinematics).where(Robot.id == tool.robot_id)).one()
-    now = Snapshot(tool.tolerance, tool.active_version, kinematics)
+    now = Snapshot(tool.tolerance, tool.active_version, tool.kinematics)
     if solved is None or solved.snapshot != now:
         # Solved here under the tool's lock: nothing was solved beforehand, or the tool's
         # tolerance, active version or robot model changed since (the result would differ).
-        outcome = solve(request, DbContext(session, tool, get_robot(session, tool.robot_id)))
+        ctx = DbContext(session, get_tool(session, tool_id), get_robot(session, tool.robot_id))
+        outcome = solve(request, ctx)
     else:
         outcome = solved.outcome
     result, point = outcome.result, outcome.touched_point
@@ -299,26 +324,26 @@ def submit(
             f"reference point {point_name!r} not saved: the calibration is out of tolerance"
         )
 
-    row = _store(session, tool=tool, request=request, raw_body=raw_body, result=result, actor=actor)
-    activated = _activate_if_due(session, tool=tool, request=request, result=result, actor=actor)
+    out = _store(session, tool=tool, request=request, raw_body=raw_body, result=result, actor=actor)
+    if _activate_if_due(session, tool=tool, request=request, result=result, actor=actor):
+        out.active = True
     if keep_point and point_name is not None and point is not None:
-        _save_touched_point(session, tool, point_name, point, request.method, row.id, actor)
+        _save_touched_point(session, tool, point_name, point, request.method, out.id, actor)
     audit.record(
         session,
         actor=actor,
         action="calibration.create",
         resource_type="calibration",
-        resource_id=row.id,
+        resource_id=out.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
         details={
             "method": request.method,
             "status": result.status,
-            "version": row.version,
-            "activated": activated,
+            "version": out.version,
+            "activated": out.active,
         },
     )
-    out = calibration_out(row, tool, result)
     if idempotency_key is not None:
         idempotency.remember(
             session,
@@ -332,7 +357,7 @@ def submit(
 
 def _save_touched_point(
     session: Session,
-    tool: Tool,
+    tool: LockedTool,
     name: str,
     point: StoredPoint,
     method: str,
@@ -352,21 +377,39 @@ def _save_touched_point(
     )
 
 
+_INSERT_CALIBRATION = insert(_CALIBRATION)
+
+
 def _store(
     session: Session,
     *,
-    tool: Tool,
+    tool: LockedTool,
     request: MethodRequest,
     raw_body: JsonObject,
     result: CalibrationResult,
     actor: Principal,
-) -> CalibrationRow:
-    """The calibration row and the tool's next version (every result is versioned)."""
-    # The calibration's id is made here, so that both rows go to the database in the one
-    # flush at commit (a flush per row cost a unit-of-work pass each); the version number
-    # and the time are the new version's.
-    calibration_id = new_id()
-    version = add_version(
+) -> Calibration:
+    """The calibration row and the tool's next version (every result is versioned), as served
+    (not yet active: see _activate_if_due)."""
+    # The calibration goes in first (the version references it), numbered and timed as the
+    # version that add_version makes next.
+    calibration_id, version, now = new_id(), tool.next_version, utcnow()
+    session.connection().execute(
+        _INSERT_CALIBRATION,
+        {
+            "id": calibration_id,
+            "tool_id": tool.id,
+            "method": request.method,
+            "algorithm": result.algorithm,
+            "status": result.status,
+            "request": raw_body,
+            "result": result.model_dump(mode="json"),
+            "version": version,
+            "created_at": now,
+            "created_by": actor.name,
+        },
+    )
+    add_version(
         session,
         tool=tool,
         position_mm=result.tcp.position_mm,
@@ -376,27 +419,23 @@ def _store(
         calibration_id=calibration_id,
         note=request.note,
         actor=actor,
+        created_at=now,
     )
-    row = CalibrationRow(
+    return _served(
+        result,
         id=calibration_id,
         tool_id=tool.id,
-        method=request.method,
-        algorithm=result.algorithm,
-        status=result.status,
-        request=raw_body,
-        result=result.model_dump(mode="json"),
-        version=version.version,
-        created_at=version.created_at,
+        version=version,
+        active_version=tool.active_version,
+        created_at=now,
         created_by=actor.name,
     )
-    session.add(row)
-    return row
 
 
 def _activate_if_due(
     session: Session,
     *,
-    tool: Tool,
+    tool: LockedTool,
     request: MethodRequest,
     result: CalibrationResult,
     actor: Principal,

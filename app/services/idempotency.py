@@ -6,14 +6,14 @@ import hashlib
 import json
 from datetime import UTC, datetime, timedelta
 
-from sqlalchemy import delete, select
+from sqlalchemy import delete, insert, select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.config import get_settings
 from app.errors import IdempotencyConflict
 from app.jsontypes import JsonObject
-from app.models import IdempotencyRecord, utcnow
+from app.models import IdempotencyRecord, table_of, utcnow
 
 
 def request_fingerprint(tool_id: str, raw_body: JsonObject) -> str:
@@ -56,16 +56,20 @@ def remember(
     session: Session, *, actor: Principal, key: str, fingerprint: str, response: JsonObject
 ) -> None:
     """Keep the answer to (actor, key) so that a retry with the same body replays it."""
-    session.add(
-        IdempotencyRecord(
-            api_key_id=actor.key_id,
-            key=key,
-            request_hash=fingerprint,
-            status_code=201,
-            response=response,
-        )
+    session.connection().execute(
+        _INSERT,
+        {
+            "api_key_id": actor.key_id,
+            "key": key,
+            "request_hash": fingerprint,
+            "status_code": 201,
+            "response": response,
+            "created_at": utcnow(),
+        },
     )
-    session.flush()
+
+
+_INSERT = insert(table_of(IdempotencyRecord))
 
 
 def _aware(moment: datetime) -> datetime:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
+from typing import Protocol
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -40,13 +41,22 @@ def tool_named_in_body(
     return tool
 
 
-def tool_etag(tool: Tool) -> str:
+class _Revised(Protocol):
+    """A tool as its ETag sees it (the ORM row, or one read under its lock)."""
+
+    @property
+    def id(self) -> str: ...
+    @property
+    def revision(self) -> int: ...
+
+
+def tool_etag(tool: _Revised) -> str:
     """Strong ETag of a tool; changes with every change to it, its versions or activation."""
     digest = hashlib.sha256(f"{tool.id}:{tool.revision}".encode()).hexdigest()[:20]
     return f'"{digest}"'
 
 
-def check_if_match(tool: Tool, if_match: str | None) -> None:
+def check_if_match(tool: _Revised, if_match: str | None) -> None:
     """412 when an If-Match header does not name the tool's current ETag."""
     if if_match_ok(if_match, tool_etag(tool)):
         return

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
 
-from sqlalchemy import Engine, and_, bindparam, select
+from sqlalchemy import Engine, and_, bindparam, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.auth import Principal, admit, digest_of
@@ -17,20 +17,114 @@ from app.db import HeldRead
 from app.errors import Archived, InvalidInput, NoActiveVersion, NotFound
 from app.helpers.etags import if_none_match_hit
 from app.jsontypes import JsonArray, JsonObject
-from app.models import Activation, ApiKey, TcpVersion, Tool, utcnow
+from app.models import Activation, ApiKey, Robot, TcpVersion, Tool, new_id, table_of, utcnow
 from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.services import audit
 from app.services.exports import ServedTool, ServedVersion, controller_text
+from app.services.live import live_or_404
 from app.services.robots import get_robot
 from app.services.tools import check_if_match, get_tool
 
 IDENTITY_QUATERNION = [1.0, 0.0, 0.0, 0.0]
 
 
+# ---- the writes: numbering and activation under the tool's lock ------------------------------
+# Core statements on the session's connection, not ORM objects: a calibration writes a version,
+# the tool's counters and two audit events, and the unit of work's pass over them cost more
+# than the statements (store 5 -> 1.6 ms in process). ORM objects of the same rows, where a
+# caller holds one, are expired after each write so that they read it back.
+_TOOL = table_of(Tool)
+_VERSION = table_of(TcpVersion)
+_ROBOT = table_of(Robot)
+_LOCK_TOOL = (
+    select(
+        _TOOL.c.id,
+        _TOOL.c.robot_id,
+        _TOOL.c.name,
+        _TOOL.c.archived_at,
+        _TOOL.c.tolerance,
+        _TOOL.c.active_version,
+        _TOOL.c.last_version,
+        _TOOL.c.revision,
+        _ROBOT.c.kinematics,
+    )
+    .join(_ROBOT, _ROBOT.c.id == _TOOL.c.robot_id)
+    .where(_TOOL.c.id == bindparam("tool_id"))
+    .with_for_update(of=_TOOL)
+)
+_SAVE_TOOL = (
+    update(_TOOL)
+    .where(_TOOL.c.id == bindparam("tool_id"))
+    .values(
+        active_version=bindparam("active_version"),
+        last_version=bindparam("last_version"),
+        revision=bindparam("revision"),
+        updated_at=bindparam("updated_at"),
+    )
+)
+_INSERT_VERSION = insert(_VERSION)
+_INSERT_ACTIVATION = insert(table_of(Activation))
+
+
+@dataclass(slots=True)
+class LockedTool:
+    """A live tool read under its row lock (FOR UPDATE; BEGIN IMMEDIATE on SQLite), with its
+    robot's model: what numbering and activating versions read and change."""
+
+    id: str
+    robot_id: str
+    name: str
+    tolerance: JsonObject | None
+    active_version: int | None
+    last_version: int
+    revision: int
+    kinematics: JsonObject | None
+
+    @property
+    def next_version(self) -> int:
+        """The number the tool's next version gets."""
+        return self.last_version + 1
+
+
+def lock_tool(session: Session, tool_id: str) -> LockedTool:
+    """Lock a live tool's row for the rest of the transaction (serialises its versions), or
+    404. Pending ORM changes are written first, so that the lock reads them."""
+    session.flush()
+    row = session.connection().execute(_LOCK_TOOL, {"tool_id": tool_id}).one_or_none()
+    row = live_or_404(row, "tool", tool_id)
+    return LockedTool(
+        row.id,
+        row.robot_id,
+        row.name,
+        row.tolerance,
+        row.active_version,
+        row.last_version,
+        row.revision,
+        row.kinematics,
+    )
+
+
+def _save(session: Session, tool: LockedTool, now: datetime) -> None:
+    """Write the locked tool's counters; an ORM copy of the row reads them back when next used."""
+    session.connection().execute(
+        _SAVE_TOOL,
+        {
+            "tool_id": tool.id,
+            "active_version": tool.active_version,
+            "last_version": tool.last_version,
+            "revision": tool.revision,
+            "updated_at": now,
+        },
+    )
+    cached = session.identity_map.get(session.identity_key(Tool, tool.id))
+    if cached is not None:
+        session.expire(cached)
+
+
 def add_version(
     session: Session,
     *,
-    tool: Tool,
+    tool: LockedTool,
     position_mm: Sequence[float],
     quaternion: Sequence[float],
     source: str,
@@ -38,24 +132,30 @@ def add_version(
     calibration_id: str | None,
     note: str | None,
     actor: Principal,
-) -> TcpVersion:
-    """Append version n+1 of a tool. The caller holds the tool row lock (get_tool(for_update))."""
-    tool.last_version += 1
+    created_at: datetime | None = None,
+) -> int:
+    """Append version n+1 of a tool locked with `lock_tool`; its number. `created_at`: the
+    time of the calibration it comes from (default now)."""
+    now = created_at or utcnow()
+    tool.last_version = tool.next_version
     tool.revision += 1
-    tool.updated_at = utcnow()
-    row = TcpVersion(
-        tool_id=tool.id,
-        version=tool.last_version,
-        position_mm=[float(v) for v in position_mm],
-        quaternion=[float(v) for v in quaternion],
-        source=source,
-        status=status,
-        calibration_id=calibration_id,
-        note=note,
-        created_at=tool.updated_at,
-        created_by=actor.name,
+    session.connection().execute(
+        _INSERT_VERSION,
+        {
+            "id": new_id(),
+            "tool_id": tool.id,
+            "version": tool.last_version,
+            "position_mm": [float(v) for v in position_mm],
+            "quaternion": [float(v) for v in quaternion],
+            "source": source,
+            "status": status,
+            "calibration_id": calibration_id,
+            "note": note,
+            "created_at": now,
+            "created_by": actor.name,
+        },
     )
-    session.add(row)  # written at the next flush (autoflush, or commit)
+    _save(session, tool, now)
     audit.record(
         session,
         actor=actor,
@@ -64,27 +164,31 @@ def add_version(
         resource_id=tool.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
-        details={"version": row.version, "source": source, "status": status},
+        details={"version": tool.last_version, "source": source, "status": status},
     )
-    return row
+    return tool.last_version
 
 
 def activate(
-    session: Session, *, tool: Tool, version: int, reason: str, actor: Principal
-) -> Activation:
-    """Make `version` the active one and record who did it and when (lock held by caller)."""
-    row = Activation(
-        tool_id=tool.id,
-        version=version,
-        previous_version=tool.active_version,
-        reason=reason,
-        activated_by=actor.name,
-        activated_at=utcnow(),
-    )
-    tool.active_version = version
+    session: Session, *, tool: LockedTool, version: int, reason: str, actor: Principal
+) -> None:
+    """Make `version` the active one and record who did it and when (a tool locked with
+    `lock_tool`)."""
+    now = utcnow()
+    previous, tool.active_version = tool.active_version, version
     tool.revision += 1
-    tool.updated_at = utcnow()
-    session.add(row)
+    session.connection().execute(
+        _INSERT_ACTIVATION,
+        {
+            "tool_id": tool.id,
+            "version": version,
+            "previous_version": previous,
+            "reason": reason,
+            "activated_by": actor.name,
+            "activated_at": now,
+        },
+    )
+    _save(session, tool, now)
     audit.record(
         session,
         actor=actor,
@@ -93,9 +197,8 @@ def activate(
         resource_id=tool.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
-        details={"version": version, "previous_version": row.previous_version, "reason": reason},
+        details={"version": version, "previous_version": previous, "reason": reason},
     )
-    return row
 
 
 def get_version(session: Session, *, tool_id: str, version: int) -> TcpVersion:
@@ -131,11 +234,11 @@ def activate_version(
     session: Session, *, tool_id: str, version: int, if_match: str | None, actor: Principal
 ) -> Tool:
     """Activate an existing version (roll forward or back), honouring If-Match."""
-    tool = get_tool(session, tool_id, for_update=True)
-    check_if_match(tool, if_match)
+    locked = lock_tool(session, tool_id)
+    check_if_match(locked, if_match)
     get_version(session, tool_id=tool_id, version=version)
-    activate(session, tool=tool, version=version, reason="explicit", actor=actor)
-    return tool
+    activate(session, tool=locked, version=version, reason="explicit", actor=actor)
+    return get_tool(session, tool_id)
 
 
 def active_version_row(session: Session, tool: Tool) -> TcpVersion:
@@ -258,8 +361,6 @@ def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> ToolTable
 
 # ---- the hot read: one statement for the key, the tool and its active version -------------
 _KEY = ApiKey.__table__
-_TOOL = Tool.__table__
-_VERSION = TcpVersion.__table__
 HOT_READ = HeldRead(
     select(
         _KEY.c.id.label("key_id"),
