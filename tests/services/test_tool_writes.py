@@ -1,0 +1,87 @@
+"""The version writes under a tool's lock (Core statements, app.services.versions) and the
+audit trail written at commit: an ORM copy of the tool in the same session reads the writes
+back, and a transaction that rolls back leaves no version and no audit event behind."""
+
+from __future__ import annotations
+
+import pytest
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from app.auth import Principal
+from app.db import session_scope
+from app.models import AuditEvent, TcpVersion
+from app.services import versions
+from app.services.tools import get_tool, tool_etag
+from tests.conftest import Api
+
+ACTOR = Principal(key_id="test", name="test", scope="admin")
+
+
+def _add(tool: versions.LockedTool, session: Session) -> int:
+    return versions.add_version(
+        session,
+        tool=tool,
+        position_mm=[1.0, 2.0, 3.0],
+        quaternion=[1.0, 0.0, 0.0, 0.0],
+        source="manual",
+        status="accepted",
+        calibration_id=None,
+        note=None,
+        actor=ACTOR,
+    )
+
+
+def test_an_orm_copy_of_the_tool_reads_the_locked_writes_back(api: Api) -> None:
+    tid = api.tool(api.robot("kr")["id"])["id"]
+    with session_scope(write=True) as session:
+        orm_tool = get_tool(session, tid)  # loaded before the lock, as guided sessions do
+        etag_before, revision_before = tool_etag(orm_tool), orm_tool.revision
+        locked = versions.lock_tool(session, tid)
+        number = _add(locked, session)
+        versions.activate(session, tool=locked, version=number, reason="test", actor=ACTOR)
+        assert (orm_tool.active_version, orm_tool.last_version) == (number, number)
+        assert orm_tool.revision == revision_before + 2
+        assert tool_etag(orm_tool) != etag_before
+    served = api.get(f"/v1/tools/{tid}/tcp").json()
+    assert served["version"] == number
+    assert served["tcp"]["position_mm"] == [1.0, 2.0, 3.0]
+
+
+def test_a_rolled_back_write_leaves_no_version_and_no_audit_event(api: Api) -> None:
+    tid = api.tool(api.robot("kr")["id"])["id"]
+
+    def counts() -> tuple[int, int]:
+        with session_scope(write=False) as session:
+            n_versions = session.scalar(
+                select(func.count()).select_from(TcpVersion).where(TcpVersion.tool_id == tid)
+            )
+            n_events = session.scalar(
+                select(func.count()).select_from(AuditEvent).where(AuditEvent.tool_id == tid)
+            )
+            return int(n_versions or 0), int(n_events or 0)
+
+    def write_then_fail() -> None:
+        with session_scope(write=True) as session:
+            _add(versions.lock_tool(session, tid), session)
+            raise RuntimeError("the request failed after the write")
+
+    before = counts()
+    with pytest.raises(RuntimeError):
+        write_then_fail()
+    assert counts() == before
+
+    with session_scope(write=True) as session:
+        _add(versions.lock_tool(session, tid), session)
+    n_versions, n_events = counts()
+    assert (n_versions, n_events) == (before[0] + 1, before[1] + 1)
+    with session_scope(write=False) as session:
+        event = session.scalars(
+            select(AuditEvent).where(AuditEvent.tool_id == tid).order_by(AuditEvent.id.desc())
+        ).first()
+    assert event is not None
+    assert (event.action, event.actor, event.details) == (
+        "version.create",
+        "test",
+        {"version": n_versions, "source": "manual", "status": "accepted"},
+    )
