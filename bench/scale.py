@@ -57,6 +57,7 @@ from app.models import (
     Tool,
 )
 from app.services import fleet, versions
+from app.services.audit import row as audit_row
 from bench.wrk_load import PG_URL, _percentile, _pg_reachable, _wrk, touches_body
 from tests.live.server import LiveServer, fresh_database, live_server
 
@@ -273,18 +274,18 @@ def _audit(
     tool_id: str,
     at: datetime,
     details: Any,
-) -> dict[str, Any]:
-    return {
-        "at": at,
-        "actor": "bench",
-        "api_key_id": None,
-        "action": action,
-        "resource_type": resource_type,
-        "resource_id": resource_id,
-        "robot_id": robot_id,
-        "tool_id": tool_id,
-        "details": details,
-    }
+) -> dict[str, object]:
+    return audit_row(
+        at=at,
+        actor="bench",
+        api_key_id=None,
+        action=action,
+        resource_type=resource_type,
+        resource_id=resource_id,
+        robot_id=robot_id,
+        tool_id=tool_id,
+        details=details,
+    )
 
 
 @contextmanager

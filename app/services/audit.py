@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from datetime import datetime
+
 from sqlalchemy import event as sa_event
 from sqlalchemy import insert
 from sqlalchemy.orm import Session
@@ -26,17 +28,17 @@ def record(
     """Append an audit event to the current transaction: written when it commits, with every
     other event of the transaction in one statement, and logged once it has committed."""
     session.info.setdefault(_ROWS, []).append(
-        {
-            "at": utcnow(),  # now, not when the transaction commits
-            "actor": actor.name,
-            "api_key_id": actor.key_id,
-            "action": action,
-            "resource_type": resource_type,
-            "resource_id": resource_id,
-            "robot_id": robot_id,
-            "tool_id": tool_id,
-            "details": details,
-        }
+        row(
+            at=utcnow(),  # now, not when the transaction commits
+            actor=actor.name,
+            api_key_id=actor.key_id,
+            action=action,
+            resource_type=resource_type,
+            resource_id=resource_id,
+            robot_id=robot_id,
+            tool_id=tool_id,
+            details=details,
+        )
     )
     event: JsonObject = {
         "actor": actor.name,
@@ -47,6 +49,32 @@ def record(
         **(details or {}),
     }
     session.info.setdefault(_PENDING, []).append((action, event))
+
+
+def row(
+    *,
+    at: datetime,
+    actor: str,
+    api_key_id: str | None,
+    action: str,
+    resource_type: str,
+    resource_id: str,
+    robot_id: str | None,
+    tool_id: str | None,
+    details: JsonObject | None,
+) -> dict[str, object]:
+    """An audit_events row as inserted (also by bench/scale.py's bulk seeding)."""
+    return {
+        "at": at,
+        "actor": actor,
+        "api_key_id": api_key_id,
+        "action": action,
+        "resource_type": resource_type,
+        "resource_id": resource_id,
+        "robot_id": robot_id,
+        "tool_id": tool_id,
+        "details": details,
+    }
 
 
 #: Rows of the open transaction, inserted as it commits (one executemany: a calibration
