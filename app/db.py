@@ -8,6 +8,7 @@ gets the same guarantee from SELECT ... FOR UPDATE on the tool row (see services
 from __future__ import annotations
 
 import contextlib
+import os
 import threading
 import time
 from collections import namedtuple
@@ -15,7 +16,12 @@ from collections.abc import Iterator
 from contextlib import contextmanager, nullcontext
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
+
+try:
+    import fcntl
+except ImportError:  # Windows: no flock (see SqliteWriters)
+    fcntl = None  # type: ignore[assignment]
 
 from sqlalchemy import Connection, Engine, Select, create_engine, event
 from sqlalchemy.engine import URL, make_url
@@ -79,10 +85,23 @@ def make_engine(url: str, **pool: Any) -> Engine:
     return engine
 
 
-@lru_cache
 def get_engine() -> Engine:
     """The process-wide engine for the configured database URL."""
-    return make_engine(get_settings().database_url)
+    return engine_for(get_settings().database_url)
+
+
+#: The process's engines by database URL (see engine_for).
+_ENGINES: dict[str, Engine] = {}
+
+
+def engine_for(url: str) -> Engine:
+    """The process's engine for a database URL: the configured one, or the one a solver
+    process is handed with each calibration it stores (app.solve_pool), whose settings were
+    read when the pool started."""
+    engine = _ENGINES.get(url)
+    if engine is None:  # two threads may both make one: the one kept has never connected
+        engine = _ENGINES.setdefault(url, make_engine(url))
+    return engine
 
 
 @lru_cache
@@ -206,10 +225,11 @@ def dispose_engines() -> None:
         with contextlib.suppress(Exception):
             HELD_CONNECTIONS.pop().close()
     _held_engine.cache_clear()
-    for cached in (get_engine, loop_engine):
-        if cached.cache_info().currsize:
-            cached().dispose()
-        cached.cache_clear()
+    if loop_engine.cache_info().currsize:
+        loop_engine().dispose()
+    loop_engine.cache_clear()
+    while _ENGINES:
+        _ENGINES.popitem()[1].dispose()
 
 
 def is_sqlite(engine: Engine) -> bool:
@@ -217,11 +237,59 @@ def is_sqlite(engine: Engine) -> bool:
     return engine.dialect.name == "sqlite"
 
 
-#: SQLite has one writer at a time. Its busy handler makes a waiting writer sleep in steps
-#: of up to 100 ms, so 16 concurrent writes took seconds at p99; the writers of one process
-#: queue here instead and each starts the moment the previous one commits. (Writers of other
-#: processes still meet in SQLite's lock.)
-_SQLITE_WRITER = threading.Lock()
+class SqliteWriters:
+    """One writer at a time for a SQLite database file, across threads and processes.
+
+    SQLite has one writer at a time. Its busy handler makes a waiting writer sleep in steps
+    of up to 100 ms, so 16 concurrent writes took seconds at p99; writers queue here instead
+    and each starts the moment the previous one commits: the threads of a process on a lock,
+    and the processes (server workers, and the solver processes that store calibrations) on
+    an flock of `<database>-writer.lock` next to the file. An in-memory database, or a
+    platform without flock, has the threads' lock only (other processes meet in SQLite's).
+    """
+
+    def __init__(self, lock_path: Path | None) -> None:
+        self._threads = threading.Lock()
+        self._lock_path = lock_path if fcntl is not None else None
+        self._file: tuple[int, IO[bytes]] | None = None  # (the process that opened it, file)
+
+    def __enter__(self) -> None:
+        self._threads.acquire()
+        try:
+            if self._lock_path is not None:
+                fcntl.flock(self._fileno(), fcntl.LOCK_EX)
+        except BaseException:
+            self._threads.release()
+            raise
+
+    def __exit__(self, *_: object) -> None:
+        try:
+            if self._lock_path is not None:
+                fcntl.flock(self._fileno(), fcntl.LOCK_UN)
+        finally:
+            self._threads.release()
+
+    def _fileno(self) -> int:
+        # Opened once per process: a forked child shares its parent's open file, and with it
+        # the parent's flock, so it opens its own.
+        assert self._lock_path is not None
+        if self._file is None or self._file[0] != os.getpid():
+            self._file = (os.getpid(), self._lock_path.open("ab"))
+        return self._file[1].fileno()
+
+
+_WRITERS: dict[str, SqliteWriters] = {}
+
+
+def sqlite_writers(engine: Engine) -> SqliteWriters:
+    """The writer queue of a SQLite engine's database."""
+    database = engine.url.database or ""
+    writers = _WRITERS.get(database)
+    if writers is None:
+        on_disk = database not in ("", ":memory:") and not database.startswith("file:")
+        lock_path = Path(f"{database}-writer.lock") if on_disk else None
+        writers = _WRITERS.setdefault(database, SqliteWriters(lock_path))
+    return writers
 
 
 @lru_cache(maxsize=16)
@@ -240,7 +308,7 @@ def session_scope(*, write: bool, engine: Engine | None = None) -> Iterator[Sess
     """A session whose transaction commits on success and rolls back on any error."""
     engine = engine or get_engine()
     factory = _session_factory(engine, write)
-    writer = _SQLITE_WRITER if write and is_sqlite(engine) else nullcontext()
+    writer = sqlite_writers(engine) if write and is_sqlite(engine) else nullcontext()
     with writer, SESSIONS_OPEN.track_inprogress(), factory() as session:
         try:
             yield session

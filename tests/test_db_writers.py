@@ -1,0 +1,152 @@
+"""SQLite writers queue across threads and processes (app.db.SqliteWriters), and each process
+keeps one engine per database URL (a solver process stores calibrations through the one it is
+handed)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from sqlalchemy import text
+
+from app.db import (
+    SqliteWriters,
+    dispose_engines,
+    engine_for,
+    get_engine,
+    session_scope,
+    sqlite_writers,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+
+# A writer in another process: takes the queue, says when, holds it for `hold` seconds.
+_OTHER_WRITER = """
+import sys, time
+from pathlib import Path
+from app.db import SqliteWriters
+writers = SqliteWriters(Path(sys.argv[1]))
+print("waiting", flush=True)
+with writers:
+    print(time.time(), flush=True)
+    time.sleep(float(sys.argv[2]))
+"""
+
+
+def _other_writer(lock: Path, hold: float) -> subprocess.Popen[str]:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _OTHER_WRITER, str(lock), str(hold)],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout is not None
+    assert proc.stdout.readline().strip() == "waiting"
+    return proc
+
+
+def test_a_writer_of_another_process_waits_for_the_one_writing(tmp_path: Path) -> None:
+    writers = SqliteWriters(tmp_path / "db.sqlite3-writer.lock")
+    with writers:
+        other = _other_writer(tmp_path / "db.sqlite3-writer.lock", 0.0)
+        time.sleep(0.5)  # the other process is blocked in the queue all this time
+        released = time.time()
+    assert other.stdout is not None
+    started = float(other.stdout.readline())
+    assert other.wait(timeout=30) == 0
+    assert started >= released
+
+
+def test_this_process_waits_for_a_writer_of_another(tmp_path: Path) -> None:
+    lock = tmp_path / "db.sqlite3-writer.lock"
+    other = _other_writer(lock, 0.5)
+    assert other.stdout is not None
+    other_started = float(other.stdout.readline())
+    with SqliteWriters(lock):
+        started = time.time()
+    assert other.wait(timeout=30) == 0
+    assert started >= other_started + 0.5
+
+
+def test_threads_of_a_process_write_one_at_a_time(tmp_path: Path) -> None:
+    writers = SqliteWriters(tmp_path / "w.lock")
+    inside, most = 0, 0
+    count = threading.Lock()
+
+    def write() -> None:
+        nonlocal inside, most
+        for _ in range(20):
+            with writers:
+                with count:
+                    inside += 1
+                    most = max(most, inside)
+                time.sleep(0.001)
+                with count:
+                    inside -= 1
+
+    threads = [threading.Thread(target=write) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert most == 1
+
+
+def test_a_failed_lock_releases_the_threads_queue(tmp_path: Path) -> None:
+    writers = SqliteWriters(tmp_path / "missing-dir" / "w.lock")  # cannot be opened
+    with pytest.raises(FileNotFoundError), writers:
+        pass
+    acquired = threading.Event()
+
+    def other() -> None:
+        with pytest.raises(FileNotFoundError), writers:
+            pass
+        acquired.set()
+
+    t = threading.Thread(target=other)
+    t.start()
+    t.join(timeout=10)
+    assert acquired.is_set()  # not left waiting on a lock the failed writer never released
+
+
+def test_an_in_memory_database_queues_threads_only() -> None:
+    engine = engine_for("sqlite://")
+    try:
+        writers = sqlite_writers(engine)
+        assert writers is sqlite_writers(engine)
+        with writers:
+            pass
+    finally:
+        dispose_engines()
+
+
+def test_one_engine_per_url_and_the_configured_one_among_them(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from app.config import get_settings
+
+    configured = f"sqlite:///{tmp_path / 'configured.sqlite3'}"
+    other = f"sqlite:///{tmp_path / 'other.sqlite3'}"
+    monkeypatch.setenv("TCPCAL_DATABASE_URL", configured)
+    get_settings.cache_clear()
+    dispose_engines()
+    try:
+        assert get_engine() is engine_for(configured)
+        assert engine_for(other) is engine_for(other)
+        assert engine_for(other) is not get_engine()
+        with session_scope(write=True, engine=engine_for(other)) as session:
+            session.execute(text("CREATE TABLE t (x INTEGER)"))
+            session.execute(text("INSERT INTO t VALUES (7)"))
+        assert (tmp_path / "other.sqlite3-writer.lock").exists()  # the write took the queue
+        with engine_for(other).connect() as conn:
+            assert conn.execute(text("SELECT x FROM t")).scalar_one() == 7
+        old = engine_for(other)
+        dispose_engines()
+        assert engine_for(other) is not old  # forgotten (and closed) by dispose_engines
+    finally:
+        dispose_engines()
+        get_settings.cache_clear()
