@@ -52,43 +52,57 @@ structlog.configure(
 
 
 ACCESS_LOGGER = "tcpcal.access"
-#: The access line's logger: stdlib logging's until configure_logging gives it a direct one.
-_access: Any = structlog.stdlib.get_logger(ACCESS_LOGGER)
+EVENTS_LOGGER = "tcpcal.events"
+#: The loggers written on every request: its access line, and the audit events of a write.
+#: stdlib logging's until configure_logging gives each a direct one.
+_direct: dict[str, Any] = {
+    name: structlog.stdlib.get_logger(name) for name in (ACCESS_LOGGER, EVENTS_LOGGER)
+}
 
 
 def access_logger() -> Any:
     """The logger of the one access line per request (app.middleware)."""
-    return _access
+    return _direct[ACCESS_LOGGER]
 
 
-def _access_name(_: Any, __: str, event: MutableMapping[str, Any]) -> MutableMapping[str, Any]:
-    event["logger"] = ACCESS_LOGGER
-    return event
+def events_logger() -> Any:
+    """The logger of the audit events, one line per committed write (app.services.audit)."""
+    return _direct[EVENTS_LOGGER]
+
+
+def _named(name: str) -> Any:
+    def add_name(_: Any, __: str, event: MutableMapping[str, Any]) -> MutableMapping[str, Any]:
+        event["logger"] = name
+        return event
+
+    return add_name
 
 
 def configure_logging(level: int = logging.INFO) -> None:
     """Route structlog and stdlib logging through one renderer on stderr."""
-    global _access
     fmt = os.environ.get(LOG_FORMAT_ENV) or ("console" if sys.stderr.isatty() else "json")
     renderer: Any = (
         structlog.dev.ConsoleRenderer() if fmt == "console" else structlog.processors.JSONRenderer()
     )
-    # The access line, written on every request, goes straight to stderr with the same fields
-    # and renderer: through stdlib logging (a LogRecord, a handler, the formatter's processor
-    # chain) it cost 125 us of CPU a request, more than the rest of the hot read's middleware.
-    _access = structlog.wrap_logger(
-        structlog.WriteLogger(sys.stderr),
-        processors=[
-            structlog.contextvars.merge_contextvars,
-            _request_id,
-            structlog.processors.add_log_level,
-            _access_name,
-            structlog.processors.TimeStamper(fmt="iso", utc=True),
-            renderer,
-        ],
-        wrapper_class=structlog.make_filtering_bound_logger(level),
-        cache_logger_on_first_use=True,
-    )
+    # The access line, written on every request, and the audit events go straight to stderr
+    # with the same fields and renderer: through stdlib logging (a LogRecord, a handler, the
+    # formatter's processor chain) the access line cost 125 us of CPU a request, more than
+    # the rest of the hot read's middleware, and a calibration writes two events.
+    sink = structlog.WriteLogger(sys.stderr)
+    for name in _direct:
+        _direct[name] = structlog.wrap_logger(
+            sink,
+            processors=[
+                structlog.contextvars.merge_contextvars,
+                _request_id,
+                structlog.processors.add_log_level,
+                _named(name),
+                structlog.processors.TimeStamper(fmt="iso", utc=True),
+                renderer,
+            ],
+            wrapper_class=structlog.make_filtering_bound_logger(level),
+            cache_logger_on_first_use=True,
+        )
     shared = _SHARED
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(

@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.jsontypes import JsonObject
-from app.logs import get_logger
+from app.logs import events_logger
 from app.models import AuditEvent, table_of, utcnow
 
 
@@ -83,7 +83,6 @@ _ROWS = "tcpcal.audit_rows"
 #: Events of the open transaction, logged once it commits (a rolled-back one never happened).
 _PENDING = "tcpcal.audit_events"
 _INSERT = insert(table_of(AuditEvent))
-_log = get_logger("tcpcal.events")
 
 
 @sa_event.listens_for(Session, "before_commit")
@@ -96,7 +95,7 @@ def _write_rows(session: Session) -> None:
 @sa_event.listens_for(Session, "after_commit")
 def _log_committed(session: Session) -> None:
     for action, fields in session.info.pop(_PENDING, []):
-        _log.info(action, **fields)
+        events_logger().info(action, **fields)
 
 
 @sa_event.listens_for(Session, "after_rollback")
