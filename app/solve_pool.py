@@ -9,6 +9,10 @@ core but one, which is left to the event loop), started lazily with the forkserv
 and a burst of solves queues in the pool instead of in the loop. The pool lives as long as
 its worker process (the executor joins its processes at exit). Errors raised in a solver
 process come back as they were raised (DomainError pickles with every field).
+
+A calibration is solved and stored by one call here (app.services.calibrate.solve_and_submit):
+the solver process writes it to the database itself, on its own engine, queued with every
+other writer (app.db.SqliteWriters on SQLite, the tool's row lock on PostgreSQL).
 """
 
 from __future__ import annotations
@@ -59,11 +63,16 @@ def _get_pool() -> ProcessPoolExecutor:
 
 def _start_solver() -> None:
     """Each solver process imports the solve path as it starts (numpy, scipy, the methods:
-    about a second), not in the middle of its first request, leaves what it imported out of
-    later garbage collections (see app.main.settle_heap), and ends with its server worker."""
+    about a second), not in the middle of its first request, logs as its server worker does
+    (the audit events of the calibrations it stores), leaves what it imported out of later
+    garbage collections (see app.main.settle_heap), and ends with its server worker."""
     import gc
 
     import app.services.calibrate  # noqa: F401
+    from app.logs import SERVING_ENV, configure_logging
+
+    if os.environ.get(SERVING_ENV):
+        configure_logging()
 
     gc.collect()
     gc.freeze()

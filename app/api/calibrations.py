@@ -11,10 +11,12 @@ from starlette.concurrency import run_in_threadpool
 from app import solve_pool
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.auth import Principal, authenticate_held
+from app.config import get_settings
 from app.db import loop_engine, session_scope
 from app.deps import ReadKey, SessionDep
 from app.errors import InvalidInput
 from app.jsontypes import JsonObject
+from app.logs import REQUEST_ID
 from app.methods import openapi_examples
 from app.metrics import CALIBRATIONS
 from app.middleware import KEY_NAME
@@ -22,7 +24,6 @@ from app.schemas.calibrations import CalibrationRequest
 from app.schemas.common import Page
 from app.schemas.results import Calibration, CalibrationDetail
 from app.services import calibrate
-from app.services.calibrate import Presolved
 
 router = APIRouter(tags=["calibrations"])
 
@@ -62,8 +63,8 @@ async def submit_calibration(
     `Idempotency-Key`."""
     raw_body = raw_json_body(request)
     # 1. Who, and what the solve reads: held reads on the event loop (a replay needs a session
-    # in a worker thread); 2. the solve, in a solver process with no transaction open; 3. the
-    # write, under the tool's lock (re-solved there only if what the solve read has changed).
+    # in a worker thread); 2. in a solver process, the solve with no transaction open, then
+    # the write under the tool's lock (re-solved there only if what the solve read changed).
     key = authenticate_held(loop_engine(), authorization, required="calibrate")
     request.scope[KEY_NAME] = key.name
     if idempotency_key is not None:
@@ -72,30 +73,24 @@ async def submit_calibration(
             response.headers["Idempotent-Replayed"] = "true"
             return replay
     snapshot, ctx = calibrate.snapshot_held(loop_engine(), tool_id)
-    outcome = await solve_pool.run(calibrate.solve_snapshot, body, ctx)
-
-    def store() -> tuple[Calibration, bool]:
-        with session_scope(write=True) as session:
-            return calibrate.submit(
-                session,
-                tool_id=tool_id,
-                request=body,
-                raw_body=raw_body,
-                idempotency_key=idempotency_key,
-                actor=key,
-                solved=None if outcome is None else Presolved(snapshot, outcome),
-            )
-
-    doc, replayed = await run_in_threadpool(store)
-    if replayed:
+    done = await solve_pool.run(
+        calibrate.solve_and_submit,
+        get_settings().database_url,
+        tool_id=tool_id,
+        request=body,
+        snapshot=snapshot,
+        ctx=ctx,
+        raw_body=raw_body,
+        idempotency_key=idempotency_key,
+        actor=key,
+        request_id=REQUEST_ID.get(),
+    )
+    if done.replayed:
         headers = {"Idempotent-Replayed": "true"}
     else:
         headers = {}
-        CALIBRATIONS.labels(doc.method, doc.status).inc()
-    # Serialised by pydantic in one pass; `doc` was validated when it was built.
-    return Response(
-        doc.model_dump_json(), status_code=201, media_type="application/json", headers=headers
-    )
+        CALIBRATIONS.labels(done.method, done.status).inc()
+    return Response(done.body, status_code=201, media_type="application/json", headers=headers)
 
 
 def _replay(

@@ -19,11 +19,12 @@ from sqlalchemy import Engine, and_, bindparam, insert, select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.db import HeldRead
+from app.db import HeldRead, engine_for, session_scope
 from app.errors import InvalidInput, NotFound, located_in
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance, grade
 from app.jsontypes import JsonObject
+from app.logs import REQUEST_ID
 from app.methods import method_of
 from app.methods.base import FloatArray, MethodContext, MethodRequest, Solved, StoredPoint
 from app.methods.npoint import NPointOptions
@@ -281,6 +282,50 @@ def solve_snapshot(request: MethodRequest, ctx: SnapshotContext) -> Outcome | No
         if refusal.kind == "needs-storage":
             return None
         raise
+
+
+@dataclass(frozen=True)
+class Submitted:
+    """A stored (or replayed) calibration as served, and what the metrics count of it."""
+
+    body: str  # the Calibration, as JSON
+    replayed: bool
+    method: str
+    status: str
+
+
+def solve_and_submit(
+    database_url: str,
+    *,
+    tool_id: str,
+    request: MethodRequest,
+    snapshot: Snapshot,
+    ctx: SnapshotContext,
+    raw_body: JsonObject,
+    idempotency_key: str | None,
+    actor: Principal,
+    request_id: str | None,
+) -> Submitted:
+    """A calibration from its snapshot on: the solve, with no transaction open, then `submit`
+    in a write transaction of its own. One call for a solver process (app.solve_pool), which
+    writes to `database_url` itself: the result never travels back to be stored, and the
+    write costs the server's event loop nothing. Its audit events carry `request_id`."""
+    token = REQUEST_ID.set(request_id)
+    try:
+        outcome = solve_snapshot(request, ctx)
+        with session_scope(write=True, engine=engine_for(database_url)) as session:
+            doc, replayed = submit(
+                session,
+                tool_id=tool_id,
+                request=request,
+                raw_body=raw_body,
+                idempotency_key=idempotency_key,
+                actor=actor,
+                solved=None if outcome is None else Presolved(snapshot, outcome),
+            )
+    finally:
+        REQUEST_ID.reset(token)
+    return Submitted(doc.model_dump_json(), replayed, doc.method, doc.status)
 
 
 def submit(

@@ -55,8 +55,12 @@ def test_metrics_need_a_key(server: LiveServer) -> None:
 
 
 def test_one_json_log_line_per_request_carries_the_clients_request_id(tmp_path: Path) -> None:
+    """Also the audit events of a calibration, which a solver process writes and logs."""
     import json
     import tempfile
+
+    from tests.api.touches import as_poses
+    from tests.sim.touches import simulate_touches
 
     with (
         tempfile.TemporaryFile() as log,
@@ -66,6 +70,14 @@ def test_one_json_log_line_per_request_carries_the_clients_request_id(tmp_path: 
             robot = http.post(
                 "/v1/robots", json={"name": "logged"}, headers={"X-Request-ID": "cell-7.a1"}
             )
+            tool = http.post(f"/v1/robots/{robot.json()['id']}/tools", json={"name": "t"})
+            touches = simulate_touches(8, seed=3, tcp_mm=None)
+            calibration = http.post(
+                f"/v1/tools/{tool.json()['id']}/calibrations",
+                json={"method": "xyz_npoint", "format": "xyz_wxyz", "poses": as_poses(touches)},
+                headers={"X-Request-ID": "cell-7.cal"},
+            )
+            assert calibration.status_code == 201, calibration.text
             echoed = robot.headers["X-Request-ID"]
             made = http.get("/v1/robots").headers["X-Request-ID"]
             bad = http.get("/v1/robots", headers={"X-Request-ID": "x{y}" + "z" * 200})
@@ -87,6 +99,16 @@ def test_one_json_log_line_per_request_carries_the_clients_request_id(tmp_path: 
     created = [e for e in lines if e.get("event") == "robot.create"]
     assert created[0]["request_id"] == "cell-7.a1"
     assert created[0]["resource_id"] == robot.json()["id"]
+    calibrated = [e for e in lines if e.get("request_id") == "cell-7.cal"]
+    assert {e["event"] for e in calibrated} == {
+        "request",
+        "version.create",
+        "version.activate",
+        "calibration.create",
+    }, calibrated
+    stored = next(e for e in calibrated if e["event"] == "calibration.create")
+    assert stored["resource_id"] == calibration.json()["id"]
+    assert stored["logger"] == "tcpcal.events"
     assert srv.admin_key not in text  # the key's name is logged, never the key
     assert all("timestamp" in e and "level" in e for e in lines)
 
