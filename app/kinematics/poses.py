@@ -265,6 +265,9 @@ def _rows(fmt: str, poses: object, labels: Sequence[str], units: PoseUnits, loc:
             "invalid-pose", f"poses must be a list of poses in format {fmt!r}", loc=loc
         )
     arity = len(labels)
+    if all(type(p) is list and len(p) == arity and all(type(v) is float for v in p) for p in poses):
+        # Rows of floats, as a validated request holds them: one conversion, not one per value.
+        return np.array(poses, dtype=np.float64).reshape(len(poses), arity)
     out = np.empty((len(poses), arity))
     for i, pose in enumerate(poses):
         flat: object = pose

@@ -23,12 +23,40 @@ from app.schemas.common import Pose, Units
 from app.schemas.tools import Tolerance
 from app.services.frames import active_frame, parse_poses_with
 
+#: Poses read: rotations (N, 3, 3) and flange positions (N, 3) mm.
+PosesRead = tuple[NDArray[np.float64], NDArray[np.float64]]
+
+
+class _Readings:
+    """Poses as read under each format and units asked for, each read once: a calibration's
+    method reads the submission's poses, and the mix-up check (app.services.calibrate.solve)
+    reads them again, and under other readings when the fit is poor. Callers get copies."""
+
+    def __init__(self) -> None:
+        self._done: list[tuple[Sequence[Pose], str, Units | None, PosesRead]] = []
+
+    def read(
+        self,
+        kinematics: Mapping[str, object] | None,
+        fmt: str,
+        poses: Sequence[Pose],
+        units: Units | None,
+        loc: Sequence[str | int],
+    ) -> PosesRead:
+        for seen, seen_fmt, seen_units, (rotations, positions) in self._done:
+            if seen is poses and seen_fmt == fmt and seen_units == units:
+                return rotations.copy(), positions.copy()
+        rotations, positions = parse_poses_with(kinematics, fmt, poses, units, loc=loc)
+        self._done.append((poses, fmt, units, (rotations, positions)))  # keeps `poses` alive
+        return rotations.copy(), positions.copy()
+
 
 class DbContext:
     """Method context backed by the database, for one tool of one robot."""
 
     def __init__(self, session: Session, tool: Tool, robot: Robot) -> None:
         self.session, self.tool, self.robot = session, tool, robot
+        self._readings = _Readings()
 
     @property
     def tolerance(self) -> Tolerance:
@@ -39,8 +67,8 @@ class DbContext:
 
     def parse_poses(
         self, fmt: str, poses: Sequence[Pose], units: Units | None, *, loc: Sequence[str | int]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        return parse_poses_with(self.robot.kinematics, fmt, poses, units, loc=loc)
+    ) -> PosesRead:
+        return self._readings.read(self.robot.kinematics, fmt, poses, units, loc)
 
     def reference_point(self, reference_point_id: str) -> StoredPoint:
         row = self.session.get(ReferencePoint, reference_point_id)
@@ -89,6 +117,7 @@ class StatelessContext:
     ) -> None:
         self._kinematics = kinematics
         self._tolerance = effective_tolerance(tolerance)
+        self._readings = _Readings()
 
     @property
     def tolerance(self) -> Tolerance:
@@ -99,8 +128,8 @@ class StatelessContext:
 
     def parse_poses(
         self, fmt: str, poses: Sequence[Pose], units: Units | None, *, loc: Sequence[str | int]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        return parse_poses_with(self._kinematics, fmt, poses, units, loc=loc)
+    ) -> PosesRead:
+        return self._readings.read(self._kinematics, fmt, poses, units, loc)
 
     def _stored(self, what: str, field: tuple[str, ...], instead: str) -> InvalidInput:
         return InvalidInput(

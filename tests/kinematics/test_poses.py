@@ -378,3 +378,48 @@ def test_empty_pose_list() -> None:
     rotations, positions = poses_from_format("kuka_abc", [])
     assert rotations.shape == (0, 3, 3)
     assert positions.shape == (0, 3)
+
+
+# --- rows of floats (a validated request) are read in one conversion -----------------------
+
+values = st.floats(min_value=-1e4, max_value=1e4, allow_nan=False)
+
+
+@FAST
+@given(
+    fmt=st.sampled_from([f for f in POSE_FORMATS if f not in ("matrix", "joints")]),
+    rows=st.lists(st.lists(values, min_size=7, max_size=7), min_size=1, max_size=6),
+    as_int=st.integers(min_value=0, max_value=6),
+)
+def test_rows_of_floats_read_as_rows_with_an_int_among_them(
+    fmt: str, rows: list[list[float]], as_int: int
+) -> None:
+    """The one-conversion path (every value a float) and the value-by-value path (an int
+    among them) read the same poses alike, or refuse them alike."""
+    arity = 7 if fmt in ("xyz_wxyz", "xyz_xyzw") else 6
+    floats = [r[:arity] for r in rows]
+    if fmt in ("xyz_wxyz", "xyz_xyzw"):
+        for r in floats:
+            r[3] = abs(r[3]) + 0.5  # a quaternion well away from zero
+    mixed = [list(r) for r in floats]
+    mixed[0][as_int % arity] = int(mixed[0][as_int % arity])
+    floats[0][as_int % arity] = float(mixed[0][as_int % arity])
+
+    def read(poses: list[list[Any]]) -> Any:
+        try:
+            return poses_from_format(fmt, poses, units={"angle": "deg"})
+        except InvalidInput as err:
+            return (err.kind, err.loc)
+
+    fast, slow = read(floats), read(mixed)
+    if isinstance(fast, tuple) and isinstance(fast[0], str):
+        assert fast == slow
+    else:
+        assert_allclose(fast[0], slow[0], rtol=0, atol=0)
+        assert_allclose(fast[1], slow[1], rtol=0, atol=0)
+
+
+def test_a_bool_or_a_string_among_floats_is_still_refused() -> None:
+    for bad in (True, "1.0", None):
+        err = _refused("invalid-pose", "xyz_wxyz", [[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, bad]])
+        assert err.loc == ("poses", 0, 6)
