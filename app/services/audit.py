@@ -9,6 +9,7 @@ from sqlalchemy import insert
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
+from app.db import DriverWrite
 from app.jsontypes import JsonObject
 from app.logs import events_logger
 from app.models import AuditEvent, table_of, utcnow
@@ -82,14 +83,14 @@ def row(
 _ROWS = "tcpcal.audit_rows"
 #: Events of the open transaction, logged once it commits (a rolled-back one never happened).
 _PENDING = "tcpcal.audit_events"
-_INSERT = insert(table_of(AuditEvent))
+_INSERT = DriverWrite(insert(table_of(AuditEvent)))
 
 
 @sa_event.listens_for(Session, "before_commit")
 def _write_rows(session: Session) -> None:
     rows = session.info.pop(_ROWS, None)
     if rows:
-        session.connection().execute(_INSERT, rows)
+        _INSERT.execute(session, rows)
 
 
 @sa_event.listens_for(Session, "after_commit")

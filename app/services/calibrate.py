@@ -19,7 +19,7 @@ from sqlalchemy import Engine, and_, bindparam, insert, select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.db import HeldRead, engine_for, session_scope
+from app.db import DriverWrite, HeldRead, engine_for, session_scope
 from app.errors import InvalidInput, NotFound, located_in
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance, grade
@@ -422,7 +422,7 @@ def _save_touched_point(
     )
 
 
-_INSERT_CALIBRATION = insert(_CALIBRATION)
+_INSERT_CALIBRATION = DriverWrite(insert(_CALIBRATION))
 
 
 def _store(
@@ -439,20 +439,22 @@ def _store(
     # The calibration goes in first (the version references it), numbered and timed as the
     # version that add_version makes next.
     calibration_id, version, now = new_id(), tool.next_version, utcnow()
-    session.connection().execute(
-        _INSERT_CALIBRATION,
-        {
-            "id": calibration_id,
-            "tool_id": tool.id,
-            "method": request.method,
-            "algorithm": result.algorithm,
-            "status": result.status,
-            "request": raw_body,
-            "result": result.model_dump(mode="json"),
-            "version": version,
-            "created_at": now,
-            "created_by": actor.name,
-        },
+    _INSERT_CALIBRATION.execute(
+        session,
+        [
+            {
+                "id": calibration_id,
+                "tool_id": tool.id,
+                "method": request.method,
+                "algorithm": result.algorithm,
+                "status": result.status,
+                "request": raw_body,
+                "result": result.model_dump(mode="json"),
+                "version": version,
+                "created_at": now,
+                "created_by": actor.name,
+            }
+        ],
     )
     add_version(
         session,

@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal, admit, digest_of
 from app.config import get_settings
-from app.db import HeldRead
+from app.db import DriverWrite, HeldRead
 from app.errors import Archived, InvalidInput, NoActiveVersion, NotFound
 from app.helpers.etags import if_none_match_hit
 from app.jsontypes import JsonArray, JsonObject
@@ -36,7 +36,7 @@ IDENTITY_QUATERNION = [1.0, 0.0, 0.0, 0.0]
 _TOOL = table_of(Tool)
 _VERSION = table_of(TcpVersion)
 _ROBOT = table_of(Robot)
-_LOCK_TOOL = (
+_LOCK_TOOL = HeldRead(
     select(
         _TOOL.c.id,
         _TOOL.c.robot_id,
@@ -52,7 +52,7 @@ _LOCK_TOOL = (
     .where(_TOOL.c.id == bindparam("tool_id"))
     .with_for_update(of=_TOOL)
 )
-_SAVE_TOOL = (
+_SAVE_TOOL = DriverWrite(
     update(_TOOL)
     .where(_TOOL.c.id == bindparam("tool_id"))
     .values(
@@ -62,8 +62,8 @@ _SAVE_TOOL = (
         updated_at=bindparam("updated_at"),
     )
 )
-_INSERT_VERSION = insert(_VERSION)
-_INSERT_ACTIVATION = insert(table_of(Activation))
+_INSERT_VERSION = DriverWrite(insert(_VERSION))
+_INSERT_ACTIVATION = DriverWrite(insert(table_of(Activation)))
 
 
 @dataclass(slots=True)
@@ -90,7 +90,7 @@ def lock_tool(session: Session, tool_id: str) -> LockedTool:
     """Lock a live tool's row for the rest of the transaction (serialises its versions), or
     404. Pending ORM changes are written first, so that the lock reads them."""
     session.flush()
-    row = session.connection().execute(_LOCK_TOOL, {"tool_id": tool_id}).one_or_none()
+    row = _LOCK_TOOL.one_or_none_in(session, tool_id=tool_id)
     row = live_or_404(row, "tool", tool_id)
     return LockedTool(
         row.id,
@@ -106,15 +106,17 @@ def lock_tool(session: Session, tool_id: str) -> LockedTool:
 
 def _save(session: Session, tool: LockedTool, now: datetime) -> None:
     """Write the locked tool's counters; an ORM copy of the row reads them back when next used."""
-    session.connection().execute(
-        _SAVE_TOOL,
-        {
-            "tool_id": tool.id,
-            "active_version": tool.active_version,
-            "last_version": tool.last_version,
-            "revision": tool.revision,
-            "updated_at": now,
-        },
+    _SAVE_TOOL.execute(
+        session,
+        [
+            {
+                "tool_id": tool.id,
+                "active_version": tool.active_version,
+                "last_version": tool.last_version,
+                "revision": tool.revision,
+                "updated_at": now,
+            }
+        ],
     )
     cached = session.identity_map.get(session.identity_key(Tool, tool.id))
     if cached is not None:
@@ -139,21 +141,23 @@ def add_version(
     now = created_at or utcnow()
     tool.last_version = tool.next_version
     tool.revision += 1
-    session.connection().execute(
-        _INSERT_VERSION,
-        {
-            "id": new_id(),
-            "tool_id": tool.id,
-            "version": tool.last_version,
-            "position_mm": [float(v) for v in position_mm],
-            "quaternion": [float(v) for v in quaternion],
-            "source": source,
-            "status": status,
-            "calibration_id": calibration_id,
-            "note": note,
-            "created_at": now,
-            "created_by": actor.name,
-        },
+    _INSERT_VERSION.execute(
+        session,
+        [
+            {
+                "id": new_id(),
+                "tool_id": tool.id,
+                "version": tool.last_version,
+                "position_mm": [float(v) for v in position_mm],
+                "quaternion": [float(v) for v in quaternion],
+                "source": source,
+                "status": status,
+                "calibration_id": calibration_id,
+                "note": note,
+                "created_at": now,
+                "created_by": actor.name,
+            }
+        ],
     )
     _save(session, tool, now)
     audit.record(
@@ -177,16 +181,18 @@ def activate(
     now = utcnow()
     previous, tool.active_version = tool.active_version, version
     tool.revision += 1
-    session.connection().execute(
-        _INSERT_ACTIVATION,
-        {
-            "tool_id": tool.id,
-            "version": version,
-            "previous_version": previous,
-            "reason": reason,
-            "activated_by": actor.name,
-            "activated_at": now,
-        },
+    _INSERT_ACTIVATION.execute(
+        session,
+        [
+            {
+                "tool_id": tool.id,
+                "version": version,
+                "previous_version": previous,
+                "reason": reason,
+                "activated_by": actor.name,
+                "activated_at": now,
+            }
+        ],
     )
     _save(session, tool, now)
     audit.record(

@@ -85,3 +85,48 @@ def test_a_rolled_back_write_leaves_no_version_and_no_audit_event(api: Api) -> N
         "test",
         {"version": n_versions, "source": "manual", "status": "accepted"},
     )
+
+
+def test_driver_writes_store_what_the_orm_reads_back(api: Api) -> None:
+    """The writes on the driver's cursor go through the models' types: timestamps come back
+    as the same UTC instants, JSON as the same lists, on SQLite and PostgreSQL."""
+    from datetime import UTC, datetime
+
+    tid = api.tool(api.robot("kr")["id"])["id"]
+    at = datetime(2026, 11, 23, 17, 4, 5, 123456, tzinfo=UTC)
+    with session_scope(write=True) as session:
+        locked = versions.lock_tool(session, tid)
+        number = versions.add_version(
+            session,
+            tool=locked,
+            position_mm=[1.25, -2.5, 3e-7],
+            quaternion=[0.0, 1.0, 0.0, 0.0],
+            source="manual",
+            status="accepted",
+            calibration_id=None,
+            note="ü note",
+            actor=ACTOR,
+            created_at=at,
+        )
+    with session_scope(write=False) as session:
+        row = versions.get_version(session, tool_id=tid, version=number)
+        assert row.created_at == at
+        assert row.position_mm == [1.25, -2.5, 3e-7]
+        assert row.quaternion == [0.0, 1.0, 0.0, 0.0]
+        assert row.note == "ü note"
+        tool = get_tool(session, tid)
+        assert (tool.last_version, tool.updated_at) == (number, at)
+
+
+def test_a_driver_write_refuses_a_statement_left_without_values(api: Api) -> None:
+    from sqlalchemy import bindparam, update
+
+    from app.db import DriverWrite
+    from app.models import Tool
+
+    tid = api.tool(api.robot("kr")["id"])["id"]
+    write = DriverWrite(
+        update(Tool).where(Tool.id == bindparam("tool_id")).values(name=bindparam("name"))
+    )
+    with session_scope(write=True) as session, pytest.raises(ValueError, match="name"):
+        write.execute(session, [{"tool_id": tid}])
