@@ -134,6 +134,8 @@ class HeldRead:
     (a SELECT holds no snapshot after it returns) and PostgreSQL's is set to autocommit, so
     nothing is cached and every request sees the committed state. A connection that fails
     is dropped and the read tried once more on a new one (a restarted PostgreSQL).
+    `one_or_none_in` runs the same statement inside a session's transaction instead (the
+    tool's row lock of a calibration's write).
     """
 
     def __init__(self, stmt: Select[Any]) -> None:
@@ -186,40 +188,30 @@ class HeldRead:
         started = time.perf_counter()
         for attempt in (1, 2):
             try:
-                cursor = self._connection(engine).cursor()
-                try:
-                    cursor.execute(sql, args)
-                    rows = cursor.fetchall()
-                finally:
-                    cursor.close()
+                rows = _on_cursor(self._connection(engine), sql, [args])
                 break
             except engine.dialect.loaded_dbapi.Error:
                 self._drop(engine)
                 if attempt == 2:
                     raise
         DB_SECONDS.observe(time.perf_counter() - started)
-        if not rows:
-            return None
-        if len(rows) > 1:
-            raise RuntimeError("a held read returned more than one row")
-        return self._row(
-            *(v if p is None else p(v) for v, p in zip(rows[0], processors, strict=True))
-        )
+        return self._one(rows, processors)
 
     def one_or_none_in(self, session: Session, **params: str) -> Any:
         """The same read inside a session's transaction (its connection's driver cursor)."""
         conn = session.connection()
         sql, order, processors = self._compiled(conn.engine)
         started = time.perf_counter()
-        cursor = conn.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
-        try:
-            cursor.execute(sql, _driver_params(order, params))
-            rows = cursor.fetchall()
-        finally:
-            cursor.close()
+        rows = _on_cursor(conn.connection.dbapi_connection, sql, [_driver_params(order, params)])
         DB_SECONDS.observe(time.perf_counter() - started)
+        return self._one(rows, processors)
+
+    def _one(self, rows: list[Any], processors: list[Any]) -> Any:
+        """The one row read, its columns through their processors, or None."""
         if not rows:
             return None
+        if len(rows) > 1:
+            raise RuntimeError("a held read returned more than one row")
         return self._row(
             *(v if p is None else p(v) for v, p in zip(rows[0], processors, strict=True))
         )
@@ -250,8 +242,8 @@ class DriverWrite:
             compiled = self._stmt.compile(dialect=dialect, column_keys=list(keys))
             order = list(compiled.positiontup or []) if compiled.positional else None
             processors = {
-                key: bind.type.dialect_impl(dialect).bind_processor(dialect)
-                for key, bind in ((b.key, b) for b in compiled.binds.values())
+                bind.key: bind.type.dialect_impl(dialect).bind_processor(dialect)
+                for bind in compiled.binds.values()
             }
             missing = set(processors) - set(keys)
             if missing:
@@ -272,15 +264,22 @@ class DriverWrite:
             }
             args.append(_driver_params(order, values))
         started = time.perf_counter()
-        cursor = conn.connection.dbapi_connection.cursor()  # type: ignore[union-attr]
-        try:
-            if len(args) == 1:
-                cursor.execute(sql, args[0])
-            else:
-                cursor.executemany(sql, args)
-        finally:
-            cursor.close()
+        _on_cursor(conn.connection.dbapi_connection, sql, args)
         DB_SECONDS.observe(time.perf_counter() - started)
+
+
+def _on_cursor(dbapi_connection: Any, sql: str, args: list[Any]) -> list[Any]:
+    """Run `sql` once per parameter set on a new cursor of a driver connection; the rows it
+    returned (a statement run once), [] otherwise."""
+    cursor = dbapi_connection.cursor()
+    try:
+        if len(args) > 1:
+            cursor.executemany(sql, args)
+            return []
+        cursor.execute(sql, args[0])
+        return cursor.fetchall() if cursor.description is not None else []
+    finally:
+        cursor.close()
 
 
 def _driver_params(order: list[str] | None, params: Mapping[str, Any]) -> Any:
