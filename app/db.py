@@ -79,8 +79,12 @@ def make_engine(url: str, **pool: Any) -> Engine:
 
     @event.listens_for(engine, "begin")
     def _on_begin(conn: Connection) -> None:
+        # On the driver's connection: through exec_driver_sql this one word cost as much
+        # as the INSERT of a calibration (an execution context, events and a result).
         mode = conn.get_execution_options().get("sqlite_begin", "DEFERRED")
-        conn.exec_driver_sql(f"BEGIN {mode}")
+        driver = conn.connection.driver_connection
+        assert driver is not None  # a connection in a transaction is open
+        driver.execute(f"BEGIN {mode}")
 
     return engine
 
