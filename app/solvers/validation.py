@@ -65,7 +65,7 @@ def check_rotation_matrices(
     eye = np.eye(3)
     err = np.abs(arr @ np.swapaxes(arr, 1, 2) - eye).max(axis=(1, 2))
     det = np.linalg.det(arr)
-    for i in range(arr.shape[0]):
+    for i in map(int, np.flatnonzero((err > atol) | (det < 0))):  # usually none
         if err[i] > atol:
             raise InvalidInput(
                 "invalid-rotation",
