@@ -20,11 +20,10 @@ BODY_METHODS = frozenset({"POST", "PUT", "PATCH"})
 
 
 class BodyLimitMiddleware:
-    """Refuse bodies over the limit with 413 before any parsing; keep the bytes in the scope.
+    """Refuse bodies over the limit with 413 before any parsing.
 
     Content-Length is checked first; chunked bodies are counted as they arrive, so a client
-    cannot get past the limit by omitting the header. The raw bytes are kept in
-    scope["tcpcal.raw_body"] so a calibration can store the submission exactly as received.
+    cannot get past the limit by omitting the header.
     """
 
     def __init__(self, app: ASGIApp, *, max_bytes: int) -> None:
@@ -69,7 +68,6 @@ class BodyLimitMiddleware:
             chunks.append(chunk)
             more = message.get("more_body", False)
         body = b"".join(chunks)
-        scope["tcpcal.raw_body"] = body
         sent = False
 
         async def replay() -> Message:
