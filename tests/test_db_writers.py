@@ -150,3 +150,32 @@ def test_one_engine_per_url_and_the_configured_one_among_them(
     finally:
         dispose_engines()
         get_settings.cache_clear()
+
+
+@pytest.mark.parametrize(("write", "locked"), [(True, True), (False, False)])
+def test_a_write_transaction_holds_the_write_lock_from_its_first_statement(
+    tmp_path: Path, write: bool, locked: bool
+) -> None:
+    """BEGIN IMMEDIATE for writes (two writers never both read a "next version number"),
+    DEFERRED for reads: another connection that asks for the write lock meanwhile is refused
+    only while a write transaction is open."""
+    import sqlite3
+
+    url = f"sqlite:///{tmp_path / 'begin.sqlite3'}"
+    engine = engine_for(url)
+    try:
+        with session_scope(write=True, engine=engine) as session:
+            session.execute(text("CREATE TABLE t (x INTEGER)"))
+        other = sqlite3.connect(tmp_path / "begin.sqlite3", timeout=0, isolation_level=None)
+        with session_scope(write=write, engine=engine) as session:
+            session.execute(text("SELECT count(*) FROM t"))
+            error = ""
+            try:
+                other.execute("BEGIN IMMEDIATE")
+                other.execute("ROLLBACK")
+            except sqlite3.OperationalError as exc:
+                error = str(exc)
+        other.close()
+        assert ("database is locked" in error) is locked, error
+    finally:
+        dispose_engines()
