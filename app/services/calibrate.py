@@ -546,7 +546,7 @@ def solve_detached(request: MethodRequest, kinematics: JsonObject | None) -> Sol
         result.warnings.append("options.save_reference_point ignored: /v1/solve stores nothing")
     if request.activate != "auto":
         result.warnings.append(f"activate {request.activate!r} ignored: /v1/solve stores nothing")
-    return SolveResult(**result.model_dump())
+    return SolveResult.model_construct(**dict(result))  # validated when it was made
 
 
 def list_calibrations(

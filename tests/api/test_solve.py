@@ -45,6 +45,23 @@ def test_same_touches_in_every_format_give_the_same_tcp(api: Api) -> None:
     assert row_counts(TABLES) == before
 
 
+def test_a_stateless_result_is_a_calibration_document_that_nothing_stores(api: Api) -> None:
+    touches = simulate_touches(8, seed=33, touch_noise_mm=0.05)
+    body = {"method": "xyz_npoint", "format": "xyz_wxyz", "poses": as_poses(touches, "xyz_wxyz")}
+    result = _solve(api, {**body, "activate": "always"})
+    assert (result["id"], result["version"], result["active"]) == (None, None, False)
+    assert result["status"] == "accepted"
+    assert result["quality"]["n_poses"] == 8
+    assert result["summary"]
+    assert result["warnings"] == ["activate 'always' ignored: /v1/solve stores nothing"]
+    stored = api.post(f"/v1/tools/{_tool(api)}/calibrations", body, scope="calibrate").json()
+    assert set(result) == set(stored) - {"tool_id", "created_at", "created_by"}
+
+
+def _tool(api: Api) -> str:
+    return str(api.tool(api.robot()["id"])["id"])
+
+
 def test_noise_free_solve_recovers_truth_to_1e9(api: Api) -> None:
     touches = simulate_touches(6, seed=32, touch_noise_mm=0.0)
     for algorithm in ("robust", "stacked", "pairwise", "sphere", "gls"):
