@@ -436,7 +436,8 @@ def full_scans(plan: list[str]) -> list[str]:
             re.match(r"SCAN (\w+)", line.strip()) if sorted_after else None
         )
         pg_scan = re.search(r"Seq Scan on (\w+)", line)
-        table = (sqlite_scan or pg_scan).group(1) if (sqlite_scan or pg_scan) else None
+        scan = sqlite_scan or pg_scan
+        table = scan.group(1) if scan else None
         if table in LARGE_TABLES:
             bad.append(line.strip())
     return bad

@@ -281,7 +281,7 @@ def main() -> None:
     # The server as deployed: its default number of solver processes (the live-test helper
     # would start one); an explicit TCPCAL_SOLVE_PROCESSES is passed through.
     os.environ.setdefault("TCPCAL_SOLVE_PROCESSES", str(solve_pool.default_processes()))
-    settings = dict(QUICK if args.quick else FULL)
+    settings: dict[str, float] = dict(QUICK if args.quick else FULL)
     if args.rounds:
         settings["rounds"] = args.rounds
     names = ("bare", *[n for n in args.scenarios.split(",") if n in SCENARIOS and n != "bare"])
