@@ -4,6 +4,7 @@ handed)."""
 
 from __future__ import annotations
 
+import sqlite3
 import subprocess
 import sys
 import threading
@@ -159,8 +160,6 @@ def test_a_write_transaction_holds_the_write_lock_from_its_first_statement(
     """BEGIN IMMEDIATE for writes (two writers never both read a "next version number"),
     DEFERRED for reads: another connection that asks for the write lock meanwhile is refused
     only while a write transaction is open."""
-    import sqlite3
-
     url = f"sqlite:///{tmp_path / 'begin.sqlite3'}"
     engine = engine_for(url)
     try:
