@@ -80,8 +80,9 @@ Touches = Annotated[
     list[Pose],
     PoseCount(
         MIN_POSES,
-        hint="touch one flat surface at 6 or more points spread across it, the tool tilted "
-        "differently at each (15-40 deg from the surface's normal, in different directions)",
+        hint="touch one flat surface at 7 or more points spread across it, the tool tilted "
+        "differently at each (15-40 deg from the surface's normal, in different directions): "
+        "6 unknowns and one touch to spare",
     ),
 ]
 
@@ -246,7 +247,7 @@ def run(request: XyzPlaneCalibration, ctx: MethodContext) -> Solved:
 XYZ_PLANE = Method(
     request=XyzPlaneCalibration,
     run=run,
-    description="N >= 6 touches of one flat surface, its place unknown, with the tool tilted "
+    description="N >= 7 touches of one flat surface, its place unknown, with the tool tilted "
     "differently at each -> TCP position and the plane (RoboDK's calibrate by plane); up to "
     "3 labelled planes",
     example={

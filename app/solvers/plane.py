@@ -3,7 +3,8 @@
 Model: touch i puts the tip on plane k(i): n_k . (R_i t + f_i) = d_k, with R_i (3, 3) flange ->
 base, f_i (3,) the flange position in mm (base frame), t (3,) the TCP in the flange frame and
 (n_k, d_k) the plane's unit normal and offset (base frame, mm). Unknowns: t and, per plane,
-2 + 1: at least 3 + 3 K touches for K planes, at least 3 on each plane.
+2 + 1: at least 3 + 3 K + 1 touches for K planes (one to spare, see MIN_POSES), at least 3
+on each plane.
 
 Estimate: nonlinear least squares on the signed distances r_i = n_k . (R_i t + f_i) - d_k
 (scipy.optimize.least_squares, Levenberg-Marquardt), the normals moved on the sphere through
@@ -58,8 +59,10 @@ FloatArray = NDArray[np.float64]
 
 #: Labels of the planes one submission may touch (API: `"plane": "a" | "b" | "c"`).
 PLANE_LABELS = ("a", "b", "c")
-#: Fewest touches of one plane: 3 unknowns for the TCP and 3 for the plane.
-MIN_POSES = 6
+#: Fewest touches of one plane: 3 unknowns for the TCP and 3 for the plane, and one more:
+#: with exactly as many touches as unknowns the distances vanish at several solutions (about
+#: half of 200 seeded exact 6-touch sets gave another exact one), nothing tells them apart.
+MIN_POSES = 7
 #: Fewest touches on each plane (its normal and offset are 3 unknowns).
 MIN_PER_PLANE = 3
 #: All orientations within this angle (deg) of each other: the touches only translate.
@@ -73,6 +76,12 @@ WEAK_DIRECTION_RATIO = 0.1
 AXIS_MATCH_DEG = 5.0
 #: The tips on a plane must spread at least this much (rms, mm) across their main direction.
 MIN_TIP_SPREAD_MM = 1.0
+#: Directions of the hemisphere grid the start normals are profiled over, and how many of the
+#: best start the full fit.
+GRID_DIRECTIONS = 2000
+GRID_STARTS = 3
+#: Start normals closer than this (deg) count as one start.
+DISTINCT_START_DEG = 0.5
 #: Refuse when the Jacobian's scaled condition number exceeds this (no unique solution).
 MAX_CONDITION = 1e12
 #: Below this many degrees of freedom an estimated touch noise is flagged as soft.
@@ -199,21 +208,15 @@ def _checked(
         )
     index = np.array([labels.index(lab) for lab in given], dtype=np.intp)
     unknowns = 3 + 3 * len(labels)
-    configured = touch_noise_mm is not None
-    needed = unknowns if configured else unknowns + 1
-    if n < needed:
+    if n <= unknowns:
         raise InvalidInput(
             "too-few-poses",
             f"{n} touches given; {len(labels)} plane(s) and the TCP are {unknowns} unknowns, so "
-            f"at least {needed} touches are needed"
-            + (
-                ""
-                if configured
-                else f" ({unknowns} would fit exactly and leave nothing to check the touches or "
-                "estimate their noise: add a touch, or configure the tool's touch_noise_mm)"
-            ),
+            f"at least {unknowns + 1} touches are needed: {unknowns} touches fit exactly, and "
+            "such a fit has several exact solutions (and nothing checks the touches against "
+            "each other); one more touch makes it unique",
             loc=("poses",),
-            context={"n_poses": n, "min_poses": needed},
+            context={"n_poses": n, "min_poses": unknowns + 1},
         )
     for k, lab in enumerate(labels):
         m = int(np.sum(index == k))
@@ -441,7 +444,77 @@ def _start_normals(touches: _Touches, t0: FloatArray) -> list[FloatArray]:
             norm_ = float(np.linalg.norm(mean_axis))
             per_plane.append(mean_axis / norm_ if norm_ > 1e-6 else fitted[j])
         candidates.append(np.array(per_plane))
-    return candidates
+    # Profiled over a grid of directions: for each normal, (t, d) by linear least squares on
+    # that plane's own touches; the best few directions per plane start the full fit too
+    # (a tool held at small tilts leaves shallow valleys the starts above may miss).
+    best = [
+        _grid_normals(touches.R[touches.plane == j], touches.f[touches.plane == j])
+        for j in range(k)
+    ]
+    for rank in range(GRID_STARTS):
+        candidates.append(
+            np.array([b[rank] if len(b) > rank else fitted[j] for j, b in enumerate(best)])
+        )
+    return _distinct(candidates)
+
+
+def _distinct(candidates: list[FloatArray]) -> list[FloatArray]:
+    """The candidates less those within DISTINCT_START_DEG (every plane) of an earlier one:
+    they would descend into the same valley."""
+    cos_limit = math.cos(math.radians(DISTINCT_START_DEG))
+    kept: list[FloatArray] = []
+    for normals in candidates:
+        if not any(np.all(np.abs(np.sum(normals * k, axis=1)) >= cos_limit) for k in kept):
+            kept.append(normals)
+    return kept
+
+
+def _hemisphere(count: int) -> FloatArray:
+    """About `count` unit vectors spread evenly over the upper half sphere (Fibonacci)."""
+    i = np.arange(count) + 0.5
+    z = 1.0 - i / count
+    r = np.sqrt(1.0 - z**2)
+    phi = np.pi * (3.0 - np.sqrt(5.0)) * i
+    out: FloatArray = np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+    return out
+
+
+def _grid_normals(R: FloatArray, f: FloatArray) -> list[FloatArray]:
+    """The GRID_STARTS distinct directions of the hemisphere grid with the least profiled cost (one
+    plane's touches R (m, 3, 3), f (m, 3)); none when they are too few to profile.
+
+    Per direction n: rows A_i = [R_i^T n, -1], b_i = -n . f_i; the normal equations and the
+    residual sum come from sums over the touches taken once (O(m) + O(grid), not O(m grid)).
+    """
+    m = R.shape[0]
+    if m < 5:
+        return []
+    normals = _hemisphere(GRID_DIRECTIONS)
+    S = np.einsum("ica,idb->cdab", R, R)  # sum_i R_i[c, a] R_i[d, b]
+    T = np.einsum("ica,id->cda", R, f)  # sum_i R_i[c, a] f_i[d]
+    F = f.T @ f
+    AtA = np.empty((normals.shape[0], 4, 4))
+    AtA[:, :3, :3] = np.einsum("gc,gd,cdab->gab", normals, normals, S)
+    AtA[:, :3, 3] = AtA[:, 3, :3] = -normals @ R.sum(axis=0)
+    AtA[:, 3, 3] = m
+    Atb = np.empty((normals.shape[0], 4))
+    Atb[:, :3] = -np.einsum("gc,gd,cda->ga", normals, normals, T)
+    Atb[:, 3] = normals @ f.sum(axis=0)
+    btb = np.einsum("gc,cd,gd->g", normals, F, normals)
+    well = np.linalg.cond(AtA) < 1e12
+    if not well.any():
+        return []
+    sol = np.linalg.solve(AtA[well], Atb[well][..., None])[..., 0]
+    cost = btb[well] - np.einsum("gi,gi->g", Atb[well], sol)
+    cos_limit = math.cos(math.radians(DISTINCT_START_DEG))
+    chosen: list[FloatArray] = []
+    for i in np.argsort(cost):
+        n = normals[well][i]
+        if all(abs(float(n @ c)) < cos_limit for c in chosen):
+            chosen.append(n)
+            if len(chosen) == GRID_STARTS:
+                break
+    return chosen
 
 
 def _fit(touches: _Touches, t0: FloatArray) -> FloatArray:
@@ -648,12 +721,7 @@ def _warnings(
             f"value ratio {ratio:.3f}): the TCP along it is weakly determined; tilt the tool "
             "about another axis"
         )
-    if dof == 0:
-        warnings.append(
-            "as many touches as unknowns: the fit is exact and nothing checks the touches "
-            "against each other; the uncertainty rests on the configured touch noise alone"
-        )
-    elif touch_noise_mm is not None and dof > 0:
+    if touch_noise_mm is not None:
         chi2_stat = float(np.sum(residuals**2)) / touch_noise_mm**2
         if chi2_stat > float(chi2.ppf(1.0 - 1e-3, dof)):
             rms = float(np.sqrt(np.mean(residuals**2)))
