@@ -86,6 +86,8 @@ DISTINCT_START_DEG = 0.5
 MAX_CONDITION = 1e12
 #: Below this many degrees of freedom an estimated touch noise is flagged as soft.
 FEW_DOF = 6
+#: Significance level at which the touches must show a TCP away from the flange centre.
+SHOWN_ALPHA = 1e-3
 #: Residuals below this (mm) are rounding: an exact fit.
 RESIDUAL_FLOOR_MM = 1e-9
 
@@ -150,6 +152,7 @@ def solve_plane(
     unit_cov = _unit_covariance(jac)
     n, p = jac.shape
     dof = n - p
+    _check_tcp_shown(touches, residuals, dof, touch_noise_mm)
     noise, source, widen = _noise(residuals, dof, touch_noise_mm)
     cov = (widen * noise) ** 2 * unit_cov
     cov_t = cov[:3, :3]
@@ -328,6 +331,44 @@ def _check_tip_spread(touches: _Touches, t: FloatArray) -> None:
         minor = float(s[1]) / math.sqrt(q.shape[0]) if s.size > 1 else 0.0
         if minor < MIN_TIP_SPREAD_MM:
             raise _spot_refusal(label, minor, touches)
+
+
+def _check_tcp_shown(
+    touches: _Touches, residuals: FloatArray, dof: int, touch_noise_mm: float | None
+) -> None:
+    """Refuse when the flange positions alone fit the planes about as well as the tips do:
+    then a TCP at the flange centre explains the touches, and they show no TCP at all.
+
+    It happens whenever R_i t has one component along the normal for every touch (the tool
+    axes all parallel, pure translations), whatever the rotations read: so it also keeps a
+    misread set of such touches from fitting "well" with t = 0 (the convention diagnosis
+    then finds no reading that fits, and the refusal names the missing tilt). Test: the three
+    TCP coordinates must lower the sum of squares significantly (F, or chi2 with a
+    configured noise, at 0.1 %).
+    """
+    ssr = float(np.sum(residuals**2))
+    ssr_flange = 0.0
+    for k in range(len(touches.labels)):
+        f = touches.f[touches.plane == k]
+        s = np.linalg.svd(f - f.mean(axis=0), compute_uv=False)
+        ssr_flange += float(s[-1] ** 2)
+    gain = ssr_flange - ssr
+    if touch_noise_mm is not None:
+        shown = gain > float(chi2.ppf(1.0 - SHOWN_ALPHA, 3)) * touch_noise_mm**2
+    else:
+        shown = gain > 3.0 * float(f_dist.ppf(1.0 - SHOWN_ALPHA, 3, dof)) * ssr / dof
+    floor = (RESIDUAL_FLOOR_MM**2) * touches.R.shape[0]
+    if shown and gain > floor:
+        return
+    raise InvalidInput(
+        "degenerate-poses",
+        "the flange positions alone lie on the plane(s) as closely as the touches do: a TCP at "
+        "the flange centre explains these touches, so they do not show the TCP (the tool axis "
+        "kept parallel, or pure translations); touch with the tool tilted in different "
+        "directions, 15-40 deg from the plane's normal",
+        loc=("poses",),
+        context={"rms_flange_mm": math.sqrt(ssr_flange / touches.R.shape[0])},
+    )
 
 
 def _spot_refusal(label: str, minor: float, touches: _Touches) -> InvalidInput:
@@ -539,7 +580,7 @@ def _fit(touches: _Touches, t0: FloatArray) -> FloatArray:
         # coordinate each, the scale, which the residuals do not see); "trf" copes either way.
         method = "lm" if touches.R.shape[0] >= x0.size else "trf"
         fit = least_squares(
-            fun, x0, jac=jac, method=method, x_scale="jac", xtol=1e-10, ftol=1e-10, gtol=1e-10
+            fun, x0, jac=jac, method=method, x_scale="jac", xtol=1e-8, ftol=1e-8, gtol=1e-8
         )
         cost = float(np.sum(fun(fit.x) ** 2))
         if cost < best_cost - 1e-12 * scale**2:

@@ -29,7 +29,7 @@ def test_noise_free_touches_give_the_tcp_and_planes_exactly(planes: int, n: int)
 def test_starting_from_the_active_tcp_or_from_zero_gives_the_same_answer() -> None:
     sim = simulate_plane_touches(10, seed=7, touch_noise_mm=0.05)
     a = solve_plane(sim.R, sim.f)
-    b = solve_plane(sim.R, sim.f, start_tcp_mm=sim.t + [3.0, -2.0, 10.0])
+    b = solve_plane(sim.R, sim.f, start_tcp_mm=sim.t + np.array([3.0, -2.0, 10.0]))
     assert_allclose(a.tcp_mm, b.tcp_mm, atol=1e-8)
 
 
@@ -62,7 +62,7 @@ def test_the_tool_axis_is_the_least_certain_component() -> None:
 
 
 def _positions(R: np.ndarray, t: np.ndarray, points: np.ndarray) -> np.ndarray:
-    return points - R @ t
+    return np.asarray(points - R @ t)
 
 
 def _points_on_floor(n: int, seed: int = 0) -> np.ndarray:
