@@ -178,6 +178,33 @@ def solve_plane(
     )
 
 
+def cramer_rao_tcp(
+    rotations: ArrayLike,
+    positions_mm: ArrayLike,
+    *,
+    tcp_mm: ArrayLike,
+    normals: ArrayLike,
+    touch_noise_mm: float,
+    planes: Sequence[str] | None = None,
+) -> FloatArray:
+    """The Cramer-Rao bound (3, 3) mm^2 of the TCP: sigma^2 (J^T J)^-1 of the signed
+    distances at the true TCP and plane normals (K, 3), in the planes' sorted label order."""
+    R = np.asarray(rotations, dtype=np.float64)
+    given = ["a"] * R.shape[0] if planes is None else list(planes)
+    labels = tuple(sorted(set(given)))
+    touches = _Touches(
+        R=R,
+        f=np.asarray(positions_mm, dtype=np.float64),
+        plane=np.array([labels.index(lab) for lab in given], dtype=np.intp),
+        labels=labels,
+    )
+    jac = _jacobian(
+        touches, np.asarray(tcp_mm, dtype=np.float64), np.asarray(normals, dtype=np.float64)
+    )
+    bound: FloatArray = touch_noise_mm**2 * np.linalg.inv(jac.T @ jac)[:3, :3]
+    return bound
+
+
 # ---------------------------------------------------------------------------- input checks
 
 
