@@ -20,6 +20,11 @@ from app.solvers.plane import cramer_rao_tcp, solve_plane
 from tests.sim.planes import simulate_plane_touches
 
 TARGETS = {"ratio": 1.05, "coverage": (0.93, 0.97)}
+#: Sets whose TCP the bound itself puts beyond this 1-sigma (mm, largest direction) are the
+#: ones the service refuses as insufficient-spread at the default max_rms_mm (0.5 mm): they
+#: are counted apart, chosen by the true geometry (never by the estimate), so that the ratio
+#: is over the sets a cell would get a TCP from.
+MAX_BOUND_SIGMA_MM = 0.5
 
 
 @dataclass(frozen=True)
@@ -50,6 +55,7 @@ def scenarios() -> list[PlaneScenario]:
     return [
         base,
         PlaneScenario(configured=True),
+        PlaneScenario(n=12),
         PlaneScenario(n=20, tilt_deg=30.0),
         PlaneScenario(n=16, planes=2),
         PlaneScenario(n=18, planes=3, configured=True),
@@ -77,6 +83,9 @@ def run_scenario(sc: PlaneScenario, trials: int, seed0: int) -> dict[str, object
             touch_noise_mm=sc.touch_noise_mm,
             planes=sim.labels,
         )
+        if float(np.sqrt(np.linalg.eigvalsh(bound)[-1])) > MAX_BOUND_SIGMA_MM:
+            refused["weak (bound sigma > 0.5 mm)"] += 1
+            continue
         bounds.append(float(np.trace(bound)))
         try:
             res = solve_plane(
@@ -94,7 +103,7 @@ def run_scenario(sc: PlaneScenario, trials: int, seed0: int) -> dict[str, object
         ellipsoid += int(float(e @ np.linalg.solve(cov, e)) <= res.quality.ellipsoid95_scale**2)
         axes += int(np.sum(np.abs(e) <= 1.96 * np.asarray(res.quality.tcp_sigma_mm)))
     solved = len(err2)
-    bound = float(np.sqrt(np.mean(bounds)))
+    bound = float(np.sqrt(np.mean(bounds))) if bounds else float("nan")
     rms = float(np.sqrt(np.mean(err2))) if solved else float("nan")
     return {
         "scenario": asdict(sc),
@@ -127,7 +136,9 @@ def markdown(rows: list[dict[str, object]]) -> str:
         "",
         "RMS TCP error / bound; coverage of the reported 95 % ellipsoid; share of axes within "
         "1.96 reported sigma (the noise estimated on N - 3 - 3K degrees of freedom, sigma "
-        "widened by Student's t, unless 'sigma given'). Targets: ratio <= "
+        "widened by Student's t, unless 'sigma given'). Sets whose bound exceeds 0.5 mm "
+        "(1 sigma, what the service refuses as too little tilt at the default tolerance) are "
+        "counted apart. Targets: ratio <= "
         f"{TARGETS['ratio']}, coverage 93-97 %.",
         "",
         "| scenario | bound mm | RMS error mm | ratio | ellipsoid 95 % | axes 95 % "

@@ -201,8 +201,8 @@ def cramer_rao_tcp(
     jac = _jacobian(
         touches, np.asarray(tcp_mm, dtype=np.float64), np.asarray(normals, dtype=np.float64)
     )
-    bound: FloatArray = touch_noise_mm**2 * np.linalg.inv(jac.T @ jac)[:3, :3]
-    return bound
+    bound = touch_noise_mm**2 * np.linalg.inv(jac.T @ jac)[:3, :3]
+    return np.asarray(bound, dtype=np.float64)
 
 
 # ---------------------------------------------------------------------------- input checks
