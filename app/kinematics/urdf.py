@@ -276,9 +276,16 @@ def _check_xml(text: str) -> None:
         resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False, recover=True
     )
     try:
-        root = etree.fromstring(text.encode("utf-8"), parser=parser)
+        data = text.encode("utf-8")
+    except UnicodeEncodeError as exc:
+        raise _bad(f"the URDF is not valid text ({exc.reason} at character {exc.start})") from exc
+    try:
+        root = etree.fromstring(data, parser=parser)
     except etree.XMLSyntaxError as exc:
         raise _bad(f"the URDF is not well-formed XML: {exc}") from exc
+    if root is not None and root.getroottree().docinfo.doctype:
+        # entities would be expanded by the parser behind yourdfpy: no DTD at all
+        raise _bad("the URDF carries a <!DOCTYPE>; a URDF needs none: remove it")
     errors = [e for e in parser.error_log if e.domain_name != "NAMESPACE" and e.level >= 2]
     if errors:
         first = errors[0]

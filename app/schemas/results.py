@@ -87,14 +87,14 @@ class PlaneOut(BaseModel):
     normal: list[float] = Field(description="unit normal, robot base frame")
     offset_mm: float = Field(description="d in n . x = d (mm, base frame): the plane's distance")
     normal_sigma_deg: float = Field(description="1-sigma of the normal's direction (deg)")
-    offset_sigma_mm: float
-    n_touches: int
+    offset_sigma_mm: float = Field(description="1-sigma of the offset (mm)")
+    n_touches: int = Field(description="how many touches touched this plane")
 
 
 class PlaneDetails(BaseModel):
     """The plane method's planes and the TCP's uncertainty along the tool's own axes."""
 
-    planes: list[PlaneOut]
+    planes: list[PlaneOut] = Field(description="each plane touched, in label order")
     touch_planes: list[str] = Field(description="the plane each touch touched, in pose order")
     tcp_sigma_tool_mm: list[float] | None = Field(
         description="the TCP's 1-sigma along the x, y, z axes of the tool frame (the result's "

@@ -128,6 +128,9 @@ def test_malformed_xml_is_refused_with_the_parsers_words() -> None:
     assert "not well-formed XML" in error.detail
     assert error.loc == ("kinematics", "urdf")
     assert "<robot>" in _refused({"urdf": "<sdf version='1.7'/>"}).detail
+    laughs = '<!DOCTYPE robot [<!ENTITY a "aaaaaaaaaa">]><robot name="&a;"/>'
+    assert "DOCTYPE" in _refused({"urdf": laughs}).detail
+    assert "not valid text" in _refused({"urdf": "<robot name='\ud800'/>"}).detail
 
 
 def test_no_path_from_base_to_tip_is_refused() -> None:
