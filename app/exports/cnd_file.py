@@ -78,7 +78,8 @@ def block(tool: ToolData) -> list[str]:
     numbers = xyz_wpr(tool)
     pose = [_fixed(v, MM_DECIMALS) for v in numbers[:3]]
     pose += [_fixed(v, DEG_DECIMALS) for v in numbers[3:]]
-    cog = tool.cog_mm if tool.cog_mm is not None else np.zeros(3)
+    has_load = tool.mass_kg is not None and tool.cog_mm is not None
+    cog = tool.cog_mm if tool.cog_mm is not None and has_load else np.zeros(3)
     mass = tool.mass_kg if tool.mass_kg is not None else 0.0
     return [
         f"//TOOL {tool.slot}",
