@@ -76,7 +76,10 @@ async def lifespan(_: FastAPI) -> AsyncIterator[None]:
     if os.environ.get(SERVING_ENV):  # a server (not a test's app): start solvers up front
         solve_pool.start()
         settle_heap()
-    yield
+    try:
+        yield
+    finally:
+        solve_pool.stop()
 
 
 def create_app() -> FastAPI:
