@@ -13,6 +13,7 @@ from collections.abc import Iterator
 import pytest
 
 from app.controllers import ControllerSettings
+from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator
 
 SIM_TIMEOUT_S = 2.0
@@ -29,6 +30,25 @@ def kuka_settings(sim: KukaSimulator, *, timeout_s: float = SIM_TIMEOUT_S) -> Co
     """How to reach `sim` as a kuka_kvp controller."""
     return ControllerSettings(
         protocol="kuka_kvp",
+        host=sim.host,
+        port=sim.port,
+        username=None,
+        password=None,
+        timeout_s=timeout_s,
+    )
+
+
+@pytest.fixture
+def fanuc_sim() -> Iterator[FanucSimulator]:
+    """A FANUC controller's Remote Motion Interface (UTOOL 1-10)."""
+    with FanucSimulator() as sim:
+        yield sim
+
+
+def fanuc_settings(sim: FanucSimulator, *, timeout_s: float = SIM_TIMEOUT_S) -> ControllerSettings:
+    """How to reach `sim` as a fanuc_rmi controller (its connect port)."""
+    return ControllerSettings(
+        protocol="fanuc_rmi",
         host=sim.host,
         port=sim.port,
         username=None,

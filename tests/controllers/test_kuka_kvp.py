@@ -144,6 +144,19 @@ def test_a_controller_that_never_answers_fails_within_the_timeout(kuka_sim: Kuka
     assert elapsed >= settings.timeout_s * 0.9, "it gave up before its timeout"
 
 
+def test_a_session_that_stalls_after_connecting_fails_within_the_timeout(
+    kuka_sim: KukaSimulator,
+) -> None:
+    settings = kuka_settings(kuka_sim, timeout_s=0.5)
+    with connect(settings) as kuka:
+        kuka.read_tool(ToolTarget(slot=1))
+        kuka_sim.stalled = True
+        started = time.monotonic()
+        with pytest.raises(ControllerUnreachable, match="did not answer"):
+            kuka.write_tool(ToolTarget(slot=1), ToolData((0, 0, 1), (1, 0, 0, 0)))
+        assert settings.timeout_s * 0.9 <= time.monotonic() - started < settings.timeout_s + 1
+
+
 def test_the_simulator_answers_several_requests_sent_in_one_packet(kuka_sim: KukaSimulator) -> None:
     def request(msg_id: int, name: bytes) -> bytes:
         body = b"\x00" + struct.pack("!H", len(name)) + name
