@@ -13,6 +13,7 @@ from collections.abc import Iterator
 import pytest
 
 from app.controllers import ControllerSettings
+from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator
 
@@ -54,4 +55,38 @@ def fanuc_settings(sim: FanucSimulator, *, timeout_s: float = SIM_TIMEOUT_S) -> 
         username=None,
         password=None,
         timeout_s=timeout_s,
+    )
+
+
+@pytest.fixture
+def abb_rws1_sim() -> Iterator[AbbRwsSimulator]:
+    """RobotWare 6 Robot Web Services (HTTP, Digest; user "Default User", "robotics")."""
+    with AbbRwsSimulator(version=1) as sim:
+        yield sim
+
+
+@pytest.fixture
+def abb_rws2_sim() -> Iterator[AbbRwsSimulator]:
+    """RobotWare 7 Robot Web Services 2.0 (HTTPS with a self-signed certificate, Basic)."""
+    with AbbRwsSimulator(version=2) as sim:
+        yield sim
+
+
+def abb_settings(
+    sim: AbbRwsSimulator,
+    *,
+    username: str = "Default User",
+    password: str = "robotics",
+    timeout_s: float = SIM_TIMEOUT_S,
+) -> ControllerSettings:
+    """How to reach `sim` as an abb_rws1 / abb_rws2 controller (RWS 2.0: tls_verify off,
+    the simulator's certificate being self-signed)."""
+    return ControllerSettings(
+        protocol="abb_rws2" if sim.version == 2 else "abb_rws1",
+        host=sim.host,
+        port=sim.port,
+        username=username,
+        password=password,
+        timeout_s=timeout_s,
+        tls_verify=False,
     )
