@@ -90,6 +90,8 @@ class AbbRwsConnector:
             trust_env=False,
         )
         self._logged_in = False
+        #: set once the controller stopped answering: no logout then (it would only wait)
+        self._dead = False
 
     # --- the Connector interface -----------------------------------------------------------
 
@@ -195,6 +197,8 @@ class AbbRwsConnector:
     def _release_mastership(self, deadline: Deadline) -> None:
         # Released even when the write failed or the deadline is spent: a held mastership
         # locks the pendant and other clients out until the controller times it out.
+        if self._dead:
+            return
         try:
             budget = deadline.remaining()
         except ControllerUnreachable:
@@ -228,6 +232,7 @@ class AbbRwsConnector:
                 timeout=httpx.Timeout(deadline.remaining()),
             )
         except httpx.TimeoutException as err:
+            self._dead = True
             raise ControllerUnreachable(
                 f"{self._peer} did not answer within {deadline.timeout_s:g} s ({what})"
             ) from err

@@ -107,6 +107,9 @@ class FanucRmiConnector:
         self._settings = settings
         self._sock: socket.socket | None = None
         self._buffer = bytearray()
+        #: set once the controller stopped answering: `close` then says no goodbye (it
+        #: would only wait again) and the controller frees the session on its own
+        self._dead = False
         self._peer = f"FANUC RMI at {settings.host}:{settings.port}"
         deadline = Deadline(settings.timeout_s)
         session_port = self._session_port(deadline)
@@ -171,6 +174,10 @@ class FanucRmiConnector:
         """FRC_Abort and FRC_Disconnect (errors ignored), then close; never raises."""
         if self._sock is None:
             return
+        if self._dead:
+            close_quietly(self._sock)
+            self._sock = None
+            return
         budget = Deadline(min(self._settings.timeout_s, _CLOSE_BUDGET_S))
         for packet in ({"Command": "FRC_Abort"}, {"Communication": "FRC_Disconnect"}):
             try:
@@ -209,7 +216,11 @@ class FanucRmiConnector:
     def _request(self, packet: JsonObject, deadline: Deadline) -> JsonObject:
         if self._sock is None:
             raise ControllerUnreachable(f"{self._peer}: the session is closed")
-        return self._exchange(self._sock, self._buffer, packet, deadline)
+        try:
+            return self._exchange(self._sock, self._buffer, packet, deadline)
+        except ControllerUnreachable:
+            self._dead = True
+            raise
 
     def _exchange(
         self, sock: socket.socket, buffer: bytearray, packet: JsonObject, deadline: Deadline

@@ -22,7 +22,7 @@ from app.controllers import (
 )
 from app.controllers.rapid import RapidSyntaxError, format_tooldata, parse_tooldata
 from tests.controllers.abb_sim import AbbRwsSimulator
-from tests.controllers.conftest import abb_settings
+from tests.controllers.fixtures import abb_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
 
 TORCH = ToolTarget(symbol="T_ROB1/user/tTorch")

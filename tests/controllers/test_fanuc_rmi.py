@@ -15,8 +15,8 @@ from scipy.spatial.transform import Rotation
 from app.controllers import ControllerRefused, ControllerUnreachable, ToolData, ToolTarget, connect
 from app.controllers.base import Deadline
 from app.controllers.fanuc_rmi import FanucRmiConnector, error_text
-from tests.controllers.conftest import fanuc_settings
 from tests.controllers.fanuc_sim import FanucSimulator
+from tests.controllers.fixtures import fanuc_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
 
 
@@ -144,7 +144,7 @@ def test_a_session_that_stalls_after_connecting_fails_each_call_within_the_timeo
     assert settings.timeout_s * 0.9 <= time.monotonic() - started < settings.timeout_s + 1.0
     started = time.monotonic()
     fanuc.close()
-    assert time.monotonic() - started < 1.5, "closing a stalled session is bounded too"
+    assert time.monotonic() - started < 0.3, "a dead session is closed without waiting again"
 
 
 def test_error_text_names_rmit_and_memo_alarms() -> None:

@@ -22,7 +22,7 @@ from app.controllers import (
 )
 from app.controllers.krl import KrlSyntaxError, parse_struct
 from app.controllers.kuka_kvp import KukaKvpConnector
-from tests.controllers.conftest import kuka_settings
+from tests.controllers.fixtures import kuka_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
 from tests.controllers.kuka_sim import KukaSimulator
 
