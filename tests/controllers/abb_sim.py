@@ -7,10 +7,13 @@ Follows ABB *Application manual - Robot Web Services* (3HAC050973-001, the rwsAp
 RFC 7616 MD5 with qop=auth, realm ``validusers@robapi.abb``, then the session cookies
 ``-http-session-`` and ``ABBCX``; the shape abb-robot-client reads). Version 2 is RWS 2.0
 as RobotWare 7 serves it (HTTPS with a self-signed certificate made at start, Basic
-authentication, media types that must carry ``;v=2.0`` (406 / 415 otherwise), the path
+authentication, media types that must carry ``;v=2.0`` (406 for an Accept naming another
+type, 415 for a POST body without it), the path
 ``/rw/rapid/symbol/RAPID/{task}/{module}/{symbol}/data``, the answer's ``state`` list, and
-edit mastership: ``POST /rw/mastership/edit/request`` / ``release``; a write without it is
-refused with 403). The error codes are this simulator's own; the messages say what failed.
+edit mastership: ``POST /rw/mastership/edit/request`` / ``release``, or every domain's with
+``/rw/mastership/request`` / ``release``; a write without it is refused with 403). Answers
+are JSON only (hal+json), not the xhtml+xml RWS also serves. The error codes are this
+simulator's own; the messages say what failed.
 
 Tool data are held as RobotWare holds ``num`` (32-bit float) unless `single_precision` is
 False. `set_tool` / `tool` are the operator at the FlexPendant (Jogging > Tool, or the
@@ -439,7 +442,8 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
             self.wfile.write(data)
 
     def v2_media_problem(method: str, headers: dict[str, str], handler: Handler) -> bool:
-        if V2 not in headers.get("accept", ""):
+        accept = headers.get("accept", "*/*")
+        if V2 not in accept and "*/*" not in accept:
             handler._reply(406, _error(-1, "Not Acceptable: the Accept header needs ;v=2.0"))
             return True
         if method == "POST" and V2 not in headers.get("content-type", ""):
@@ -463,6 +467,8 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
             in (
                 "/rw/mastership/edit/request",
                 "/rw/mastership/edit/release",
+                "/rw/mastership/request",  # all domains, edit included
+                "/rw/mastership/release",
             )
         ):
             return sim.mastership(path.rsplit("/", 1)[1], session)

@@ -269,3 +269,17 @@ def test_abb_robot_client_reads_and_writes_the_rws1_simulator(
     assert abb_rws1_sim.tool("T_ROB1/user/tTorch").rot == (0.0, 1.0, 0.0, 0.0)
     with pytest.raises(ABBException, match="Symbol not found"):
         client.get_rapid_variable("user/tNothing")
+
+
+@pytest.mark.filterwarnings("ignore::urllib3.exceptions.InsecureRequestWarning")
+def test_rwswrap_reads_and_writes_the_rws2_simulator(abb_rws2_sim: AbbRwsSimulator) -> None:
+    from rwswrap.RWS import RWS as RWS2
+
+    abb_rws2_sim.set_tool("T_ROB1/user/tTorch", (0.0, 0.0, 150.0), (1.0, 0.0, 0.0, 0.0))
+    client = RWS2(abb_rws2_sim.base_url, username="Default User", password="robotics")
+    value = client.get_rapid_variable("tTorch", module="user")
+    assert value == "[TRUE,[[0,0,150],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]]"
+    written = "[TRUE,[[4,5,6],[0,0,0,1]],[1,[0,0,1],[1,0,0,0],0,0,0]]"
+    assert client.set_rapid_variable("tTorch", written, module="user").status_code == 204
+    assert abb_rws2_sim.tool("T_ROB1/user/tTorch").trans == (4.0, 5.0, 6.0)
+    assert abb_rws2_sim.mastership_holder is None, "rwswrap released the mastership it took"
