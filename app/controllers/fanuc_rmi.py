@@ -1,13 +1,16 @@
 """FANUC tool frames over the Remote Motion Interface (option R912).
 
 Followed: FANUC *Remote Motion Interface Operator's Manual* B-84184EN (a copy in
-vertec-io/Fanuc_RMI_API ``docs/``): section 2 "Communication packets" (FRC_Connect on TCP
-16001 answers ``PortNumber``, the port of the session; FRC_Disconnect), section 3
-"Command packets" (FRC_Initialize, FRC_Abort, FRC_ReadUToolData, FRC_WriteUToolData with
-``ToolNumber`` 1-10 and ``Frame`` {X, Y, Z mm, W, P, R deg}), and Appendix A "ErrorID"
-(RMIT-nnn errors are 2556928 + nnn). Every packet is one JSON object ended by ``\\r\\n``;
-every packet sent is answered by one with the same ``Communication``/``Command`` name and
-an ``ErrorID`` (0: done). FRC_Terminate and FRC_SystemFault can arrive unasked.
+vertec-io/Fanuc_RMI_API ``docs/``, whose RMI_COMMANDS_REFERENCE.md and tests give the
+packets as real controllers send them): the communication packets (FRC_Connect on TCP
+16001 answers ``PortNumber``, the port of the session; FRC_Disconnect), the command packets
+(FRC_Initialize, FRC_Abort, FRC_ReadUToolData, FRC_WriteUToolData with ``ToolNumber`` 1-10
+and ``Frame`` {X, Y, Z mm, W, P, R deg}), and the ErrorID table of Appendix A.1 (RMIT-nnn
+alarms are 2556928 + nnn). Every packet is one JSON object ended by ``\r\n``; every packet
+sent is answered by one with the same ``Communication``/``Command`` name and an ``ErrorID``
+(0: done). FRC_Terminate and FRC_SystemFault can arrive unasked. The client fanuc-rmi
+(PyPI) reads the session port from ``Port``; the manual and captured replies say
+``PortNumber``, which this module follows.
 
 W, P, R are fixed-axis X-Y-Z angles: R = Rz(R) Ry(P) Rx(W) (``fanuc_wpr`` in
 app.kinematics.poses). RMI reads and writes only the frame of a UTOOL: the payload lives in
@@ -17,7 +20,8 @@ its load is not written.
 A session runs FRC_Connect -> (session port) FRC_Initialize -> reads/writes -> FRC_Abort ->
 FRC_Disconnect. The controller serves one RMI client at a time, and a session that dies
 without FRC_Disconnect holds the controller until its own timeout (vertec-io notes), so
-`close` always sends FRC_Abort and FRC_Disconnect, briefly, whatever happened before.
+`close` sends FRC_Abort and FRC_Disconnect (within 1 s) whatever happened before, unless
+the controller has stopped answering (then waiting for it again would only stall).
 """
 
 from __future__ import annotations
