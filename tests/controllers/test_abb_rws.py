@@ -129,7 +129,9 @@ def test_a_wrong_password_is_refused_and_never_repeated(
 def test_each_session_logs_out(sim: AbbRwsSimulator) -> None:
     with connect(abb_settings(sim)) as abb:
         abb.read_tool(TORCH)
-        assert len(sim.sessions) == 1
+        abb.write_tool(TORCH, ToolData((0, 0, 5), (1, 0, 0, 0)))
+        abb.read_tool(TORCH)
+        assert len(sim.sessions) == 1, "one controller session, its cookie sent back"
     assert sim.sessions == {}
     assert sim.requests[-1][:2] == ("GET", "/logout")
 
