@@ -102,6 +102,24 @@ def error_text(error_id: int) -> str:
     return f"ErrorID {error_id}"
 
 
+def encode_packet(packet: JsonObject) -> bytes:
+    """One RMI packet as sent: JSON with every float in plain decimals (six places, never an
+    exponent: the manual's examples never show one), ended by CRLF."""
+    return _json_text(packet).encode("ascii") + b"\r\n"
+
+
+def _json_text(value: object) -> str:
+    if isinstance(value, dict):
+        items = (f"{json.dumps(str(k))}: {_json_text(v)}" for k, v in value.items())
+        return "{" + ", ".join(items) + "}"
+    if isinstance(value, float):
+        if not np.isfinite(value):
+            raise ValueError(f"{value} cannot be sent to the controller")
+        text = f"{value:.6f}"
+        return "0.000000" if text == "-0.000000" else text
+    return json.dumps(value)
+
+
 class FanucRmiConnector:
     """One RMI session with a FANUC controller: read and write UTOOL frames."""
 
@@ -231,7 +249,7 @@ class FanucRmiConnector:
     ) -> JsonObject:
         kind = "Communication" if "Communication" in packet else "Command"
         name = packet[kind]
-        send_all(sock, json.dumps(packet).encode("ascii") + b"\r\n", deadline, peer=self._peer)
+        send_all(sock, encode_packet(packet), deadline, peer=self._peer)
         while True:
             reply = self._read_packet(sock, buffer, deadline)
             if reply.get("Communication") in ("FRC_Terminate", "FRC_SystemFault"):
