@@ -90,6 +90,7 @@ MEMO_MESSAGES: dict[int, str] = {
     7015: "MEMO-015 Program already exists",
 }
 _CLOSE_BUDGET_S = 1.0
+_NAME_KEYS = {"Communication", "Command", "Instruction"}
 
 
 def error_text(error_id: int) -> str:
@@ -256,8 +257,8 @@ class FanucRmiConnector:
                 raise ControllerUnreachable(
                     f"{self._peer} ended the session ({reply['Communication']})"
                 )
-            if reply.get(kind) == name:
-                break
+            if reply.get(kind) == name or not _NAME_KEYS & reply.keys():
+                break  # ours, or an unnamed answer (what a controller sends to a bad packet)
             # an answer to something else (a late reply): not ours, keep reading
         error_id = reply.get("ErrorID", 0)
         if not isinstance(error_id, int):
