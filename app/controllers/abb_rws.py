@@ -30,6 +30,7 @@ message.
 from __future__ import annotations
 
 import contextlib
+import ssl
 from dataclasses import replace
 from types import TracebackType
 
@@ -83,7 +84,9 @@ class AbbRwsConnector:
         self._client = httpx.Client(
             base_url=f"{scheme}://{host}:{settings.port}",
             auth=auth,
-            verify=settings.tls_verify,
+            # The system's trust store (and SSL_CERT_FILE / SSL_CERT_DIR), where a plant puts
+            # its controllers' certificates; not a bundle of public CAs.
+            verify=ssl.create_default_context() if settings.tls_verify else False,
             timeout=settings.timeout_s,
             headers={"Accept": V2_JSON} if self._v2 else {},
             follow_redirects=False,
@@ -321,6 +324,7 @@ def _connect_failure(peer: str, err: httpx.ConnectError) -> str:
     if "CERTIFICATE" in reason.upper() or "SSL" in reason.upper():
         return (
             f"{peer}: the TLS handshake failed ({reason}); the controller's certificate is not "
-            "trusted here: install it in the system's trust store, or set tls_verify false"
+            "trusted here: install it in the system's trust store (or point SSL_CERT_FILE at "
+            "it; its name must match the host), or set tls_verify false"
         )
     return f"cannot connect to {peer}: {reason}"

@@ -125,6 +125,8 @@ class AbbRwsSimulator:
         self._thread: threading.Thread | None = None
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
         self.certificate_pem: bytes = b""
+        #: the PEM file of the certificate (RWS 2.0), for a client that should trust it
+        self.certificate_path: Path | None = None
 
     # --- lifecycle ----------------------------------------------------------------------
 
@@ -365,6 +367,7 @@ class AbbRwsSimulator:
         key_path = Path(self._tmp.name) / "key.pem"
         self.certificate_pem = cert.public_bytes(serialization.Encoding.PEM)
         cert_path.write_bytes(self.certificate_pem)
+        self.certificate_path = cert_path
         key_path.write_bytes(
             key.private_bytes(
                 serialization.Encoding.PEM,

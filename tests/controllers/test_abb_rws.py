@@ -201,6 +201,17 @@ def test_rws2_with_tls_verify_refuses_an_untrusted_certificate() -> None:
             abb.read_tool(TORCH)
 
 
+def test_rws2_with_tls_verify_trusts_a_certificate_the_plant_installed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    with AbbRwsSimulator(2) as sim:
+        assert sim.certificate_path is not None
+        monkeypatch.setenv("SSL_CERT_FILE", str(sim.certificate_path))
+        strict = ControllerSettings(**{**abb_settings(sim).__dict__, "tls_verify": True})
+        with connect(strict) as abb:
+            assert abb.read_tool(TORCH).position_mm == (0.0, 0.0, 0.0)
+
+
 def test_rws1_is_plain_http_with_digest() -> None:
     with AbbRwsSimulator(1) as sim, connect(abb_settings(sim)) as abb:
         abb.read_tool(TORCH)
