@@ -75,8 +75,10 @@ class AbbRwsConnector:
         host = f"[{settings.host}]" if ":" in settings.host else settings.host
         scheme = "https" if self._v2 else "http"
         self._peer = f"ABB RWS {'2.0' if self._v2 else '1.0'} at {settings.host}:{settings.port}"
+        # ABB's factory user only when no user is named at all; a named user without a
+        # password sends an empty one (and the controller says whether that will do).
         user = settings.username or DEFAULT_USER
-        password = settings.password if settings.password is not None else DEFAULT_PASSWORD
+        password = settings.password or (DEFAULT_PASSWORD if not settings.username else "")
         self._user = user
         auth: httpx.Auth = (
             httpx.BasicAuth(user, password) if self._v2 else httpx.DigestAuth(user, password)
