@@ -3,9 +3,10 @@
 Followed: ABB *Application manual - Robot Web Services* (3HAC050973-001, the rwsApi pages
 of developercenter.robotstudio.com), "Operations on RAPID symbol data": get symbol data,
 "Update RAPID variable current value" (``action=set``, form field ``value``), the common
-``json=1`` parameter, HTTP status codes and the error body ``_embedded.status`` {code,
-msg}; checked against the clients abb-robot-client (PyPI, RWS 1.0) and
-Schindler-EPFL-Lab/rws2 (RWS 2.0).
+``json=1`` parameter, HTTP status codes and the error body (``_embedded.status`` {code,
+msg} in 1.0, ``status`` at the top in 2.0, as captured RobotWare 7 replies show); checked
+against the clients abb-robot-client (PyPI, RWS 1.0), Schindler-EPFL-Lab/rws2 and rwswrap
+(PyPI) (RWS 2.0).
 
 RWS 1.0 (RobotWare 6, ``abb_rws1``): HTTP, Digest authentication, a session cookie
 (``-http-session-``, ``ABBCX``) kept for the session's requests;

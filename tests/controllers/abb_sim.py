@@ -2,7 +2,8 @@
 
 Follows ABB *Application manual - Robot Web Services* (3HAC050973-001, the rwsApi pages):
 "Operations on RAPID symbol data" (get, and ``action=set`` with form field ``value``),
-``json=1``, the HTTP status codes, the error body ``_embedded.status`` {code, msg}, and
+``json=1``, the HTTP status codes, the error body (RWS 1.0 ``_embedded.status`` {code, msg}, RWS 2.0
+``status`` {code, msg} at the top), and
 ``/logout``. Version 1 is RWS 1.0 as RobotWare 6 serves it (HTTP, Digest authentication,
 RFC 7616 MD5 with qop=auth, realm ``validusers@robapi.abb``, then the session cookies
 ``-http-session-`` and ``ABBCX``; the shape abb-robot-client reads). Version 2 is RWS 2.0
@@ -48,6 +49,9 @@ V2 = ";v=2.0"
 _V1_PATH = re.compile(r"^/rw/rapid/symbol/data/RAPID/([^/]+)/([^/]+)/([^/?]+)$")
 _V2_PATH = re.compile(r"^/rw/rapid/symbol/RAPID/([^/]+)/([^/]+)/([^/]+)/data$")
 NOT_FOUND_CODE = -1073442816
+#: codes RobotWare 7 sends (captured replies in public RWS 2.0 clients' tests)
+RESOURCE_NOT_FOUND_CODE = -1073445859
+PARAMETER_CODE = -1073445879
 TYPE_CODE = -1073442815
 MASTERSHIP_CODE = -1073445865
 
@@ -428,6 +432,11 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
             extra: dict[str, str] | None = None,
             cookie: _Session | None = None,
         ) -> None:
+            if sim.version == 2 and payload is not None and "_embedded" in payload:
+                # RWS 2.0 puts an error's status at the top: {"_links", "status": {code, msg}}
+                embedded = payload["_embedded"]
+                assert isinstance(embedded, dict)
+                payload = {"_links": payload.get("_links", {}), "status": embedded["status"]}
             data = json.dumps(payload).encode() if payload is not None else b""
             self.send_response(status)
             if data:
@@ -477,14 +486,14 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
             return sim.mastership(path.rsplit("/", 1)[1], session)
         match = (_V2_PATH if sim.version == 2 else _V1_PATH).match(path)
         if match is None:
-            return 404, _error(NOT_FOUND_CODE, f"Resource not found: {path}")
+            return 404, _error(RESOURCE_NOT_FOUND_CODE, "Resource not found")
         symbol = "/".join(match.groups())
         if method == "GET":
             return sim.read_symbol(symbol)
         if sim.version == 1 and query.get("action") != "set":
-            return 400, _error(-1, "Missing or unknown action")
+            return 400, _error(PARAMETER_CODE, "Missing or unknown action")
         if "value" not in form:
-            return 400, _error(-1, "Missing parameter: value")
+            return 400, _error(PARAMETER_CODE, "Data parameter is required")
         return sim.write_symbol(symbol, form["value"], session)
 
     return Handler

@@ -178,8 +178,13 @@ def test_rws2_simulator_refuses_a_write_without_mastership_and_unversioned_media
         value = {"value": "[TRUE,[[0,0,1],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]]"}
         refused = client.post(path, headers=form, data=value)
         assert refused.status_code == 403
-        assert "edit mastership is required" in refused.json()["_embedded"]["status"]["msg"]
+        assert "edit mastership is required" in refused.json()["status"]["msg"]
         assert client.get(path, headers={"Accept": "application/json"}).status_code == 406
+        missing = client.post(path, headers=form, data={})
+        assert missing.json()["status"] == {
+            "code": -1073445879,
+            "msg": "Data parameter is required",
+        }
         assert (
             client.post(
                 path,
