@@ -48,6 +48,8 @@ class FileContext:
     robot: str | None = None
     server_url: str | None = None
     table: bool = False
+    #: Names of the robot's tools that have no active version (so are not in its table).
+    without_version: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -94,6 +96,9 @@ def header_lines(tools: Sequence[FileTool], context: FileContext) -> list[str]:
         lines = ["tcpcal tool data"]
     for item in tools:
         lines.extend(_tool_lines(item))
+    if context.without_version:
+        names = ", ".join(ascii_text(n, HEADER_NAME_CHARS) or "?" for n in context.without_version)
+        lines.append(f"not in this file, no active version yet: {names}")
     if context.server_url:
         lines.append(f"from {context.server_url}")
     return lines

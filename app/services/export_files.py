@@ -200,4 +200,12 @@ def robot_file(
         )
         for tool, row in rows
     ]
-    return controller_file(fmt, items, FileContext(robot=robot.name, server_url=url, table=True))
+    uncalibrated = session.scalars(
+        select(Tool.name)
+        .where(Tool.robot_id == robot_id, Tool.archived_at.is_(None), Tool.active_version.is_(None))
+        .order_by(Tool.name)
+    ).all()
+    context = FileContext(
+        robot=robot.name, server_url=url, table=True, without_version=tuple(uncalibrated)
+    )
+    return controller_file(fmt, items, context)

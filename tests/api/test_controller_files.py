@@ -86,6 +86,8 @@ def test_a_robots_tool_table_is_one_file_with_every_tool(api: Api, fmt: str) -> 
     )
     assert_allclose(positions, [[1.5, -2.0, 90.0], [1.5, -2.0, 150.0]], atol=5e-4)
     assert all(p.mass_kg in (None, 2.5) for p in parsed)
+    if fmt != "yaskawa":  # the tool never calibrated is named, not silently missing
+        assert "never calibrated" in response.text
     # the JSON table is still served without Accept: text/plain
     assert len(api.get(f"/v1/robots/{robot}/tool-table").json()["items"]) == 2
 
