@@ -296,3 +296,11 @@ def test_parse_refuses_garbage(fmt: str) -> None:
         parse_controller_text(fmt, "hello robot")
     assert info.value.kind == "invalid-pose"
     assert info.value.loc == ("text",)
+
+
+@pytest.mark.parametrize("fmt", ["fanuc", "yaskawa"])
+def test_json_comments_hold_no_emoji(fmt: str) -> None:
+    """Issue 27: an emoji in the tool's name went into the Fanuc and Yaskawa comments."""
+    out = export_tool(fmt, tool(name="🔥 Düse torch"))
+    assert out.text.isascii()
+    assert out.text.endswith("Duse torch")
