@@ -4,6 +4,7 @@ the FANUC program's LS structure, names safe for each controller, refusals."""
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 import re
 from datetime import UTC, datetime
 from pathlib import Path
@@ -168,7 +169,9 @@ def test_fanuc_program_passes_the_ls_structure_check(table: bool) -> None:
         (lambda t: t.replace("tool data", "tool dätä"), "not printable ASCII"),
     ],
 )
-def test_the_ls_check_catches_what_a_controller_would_refuse(change, complaint) -> None:  # type: ignore[no-untyped-def]
+def test_the_ls_check_catches_what_a_controller_would_refuse(
+    change: Callable[[str], str], complaint: str
+) -> None:
     text = controller_file("fanuc", golden_tools()[:1], FileContext(None, SERVER)).text
     assert check_ls(text) == []
     errors = check_ls(change(text))
