@@ -4,8 +4,8 @@ the FANUC program's LS structure, names safe for each controller, refusals."""
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
 import re
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 
