@@ -12,18 +12,18 @@ import io
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
-from urllib.parse import urlsplit
 
 import httpx
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, BrowserContext, Page, Route, expect
+from playwright.sync_api import Page, expect
 
 from app.kinematics.poses import pose_to_format
+from tests.browser.conftest import sign_in_to
 from tests.live.server import LiveServer, fresh_database, live_server
 from tests.sim.touches import simulate_touches
 
-pytestmark = pytest.mark.live
+pytestmark = [pytest.mark.live, pytest.mark.browser]
 
 
 @dataclass
@@ -93,41 +93,14 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
         yield Fleet(server, robots, tools, missed)
 
 
-@pytest.fixture
-def context(browser: Browser, fleet: Fleet) -> Iterator[BrowserContext]:
-    """A fresh browser profile in which every request to another host is aborted."""
-    ctx = browser.new_context(viewport={"width": 1400, "height": 1000}, accept_downloads=True)
-    own = urlsplit(fleet.server.url).netloc
-    ctx.blocked = []  # type: ignore[attr-defined]
-
-    def guard(route: Route) -> None:
-        if urlsplit(route.request.url).netloc == own or route.request.url.startswith(
-            ("data:", "blob:")
-        ):
-            route.continue_()
-        else:
-            ctx.blocked.append(route.request.url)  # type: ignore[attr-defined]
-            route.abort()
-
-    ctx.route("**/*", guard)
-    yield ctx
-    assert ctx.blocked == [], f"the console reached for other hosts: {ctx.blocked}"  # type: ignore[attr-defined]
-    ctx.close()
-
-
-@pytest.fixture
-def page(context: BrowserContext) -> Iterator[Page]:
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
-    yield page
-    assert errors == [], f"script errors on the page: {errors}"
+@pytest.fixture(scope="module")
+def console_server(fleet: Fleet) -> LiveServer:
+    """The server the browser fixtures (tests/browser/conftest.py) let the pages reach."""
+    return fleet.server
 
 
 def sign_in(page: Page, fleet: Fleet, path: str = "/") -> None:
-    page.goto(fleet.server.url + path)
-    page.fill("input[name=api_key]", fleet.server.admin_key)
-    page.click("#sign-in button[type=submit]")
+    sign_in_to(page, fleet.server, path)
 
 
 def test_sign_in_is_asked_once_and_the_key_stays_out_of_urls(page: Page, fleet: Fleet) -> None:
@@ -238,10 +211,21 @@ def test_tool_page_plots_versions_serves_controller_text_and_rolls_back(
         text = http.get(f"/v1/tools/{tool_id}/tcp", params={"format": "kuka"}).json()
     expect(kuka.locator("pre")).to_have_text(text["controller"]["text"])
     expect(page.locator("#controllers .card")).to_have_count(6)
+    # Each button says what the file is (issue 27); KUKA's is the $config.dat lines, header
+    # first, holding the card's TOOL_DATA without the "$" KUKAVARPROXY reads it by.
+    expect(kuka.get_by_role("button", name="Download $config.dat lines")).to_be_visible()
+    expect(page.locator("#controllers [data-format=abb] button.download")).to_have_text(
+        "Download RAPID module"
+    )
+    expect(page.locator("#controllers [data-format=fanuc] button.download")).to_have_text(
+        "Download TP program (.LS)"
+    )
     with page.expect_download() as info:
-        kuka.get_by_role("button", name="Download").click()
+        kuka.get_by_role("button", name="Download $config.dat lines").click()
     saved = open(info.value.path(), encoding="utf-8").read()  # noqa: SIM115
-    assert saved.strip() == text["controller"]["text"]
+    assert saved.startswith("; tcpcal tool data\n")
+    assert saved.endswith("\n")
+    assert text["controller"]["text"].lstrip("$") in saved.splitlines()
     assert info.value.suggested_filename.endswith(".dat")
 
     # A stale page: someone activates version 1 elsewhere; this page's click gets a 412,
