@@ -1,15 +1,18 @@
 """Forward kinematics of a serial arm from its URDF (the ROS robot description format).
 
 The URDF is parsed by `yourdfpy` (PyPI, MIT; https://github.com/clemense/yourdfpy), after a
-strict XML check by lxml (no entity expansion, no network: the document comes from a client).
+well-formedness check by lxml (the document comes from a client: a DOCTYPE is refused, so no
+entity is expanded and nothing fetched; undeclared namespace prefixes such as `drake:` on
+attributes, which real URDFs carry, are let through as ROS's parsers let them through).
 Format reference: the URDF specification, http://wiki.ros.org/urdf/XML/joint and
 http://wiki.ros.org/urdf/XML/link: a joint's <origin xyz rpy> places its child link's frame
 in its parent's (metres; roll-pitch-yaw, fixed axes X then Y then Z, i.e. R = Rz(y) Ry(p)
 Rx(r)); a revolute joint turns the child about <axis> (in the joint frame) by the joint
 value; <limit lower upper> bound it (radians). yourdfpy gives each origin as a 4x4 matrix.
 
-What is supported: `revolute` joints (limits checked), `continuous` joints (no limits), and
-`fixed` joints anywhere along the chain. Refused with 422, naming the joint: `prismatic`
+What is supported along the chain: `revolute` joints (limits checked), `continuous` joints
+(no limits), and `fixed` joints; joints off the chain (a gripper's fingers) are not read.
+Refused with 422, naming the joint, when on the chain: `prismatic`
 (a linear track: model the arm from its carriage), `floating` and `planar` joints (not an
 arm), `mimic` joints (a joint driven by another: not a serial arm's axis). The chain runs
 from `base_link` (default: the URDF's root link) to `tip_link` (default: the leaf link at the
@@ -202,7 +205,7 @@ def chain_from_spec(spec: Mapping[str, object]) -> UrdfChain:
     )
 
 
-@lru_cache(maxsize=64)
+@lru_cache(maxsize=16)
 def _chain(text: str, base: str | None, tip: str | None) -> UrdfChain:
     """Parse and walk a URDF (cached: the same robot's URDF is read at every solve)."""
     _check_xml(text)
