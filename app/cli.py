@@ -76,6 +76,21 @@ def _fresh_metrics_directory() -> None:
         atexit.register(shutil.rmtree, created, ignore_errors=True)
 
 
+@cli.command()
+def publish() -> None:
+    """Publish every committed change to the plant (MQTT: TCPCAL_MQTT_URL, TCPCAL_MQTT_PREFIX)
+    from the database's outbox: one publisher per fleet, a second one waits. Stops on
+    SIGTERM. Exits 2 with a message when the configuration is wrong or the broker cannot be
+    reached at start-up."""
+    from app.logs import configure_logging
+    from app.publish.cli import run_publisher
+
+    configure_logging()
+    code = run_publisher()
+    if code:
+        raise typer.Exit(code)
+
+
 @db_cli.command("upgrade")
 def db_upgrade(revision: str = "head") -> None:
     """Migrate the database (TCPCAL_DATABASE_URL) to a revision, head by default."""
