@@ -71,6 +71,27 @@ def fleet_families(gauges: FleetGauges) -> Iterator[Metric]:
     yield controller
 
     yield from _tool_families(gauges)
+    yield from _publisher_families(gauges)
+
+
+def _publisher_families(gauges: FleetGauges) -> Iterator[Metric]:
+    age = GaugeMetricFamily(
+        "tcpcal_outbox_oldest_undelivered_age_seconds",
+        "Seconds the oldest change not yet published (MQTT, OPC UA) has waited; 0: none waits.",
+    )
+    age.add_metric([], gauges.outbox_oldest_age_s)
+    yield age
+    waiting = GaugeMetricFamily(
+        "tcpcal_outbox_undelivered", "Changes waiting for the publisher (outbox rows)."
+    )
+    waiting.add_metric([], float(gauges.outbox_undelivered))
+    yield waiting
+    running = GaugeMetricFamily(
+        "tcpcal_publisher_running",
+        "1 while a publisher (tcpcal publish) holds the fleet's publisher lock.",
+    )
+    running.add_metric([], 1.0 if gauges.publisher_running else 0.0)
+    yield running
 
 
 def _tool_families(gauges: FleetGauges) -> Iterator[Metric]:

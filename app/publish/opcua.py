@@ -36,6 +36,7 @@ from asyncua.server.server import Server
 from asyncua.server.user_managers import UserManager
 from asyncua.ua.attribute_ids import AttributeIds
 
+from app.publish.sink import SinkError
 from app.services.plant import PlantRobot, PlantTool
 
 log = logging.getLogger(__name__)
@@ -47,7 +48,7 @@ DEFAULT_PORT = 4840
 KeyCheck = Callable[[str, str], bool]
 
 
-class OpcUaStartError(RuntimeError):
+class OpcUaStartError(SinkError):
     """The OPC UA server cannot start (bad endpoint, port in use): the message says why."""
 
 

@@ -19,6 +19,7 @@ from pydantic import BaseModel
 from sqlalchemy.orm import Session
 
 from app.schemas.fleet import FleetTool
+from app.services import outbox
 from app.services.fleet import list_fleet
 
 #: Fleet rows read per query while walking the fleet (the list's maximum page).
@@ -46,6 +47,9 @@ class FleetGauges:
     attention: dict[str, int] = field(default_factory=dict)
     controller: dict[str, int] = field(default_factory=dict)
     tools: list[ToolAges] = field(default_factory=list)
+    outbox_oldest_age_s: float = 0.0
+    outbox_undelivered: int = 0
+    publisher_running: bool = False
 
 
 def read_fleet_gauges(session: Session, *, now: datetime) -> FleetGauges:
@@ -69,7 +73,14 @@ def read_fleet_gauges(session: Session, *, now: datetime) -> FleetGauges:
                 attention=codes,
             )
         )
-    return FleetGauges(attention=dict(attention), controller=dict(controller), tools=tools)
+    return FleetGauges(
+        attention=dict(attention),
+        controller=dict(controller),
+        tools=tools,
+        outbox_oldest_age_s=outbox.oldest_undelivered_age(session),
+        outbox_undelivered=outbox.undelivered_count(session),
+        publisher_running=outbox.publisher_running(session.get_bind().engine),
+    )
 
 
 def _all_rows(session: Session) -> Iterator[FleetTool]:
