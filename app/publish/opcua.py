@@ -40,6 +40,9 @@ from app.publish.sink import SinkError
 from app.services.plant import PlantRobot, PlantTool
 
 log = logging.getLogger(__name__)
+# asyncua logs every node of the standard address space it loads, and every session, at
+# INFO: thousands of lines per start. Its warnings and errors still come through.
+logging.getLogger("asyncua").setLevel(logging.WARNING)
 
 NAMESPACE_URI = "urn:tcpcal"
 DEFAULT_PORT = 4840
@@ -66,14 +69,14 @@ def parse_endpoint(url: str) -> Endpoint:
     try:
         parts = urlsplit(url.strip())
         port = parts.port
-    except ValueError as exc:
-        raise _bad_endpoint(url, str(exc)) from None
+    except ValueError:  # urlsplit: a port that is not a number, or out of range
+        raise _bad_endpoint(url, "the port must be a number from 1 to 65535") from None
     if parts.scheme != "opc.tcp":
         raise _bad_endpoint(url, "the scheme must be opc.tcp://")
     if not parts.hostname:
         raise _bad_endpoint(url, "it names no host (use 0.0.0.0 to listen on every interface)")
     if port == 0:
-        raise _bad_endpoint(url, "the port must be 1-65535")
+        raise _bad_endpoint(url, "the port must be a number from 1 to 65535")
     return Endpoint(url=url.strip(), host=parts.hostname, port=port or DEFAULT_PORT)
 
 
