@@ -36,6 +36,7 @@ from asyncua.server.server import Server
 from asyncua.server.user_managers import UserManager
 from asyncua.ua.attribute_ids import AttributeIds
 
+from app.publish.opcua_certs import APPLICATION_URI, ServerCertificate
 from app.publish.sink import SinkError
 from app.services.plant import PlantRobot, PlantTool
 
@@ -152,10 +153,18 @@ class _ToolNodes:
 class PlantOpcUaServer:
     """The asyncua server and the address space it keeps equal to the fleet it is given."""
 
-    def __init__(self, endpoint: str, *, check: KeyCheck, anonymous: bool) -> None:
+    def __init__(
+        self,
+        endpoint: str,
+        *,
+        check: KeyCheck,
+        anonymous: bool,
+        certificate: ServerCertificate | None = None,
+    ) -> None:
         self.endpoint = parse_endpoint(endpoint)
         self._server = Server(user_manager=ApiKeyUsers(check, anonymous=anonymous))
         self._anonymous = anonymous
+        self._certificate = certificate
         self._robots: dict[str, _RobotNodes] = {}
         self._ns = 0
         self._root: Node | None = None
@@ -164,13 +173,21 @@ class PlantOpcUaServer:
     def _nid(self, name: str) -> ua.NodeId:
         return ua.NodeId(ua.String(name), ua.Int16(self._ns))
 
-    async def start(self) -> None:
-        """Listen on the endpoint; OpcUaStartError when the port is taken or not bindable."""
+    async def start(self, robots: Sequence[PlantRobot] = ()) -> None:
+        """Build the address space with these robots, then listen on the endpoint (a client
+        never sees it half filled); OpcUaStartError when the port is taken or not bindable."""
         server = self._server
         await server.init()
         server.set_endpoint(self.endpoint.url)
         server.set_server_name("tcpcal")
-        server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+        await server.set_application_uri(APPLICATION_URI)
+        policies = [ua.SecurityPolicyType.NoSecurity]
+        if self._certificate is not None:
+            cert = self._certificate
+            await server.load_certificate(cert.certificate, cert.certificate_format)
+            await server.load_private_key(cert.private_key, format=cert.private_key_format)
+            policies.append(ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt)
+        server.set_security_policy(policies)
         tokens: list[type] = [ua.UserNameIdentityToken]
         if self._anonymous:
             tokens.insert(0, ua.AnonymousIdentityToken)
@@ -179,6 +196,7 @@ class PlantOpcUaServer:
         self._root = await server.nodes.objects.add_folder(
             self._nid("Robots"), ua.QualifiedName("Robots", self._ns)
         )
+        await self.replace_all(robots)
         try:
             await server.start()
         except OSError as exc:

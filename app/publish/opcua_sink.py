@@ -28,7 +28,8 @@ from app.auth import authenticate_key
 from app.db import session_scope
 from app.errors import DomainError
 from app.models import Tool
-from app.publish.opcua import KeyCheck, OpcUaStartError, PlantOpcUaServer
+from app.publish.opcua import KeyCheck, PlantOpcUaServer, parse_endpoint
+from app.publish.opcua_certs import ServerCertificate, server_certificate
 from app.services.plant import PlantRobot, plant_robots
 
 log = logging.getLogger(__name__)
@@ -112,11 +113,14 @@ class OpcUaPlantSink:
         endpoint: str,
         *,
         anonymous: bool,
+        certificate: ServerCertificate | None = None,
         check: KeyCheck = key_may_read,
         fleet: Callable[[], list[PlantRobot]] = read_fleet,
         robots: Callable[[set[str], set[str]], dict[str, PlantRobot | None]] = read_robots,
     ) -> None:
-        self.server = PlantOpcUaServer(endpoint, check=check, anonymous=anonymous)
+        self.server = PlantOpcUaServer(
+            endpoint, check=check, anonymous=anonymous, certificate=certificate
+        )
         self._fleet = fleet
         self._robots = robots
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -130,11 +134,10 @@ class OpcUaPlantSink:
         self._thread = threading.Thread(target=loop.run_forever, name="opcua", daemon=True)
         self._thread.start()
         try:
-            self._call(self.server.start(), START_TIMEOUT_S)
-        except OpcUaStartError:
+            self._call(self.server.start(self._fleet()), START_TIMEOUT_S)
+        except BaseException:  # not listening: no loop left behind either
             self._stop_loop()
             raise
-        self._call(self.server.replace_all(self._fleet()), START_TIMEOUT_S)
         log.info("OPC UA server listening at %s", self.server.endpoint.url)
 
     def connection_id(self) -> int:
@@ -178,3 +181,13 @@ class OpcUaPlantSink:
             thread.join(timeout=5)
         if loop is not None and not loop.is_running():
             loop.close()
+
+
+def opcua_sink(
+    endpoint: str, *, anonymous: bool, certificate: str | None, private_key: str | None
+) -> OpcUaPlantSink:
+    """The sink TCPCAL_OPCUA_* configure (SinkError for a malformed endpoint or unreadable
+    certificate files: before the publisher waits for its lock)."""
+    host = parse_endpoint(endpoint).host
+    cert = server_certificate(certificate, private_key, host=host)
+    return OpcUaPlantSink(endpoint, anonymous=anonymous, certificate=cert)

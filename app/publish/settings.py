@@ -29,6 +29,14 @@ class PublishSettings(BaseSettings):
         default=False,
         description="let OPC UA clients in without a user name and API key (still read-only)",
     )
+    opcua_certificate: str | None = Field(
+        default=None,
+        description="the OPC UA server's certificate file (PEM or DER); unset with "
+        "opcua_private_key: a self-signed one is made at start-up",
+    )
+    opcua_private_key: str | None = Field(
+        default=None, description="the private key of opcua_certificate (PEM or DER)"
+    )
     publish_poll_s: float = Field(
         default=0.2, gt=0, le=1.0, description="how often an idle publisher reads the outbox"
     )

@@ -30,6 +30,7 @@ from typing import Any
 import pytest
 from asyncua import ua
 from asyncua.client.client import Client
+from asyncua.sync import Client as SyncClient
 from asyncua.ua.uaerrors import UaError, UaStatusCodeError
 from prometheus_client.parser import text_string_to_metric_families
 
@@ -66,7 +67,7 @@ def publisher(db: Database, **extra: str) -> Iterator[str]:
         [str(TCPCAL), "publish"], cwd=REPO, env=env, stdout=output, stderr=subprocess.STDOUT
     )
     try:
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + 60
         while True:
             if proc.poll() is not None:
                 output.seek(0)
@@ -77,7 +78,10 @@ def publisher(db: Database, **extra: str) -> Iterator[str]:
                 break
             except OSError:
                 if time.monotonic() > deadline:
-                    raise AssertionError("tcpcal publish did not listen within 30 s") from None
+                    output.seek(0)
+                    raise AssertionError(
+                        f"tcpcal publish did not listen within 60 s:\n{output.read().decode()}"
+                    ) from None
                 time.sleep(0.1)
         yield endpoint
     finally:
@@ -206,6 +210,20 @@ def test_a_wrong_password_and_anonymous_are_refused(api: Api, db: Database) -> N
         assert asyncio.run(_sign_in(endpoint, "test-admin", api.keys["read"])) == "refused"
         assert asyncio.run(_sign_in(endpoint, None, None)) == "refused"
         assert asyncio.run(_sign_in(endpoint, "test-calibrate", api.keys["calibrate"])) == "in"
+        # the password is never sent in clear: the None endpoint asks for it encrypted
+        policies = asyncio.run(_user_name_policies(endpoint))
+        assert policies["None"].endswith("#Basic256Sha256"), policies
+        assert policies["SignAndEncrypt"].endswith("#None")  # the channel encrypts it
+
+
+async def _user_name_policies(endpoint: str) -> dict[str, str]:
+    """Security mode -> the SecurityPolicyUri the server sets for user name tokens."""
+    found = {}
+    for point in await Client(endpoint, timeout=10).connect_and_get_server_endpoints():
+        for token in point.UserIdentityTokens:
+            if token.TokenType == ua.UserTokenType.UserName:
+                found[point.SecurityMode.name.rstrip("_")] = token.SecurityPolicyUri
+    return found
 
 
 async def _sign_in(endpoint: str, user: str | None, password: str | None) -> str:
@@ -221,28 +239,36 @@ async def _sign_in(endpoint: str, user: str | None, password: str | None) -> str
     return "in"
 
 
-async def _tree(
+@contextmanager
+def opcua_client(
     endpoint: str, user: str | None = None, password: str | None = None
-) -> dict[str, dict[str, dict[str, Any]]]:
-    """Robots -> tools -> variable values, browsed with asyncua's client."""
-    client = Client(endpoint, timeout=10)
+) -> Iterator[SyncClient]:
+    """asyncua's client, connected (signed in with the key when given)."""
+    client = SyncClient(endpoint, timeout=10)
     if user and password:
         client.set_user(user)
         client.set_password(password)
-    async with client:
-        ns = await client.get_namespace_index(NS)
-        robots = await client.nodes.objects.get_child(f"{ns}:Robots")
-        tree: dict[str, dict[str, dict[str, Any]]] = {}
-        for robot in await robots.get_children():
-            name = (await robot.read_browse_name()).Name
-            tools = await robot.get_child(f"{ns}:Tools")
-            tree[name] = {}
-            for tool in await tools.get_children():
-                values: dict[str, Any] = {}
-                for var in await tool.get_children():
-                    values[(await var.read_browse_name()).Name] = await var.read_value()
-                tree[name][(await tool.read_browse_name()).Name] = values
-        return tree
+    client.connect()
+    try:
+        yield client
+    finally:
+        client.disconnect()
+
+
+def _tree(client: SyncClient) -> dict[str, dict[str, dict[str, Any]]]:
+    """Robots -> tools -> variable values, browsed now."""
+    ns = client.get_namespace_index(NS)
+    robots = client.nodes.objects.get_child(f"{ns}:Robots")
+    tree: dict[str, dict[str, dict[str, Any]]] = {}
+    for robot in robots.get_children():
+        tools = robot.get_child(f"{ns}:Tools")
+        tree[robot.read_browse_name().Name] = tool_values = {}
+        for tool in tools.get_children():
+            values: dict[str, Any] = {}
+            for var in tool.get_children():
+                values[var.read_browse_name().Name] = var.read_value()
+            tool_values[tool.read_browse_name().Name] = values
+    return tree
 
 
 def _until(check: Any, timeout: float = 1.0) -> float:
@@ -260,28 +286,31 @@ def _until(check: Any, timeout: float = 1.0) -> float:
 
 def test_robots_and_tools_appear_and_disappear_with_the_database(api: Api, db: Database) -> None:
     first = api.robot("r-first")
-    with publisher(db, TCPCAL_OPCUA_ANONYMOUS="true") as endpoint:
-        assert asyncio.run(_tree(endpoint)) == {"r-first": {}}  # anonymous allowed here
+    with (
+        publisher(db, TCPCAL_OPCUA_ANONYMOUS="true") as endpoint,
+        opcua_client(endpoint) as client,  # anonymous allowed here
+    ):
+        assert _tree(client) == {"r-first": {}}
 
         second = api.robot("r-second")
         tool = api.tool(second["id"], "gripper", slot=1)
-        _until(lambda: "gripper" in asyncio.run(_tree(endpoint)).get("r-second", {}), 2.0)
-        values = asyncio.run(_tree(endpoint))["r-second"]["gripper"]
+        _until(lambda: "gripper" in _tree(client).get("r-second", {}))
+        values = _tree(client)["r-second"]["gripper"]
         assert values["ActiveVersion"] == 0  # no active version: 0 and empty arrays
         assert values["PositionMm"] == []
 
         api.manual(tool["id"], [0.0, 0.0, 99.5])
-        _until(lambda: asyncio.run(_tree(endpoint))["r-second"]["gripper"]["ActiveVersion"] == 1)
-        assert asyncio.run(_tree(endpoint))["r-second"]["gripper"]["PositionMm"] == [0, 0, 99.5]
+        _until(lambda: _tree(client)["r-second"]["gripper"]["ActiveVersion"] == 1)
+        assert _tree(client)["r-second"]["gripper"]["PositionMm"] == [0, 0, 99.5]
 
         renamed = api.patch(f"/v1/robots/{second['id']}", {"name": "r-second-b"})
         assert renamed.status_code == 200, renamed.text
-        _until(lambda: set(asyncio.run(_tree(endpoint))) == {"r-first", "r-second-b"})
+        _until(lambda: set(_tree(client)) == {"r-first", "r-second-b"})
 
         assert api.delete(f"/v1/tools/{tool['id']}").status_code == 204
-        _until(lambda: asyncio.run(_tree(endpoint))["r-second-b"] == {})
+        _until(lambda: _tree(client)["r-second-b"] == {})
         assert api.delete(f"/v1/robots/{first['id']}").status_code == 204
-        _until(lambda: set(asyncio.run(_tree(endpoint))) == {"r-second-b"})
+        _until(lambda: set(_tree(client)) == {"r-second-b"})
 
 
 def test_clients_cannot_change_the_address_space(api: Api, db: Database) -> None:
@@ -292,10 +321,8 @@ def test_clients_cannot_change_the_address_space(api: Api, db: Database) -> None
         assert asyncio.run(_try_changes(endpoint, api.keys["admin"])) == [
             "BadUserAccessDenied", "BadUserAccessDenied", "BadUserAccessDenied",
         ]  # fmt: skip
-        assert (
-            asyncio.run(_tree(endpoint, "test-read", api.keys["read"]))["r1"]["t1"]["ActiveVersion"]
-            == 1
-        )
+        with opcua_client(endpoint, "test-read", api.keys["read"]) as client:
+            assert _tree(client)["r1"]["t1"]["ActiveVersion"] == 1
 
 
 async def _try_changes(endpoint: str, key: str) -> list[str]:

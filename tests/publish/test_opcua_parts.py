@@ -4,13 +4,17 @@ variables, and which robots a batch makes the sink read again."""
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from pathlib import Path
 
 import pytest
 
 from app.publish.opcua import OpcUaStartError, parse_endpoint, variable_values
+from app.publish.opcua_certs import server_certificate
 from app.publish.opcua_sink import robots_concerned
+from app.publish.sink import SinkError
 from app.services.plant import PlantTool
 
 
@@ -84,3 +88,18 @@ class _Item:
 def test_a_batch_names_each_robot_once_and_tools_without_a_robot() -> None:
     items = [_Item("r1", "t1"), _Item("r1", "t2"), _Item("r2", None), _Item(None, "t9")]
     assert robots_concerned(items) == ({"r1", "r2"}, {"t9"})
+
+
+def test_certificate_settings_both_or_neither_and_readable(tmp_path: Path) -> None:
+    made = server_certificate(None, None, host="127.0.0.1")  # self-signed for the run
+    assert (made.certificate_format, made.private_key_format) == ("der", "pem")
+    (tmp_path / "cert.der").write_bytes(made.certificate)
+    (tmp_path / "key.pem").write_bytes(made.private_key)
+    loaded = server_certificate(str(tmp_path / "cert.der"), str(tmp_path / "key.pem"), host="h")
+    assert loaded == made
+    with pytest.raises(SinkError, match="set both TCPCAL_OPCUA_CERTIFICATE and"):
+        server_certificate(str(tmp_path / "cert.der"), None, host="h")
+    with pytest.raises(
+        SinkError, match=re.escape("TCPCAL_OPCUA_PRIVATE_KEY='/nowhere/key.pem' cannot")
+    ):
+        server_certificate(str(tmp_path / "cert.der"), "/nowhere/key.pem", host="h")
