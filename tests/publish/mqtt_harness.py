@@ -54,6 +54,8 @@ class Broker:
         self.dir = tmp / f"mosquitto-{self.port}"
         self.dir.mkdir()
         lines = [f"listener {self.port} 127.0.0.1", "log_dest stderr"]
+        if os.geteuid() == 0:  # as root it would switch to the mosquitto user, who cannot
+            lines.append("user root")  # read the password file in pytest's private tmp
         if users:
             passwd = self.dir / "passwd"
             for i, (user, password) in enumerate(users.items()):
