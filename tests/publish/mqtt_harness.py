@@ -23,11 +23,19 @@ from pathlib import Path
 from typing import Any
 
 import paho.mqtt.client as mqtt
+import pytest
 from paho.mqtt.enums import CallbackAPIVersion
 
 MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
 MOSQUITTO_PASSWD = shutil.which("mosquitto_passwd") or "/usr/bin/mosquitto_passwd"
 REPO = Path(__file__).resolve().parents[2]
+
+#: Skip the tests that need a broker when Mosquitto is not installed, except where it is
+#: required (`.ci/run` installs it and sets TCPCAL_REQUIRE_MOSQUITTO): there they fail.
+needs_mosquitto = pytest.mark.skipif(
+    not Path(MOSQUITTO).exists() and not os.environ.get("TCPCAL_REQUIRE_MOSQUITTO"),
+    reason="mosquitto is not installed (apt-get install mosquitto mosquitto-clients)",
+)
 
 
 def free_port() -> int:
@@ -49,11 +57,22 @@ def wait_for(predicate: Callable[[], bool], timeout: float, what: str) -> None:
 class Broker:
     """One Mosquitto process; `kill()` (SIGKILL) and `start()` again on the same port."""
 
-    def __init__(self, tmp: Path, *, users: dict[str, str] | None = None, persist: bool = False):
+    def __init__(
+        self,
+        tmp: Path,
+        *,
+        users: dict[str, str] | None = None,
+        persist: bool = False,
+        tls: bool = False,
+    ):
         self.port = free_port()
         self.dir = tmp / f"mosquitto-{self.port}"
         self.dir.mkdir()
         lines = [f"listener {self.port} 127.0.0.1", "log_dest stderr"]
+        self.ca_file: Path | None = None
+        if tls:
+            self.ca_file, cert, key = make_certificates(self.dir)
+            lines += [f"cafile {self.ca_file}", f"certfile {cert}", f"keyfile {key}"]
         if os.geteuid() == 0:  # as root it would switch to the mosquitto user, who cannot
             lines.append("user root")  # read the password file in pytest's private tmp
         if users:
@@ -115,7 +134,29 @@ class Broker:
 
     def url(self, user: str | None = None, password: str | None = None) -> str:
         auth = "" if user is None else f"{user}:{password}@"
-        return f"mqtt://{auth}127.0.0.1:{self.port}"
+        scheme = "mqtts" if self.ca_file else "mqtt"
+        return f"{scheme}://{auth}127.0.0.1:{self.port}"
+
+
+def make_certificates(directory: Path) -> tuple[Path, Path, Path]:
+    """A throwaway CA and a server certificate for 127.0.0.1 signed by it (openssl(1)):
+    (CA certificate, server certificate, server key)."""
+    ca_key, ca, key, csr, cert = (
+        directory / n for n in ("ca.key", "ca.crt", "server.key", "server.csr", "server.crt")
+    )
+    ext = directory / "san.ext"
+    ext.write_text("subjectAltName=IP:127.0.0.1\nbasicConstraints=CA:FALSE\n")
+    commands: list[list[object]] = [
+        ["req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", ca_key, "-out", ca],
+        ["req", "-newkey", "rsa:2048", "-nodes", "-keyout", key, "-out", csr],
+        ["x509", "-req", "-in", csr, "-CA", ca, "-CAkey", ca_key, "-CAcreateserial"],
+    ]
+    commands[0] += ["-days", "2", "-subj", "/CN=tcpcal test CA"]
+    commands[1] += ["-subj", "/CN=127.0.0.1"]
+    commands[2] += ["-out", cert, "-days", "2", "-extfile", ext]
+    for command in commands:
+        subprocess.run(["openssl", *map(str, command)], check=True, capture_output=True)
+    return ca, cert, key
 
 
 @dataclass(frozen=True)
@@ -134,6 +175,7 @@ class Subscriber:
     client id and a session the broker keeps while it is away (QoS 1 messages queued)."""
 
     def __init__(self, broker: Broker, prefix: str, *, persistent: bool = False, **auth: str):
+        """`auth`: user and password, when the broker asks for them."""
         self.prefix = prefix
         self.messages: list[Received] = []
         self.lock = threading.Lock()
@@ -147,6 +189,8 @@ class Subscriber:
         )
         if auth:
             self.client.username_pw_set(auth["user"], auth["password"])
+        if broker.ca_file is not None:
+            self.client.tls_set(ca_certs=str(broker.ca_file))
         self.client.reconnect_delay_set(1, 1)
         self.client.on_connect = self._on_connect
         self.client.on_message = self._on_message

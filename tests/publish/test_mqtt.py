@@ -18,11 +18,9 @@ from sqlalchemy import select
 from app.db import session_scope
 from app.models import AuditEvent, OutboxMessage
 from tests.conftest import Api
-from tests.publish.mqtt_harness import Broker, Publisher, Subscriber, wait_for
+from tests.publish.mqtt_harness import Broker, Publisher, Subscriber, needs_mosquitto, wait_for
 
-pytestmark = pytest.mark.skipif(
-    not Path("/usr/sbin/mosquitto").exists(), reason="mosquitto is not installed"
-)
+pytestmark = needs_mosquitto
 
 
 EVENT_FIELDS = ("action", "tool_id", "robot_id", "version", "actor", "at", "request_id")

@@ -13,7 +13,15 @@ import pytest
 from app.publish.mqtt import check_prefix, parse_url
 from app.publish.sink import SinkError
 from tests.conftest import Api
-from tests.publish.mqtt_harness import Broker, Publisher, free_port, run_publisher_once, wait_for
+from tests.publish.mqtt_harness import (
+    Broker,
+    Publisher,
+    Subscriber,
+    free_port,
+    needs_mosquitto,
+    run_publisher_once,
+    wait_for,
+)
 
 
 @pytest.mark.parametrize(
@@ -59,6 +67,7 @@ def test_unreachable_broker_and_malformed_url_exit_non_zero(api: Api) -> None:
     assert "TCPCAL_MQTT_URL" in output
 
 
+@needs_mosquitto
 def test_wrong_password_exits_non_zero_and_the_right_one_publishes(
     api: Api, tmp_path: Path
 ) -> None:
@@ -99,3 +108,30 @@ def test_the_api_serves_without_a_publisher_and_metrics_show_the_backlog(api: Ap
     waiting = re.search(r"^tcpcal_outbox_undelivered (\S+)$", metrics, re.M)
     assert waiting is not None
     assert float(waiting.group(1)) >= 3  # robot, tool, calibration (and its version)
+
+
+@needs_mosquitto
+def test_tls_with_the_ca_publishes_and_without_it_exits_non_zero(api: Api, tmp_path: Path) -> None:
+    broker = Broker(tmp_path, tls=True)
+    broker.start()
+    try:
+        database_url = os.environ["TCPCAL_DATABASE_URL"]
+        assert broker.url().startswith("mqtts://")
+        code, output = run_publisher_once(database_url, broker.url())  # the system's CAs
+        assert code == 2, output
+        assert "certificate verify failed" in output
+        sub = Subscriber(broker, "tls")
+        publisher = Publisher(
+            tmp_path, database_url, broker.url(), "tls", TCPCAL_MQTT_CA_FILE=str(broker.ca_file)
+        ).start()
+        try:
+            wait_for(
+                lambda: [m.payload for m in sub.on("status")][-1:] == [b"online"],
+                60,
+                "the publisher online over TLS",
+            )
+        finally:
+            assert publisher.terminate() < 1.0
+            sub.close()
+    finally:
+        broker.stop()
