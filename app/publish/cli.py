@@ -69,5 +69,7 @@ def run_publisher() -> int:
         return _fail(f"{exc}; exiting so that a supervisor restarts the publisher", EXIT_LOCK_LOST)
     except SinkError as exc:
         return _fail(str(exc))
+    finally:
+        engine.dispose()
     log.info("stopped after delivering %d outbox rows", runner.delivered)
     return 0

@@ -135,6 +135,7 @@ class MqttSink:
         self._connection = 0
         self._refused: str | None = None
         self._stopping = threading.Event()
+        self._closing = False
         self._client = self._make_client()
 
     @classmethod
@@ -185,7 +186,7 @@ class MqttSink:
         self, _: mqtt.Client, __: Any, ___: Any, reason: ReasonCode, ____: Any
     ) -> None:
         self._connected.clear()
-        if not self._stopping.is_set():
+        if not self._closing:
             log.warning("disconnected from %s (%s): reconnecting", self.broker.where, reason)
 
     # ---- the Sink protocol ---------------------------------------------------------------
@@ -217,6 +218,7 @@ class MqttSink:
             )
 
     def _give_up(self) -> None:
+        self._closing = True
         self._client.disconnect()
         self._client.loop_stop()
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Mapping, Sequence
-from datetime import datetime
+from datetime import UTC, datetime
 from pathlib import Path
 
 from sqlalchemy import Engine, func, insert, select, text
@@ -50,7 +50,7 @@ except ImportError:  # Windows: no flock
 from app.db import DriverWrite, is_sqlite
 from app.jsontypes import JsonObject
 from app.logs import REQUEST_ID
-from app.models import OutboxMessage, table_of, utcnow
+from app.models import OutboxMessage, table_of
 
 #: The transaction-scoped advisory lock that orders outbox inserts by commit on PostgreSQL
 #: (a constant of the service's own: int64 of "tcpcal.outbox.order").
@@ -82,7 +82,7 @@ def event_of(row: Mapping[str, object]) -> JsonObject:
         "robot_id": _text_or_none(row.get("robot_id")),
         "version": version if isinstance(version, int) else None,
         "actor": str(row["actor"]),
-        "at": at.isoformat(),
+        "at": at.astimezone(UTC).isoformat().replace("+00:00", "Z"),  # as the API writes it
         "request_id": _text_or_none(request_id),
     }
 
@@ -99,7 +99,7 @@ def concerns_plant(row: Mapping[str, object]) -> bool:
 def write(session: Session, audit_rows: Sequence[Mapping[str, object]]) -> None:
     """Insert the outbox rows of a committing transaction's audit rows (called as the
     transaction commits, after its last other statement: see the module's note on order)."""
-    now = utcnow()
+    now = datetime.now(UTC)  # the real time, also under app.models.clock_at (the demo)
     rows = [
         {
             "created_at": now,
@@ -130,7 +130,7 @@ def oldest_undelivered_age(session: Session) -> float:
     )
     if oldest is None:
         return 0.0
-    return max(0.0, (utcnow() - oldest).total_seconds())
+    return max(0.0, (datetime.now(UTC) - oldest).total_seconds())
 
 
 def undelivered_count(session: Session) -> int:
