@@ -11,6 +11,7 @@ from sqlalchemy import update
 
 from app.db import session_scope
 from app.models import Calibration, clock_at
+from app.schemas.fleet import FleetTool
 from tests.conftest import Api
 
 DAY = 86400.0
@@ -88,6 +89,15 @@ def test_metrics_show_each_tools_ages_and_fleet_counts(api: Api) -> None:
     assert samples[("tcpcal_fleet_gauges_up", ())] == 1
     # no robot has a controller connection: every live tool counts as "none"
     assert samples[("tcpcal_fleet_tools_controller_state", (("state", "none"),))] == 3
+    if "attention" in FleetTool.model_fields:  # the fleet service judges attention codes
+        flagged = "tcpcal_tool_attention"
+        spare_labels = dict(tool(flagged, spare)[1], code="no_active_version")
+        torch_labels = dict(tool(flagged, torch)[1], code="stale")  # 200 days > 180
+        assert samples[(flagged, tuple(sorted(spare_labels.items())))] == 1
+        assert samples[(flagged, tuple(sorted(torch_labels.items())))] == 1
+        by_code = "tcpcal_fleet_tools_attention"
+        assert samples[(by_code, (("code", "no_active_version"),))] >= 1
+        assert samples[(by_code, (("code", "check_failed"),))] == 0
     # the request counters are still there beside the fleet's state
     assert any(name == "tcpcal_http_requests_total" for name, _ in samples)
 
