@@ -10,7 +10,7 @@ from prometheus_client.parser import text_string_to_metric_families
 from sqlalchemy import update
 
 from app.db import session_scope
-from app.models import Calibration, clock_at
+from app.models import Calibration, Tool, clock_at
 from app.schemas.fleet import FleetTool
 from tests.conftest import Api
 
@@ -45,11 +45,13 @@ def _check(api: Api, robot_id: str, tool_id: str, offset_mm: float) -> None:
 
 
 def _backdate_calibrations(tool_id: str, at: datetime) -> None:
-    # calibrations are stored by a solver process, whose clock clock_at does not reach
+    # calibrations are stored by a solver process, whose clock clock_at does not reach;
+    # the tool is made as old (a tool registered lately is not stale, whatever its history)
     with session_scope(write=True) as session:
         session.execute(
             update(Calibration).where(Calibration.tool_id == tool_id).values(created_at=at)
         )
+        session.execute(update(Tool).where(Tool.id == tool_id).values(created_at=at))
 
 
 def test_metrics_show_each_tools_ages_and_fleet_counts(api: Api) -> None:
