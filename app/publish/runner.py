@@ -50,9 +50,16 @@ def build_sinks(settings: PublishSettings) -> list[Sink]:
 
         sinks.append(MqttSink.from_settings(settings))
     if settings.opcua_endpoint:
-        from app.publish.opcua_sink import OpcUaPlantSink
+        from app.publish.opcua_sink import opcua_sink
 
-        sinks.append(OpcUaPlantSink(settings.opcua_endpoint, anonymous=settings.opcua_anonymous))
+        sinks.append(
+            opcua_sink(
+                settings.opcua_endpoint,
+                anonymous=settings.opcua_anonymous,
+                certificate=settings.opcua_certificate,
+                private_key=settings.opcua_private_key,
+            )
+        )
     if not sinks:
         raise SinkError(
             "nothing to publish to: set TCPCAL_MQTT_URL (e.g. mqtt://user:pass@broker:1883) "

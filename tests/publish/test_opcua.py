@@ -371,6 +371,11 @@ def test_a_port_in_use_or_a_bad_endpoint_stops_the_publisher_with_a_message(
         bad = _run_publish(db, TCPCAL_OPCUA_ENDPOINT=endpoint)
         assert bad.returncode == 2, bad.stderr
         assert f"TCPCAL_OPCUA_ENDPOINT={endpoint!r} is not usable" in bad.stderr
+    half = _run_publish(
+        db, TCPCAL_OPCUA_ENDPOINT="opc.tcp://127.0.0.1:4840/", TCPCAL_OPCUA_CERTIFICATE="c.der"
+    )
+    assert half.returncode == 2
+    assert "set both TCPCAL_OPCUA_CERTIFICATE and TCPCAL_OPCUA_PRIVATE_KEY" in half.stderr
 
 
 def _gauges(api: Api) -> dict[str, float]:
