@@ -56,6 +56,8 @@ class BatchLike(Protocol):
     def messages(self) -> Sequence[Concerns]: ...
     @property
     def states(self) -> Sequence[Concerns]: ...
+    @property
+    def full(self) -> bool: ...
 
 
 def key_may_read(username: str, password: str) -> bool:
@@ -147,6 +149,10 @@ class OpcUaPlantSink:
     def deliver(self, batch: BatchLike) -> bool:
         """Refresh every robot the batch concerns; False when the update failed (the runner
         hands the batch again)."""
+        if batch.full:
+            # The whole fleet was read when the sink opened, and every change since is an
+            # undelivered outbox row (rows are marked only once this sink accepted them).
+            return True
         robot_ids, tool_ids = robots_concerned([*batch.messages, *batch.states])
         if not robot_ids and not tool_ids:
             return True

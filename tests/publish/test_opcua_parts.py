@@ -10,6 +10,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
+import yaml
 
 from app.publish.opcua import OpcUaStartError, parse_endpoint, variable_values
 from app.publish.opcua_certs import server_certificate
@@ -103,3 +104,11 @@ def test_certificate_settings_both_or_neither_and_readable(tmp_path: Path) -> No
         SinkError, match=re.escape("TCPCAL_OPCUA_PRIVATE_KEY='/nowhere/key.pem' cannot")
     ):
         server_certificate(str(tmp_path / "cert.der"), "/nowhere/key.pem", host="h")
+
+
+def test_compose_publisher_serves_opcua_on_the_port_it_publishes() -> None:
+    compose = yaml.safe_load((Path(__file__).resolve().parents[2] / "compose.yaml").read_text())
+    publisher = compose["services"]["publisher"]
+    endpoint = parse_endpoint(publisher["environment"]["TCPCAL_OPCUA_ENDPOINT"])
+    assert endpoint.host == "0.0.0.0"  # reachable from outside the container
+    assert f"{endpoint.port}:{endpoint.port}" in publisher["ports"]
