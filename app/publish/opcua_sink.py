@@ -61,12 +61,17 @@ class BatchLike(Protocol):
 
 
 def key_may_read(username: str, password: str) -> bool:
-    """True when `password` is a live API key of scope read or above, named `username`
-    (checked by app.auth, as an Authorization header is)."""
+    """True when `password` is a live API key of scope read or above, named `username`, and
+    not limited to cells (checked by app.auth, as an Authorization header is)."""
     try:
         with session_scope(write=False) as session:
             principal = authenticate_key(session, password, required="read")
     except DomainError:
+        return False
+    if getattr(principal, "cells", None):
+        # The address space shows the whole fleet: a key limited to some cells must not see
+        # it (the API shows such a key only its cells; one view per session is not built).
+        log.warning("OPC UA sign-in refused for %r: the key is limited to cells", username)
         return False
     return hmac.compare_digest(principal.name.encode(), username.encode())
 

@@ -112,3 +112,21 @@ def test_compose_publisher_serves_opcua_on_the_port_it_publishes() -> None:
     endpoint = parse_endpoint(publisher["environment"]["TCPCAL_OPCUA_ENDPOINT"])
     assert endpoint.host == "0.0.0.0"  # reachable from outside the container
     assert f"{endpoint.port}:{endpoint.port}" in publisher["ports"]
+
+
+@pytest.mark.parametrize(
+    ("name", "cells", "admitted"),
+    [("plc", None, True), ("plc", [], True), ("other", None, False), ("plc", ["cell-12"], False)],
+)
+def test_sign_in_needs_the_keys_own_name_and_a_key_for_every_cell(
+    monkeypatch: pytest.MonkeyPatch, name: str, cells: list[str] | None, admitted: bool
+) -> None:
+    from contextlib import nullcontext
+    from types import SimpleNamespace
+
+    from app.publish import opcua_sink
+
+    principal = SimpleNamespace(name="plc", scope="read", cells=cells)
+    monkeypatch.setattr(opcua_sink, "session_scope", lambda write: nullcontext(None))
+    monkeypatch.setattr(opcua_sink, "authenticate_key", lambda s, key, required: principal)
+    assert opcua_sink.key_may_read(name, "tcpcal_key") is admitted
