@@ -36,6 +36,11 @@ from app.publish.sink import Batch, Sink, SinkError
 
 log = logging.getLogger(__name__)
 
+#: What one pass of the loop did.
+DELIVERED, IDLE, FAILED = "delivered", "idle", "failed"
+#: Seconds between attempts while a sink (or the database) is away.
+RETRY_S = 0.5
+
 
 class LockLost(SinkError):
     """The connection that held the fleet lock is gone (the database restarted)."""
@@ -114,33 +119,35 @@ class Runner:
                     raise LockLost("lost the database connection that held the fleet lock")
                 checked = time.monotonic()
             try:
-                busy = self.step()
+                outcome = self.step()
             except SQLAlchemyError as exc:
                 log.warning("database error, retrying: %s", exc)
-                busy = False
-            if not busy:
+                outcome = FAILED
+            if outcome == IDLE:
                 self.stopping.wait(self.poll_s)
+            elif outcome == FAILED:  # a sink or the database is away: no busy loop meanwhile
+                self.stopping.wait(RETRY_S)
 
-    def step(self) -> bool:
-        """One pass: full states owed, then one batch of the outbox. True when rows were
-        delivered (the next pass follows at once)."""
+    def step(self) -> str:
+        """One pass: full states owed, then one batch of the outbox. DELIVERED (the next
+        pass follows at once), IDLE (nothing to send) or FAILED (a sink did not take it)."""
         for sink in self.sinks:
             if not self._full_state(sink):
-                return False
+                return FAILED
         with session_scope(write=False, engine=self.engine) as session:
             messages = source.undelivered(session, limit=self.batch)
             if not messages:
-                return False
+                return IDLE
             states = source.states(session, source.tools_concerned(session, messages))
         batch = Batch(messages=messages, states=states)
         accepted = [sink.deliver(batch) for sink in self.sinks]  # each sink, even after one fails
         if not all(accepted):
-            return False
+            return FAILED
         with session_scope(write=True, engine=self.engine) as session:
             source.mark_delivered(session, [m.id for m in messages])
             source.prune(session, keep_seconds=self.keep_s)
         self.delivered += len(messages)
-        return True
+        return DELIVERED
 
     def _full_state(self, sink: Sink) -> bool:
         """Send every live tool's state to a sink that (re)connected; True when it has it."""
