@@ -97,7 +97,7 @@ def _audit_order(tool_ids: set[str]) -> list[tuple[str, str, str]]:
         rows = session.scalars(
             select(AuditEvent).where(AuditEvent.tool_id.in_(tool_ids)).order_by(AuditEvent.id)
         )
-        return [(r.tool_id or "", r.action, r.at.isoformat()) for r in rows]
+        return [(r.tool_id or "", r.action, r.at.isoformat().replace("+00:00", "Z")) for r in rows]
 
 
 def _event_keys(sub: Subscriber, tool_ids: set[str]) -> list[tuple[str, str, str]]:
