@@ -288,9 +288,9 @@ def test_repeated_orientations_are_named() -> None:
     R = sim.R.copy()
     R[2] = R[0] @ Rotation.from_euler("x", 0.2, degrees=True).as_matrix()
     err = _raises("repeated-poses", R, sim.f)
-    assert err.context["pairs"] == [[0, 2]]
+    assert err.context["pairs"] == [[0, 2]]  # indexes, 0-based
     assert err.loc == ("poses", 2)
-    assert "0 and 2" in err.detail
+    assert "touches 1 and 3 have the same orientation" in err.detail  # numbers, from 1
 
 
 def test_repeated_orientation_among_many_touches_is_a_warning() -> None:
