@@ -260,3 +260,14 @@ def test_activation_and_rollback_need_calibrate_scope(api: Api) -> None:
     for path in (f"/v1/tools/{tool_id}/rollback", f"/v1/tools/{tool_id}/versions/2/activate"):
         assert api.post(path, scope="read").status_code == 403
     assert _active(api, tool_id) == 4
+
+
+def test_keys_me_tells_each_key_its_own_scope_and_never_the_key(api: Api) -> None:
+    for scope in ("read", "calibrate", "admin"):
+        response = api.get("/v1/keys/me", scope=scope)
+        assert response.status_code == 200, response.text
+        body = response.json()
+        assert (body["name"], body["scope"]) == (f"test-{scope}", scope)
+        assert api.keys[scope] not in response.text
+    anonymous = api.client.get("/v1/keys/me")
+    assert anonymous.status_code == 401

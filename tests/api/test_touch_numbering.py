@@ -61,7 +61,9 @@ def test_session_messages_say_touch_5_and_keep_index_4(api: Api) -> None:
     ).json()
     state = session
     for pose in _fifth_missed(9):
-        response = api.post(f"/v1/sessions/{session['id']}/poses", {"pose": pose}, scope="calibrate")
+        response = api.post(
+            f"/v1/sessions/{session['id']}/poses", {"pose": pose}, scope="calibrate"
+        )
         assert response.status_code == 200, response.text
         state = response.json()
     assert state["outliers"] == [4], state

@@ -130,6 +130,15 @@ def sign_in(page: Page, fleet: Fleet, path: str = "/") -> None:
     page.click("#sign-in button[type=submit]")
 
 
+def confirm(page: Page, reason: str) -> None:
+    """Answer the console's confirmation: type the reason, press its confirm button."""
+    dialog = page.locator("dialog#confirm")
+    expect(dialog).to_be_visible()
+    dialog.locator("textarea[name=reason]").fill(reason)
+    dialog.locator("button[type=submit]").click()
+    expect(dialog).to_have_count(0)
+
+
 def test_sign_in_is_asked_once_and_the_key_stays_out_of_urls(page: Page, fleet: Fleet) -> None:
     urls: list[str] = []
     page.on("request", lambda request: urls.append(request.url))
@@ -250,15 +259,18 @@ def test_tool_page_plots_versions_serves_controller_text_and_rolls_back(
         http.post(f"/v1/tools/{tool_id}/versions/1/activate").raise_for_status()
         http.post(f"/v1/tools/{tool_id}/versions/2/activate").raise_for_status()
     page.locator("#versions tr[data-version='1'] button").click()
+    confirm(page, "back to commissioning")
     expect(page.get_by_role("alert")).to_contain_text("this page is out of date")
     with httpx.Client(base_url=fleet.server.url, headers=auth) as http:
         assert http.get(f"/v1/tools/{tool_id}").json()["active_version"] == 2
 
-    # Reloaded, the roll back goes through with the fresh ETag.
+    # Reloaded, the activation goes through with the fresh ETag.
     page.get_by_role("button", name="Reload").click()
     expect(page.get_by_role("alert")).to_have_count(0)  # the page was drawn again
     page.locator("#versions tr[data-version='1'] button").click()
+    confirm(page, "back to commissioning")
     expect(page.locator("#versions tbody tr.active")).to_contain_text("commissioning")
+    expect(page.locator("#activations tbody tr").first).to_contain_text("back to commissioning")
     with httpx.Client(base_url=fleet.server.url, headers=auth) as http:
         assert http.get(f"/v1/tools/{tool_id}").json()["active_version"] == 1
 
