@@ -1,7 +1,8 @@
 """The cell PC's client: `tcpcal tools|calibrate|history|activate|rollback|check|export`.
 
 Every command that takes a TOOL accepts its id, its name when no other tool has it, or
-"robot/tool"; an ambiguous name lists the matches. Talks to a server over HTTP (TCPCAL_URL, default http://127.0.0.1:8000; TCPCAL_API_KEY).
+"robot/tool"; an ambiguous name lists the matches. Talks to a server over HTTP (TCPCAL_URL,
+default http://127.0.0.1:8000; TCPCAL_API_KEY).
 Pose files exported from a pendant (CSV rows of numbers, or a JSON list of poses) are read
 and checked locally in the given format and units before anything is sent.
 
