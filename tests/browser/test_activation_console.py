@@ -17,10 +17,10 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, Page, expect
+from playwright.sync_api import Page, expect
 
 from app.kinematics.poses import pose_to_format
-from tests.browser.test_console import confirm
+from tests.browser.conftest import confirm
 from tests.live.server import LiveServer, fresh_database, live_server
 from tests.sim.touches import simulate_touches
 
@@ -99,15 +99,10 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Setup]:
         yield Setup(server, read_key, tools, missed)
 
 
-@pytest.fixture
-def page(browser: Browser) -> Iterator[Page]:
-    context = browser.new_context(viewport={"width": 1400, "height": 1000})
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
-    yield page
-    assert errors == [], f"script errors on the page: {errors}"
-    context.close()
+@pytest.fixture(scope="module")
+def console_server(setup: Setup) -> LiveServer:
+    """The server the browser fixtures (tests/browser/conftest.py) let the pages reach."""
+    return setup.server
 
 
 def _sign_in(page: Page, setup: Setup, path: str, key: str | None = None) -> None:
