@@ -32,6 +32,12 @@ class Settings(BaseSettings):
         "worker); default: one per core but one (the event loop's); 0 solves in the request's "
         "thread",
     )
+    stale_days: float = Field(
+        default=180.0,
+        gt=0,
+        description="a tool with no calibration and no check for this many days is flagged "
+        "`stale` in the fleet list",
+    )
     public_url: str | None = Field(
         default=None,
         description="The server's URL as technicians and cell PCs reach it (e.g. "

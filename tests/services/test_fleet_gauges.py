@@ -21,7 +21,8 @@ class _Controller(BaseModel):
 
 
 class _Row(FleetTool):
-    attention: list[Literal["check_failed", "stale", "no_active_version"]] = Field(
+    # Narrower codes than the fleet's own, on purpose: the gauges count what rows declare.
+    attention: list[Literal["check_failed", "stale", "no_active_version"]] = Field(  # type: ignore[assignment]
         default_factory=list
     )
     controller: _Controller | None = None
