@@ -32,6 +32,16 @@ class Settings(BaseSettings):
         "worker); default: one per core but one (the event loop's); 0 solves in the request's "
         "thread",
     )
+    secret_key: SecretStr | None = Field(
+        default=None,
+        description="encrypts controller passwords at rest (any long random string; keep it "
+        "out of the database and its backups); a password cannot be stored while it is unset",
+    )
+    reconcile_interval_s: float = Field(
+        default=0.0,
+        ge=0,
+        description="reconcile every robot that has a controller this often (seconds); 0: never",
+    )
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."
     )

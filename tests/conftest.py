@@ -52,6 +52,9 @@ def database(
 
 
 TABLES = (
+    "deployments",
+    "tool_controller_states",
+    "robot_controllers",
     "guided_sessions",
     "audit_events",
     "idempotency_records",
