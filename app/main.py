@@ -16,6 +16,8 @@ from app import __version__, solve_pool
 from app.api import (
     calibrations,
     console,
+    controllers,
+    deployments,
     docs,
     fleet,
     formats,
@@ -109,6 +111,8 @@ def create_app() -> FastAPI:
         formats,
         fleet,
         sessions,
+        controllers,
+        deployments,
         docs,
         console,
     )

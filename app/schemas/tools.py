@@ -7,6 +7,7 @@ from typing import Annotated
 from pydantic import BaseModel, BeforeValidator, Field
 
 from app.jsontypes import JsonObject
+from app.schemas.controllers import ControllerSymbol
 from app.schemas.common import (
     LongText,
     Name,
@@ -54,6 +55,7 @@ class ToolCreate(StrictModel):
     description: LongText | None = None
     load: Load | None = None
     tolerance: Tolerance = Field(default_factory=Tolerance)
+    controller_symbol: ControllerSymbol | None = None
 
 
 class ToolUpdate(StrictModel):
@@ -63,6 +65,7 @@ class ToolUpdate(StrictModel):
     description: LongText | None = None
     load: Load | None = None
     tolerance: Tolerance | None = None
+    controller_symbol: ControllerSymbol | None = None
 
 
 class Tool(BaseModel):
@@ -74,6 +77,9 @@ class Tool(BaseModel):
     description: str | None
     load: Load | None
     tolerance: Tolerance
+    controller_symbol: str | None = Field(
+        default=None, description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"'
+    )
     active_version: int | None
     created_at: Timestamp
     updated_at: Timestamp
