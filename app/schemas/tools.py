@@ -7,7 +7,6 @@ from typing import Annotated
 from pydantic import BaseModel, BeforeValidator, Field
 
 from app.jsontypes import JsonObject
-from app.schemas.controllers import ControllerSymbol
 from app.schemas.common import (
     LongText,
     Name,
@@ -21,6 +20,7 @@ from app.schemas.common import (
     Vec3,
     json_integer,
 )
+from app.schemas.controllers import ControllerSymbol
 
 Slot = Annotated[
     int,

@@ -17,8 +17,8 @@ from app.helpers.tolerance import effective_tolerance
 from app.models import Tool, utcnow
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.services import audit
-from app.services.live import get_live
 from app.services.controllers import check_slot_for_controller
+from app.services.live import get_live
 from app.services.robots import get_robot
 
 
