@@ -6,7 +6,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+
+from app.kinematics.poses import rotation_angle_deg
 
 #: A deployment is verified when the controller reads back within these of what was written.
 DEPLOY_TOLERANCE_MM = 0.001
@@ -25,10 +26,7 @@ def frame_deviation(
     """(distance in mm, rotation angle in deg) between frame a and frame b; quaternions
     [w, x, y, z] (q and -q are the same rotation: the angle is the same)."""
     distance = float(np.linalg.norm(np.asarray(position_a_mm) - np.asarray(position_b_mm)))
-    a = Rotation.from_quat([*quaternion_a[1:], quaternion_a[0]])
-    b = Rotation.from_quat([*quaternion_b[1:], quaternion_b[0]])
-    angle = float(np.degrees((a.inv() * b).magnitude()))
-    return distance, angle
+    return distance, float(rotation_angle_deg(quaternion_a, quaternion_b))
 
 
 def within(deviation: tuple[float, float], *, mm: float, deg: float) -> bool:

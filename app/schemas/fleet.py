@@ -25,6 +25,14 @@ class LastCheck(BaseModel):
     created_at: Timestamp
 
 
+class FleetController(BaseModel):
+    """What the last look at the robot's controller found for the tool."""
+
+    state: Literal["in_sync", "drifted", "no_active_version", "unreachable"]
+    checked_at: Timestamp
+    deviation_mm: float | None
+
+
 class FleetTool(BaseModel):
     id: str
     name: str
@@ -35,6 +43,11 @@ class FleetTool(BaseModel):
     active_version: int | None
     last_calibration: LastCalibration | None
     last_check: LastCheck | None
+    controller: FleetController | None = Field(
+        default=None,
+        description="the tool's state in its robot's controller at the last reconcile or "
+        "deployment; null when never looked at",
+    )
 
 
 class CheckRecord(BaseModel):
@@ -70,4 +83,7 @@ CSV_COLUMNS = (
     "last_check_within_tolerance",
     "last_check_distance_mm",
     "last_check_at",
+    "controller_state",
+    "controller_checked_at",
+    "controller_deviation_mm",
 )

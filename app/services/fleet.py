@@ -14,8 +14,15 @@ from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from app.helpers.pagination import paginate_newest_first, paginate_rows
 from app.jsontypes import JsonObject
-from app.models import AuditEvent, Calibration, Robot, Tool
-from app.schemas.fleet import CSV_COLUMNS, CheckRecord, FleetTool, LastCalibration, LastCheck
+from app.models import AuditEvent, Calibration, Robot, Tool, ToolControllerState
+from app.schemas.fleet import (
+    CSV_COLUMNS,
+    CheckRecord,
+    FleetController,
+    FleetTool,
+    LastCalibration,
+    LastCheck,
+)
 from app.services.tools import get_tool
 
 CHECK_ACTION = "tool.check"
@@ -92,6 +99,7 @@ def list_fleet(
     ids = [t.id for t in tools]
     last_cal = {c.tool_id: c for c in session.execute(_newest_calibrations(ids))}
     last_check = {e.tool_id: e for e in session.execute(_newest_checks(ids))}
+    in_controller = controller_states(session, ids)
     rows = [
         FleetTool(
             id=t.id,
@@ -103,6 +111,7 @@ def list_fleet(
             active_version=t.active_version,
             last_calibration=_last_calibration(last_cal.get(t.id)),
             last_check=_last_check(last_check.get(t.id)),
+            controller=in_controller.get(t.id),
         )
         for t in tools
     ]
@@ -139,6 +148,24 @@ def _newest_checks(ids: list[str]) -> Select[int, str | None, datetime, JsonObje
     )
 
 
+def controller_states(session: Session, ids: list[str]) -> dict[str, FleetController]:
+    """The controller state of each tool of a page that has one (one primary-key read)."""
+    rows = session.execute(
+        select(
+            ToolControllerState.tool_id,
+            ToolControllerState.state,
+            ToolControllerState.checked_at,
+            ToolControllerState.deviation_mm,
+        ).where(ToolControllerState.tool_id.in_(ids))
+    )
+    return {
+        r.tool_id: FleetController(
+            state=r.state, checked_at=r.checked_at, deviation_mm=r.deviation_mm
+        )
+        for r in rows
+    }
+
+
 def _last_calibration(
     row: Row[str, str, str, datetime, float | None] | None,
 ) -> LastCalibration | None:
@@ -167,7 +194,7 @@ def fleet_csv(rows: Sequence[FleetTool]) -> str:
     writer = csv.writer(out, lineterminator="\r\n")
     writer.writerow(CSV_COLUMNS)
     for r in rows:
-        cal, chk = r.last_calibration, r.last_check
+        cal, chk, ctl = r.last_calibration, r.last_check, r.controller
         writer.writerow(
             [
                 r.id,
@@ -182,6 +209,9 @@ def fleet_csv(rows: Sequence[FleetTool]) -> str:
                 "" if chk is None else str(chk.within_tolerance).lower(),
                 "" if chk is None else f"{chk.distance_mm:.3f}",
                 chk.created_at.isoformat() if chk else "",
+                ctl.state if ctl else "",
+                ctl.checked_at.isoformat() if ctl else "",
+                "" if ctl is None or ctl.deviation_mm is None else f"{ctl.deviation_mm:.4f}",
             ]
         )
     return out.getvalue()
