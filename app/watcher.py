@@ -136,7 +136,7 @@ class Watcher:
         self._thread.start()
         self.status.running = True
 
-    def stop(self, timeout_s: float = 1.0) -> None:
+    def stop(self, timeout_s: float = 0.9) -> None:
         """Ask the loop to end and wait up to `timeout_s` for it (a round stalled on a
         controller ends on its own at that controller's timeout; the thread is a daemon)."""
         self._stop.set()
@@ -165,7 +165,12 @@ class Watcher:
                 if self._stop.is_set():
                     return
                 try:
-                    reconcile_robot(robot_id=robot_id, actor=WATCHER, trigger="watcher")
+                    reconcile_robot(
+                        robot_id=robot_id,
+                        actor=WATCHER,
+                        trigger="watcher",
+                        cancelled=self._stop.is_set,
+                    )
                 except Exception as exc:  # one robot's failure must not stop the round
                     self.status.last_error = f"robot {robot_id}: {type(exc).__name__}: {exc}"
                     log.exception("watcher could not reconcile robot %s", robot_id)

@@ -7,6 +7,7 @@ found are then stored in one write transaction, each change of a tool's state an
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from sqlalchemy import select
@@ -133,15 +134,24 @@ def _observation(robot_id: str, tool: ToolToCheck, reading: Reading) -> Observat
     )
 
 
-def reconcile_robot(*, robot_id: str, actor: Principal, trigger: str = "api") -> Reconciliation:
+def reconcile_robot(
+    *,
+    robot_id: str,
+    actor: Principal,
+    trigger: str = "api",
+    cancelled: Callable[[], bool] = lambda: False,
+) -> Reconciliation | None:
     """Read the robot's controller, compare with every live tool's active version, store
-    the states; 404 for the robot, 409 when it has no controller."""
+    the states; 404 for the robot, 409 when it has no controller. None when `cancelled()`
+    turned true while the controller was read (a stopping watcher stores nothing)."""
     with session_scope(write=False) as session:
         get_robot(session, robot_id)
         controller = get_controller(session, robot_id)
         settings = settings_of(controller)
         tools = _tools_to_check(session, robot_id, controller.protocol)
     readings = read_controller(settings, tools)
+    if cancelled():
+        return None
     checked_at = utcnow()
     entered: list[str] = []
     answer_tools: list[dict[str, object]] = []

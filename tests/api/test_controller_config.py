@@ -4,6 +4,7 @@ rest and never given back, logged or backed up in clear."""
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +20,7 @@ SECRET = "a-long-random-secret-for-the-tests-0123456789"
 
 
 @pytest.fixture
-def secret_key(monkeypatch: pytest.MonkeyPatch) -> str:
+def secret_key(monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
     from app.config import get_settings
 
     monkeypatch.setenv("TCPCAL_SECRET_KEY", SECRET)
@@ -51,15 +52,19 @@ def test_put_fills_the_protocols_default_port_and_get_and_delete(api: Api) -> No
         assert r.status_code == 200, r.text
         assert r.json()["port"] == port
         assert r.json()["has_password"] is False
-        assert r.json()["timeout_s"] == 5.0 and r.json()["tls_verify"] is True
+        assert r.json()["timeout_s"] == 5.0
+        assert r.json()["tls_verify"] is True
     got = api.get(f"/v1/robots/{robot['id']}/controller")
-    assert got.status_code == 200 and got.json()["protocol"] == "abb_rws2"
+    assert got.status_code == 200
+    assert got.json()["protocol"] == "abb_rws2"
     assert _put(api, robot["id"], "read", protocol="kuka_kvp", host="a").status_code == 403
     assert api.delete(f"/v1/robots/{robot['id']}/controller").status_code == 204
     gone = api.get(f"/v1/robots/{robot['id']}/controller")
-    assert gone.status_code == 409 and gone.json()["type"].endswith("/no-controller")
+    assert gone.status_code == 409
+    assert gone.json()["type"].endswith("/no-controller")
     actions = [e["action"] for e in _audit(robot["id"])]
-    assert actions.count("controller.set") == 4 and actions.count("controller.delete") == 1
+    assert actions.count("controller.set") == 4
+    assert actions.count("controller.delete") == 1
 
 
 def _audit(robot_id: str) -> list[dict[str, Any]]:
@@ -135,14 +140,16 @@ def test_the_password_is_never_served_logged_or_backed_up_in_clear(
         api, robot["id"], protocol="abb_rws2", host="10.0.0.9", username="Admin", password=PASSWORD
     )
     assert r.status_code == 200, r.text
-    assert r.json()["has_password"] is True and "password" not in r.json()
+    assert r.json()["has_password"] is True
+    assert "password" not in r.json()
     texts.append(r.text)
     # Left out, the stored password is kept; the row holds ciphertext only.
     r = _put(api, robot["id"], protocol="abb_rws2", host="10.0.0.10", username="Admin")
     assert r.json()["has_password"] is True
     texts.append(r.text)
     stored = _stored(robot["id"])
-    assert stored.password_encrypted and PASSWORD not in stored.password_encrypted
+    assert stored.password_encrypted
+    assert PASSWORD not in stored.password_encrypted
     from app import secretbox
 
     assert secretbox.decrypt(stored.password_encrypted) == PASSWORD
@@ -162,7 +169,8 @@ def test_the_password_is_never_served_logged_or_backed_up_in_clear(
         assert PASSWORD not in t
     # null removes it
     r = _put(api, robot["id"], protocol="abb_rws2", host="10.0.0.10", password=None)
-    assert r.json()["has_password"] is False and _stored(robot["id"]).password_encrypted is None
+    assert r.json()["has_password"] is False
+    assert _stored(robot["id"]).password_encrypted is None
 
 
 def test_a_password_under_another_secret_key_is_refused_when_used(
@@ -189,7 +197,8 @@ def test_abb_symbol_without_a_module_is_422_and_stores_nothing(api: Api) -> None
     tool = api.tool(robot["id"], controller_symbol="T_ROB1/user/tTorch")
     assert tool["controller_symbol"] == "T_ROB1/user/tTorch"
     r = api.patch(f"/v1/tools/{tool['id']}", {"controller_symbol": "tTorch"})
-    assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "controller_symbol"]
+    assert r.status_code == 422
+    assert r.json()["errors"][0]["loc"] == ["body", "controller_symbol"]
     assert api.get(f"/v1/tools/{tool['id']}").json()["controller_symbol"] == "T_ROB1/user/tTorch"
 
 
@@ -203,7 +212,8 @@ def test_kuka_slot_17_is_422_naming_the_slot_and_stores_nothing(api: Api) -> Non
     assert api.get(f"/v1/robots/{robot['id']}/tools").json()["items"] == []
     tool = api.tool(robot["id"], slot=16)
     r = api.patch(f"/v1/tools/{tool['id']}", {"slot": 17})
-    assert r.status_code == 422 and r.json()["errors"][0]["loc"] == ["body", "slot"]
+    assert r.status_code == 422
+    assert r.json()["errors"][0]["loc"] == ["body", "slot"]
     assert api.get(f"/v1/tools/{tool['id']}").json()["slot"] == 16
 
 
@@ -212,5 +222,6 @@ def test_a_protocol_whose_tool_numbers_exclude_a_tools_slot_is_422(api: Api) -> 
     api.tool(robot["id"], name="spindle", slot=12)
     r = _put(api, robot["id"], protocol="fanuc_rmi", host="10.0.0.5")
     assert r.status_code == 422, r.text
-    assert r.json()["errors"][0]["loc"] == ["body", "protocol"] and "spindle" in r.json()["detail"]
+    assert r.json()["errors"][0]["loc"] == ["body", "protocol"]
+    assert "spindle" in r.json()["detail"]
     assert _stored(robot["id"]) is None

@@ -75,8 +75,11 @@ def test_deploy_writes_the_active_tcp_reads_it_back_and_records_previous(
     done = _deploy(api, tool_id)
     assert done.status_code == 201, done.text
     dep = done.json()
-    assert dep["status"] == "verified" and dep["version"] == 1 and dep["protocol"] == r.protocol
-    assert dep["deviation_mm"] <= 0.001 and dep["deviation_deg"] <= 0.001
+    assert dep["status"] == "verified"
+    assert dep["version"] == 1
+    assert dep["protocol"] == r.protocol
+    assert dep["deviation_mm"] <= 0.001
+    assert dep["deviation_deg"] <= 0.001
     # the controller holds the active TCP in its own convention
     assert_native_close(r.native(), r.native_of(ACTIVE_POSITION, ACTIVE_Q), mm=0.001, deg=0.001)
     # `previous` is what it held before
@@ -114,14 +117,16 @@ def test_reconcile_finds_a_frame_changed_behind_tcpcals_back(api: Api, protocol_
     drifted = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read").json()
     assert drifted["state"] == "drifted"
     t = drifted["tools"][0]
-    assert t["state"] == "drifted" and t["tool_id"] == tool_id
+    assert t["state"] == "drifted"
+    assert t["tool_id"] == tool_id
     np.testing.assert_allclose(t["controller"]["position_mm"], moved, atol=1e-3)
     np.testing.assert_allclose(t["active"]["position_mm"], ACTIVE_POSITION, atol=1e-9)
     assert t["active"]["version"] == 1
     assert t["deviation_mm"] == pytest.approx(0.5, abs=1e-3)
     since = t["since"]
     again = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read").json()["tools"][0]
-    assert again["state"] == "drifted" and again["since"] == since  # first entered, kept
+    assert again["state"] == "drifted"
+    assert again["since"] == since
     assert _audit_actions(tool_id).count("controller.drifted") == 1
     row = api.get("/v1/tools", params={"robot_id": robot_id}).json()["items"][0]
     assert row["controller"]["state"] == "drifted"
@@ -158,7 +163,8 @@ def test_a_stopped_controller_is_502_unreachable_within_the_timeout_and_recorded
     after = api.get(f"/v1/tools/{tool_id}")
     assert after.headers["etag"] == before.headers["etag"]  # nothing else changed
     recon = api.post(f"/v1/robots/{ids['robot']['id']}/reconcile", scope="read").json()
-    assert recon["state"] == "unreachable" and recon["tools"][0]["error"]
+    assert recon["state"] == "unreachable"
+    assert recon["tools"][0]["error"]
 
 
 def test_a_stalled_controller_is_502_within_the_timeout(api: Api, protocol_rig: Rig) -> None:
@@ -193,7 +199,8 @@ def test_idempotency_key_replays_a_verified_deployment(api: Api, protocol_rig: R
 def test_no_active_version_is_409_and_nothing_recorded(api: Api, protocol_rig: Rig) -> None:
     ids = _setup(api, protocol_rig, calibrated=False)
     r = _deploy(api, ids["tool"]["id"])
-    assert r.status_code == 409 and r.json()["type"].endswith("/no-active-version")
+    assert r.status_code == 409
+    assert r.json()["type"].endswith("/no-active-version")
     assert _deployments(api, ids["tool"]["id"]) == []
 
 
@@ -202,11 +209,13 @@ def test_a_tool_without_its_slot_is_422_naming_it(api: Api) -> None:
         ids = _setup(api, r, slot=None)
         done = _deploy(api, ids["tool"]["id"])
         assert done.status_code == 422, done.text
-        assert done.json()["field"] == "slot" and "1-16" in done.json()["detail"]
+        assert done.json()["field"] == "slot"
+        assert "1-16" in done.json()["detail"]
         assert _deployments(api, ids["tool"]["id"]) == []
         # reconcile leaves it out and says why
         recon = api.post(f"/v1/robots/{ids['robot']['id']}/reconcile", scope="read").json()
-        assert recon["tools"] == [] and recon["not_addressable"][0]["tool_id"] == ids["tool"]["id"]
+        assert recon["tools"] == []
+        assert recon["not_addressable"][0]["tool_id"] == ids["tool"]["id"]
 
 
 def test_an_abb_tool_without_its_symbol_is_422_naming_controller_symbol(api: Api) -> None:
@@ -221,7 +230,8 @@ def test_an_abb_tool_without_its_symbol_is_422_naming_controller_symbol(api: Api
     tool = api.tool(robot["id"])
     api.manual(tool["id"], [0, 0, 100])
     done = _deploy(api, tool["id"])
-    assert done.status_code == 422 and done.json()["field"] == "controller_symbol"
+    assert done.status_code == 422
+    assert done.json()["field"] == "controller_symbol"
     assert _deployments(api, tool["id"]) == []
 
 
@@ -230,6 +240,7 @@ def test_a_robot_without_a_controller_is_409(api: Api) -> None:
     tool = api.tool(robot["id"], slot=1)
     api.manual(tool["id"], [0, 0, 100])
     done = _deploy(api, tool["id"])
-    assert done.status_code == 409 and done.json()["type"].endswith("/no-controller")
+    assert done.status_code == 409
+    assert done.json()["type"].endswith("/no-controller")
     recon = api.post(f"/v1/robots/{robot['id']}/reconcile", scope="read")
     assert recon.status_code == 409
