@@ -150,7 +150,9 @@ class KukaSimulator(TcpSimulator):
                 if len(buffer) < 4 + length:
                     break
                 body, buffer = buffer[4 : 4 + length], buffer[4 + length :]
-                conn.sendall(self._answer(msg_id, body))
+                answer = self._answer(msg_id, body)
+                if not self.stalled:  # stalled mid-session: reads on, answers nothing
+                    conn.sendall(answer)
 
     def _answer(self, msg_id: int, body: bytes) -> bytes:
         mode = body[0]

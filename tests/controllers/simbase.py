@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import socket
 import threading
+from collections.abc import Callable
 from typing import Self
 
 
@@ -19,7 +20,7 @@ class TcpSimulator:
         self.port = 0
         #: True: accept connections, read what comes, answer nothing (a hung controller).
         self.stalled = False
-        self._listener: socket.socket | None = None
+        self._listeners: list[socket.socket] = []
         self._connections: set[socket.socket] = set()
         self._lock = threading.Lock()
         self._threads: list[threading.Thread] = []
@@ -27,15 +28,24 @@ class TcpSimulator:
 
     def start(self) -> Self:
         """Listen on a free loopback port (the same one again after a `stop`)."""
-        self._listener = self._listen(self.port)
-        self.port = self._listener.getsockname()[1]
-        self._spawn(self._accept_loop, self._listener)
+        self.port = self.add_listener(self.port, self.serve)
         return self
 
+    def add_listener(self, port: int, handler: Callable[[socket.socket], None]) -> int:
+        """Listen on `port` (0: a free one) and serve its connections with `handler`."""
+        listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        listener.bind((self.host, port))
+        listener.listen(16)
+        self._listeners.append(listener)
+        self._spawn(self._accept_loop, listener, handler)
+        port_bound: int = listener.getsockname()[1]
+        return port_bound
+
     def stop(self) -> None:
-        """Close the listener and every open connection (a controller switched off)."""
-        listener, self._listener = self._listener, None
-        if listener is not None:
+        """Close the listeners and every open connection (a controller switched off)."""
+        listeners, self._listeners = self._listeners, []
+        for listener in listeners:
             _shutdown(listener)
         with self._lock:
             connections = list(self._connections)
@@ -58,19 +68,14 @@ class TcpSimulator:
         """Speak the protocol on one accepted connection until it closes."""
         raise NotImplementedError
 
-    def _listen(self, port: int) -> socket.socket:
-        listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        listener.bind((self.host, port))
-        listener.listen(16)
-        return listener
-
-    def _spawn(self, target: object, *args: object) -> None:
-        thread = threading.Thread(target=target, args=args, daemon=True)  # type: ignore[arg-type]
+    def _spawn(self, target: Callable[..., None], *args: object) -> None:
+        thread = threading.Thread(target=target, args=args, daemon=True)
         thread.start()
         self._threads.append(thread)
 
-    def _accept_loop(self, listener: socket.socket) -> None:
+    def _accept_loop(
+        self, listener: socket.socket, handler: Callable[[socket.socket], None]
+    ) -> None:
         while True:
             try:
                 conn, _ = listener.accept()
@@ -79,15 +84,15 @@ class TcpSimulator:
             with self._lock:
                 self._connections.add(conn)
                 self.connections_accepted += 1
-            self._spawn(self._serve_one, conn)
+            self._spawn(self._serve_one, conn, handler)
 
-    def _serve_one(self, conn: socket.socket) -> None:
+    def _serve_one(self, conn: socket.socket, handler: Callable[[socket.socket], None]) -> None:
         try:
             if self.stalled:
                 while conn.recv(65536):
                     pass
             else:
-                self.serve(conn)
+                handler(conn)
         except OSError:
             pass
         finally:

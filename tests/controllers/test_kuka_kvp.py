@@ -22,7 +22,7 @@ from app.controllers import (
 )
 from app.controllers.krl import KrlSyntaxError, parse_struct
 from app.controllers.kuka_kvp import KukaKvpConnector
-from tests.controllers.conftest import kuka_settings
+from tests.controllers.fixtures import kuka_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
 from tests.controllers.kuka_sim import KukaSimulator
 
@@ -142,6 +142,19 @@ def test_a_controller_that_never_answers_fails_within_the_timeout(kuka_sim: Kuka
     elapsed = time.monotonic() - started
     assert elapsed < settings.timeout_s + 1.0, elapsed
     assert elapsed >= settings.timeout_s * 0.9, "it gave up before its timeout"
+
+
+def test_a_session_that_stalls_after_connecting_fails_within_the_timeout(
+    kuka_sim: KukaSimulator,
+) -> None:
+    settings = kuka_settings(kuka_sim, timeout_s=0.5)
+    with connect(settings) as kuka:
+        kuka.read_tool(ToolTarget(slot=1))
+        kuka_sim.stalled = True
+        started = time.monotonic()
+        with pytest.raises(ControllerUnreachable, match="did not answer"):
+            kuka.write_tool(ToolTarget(slot=1), ToolData((0, 0, 1), (1, 0, 0, 0)))
+        assert settings.timeout_s * 0.9 <= time.monotonic() - started < settings.timeout_s + 1
 
 
 def test_the_simulator_answers_several_requests_sent_in_one_packet(kuka_sim: KukaSimulator) -> None:
