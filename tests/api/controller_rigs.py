@@ -7,24 +7,28 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
-from app.kinematics.poses import kuka_abc_from_quaternion_wxyz, quaternion_wxyz_from_kuka_abc
+from app.kinematics.poses import (
+    fanuc_wpr_from_quaternion_wxyz,
+    kuka_abc_from_quaternion_wxyz,
+    quaternion_wxyz_from_fanuc_wpr,
+    quaternion_wxyz_from_kuka_abc,
+    rotation_angle_deg,
+)
+from tests.controllers.abb_sim import AbbRwsSimulator
+from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator
 
-#: Every protocol with a simulator (more land with the connectors).
-PROTOCOLS = ["kuka_kvp"]
+#: Every protocol, each with its simulator.
+PROTOCOLS = ["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2"]
 TIMEOUT_S = 2.0
-
-
-class Simulator(Protocol):
-    host: str
-    port: int
-    stalled: bool
-
-    def stop(self) -> None: ...
+SLOT = 3
+SYMBOL = "T_ROB1/user/tTorch"
+#: The simulated ABB controllers' user (tests/controllers/abb_sim.py).
+ABB_USER, ABB_PASSWORD = "Default User", "robotics"
 
 
 @dataclass
@@ -37,58 +41,72 @@ class Rig:
 
     def controller_body(self, **extra: Any) -> dict[str, Any]:
         """The PUT /v1/robots/{id}/controller body that reaches the simulator."""
-        body = {
+        body: dict[str, Any] = {
             "protocol": self.protocol,
             "host": self.sim.host,
             "port": self.sim.port,
             "timeout_s": TIMEOUT_S,
         }
+        if self.protocol.startswith("abb"):
+            # RWS 2.0's simulator has a self-signed certificate
+            body |= {"username": ABB_USER, "password": ABB_PASSWORD, "tls_verify": False}
         return {**body, **extra}
 
     def native(self) -> list[float]:
-        """The tool data as the controller holds it, in its own convention."""
-        if self.protocol == "kuka_kvp":
-            return [float(v) for v in self.sim.tool(3)]
-        raise NotImplementedError(self.protocol)
+        """The tool data as the controller holds it, in its own convention: KUKA X Y Z A B C,
+        FANUC X Y Z W P R, ABB trans and rot (a quaternion q1..q4)."""
+        if self.protocol.startswith("abb"):
+            held = self.sim.tool(SYMBOL)
+            return [*map(float, held.trans), *map(float, held.rot)]
+        return [float(v) for v in self.sim.tool(SLOT)]
 
     def native_of(self, position_mm: list[float], quaternion: list[float]) -> list[float]:
         """A frame in the controller's own convention."""
         if self.protocol == "kuka_kvp":
             return [*position_mm, *map(float, kuka_abc_from_quaternion_wxyz(quaternion))]
-        raise NotImplementedError(self.protocol)
+        if self.protocol == "fanuc_rmi":
+            return [*position_mm, *map(float, fanuc_wpr_from_quaternion_wxyz(quaternion))]
+        return [*position_mm, *quaternion]
 
     def held(self) -> tuple[list[float], list[float]]:
         """The tool data the controller holds as (position_mm, quaternion [w, x, y, z])."""
         values = self.native()
         if self.protocol == "kuka_kvp":
             return values[:3], [float(v) for v in quaternion_wxyz_from_kuka_abc(values[3:])]
-        raise NotImplementedError(self.protocol)
+        if self.protocol == "fanuc_rmi":
+            return values[:3], [float(v) for v in quaternion_wxyz_from_fanuc_wpr(values[3:])]
+        return values[:3], values[3:]
 
     def set_behind_back(self, position_mm: list[float], quaternion: list[float]) -> None:
         """The operator types a frame into the pendant."""
-        if self.protocol == "kuka_kvp":
-            self.sim.set_tool(3, *self.native_of(position_mm, quaternion))
-            return
-        raise NotImplementedError(self.protocol)
+        native = self.native_of(position_mm, quaternion)
+        if self.protocol.startswith("abb"):
+            self.sim.set_tool(SYMBOL, tuple(native[:3]), tuple(native[3:]))
+        else:
+            self.sim.set_tool(SLOT, *native)
 
-    def wrong_password(self) -> dict[str, Any] | None:
-        """Controller fields with a wrong password, or None when the protocol has none."""
-        return None
+    def assert_holds(self, position_mm: list[float], quaternion: list[float]) -> None:
+        """The controller holds this frame within 0.001 mm and 0.001 deg, compared in its
+        own convention (angles modulo 360; ABB's quaternion by the angle between them)."""
+        held, expected = self.native(), self.native_of(position_mm, quaternion)
+        assert np.all(np.abs(np.subtract(held[:3], expected[:3])) <= 0.001), (held, expected)
+        if self.protocol.startswith("abb"):
+            assert rotation_angle_deg(held[3:], expected[3:]) <= 0.001, (held, expected)
+            return
+        diff = (np.subtract(held[3:], expected[3:]) + 180.0) % 360.0 - 180.0
+        assert np.all(np.abs(diff) <= 0.001), (held, expected)
 
 
 @contextmanager
 def rig(protocol: str) -> Iterator[Rig]:
     """The protocol's simulator, started on a free loopback port, stopped afterwards."""
+    sim: Any
     if protocol == "kuka_kvp":
-        with KukaSimulator() as sim:
-            yield Rig(protocol, sim, {"slot": 3})
-        return
-    raise NotImplementedError(protocol)
-
-
-def assert_native_close(held: list[float], expected: list[float], *, mm: float, deg: float) -> None:
-    """Position within `mm` and each angle within `deg` (angles compared modulo 360)."""
-    held_a, exp_a = np.asarray(held), np.asarray(expected)
-    assert np.all(np.abs(held_a[:3] - exp_a[:3]) <= mm), (held, expected)
-    diff = (held_a[3:] - exp_a[3:] + 180.0) % 360.0 - 180.0
-    assert np.all(np.abs(diff) <= deg), (held, expected)
+        sim, fields = KukaSimulator(), {"slot": SLOT}
+    elif protocol == "fanuc_rmi":
+        sim, fields = FanucSimulator(), {"slot": SLOT}
+    else:
+        sim = AbbRwsSimulator(version=1 if protocol == "abb_rws1" else 2)
+        fields = {"controller_symbol": SYMBOL}
+    with sim:
+        yield Rig(protocol, sim, fields)

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from sqlalchemy import text
 
 from app.db import get_engine
-from tests.api.controller_rigs import PROTOCOLS, TIMEOUT_S, Rig, assert_native_close, rig
+from tests.api.controller_rigs import PROTOCOLS, TIMEOUT_S, Rig, rig
 from tests.conftest import Api
 
 ACTIVE_POSITION = [12.5, -3.25, 187.125]
@@ -23,6 +23,17 @@ PREVIOUS_POSITION = [1.0, 2.0, 150.0]
 PREVIOUS_Q = [
     float(v) for v in np.roll(Rotation.from_euler("ZYX", [5, 0, 0], degrees=True).as_quat(), 1)
 ]
+
+
+@pytest.fixture(autouse=True)
+def secret_key(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    """ABB controllers take a password, stored encrypted under this key."""
+    from app.config import get_settings
+
+    monkeypatch.setenv("TCPCAL_SECRET_KEY", "deployment-tests-secret-key-0123456789")
+    get_settings.cache_clear()
+    yield
+    get_settings.cache_clear()
 
 
 @pytest.fixture(params=PROTOCOLS)
@@ -81,7 +92,7 @@ def test_deploy_writes_the_active_tcp_reads_it_back_and_records_previous(
     assert dep["deviation_mm"] <= 0.001
     assert dep["deviation_deg"] <= 0.001
     # the controller holds the active TCP in its own convention
-    assert_native_close(r.native(), r.native_of(ACTIVE_POSITION, ACTIVE_Q), mm=0.001, deg=0.001)
+    r.assert_holds(ACTIVE_POSITION, ACTIVE_Q)
     # `previous` is what it held before
     np.testing.assert_allclose(dep["previous"]["position_mm"], previous_held[0], atol=1e-4)
     assert _angle(dep["previous"]["quaternion"], previous_held[1]) < 1e-3
@@ -244,3 +255,45 @@ def test_a_robot_without_a_controller_is_409(api: Api) -> None:
     assert done.json()["type"].endswith("/no-controller")
     recon = api.post(f"/v1/robots/{robot['id']}/reconcile", scope="read")
     assert recon.status_code == 409
+
+
+WRONG_PASSWORD = "not-the-Robotics-password-4b1d"
+
+
+@pytest.mark.parametrize("protocol", ["abb_rws1", "abb_rws2"])
+def test_a_wrong_password_is_502_refused_in_the_controllers_words(
+    api: Api, protocol: str, capfd: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    with rig(protocol) as r:
+        ids = _setup(api, r)
+        robot_id, tool_id = ids["robot"]["id"], ids["tool"]["id"]
+        put = api.request(
+            "PUT",
+            f"/v1/robots/{robot_id}/controller",
+            "admin",
+            json=r.controller_body(password=WRONG_PASSWORD),
+        )
+        assert put.status_code == 200
+        refused = _deploy(api, tool_id)
+        assert refused.status_code == 502, refused.text
+        problem = refused.json()
+        assert problem["type"].endswith("/controller-refused")
+        assert problem["controller_message"]  # the controller's own words
+        assert problem["controller_message"] in problem["detail"]
+        listed = _deployments(api, tool_id)
+        assert listed[0]["id"] == problem["deployment_id"]
+        assert listed[0]["status"] == "failed"
+        assert listed[0]["error"]["controller_message"] == problem["controller_message"]
+        recon = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
+        assert recon.json()["state"] == "unreachable"
+        captured = capfd.readouterr()
+        for seen in (
+            refused.text,
+            put.text,
+            recon.text,
+            str(listed),
+            captured.err,
+            captured.out,
+            caplog.text,
+        ):
+            assert WRONG_PASSWORD not in seen
