@@ -101,6 +101,7 @@ class Rig:
 def rig(protocol: str) -> Iterator[Rig]:
     """The protocol's simulator, started on a free loopback port, stopped afterwards."""
     sim: Any
+    fields: dict[str, Any]
     if protocol == "kuka_kvp":
         sim, fields = KukaSimulator(), {"slot": SLOT}
     elif protocol == "fanuc_rmi":
