@@ -9,7 +9,11 @@ One module per wire protocol behind one `Connector` interface (app.controllers.b
 | abb_rws1 | abb_rws.py | ABB Robot Web Services 1.0 (RobotWare 6) |
 | abb_rws2 | abb_rws.py | ABB Robot Web Services 2.0 (RobotWare 7) |
 
-`connect(settings)` opens a session with the connector its protocol names.
+`connect(settings)` opens a session with the connector its protocol names. Beside them:
+`krl.py` (KRL structure texts), `rapid.py` (RAPID tooldata texts), `sockets.py` (TCP I/O
+under one deadline). Each read or write has its own deadline of ``timeout_s`` covering all
+its network waits; a session whose controller stopped answering closes without waiting
+again. The simulators the tests drive are in tests/controllers/.
 """
 
 from __future__ import annotations

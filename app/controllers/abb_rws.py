@@ -3,9 +3,10 @@
 Followed: ABB *Application manual - Robot Web Services* (3HAC050973-001, the rwsApi pages
 of developercenter.robotstudio.com), "Operations on RAPID symbol data": get symbol data,
 "Update RAPID variable current value" (``action=set``, form field ``value``), the common
-``json=1`` parameter, HTTP status codes and the error body ``_embedded.status`` {code,
-msg}; checked against the clients abb-robot-client (PyPI, RWS 1.0) and
-Schindler-EPFL-Lab/rws2 (RWS 2.0).
+``json=1`` parameter, HTTP status codes and the error body (``_embedded.status`` {code,
+msg} in 1.0, ``status`` at the top in 2.0, as captured RobotWare 7 replies show); checked
+against the clients abb-robot-client (PyPI, RWS 1.0), Schindler-EPFL-Lab/rws2 and rwswrap
+(PyPI) (RWS 2.0).
 
 RWS 1.0 (RobotWare 6, ``abb_rws1``): HTTP, Digest authentication, a session cookie
 (``-http-session-``, ``ABBCX``) kept for the session's requests;
@@ -30,6 +31,7 @@ message.
 from __future__ import annotations
 
 import contextlib
+import ssl
 from dataclasses import replace
 from types import TracebackType
 
@@ -74,8 +76,10 @@ class AbbRwsConnector:
         host = f"[{settings.host}]" if ":" in settings.host else settings.host
         scheme = "https" if self._v2 else "http"
         self._peer = f"ABB RWS {'2.0' if self._v2 else '1.0'} at {settings.host}:{settings.port}"
+        # ABB's factory user only when no user is named at all; a named user without a
+        # password sends an empty one (and the controller says whether that will do).
         user = settings.username or DEFAULT_USER
-        password = settings.password if settings.password is not None else DEFAULT_PASSWORD
+        password = settings.password or (DEFAULT_PASSWORD if not settings.username else "")
         self._user = user
         auth: httpx.Auth = (
             httpx.BasicAuth(user, password) if self._v2 else httpx.DigestAuth(user, password)
@@ -83,7 +87,9 @@ class AbbRwsConnector:
         self._client = httpx.Client(
             base_url=f"{scheme}://{host}:{settings.port}",
             auth=auth,
-            verify=settings.tls_verify,
+            # The system's trust store (and SSL_CERT_FILE / SSL_CERT_DIR), where a plant puts
+            # its controllers' certificates; not a bundle of public CAs.
+            verify=ssl.create_default_context() if settings.tls_verify else False,
             timeout=settings.timeout_s,
             headers={"Accept": V2_JSON} if self._v2 else {},
             follow_redirects=False,
@@ -321,6 +327,7 @@ def _connect_failure(peer: str, err: httpx.ConnectError) -> str:
     if "CERTIFICATE" in reason.upper() or "SSL" in reason.upper():
         return (
             f"{peer}: the TLS handshake failed ({reason}); the controller's certificate is not "
-            "trusted here: install it in the system's trust store, or set tls_verify false"
+            "trusted here: install it in the system's trust store (or point SSL_CERT_FILE at "
+            "it; its name must match the host), or set tls_verify false"
         )
     return f"cannot connect to {peer}: {reason}"

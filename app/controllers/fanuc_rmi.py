@@ -1,13 +1,16 @@
 """FANUC tool frames over the Remote Motion Interface (option R912).
 
 Followed: FANUC *Remote Motion Interface Operator's Manual* B-84184EN (a copy in
-vertec-io/Fanuc_RMI_API ``docs/``): section 2 "Communication packets" (FRC_Connect on TCP
-16001 answers ``PortNumber``, the port of the session; FRC_Disconnect), section 3
-"Command packets" (FRC_Initialize, FRC_Abort, FRC_ReadUToolData, FRC_WriteUToolData with
-``ToolNumber`` 1-10 and ``Frame`` {X, Y, Z mm, W, P, R deg}), and Appendix A "ErrorID"
-(RMIT-nnn errors are 2556928 + nnn). Every packet is one JSON object ended by ``\\r\\n``;
-every packet sent is answered by one with the same ``Communication``/``Command`` name and
-an ``ErrorID`` (0: done). FRC_Terminate and FRC_SystemFault can arrive unasked.
+vertec-io/Fanuc_RMI_API ``docs/``, whose RMI_COMMANDS_REFERENCE.md and tests give the
+packets as real controllers send them): the communication packets (FRC_Connect on TCP
+16001 answers ``PortNumber``, the port of the session; FRC_Disconnect), the command packets
+(FRC_Initialize, FRC_Abort, FRC_ReadUToolData, FRC_WriteUToolData with ``ToolNumber`` 1-10
+and ``Frame`` {X, Y, Z mm, W, P, R deg}), and the ErrorID table of Appendix A.1 (RMIT-nnn
+alarms are 2556928 + nnn). Every packet is one JSON object ended by ``\r\n``; every packet
+sent is answered by one with the same ``Communication``/``Command`` name and an ``ErrorID``
+(0: done). FRC_Terminate and FRC_SystemFault can arrive unasked. The client fanuc-rmi
+(PyPI) reads the session port from ``Port``; the manual and captured replies say
+``PortNumber``, which this module follows.
 
 W, P, R are fixed-axis X-Y-Z angles: R = Rz(R) Ry(P) Rx(W) (``fanuc_wpr`` in
 app.kinematics.poses). RMI reads and writes only the frame of a UTOOL: the payload lives in
@@ -17,7 +20,8 @@ its load is not written.
 A session runs FRC_Connect -> (session port) FRC_Initialize -> reads/writes -> FRC_Abort ->
 FRC_Disconnect. The controller serves one RMI client at a time, and a session that dies
 without FRC_Disconnect holds the controller until its own timeout (vertec-io notes), so
-`close` always sends FRC_Abort and FRC_Disconnect, briefly, whatever happened before.
+`close` sends FRC_Abort and FRC_Disconnect (within 1 s) whatever happened before, unless
+the controller has stopped answering (then waiting for it again would only stall).
 """
 
 from __future__ import annotations
@@ -86,6 +90,7 @@ MEMO_MESSAGES: dict[int, str] = {
     7015: "MEMO-015 Program already exists",
 }
 _CLOSE_BUDGET_S = 1.0
+_NAME_KEYS = {"Communication", "Command", "Instruction"}
 
 
 def error_text(error_id: int) -> str:
@@ -96,6 +101,24 @@ def error_text(error_id: int) -> str:
     if error_id in MEMO_MESSAGES:
         return f"{MEMO_MESSAGES[error_id]} (ErrorID {error_id})"
     return f"ErrorID {error_id}"
+
+
+def encode_packet(packet: JsonObject) -> bytes:
+    """One RMI packet as sent: JSON with every float in plain decimals (six places, never an
+    exponent: the manual's examples never show one), ended by CRLF."""
+    return _json_text(packet).encode("ascii") + b"\r\n"
+
+
+def _json_text(value: object) -> str:
+    if isinstance(value, dict):
+        items = (f"{json.dumps(str(k))}: {_json_text(v)}" for k, v in value.items())
+        return "{" + ", ".join(items) + "}"
+    if isinstance(value, float):
+        if not np.isfinite(value):
+            raise ValueError(f"{value} cannot be sent to the controller")
+        text = f"{value:.6f}"
+        return "0.000000" if text == "-0.000000" else text
+    return json.dumps(value)
 
 
 class FanucRmiConnector:
@@ -227,15 +250,15 @@ class FanucRmiConnector:
     ) -> JsonObject:
         kind = "Communication" if "Communication" in packet else "Command"
         name = packet[kind]
-        send_all(sock, json.dumps(packet).encode("ascii") + b"\r\n", deadline, peer=self._peer)
+        send_all(sock, encode_packet(packet), deadline, peer=self._peer)
         while True:
             reply = self._read_packet(sock, buffer, deadline)
             if reply.get("Communication") in ("FRC_Terminate", "FRC_SystemFault"):
                 raise ControllerUnreachable(
                     f"{self._peer} ended the session ({reply['Communication']})"
                 )
-            if reply.get(kind) == name:
-                break
+            if reply.get(kind) == name or not _NAME_KEYS & reply.keys():
+                break  # ours, or an unnamed answer (what a controller sends to a bad packet)
             # an answer to something else (a late reply): not ours, keep reading
         error_id = reply.get("ErrorID", 0)
         if not isinstance(error_id, int):

@@ -23,7 +23,7 @@ from app.kinematics.poses import pose_to_format
 from tests.live.server import LiveServer, fresh_database, live_server
 from tests.sim.touches import simulate_touches
 
-pytestmark = pytest.mark.live
+pytestmark = [pytest.mark.live, pytest.mark.browser]
 
 
 @dataclass

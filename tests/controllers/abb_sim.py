@@ -2,15 +2,19 @@
 
 Follows ABB *Application manual - Robot Web Services* (3HAC050973-001, the rwsApi pages):
 "Operations on RAPID symbol data" (get, and ``action=set`` with form field ``value``),
-``json=1``, the HTTP status codes, the error body ``_embedded.status`` {code, msg}, and
+``json=1``, the HTTP status codes, the error body (RWS 1.0 ``_embedded.status`` {code, msg}, RWS 2.0
+``status`` {code, msg} at the top), and
 ``/logout``. Version 1 is RWS 1.0 as RobotWare 6 serves it (HTTP, Digest authentication,
 RFC 7616 MD5 with qop=auth, realm ``validusers@robapi.abb``, then the session cookies
 ``-http-session-`` and ``ABBCX``; the shape abb-robot-client reads). Version 2 is RWS 2.0
 as RobotWare 7 serves it (HTTPS with a self-signed certificate made at start, Basic
-authentication, media types that must carry ``;v=2.0`` (406 / 415 otherwise), the path
+authentication, media types that must carry ``;v=2.0`` (406 for an Accept naming another
+type, 415 for a POST body without it), the path
 ``/rw/rapid/symbol/RAPID/{task}/{module}/{symbol}/data``, the answer's ``state`` list, and
-edit mastership: ``POST /rw/mastership/edit/request`` / ``release``; a write without it is
-refused with 403). The error codes are this simulator's own; the messages say what failed.
+edit mastership: ``POST /rw/mastership/edit/request`` / ``release``, or every domain's with
+``/rw/mastership/request`` / ``release``; a write without it is refused with 403). Answers
+are JSON only (hal+json), not the xhtml+xml RWS also serves. The error codes are this
+simulator's own; the messages say what failed.
 
 Tool data are held as RobotWare holds ``num`` (32-bit float) unless `single_precision` is
 False. `set_tool` / `tool` are the operator at the FlexPendant (Jogging > Tool, or the
@@ -45,6 +49,9 @@ V2 = ";v=2.0"
 _V1_PATH = re.compile(r"^/rw/rapid/symbol/data/RAPID/([^/]+)/([^/]+)/([^/?]+)$")
 _V2_PATH = re.compile(r"^/rw/rapid/symbol/RAPID/([^/]+)/([^/]+)/([^/]+)/data$")
 NOT_FOUND_CODE = -1073442816
+#: codes RobotWare 7 sends (captured replies in public RWS 2.0 clients' tests)
+RESOURCE_NOT_FOUND_CODE = -1073445859
+PARAMETER_CODE = -1073445879
 TYPE_CODE = -1073442815
 MASTERSHIP_CODE = -1073445865
 
@@ -122,6 +129,8 @@ class AbbRwsSimulator:
         self._thread: threading.Thread | None = None
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
         self.certificate_pem: bytes = b""
+        #: the PEM file of the certificate (RWS 2.0), for a client that should trust it
+        self.certificate_path: Path | None = None
 
     # --- lifecycle ----------------------------------------------------------------------
 
@@ -362,6 +371,7 @@ class AbbRwsSimulator:
         key_path = Path(self._tmp.name) / "key.pem"
         self.certificate_pem = cert.public_bytes(serialization.Encoding.PEM)
         cert_path.write_bytes(self.certificate_pem)
+        self.certificate_path = cert_path
         key_path.write_bytes(
             key.private_bytes(
                 serialization.Encoding.PEM,
@@ -422,6 +432,11 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
             extra: dict[str, str] | None = None,
             cookie: _Session | None = None,
         ) -> None:
+            if sim.version == 2 and payload is not None and "_embedded" in payload:
+                # RWS 2.0 puts an error's status at the top: {"_links", "status": {code, msg}}
+                embedded = payload["_embedded"]
+                assert isinstance(embedded, dict)
+                payload = {"_links": payload.get("_links", {}), "status": embedded["status"]}
             data = json.dumps(payload).encode() if payload is not None else b""
             self.send_response(status)
             if data:
@@ -439,7 +454,8 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
             self.wfile.write(data)
 
     def v2_media_problem(method: str, headers: dict[str, str], handler: Handler) -> bool:
-        if V2 not in headers.get("accept", ""):
+        accept = headers.get("accept", "*/*")
+        if V2 not in accept and "*/*" not in accept:
             handler._reply(406, _error(-1, "Not Acceptable: the Accept header needs ;v=2.0"))
             return True
         if method == "POST" and V2 not in headers.get("content-type", ""):
@@ -463,19 +479,21 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
             in (
                 "/rw/mastership/edit/request",
                 "/rw/mastership/edit/release",
+                "/rw/mastership/request",  # all domains, edit included
+                "/rw/mastership/release",
             )
         ):
             return sim.mastership(path.rsplit("/", 1)[1], session)
         match = (_V2_PATH if sim.version == 2 else _V1_PATH).match(path)
         if match is None:
-            return 404, _error(NOT_FOUND_CODE, f"Resource not found: {path}")
+            return 404, _error(RESOURCE_NOT_FOUND_CODE, "Resource not found")
         symbol = "/".join(match.groups())
         if method == "GET":
             return sim.read_symbol(symbol)
         if sim.version == 1 and query.get("action") != "set":
-            return 400, _error(-1, "Missing or unknown action")
+            return 400, _error(PARAMETER_CODE, "Missing or unknown action")
         if "value" not in form:
-            return 400, _error(-1, "Missing parameter: value")
+            return 400, _error(PARAMETER_CODE, "Data parameter is required")
         return sim.write_symbol(symbol, form["value"], session)
 
     return Handler

@@ -20,6 +20,7 @@ import re
 import socket
 import struct
 import threading
+import time
 
 import numpy as np
 
@@ -61,6 +62,8 @@ class KukaSimulator(TcpSimulator):
             s: dict.fromkeys(FRAME_MEMBERS, 0.0) for s in SLOTS
         }
         self.loads: dict[int, dict[str, float]] = {s: _default_load() for s in SLOTS}
+        #: True: each reply goes out a few bytes at a time (as TCP may deliver it)
+        self.split_replies = False
         #: every (mode, variable name, value) received, for tests that look at the wire
         self.requests: list[tuple[int, str, str | None]] = []
 
@@ -151,8 +154,14 @@ class KukaSimulator(TcpSimulator):
                     break
                 body, buffer = buffer[4 : 4 + length], buffer[4 + length :]
                 answer = self._answer(msg_id, body)
-                if not self.stalled:  # stalled mid-session: reads on, answers nothing
+                if self.stalled:  # stalled mid-session: reads on, answers nothing
+                    continue
+                if not self.split_replies:
                     conn.sendall(answer)
+                    continue
+                for start in range(0, len(answer), 3):
+                    conn.sendall(answer[start : start + 3])
+                    time.sleep(0.001)
 
     def _answer(self, msg_id: int, body: bytes) -> bytes:
         mode = body[0]

@@ -129,7 +129,9 @@ def test_a_wrong_password_is_refused_and_never_repeated(
 def test_each_session_logs_out(sim: AbbRwsSimulator) -> None:
     with connect(abb_settings(sim)) as abb:
         abb.read_tool(TORCH)
-        assert len(sim.sessions) == 1
+        abb.write_tool(TORCH, ToolData((0, 0, 5), (1, 0, 0, 0)))
+        abb.read_tool(TORCH)
+        assert len(sim.sessions) == 1, "one controller session, its cookie sent back"
     assert sim.sessions == {}
     assert sim.requests[-1][:2] == ("GET", "/logout")
 
@@ -176,8 +178,13 @@ def test_rws2_simulator_refuses_a_write_without_mastership_and_unversioned_media
         value = {"value": "[TRUE,[[0,0,1],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]]"}
         refused = client.post(path, headers=form, data=value)
         assert refused.status_code == 403
-        assert "edit mastership is required" in refused.json()["_embedded"]["status"]["msg"]
+        assert "edit mastership is required" in refused.json()["status"]["msg"]
         assert client.get(path, headers={"Accept": "application/json"}).status_code == 406
+        missing = client.post(path, headers=form, data={})
+        assert missing.json()["status"] == {
+            "code": -1073445879,
+            "msg": "Data parameter is required",
+        }
         assert (
             client.post(
                 path,
@@ -197,6 +204,17 @@ def test_rws2_with_tls_verify_refuses_an_untrusted_certificate() -> None:
         strict = ControllerSettings(**{**settings.__dict__, "tls_verify": True})
         with pytest.raises(ControllerUnreachable, match="certificate"), connect(strict) as abb:
             abb.read_tool(TORCH)
+
+
+def test_rws2_with_tls_verify_trusts_a_certificate_the_plant_installed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    with AbbRwsSimulator(2) as sim:
+        assert sim.certificate_path is not None
+        monkeypatch.setenv("SSL_CERT_FILE", str(sim.certificate_path))
+        strict = ControllerSettings(**{**abb_settings(sim).__dict__, "tls_verify": True})
+        with connect(strict) as abb:
+            assert abb.read_tool(TORCH).position_mm == (0.0, 0.0, 0.0)
 
 
 def test_rws1_is_plain_http_with_digest() -> None:
@@ -269,3 +287,17 @@ def test_abb_robot_client_reads_and_writes_the_rws1_simulator(
     assert abb_rws1_sim.tool("T_ROB1/user/tTorch").rot == (0.0, 1.0, 0.0, 0.0)
     with pytest.raises(ABBException, match="Symbol not found"):
         client.get_rapid_variable("user/tNothing")
+
+
+@pytest.mark.filterwarnings("ignore::urllib3.exceptions.InsecureRequestWarning")
+def test_rwswrap_reads_and_writes_the_rws2_simulator(abb_rws2_sim: AbbRwsSimulator) -> None:
+    from rwswrap.RWS import RWS as RWS2
+
+    abb_rws2_sim.set_tool("T_ROB1/user/tTorch", (0.0, 0.0, 150.0), (1.0, 0.0, 0.0, 0.0))
+    client = RWS2(abb_rws2_sim.base_url, username="Default User", password="robotics")
+    value = client.get_rapid_variable("tTorch", module="user")
+    assert value == "[TRUE,[[0,0,150],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]]"
+    written = "[TRUE,[[4,5,6],[0,0,0,1]],[1,[0,0,1],[1,0,0,0],0,0,0]]"
+    assert client.set_rapid_variable("tTorch", written, module="user").status_code == 204
+    assert abb_rws2_sim.tool("T_ROB1/user/tTorch").trans == (4.0, 5.0, 6.0)
+    assert abb_rws2_sim.mastership_holder is None, "rwswrap released the mastership it took"

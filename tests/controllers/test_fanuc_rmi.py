@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from app.controllers import ControllerRefused, ControllerUnreachable, ToolData, ToolTarget, connect
 from app.controllers.base import Deadline
-from app.controllers.fanuc_rmi import FanucRmiConnector, error_text
+from app.controllers.fanuc_rmi import FanucRmiConnector, encode_packet, error_text
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import fanuc_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
@@ -186,3 +186,18 @@ def test_fanuc_rmi_client_reads_and_writes_the_simulator(fanuc_sim: FanucSimulat
         finally:
             client.close()
     assert fanuc_sim.tool(2) == (10.5, -20.25, 300.0, 0.0, -90.0, 45.0)
+
+
+def test_packets_carry_plain_decimals_never_an_exponent() -> None:
+    packet = encode_packet(
+        {
+            "Command": "FRC_WriteUToolData",
+            "ToolNumber": 3,
+            "Frame": {"X": 1.5e-14, "Y": -2e-7, "Z": 150.0, "W": 1e20},
+        }
+    )
+    assert packet == (
+        b'{"Command": "FRC_WriteUToolData", "ToolNumber": 3, "Frame": {"X": 0.000000, '
+        b'"Y": 0.000000, "Z": 150.000000, "W": 100000000000000000000.000000}}\r\n'
+    )
+    assert b"e" not in packet.split(b"Frame")[1]

@@ -95,3 +95,27 @@ def test_connect_picks_the_connector_of_the_protocol() -> None:
             assert connector.protocol == f"abb_rws{version}"
     with pytest.raises(ValueError, match="unknown controller protocol"):
         connect(ControllerSettings("ur_rtde", "127.0.0.1", 30004, None, None))  # type: ignore[arg-type]
+
+
+def test_a_simulator_switched_back_on_serves_on_its_port_again() -> None:
+    with KukaSimulator() as kuka:
+        port = kuka.port
+        kuka.stop()
+        kuka.start()
+        assert kuka.port == port
+        with connect(kuka_settings(kuka)) as connector:
+            connector.read_tool(ToolTarget(slot=1))
+    with FanucSimulator() as fanuc:
+        ports = (fanuc.port, fanuc.session_port)
+        fanuc.stop()
+        fanuc.start()
+        assert (fanuc.port, fanuc.session_port) == ports
+        with connect(fanuc_settings(fanuc)) as connector:
+            connector.read_tool(ToolTarget(slot=1))
+    with AbbRwsSimulator(2) as abb:
+        port = abb.port
+        abb.stop()
+        abb.start()
+        assert abb.port == port
+        with connect(abb_settings(abb)) as connector:
+            connector.read_tool(ToolTarget(symbol="T_ROB1/user/tTorch"))

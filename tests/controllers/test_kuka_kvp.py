@@ -157,6 +157,15 @@ def test_a_session_that_stalls_after_connecting_fails_within_the_timeout(
         assert settings.timeout_s * 0.9 <= time.monotonic() - started < settings.timeout_s + 1
 
 
+def test_replies_arriving_a_few_bytes_at_a_time_are_put_together(kuka_sim: KukaSimulator) -> None:
+    kuka_sim.split_replies = True
+    kuka_sim.set_tool(9, 1.0, 2.0, 3.0, 10.0, 20.0, 30.0)
+    with connect(kuka_settings(kuka_sim)) as kuka:
+        tool = kuka.read_tool(ToolTarget(slot=9))
+    assert tool.position_mm == (1.0, 2.0, 3.0)
+    assert_allclose(kuka_abc(tool.quaternion), [10.0, 20.0, 30.0], atol=1e-5)
+
+
 def test_the_simulator_answers_several_requests_sent_in_one_packet(kuka_sim: KukaSimulator) -> None:
     def request(msg_id: int, name: bytes) -> bytes:
         body = b"\x00" + struct.pack("!H", len(name)) + name
