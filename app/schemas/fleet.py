@@ -28,9 +28,11 @@ class LastCheck(BaseModel):
 class FleetController(BaseModel):
     """What the last look at the robot's controller found for the tool."""
 
-    state: Literal["in_sync", "drifted", "no_active_version", "unreachable"]
+    state: Literal["in_sync", "drifted", "no_active_version", "unreachable"] = Field(
+        description="in_sync | drifted | no_active_version | unreachable"
+    )
     checked_at: Timestamp
-    deviation_mm: float | None
+    deviation_mm: float | None = Field(description="controller vs active TCP: distance, mm")
 
 
 class FleetTool(BaseModel):

@@ -55,7 +55,9 @@ class ToolCreate(StrictModel):
     description: LongText | None = None
     load: Load | None = None
     tolerance: Tolerance = Field(default_factory=Tolerance)
-    controller_symbol: ControllerSymbol | None = None
+    controller_symbol: ControllerSymbol | None = Field(
+        default=None, description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"'
+    )
 
 
 class ToolUpdate(StrictModel):
@@ -65,7 +67,9 @@ class ToolUpdate(StrictModel):
     description: LongText | None = None
     load: Load | None = None
     tolerance: Tolerance | None = None
-    controller_symbol: ControllerSymbol | None = None
+    controller_symbol: ControllerSymbol | None = Field(
+        default=None, description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"'
+    )
 
 
 class Tool(BaseModel):
