@@ -297,3 +297,24 @@ def test_a_wrong_password_is_502_refused_in_the_controllers_words(
             caplog.text,
         ):
             assert WRONG_PASSWORD not in seen
+
+
+def test_a_value_the_controller_cannot_hold_is_502_mismatch_and_recorded(api: Api) -> None:
+    """A KRL REAL is a 32-bit float: 40 000.0015 mm is held as 40 000.0 mm, 0.0015 mm off."""
+    with rig("kuka_kvp") as r:
+        robot = api.robot()
+        api.request(
+            "PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=r.controller_body()
+        )
+        tool = api.tool(robot["id"], slot=3)
+        api.manual(tool["id"], [40000.0015, 0.0, 0.0])
+        refused = _deploy(api, tool["id"])
+        assert refused.status_code == 502, refused.text
+        assert refused.json()["type"].endswith("/controller-mismatch")
+        listed = _deployments(api, tool["id"])
+        assert listed[0]["id"] == refused.json()["deployment_id"]
+        assert listed[0]["status"] == "mismatch"
+        assert listed[0]["deviation_mm"] == pytest.approx(0.0015, abs=2e-4)
+        assert listed[0]["read_back"]["position_mm"][0] == pytest.approx(40000.0, abs=1e-6)
+        row = api.get("/v1/tools", params={"robot_id": robot["id"]}).json()["items"][0]
+        assert row["controller"] is None  # a mismatch does not claim the controller in sync

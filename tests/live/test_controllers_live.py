@@ -58,11 +58,16 @@ def test_get_tcp_is_served_while_a_stalled_controller_holds_a_deployment(tmp_pat
             latencies.append(time.monotonic() - started)
             assert got.status_code == 200
             time.sleep(0.02)
+        # no transaction is held open meanwhile: a write (SQLite: one writer at a time) passes
+        started = time.monotonic()
+        assert http.post("/v1/robots", json={"name": "written-meanwhile"}).status_code == 201
+        write_s = time.monotonic() - started
         served_while_waiting = worker.is_alive()
         worker.join(timeout_s + 5)
         assert served_while_waiting
         assert len(latencies) >= 10
         assert max(latencies) < 0.5, latencies
+        assert write_s < 0.5
         response = result["response"]
         assert response.status_code == 502
         assert response.json()["type"].endswith("/controller-unreachable")
