@@ -61,6 +61,7 @@ demo: $(STAMP)
 	mkdir -p var
 	TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal demo
 	@echo "serve it: TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal serve"
+	@echo "its key:  TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal keys create --scope admin --name me"
 
 clean:
 	rm -rf $(VENV) var .pytest_cache .mypy_cache .ruff_cache .hypothesis

@@ -36,7 +36,7 @@ from app.auth import ensure_bootstrap_key
 from app.config import get_settings
 from app.db import get_engine, session_scope
 from app.logs import SERVING_ENV, configure_logging
-from app.middleware import BodyLimitMiddleware, RequestLogMiddleware
+from app.middleware import BodyLimitMiddleware, HeadAsGetMiddleware, RequestLogMiddleware
 from app.migrate import current_revision, head_revision
 from app.openapi import build_openapi
 
@@ -85,6 +85,7 @@ async def lifespan(_: FastAPI) -> AsyncIterator[None]:
         yield
     finally:
         watcher.stop_watcher()
+        solve_pool.stop()
 
 
 def create_app() -> FastAPI:
@@ -126,6 +127,7 @@ def create_app() -> FastAPI:
         app.include_router(module.router)
     docs.mount_assets(app)
     console.mount_assets(app)
+    app.add_middleware(HeadAsGetMiddleware)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     # Outermost: every log line of the request, the access line included, has its id.
     app.add_middleware(RequestLogMiddleware)

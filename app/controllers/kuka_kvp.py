@@ -102,11 +102,17 @@ class KukaKvpConnector:
         a, b, c = (float(v) for v in kuka_abc_from_quaternion_wxyz(np.asarray(data.quaternion)))
         x, y, z = data.position_mm
         frame = format_struct({"X": x, "Y": y, "Z": z, "A": a, "B": b, "C": c})
+        load_name = f"$LOAD_DATA[{target.slot}]"
+        # The load is read before anything is written: a KRC that cannot show it refuses
+        # the deployment before the frame changes.
+        load_text = (
+            _load_text(data.load, self._read_struct(load_name, deadline))
+            if data.load is not None
+            else None
+        )
         self.write_variable(f"$TOOL_DATA[{target.slot}]", frame, deadline)
-        if data.load is not None:
-            name = f"$LOAD_DATA[{target.slot}]"
-            held = self._read_struct(name, deadline)
-            self.write_variable(name, _load_text(data.load, held), deadline)
+        if load_text is not None:
+            self.write_variable(load_name, load_text, deadline)
 
     def close(self) -> None:
         """Close the TCP connection (KUKAVARPROXY keeps no session state)."""
