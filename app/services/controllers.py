@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from sqlalchemy import select
+from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
 
 from app import secretbox
 from app.auth import Principal
 from app.controllers.base import DEFAULT_PORTS, SLOT_RANGES, ControllerSettings
 from app.errors import InvalidInput, NoController, SecretUnreadable
-from app.models import RobotController, Tool, utcnow
+from app.models import RobotController, Tool, ToolControllerState, utcnow
 from app.schemas.controllers import ControllerIn
 from app.services import audit
 from app.services.robots import get_robot
@@ -124,9 +124,12 @@ def check_slot_for_controller(session: Session, *, robot_id: str, slot: int | No
 
 
 def delete_controller(session: Session, *, robot_id: str, actor: Principal) -> None:
-    """Forget how to reach the robot's controller (its deployments stay in the history)."""
+    """Forget how to reach the robot's controller and what its tools' states were (their
+    deployments stay in the history)."""
     controller = get_controller(session, robot_id)
     session.delete(controller)
+    # Without a controller nothing is known of what it holds: the fleet stops saying so.
+    session.execute(delete(ToolControllerState).where(ToolControllerState.robot_id == robot_id))
     audit.record(
         session,
         actor=actor,

@@ -106,6 +106,13 @@ def test_deploy_writes_the_active_tcp_reads_it_back_and_records_previous(
     np.testing.assert_allclose(again["previous"]["position_mm"], ACTIVE_POSITION, atol=1e-3)
     row = api.get("/v1/tools", params={"robot_id": ids["robot"]["id"]}).json()["items"][0]
     assert row["controller"]["state"] == "in_sync"
+    metrics = api.get("/metrics").text
+    assert f'tcpcal_deployments_total{{protocol="{r.protocol}",status="verified"}}' in metrics
+    # the connection removed: the fleet no longer claims a state
+    assert api.delete(f"/v1/robots/{ids['robot']['id']}/controller").status_code == 204
+    row = api.get("/v1/tools", params={"robot_id": ids["robot"]["id"]}).json()["items"][0]
+    assert row["controller"] is None
+    assert len(_deployments(api, tool_id)) == 2  # the history stays
 
 
 def _angle(q1: list[float], q2: list[float]) -> float:

@@ -11,7 +11,7 @@ from sqlalchemy import text
 from app.db import get_engine
 from tests.api.controller_rigs import rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, _setup
-from tests.conftest import Api
+from tests.conftest import Api, Database
 
 INTERVAL_S = 1.0
 
@@ -104,3 +104,37 @@ def test_one_round_at_a_time_per_database(api: Api) -> None:
             assert second is False
     with fleet_lock() as again:
         assert again is True
+
+
+def test_another_process_holding_the_sqlite_lock_keeps_this_one_out(api: Api, db: Database) -> None:
+    """The flock next to the database file: held by another process, this one skips."""
+    import subprocess
+    import sys
+
+    from app.db import get_engine as engine_of
+    from app.watcher import fleet_lock
+
+    if db.backend != "sqlite":
+        pytest.skip("the advisory lock of PostgreSQL is tested with two live servers")
+    path = f"{engine_of().url.database}-watcher.lock"
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import fcntl, sys, time\n"
+            f"f = open({path!r}, 'ab'); fcntl.flock(f.fileno(), fcntl.LOCK_EX)\n"
+            "print('held', flush=True); time.sleep(30)",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout is not None
+        assert holder.stdout.readline().strip() == "held"
+        with fleet_lock() as taken:
+            assert taken is False
+    finally:
+        holder.kill()
+        holder.wait()
+    with fleet_lock() as taken:
+        assert taken is True
