@@ -38,7 +38,7 @@ async def deploy_tool(
     tool_id: PathId,
     request: Request,
     response: Response,
-    body: Annotated[DeploymentIn, Body()],
+    body: Annotated[DeploymentIn | None, Body()] = None,
     idempotency_key: IdempotencyKey = None,
     authorization: Annotated[str | None, Header(include_in_schema=False)] = None,
 ) -> object:
@@ -47,11 +47,11 @@ async def deploy_tool(
     held before as `previous`). Every attempt is recorded; a failed one answers 502
     `/controller-unreachable`, `/controller-refused` or `/controller-mismatch` with its
     `deployment_id`. 409 `/no-active-version`; 422 naming the tool's `slot` or
-    `controller_symbol` when the controller cannot address it. Calibrate scope; retry-safe
-    with `Idempotency-Key`."""
+    `controller_symbol` when the controller cannot address it. The body is `{}` (or none).
+    Calibrate scope; retry-safe with `Idempotency-Key`."""
     key = authenticate_held(loop_engine(), authorization, required="calibrate")
     request.scope[KEY_NAME] = key.name
-    raw_body = await raw_json_body(request)
+    raw_body = {} if body is None else await raw_json_body(request)  # no body: as {}
     document, replayed = await run_in_threadpool(
         lambda: deployments.deploy(
             tool_id=tool_id, actor=key, idempotency_key=idempotency_key, raw_body=raw_body

@@ -205,6 +205,8 @@ def test_idempotency_key_replays_a_verified_deployment(api: Api, protocol_rig: R
     assert second.headers.get("idempotent-replayed") == "true"
     assert second.json() == first.json()
     assert len(_deployments(api, tool_id)) == 1
+    bodiless = api.request("POST", f"/v1/tools/{tool_id}/deployments", "calibrate")
+    assert bodiless.status_code == 201, bodiless.text  # no body is the same as {}
     other = api.post(
         f"/v1/tools/{tool_id}/deployments",
         {"x": 1},
