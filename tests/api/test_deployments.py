@@ -327,3 +327,25 @@ def test_a_value_the_controller_cannot_hold_is_502_mismatch_and_recorded(api: Ap
         assert listed[0]["read_back"]["position_mm"][0] == pytest.approx(40000.0, abs=1e-6)
         row = api.get("/v1/tools", params={"robot_id": robot["id"]}).json()["items"][0]
         assert row["controller"] is None  # a mismatch does not claim the controller in sync
+
+
+def test_a_symbol_the_controller_does_not_know_is_refused_in_its_words(api: Api) -> None:
+    """Deploying to a missing PERS tooldata is refused (nothing written); reconcile reads the
+    robot's other tools all the same and says which one it could not read, and why."""
+    with rig("abb_rws1") as r:
+        ids = _setup(api, r)
+        robot_id = ids["robot"]["id"]
+        missing = api.tool(robot_id, name="glue", controller_symbol="T_ROB1/user/tGlue")
+        api.manual(missing["id"], [0.0, 0.0, 120.0])
+        refused = _deploy(api, missing["id"])
+        assert refused.status_code == 502, refused.text
+        assert refused.json()["type"].endswith("/controller-refused")
+        assert refused.json()["controller_message"]
+        assert "T_ROB1/user/tGlue" not in r.sim.symbols  # nothing was created
+        assert _deploy(api, ids["tool"]["id"]).status_code == 201
+        recon = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read").json()
+        states = {t["tool_id"]: t for t in recon["tools"]}
+        assert states[ids["tool"]["id"]]["state"] == "in_sync"
+        assert states[missing["id"]]["state"] == "unreachable"
+        assert states[missing["id"]]["error"].startswith("refused: ")
+        assert recon["state"] == "unreachable"  # the worst of its tools'
