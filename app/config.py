@@ -42,6 +42,12 @@ class Settings(BaseSettings):
         ge=0,
         description="reconcile every robot that has a controller this often (seconds); 0: never",
     )
+    public_url: str | None = Field(
+        default=None,
+        description="The server's URL as technicians and cell PCs reach it (e.g. "
+        "https://tcpcal.plant.example), written into controller files' headers; default: "
+        "the URL each request came to.",
+    )
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."
     )
