@@ -48,6 +48,12 @@ class Settings(BaseSettings):
         "https://tcpcal.plant.example), written into controller files' headers; default: "
         "the URL each request came to.",
     )
+    stale_days: float = Field(
+        default=180.0,
+        gt=0,
+        description="a tool with no calibration and no check for this many days is flagged "
+        "`stale` in the fleet list",
+    )
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."
     )

@@ -20,6 +20,7 @@ from app.services import audit
 from app.services.controllers import check_slot_for_controller
 from app.services.live import get_live
 from app.services.robots import get_robot
+from app.services.slots import check_slot
 
 
 def get_tool(session: Session, tool_id: str, *, for_update: bool = False) -> Tool:
@@ -95,7 +96,8 @@ def _tool_unique(
 
 def create_tool(session: Session, *, robot_id: str, data: ToolCreate, actor: Principal) -> Tool:
     """Register a tool on a robot (name and slot unique among the robot's live tools)."""
-    get_robot(session, robot_id, for_update=True)
+    robot = get_robot(session, robot_id, for_update=True)
+    check_slot(robot.vendor, data.slot, loc=("body", "slot"))
     _tool_unique(session, robot_id=robot_id, name=data.name, slot=data.slot)
     check_slot_for_controller(session, robot_id=robot_id, slot=data.slot)
     values = data.model_dump()
@@ -135,6 +137,8 @@ def update_tool(
     changes = data.model_dump(exclude_unset=True)
     if changes.get("name", "") is None:
         changes.pop("name")
+    if changes.get("slot") is not None:
+        check_slot(get_robot(session, tool.robot_id).vendor, changes["slot"], loc=("body", "slot"))
     _tool_unique(
         session,
         robot_id=tool.robot_id,

@@ -148,6 +148,9 @@ def test_reconcile_finds_a_frame_changed_behind_tcpcals_back(api: Api, protocol_
     assert _audit_actions(tool_id).count("controller.drifted") == 1
     row = api.get("/v1/tools", params={"robot_id": robot_id}).json()["items"][0]
     assert row["controller"]["state"] == "drifted"
+    assert row["attention"] == ["controller_drifted"]
+    flagged = api.get("/v1/tools", params={"attention": "true"}).json()["items"]
+    assert [t["id"] for t in flagged] == [tool_id]
     assert row["controller"]["deviation_mm"] == pytest.approx(0.5, abs=1e-3)
     csv = api.get("/v1/tools", headers={"Accept": "text/csv"}).text
     assert ",drifted," in csv
@@ -183,6 +186,8 @@ def test_a_stopped_controller_is_502_unreachable_within_the_timeout_and_recorded
     recon = api.post(f"/v1/robots/{ids['robot']['id']}/reconcile", scope="read").json()
     assert recon["state"] == "unreachable"
     assert recon["tools"][0]["error"]
+    row = api.get("/v1/tools", params={"robot_id": ids["robot"]["id"]}).json()["items"][0]
+    assert row["attention"] == ["controller_unreachable"]
 
 
 def test_a_stalled_controller_is_502_within_the_timeout(api: Api, protocol_rig: Rig) -> None:

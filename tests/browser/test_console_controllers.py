@@ -106,4 +106,4 @@ def test_the_fleet_shows_a_drifted_controller_as_needing_attention(page: Page, c
     row = page.locator(f"#fleet tbody tr[data-tool-id='{cell.tool_id}']")
     expect(row).to_have_class("attention")
     expect(row.locator("td.controller-state")).to_have_text("drifted 0.250 mm")
-    expect(row.locator("td.reasons")).to_contain_text("controller drifted")
+    expect(row.locator("td.reasons [data-code=controller_drifted]")).to_have_count(1)
