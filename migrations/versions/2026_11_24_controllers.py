@@ -1,7 +1,7 @@
 """robot controllers, deployments, per-tool controller state, tools.controller_symbol
 
 Revision ID: 2026_11_24_controllers
-Revises: 2026_11_23_tools_live_created
+Revises: 2026_11_24_activation_reason
 Create Date: 2026-11-24 05:30:00
 """
 
@@ -14,7 +14,7 @@ from alembic import op
 
 
 revision: str = "2026_11_24_controllers"
-down_revision: str | None = "2026_11_23_tools_live_created"
+down_revision: str | None = "2026_11_24_activation_reason"  # chained after i24-activation (merged)
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
