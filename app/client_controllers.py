@@ -101,6 +101,11 @@ def deploy(
         _deviation(dep["deviation_mm"], dep["deviation_deg"]),
     )
     out.print(table)
+    out.print(
+        f"{dep['status']}: {dep['target']} holds version {dep['version']}",
+        highlight=False,
+        soft_wrap=True,
+    )
 
 
 def reconcile(robot_id: Annotated[str, typer.Argument(help="the robot's id")]) -> None:
@@ -124,8 +129,18 @@ def reconcile(robot_id: Annotated[str, typer.Argument(help="the robot's id")]) -
             _deviation(t["deviation_mm"], t["deviation_deg"]),
         )
     out.print(table)
+    for t in result["tools"]:
+        if t["state"] == "drifted":
+            out.print(
+                f"drifted: {t['tool_id']} at {t['target']} is off by "
+                f"{_deviation(t['deviation_mm'], t['deviation_deg'])}",
+                highlight=False,
+                soft_wrap=True,
+            )
     for skipped in result.get("not_addressable", []):
-        out.print(f"left out {skipped['tool_id']}: {skipped['reason']}", highlight=False)
-    out.print(f"robot {result['robot_id']}: {result['state']}", highlight=False)
+        out.print(
+            f"left out {skipped['tool_id']}: {skipped['reason']}", highlight=False, soft_wrap=True
+        )
+    out.print(f"robot {result['robot_id']}: {result['state']}", highlight=False, soft_wrap=True)
     exits = {"in_sync": 0, "drifted": EXIT_DRIFTED, "unreachable": EXIT_CONTROLLER_UNREACHABLE}
     raise typer.Exit(exits[result["state"]])

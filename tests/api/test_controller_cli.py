@@ -36,16 +36,14 @@ def test_deploy_and_reconcile_exit_codes(api: Api, runner: CliRunner) -> None:
         tool_id, robot_id = ids["tool"]["id"], ids["robot"]["id"]
         done = runner.invoke(cli, ["deploy", tool_id])
         assert done.exit_code == 0, done.output
-        assert "verified" in done.output
-        assert "$TOOL_DATA[3]" in done.output
+        assert "verified: $TOOL_DATA[3] holds version 1" in done.output
         synced = runner.invoke(cli, ["reconcile", robot_id])
         assert synced.exit_code == 0, synced.output
         assert "in_sync" in synced.output
         r.set_behind_back([ACTIVE_POSITION[0] + 1, *ACTIVE_POSITION[1:]], ACTIVE_Q)
         drifted = runner.invoke(cli, ["reconcile", robot_id])
         assert drifted.exit_code == 2, drifted.output
-        assert "drifted" in drifted.output
-        assert "1.0000 mm" in drifted.output
+        assert f"drifted: {tool_id} at $TOOL_DATA[3] is off by 1.0000 mm" in drifted.output
         r.sim.stop()
         gone = runner.invoke(cli, ["reconcile", robot_id])
         assert gone.exit_code == 3, gone.output
