@@ -55,6 +55,7 @@ TABLES = (
     "deployments",
     "tool_controller_states",
     "robot_controllers",
+    "outbox",
     "guided_sessions",
     "audit_events",
     "idempotency_records",
