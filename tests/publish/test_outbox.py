@@ -14,7 +14,8 @@ from sqlalchemy.orm import Session
 from app.auth import Principal
 from app.db import make_engine, session_scope
 from app.models import Activation, OutboxMessage, utcnow
-from app.services import audit, outbox, versions
+from app.schemas.tools import ActivationRequest
+from app.services import activation, audit, outbox
 from tests.conftest import Api, Database
 
 ACTOR = Principal(key_id="k", name="tester", scope="admin")
@@ -73,7 +74,14 @@ def test_api_keys_and_reads_write_nothing(api: Api) -> None:
 
 def _activate_then_fail(tool_id: str) -> None:
     with session_scope(write=True) as session:
-        versions.activate_version(session, tool_id=tool_id, version=1, if_match=None, actor=ACTOR)
+        activation.activate_version(
+            session,
+            tool_id=tool_id,
+            version=1,
+            body=ActivationRequest(),
+            if_match=None,
+            actor=ACTOR,
+        )
         raise RuntimeError("the request failed after the activation")
 
 
@@ -85,8 +93,13 @@ def test_a_rolled_back_change_leaves_no_row(api: Api) -> None:
         _activate_then_fail(tool["id"])
     assert len(_rows()) == before
     with session_scope(write=True) as session:
-        versions.activate_version(
-            session, tool_id=tool["id"], version=1, if_match=None, actor=ACTOR
+        activation.activate_version(
+            session,
+            tool_id=tool["id"],
+            version=1,
+            body=ActivationRequest(),
+            if_match=None,
+            actor=ACTOR,
         )
     assert [r.action for r in _rows()[before:]] == ["version.activate"]
 
@@ -158,10 +171,11 @@ def test_concurrent_activations_reach_the_outbox_in_their_commit_order(api: Api)
     def activate_some(seed: int) -> None:
         for i in range(4):
             with session_scope(write=True) as session:
-                versions.activate_version(
+                activation.activate_version(
                     session,
                     tool_id=tool["id"],
                     version=1 + (seed + i) % 3,
+                    body=ActivationRequest(),
                     if_match=None,
                     actor=ACTOR,
                 )
