@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from app.client import register as register_client
+from app.client_controllers import register as register_controller_commands
 
 if TYPE_CHECKING:
     import httpx
@@ -331,3 +332,4 @@ def main() -> None:
 
 
 register_client(cli)
+register_controller_commands(cli)

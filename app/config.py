@@ -32,17 +32,27 @@ class Settings(BaseSettings):
         "worker); default: one per core but one (the event loop's); 0 solves in the request's "
         "thread",
     )
-    stale_days: float = Field(
-        default=180.0,
-        gt=0,
-        description="a tool with no calibration and no check for this many days is flagged "
-        "`stale` in the fleet list",
+    secret_key: SecretStr | None = Field(
+        default=None,
+        description="encrypts controller passwords at rest (any long random string; keep it "
+        "out of the database and its backups); a password cannot be stored while it is unset",
+    )
+    reconcile_interval_s: float = Field(
+        default=0.0,
+        ge=0,
+        description="reconcile every robot that has a controller this often (seconds); 0: never",
     )
     public_url: str | None = Field(
         default=None,
         description="The server's URL as technicians and cell PCs reach it (e.g. "
         "https://tcpcal.plant.example), written into controller files' headers; default: "
         "the URL each request came to.",
+    )
+    stale_days: float = Field(
+        default=180.0,
+        gt=0,
+        description="a tool with no calibration and no check for this many days is flagged "
+        "`stale` in the fleet list",
     )
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."

@@ -82,6 +82,32 @@ class Conflict(DomainError):
     status, kind, title = 409, "conflict", "Conflict"
 
 
+class NothingToDeploy(Conflict):
+    """A deployment of a tool that has no active version (409, not the read's 404)."""
+
+    kind, title = "no-active-version", "No active version"
+
+
+class NoController(Conflict):
+    kind, title = "no-controller", "Robot has no controller"
+
+
+class SecretUnreadable(Conflict):
+    kind, title = "secret-unavailable", "Stored secret unreadable"
+
+
+class ControllerUnreachableError(DomainError):
+    status, kind, title = 502, "controller-unreachable", "Controller unreachable"
+
+
+class ControllerRefusedError(DomainError):
+    status, kind, title = 502, "controller-refused", "Controller refused"
+
+
+class ControllerMismatch(DomainError):
+    status, kind, title = 502, "controller-mismatch", "Controller holds something else"
+
+
 class OutOfTolerance(DomainError):
     """Activating a version stored as out of tolerance without `force` and a reason."""
 
@@ -135,6 +161,8 @@ INPUT_KINDS: dict[str, str] = {
     "unsupported": "Not supported",
     "convention-mismatch": "Convention mismatch",
     "target-unreachable": "Target out of reach",
+    "missing-secret-key": "Secret key not configured",
+    "controller-target": "Tool has no place in its controller",
 }
 
 

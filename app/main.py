@@ -12,10 +12,12 @@ from fastapi import FastAPI
 from fastapi.routing import APIRoute
 from sqlalchemy.exc import SQLAlchemyError
 
-from app import __version__, solve_pool
+from app import __version__, solve_pool, watcher
 from app.api import (
     calibrations,
     console,
+    controllers,
+    deployments,
     docs,
     fleet,
     formats,
@@ -76,9 +78,13 @@ async def lifespan(_: FastAPI) -> AsyncIterator[None]:
     if os.environ.get(SERVING_ENV):  # a server (not a test's app): start solvers up front
         solve_pool.start()
         settle_heap()
+    interval = get_settings().reconcile_interval_s
+    if interval > 0:
+        watcher.start_watcher(interval)
     try:
         yield
     finally:
+        watcher.stop_watcher()
         solve_pool.stop()
 
 
@@ -112,6 +118,8 @@ def create_app() -> FastAPI:
         formats,
         fleet,
         sessions,
+        controllers,
+        deployments,
         docs,
         console,
     )

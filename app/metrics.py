@@ -50,6 +50,21 @@ DB_SECONDS = Histogram(
     "Time the database took per SQL statement.",
     buckets=(0.0005, 0.001, 0.002, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 1.0),
 )
+DEPLOYMENTS = Counter(
+    "tcpcal_deployments",
+    "Deployments to robot controllers by protocol and status (verified, failed, mismatch).",
+    ["protocol", "status"],
+)
+CONTROLLER_STATE_CHANGES = Counter(
+    "tcpcal_controller_state_changes",
+    "Changes of a tool's controller state, by the state entered (in_sync, drifted, unreachable).",
+    ["state"],
+)
+RECONCILES = Counter(
+    "tcpcal_reconciles",
+    "Robots reconciled with their controller, by who asked (api, watcher) and the robot's state.",
+    ["trigger", "state"],
+)
 SESSIONS_OPEN = Gauge(
     "tcpcal_db_sessions_open",
     "Database sessions (units of work) open right now, over all workers.",

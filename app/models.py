@@ -15,6 +15,7 @@ from datetime import UTC, datetime
 from sqlalchemy import (
     JSON,
     BigInteger,
+    Boolean,
     DateTime,
     Float,
     ForeignKey,
@@ -168,6 +169,8 @@ class Tool(Base):
     description: Mapped[str | None] = mapped_column(Text)
     load: Mapped[JsonObject | None] = mapped_column(JSON)
     tolerance: Mapped[JsonObject] = mapped_column(JSON)
+    #: ABB: the PERS tooldata the controller holds this tool in, "TASK/MODULE/SYMBOL".
+    controller_symbol: Mapped[str | None] = mapped_column(String(100))
     active_version: Mapped[int | None] = mapped_column(Integer)
     last_version: Mapped[int] = mapped_column(Integer, default=0)
     revision: Mapped[int] = mapped_column(Integer, default=1)
@@ -344,6 +347,63 @@ class GuidedSession(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str] = mapped_column(String(200))
+
+
+class RobotController(Base):
+    """How to reach a robot's controller. The password is stored encrypted (app.secretbox)."""
+
+    __tablename__ = "robot_controllers"
+
+    robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"), primary_key=True)
+    protocol: Mapped[str] = mapped_column(String(20))
+    host: Mapped[str] = mapped_column(String(253))
+    port: Mapped[int] = mapped_column(Integer)
+    username: Mapped[str | None] = mapped_column(String(200))
+    password_encrypted: Mapped[str | None] = mapped_column(Text)
+    timeout_s: Mapped[float] = mapped_column(Float)
+    tls_verify: Mapped[bool] = mapped_column(Boolean)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
+class Deployment(Base):
+    """One attempt to write a tool's active version into its controller, verified or not."""
+
+    __tablename__ = "deployments"
+    __table_args__ = (Index("ix_deployments_tool_seq", "tool_id", "id"),)
+
+    id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
+    robot_id: Mapped[str] = mapped_column(String(36))
+    version: Mapped[int] = mapped_column(Integer)
+    protocol: Mapped[str] = mapped_column(String(20))
+    target: Mapped[str] = mapped_column(String(300))
+    status: Mapped[str] = mapped_column(String(20))
+    previous: Mapped[JsonObject | None] = mapped_column(JSON)
+    read_back: Mapped[JsonObject | None] = mapped_column(JSON)
+    deviation_mm: Mapped[float | None] = mapped_column(Float)
+    deviation_deg: Mapped[float | None] = mapped_column(Float)
+    error: Mapped[JsonObject | None] = mapped_column(JSON)
+    actor: Mapped[str] = mapped_column(String(200))
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
+class ToolControllerState(Base):
+    """What the last reconcile found in the controller for a tool, and since when."""
+
+    __tablename__ = "tool_controller_states"
+
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"), primary_key=True)
+    robot_id: Mapped[str] = mapped_column(String(36), index=True)
+    state: Mapped[str] = mapped_column(String(20))
+    since: Mapped[datetime] = mapped_column()
+    checked_at: Mapped[datetime] = mapped_column()
+    target: Mapped[str | None] = mapped_column(String(300))
+    deviation_mm: Mapped[float | None] = mapped_column(Float)
+    deviation_deg: Mapped[float | None] = mapped_column(Float)
+    controller: Mapped[JsonObject | None] = mapped_column(JSON)
+    active_version: Mapped[int | None] = mapped_column(Integer)
+    error: Mapped[str | None] = mapped_column(Text)
 
 
 class OutboxMessage(Base):

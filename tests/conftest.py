@@ -52,6 +52,9 @@ def database(
 
 
 TABLES = (
+    "deployments",
+    "tool_controller_states",
+    "robot_controllers",
     "outbox",
     "guided_sessions",
     "audit_events",

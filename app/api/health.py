@@ -11,6 +11,7 @@ from app.deps import ReadKey
 from app.fleet_metrics import FLEET
 from app.metrics import render
 from app.migrate import current_revision, head_revision
+from app.watcher import watcher_document
 
 router = APIRouter(tags=["operations"])
 
@@ -23,8 +24,8 @@ def health() -> dict[str, str]:
 
 @router.get("/ready", responses={503: {"description": "not ready"}})
 def ready() -> JSONResponse:
-    """Readiness: the database answers and its migrations are at head (503 otherwise). No key
-    needed."""
+    """Readiness: the database answers and its migrations are at head (503 otherwise), and
+    the state of this process's controller watcher. No key needed."""
     head = head_revision()
     try:
         current = current_revision(get_engine())
@@ -34,7 +35,13 @@ def ready() -> JSONResponse:
             status_code=503,
         )
     at_head = current == head
-    body = {"ready": at_head, "database": "reachable", "revision": current, "head": head}
+    body = {
+        "ready": at_head,
+        "database": "reachable",
+        "revision": current,
+        "head": head,
+        "watcher": watcher_document(),
+    }
     return JSONResponse(body, status_code=200 if at_head else 503)
 
 

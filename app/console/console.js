@@ -191,6 +191,8 @@ const ATTENTION = {
   check_failed: "the last check found the TCP out of tolerance",
   no_active_version: "no active TCP: calibrate or activate a version",
   stale: "neither calibrated nor checked for a long time (TCPCAL_STALE_DAYS)",
+  controller_drifted: "the robot's controller holds another TCP than the active one (deploy, or find out who changed it)",
+  controller_unreachable: "the robot's controller could not be read at the last look",
 };
 
 async function fleetPage() {
@@ -216,7 +218,7 @@ async function fleetPage() {
   const table = h(
     "table",
     { id: "fleet" },
-    h("thead", {}, h("tr", {}, ["Tool", "Robot", "Cell", "Slot", "Active", "Last calibration", "rms mm", "Age", "Last check", "Attention"].map((c) => h("th", {}, c)))),
+    h("thead", {}, h("tr", {}, ["Tool", "Robot", "Cell", "Slot", "Active", "Last calibration", "rms mm", "Age", "Last check", "Controller", "Attention"].map((c) => h("th", {}, c)))),
     body,
   );
   show(h("h1", {}, "Fleet"), filters, summary, table);
@@ -267,9 +269,111 @@ function fleetRow(tool) {
     h("td", { class: "num" }, last ? mm(last.rms_mm) : "—"),
     h("td", { class: "num", title: last ? when(last.created_at) : "" }, last ? age(last.created_at) : "—"),
     h("td", {}, check ? h("span", { class: `badge ${check.within_tolerance ? "accepted" : "out_of_tolerance"}` }, `${check.within_tolerance ? "pass" : "fail"} ${mm(check.distance_mm)}`) : "—"),
+    h("td", { class: "controller-state" }, controllerBadge(tool.controller)),
     h("td", { class: "reasons", title: codes.map((c) => ATTENTION[c] ?? c).join("; ") },
       codes.map((c) => h("span", { class: "code", "data-code": c }, c))),
   );
+}
+
+// ---- controllers ----------------------------------------------------------------------------
+const CONTROLLER_LABELS = {
+  in_sync: "in sync",
+  drifted: "drifted",
+  unreachable: "unreachable",
+  no_active_version: "no active TCP",
+};
+
+function controllerBadge(controller) {
+  if (!controller) return "—";
+  const label = CONTROLLER_LABELS[controller.state] ?? controller.state;
+  const deviation = controller.state === "drifted" ? ` ${mm(controller.deviation_mm)} mm` : "";
+  return h("span", { class: `badge controller ${controller.state}`, title: `checked ${when(controller.checked_at)}` }, label + deviation);
+}
+
+const frameText = (f) => (f ? `${vec(f.position_mm)} | q ${f.quaternion.map((v) => v.toFixed(5)).join(", ")}` : "—");
+
+// The tool page's controller section: the state found at the last look, the connection, a
+// Deploy button that asks for confirmation first, and every deployment, newest first.
+async function controllerSection(tool, onChange) {
+  const section = h("section", { id: "controller" }, h("h2", {}, "Controller"));
+  let connection = null;
+  try {
+    connection = await json(`/v1/robots/${tool.robot_id}/controller`);
+  } catch (error) {
+    if (!(error instanceof Problem) || error.status !== 409) throw error;
+  }
+  const [rows, deployments] = await Promise.all([
+    everyPage(`/v1/tools?robot_id=${tool.robot_id}`),
+    everyPage(`/v1/tools/${tool.id}/deployments`),
+  ]);
+  const state = rows.find((r) => r.id === tool.id)?.controller ?? null;
+  if (!connection) {
+    section.append(h("p", { id: "controller-none" }, "This robot has no controller connection: PUT /v1/robots/{id}/controller (admin) to deploy and watch its TCPs."));
+  } else {
+    section.append(
+      h("p", { id: "controller-state" },
+        `${connection.protocol} at ${connection.host}:${connection.port} · `,
+        state ? controllerBadge(state) : "not looked at yet",
+        state ? ` · checked ${when(state.checked_at)}` : ""),
+    );
+    section.append(deployControls(tool, connection, onChange));
+  }
+  const deploymentRows = deployments.map((d) =>
+    h("tr", { "data-deployment": d.id, class: d.status === "verified" ? null : "failed" },
+      h("td", {}, when(d.created_at)),
+      h("td", { class: "num" }, d.version),
+      h("td", {}, d.target),
+      h("td", {}, h("span", { class: `badge ${d.status === "verified" ? "accepted" : "out_of_tolerance"}` }, d.status)),
+      h("td", { class: "num" }, frameText(d.previous)),
+      h("td", { class: "num" }, d.deviation_mm === null ? "—" : `${d.deviation_mm.toFixed(4)} mm, ${d.deviation_deg.toFixed(4)} deg`),
+      h("td", {}, d.error ? d.error.detail : ""),
+      h("td", {}, d.actor)),
+  );
+  section.append(
+    h("h3", {}, "Deployments"),
+    deployments.length
+      ? h("table", { id: "deployments" }, h("thead", {}, h("tr", {}, ["When", "Version", "Target", "Status", "Held before", "Read back off by", "Error", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, deploymentRows))
+      : h("p", { id: "no-deployments" }, "Never deployed from tcpcal."),
+  );
+  return section;
+}
+
+function deployControls(tool, connection, onChange) {
+  const box = h("div", { id: "deploy" });
+  const outcome = h("div", { id: "deploy-outcome" });
+  if (tool.active_version === null) {
+    box.append(h("p", { class: "muted" }, "No active version to deploy."));
+    return box;
+  }
+  const ask = h("button", { type: "button", id: "deploy-button" }, `Deploy version ${tool.active_version}`);
+  const confirmBox = h("div", { id: "deploy-confirm", class: "card", hidden: true },
+    h("p", {}, `Write version ${tool.active_version} of ${tool.name} into the controller at ${connection.host}:${connection.port} (${connection.protocol}) and read it back? The robot moves by this TCP from then on.`));
+  const yes = h("button", { type: "button", id: "deploy-yes" }, "Deploy now");
+  const no = h("button", { type: "button", id: "deploy-no" }, "Cancel");
+  confirmBox.append(h("div", { class: "actions" }, yes, no));
+  ask.addEventListener("click", () => {
+    confirmBox.hidden = false;
+    ask.disabled = true;
+  });
+  no.addEventListener("click", () => {
+    confirmBox.hidden = true;
+    ask.disabled = false;
+  });
+  yes.addEventListener("click", async () => {
+    yes.disabled = true;
+    no.disabled = true;
+    outcome.replaceChildren(h("p", { class: "muted" }, "Deploying…"));
+    try {
+      const d = await json(`/v1/tools/${tool.id}/deployments`, { method: "POST", body: {} });
+      outcome.replaceChildren(h("p", { class: "summary accepted", role: "status" }, `Verified: ${d.target} holds version ${d.version} (read back within ${d.deviation_mm.toFixed(4)} mm, ${d.deviation_deg.toFixed(4)} deg).`));
+    } catch (error) {
+      outcome.replaceChildren(problemBox(error));
+    }
+    confirmBox.hidden = true;
+    await onChange(outcome);
+  });
+  box.append(ask, confirmBox, outcome);
+  return box;
 }
 
 // ---- confirmation -----------------------------------------------------------------------------
@@ -388,9 +492,17 @@ async function toolPage(toolId) {
 
   const controllers = formats.controllers;
   const controllerBox = h("div", { id: "controllers", class: "grid" });
+  const controllerSlot = h("div", { id: "controller-slot" });
+  // After a deployment the section is drawn again (its state and history), keeping the outcome.
+  const drawController = async (outcome) => {
+    const section = await controllerSection(tool, drawController);
+    if (outcome) section.querySelector("#deploy-outcome")?.replaceWith(outcome);
+    controllerSlot.replaceChildren(section);
+  };
   show(
     h("h1", {}, `${tool.name} `, h("span", { class: "muted" }, `on ${robot.name}`)),
     h("p", {}, `Cell ${robot.cell ?? "—"} · slot ${tool.slot ?? "—"} · active version ${tool.active_version ?? "none"} · tolerance rms ${mm(tool.tolerance.max_rms_mm)} mm, residual ${mm(tool.tolerance.max_residual_mm)} mm, check ${mm(tool.tolerance.check_mm)} mm`),
+    controllerSlot,
     h("section", {}, h("h2", {}, "Active TCP for the controllers"), tool.active_version === null ? h("p", {}, "No active TCP: calibrate or activate a version.") : controllerBox),
     h("section", {}, h("h2", {}, "TCP over the versions"), versions.items.length ? h("div", { id: "plot-tcp", class: "plot" }) : h("p", { id: "no-versions" }, "No versions yet: calibrate the tool, or enter its TCP by hand (method manual).")),
     h("section", {}, h("h2", {}, "Checks over time"), checks.length ? h("div", { id: "plot-checks", class: "plot" }) : h("p", {}, "No checks recorded yet.")),
@@ -401,6 +513,7 @@ async function toolPage(toolId) {
       h("table", { id: "activations" }, h("thead", {}, h("tr", {}, ["When", "Version", "Previous", "Kind", "Reason", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, activationRows))),
   );
 
+  await drawController(null);
   if (versions.items.length) plotTcp(versions.items, sigmaOf);
   if (checks.length) plotChecks(checks, tool.tolerance.check_mm);
   if (tool.active_version !== null) await fillControllers(toolId, controllers, formats.controller_files || {}, controllerBox);

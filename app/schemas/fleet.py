@@ -18,6 +18,8 @@ AttentionCode = Literal[
     "check_failed",
     "no_active_version",
     "stale",
+    "controller_drifted",
+    "controller_unreachable",
 ]
 
 
@@ -33,6 +35,16 @@ class LastCheck(BaseModel):
     within_tolerance: bool
     distance_mm: float
     created_at: Timestamp
+
+
+class FleetController(BaseModel):
+    """What the last look at the robot's controller found for the tool."""
+
+    state: Literal["in_sync", "drifted", "no_active_version", "unreachable"] = Field(
+        description="in_sync | drifted | no_active_version | unreachable"
+    )
+    checked_at: Timestamp
+    deviation_mm: float | None = Field(description="controller vs active TCP: distance, mm")
 
 
 class FleetTool(BaseModel):
@@ -57,7 +69,14 @@ class FleetTool(BaseModel):
         description="why the tool needs attention, empty when all is well: "
         "active_out_of_tolerance (the version served was stored out of tolerance), "
         "last_calibration_out_of_tolerance, check_failed (the newest check), "
-        "no_active_version, stale (no calibration or check for TCPCAL_STALE_DAYS days)",
+        "no_active_version, stale (no calibration or check for TCPCAL_STALE_DAYS days), "
+        "controller_drifted (the robot's controller holds another TCP than the active one), "
+        "controller_unreachable (it could not be read at the last look)",
+    )
+    controller: FleetController | None = Field(
+        default=None,
+        description="the tool's state in its robot's controller at the last reconcile or "
+        "deployment; null when never looked at",
     )
 
 
@@ -102,4 +121,7 @@ CSV_COLUMNS = (
     "active_qx",
     "active_qy",
     "active_qz",
+    "controller_state",
+    "controller_checked_at",
+    "controller_deviation_mm",
 )

@@ -20,6 +20,7 @@ from app.schemas.common import (
     Vec3,
     json_integer,
 )
+from app.schemas.controllers import ControllerSymbol
 
 Slot = Annotated[
     int,
@@ -54,6 +55,9 @@ class ToolCreate(StrictModel):
     description: LongText | None = None
     load: Load | None = None
     tolerance: Tolerance = Field(default_factory=Tolerance)
+    controller_symbol: ControllerSymbol | None = Field(
+        default=None, description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"'
+    )
 
 
 class ToolUpdate(StrictModel):
@@ -63,6 +67,9 @@ class ToolUpdate(StrictModel):
     description: LongText | None = None
     load: Load | None = None
     tolerance: Tolerance | None = None
+    controller_symbol: ControllerSymbol | None = Field(
+        default=None, description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"'
+    )
 
 
 class Tool(BaseModel):
@@ -74,6 +81,9 @@ class Tool(BaseModel):
     description: str | None
     load: Load | None
     tolerance: Tolerance
+    controller_symbol: str | None = Field(
+        default=None, description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"'
+    )
     active_version: int | None
     created_at: Timestamp
     updated_at: Timestamp

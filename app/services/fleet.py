@@ -16,11 +16,12 @@ from sqlalchemy.orm import InstrumentedAttribute, Session, aliased
 from app.config import get_settings
 from app.helpers.pagination import paginate_newest_first, paginate_rows
 from app.jsontypes import JsonArray, JsonObject
-from app.models import AuditEvent, Calibration, Robot, TcpVersion, Tool, utcnow
+from app.models import AuditEvent, Calibration, Robot, TcpVersion, Tool, ToolControllerState, utcnow
 from app.schemas.fleet import (
     CSV_COLUMNS,
     AttentionCode,
     CheckRecord,
+    FleetController,
     FleetTool,
     LastCalibration,
     LastCheck,
@@ -82,7 +83,20 @@ def attention_rules(now: datetime) -> dict[AttentionCode, ColumnElement[bool]]:
             func.coalesce(_newest_calibration(Calibration.created_at), Tool.created_at) < cutoff,
             func.coalesce(_newest_check(AuditEvent.at), Tool.created_at) < cutoff,
         ),
+        # What the last reconcile or deployment found in the robot's controller.
+        "controller_drifted": _controller_state() == "drifted",
+        "controller_unreachable": _controller_state() == "unreachable",
     }
+
+
+def _controller_state() -> ScalarSelect[str]:
+    """The tool's controller state, correlated to Tool (a primary-key seek)."""
+    return (
+        select(ToolControllerState.state)
+        .where(ToolControllerState.tool_id == Tool.id)
+        .correlate(Tool)
+        .scalar_subquery()
+    )
 
 
 def _any(rules: dict[AttentionCode, ColumnElement[bool]]) -> ColumnElement[bool]:
@@ -168,6 +182,7 @@ def list_fleet(
     last_cal = {c.tool_id: c for c in session.execute(_newest_calibrations(ids))}
     last_check = {e.tool_id: e for e in session.execute(_newest_checks(ids))}
     codes = _attention_of(session, ids, rules)
+    in_controller = controller_states(session, ids)
     rows = [
         FleetTool(
             id=t.id,
@@ -182,6 +197,7 @@ def list_fleet(
             position_mm=t.position_mm,
             quaternion=t.quaternion,
             attention=codes.get(t.id, []),
+            controller=in_controller.get(t.id),
         )
         for t in tools
     ]
@@ -240,6 +256,24 @@ def _newest_checks(ids: list[str]) -> Select[int, str | None, datetime, JsonObje
     )
 
 
+def controller_states(session: Session, ids: list[str]) -> dict[str, FleetController]:
+    """The controller state of each tool of a page that has one (one primary-key read)."""
+    rows = session.execute(
+        select(
+            ToolControllerState.tool_id,
+            ToolControllerState.state,
+            ToolControllerState.checked_at,
+            ToolControllerState.deviation_mm,
+        ).where(ToolControllerState.tool_id.in_(ids))
+    )
+    return {
+        r.tool_id: FleetController(
+            state=r.state, checked_at=r.checked_at, deviation_mm=r.deviation_mm
+        )
+        for r in rows
+    }
+
+
 def _last_calibration(
     row: Row[str, str, str, datetime, float | None] | None,
 ) -> LastCalibration | None:
@@ -268,7 +302,7 @@ def fleet_csv(rows: Sequence[FleetTool]) -> str:
     writer = csv.writer(out, lineterminator="\r\n")
     writer.writerow(CSV_COLUMNS)
     for r in rows:
-        cal, chk = r.last_calibration, r.last_check
+        cal, chk, ctl = r.last_calibration, r.last_check, r.controller
         writer.writerow(
             [
                 r.id,
@@ -286,6 +320,9 @@ def fleet_csv(rows: Sequence[FleetTool]) -> str:
                 ";".join(r.attention),
                 *_numbers(r.position_mm, 3, 3),
                 *_numbers(r.quaternion, 4, 9),
+                ctl.state if ctl else "",
+                ctl.checked_at.isoformat() if ctl else "",
+                "" if ctl is None or ctl.deviation_mm is None else f"{ctl.deviation_mm:.4f}",
             ]
         )
     return out.getvalue()

@@ -17,6 +17,7 @@ from app.helpers.tolerance import effective_tolerance
 from app.models import Tool, utcnow
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.services import audit
+from app.services.controllers import check_slot_for_controller
 from app.services.live import get_live
 from app.services.robots import get_robot
 from app.services.slots import check_slot
@@ -98,6 +99,7 @@ def create_tool(session: Session, *, robot_id: str, data: ToolCreate, actor: Pri
     robot = get_robot(session, robot_id, for_update=True)
     check_slot(robot.vendor, data.slot, loc=("body", "slot"))
     _tool_unique(session, robot_id=robot_id, name=data.name, slot=data.slot)
+    check_slot_for_controller(session, robot_id=robot_id, slot=data.slot)
     values = data.model_dump()
     tool = Tool(robot_id=robot_id, last_version=0, revision=1, **values)
     session.add(tool)
@@ -144,6 +146,7 @@ def update_tool(
         slot=changes.get("slot"),
         except_id=tool.id,
     )
+    check_slot_for_controller(session, robot_id=tool.robot_id, slot=changes.get("slot"))
     # Nested objects merge (JSON merge patch): {"tolerance": {"max_rms_mm": 0.2}} changes that
     # one limit and keeps the others, rather than resetting them to the defaults.
     if "tolerance" in changes:

@@ -25,7 +25,7 @@ class _Row(FleetTool):
     attention: list[Literal["check_failed", "stale", "no_active_version"]] = Field(  # type: ignore[assignment]
         default_factory=list
     )
-    controller: _Controller | None = None
+    controller: _Controller | None = None  # type: ignore[assignment]
 
 
 def _row(n: int, **kw: Any) -> _Row:

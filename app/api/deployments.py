@@ -1,0 +1,78 @@
+"""HTTP for deployments: write a tool's active version into its controller, and the list."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Body, Header, Request, Response
+from starlette.concurrency import run_in_threadpool
+
+from app.api.calibrations import IdempotencyKey, raw_json_body
+from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
+from app.auth import authenticate_held
+from app.db import loop_engine
+from app.deps import ReadKey, SessionDep
+from app.middleware import KEY_NAME
+from app.schemas.common import Page
+from app.schemas.controllers import Deployment, DeploymentIn
+from app.services import deployments
+
+router = APIRouter(tags=["deployments"])
+
+_FAILURES: dict[int | str, dict[str, object]] = {
+    502: {
+        "description": "the controller is unreachable, refused (its own words in "
+        "`controller_message`) or read back something else; `deployment_id` names the "
+        "recorded attempt",
+    }
+}
+
+
+@router.post(
+    "/v1/tools/{tool_id}/deployments",
+    status_code=201,
+    response_model=Deployment,
+    responses=_FAILURES,
+)
+async def deploy_tool(
+    tool_id: PathId,
+    request: Request,
+    response: Response,
+    body: Annotated[DeploymentIn | None, Body()] = None,
+    idempotency_key: IdempotencyKey = None,
+    authorization: Annotated[str | None, Header(include_in_schema=False)] = None,
+) -> object:
+    """Write the tool's active version (and its load) into its robot's controller, read it
+    back and compare (within 0.001 mm and 0.001 deg: `verified`, with what the controller
+    held before as `previous`). Every attempt is recorded; a failed one answers 502
+    `/controller-unreachable`, `/controller-refused` or `/controller-mismatch` with its
+    `deployment_id`. 409 `/no-active-version`; 422 naming the tool's `slot` or
+    `controller_symbol` when the controller cannot address it. The body is `{}` (or none).
+    Calibrate scope; retry-safe with `Idempotency-Key`."""
+    key = authenticate_held(loop_engine(), authorization, required="calibrate")
+    request.scope[KEY_NAME] = key.name
+    raw_body = {} if body is None else await raw_json_body(request)  # no body: as {}
+    document, replayed = await run_in_threadpool(
+        lambda: deployments.deploy(
+            tool_id=tool_id, actor=key, idempotency_key=idempotency_key, raw_body=raw_body
+        )
+    )
+    if replayed:
+        response.headers["Idempotent-Replayed"] = "true"
+    return document
+
+
+@router.get("/v1/tools/{tool_id}/deployments", response_model=Page[Deployment])
+def list_deployments(
+    tool_id: PathId,
+    session: SessionDep,
+    key: ReadKey,
+    limit: Limit = DEFAULT_PAGE,
+    cursor: Cursor = None,
+) -> object:
+    """A tool's deployments, newest first: verified, failed or mismatch, each with what the
+    controller held before and read back."""
+    items, next_cursor = deployments.list_deployments(
+        session, tool_id=tool_id, limit=limit, cursor=cursor
+    )
+    return {"items": items, "next_cursor": next_cursor}

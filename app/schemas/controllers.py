@@ -1,0 +1,170 @@
+"""A robot's controller connection, deployments to it and what a reconcile found."""
+
+from __future__ import annotations
+
+import ipaddress
+import re
+from typing import Annotated, Literal
+
+from pydantic import AfterValidator, BaseModel, BeforeValidator, Field, SecretStr
+
+from app.controllers.base import ABB_SYMBOL_PATTERN, DEFAULT_PORTS, ProtocolName
+from app.schemas.common import ShortText, StrictModel, Timestamp, json_integer
+
+_LABEL = re.compile(r"^(?!-)[A-Za-z0-9-]{1,63}(?<!-)$")
+
+
+def _host(value: str) -> str:
+    """A host name (RFC 1123 labels) or an IPv4/IPv6 address, as a controller is reached."""
+    try:
+        ipaddress.ip_address(value)
+        return value
+    except ValueError:
+        pass
+    labels = value.rstrip(".").split(".")
+    if not value or not all(_LABEL.match(label) for label in labels):
+        raise ValueError(
+            "must be a host name (letters, digits and -, in dot-separated labels of at most 63) "
+            "or an IPv4/IPv6 address"
+        )
+    return value
+
+
+Host = Annotated[
+    str,
+    Field(min_length=1, max_length=253, examples=["192.168.1.20", "kr16-cell12.plant.local"]),
+    AfterValidator(_host),
+]
+Port = Annotated[
+    int,
+    Field(ge=1, le=65535, description="TCP port; default: the protocol's"),
+    BeforeValidator(json_integer),
+]
+ControllerSymbol = Annotated[
+    str,
+    Field(
+        max_length=100,
+        pattern=ABB_SYMBOL_PATTERN.pattern,
+        description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"',
+        examples=["T_ROB1/user/tTorch"],
+    ),
+]
+PROTOCOL_DESCRIPTION = "; ".join(
+    f"{name}: default port {port}" for name, port in DEFAULT_PORTS.items()
+)
+
+
+class ControllerIn(StrictModel):
+    """How to reach a robot's controller. `password` is write-only (stored encrypted); left
+    out, the stored one is kept; null removes it."""
+
+    protocol: ProtocolName = Field(description=PROTOCOL_DESCRIPTION)
+    host: Host = Field(description="the controller's host name or IP address")
+    port: Port | None = Field(default=None, description="TCP port; default: the protocol's")
+    username: ShortText | None = Field(
+        default=None, description="ABB: the RWS user (default: ABB's factory user)"
+    )
+    password: Annotated[SecretStr | None, Field(max_length=200)] = Field(
+        default=None,
+        description="write-only, stored encrypted under TCPCAL_SECRET_KEY; left out: the "
+        "stored one is kept; null: removed",
+    )
+    timeout_s: float = Field(
+        default=5.0,
+        ge=0.1,
+        le=60,
+        allow_inf_nan=False,
+        strict=True,
+        description="connect and read timeout",
+    )
+    tls_verify: bool = Field(
+        default=True, strict=True, description="abb_rws2: check the controller's certificate"
+    )
+
+
+class Controller(BaseModel):
+    robot_id: str
+    protocol: str = Field(description="kuka_kvp | fanuc_rmi | abb_rws1 | abb_rws2")
+    host: str = Field(description="the controller's host name or IP address")
+    port: int = Field(description="TCP port")
+    username: str | None = Field(description="ABB: the RWS user")
+    has_password: bool = Field(description="whether a password is stored (never served)")
+    timeout_s: float = Field(description="deadline of each connect and read, s")
+    tls_verify: bool = Field(description="abb_rws2: whether the certificate is checked")
+    created_at: Timestamp
+    updated_at: Timestamp
+
+
+class Frame(BaseModel):
+    """A tool frame in the flange frame: position (mm) and orientation [w, x, y, z]."""
+
+    position_mm: list[float] = Field(description="x, y, z of the TCP in the flange frame, mm")
+    quaternion: list[float] = Field(description="unit quaternion [w, x, y, z]")
+
+
+class DeploymentError(BaseModel):
+    type: str = Field(description="the problem kind: controller-unreachable | -refused | -mismatch")
+    detail: str = Field(description="what happened, in a sentence")
+    controller_message: str | None = Field(
+        default=None, description="the controller's own words when it refused"
+    )
+
+
+DeploymentStatus = Literal["verified", "failed", "mismatch"]
+
+
+class Deployment(BaseModel):
+    id: str
+    tool_id: str
+    robot_id: str
+    version: int = Field(description="the version written (the active one at the time)")
+    protocol: str = Field(description="the controller's protocol")
+    target: str = Field(description='where it was written: "$TOOL_DATA[3]", "UTOOL[3]", a symbol')
+    status: DeploymentStatus = Field(description="verified | failed | mismatch")
+    previous: Frame | None = Field(description="what the controller held before; null if unread")
+    read_back: Frame | None = Field(description="what the controller held after the write")
+    deviation_mm: float | None = Field(description="read back vs written: distance, mm")
+    deviation_deg: float | None = Field(description="read back vs written: angle, deg")
+    error: DeploymentError | None = Field(description="why it failed; null when verified")
+    actor: str = Field(description="name of the API key that deployed")
+    created_at: Timestamp
+
+
+class DeploymentIn(StrictModel):
+    """Deploys the tool's active version (and its load); nothing to choose."""
+
+
+ToolState = Literal["in_sync", "drifted", "no_active_version", "unreachable"]
+RobotState = Literal["in_sync", "drifted", "unreachable"]
+
+
+class ActiveFrame(Frame):
+    version: int = Field(description="the active version")
+
+
+class ReconciledTool(BaseModel):
+    tool_id: str
+    target: str | None = Field(description="where the tool lives in the controller")
+    state: ToolState = Field(description="in_sync | drifted | no_active_version | unreachable")
+    controller: Frame | None = Field(description="what the controller holds; null if unread")
+    active: ActiveFrame | None = Field(description="the active version; null without one")
+    deviation_mm: float | None = Field(description="controller vs active: distance, mm")
+    deviation_deg: float | None = Field(description="controller vs active: angle, deg")
+    since: Timestamp = Field(description="when the tool first entered its present state")
+    error: str | None = Field(default=None, description="why the controller could not be read")
+
+
+class NotAddressable(BaseModel):
+    tool_id: str
+    reason: str = Field(description="which field to set so the controller can address it")
+
+
+class Reconciliation(BaseModel):
+    robot_id: str
+    checked_at: Timestamp
+    state: RobotState = Field(description="the worst of its tools' states")
+    tools: list[ReconciledTool] = Field(description="every live tool the controller addresses")
+    not_addressable: list[NotAddressable] = Field(
+        default_factory=list,
+        description="live tools left out: no slot or controller_symbol this protocol can use",
+    )

@@ -1,0 +1,89 @@
+"""Each tool's controller state (in sync, drifted, unreachable, no active version) as the
+last reconcile or deployment saw it; a change of state is an audit event, once."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.auth import Principal
+from app.controllers.base import ToolData
+from app.jsontypes import JsonObject
+from app.models import Tool, ToolControllerState
+from app.services import audit
+
+#: States whose start is an audit event `controller.<state>` (and counted in /metrics).
+EVENT_STATES = ("in_sync", "drifted", "unreachable")
+#: How bad each state is, for a robot's state (the worst of its tools').
+SEVERITY = {"in_sync": 0, "no_active_version": 0, "drifted": 1, "unreachable": 2}
+
+
+def frame_json(data: ToolData | None) -> JsonObject | None:
+    """A frame as stored and served: {"position_mm", "quaternion"}."""
+    if data is None:
+        return None
+    return {"position_mm": list(data.position_mm), "quaternion": list(data.quaternion)}
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What one look at the controller found for one tool."""
+
+    tool_id: str
+    robot_id: str
+    state: str
+    target: str | None
+    controller: JsonObject | None
+    active_version: int | None
+    deviation_mm: float | None
+    deviation_deg: float | None
+    error: str | None
+
+
+def observe(
+    session: Session, seen: Observation, *, at: datetime, actor: Principal
+) -> tuple[ToolControllerState, bool]:
+    """Store what was seen; (the state row, whether the state changed). The tool's row is
+    locked first, so two instances looking at once record one change, not two."""
+    session.execute(select(Tool.id).where(Tool.id == seen.tool_id).with_for_update())
+    row = session.get(ToolControllerState, seen.tool_id)
+    changed = row is None or row.state != seen.state
+    previous = None if row is None else row.state
+    if row is None:
+        row = ToolControllerState(tool_id=seen.tool_id, robot_id=seen.robot_id)
+        session.add(row)
+    if changed:
+        row.state = seen.state
+        row.since = at
+    row.robot_id = seen.robot_id
+    row.checked_at = at
+    row.target = seen.target
+    row.controller = seen.controller
+    row.active_version = seen.active_version
+    row.deviation_mm = seen.deviation_mm
+    row.deviation_deg = seen.deviation_deg
+    row.error = seen.error
+    if changed and seen.state in EVENT_STATES:
+        audit.record(
+            session,
+            actor=actor,
+            action=f"controller.{seen.state}",
+            resource_type="tool",
+            resource_id=seen.tool_id,
+            robot_id=seen.robot_id,
+            tool_id=seen.tool_id,
+            details={
+                "previous_state": previous,
+                "target": seen.target,
+                "version": seen.active_version,
+                "controller": seen.controller,
+                "deviation_mm": seen.deviation_mm,
+                "deviation_deg": seen.deviation_deg,
+                "error": seen.error,
+            },
+        )
+    session.flush()
+    return row, changed and seen.state in EVENT_STATES

@@ -1,0 +1,176 @@
+"""A robot's controller connection: set, read, remove; the password encrypted at rest."""
+
+from __future__ import annotations
+
+from sqlalchemy import delete, select
+from sqlalchemy.orm import Session
+
+from app import secretbox
+from app.auth import Principal
+from app.controllers.base import DEFAULT_PORTS, SLOT_RANGES, ControllerSettings
+from app.errors import InvalidInput, NoController, SecretUnreadable
+from app.models import RobotController, Tool, ToolControllerState, utcnow
+from app.schemas.controllers import ControllerIn
+from app.services import audit
+from app.services.robots import get_robot
+
+
+def get_controller(session: Session, robot_id: str) -> RobotController:
+    """The controller connection of a live robot; 404 for the robot, 409 when it has none."""
+    get_robot(session, robot_id)
+    controller = session.get(RobotController, robot_id)
+    if controller is None:
+        raise NoController(
+            f"robot {robot_id} has no controller: PUT /v1/robots/{robot_id}/controller first"
+        )
+    return controller
+
+
+def put_controller(
+    session: Session, *, robot_id: str, data: ControllerIn, fields_sent: set[str], actor: Principal
+) -> RobotController:
+    """Set how to reach the robot's controller. A password left out keeps the stored one;
+    null removes it. Its live tools must be addressable under the protocol (422 otherwise)."""
+    get_robot(session, robot_id, for_update=True)
+    _tools_addressable(session, robot_id, data.protocol)
+    controller = session.get(RobotController, robot_id)
+    created = controller is None
+    if controller is None:
+        controller = RobotController(robot_id=robot_id, created_at=utcnow())
+        session.add(controller)
+    if "password" in fields_sent:
+        controller.password_encrypted = _encrypted(data)
+    controller.protocol = data.protocol
+    controller.host = data.host
+    controller.port = data.port if data.port is not None else DEFAULT_PORTS[data.protocol]
+    controller.username = data.username
+    controller.timeout_s = data.timeout_s
+    controller.tls_verify = data.tls_verify
+    controller.updated_at = utcnow()
+    session.flush()
+    audit.record(
+        session,
+        actor=actor,
+        action="controller.set",
+        resource_type="robot",
+        resource_id=robot_id,
+        robot_id=robot_id,
+        details={
+            "created": created,
+            "protocol": controller.protocol,
+            "host": controller.host,
+            "port": controller.port,
+            "password_changed": "password" in fields_sent,  # never the password itself
+        },
+    )
+    return controller
+
+
+def _encrypted(data: ControllerIn) -> str | None:
+    if data.password is None:
+        return None
+    if not secretbox.key_configured():
+        raise InvalidInput(
+            "missing-secret-key",
+            f"a controller password is stored encrypted, and {secretbox.SECRET_ENV} is not "
+            f"set: set {secretbox.SECRET_ENV} (a long random string, the same on every "
+            "instance) and send it again; nothing was stored",
+            loc=("body", "password"),
+        )
+    return secretbox.encrypt(data.password.get_secret_value())
+
+
+def _tools_addressable(session: Session, robot_id: str, protocol: str) -> None:
+    """422 naming the first live tool whose slot is outside the protocol's tool numbers (a
+    tool without its slot or symbol is refused when it is deployed: it may be set later)."""
+    if protocol not in SLOT_RANGES:
+        return
+    low, high = SLOT_RANGES[protocol]
+    outside = session.execute(
+        select(Tool.id, Tool.name, Tool.slot).where(
+            Tool.robot_id == robot_id,
+            Tool.archived_at.is_(None),
+            Tool.slot.is_not(None),
+            (Tool.slot < low) | (Tool.slot > high),
+        )
+    ).first()
+    if outside is not None:
+        raise InvalidInput(
+            "controller-target",
+            f"tool {outside.name!r} ({outside.id}) has slot {outside.slot}, outside {low}-{high}, "
+            f"the tool numbers of a {protocol} controller: change its slot first",
+            loc=("body", "protocol"),
+        )
+
+
+def check_slot_for_controller(session: Session, *, robot_id: str, slot: int | None) -> None:
+    """422 naming `slot` when the robot's controller numbers its tools and `slot` is not
+    one of its numbers (KUKA 1-16, FANUC 1-10)."""
+    if slot is None:
+        return
+    protocol = session.scalar(
+        select(RobotController.protocol).where(RobotController.robot_id == robot_id)
+    )
+    if protocol is None or protocol not in SLOT_RANGES:
+        return
+    low, high = SLOT_RANGES[protocol]
+    if not low <= slot <= high:
+        raise InvalidInput(
+            "controller-target",
+            f"slot {slot} is outside {low}-{high}, the tool numbers of this robot's "
+            f"{protocol} controller: choose a slot in {low}-{high}",
+            loc=("body", "slot"),
+        )
+
+
+def delete_controller(session: Session, *, robot_id: str, actor: Principal) -> None:
+    """Forget how to reach the robot's controller and what its tools' states were (their
+    deployments stay in the history)."""
+    controller = get_controller(session, robot_id)
+    session.delete(controller)
+    # Without a controller nothing is known of what it holds: the fleet stops saying so.
+    session.execute(delete(ToolControllerState).where(ToolControllerState.robot_id == robot_id))
+    audit.record(
+        session,
+        actor=actor,
+        action="controller.delete",
+        resource_type="robot",
+        resource_id=robot_id,
+        robot_id=robot_id,
+    )
+
+
+def controller_document(controller: RobotController) -> dict[str, object]:
+    """The controller as served: the password only as `has_password`."""
+    return {
+        "robot_id": controller.robot_id,
+        "protocol": controller.protocol,
+        "host": controller.host,
+        "port": controller.port,
+        "username": controller.username,
+        "has_password": controller.password_encrypted is not None,
+        "timeout_s": controller.timeout_s,
+        "tls_verify": controller.tls_verify,
+        "created_at": controller.created_at,
+        "updated_at": controller.updated_at,
+    }
+
+
+def settings_of(controller: RobotController) -> ControllerSettings:
+    """What a connector needs, the password decrypted (in memory only); 409 when the
+    secret key cannot open it."""
+    password = None
+    if controller.password_encrypted is not None:
+        try:
+            password = secretbox.decrypt(controller.password_encrypted)
+        except secretbox.SecretUnavailable as exc:
+            raise SecretUnreadable(str(exc)) from None
+    return ControllerSettings(
+        protocol=controller.protocol,  # type: ignore[arg-type]  # checked when stored
+        host=controller.host,
+        port=controller.port,
+        username=controller.username,
+        password=password,
+        timeout_s=controller.timeout_s,
+        tls_verify=controller.tls_verify,
+    )

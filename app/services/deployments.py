@@ -1,0 +1,315 @@
+"""Deploy a tool's active version to its robot's controller: write it, read it back,
+compare, and record the attempt whatever became of it.
+
+Three steps, and no database transaction is open during the controller's I/O (which may
+take up to the controller's timeout): 1. a read transaction gathers what to write and where;
+2. the connector writes and reads back; 3. a write transaction records the attempt (and,
+when verified, that the controller holds the active version). Runs in a worker thread: the
+connectors are blocking I/O with a deadline.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.auth import Principal
+from app.controllers import connect
+from app.controllers.base import (
+    TARGET_FIELD,
+    ControllerError,
+    ControllerRefused,
+    ControllerSettings,
+    ControllerUnreachable,
+    ToolData,
+    ToolLoad,
+    ToolTarget,
+    target_problem,
+)
+from app.db import session_scope
+from app.errors import (
+    ControllerMismatch,
+    ControllerRefusedError,
+    ControllerUnreachableError,
+    DomainError,
+    InvalidInput,
+    NothingToDeploy,
+)
+from app.helpers.frames import DEPLOY_TOLERANCE_DEG, DEPLOY_TOLERANCE_MM, frame_deviation, within
+from app.helpers.pagination import paginate_newest_first
+from app.jsontypes import JsonObject
+from app.metrics import DEPLOYMENTS
+from app.models import Deployment, TcpVersion, utcnow
+from app.schemas.controllers import Deployment as DeploymentOut
+from app.services import audit, controller_states, idempotency
+from app.services.controllers import get_controller, settings_of
+from app.services.tools import get_tool
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What to write where, read in one transaction before any I/O."""
+
+    tool_id: str
+    robot_id: str
+    version: int
+    target: ToolTarget
+    target_name: str
+    data: ToolData
+    settings: ControllerSettings
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What the controller did with it."""
+
+    status: str  # verified | failed | mismatch
+    previous: ToolData | None = None
+    read_back: ToolData | None = None
+    deviation: tuple[float, float] | None = None
+    error: DomainError | None = None
+    controller_message: str | None = None
+
+
+def target_name(protocol: str, target: ToolTarget) -> str:
+    """The target as the controller names it: "$TOOL_DATA[3]", "UTOOL[3]", "T_ROB1/user/t"."""
+    if protocol == "kuka_kvp":
+        return f"$TOOL_DATA[{target.slot}]"
+    if protocol == "fanuc_rmi":
+        return f"UTOOL[{target.slot}]"
+    return str(target.symbol)
+
+
+def tool_target(protocol: str, slot: int | None, symbol: str | None) -> ToolTarget:
+    """Where the tool lives in its controller; 422 naming the tool's field to set."""
+    target = ToolTarget(slot=slot, symbol=symbol)
+    problem = target_problem(protocol, target)
+    if problem is not None:
+        field = "slot" if TARGET_FIELD.get(protocol) == "slot" else "controller_symbol"
+        raise InvalidInput(
+            "controller-target",
+            f"{problem} (PATCH /v1/tools/{{tool_id}} with {field!r})",
+            members={"field": field},
+        )
+    return target
+
+
+def plan_deployment(session: Session, tool_id: str) -> Plan:
+    """What deploying the tool now means; 409 without an active version or a controller,
+    422 when the tool has no place in the controller."""
+    tool = get_tool(session, tool_id)
+    if tool.active_version is None:
+        raise NothingToDeploy(
+            f"tool {tool_id} has no active version to deploy: activate a version first"
+        )
+    controller = get_controller(session, tool.robot_id)
+    target = tool_target(controller.protocol, tool.slot, tool.controller_symbol)
+    version = session.scalars(
+        select(TcpVersion).where(
+            TcpVersion.tool_id == tool.id, TcpVersion.version == tool.active_version
+        )
+    ).one()
+    load = None
+    if tool.load is not None:
+        cog = tool.load.get("cog_mm") or [0.0, 0.0, 0.0]
+        load = ToolLoad(mass_kg=float(tool.load["mass_kg"]), cog_mm=_vec3(cog))
+    data = ToolData(
+        position_mm=_vec3(version.position_mm),
+        quaternion=_vec4(version.quaternion),
+        load=load,
+    )
+    return Plan(
+        tool_id=tool.id,
+        robot_id=tool.robot_id,
+        version=version.version,
+        target=target,
+        target_name=target_name(controller.protocol, target),
+        data=data,
+        settings=settings_of(controller),
+    )
+
+
+def _vec3(values: object) -> tuple[float, float, float]:
+    x, y, z = (float(v) for v in values)  # type: ignore[attr-defined]
+    return x, y, z
+
+
+def _vec4(values: object) -> tuple[float, float, float, float]:
+    w, x, y, z = (float(v) for v in values)  # type: ignore[attr-defined]
+    return w, x, y, z
+
+
+def write_and_read_back(plan: Plan) -> Outcome:
+    """Write the plan into the controller and read it back (no database here)."""
+    timeout = plan.settings.timeout_s
+    try:
+        with connect(plan.settings) as conn:
+            previous = conn.read_tool(plan.target)
+            conn.write_tool(plan.target, plan.data)
+            read_back = conn.read_tool(plan.target)
+    except ControllerUnreachable as exc:
+        error: DomainError = ControllerUnreachableError(
+            f"the controller at {plan.settings.host}:{plan.settings.port} could not be reached "
+            f"within {timeout:g} s: {exc}; nothing was written"
+        )
+        return Outcome("failed", error=error)
+    except ControllerRefused as exc:
+        error = ControllerRefusedError(
+            f"the controller refused: {exc.controller_message}",
+            members={"controller_message": exc.controller_message},
+        )
+        return Outcome("failed", error=error, controller_message=exc.controller_message)
+    except ControllerError as exc:
+        error = ControllerUnreachableError(
+            f"the controller at {plan.settings.host}:{plan.settings.port} answered something "
+            f"that is not its protocol: {exc}"
+        )
+        return Outcome("failed", error=error)
+    data = plan.data
+    deviation = frame_deviation(
+        data.position_mm, data.quaternion, read_back.position_mm, read_back.quaternion
+    )
+    if within(deviation, mm=DEPLOY_TOLERANCE_MM, deg=DEPLOY_TOLERANCE_DEG):
+        return Outcome("verified", previous, read_back, deviation)
+    error = ControllerMismatch(
+        f"{plan.target_name} reads back {deviation[0]:.4f} mm and {deviation[1]:.4f} deg "
+        f"from what was written (allowed {DEPLOY_TOLERANCE_MM} mm, {DEPLOY_TOLERANCE_DEG} deg)"
+    )
+    return Outcome("mismatch", previous, read_back, deviation, error=error)
+
+
+def deploy(
+    *,
+    tool_id: str,
+    actor: Principal,
+    idempotency_key: str | None,
+    raw_body: JsonObject,
+) -> tuple[JsonObject, bool]:
+    """Deploy the tool's active version: (the Deployment, whether it is a replay). A failed
+    or mismatched attempt is recorded and then raised as its 502 with `deployment_id`."""
+    fingerprint = idempotency.request_fingerprint(f"deploy:{tool_id}", raw_body)
+    with session_scope(write=False) as session:
+        if idempotency_key is not None:
+            replayed = idempotency.replay(
+                session, actor=actor, key=idempotency_key, fingerprint=fingerprint, purge=False
+            )
+            if replayed is not None:
+                return replayed, True
+        plan = plan_deployment(session, tool_id)
+    outcome = write_and_read_back(plan)
+    with session_scope(write=True) as session:
+        row = _record(session, plan, outcome, actor)
+        document = deployment_document(row).model_dump(mode="json")
+        if idempotency_key is not None and outcome.status == "verified":
+            idempotency.remember(
+                session,
+                actor=actor,
+                key=idempotency_key,
+                fingerprint=fingerprint,
+                response=document,
+            )
+    DEPLOYMENTS.labels(plan.settings.protocol, outcome.status).inc()
+    if outcome.error is not None:
+        outcome.error.members["deployment_id"] = str(row.id)
+        raise outcome.error
+    return document, False
+
+
+def _record(session: Session, plan: Plan, outcome: Outcome, actor: Principal) -> Deployment:
+    """The attempt, its audit event and, when verified, the tool's state in sync."""
+    error = None
+    if outcome.error is not None:
+        error = {
+            "type": outcome.error.kind,
+            "detail": outcome.error.detail,
+            "controller_message": outcome.controller_message,
+        }
+    dev_mm, dev_deg = outcome.deviation if outcome.deviation is not None else (None, None)
+    row = Deployment(
+        tool_id=plan.tool_id,
+        robot_id=plan.robot_id,
+        version=plan.version,
+        protocol=plan.settings.protocol,
+        target=plan.target_name,
+        status=outcome.status,
+        previous=controller_states.frame_json(outcome.previous),
+        read_back=controller_states.frame_json(outcome.read_back),
+        deviation_mm=dev_mm,
+        deviation_deg=dev_deg,
+        error=error,
+        actor=actor.name,
+        created_at=utcnow(),
+    )
+    session.add(row)
+    session.flush()
+    audit.record(
+        session,
+        actor=actor,
+        action="tool.deploy",
+        resource_type="deployment",
+        resource_id=str(row.id),
+        robot_id=plan.robot_id,
+        tool_id=plan.tool_id,
+        details={
+            "status": outcome.status,
+            "version": plan.version,
+            "protocol": plan.settings.protocol,
+            "target": plan.target_name,
+            "error": error,
+        },
+    )
+    if outcome.status == "verified":
+        controller_states.observe(
+            session,
+            controller_states.Observation(
+                tool_id=plan.tool_id,
+                robot_id=plan.robot_id,
+                state="in_sync",
+                target=plan.target_name,
+                controller=controller_states.frame_json(outcome.read_back),
+                active_version=plan.version,
+                deviation_mm=dev_mm,
+                deviation_deg=dev_deg,
+                error=None,
+            ),
+            at=row.created_at,
+            actor=actor,
+        )
+    return row
+
+
+def deployment_document(row: Deployment) -> DeploymentOut:
+    """A deployment as served."""
+    return DeploymentOut.model_validate(
+        {
+            "id": str(row.id),
+            "tool_id": row.tool_id,
+            "robot_id": row.robot_id,
+            "version": row.version,
+            "protocol": row.protocol,
+            "target": row.target,
+            "status": row.status,
+            "previous": row.previous,
+            "read_back": row.read_back,
+            "deviation_mm": row.deviation_mm,
+            "deviation_deg": row.deviation_deg,
+            "error": row.error,
+            "actor": row.actor,
+            "created_at": row.created_at,
+        }
+    )
+
+
+def list_deployments(
+    session: Session, *, tool_id: str, limit: int, cursor: str | None
+) -> tuple[Sequence[DeploymentOut], str | None]:
+    """A tool's deployments, newest first."""
+    tool = get_tool(session, tool_id)
+    stmt = select(Deployment).where(Deployment.tool_id == tool.id)
+    rows, next_cursor = paginate_newest_first(
+        session, stmt, id_col=Deployment.id, limit=limit, cursor=cursor
+    )
+    return [deployment_document(r) for r in rows], next_cursor

@@ -1,0 +1,109 @@
+"""The console's controller views in a real Chromium: the fleet's controller column, and on
+a tool's page its state, the Deploy button (with its confirmation) and the deployments.
+
+A live server (SQLite, one worker) and a KUKAVARPROXY simulator in this process."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import pytest
+from playwright.sync_api import Browser, Page, expect
+
+from tests.api.controller_rigs import Rig, rig
+from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q
+from tests.live.server import LiveServer, fresh_database, live_server
+
+pytestmark = pytest.mark.live
+
+
+@dataclass
+class Cell:
+    server: LiveServer
+    rig: Rig
+    robot_id: str
+    tool_id: str
+
+
+@pytest.fixture(scope="module")
+def cell(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cell]:
+    tmp = tmp_path_factory.mktemp("console-controllers")
+    with (
+        rig("kuka_kvp") as r,
+        fresh_database("sqlite", tmp, None) as url,
+        live_server(url, workers=1) as server,
+        server.client() as http,
+    ):
+        robot = http.post("/v1/robots", json={"name": "kr16-weld", "cell": "weld-1"}).json()
+        http.put(
+            f"/v1/robots/{robot['id']}/controller", json=r.controller_body()
+        ).raise_for_status()
+        tool = http.post(
+            f"/v1/robots/{robot['id']}/tools", json={"name": "torch", "slot": 3}
+        ).json()
+        body = {"method": "manual", "tcp": {"position_mm": ACTIVE_POSITION, "quaternion": ACTIVE_Q}}
+        http.post(f"/v1/tools/{tool['id']}/calibrations", json=body).raise_for_status()
+        yield Cell(server, r, robot["id"], tool["id"])
+
+
+@pytest.fixture
+def page(browser: Browser, cell: Cell) -> Iterator[Page]:
+    ctx = browser.new_context(viewport={"width": 1400, "height": 1000})
+    page = ctx.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    yield page
+    ctx.close()
+    assert errors == [], f"script errors on the page: {errors}"
+
+
+def _sign_in(page: Page, cell: Cell, path: str) -> None:
+    page.goto(cell.server.url + path)
+    page.fill("input[name=api_key]", cell.server.admin_key)
+    page.click("#sign-in button[type=submit]")
+
+
+def test_deploy_asks_first_then_shows_the_outcome_state_and_history(page: Page, cell: Cell) -> None:
+    _sign_in(page, cell, f"/ui/tools/{cell.tool_id}")
+    expect(page.locator("#controller-state")).to_contain_text("kuka_kvp at 127.0.0.1")
+    expect(page.locator("#no-deployments")).to_be_visible()
+    page.click("#deploy-button")
+    confirm = page.locator("#deploy-confirm")
+    expect(confirm).to_be_visible()
+    expect(confirm).to_contain_text("Write version 1 of torch")
+    page.click("#deploy-no")  # cancelled: nothing written
+    expect(confirm).to_be_hidden()
+    assert cell.rig.sim.tool(3) == (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    page.click("#deploy-button")
+    page.click("#deploy-yes")
+    expect(page.locator("#deploy-outcome")).to_contain_text(
+        "Verified: $TOOL_DATA[3] holds version 1"
+    )
+    expect(page.locator("#deployments tbody tr")).to_have_count(1)
+    expect(page.locator("#deployments tbody tr").first).to_contain_text("verified")
+    expect(page.locator("#controller-state")).to_contain_text("in sync")
+    cell.rig.assert_holds(ACTIVE_POSITION, ACTIVE_Q)
+
+    # the controller switched off: the failure is explained and recorded
+    cell.rig.sim.stalled = True
+    try:
+        page.click("#deploy-button")
+        page.click("#deploy-yes")
+        expect(page.locator("#deploy-outcome [role=alert]")).to_contain_text("502", timeout=10_000)
+        expect(page.locator("#deployments tbody tr")).to_have_count(2)
+        expect(page.locator("#deployments tbody tr").first).to_contain_text("failed")
+    finally:
+        cell.rig.sim.stalled = False
+
+
+def test_the_fleet_shows_a_drifted_controller_as_needing_attention(page: Page, cell: Cell) -> None:
+    moved = [ACTIVE_POSITION[0] + 0.25, *ACTIVE_POSITION[1:]]
+    cell.rig.set_behind_back(moved, ACTIVE_Q)
+    with cell.server.client() as http:
+        assert http.post(f"/v1/robots/{cell.robot_id}/reconcile").json()["state"] == "drifted"
+    _sign_in(page, cell, "/ui/")
+    row = page.locator(f"#fleet tbody tr[data-tool-id='{cell.tool_id}']")
+    expect(row).to_have_class("attention")
+    expect(row.locator("td.controller-state")).to_have_text("drifted 0.250 mm")
+    expect(row.locator("td.reasons [data-code=controller_drifted]")).to_have_count(1)
