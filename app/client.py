@@ -1,6 +1,8 @@
 """The cell PC's client: `tcpcal tools|calibrate|history|activate|rollback|check|export`.
 
-Talks to a server over HTTP (TCPCAL_URL, default http://127.0.0.1:8000; TCPCAL_API_KEY).
+Every command that takes a TOOL accepts its id, its name when no other tool has it, or
+"robot/tool"; an ambiguous name lists the matches. Talks to a server over HTTP (TCPCAL_URL,
+default http://127.0.0.1:8000; TCPCAL_API_KEY).
 Pose files exported from a pendant (CSV rows of numbers, or a JSON list of poses) are read
 and checked locally in the given format and units before anything is sent.
 
@@ -16,6 +18,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
 from pathlib import Path
 from typing import Annotated, Any, NoReturn
 
@@ -82,6 +85,62 @@ def _fail(code: int, message: str) -> NoReturn:
     raise typer.Exit(code)
 
 
+# ---- which tool ---------------------------------------------------------------------------
+ToolArg = Annotated[
+    str,
+    typer.Argument(
+        metavar="TOOL",
+        help="the tool: its id, its name when only one tool has it, or robot/tool "
+        "(tcpcal tools lists them)",
+    ),
+]
+_ID = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
+
+
+def resolve_tool(ref: str) -> str:
+    """The id of the tool `ref` names: an id, a tool name unique in the fleet, or
+    "robot/tool". Exit 5 when none matches, 2 (listing robot/tool and id of each) when
+    several do."""
+    robot, _, name = ref.rpartition("/")
+    if not robot and _ID.match(ref):
+        try:
+            with _http() as http:
+                found = http.get(f"/v1/tools/{ref}")
+        except httpx.HTTPError as exc:
+            _fail(EXIT_UNREACHABLE, f"could not reach {os.environ.get('TCPCAL_URL')}: {exc}")
+        if found.status_code == 200:
+            return ref
+        if found.status_code not in (404, 422):
+            _refused(found)
+    rows = [
+        row
+        for row in _fleet_rows({"q": name})
+        if row["name"] == name and (not robot or row["robot_name"] == robot)
+    ]
+    if len(rows) == 1:
+        return str(rows[0]["id"])
+    if not rows:
+        _fail(EXIT_NOT_FOUND, f"no tool with id or name {ref!r}; tcpcal tools lists them")
+    listed = "\n".join(f"  {r['robot_name']}/{r['name']}  {r['id']}" for r in rows)
+    _fail(
+        EXIT_BAD_USE,
+        f"{len(rows)} tools are named {name!r}; name one as robot/tool or by its id:\n{listed}",
+    )
+
+
+def _fleet_rows(params: dict[str, str]) -> list[dict[str, Any]]:
+    """Every row of GET /v1/tools with these filters, page after page."""
+    rows: list[dict[str, Any]] = []
+    cursor = None
+    while True:
+        query = {**params, "limit": "500", **({"cursor": cursor} if cursor else {})}
+        body = _send("GET", "/v1/tools", params=query).json()
+        rows += body["items"]
+        cursor = body["next_cursor"]
+        if cursor is None:
+            return rows
+
+
 # ---- pose files ---------------------------------------------------------------------------
 def read_poses(path: Path, fmt: str, units: dict[str, str]) -> list[Any]:
     """The poses of a pendant export, checked locally in `fmt` and `units` (exit 2 if not)."""
@@ -126,39 +185,39 @@ def tools(
     status: Annotated[str | None, typer.Option(help="accepted | out_of_tolerance")] = None,
     csv_file: Annotated[Path | None, typer.Option("--csv", help="write the CSV here")] = None,
 ) -> None:
-    """The fleet: every tool with its robot, active version, last calibration and check."""
+    """The fleet: every tool with its robot, active version, last calibration and check, why
+    it needs attention, and its id (every other command takes the id or the tool's name)."""
     params = {k: v for k, v in (("cell", cell), ("q", q), ("status", status)) if v}
     if csv_file is not None:
         response = _send("GET", "/v1/tools", params=params, headers={"Accept": "text/csv"})
         csv_file.write_text(response.text)
         out.print(f"wrote {csv_file} ({response.text.count(chr(10)) - 1} tools)")
         return
-    table = Table("tool", "slot", "robot", "cell", "active", "last calibration", "rms mm", "check")
-    cursor = None
-    while True:
-        page = _send("GET", "/v1/tools", params={**params, "cursor": cursor} if cursor else params)
-        body = page.json()
-        for row in body["items"]:
-            cal, chk = row["last_calibration"], row["last_check"]
-            rms = cal.get("rms_mm") if cal else None
-            table.add_row(
-                row["name"],
-                "" if row["slot"] is None else str(row["slot"]),
-                row["robot_name"],
-                row["cell"] or "",
-                "-" if row["active_version"] is None else f"v{row['active_version']}",
-                cal["status"] if cal else "-",
-                "" if rms is None else f"{rms:.3f}",
-                "-" if chk is None else ("ok" if chk["within_tolerance"] else "FAILED"),
-            )
-        cursor = body["next_cursor"]
-        if cursor is None:
-            break
+    table = Table(
+        "tool", "slot", "robot", "cell", "active", "last calibration", "rms mm", "check",
+        "attention",
+    )  # fmt: skip
+    table.add_column("id", no_wrap=True, overflow="ignore", min_width=36)
+    for row in _fleet_rows(params):
+        cal, chk = row["last_calibration"], row["last_check"]
+        rms = cal.get("rms_mm") if cal else None
+        table.add_row(
+            row["name"],
+            "" if row["slot"] is None else str(row["slot"]),
+            row["robot_name"],
+            row["cell"] or "",
+            "-" if row["active_version"] is None else f"v{row['active_version']}",
+            cal["status"] if cal else "-",
+            "" if rms is None else f"{rms:.3f}",
+            "-" if chk is None else ("ok" if chk["within_tolerance"] else "FAILED"),
+            ", ".join(row.get("attention", [])),
+            row["id"],
+        )
     out.print(table)
 
 
 def calibrate(
-    tool_id: Annotated[str, typer.Argument(help="the tool's id (tcpcal tools)")],
+    tool_id: ToolArg,
     poses_file: Annotated[
         Path | None, typer.Argument(help="CSV or JSON file of flange poses (not with --guided)")
     ] = None,
@@ -180,6 +239,7 @@ def calibrate(
     units = _units(length, angle)
     if not fmt:
         _fail(EXIT_BAD_USE, "give --format, the pendant's pose format (e.g. kuka_abc)")
+    tool_id = resolve_tool(tool_id)
     if guided:
         cal = guided_session(tool_id, fmt, units, target, session, activate, note)
         _print_calibration(cal)
@@ -316,7 +376,9 @@ def _flatten(pose: list[Any]) -> list[float]:
 def plan(
     start: Annotated[str, typer.Option(help="the start pose touching the point, as numbers")],
     fmt: Annotated[str, typer.Option("--format", help="pose format, e.g. kuka_abc")],
-    tool: Annotated[str | None, typer.Option(help="use this tool's active TCP")] = None,
+    tool: Annotated[
+        str | None, typer.Option(help="use this tool's active TCP (id, name or robot/tool)")
+    ] = None,
     tcp: Annotated[str | None, typer.Option(help="approximate TCP 'x y z' mm")] = None,
     noise: Annotated[float, typer.Option(help="touch noise, mm 1-sigma")] = 0.05,
     tilt: Annotated[float, typer.Option(help="max tilt from the start's tool axis, deg")] = 40,
@@ -335,7 +397,7 @@ def plan(
         "max_spin_deg": spin,
     }
     if tool:
-        body["tool_id"] = tool
+        body["tool_id"] = resolve_tool(tool)
     if tcp:
         body["tcp_mm"] = [float(v) for v in tcp.replace(",", " ").split()]
     if n is not None:
@@ -366,47 +428,84 @@ def plan(
         out.print(f"wrote {csv_file}")
 
 
-def history(tool_id: Annotated[str, typer.Argument(help="the tool's id")]) -> None:
-    """A tool's versions: who, when, why, which is active."""
-    items = _send("GET", f"/v1/tools/{tool_id}/versions").json()["items"]
-    table = Table("version", "active", "x mm", "y mm", "z mm", "source", "by", "at", "note")
-    for v in items:
+def history(tool_id: ToolArg) -> None:
+    """A tool's versions (status, who, when, why, which is active) and every activation with
+    its reason."""
+    tool_id = resolve_tool(tool_id)
+    body = _send("GET", f"/v1/tools/{tool_id}/versions").json()
+    table = Table(
+        "version", "status", "active", "x mm", "y mm", "z mm", "source", "by", "at", "note",
+        title="versions",
+    )  # fmt: skip
+    for v in body["items"]:
         x, y, z = v["tcp"]["position_mm"]
         table.add_row(
-            str(v["version"]), "*" if v["active"] else "", f"{x:.3f}", f"{y:.3f}", f"{z:.3f}",
-            v["source"], v["created_by"], v["created_at"][:19], v.get("note") or "",
+            str(v["version"]), v["status"], "*" if v["active"] else "", f"{x:.3f}", f"{y:.3f}",
+            f"{z:.3f}", v["source"], v["created_by"], v["created_at"][:19], v.get("note") or "",
         )  # fmt: skip
     out.print(table)
+    activations = Table("at", "version", "previous", "kind", "reason", "by", title="activations")
+    for a in body.get("activations", []):
+        activations.add_row(
+            a["activated_at"][:19], str(a["version"]),
+            "-" if a["previous_version"] is None else str(a["previous_version"]),
+            a["reason"], a.get("reason_text") or "", a["activated_by"],
+        )  # fmt: skip
+    out.print(activations)
 
 
-def _activate(tool_id: str, version: int) -> None:
-    etag = _send("GET", f"/v1/tools/{tool_id}").headers.get("ETag", "*")
+def _etag(tool_id: str) -> str:
+    """The tool's ETag now, sent as If-Match: a change made meanwhile is a 412, not undone."""
+    return str(_send("GET", f"/v1/tools/{tool_id}").headers.get("ETag", "*"))
+
+
+def activate(
+    tool_id: ToolArg,
+    version: Annotated[int, typer.Argument(help="the version to make active")],
+    reason: Annotated[
+        str | None, typer.Option(help="why, kept in the history and the audit trail")
+    ] = None,
+    force: Annotated[
+        bool, typer.Option(help="activate a version stored out of tolerance (needs --reason)")
+    ] = False,
+) -> None:
+    """Make a version the tool's active TCP. A version stored out of tolerance needs --force
+    and --reason."""
+    if force and not reason:
+        _fail(EXIT_BAD_USE, "--force needs --reason: say why this version must go live")
+    tool_id = resolve_tool(tool_id)
+    body: dict[str, Any] = {}
+    if reason:
+        body["reason"] = reason
+    if force:
+        body["force"] = True
     tool = _send(
-        "POST", f"/v1/tools/{tool_id}/versions/{version}/activate", headers={"If-Match": etag}
+        "POST",
+        f"/v1/tools/{tool_id}/versions/{version}/activate",
+        json=body,
+        headers={"If-Match": _etag(tool_id)},
     ).json()
     out.print(f"tool {tool['name']}: version {tool['active_version']} is active")
 
 
-def activate(
-    tool_id: Annotated[str, typer.Argument(help="the tool's id")],
-    version: Annotated[int, typer.Argument(help="the version to make active")],
+def rollback(
+    tool_id: ToolArg,
+    reason: Annotated[
+        str | None, typer.Option(help="why, kept in the history and the audit trail")
+    ] = None,
 ) -> None:
-    """Make a version the tool's active TCP."""
-    _activate(tool_id, version)
-
-
-def rollback(tool_id: Annotated[str, typer.Argument(help="the tool's id")]) -> None:
-    """Activate the version before the active one."""
-    items = _send("GET", f"/v1/tools/{tool_id}/versions").json()["items"]
-    active = next((v["version"] for v in items if v["active"]), None)
-    older = [v["version"] for v in items if active is not None and v["version"] < active]
-    if not older:
-        _fail(EXIT_REFUSED, "there is no version before the active one to roll back to")
-    _activate(tool_id, max(older))
+    """Go back to the version that was active before the current one (from the activation
+    history; again walks further back)."""
+    tool_id = resolve_tool(tool_id)
+    body = {"reason": reason} if reason else {}
+    tool = _send(
+        "POST", f"/v1/tools/{tool_id}/rollback", json=body, headers={"If-Match": _etag(tool_id)}
+    ).json()
+    out.print(f"tool {tool['name']}: rolled back, version {tool['active_version']} is active")
 
 
 def check(
-    tool_id: Annotated[str, typer.Argument(help="the tool's id")],
+    tool_id: ToolArg,
     reference_point_id: Annotated[str, typer.Argument(help="the reference point touched")],
     poses_file: Annotated[Path, typer.Argument(help="CSV or JSON file of flange poses")],
     fmt: Annotated[str, typer.Option("--format", help="pose format, e.g. kuka_abc")],
@@ -415,6 +514,7 @@ def check(
 ) -> None:
     """Touch a reference point with the active TCP: how far and which way the tool moved."""
     units = _units(length, angle)
+    tool_id = resolve_tool(tool_id)
     body: dict[str, Any] = {
         "reference_point_id": reference_point_id,
         "format": fmt,
@@ -429,13 +529,14 @@ def check(
 
 
 def export(
-    tool_id: Annotated[str, typer.Argument(help="the tool's id")],
+    tool_id: ToolArg,
     fmt: Annotated[
         str, typer.Option("--format", help="kuka | abb | fanuc | ur | yaskawa | techman")
     ],
     output: Annotated[Path | None, typer.Option("-o", "--output", help="file or directory")] = None,
 ) -> None:
     """Write the active TCP as the controller's own text to a file."""
+    tool_id = resolve_tool(tool_id)
     response = _send(
         "GET", f"/v1/tools/{tool_id}/tcp", params={"format": fmt}, headers={"Accept": "text/plain"}
     )

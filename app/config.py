@@ -32,6 +32,12 @@ class Settings(BaseSettings):
         "worker); default: one per core but one (the event loop's); 0 solves in the request's "
         "thread",
     )
+    stale_days: float = Field(
+        default=180.0,
+        gt=0,
+        description="a tool with no calibration and no check for this many days is flagged "
+        "`stale` in the fleet list",
+    )
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."
     )

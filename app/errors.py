@@ -82,6 +82,18 @@ class Conflict(DomainError):
     status, kind, title = 409, "conflict", "Conflict"
 
 
+class OutOfTolerance(DomainError):
+    """Activating a version stored as out of tolerance without `force` and a reason."""
+
+    status, kind, title = 409, "out-of-tolerance", "Version out of tolerance"
+
+
+class NothingToRollBack(DomainError):
+    """A rollback with no earlier activation to return to."""
+
+    status, kind, title = 409, "nothing-to-roll-back", "Nothing to roll back"
+
+
 class IdempotencyConflict(DomainError):
     status, kind, title = 409, "idempotency-key-reused", "Idempotency key reused"
 

@@ -26,6 +26,7 @@ def test_spec_has_the_contract_paths() -> None:
         "/v1/calibrations/{calibration_id}",
         "/v1/tools/{tool_id}/versions",
         "/v1/tools/{tool_id}/versions/{version}/activate",
+        "/v1/tools/{tool_id}/rollback",
         "/v1/tools/{tool_id}/tcp",
         "/v1/robots/{robot_id}/tool-table",
         "/v1/keys",

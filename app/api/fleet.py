@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, TypedDict
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
@@ -17,6 +17,14 @@ from app.services import fleet
 router = APIRouter(tags=["fleet"])
 
 CSV = "text/csv"
+
+
+class Filters(TypedDict):
+    cell: str | None
+    robot_id: str | None
+    q: str | None
+    status: str | None
+    attention: bool | None
 
 
 @router.get(
@@ -36,13 +44,20 @@ def list_fleet(
     status: Annotated[
         CalibrationStatus | None, Query(description="status of the last calibration")
     ] = None,
+    attention: Annotated[
+        bool | None,
+        Query(
+            description="true: only tools that need attention (any code in `attention`); "
+            "false: only tools that need none"
+        ),
+    ] = None,
     limit: Limit = DEFAULT_LIMIT,
     cursor: Cursor = None,
 ) -> object:
-    """Every live tool of every robot with its robot, cell, active version, last calibration
-    and last check, oldest first, filtered. With `Accept: text/csv` every matching tool (not
-    one page) as a CSV file, one row per tool."""
-    filters = {"cell": cell, "robot_id": robot_id, "q": q, "status": status}
+    """Every live tool of every robot with its robot, cell, active version and TCP, last
+    calibration, last check and why it needs attention, oldest first, filtered. With
+    `Accept: text/csv` every matching tool (not one page) as a CSV file, one row per tool."""
+    filters = Filters(cell=cell, robot_id=robot_id, q=q, status=status, attention=attention)
     if CSV in request.headers.get("accept", ""):
         rows: list[FleetTool] = []
         page_cursor = None

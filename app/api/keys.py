@@ -5,9 +5,9 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
-from app.deps import AdminKey, SessionDep
+from app.deps import AdminKey, ReadKey, SessionDep
 from app.schemas.common import Page
-from app.schemas.keys import KeyCreate, KeyCreated, KeyOut
+from app.schemas.keys import KeyCreate, KeyCreated, KeyMe, KeyOut
 from app.services import keys
 
 router = APIRouter(prefix="/v1/keys", tags=["keys"])
@@ -27,6 +27,13 @@ def list_keys(
     """Every API key with its name, scope, prefix and revocation time (never the key itself)."""
     items, next_cursor = keys.list_keys(session, limit=limit, cursor=cursor)
     return {"items": items, "next_cursor": next_cursor}
+
+
+@router.get("/me", response_model=KeyMe)
+def who_am_i(key: ReadKey) -> object:
+    """The key this request was made with: its id, name and scope (any valid key may ask; a
+    client such as the console offers only what the scope allows)."""
+    return {"id": key.key_id, "name": key.name, "scope": key.scope}
 
 
 @router.delete("/{key_id}", status_code=204)

@@ -15,8 +15,16 @@ from app.exports import file_name
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
 from app.middleware import KEY_NAME
 from app.schemas.common import CONTROLLER_FORMATS, ID_PATTERN, ControllerFormat
-from app.schemas.tools import ActiveTcp, Tool, ToolTable, Version, VersionList
-from app.services import tools, versions
+from app.schemas.tools import (
+    ActivationRequest,
+    ActiveTcp,
+    RollbackRequest,
+    Tool,
+    ToolTable,
+    Version,
+    VersionList,
+)
+from app.services import activation, tools, versions
 
 router = APIRouter(tags=["versions"])
 
@@ -111,7 +119,17 @@ def get_version(
     return versions.version_document(row, tools.get_tool(session, tool_id))
 
 
-@router.post("/v1/tools/{tool_id}/versions/{version}/activate", response_model=Tool)
+_ACTIVATION_PROBLEMS: dict[int | str, dict[str, object]] = {
+    409: {"description": "out of tolerance without force (/out-of-tolerance)"},
+    412: {"description": "If-Match names an older ETag of the tool"},
+}
+
+
+@router.post(
+    "/v1/tools/{tool_id}/versions/{version}/activate",
+    response_model=Tool,
+    responses=_ACTIVATION_PROBLEMS,
+)
 def activate_version(
     tool_id: PathId,
     version: VersionNumber,
@@ -119,11 +137,47 @@ def activate_version(
     session: SessionDep,
     key: CalibrateKey,
     if_match: IfMatch = None,
+    body: ActivationRequest | None = None,
 ) -> object:
-    """Make a version the active TCP (roll back by activating an older one); honours If-Match
-    with the tool's ETag, 412 when stale."""
-    tool = versions.activate_version(
-        session, tool_id=tool_id, version=version, if_match=if_match, actor=key
+    """Make a stored version the active TCP, with an optional `reason` kept in the activation
+    history and the audit trail. A version stored as out_of_tolerance needs `{"force": true,
+    "reason": ...}` (409 /out-of-tolerance otherwise, nothing changed). To go back to the
+    version active before, use POST /v1/tools/{tool_id}/rollback. Honours If-Match with the
+    tool's ETag, 412 when stale."""
+    tool = activation.activate_version(
+        session,
+        tool_id=tool_id,
+        version=version,
+        body=body or ActivationRequest(),
+        if_match=if_match,
+        actor=key,
+    )
+    response.headers["ETag"] = tools.tool_etag(tool)
+    return tool
+
+
+@router.post(
+    "/v1/tools/{tool_id}/rollback",
+    response_model=Tool,
+    responses={
+        409: {"description": "no earlier activation to return to (/nothing-to-roll-back)"},
+        412: {"description": "If-Match names an older ETag of the tool"},
+    },
+)
+def rollback(
+    tool_id: PathId,
+    response: Response,
+    session: SessionDep,
+    key: CalibrateKey,
+    if_match: IfMatch = None,
+    body: RollbackRequest | None = None,
+) -> object:
+    """Return to the version that was active before the current one, read from the activation
+    history (never by number, never a version that was not active). Rolling back again walks
+    further back; 409 /nothing-to-roll-back when no earlier activation is left. Optional
+    `reason`; honours If-Match with the tool's ETag, 412 when stale."""
+    tool = activation.rollback(
+        session, tool_id=tool_id, body=body or RollbackRequest(), if_match=if_match, actor=key
     )
     response.headers["ETag"] = tools.tool_etag(tool)
     return tool

@@ -3,8 +3,11 @@
 // as a Bearer header; it never appears in a URL. Every figure is in mm to 3 decimals.
 
 const KEY_STORE = "tcpcal.api_key";
-const OLD_DAYS = 180; // a last calibration older than this needs attention
+const SCOPES = ["read", "calibrate", "admin"];
 const main = document.getElementById("main");
+// The signed-in key's name and scope (GET /v1/keys/me): write buttons only for what it may do.
+let me = null;
+const mayCalibrate = () => me !== null && SCOPES.indexOf(me.scope) >= SCOPES.indexOf("calibrate");
 
 // ---- DOM ------------------------------------------------------------------------------------
 function h(tag, attrs = {}, ...children) {
@@ -167,7 +170,7 @@ function signIn(then, message) {
     event.preventDefault();
     sessionStorage.setItem(KEY_STORE, form.elements.api_key.value.trim());
     try {
-      await api("/v1/tools?limit=1");
+      me = await json("/v1/keys/me");
       then();
     } catch (error) {
       sessionStorage.removeItem(KEY_STORE);
@@ -181,16 +184,14 @@ function signIn(then, message) {
 }
 
 // ---- fleet ----------------------------------------------------------------------------------
-function attention(tool) {
-  const reasons = [];
-  const last = tool.last_calibration;
-  if (tool.active_version === null) reasons.push("no active TCP");
-  if (last && last.status === "out_of_tolerance") reasons.push("last calibration out of tolerance");
-  if (tool.last_check && !tool.last_check.within_tolerance) reasons.push("check failed");
-  if (last && (Date.now() - new Date(last.created_at).getTime()) / 86400000 > OLD_DAYS)
-    reasons.push(`calibrated over ${OLD_DAYS} days ago`);
-  return reasons;
-}
+// What each attention code of GET /v1/tools means, for the row's tooltip.
+const ATTENTION = {
+  active_out_of_tolerance: "the version controllers are served was stored out of tolerance",
+  last_calibration_out_of_tolerance: "the last calibration is out of tolerance",
+  check_failed: "the last check found the TCP out of tolerance",
+  no_active_version: "no active TCP: calibrate or activate a version",
+  stale: "neither calibrated nor checked for a long time (TCPCAL_STALE_DAYS)",
+};
 
 async function fleetPage() {
   document.title = "Fleet · tcpcal";
@@ -226,16 +227,13 @@ async function fleetPage() {
       const value = filters.elements[name].value.trim();
       if (value) params.set(name, value);
     }
+    if (filters.elements.attention.checked) params.set("attention", "true");
     return params.toString();
   };
   const render = (tools) => {
-    const onlyAttention = filters.elements.attention.checked;
-    const rows = tools
-      .map((t) => [t, attention(t)])
-      .filter(([, reasons]) => !onlyAttention || reasons.length);
-    const flagged = tools.filter((t) => attention(t).length).length;
+    const flagged = tools.filter((t) => t.attention.length).length;
     summary.textContent = `${tools.length} tools, ${flagged} need attention`;
-    body.replaceChildren(...rows.map(([t, reasons]) => fleetRow(t, reasons)));
+    body.replaceChildren(...tools.map((t) => fleetRow(t)));
   };
   let pending = 0;
   const refresh = async () => {
@@ -253,12 +251,13 @@ async function fleetPage() {
   render(all);
 }
 
-function fleetRow(tool, reasons) {
+function fleetRow(tool) {
   const last = tool.last_calibration;
   const check = tool.last_check;
+  const codes = tool.attention;
   return h(
     "tr",
-    { class: reasons.length ? "attention" : null, "data-tool-id": tool.id },
+    { class: codes.length ? "attention" : null, "data-tool-id": tool.id },
     h("td", {}, h("a", { href: `/ui/tools/${tool.id}` }, tool.name)),
     h("td", {}, tool.robot_name),
     h("td", {}, tool.cell ?? "—"),
@@ -268,8 +267,44 @@ function fleetRow(tool, reasons) {
     h("td", { class: "num" }, last ? mm(last.rms_mm) : "—"),
     h("td", { class: "num", title: last ? when(last.created_at) : "" }, last ? age(last.created_at) : "—"),
     h("td", {}, check ? h("span", { class: `badge ${check.within_tolerance ? "accepted" : "out_of_tolerance"}` }, `${check.within_tolerance ? "pass" : "fail"} ${mm(check.distance_mm)}`) : "—"),
-    h("td", { class: "reasons" }, reasons.join("; ")),
+    h("td", { class: "reasons", title: codes.map((c) => ATTENTION[c] ?? c).join("; ") },
+      codes.map((c) => h("span", { class: "code", "data-code": c }, c))),
   );
+}
+
+// ---- confirmation -----------------------------------------------------------------------------
+// A modal that says what will change and asks why (1-500 characters, kept in the history).
+function confirmDialog({ title, lines, confirm, onConfirm }) {
+  const reason = h("textarea", { name: "reason", rows: 3, maxlength: 500, required: true, placeholder: "why (kept in the tool's history and audit trail)" });
+  const dialog = h(
+    "dialog",
+    { id: "confirm", "aria-labelledby": "confirm-title" },
+    h("form", { method: "dialog" },
+      h("h2", { id: "confirm-title" }, title),
+      lines.filter(Boolean).map((line) => h("p", {}, line)),
+      h("label", { for: "confirm-reason" }, "Reason"),
+      reason,
+      h("div", { class: "actions" },
+        h("button", { type: "submit", value: "confirm", class: "primary" }, confirm),
+        h("button", { type: "button", value: "cancel", onclick: () => dialog.close("cancel") }, "Cancel"))),
+  );
+  reason.id = "confirm-reason";
+  dialog.addEventListener("close", () => {
+    const text = reason.value.trim();
+    dialog.remove();
+    if (dialog.returnValue === "confirm" && text) onConfirm(text);
+  });
+  dialog.querySelector("form").addEventListener("submit", (event) => {
+    if (!reason.value.trim()) {
+      event.preventDefault();
+      reason.setCustomValidity("Give a reason");
+      reason.reportValidity();
+    }
+  });
+  reason.addEventListener("input", () => reason.setCustomValidity(""));
+  document.body.append(dialog);
+  dialog.showModal();
+  reason.focus();
 }
 
 // ---- tool -----------------------------------------------------------------------------------
@@ -287,21 +322,49 @@ async function toolPage(toolId) {
   ]);
   const sigmaOf = new Map(calibrations.filter((c) => c.version !== null).map((c) => [c.version, c.quality.tcp_sigma_mm]));
 
-  const activate = async (version, button) => {
+  const calibrationOf = new Map(calibrations.filter((c) => c.version !== null).map((c) => [c.version, c]));
+  // Every write is sent with the ETag the page was drawn from: a stale page changes nothing.
+  // What went wrong is drawn under the row (or beside the button) that was clicked.
+  const send = async (path, body, button) => {
     try {
-      await api(`/v1/tools/${toolId}/versions/${version}/activate`, { method: "POST", headers: { "If-Match": etag } });
+      await api(path, { method: "POST", body, headers: { "If-Match": etag } });
       route();
     } catch (error) {
       if (error instanceof Problem && error.status === 412) {
         noteBeside(button,
           h("div", { class: "problem", role: "alert" },
-            h("strong", {}, "Not activated: this page is out of date."),
+            h("strong", {}, "Not changed: this page is out of date."),
             h("p", {}, "The tool changed since this page was loaded (another activation or a new calibration). Nothing was changed. Reload to see the current versions, then decide again."),
             h("button", { type: "button", onclick: () => route() }, "Reload")),
         );
       } else noteBeside(button, problemBox(error));
     }
   };
+  const activate = (v, button) => {
+    const outOfTolerance = v.status === "out_of_tolerance";
+    const cal = calibrationOf.get(v.version);
+    confirmDialog({
+      title: `Activate version ${v.version} of ${tool.name}?`,
+      lines: [
+        `Controllers reading this tool will get TCP ${vec(v.tcp.position_mm)} mm instead of ${tool.active_version === null ? "nothing" : `version ${tool.active_version}`}.`,
+        outOfTolerance
+          ? h("span", { class: "warning" }, `Version ${v.version} is stored as out of tolerance${cal ? ` (${cal.summary}; worst touch ${mm(cal.quality.max_mm)} mm)` : ""}. It goes live only with your reason, sent with force.`)
+          : null,
+      ],
+      confirm: outOfTolerance ? "Activate anyway" : "Activate",
+      onConfirm: (reason) => send(`/v1/tools/${toolId}/versions/${v.version}/activate`, outOfTolerance ? { reason, force: true } : { reason }, button),
+    });
+  };
+  const rollBack = (event) => {
+    const button = event.currentTarget;
+    confirmDialog({
+      title: `Roll back ${tool.name}?`,
+      lines: [`Version ${tool.active_version} stops being served; the version that was active before it (from the activation history) goes live again.`],
+      confirm: "Roll back",
+      onConfirm: (reason) => send(`/v1/tools/${toolId}/rollback`, { reason }, button),
+    });
+  };
+  const writes = mayCalibrate();
 
   const versionRows = versions.items.slice().reverse().map((v) =>
     h(
@@ -316,12 +379,11 @@ async function toolPage(toolId) {
       h("td", {}, when(v.created_at)),
       h("td", {}, v.calibration_id ? h("a", { href: `/ui/calibrations/${v.calibration_id}` }, "report") : "—"),
       h("td", {}, v.active ? h("strong", {}, "active")
-        : h("button", { type: "button", class: "activate", onclick: (event) => activate(v.version, event.currentTarget) },
-          tool.active_version !== null && v.version < tool.active_version ? "Roll back to this" : "Activate")),
+        : writes ? h("button", { type: "button", class: "activate", onclick: (event) => activate(v, event.currentTarget) }, "Activate") : null),
     ),
   );
   const activationRows = versions.activations.slice().reverse().map((a) =>
-    h("tr", {}, h("td", {}, when(a.activated_at)), h("td", { class: "num" }, a.version), h("td", { class: "num" }, a.previous_version ?? "—"), h("td", {}, a.reason), h("td", {}, a.activated_by)),
+    h("tr", {}, h("td", {}, when(a.activated_at)), h("td", { class: "num" }, a.version), h("td", { class: "num" }, a.previous_version ?? "—"), h("td", {}, a.reason), h("td", { class: "reason-text" }, a.reason_text ?? ""), h("td", {}, a.activated_by)),
   );
 
   const controllers = formats.controllers;
@@ -333,9 +395,10 @@ async function toolPage(toolId) {
     h("section", {}, h("h2", {}, "TCP over the versions"), versions.items.length ? h("div", { id: "plot-tcp", class: "plot" }) : h("p", { id: "no-versions" }, "No versions yet: calibrate the tool, or enter its TCP by hand (method manual).")),
     h("section", {}, h("h2", {}, "Checks over time"), checks.length ? h("div", { id: "plot-checks", class: "plot" }) : h("p", {}, "No checks recorded yet.")),
     h("section", {}, h("h2", {}, "Versions"),
+      writes && tool.active_version !== null ? h("p", {}, h("button", { type: "button", id: "rollback", onclick: rollBack }, "Roll back")) : null,
       h("table", { id: "versions" }, h("thead", {}, h("tr", {}, ["Version", "Status", "TCP x, y, z mm", "Source", "Why", "By", "When", "", ""].map((c) => h("th", {}, c)))), h("tbody", {}, versionRows))),
     h("section", {}, h("h2", {}, "Activation history"),
-      h("table", { id: "activations" }, h("thead", {}, h("tr", {}, ["When", "Version", "Previous", "Why", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, activationRows))),
+      h("table", { id: "activations" }, h("thead", {}, h("tr", {}, ["When", "Version", "Previous", "Kind", "Reason", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, activationRows))),
   );
 
   if (versions.items.length) plotTcp(versions.items, sigmaOf);
@@ -500,6 +563,8 @@ async function route() {
   const tool = path.match(/^\/ui\/tools\/([^/]+)$/);
   const report = path.match(/^\/ui\/calibrations\/([^/]+)$/);
   try {
+    if (me === null) me = await json("/v1/keys/me");
+    document.getElementById("who").textContent = `${me.name} (${me.scope})`;
     if (tool) await toolPage(decodeURIComponent(tool[1]));
     else if (report) await reportPage(decodeURIComponent(report[1]));
     else await fleetPage();
@@ -511,6 +576,8 @@ async function route() {
 
 document.getElementById("sign-out").addEventListener("click", () => {
   sessionStorage.removeItem(KEY_STORE);
+  me = null;
+  document.getElementById("who").textContent = "";
   signIn(route);
 });
 

@@ -280,7 +280,7 @@ def _rows(fmt: str, poses: object, labels: Sequence[str], units: PoseUnits, loc:
             if any(len(r) != 4 for r in pose):
                 raise InvalidInput(
                     "invalid-pose",
-                    f"pose {i}: expected {_expected(fmt, labels, units)}, got rows of "
+                    f"pose {i + 1}: expected {_expected(fmt, labels, units)}, got rows of "
                     f"lengths {[len(r) for r in pose]}",
                     loc=(*loc, i),
                 )
@@ -288,14 +288,14 @@ def _rows(fmt: str, poses: object, labels: Sequence[str], units: PoseUnits, loc:
         if not isinstance(flat, Sequence) or isinstance(flat, str | bytes):
             raise InvalidInput(
                 "invalid-pose",
-                f"pose {i}: expected {_expected(fmt, labels, units)} for format {fmt!r}, "
+                f"pose {i + 1}: expected {_expected(fmt, labels, units)} for format {fmt!r}, "
                 f"got {type(pose).__name__}",
                 loc=(*loc, i),
             )
         if len(flat) != arity:
             raise InvalidInput(
                 "invalid-pose",
-                f"pose {i}: expected {_expected(fmt, labels, units)} for format {fmt!r}, "
+                f"pose {i + 1}: expected {_expected(fmt, labels, units)} for format {fmt!r}, "
                 f"got {len(flat)} values",
                 loc=(*loc, i),
                 context={"expected_arity": arity, "got_arity": len(flat)},
@@ -304,7 +304,7 @@ def _rows(fmt: str, poses: object, labels: Sequence[str], units: PoseUnits, loc:
             if not _is_number(value):
                 raise InvalidInput(
                     "invalid-pose",
-                    f"pose {i}: {labels[j]} must be a number, got {value!r}",
+                    f"pose {i + 1}: {labels[j]} must be a number, got {value!r}",
                     loc=(*loc, i, j),
                 )
             out[i, j] = float(value)
@@ -333,7 +333,7 @@ def _check_values(fmt: str, values: FloatArray, labels: Sequence[str], loc: Loc)
                 j = where.start + int(err.loc[-1])
                 raise InvalidInput(
                     "non-finite",
-                    f"pose {i}: {labels[j]} = {values[i, j]} is not a finite number",
+                    f"pose {i + 1}: {labels[j]} = {values[i, j]} is not a finite number",
                     loc=err.loc,
                 ) from err
 
@@ -344,7 +344,7 @@ def _check_angles_deg(angles_deg: FloatArray, labels: Sequence[str], field: str,
         i, j = (int(k) for k in np.argwhere(too_big)[0])
         raise InvalidInput(
             "out-of-range",
-            f"pose {i}: {labels[j]} = {angles_deg[i, j]:.6g} deg is beyond "
+            f"pose {i + 1}: {labels[j]} = {angles_deg[i, j]:.6g} deg is beyond "
             f"+-{MAX_ABS_ANGLE_DEG:g} deg (wrong units, or a sentinel value)",
             loc=(*loc, i, field, j),
         )
@@ -398,7 +398,7 @@ def poses_from_format(
             i = int(bad[0])
             raise InvalidInput(
                 "invalid-pose",
-                f"pose {i}: the last row of a 4x4 pose matrix must be [0, 0, 0, 1], got "
+                f"pose {i + 1}: the last row of a 4x4 pose matrix must be [0, 0, 0, 1], got "
                 f"{m[i, 3].tolist()}",
                 loc=(*loc, i, "matrix"),
             )

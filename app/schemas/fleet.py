@@ -10,6 +10,16 @@ from app.schemas.common import Timestamp
 
 CalibrationStatus = Literal["accepted", "out_of_tolerance"]
 
+#: Why a fleet row needs a person's attention: every code, in the order rows list them (the
+#: one list of them; each has its rule in app.services.fleet.attention_rules).
+AttentionCode = Literal[
+    "active_out_of_tolerance",
+    "last_calibration_out_of_tolerance",
+    "check_failed",
+    "no_active_version",
+    "stale",
+]
+
 
 class LastCalibration(BaseModel):
     id: str
@@ -35,6 +45,20 @@ class FleetTool(BaseModel):
     active_version: int | None
     last_calibration: LastCalibration | None
     last_check: LastCheck | None
+    position_mm: list[float] | None = Field(
+        default=None, description="the active TCP's position (mm); null without an active version"
+    )
+    quaternion: list[float] | None = Field(
+        default=None,
+        description="the active TCP's orientation [w, x, y, z]; null without an active version",
+    )
+    attention: list[AttentionCode] = Field(
+        default_factory=list,
+        description="why the tool needs attention, empty when all is well: "
+        "active_out_of_tolerance (the version served was stored out of tolerance), "
+        "last_calibration_out_of_tolerance, check_failed (the newest check), "
+        "no_active_version, stale (no calibration or check for TCPCAL_STALE_DAYS days)",
+    )
 
 
 class CheckRecord(BaseModel):
@@ -70,4 +94,12 @@ CSV_COLUMNS = (
     "last_check_within_tolerance",
     "last_check_distance_mm",
     "last_check_at",
+    "attention",
+    "active_x_mm",
+    "active_y_mm",
+    "active_z_mm",
+    "active_qw",
+    "active_qx",
+    "active_qy",
+    "active_qz",
 )

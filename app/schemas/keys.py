@@ -28,3 +28,11 @@ class KeyOut(BaseModel):
 
 class KeyCreated(KeyOut):
     key: str
+
+
+class KeyMe(BaseModel):
+    """The key a request was made with, as a client needs to know it (never the key)."""
+
+    id: str
+    name: str
+    scope: Scope

@@ -125,7 +125,10 @@ class Session(BaseModel):
     n_poses: int
     poses: list[Pose] = Field(description="the touches kept so far, in order (index from 0)")
     estimate: Estimate | None
-    outliers: list[int] = Field(description="indices of touches the others say were missed")
+    outliers: list[int] = Field(
+        description="0-based index into poses of each touch the others say was missed "
+        "(touch n, as messages name it, is index n - 1)"
+    )
     next_pose: list[FiniteFloat] | list[list[FiniteFloat]] | None = Field(
         description="the touch that shrinks the largest remaining uncertainty most, in the "
         "session's format; null before the first touch, when done or finished"

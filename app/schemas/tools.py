@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, BeforeValidator, Field
+from pydantic import BaseModel, BeforeValidator, Field, StrictBool, StringConstraints
 
 from app.jsontypes import JsonObject
 from app.schemas.common import (
@@ -98,6 +98,43 @@ class Version(BaseModel):
     active: bool
 
 
+#: A person's reason for an activation or a rollback: 1-500 characters once trimmed, no
+#: control characters but tab and line breaks.
+Reason = Annotated[
+    str,
+    StringConstraints(
+        strip_whitespace=True,
+        min_length=1,
+        max_length=500,
+        pattern=r"^[^\x00-\x08\x0b\x0c\x0e-\x1f\x7f]*$",
+    ),
+]
+
+
+class ActivationRequest(StrictModel):
+    """The optional body of an activation: why, and `force` for an out-of-tolerance version."""
+
+    reason: Reason | None = Field(
+        default=None,
+        description="why this version goes live (1-500 characters); kept in the activation "
+        "history and the audit trail; required with force",
+    )
+    force: StrictBool = Field(
+        default=False,
+        description="activate a version stored as out_of_tolerance (needs a reason)",
+    )
+
+
+class RollbackRequest(StrictModel):
+    """The optional body of a rollback."""
+
+    reason: Reason | None = Field(
+        default=None,
+        description="why the tool goes back (1-500 characters); kept in the activation history "
+        "and the audit trail",
+    )
+
+
 class VersionList(BaseModel):
     items: list[Version]
     activations: list[ActivationOut] = Field(default_factory=list)
@@ -106,7 +143,13 @@ class VersionList(BaseModel):
 class ActivationOut(BaseModel):
     version: int
     previous_version: int | None
-    reason: str
+    reason: str = Field(
+        description="the kind of activation: explicit, forced (an out-of-tolerance version, "
+        "with force), rollback, calibration:auto or calibration:always"
+    )
+    reason_text: str | None = Field(
+        default=None, description="the reason the person gave (the request's `reason`), if any"
+    )
     activated_at: Timestamp
     activated_by: str
 

@@ -1,21 +1,30 @@
-"""The fleet: every live tool of every robot with its last calibration and last check, and
-a tool's checks read back (a check is recorded once, in the audit trail)."""
+"""The fleet: every live tool of every robot with its active TCP, last calibration, last check
+and why it needs attention, and a tool's checks read back (a check is recorded once, in the
+audit trail)."""
 
 from __future__ import annotations
 
 import csv
 import io
 from collections.abc import Sequence
-from datetime import datetime
+from datetime import datetime, timedelta
 from typing import TypeVar
 
-from sqlalchemy import Row, ScalarSelect, Select, func, or_, select
-from sqlalchemy.orm import InstrumentedAttribute, Session
+from sqlalchemy import ColumnElement, Row, ScalarSelect, Select, and_, false, func, or_, select
+from sqlalchemy.orm import InstrumentedAttribute, Session, aliased
 
+from app.config import get_settings
 from app.helpers.pagination import paginate_newest_first, paginate_rows
-from app.jsontypes import JsonObject
-from app.models import AuditEvent, Calibration, Robot, Tool
-from app.schemas.fleet import CSV_COLUMNS, CheckRecord, FleetTool, LastCalibration, LastCheck
+from app.jsontypes import JsonArray, JsonObject
+from app.models import AuditEvent, Calibration, Robot, TcpVersion, Tool, utcnow
+from app.schemas.fleet import (
+    CSV_COLUMNS,
+    AttentionCode,
+    CheckRecord,
+    FleetTool,
+    LastCalibration,
+    LastCheck,
+)
 from app.services.tools import get_tool
 
 CHECK_ACTION = "tool.check"
@@ -35,7 +44,54 @@ def _newest_calibration(column: InstrumentedAttribute[T]) -> ScalarSelect[T]:
     )
 
 
-#: The columns a fleet row shows of its tool and robot (created_at: the page's cursor).
+def _newest_check(column: InstrumentedAttribute[T] | ColumnElement[T]) -> ScalarSelect[T]:
+    """`column` of the tool's newest check, correlated to Tool: a seek in the
+    (tool_id, action, id) index of the audit trail."""
+    return (
+        select(column)
+        .where(AuditEvent.tool_id == Tool.id, AuditEvent.action == CHECK_ACTION)
+        .order_by(AuditEvent.id.desc())
+        .limit(1)
+        .correlate(Tool)
+        .scalar_subquery()
+    )
+
+
+#: The tool's active version, joined on the (tool_id, version) unique index.
+_ACTIVE = aliased(TcpVersion, name="active_tcp")
+OUT_OF_TOLERANCE = "out_of_tolerance"
+
+
+def attention_rules(now: datetime) -> dict[AttentionCode, ColumnElement[bool]]:
+    """The rule of each attention code, as a condition on a fleet row (Tool, its robot and
+    its active version joined): the codes a row shows and `?attention=` are both these.
+    Each is an index seek per tool, never a scan of calibrations, versions or checks."""
+    cutoff = now - timedelta(days=get_settings().stale_days)
+    return {
+        "active_out_of_tolerance": _ACTIVE.status == OUT_OF_TOLERANCE,
+        "last_calibration_out_of_tolerance": (
+            _newest_calibration(Calibration.status) == OUT_OF_TOLERANCE
+        ),
+        "check_failed": (
+            _newest_check(AuditEvent.details["within_tolerance"].as_boolean()) == false()
+        ),
+        "no_active_version": Tool.active_version.is_(None),
+        # Nothing done to the tool for stale_days: neither calibrated nor checked (a tool
+        # registered less long ago is not stale yet).
+        "stale": and_(
+            func.coalesce(_newest_calibration(Calibration.created_at), Tool.created_at) < cutoff,
+            func.coalesce(_newest_check(AuditEvent.at), Tool.created_at) < cutoff,
+        ),
+    }
+
+
+def _any(rules: dict[AttentionCode, ColumnElement[bool]]) -> ColumnElement[bool]:
+    """True when any rule holds (a rule whose subquery finds nothing counts as false)."""
+    return or_(*(func.coalesce(rule, false()) for rule in rules.values()))
+
+
+#: The columns a fleet row shows of its tool, robot and active version (created_at: the
+#: page's cursor).
 _TOOL_COLUMNS = (
     Tool.id,
     Tool.name,
@@ -45,15 +101,27 @@ _TOOL_COLUMNS = (
     Tool.created_at,
     Robot.name.label("robot_name"),
     Robot.cell,
+    _ACTIVE.position_mm,
+    _ACTIVE.quaternion,
 )
 
 
 def _fleet_query(
-    *, cell: str | None, robot_id: str | None, q: str | None, status: str | None
-) -> Select[str, str, int | None, str, int | None, datetime, str, str | None]:
+    *,
+    cell: str | None,
+    robot_id: str | None,
+    q: str | None,
+    status: str | None,
+    attention: bool | None,
+    rules: dict[AttentionCode, ColumnElement[bool]],
+) -> Select[str, str, int | None, str, int | None, datetime, str, str | None, JsonArray, JsonArray]:
     stmt = (
         select(*_TOOL_COLUMNS)
         .join(Robot, Robot.id == Tool.robot_id)
+        .outerjoin(
+            _ACTIVE,
+            and_(_ACTIVE.tool_id == Tool.id, _ACTIVE.version == Tool.active_version),
+        )
         .where(Tool.archived_at.is_(None), Robot.archived_at.is_(None))
     )
     if cell is not None:
@@ -70,6 +138,8 @@ def _fleet_query(
         )
     if status is not None:
         stmt = stmt.where(_newest_calibration(Calibration.status) == status)
+    if attention is not None:
+        stmt = stmt.where(_any(rules) if attention else ~_any(rules))
     return stmt
 
 
@@ -82,16 +152,22 @@ def list_fleet(
     status: str | None,
     limit: int,
     cursor: str | None,
+    attention: bool | None = None,
 ) -> tuple[list[FleetTool], str | None]:
-    """One page of the fleet, oldest tool first; three queries per page whatever its size,
-    each reading only the columns a row shows (rows, not ORM objects: a page is read-only)."""
-    stmt = _fleet_query(cell=cell, robot_id=robot_id, q=q, status=status)
+    """One page of the fleet, oldest tool first; four queries per page whatever its size,
+    each reading only the columns a row shows (rows, not ORM objects: a page is read-only).
+    `attention`: only rows with (true) or without (false) an attention code."""
+    rules = attention_rules(utcnow())
+    stmt = _fleet_query(
+        cell=cell, robot_id=robot_id, q=q, status=status, attention=attention, rules=rules
+    )
     tools, next_cursor = paginate_rows(
         session, stmt, created_col=Tool.created_at, id_col=Tool.id, limit=limit, cursor=cursor
     )
     ids = [t.id for t in tools]
     last_cal = {c.tool_id: c for c in session.execute(_newest_calibrations(ids))}
     last_check = {e.tool_id: e for e in session.execute(_newest_checks(ids))}
+    codes = _attention_of(session, ids, rules)
     rows = [
         FleetTool(
             id=t.id,
@@ -103,10 +179,35 @@ def list_fleet(
             active_version=t.active_version,
             last_calibration=_last_calibration(last_cal.get(t.id)),
             last_check=_last_check(last_check.get(t.id)),
+            position_mm=t.position_mm,
+            quaternion=t.quaternion,
+            attention=codes.get(t.id, []),
         )
         for t in tools
     ]
     return rows, next_cursor
+
+
+def _attention_of(
+    session: Session, ids: list[str], rules: dict[AttentionCode, ColumnElement[bool]]
+) -> dict[str, list[AttentionCode]]:
+    """The attention codes of the page's tools, each rule evaluated by the database (the
+    same conditions `?attention=` filters on)."""
+    if not ids:
+        return {}
+    order = list(rules)
+    stmt = (
+        select(Tool.id, *(rules[code].label(f"rule_{i}") for i, code in enumerate(order)))
+        .outerjoin(
+            _ACTIVE,
+            and_(_ACTIVE.tool_id == Tool.id, _ACTIVE.version == Tool.active_version),
+        )
+        .where(Tool.id.in_(ids))
+    )
+    return {
+        row[0]: [code for code, hit in zip(order, row[1:], strict=True) if hit]
+        for row in session.execute(stmt)
+    }
 
 
 # The newest calibration and the newest check of each tool of a page, found through the
@@ -182,9 +283,16 @@ def fleet_csv(rows: Sequence[FleetTool]) -> str:
                 "" if chk is None else str(chk.within_tolerance).lower(),
                 "" if chk is None else f"{chk.distance_mm:.3f}",
                 chk.created_at.isoformat() if chk else "",
+                ";".join(r.attention),
+                *_numbers(r.position_mm, 3, 3),
+                *_numbers(r.quaternion, 4, 9),
             ]
         )
     return out.getvalue()
+
+
+def _numbers(values: Sequence[float] | None, n: int, decimals: int) -> list[str]:
+    return [""] * n if values is None else [f"{v:.{decimals}f}" for v in values]
 
 
 def list_checks(

@@ -16,6 +16,7 @@ from app.models import Robot, Tool, utcnow
 from app.schemas.robots import Kinematics, RobotCreate, RobotUpdate
 from app.services import audit
 from app.services.live import get_live
+from app.services.slots import check_vendor_change
 
 
 def get_robot(session: Session, robot_id: str, *, for_update: bool = False) -> Robot:
@@ -79,6 +80,13 @@ def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: P
         _robot_name_free(session, changes["name"], except_id=robot.id)
     if "kinematics" in changes:
         changes["kinematics"] = validate_kinematics(data.kinematics)
+    if changes.get("vendor") is not None:
+        live = session.execute(
+            select(Tool.name, Tool.slot).where(
+                Tool.robot_id == robot.id, Tool.archived_at.is_(None)
+            )
+        )
+        check_vendor_change(changes["vendor"], ((n, s) for n, s in live), loc=("body", "vendor"))
     for key, value in changes.items():
         setattr(robot, key, value)
     robot.updated_at = utcnow()

@@ -230,8 +230,9 @@ def delete_touch(session: Session, *, session_id: str, index: int) -> SessionOut
     row = _open(session, session_id)
     if not 0 <= index < len(row.poses):
         raise NotFound(
-            f"session {session_id} has no touch {index}: it holds {len(row.poses)} "
-            f"(indices 0 to {len(row.poses) - 1})"
+            f"session {session_id} has no touch at index {index}: it holds "
+            f"{len(row.poses)} (touches 1 to {len(row.poses)}, indices 0 to "
+            f"{len(row.poses) - 1}; touch n is index n - 1)"
         )
     row.poses = [p for i, p in enumerate(row.poses) if i != index]
     row.updated_at = utcnow()
@@ -374,7 +375,7 @@ def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> S
 
 def _miss_message(session_id: str, index: int, residual_mm: float) -> str:
     return (
-        f"touch #{index + 1} (index {index}) is {residual_mm:.2f} mm off the others, more than "
+        f"touch {index + 1} (index {index}) is {residual_mm:.2f} mm off the others, more than "
         f"the touch noise explains: touch the point again, then delete it "
         f"(DELETE /v1/sessions/{session_id}/poses/{index})"
     )

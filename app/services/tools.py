@@ -19,6 +19,7 @@ from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.services import audit
 from app.services.live import get_live
 from app.services.robots import get_robot
+from app.services.slots import check_slot
 
 
 def get_tool(session: Session, tool_id: str, *, for_update: bool = False) -> Tool:
@@ -94,7 +95,8 @@ def _tool_unique(
 
 def create_tool(session: Session, *, robot_id: str, data: ToolCreate, actor: Principal) -> Tool:
     """Register a tool on a robot (name and slot unique among the robot's live tools)."""
-    get_robot(session, robot_id, for_update=True)
+    robot = get_robot(session, robot_id, for_update=True)
+    check_slot(robot.vendor, data.slot, loc=("body", "slot"))
     _tool_unique(session, robot_id=robot_id, name=data.name, slot=data.slot)
     values = data.model_dump()
     tool = Tool(robot_id=robot_id, last_version=0, revision=1, **values)
@@ -133,6 +135,8 @@ def update_tool(
     changes = data.model_dump(exclude_unset=True)
     if changes.get("name", "") is None:
         changes.pop("name")
+    if changes.get("slot") is not None:
+        check_slot(get_robot(session, tool.robot_id).vendor, changes["slot"], loc=("body", "slot"))
     _tool_unique(
         session,
         robot_id=tool.robot_id,

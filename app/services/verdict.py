@@ -9,6 +9,7 @@ from __future__ import annotations
 from app.methods.base import ActiveFrame
 from app.schemas.results import CalibrationResult, QualityOut
 from app.schemas.tools import Tolerance
+from app.solvers.numbering import numbered
 
 
 def held_for_change(change_mm: float | None, tolerance: Tolerance) -> bool:
@@ -43,7 +44,7 @@ def _out_of_tolerance(result: CalibrationResult, tolerance: Tolerance) -> str:
     if worst is not None and worst[1] > tolerance.max_residual_mm:
         index, residual = worst
         return (
-            f"out of tolerance: touch #{index + 1} is {residual:.2f} mm off the others "
+            f"out of tolerance: touch {index + 1} is {residual:.2f} mm off the others "
             f"(max_residual_mm {tolerance.max_residual_mm:g}), touch it again"
         )
     rms = quality.rms_mm or 0.0
@@ -72,8 +73,7 @@ def summarise(
     elif quality.n_poses <= 1:
         parts.append("entered by hand" if result.method == "manual" else "from one pose")
     if quality.outliers:
-        numbers = ", ".join(f"#{i + 1}" for i in quality.outliers)
-        parts.append(f"touch {numbers} set aside as off the others")
+        parts.append(f"{numbered('touch', quality.outliers)} set aside as off the others")
     if result.orientation_change_deg is not None:
         parts.append(f"turned {result.orientation_change_deg:.2f} deg")
     if previous is not None and result.change_from_active_mm is not None:

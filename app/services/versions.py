@@ -24,7 +24,7 @@ from app.services.drift import refresh_drift
 from app.services.exports import ServedTool, ServedVersion, controller_text
 from app.services.live import live_or_404
 from app.services.robots import get_robot
-from app.services.tools import check_if_match, get_tool
+from app.services.tools import get_tool
 
 IDENTITY_QUATERNION = [1.0, 0.0, 0.0, 0.0]
 
@@ -176,10 +176,20 @@ def add_version(
 
 
 def activate(
-    session: Session, *, tool: LockedTool, version: int, reason: str, actor: Principal
+    session: Session,
+    *,
+    tool: LockedTool,
+    version: int,
+    reason: str,
+    actor: Principal,
+    reason_text: str | None = None,
+    action: str = "version.activate",
+    details: JsonObject | None = None,
 ) -> None:
-    """Make `version` the active one and record who did it and when (a tool locked with
-    `lock_tool`)."""
+    """Make `version` the active one and record who did it, when and why (a tool locked with
+    `lock_tool`). `reason` is the kind (explicit, forced, rollback, calibration:auto, ...),
+    `reason_text` the person's own words; both go into the activation history and the audit
+    event (`action`, with `details` added)."""
     now = utcnow()
     previous, tool.active_version = tool.active_version, version
     tool.revision += 1
@@ -191,21 +201,25 @@ def activate(
                 "version": version,
                 "previous_version": previous,
                 "reason": reason,
+                "reason_text": reason_text,
                 "activated_by": actor.name,
                 "activated_at": now,
             }
         ],
     )
     _save(session, tool, now)
+    event: JsonObject = {"version": version, "previous_version": previous, "reason": reason}
+    if reason_text is not None:
+        event["reason_text"] = reason_text
     audit.record(
         session,
         actor=actor,
-        action="version.activate",
+        action=action,
         resource_type="tool",
         resource_id=tool.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
-        details={"version": version, "previous_version": previous, "reason": reason},
+        details={**event, **(details or {})},
     )
     _refresh_drift(session, tool)
 
@@ -245,17 +259,6 @@ def list_versions(
         )
     )
     return tool, versions, history
-
-
-def activate_version(
-    session: Session, *, tool_id: str, version: int, if_match: str | None, actor: Principal
-) -> Tool:
-    """Activate an existing version (roll forward or back), honouring If-Match."""
-    locked = lock_tool(session, tool_id)
-    check_if_match(locked, if_match)
-    get_version(session, tool_id=tool_id, version=version)
-    activate(session, tool=locked, version=version, reason="explicit", actor=actor)
-    return get_tool(session, tool_id)
 
 
 def active_version_row(session: Session, tool: Tool) -> TcpVersion:

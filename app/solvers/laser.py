@@ -234,7 +234,7 @@ def _checked_position(i: int, sweep: Sweep, name: str) -> FloatArray:
     if value is None:
         raise InvalidInput(
             "invalid-sweep",
-            f"sweep {i}: no {name.removesuffix('_mm')} position: the tool must break "
+            f"sweep {i + 1}: no {name.removesuffix('_mm')} position: the tool must break "
             f"and then restore beam {sweep.beam.upper()}; a beam the tool never crossed "
             "cannot be used",
             loc=("sweeps", i, name),
@@ -242,7 +242,7 @@ def _checked_position(i: int, sweep: Sweep, name: str) -> FloatArray:
     arr = np.asarray(value, dtype=np.float64)
     if arr.shape != (3,):
         raise InvalidInput(
-            "invalid-sweep", f"sweep {i}: {name} needs 3 values (mm)", loc=("sweeps", i, name)
+            "invalid-sweep", f"sweep {i + 1}: {name} needs 3 values (mm)", loc=("sweeps", i, name)
         )
     position: FloatArray = check_positions_mm(arr[None], loc=("sweeps", i, name))[0]
     return position
@@ -254,7 +254,7 @@ def _checked_sweep(i: int, sweep: Sweep) -> tuple[FloatArray, FloatArray, str | 
     if sweep.beam not in ("a", "b"):
         raise InvalidInput(
             "invalid-sweep",
-            f"sweep {i}: beam must be 'a' (parallel to base X) or 'b' (parallel to base Y), "
+            f"sweep {i + 1}: beam must be 'a' (parallel to base X) or 'b' (parallel to base Y), "
             f"got {sweep.beam!r}",
             loc=("sweeps", i, "beam"),
         )
@@ -267,21 +267,21 @@ def _checked_sweep(i: int, sweep: Sweep) -> tuple[FloatArray, FloatArray, str | 
     if float(np.linalg.norm(d)) < MIN_WIDTH_MM:
         raise InvalidInput(
             "invalid-sweep",
-            f"sweep {i}: break and restore are the same position; the flange must move "
+            f"sweep {i + 1}: break and restore are the same position; the flange must move "
             f"across beam {beam} between them",
             loc=("sweeps", i, "restore_mm"),
         )
     if abs(float(d[2])) > HEIGHT_TOL_MM:
         raise InvalidInput(
             "invalid-sweep",
-            f"sweep {i}: the flange height changed by {d[2]:.2f} mm between break and "
+            f"sweep {i + 1}: the flange height changed by {d[2]:.2f} mm between break and "
             f"restore; sweep horizontally (within {HEIGHT_TOL_MM:g} mm)",
             loc=("sweeps", i, "restore_mm"),
         )
     if off > along or along < MIN_WIDTH_MM:
         raise InvalidInput(
             "invalid-sweep",
-            f"sweep {i}: the flange moved mostly along base {other}; "
+            f"sweep {i + 1}: the flange moved mostly along base {other}; "
             f"beam {beam} is crossed by moving along base {axis}",
             loc=("sweeps", i, "restore_mm"),
         )
@@ -289,7 +289,7 @@ def _checked_sweep(i: int, sweep: Sweep) -> tuple[FloatArray, FloatArray, str | 
     warning = None
     if angle > WARN_SWEEP_ANGLE_DEG:
         warning = (
-            f"sweep {i} strays {angle:.1f} deg from base {axis}; only its {axis} motion is used"
+            f"sweep {i + 1} strays {angle:.1f} deg from base {axis}; only its {axis} motion is used"
         )
     return brk, restore, warning
 
@@ -313,7 +313,7 @@ def _height_groups(
         if gap < MIN_HEIGHT_SEPARATION_MM:
             raise InvalidInput(
                 "invalid-sweep",
-                f"sweep {groups[k][0]} is {gap:.2f} mm above the sweeps at flange z "
+                f"sweep {groups[k][0] + 1} is {gap:.2f} mm above the sweeps at flange z "
                 f"{heights[k - 1]:.2f} mm: sweeps at one height must agree within "
                 f"{HEIGHT_TOL_MM:g} mm and heights must be at least "
                 f"{MIN_HEIGHT_SEPARATION_MM:g} mm apart",

@@ -29,6 +29,7 @@ from scipy.stats import chi2
 from scipy.stats import f as f_dist
 
 from app.errors import InvalidInput
+from app.solvers.numbering import number, numbered
 from app.solvers.quality import (
     SIGMA_CONFIGURED,
     SIGMA_RESIDUALS,
@@ -205,9 +206,9 @@ def _fit(
     if algorithm == "robust":
         fit, used, warnings = _robust(R, f, noise)
         if not used.all():
-            rejected = [int(i) for i in np.flatnonzero(~used)]
+            rejected = numbered("touch", np.flatnonzero(~used))
             block = _block_conditioning(R[used])
-            _check_degenerate(block, context=f"after setting aside the missed touches {rejected}, ")
+            _check_degenerate(block, context=f"after setting aside the missed {rejected}, ")
     else:
         fit = _ESTIMATORS[algorithm](R, f, noise)
     if (
@@ -410,7 +411,7 @@ def _check_repeated(cosines: FloatArray) -> list[str]:
     close = np.triu(close, k=1)
     pairs = [(int(i), int(j)) for i, j in np.argwhere(close)]
     distinct = n - int(close.any(axis=0).sum())
-    shown = ", ".join(f"{i} and {j}" for i, j in pairs[:10])
+    shown = ", ".join(f"{number(i)} and {number(j)}" for i, j in pairs[:10])
     more = f" (and {len(pairs) - 10} more pairs)" if len(pairs) > 10 else ""
     if distinct < MIN_POSES:
         raise InvalidInput(
@@ -1015,7 +1016,7 @@ def _robust(R: FloatArray, f: FloatArray, noise: _Noise) -> tuple[_Fit, BoolArra
     if not used.all():
         res = np.linalg.norm(_residual_vectors(R, f, fit.t, fit.p), axis=1)
         rejected = np.flatnonzero(~used)
-        listed = ", ".join(f"{int(i)} ({res[i]:.2f} mm)" for i in rejected[:20])
+        listed = ", ".join(f"touch {number(i)} ({res[i]:.2f} mm)" for i in rejected[:20])
         more = f" and {rejected.size - 20} more" if rejected.size > 20 else ""
         warnings.append(
             f"set aside {rejected.size} of {n} touches that miss the common point: {listed}{more}"

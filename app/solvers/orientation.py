@@ -336,21 +336,21 @@ def _checked_move(i: int, d: Direction) -> _Move:
     if d.axis not in ("+z", "-z", "+x", "-x"):
         raise InvalidInput(
             "invalid-direction",
-            f"direction {i}: axis must be one of +z, -z, +x, -x, got {d.axis!r}",
+            f"direction {i + 1}: axis must be one of +z, -z, +x, -x, got {d.axis!r}",
             loc=("directions", i, "axis"),
         )
-    Ra = _checked_rotation(d.rotation_from, ("directions", i, "from"), f"direction {i} 'from'")
-    Rb = _checked_rotation(d.rotation_to, ("directions", i, "to"), f"direction {i} 'to'")
+    Ra = _checked_rotation(d.rotation_from, ("directions", i, "from"), f"direction {i + 1} 'from'")
+    Rb = _checked_rotation(d.rotation_to, ("directions", i, "to"), f"direction {i + 1} 'to'")
     start = _checked_position(
-        d.position_from_mm, ("directions", i, "from"), f"direction {i} 'from'"
+        d.position_from_mm, ("directions", i, "from"), f"direction {i + 1} 'from'"
     )
-    end = _checked_position(d.position_to_mm, ("directions", i, "to"), f"direction {i} 'to'")
+    end = _checked_position(d.position_to_mm, ("directions", i, "to"), f"direction {i + 1} 'to'")
     pair = Rotation.from_matrix(np.stack([Ra, Rb]))
     change = float(np.degrees((pair[0].inv() * pair[1]).magnitude()))
     if change > MAX_ORIENTATION_CHANGE_DEG:
         raise InvalidInput(
             "orientation-changed",
-            f"direction {i} ({d.axis}): the flange orientation changed by {change:.2f} deg "
+            f"direction {i + 1} ({d.axis}): the flange orientation changed by {change:.2f} deg "
             f"between 'from' and 'to'; a pure translation keeps it within "
             f"{MAX_ORIENTATION_CHANGE_DEG} deg: jog in linear mode without rotating",
             loc=("directions", i, "to"),
@@ -360,7 +360,7 @@ def _checked_move(i: int, d: Direction) -> _Move:
     if length < MIN_TRANSLATION_MM:
         raise InvalidInput(
             "invalid-direction",
-            f"direction {i} ({d.axis}): the flange moved only {length:.2f} mm; move at "
+            f"direction {i + 1} ({d.axis}): the flange moved only {length:.2f} mm; move at "
             f"least {MIN_TRANSLATION_MM:g} mm along the tool axis",
             loc=("directions", i, "to"),
             context={"length_mm": length},
@@ -382,8 +382,8 @@ def _check_same_axis_agreement(
         if off > MAX_SAME_AXIS_DISAGREEMENT_DEG:
             raise InvalidInput(
                 "invalid-direction",
-                f"direction {i} ({directions[i].axis}) points {off:.0f} deg away from "
-                f"direction {first} ({directions[first].axis}) along the same tool axis: check "
+                f"direction {i + 1} ({directions[i].axis}) points {off:.0f} deg away from "
+                f"direction {first + 1} ({directions[first].axis}) along the same tool axis: check "
                 "the sign and that the right axis was jogged",
                 loc=("directions", i, "axis"),
             )
@@ -485,7 +485,7 @@ def orientation_from_touches(
     if lever_axis < MIN_LEVER_MM:
         raise InvalidInput(
             "degenerate-poses",
-            f"touch 1 puts the working-axis point only {lever_axis:.2f} mm from the TCP: touch "
+            f"touch 2 puts the working-axis point only {lever_axis:.2f} mm from the TCP: touch "
             f"the point with a spot on the {working_axis.upper()} axis at least "
             f"{MIN_LEVER_MM:g} mm behind the TCP",
             loc=("poses", 1),
@@ -495,7 +495,7 @@ def orientation_from_touches(
     if lever_y < MIN_LEVER_MM:
         raise InvalidInput(
             "degenerate-poses",
-            f"the three touched tool points are (nearly) collinear: touch 2 is only "
+            f"the three touched tool points are (nearly) collinear: touch 3 is only "
             f"{lever_y:.2f} mm off the working axis; touch with a point on the tool's +Y "
             f"side at least {MIN_LEVER_MM:g} mm away from the axis",
             loc=("poses", 2),

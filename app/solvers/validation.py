@@ -46,7 +46,7 @@ def check_positions_mm(positions: ArrayLike, *, loc: Loc = ("poses",)) -> NDArra
         i, j = (int(k) for k in np.argwhere(too_far)[0])
         raise InvalidInput(
             "out-of-range",
-            f"pose {i}: coordinate {'xyz'[j]} = {arr[i, j]:.6g} mm is beyond 100 m "
+            f"pose {i + 1}: coordinate {'xyz'[j]} = {arr[i, j]:.6g} mm is beyond 100 m "
             "(a tracker or controller that lost the tool reports values like -3.7e28)",
             loc=(*loc, i, "position"),
         )
@@ -69,14 +69,14 @@ def check_rotation_matrices(
         if err[i] > atol:
             raise InvalidInput(
                 "invalid-rotation",
-                f"pose {i}: rotation is not orthonormal: max|R R^T - I| = {err[i]:.1e} "
+                f"pose {i + 1}: rotation is not orthonormal: max|R R^T - I| = {err[i]:.1e} "
                 f"(tolerance {atol:.0e})",
                 loc=(*loc, i, "rotation"),
             )
         if det[i] < 0:
             raise InvalidInput(
                 "invalid-rotation",
-                f"pose {i}: rotation has det {det[i]:.6f}; a rotation needs det +1 "
+                f"pose {i + 1}: rotation has det {det[i]:.6f}; a rotation needs det +1 "
                 "(this is a reflection)",
                 loc=(*loc, i, "rotation"),
             )
@@ -97,7 +97,7 @@ def normalised_quaternions(
         if abs(n - 1.0) > atol:
             raise InvalidInput(
                 "invalid-rotation",
-                f"pose {i}: quaternion norm is {n:.6f}; it must be within {atol:g} of 1",
+                f"pose {i + 1}: quaternion norm is {n:.6f}; it must be within {atol:g} of 1",
                 loc=(*loc, i, "quaternion"),
             )
     normalised: NDArray[np.float64] = arr / norms[:, None]

@@ -80,7 +80,11 @@ def test_worse_result_is_out_of_tolerance_then_activated_then_rolled_back(
     assert any("max_rms_mm" in w or "max_residual_mm" in w for w in bad["warnings"])
     assert api.get(f"/v1/tools/{tool['id']}/tcp").json()["version"] == 1
 
-    forced = api.post(f"/v1/tools/{tool['id']}/versions/2/activate", scope="calibrate")
+    path = f"/v1/tools/{tool['id']}/versions/2/activate"
+    refused = api.post(path, scope="calibrate")  # out of tolerance: force and a reason, or 409
+    assert refused.status_code == 409
+    assert refused.json()["type"].endswith("/out-of-tolerance")
+    forced = api.post(path, {"force": True, "reason": "interim"}, scope="calibrate")
     assert forced.json()["active_version"] == 2
     assert api.get(f"/v1/tools/{tool['id']}/tcp").json()["tcp"] == bad["tcp"]
     api.post(f"/v1/tools/{tool['id']}/versions/1/activate", scope="calibrate")

@@ -85,7 +85,7 @@ def test_out_of_tolerance_names_the_missed_touch_from_one(api: Api) -> None:
     result = _calibrate(api, tool_id, body)
     assert result["status"] == "out_of_tolerance"
     assert re.match(
-        r"out of tolerance: touch #5 is \d+\.\d\d mm off the others", str(result["summary"])
+        r"out of tolerance: touch 5 is \d+\.\d\d mm off the others", str(result["summary"])
     )
     assert str(result["summary"]).endswith("touch it again")
 

@@ -14,7 +14,15 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 import pytest
-from playwright.sync_api import Browser, BrowserContext, Page, Playwright, Route, sync_playwright
+from playwright.sync_api import (
+    Browser,
+    BrowserContext,
+    Page,
+    Playwright,
+    Route,
+    expect,
+    sync_playwright,
+)
 
 from tests.live.server import LiveServer
 
@@ -89,3 +97,13 @@ def sign_in_to(page: Page, server: LiveServer, path: str = "/") -> None:
     page.goto(server.url + path)
     page.fill("input[name=api_key]", server.admin_key)
     page.click("#sign-in button[type=submit]")
+
+
+def confirm(page: Page, reason: str) -> None:
+    """Answer the console's confirmation of a write: type the reason, press its confirm
+    button."""
+    dialog = page.locator("dialog#confirm")
+    expect(dialog).to_be_visible()
+    dialog.locator("textarea[name=reason]").fill(reason)
+    dialog.locator("button[type=submit]").click()
+    expect(dialog).to_have_count(0)

@@ -19,7 +19,7 @@ import pytest
 from playwright.sync_api import Page, expect
 
 from app.kinematics.poses import pose_to_format
-from tests.browser.conftest import sign_in_to
+from tests.browser.conftest import confirm, sign_in_to
 from tests.live.server import LiveServer, fresh_database, live_server
 from tests.sim.touches import simulate_touches
 
@@ -223,15 +223,18 @@ def test_tool_page_plots_versions_serves_controller_text_and_rolls_back(
         http.post(f"/v1/tools/{tool_id}/versions/1/activate").raise_for_status()
         http.post(f"/v1/tools/{tool_id}/versions/2/activate").raise_for_status()
     page.locator("#versions tr[data-version='1'] button").click()
+    confirm(page, "back to commissioning")
     expect(page.get_by_role("alert")).to_contain_text("this page is out of date")
     with httpx.Client(base_url=fleet.server.url, headers=auth) as http:
         assert http.get(f"/v1/tools/{tool_id}").json()["active_version"] == 2
 
-    # Reloaded, the roll back goes through with the fresh ETag.
+    # Reloaded, the activation goes through with the fresh ETag.
     page.get_by_role("button", name="Reload").click()
     expect(page.get_by_role("alert")).to_have_count(0)  # the page was drawn again
     page.locator("#versions tr[data-version='1'] button").click()
+    confirm(page, "back to commissioning")
     expect(page.locator("#versions tbody tr.active")).to_contain_text("commissioning")
+    expect(page.locator("#activations tbody tr").first).to_contain_text("back to commissioning")
     with httpx.Client(base_url=fleet.server.url, headers=auth) as http:
         assert http.get(f"/v1/tools/{tool_id}").json()["active_version"] == 1
 

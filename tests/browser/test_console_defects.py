@@ -14,7 +14,7 @@ import httpx
 import pytest
 from playwright.sync_api import Page, expect
 
-from tests.browser.conftest import sign_in_to
+from tests.browser.conftest import confirm, sign_in_to
 from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
@@ -113,6 +113,7 @@ def test_a_stale_page_explains_itself_beside_the_button_clicked(page: Page, cell
         http.post(f"/v1/tools/{cell.two}/versions/1/activate").raise_for_status()
         http.post(f"/v1/tools/{cell.two}/versions/2/activate").raise_for_status()
     button.click()
+    confirm(page, "back to version 1")
     alert = page.get_by_role("alert")
     expect(alert).to_contain_text("this page is out of date")
     expect(alert).to_be_in_viewport()

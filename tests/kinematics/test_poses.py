@@ -277,8 +277,8 @@ def _refused(kind: str, *args: Any, **kwargs: Any) -> InvalidInput:
 
 def test_refuses_wrong_arity() -> None:
     err = _refused("invalid-pose", "kuka_abc", [[0, 0, 0, 0, 0, 0], [1, 2, 3, 4, 5]])
-    assert err.loc == ("poses", 1)
-    assert "pose 1" in err.detail
+    assert err.loc == ("poses", 1)  # the index stays 0-based; the sentence counts from 1
+    assert "pose 2:" in err.detail
     assert "6 numbers" in err.detail
     assert "got 5" in err.detail
 

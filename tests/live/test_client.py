@@ -179,3 +179,71 @@ def test_client_plans_then_calibrates_touch_by_touch(
         stored = http.get(f"/v1/tools/{tool['id']}/calibrations").json()["items"][0]
     assert stored["quality"]["n_poses"] == 8
     assert np.allclose(stored["tcp"]["position_mm"], tcp, atol=0.1)
+
+
+def test_client_names_tools_activates_with_reasons_and_rolls_back_through_history(
+    server: LiveServer, run: CliRunner, tmp_path: Path
+) -> None:
+    with server.client() as http:
+        robots = [
+            http.post("/v1/robots", json={"name": name, "vendor": "KUKA"}).json()
+            for name in ("cell7-kr", "cell8-kr")
+        ]
+        made = {
+            f"{r['name']}/{name}": http.post(
+                f"/v1/robots/{r['id']}/tools", json={"name": name, "slot": slot}
+            ).json()
+            for r in robots
+            for slot, name in ((1, "gripper"), (2, f"only-{r['name']}"))
+        }
+    tid = made["cell7-kr/only-cell7-kr"]["id"]
+
+    fleet = run.invoke(cli, ["tools", "--q", "cell7"])
+    assert fleet.exit_code == 0, fleet.output
+    assert tid in fleet.output  # the id, whole, to paste into other commands
+
+    # A unique name works where an id does; an ambiguous one lists robot/tool and id.
+    for z in (150.0, 150.5, 151.0):
+        body = {"method": "manual", "tcp": {"position_mm": [0.0, 0.0, z]}}
+        with server.client() as http:
+            http.post(f"/v1/tools/{tid}/calibrations", json=body).raise_for_status()
+    noisy = simulate_touches(8, seed=3, touch_noise_mm=1.5)
+    out_of_tol = run.invoke(
+        cli,
+        ["calibrate", "only-cell7-kr", str(_write_csv(tmp_path / "n.csv", noisy, "kuka_abc")),
+         "--format", "kuka_abc"],
+    )  # fmt: skip
+    assert out_of_tol.exit_code == 3, out_of_tol.output  # version 4, stored, not active
+    ambiguous = run.invoke(cli, ["history", "gripper"])
+    assert ambiguous.exit_code == 2, ambiguous.output
+    for key in ("cell7-kr/gripper", "cell8-kr/gripper"):
+        assert key in ambiguous.output
+        assert made[key]["id"] in ambiguous.output
+    by_robot = run.invoke(cli, ["history", "cell8-kr/gripper"])
+    assert by_robot.exit_code == 0, by_robot.output
+    assert run.invoke(cli, ["history", "no-such-tool"]).exit_code == 5
+
+    # Out of tolerance: refused without --force (exit 4, the server says how), then forced.
+    refused = run.invoke(cli, ["activate", "only-cell7-kr", "4"])
+    assert refused.exit_code == 4, refused.output
+    assert "force" in refused.output
+    assert run.invoke(cli, ["activate", "only-cell7-kr", "4", "--force"]).exit_code == 2
+    forced = run.invoke(
+        cli, ["activate", tid, "4", "--force", "--reason", "interim until the re-touch"]
+    )
+    assert forced.exit_code == 0, forced.output
+    assert "version 4 is active" in forced.output
+    history = run.invoke(cli, ["history", "cell7-kr/only-cell7-kr"])
+    assert history.exit_code == 0, history.output
+    assert "out_of_tolerance" in history.output
+    assert "forced" in history.output
+    assert "interim until the re-touch" in history.output
+
+    # Rollbacks walk back through what was active: 4 -> 3 -> 2 -> 1, then nothing left.
+    walked = []
+    for _ in range(3):
+        rolled = run.invoke(cli, ["rollback", "only-cell7-kr", "--reason", "undo"])
+        assert rolled.exit_code == 0, rolled.output
+        walked.append(rolled.output.split("version ")[-1].split()[0])
+    assert walked == ["3", "2", "1"]
+    assert run.invoke(cli, ["rollback", "only-cell7-kr"]).exit_code == 4

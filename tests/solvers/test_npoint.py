@@ -288,9 +288,9 @@ def test_repeated_orientations_are_named() -> None:
     R = sim.R.copy()
     R[2] = R[0] @ Rotation.from_euler("x", 0.2, degrees=True).as_matrix()
     err = _raises("repeated-poses", R, sim.f)
-    assert err.context["pairs"] == [[0, 2]]
+    assert err.context["pairs"] == [[0, 2]]  # indexes, 0-based
     assert err.loc == ("poses", 2)
-    assert "0 and 2" in err.detail
+    assert "touches 1 and 3 have the same orientation" in err.detail  # numbers, from 1
 
 
 def test_repeated_orientation_among_many_touches_is_a_warning() -> None:
@@ -298,7 +298,7 @@ def test_repeated_orientation_among_many_touches_is_a_warning() -> None:
     R, f = np.concatenate([sim.R, sim.R[:1]]), np.concatenate([sim.f, sim.f[:1]])
     result = solve_npoint(R, f)
     assert_allclose(result.tcp_mm, sim.t, atol=1e-9)
-    assert any("0 and 8" in w for w in result.quality.warnings)
+    assert any("touches 1 and 9 repeat" in w for w in result.quality.warnings)
 
 
 @pytest.mark.parametrize("axis", [(0, 0, 1), (1, 0, 0), (0.6, 0.8, 0)])

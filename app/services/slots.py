@@ -1,0 +1,82 @@
+"""Which tool numbers (slots) a robot's controller has, by the robot's vendor.
+
+The ranges are the controllers' own, and the exports' (one definition: app.exports.kuka and
+app.exports.wpr, which cite the vendor documents): KUKA `$TOOL_DATA[1..16]` (KSS
+$config.dat), Fanuc `UTOOL[1..10]` (R-30iB default), Yaskawa tool files 0..63 (YRC1000 and
+DX200). ABB (a `tooldata` is a named RAPID variable) and Universal Robots (one TCP at a time,
+named in the installation) have no tool numbers: a slot on their tools is not checked and is
+kept as the tool's number in file names and tables, as before. The vendor is matched without
+regard to case, on its first word ("KUKA", "Kuka Roboter GmbH", "FANUC America",
+"Yaskawa Motoman"; "Motoman" alone counts as Yaskawa).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable
+
+from app.errors import InvalidInput
+from app.exports.kuka import MAX_SLOT as KUKA_MAX_SLOT
+from app.exports.wpr import _SLOTS as WPR_SLOTS
+
+#: The tool numbers of each vendor whose controller numbers its tools: (name, first, last).
+SLOT_RANGES: dict[str, tuple[str, int, int]] = {
+    "kuka": ("KUKA", 1, KUKA_MAX_SLOT),
+    "fanuc": ("Fanuc", *WPR_SLOTS["fanuc"]),
+    "yaskawa": ("Yaskawa", *WPR_SLOTS["yaskawa"]),
+}
+_ALIASES = {"kuka": "kuka", "fanuc": "fanuc", "yaskawa": "yaskawa", "motoman": "yaskawa"}
+
+
+def numbered_vendor(vendor: str | None) -> str | None:
+    """The key in SLOT_RANGES of a robot's vendor, or None when its tools are not numbered
+    (ABB, UR) or the vendor is unknown or not given."""
+    if not vendor:
+        return None
+    first = re.split(r"[^a-z0-9]+", vendor.strip().lower(), maxsplit=1)[0]
+    return _ALIASES.get(first)
+
+
+def slot_range(vendor: str | None) -> tuple[str, int, int] | None:
+    """(vendor name, first, last) tool number of the robot's controller, None if unchecked."""
+    key = numbered_vendor(vendor)
+    return None if key is None else SLOT_RANGES[key]
+
+
+def check_slot(vendor: str | None, slot: int | None, *, loc: tuple[str, ...]) -> None:
+    """422 at `loc` when `slot` is outside the tool numbers of the vendor's controller."""
+    allowed = slot_range(vendor)
+    if slot is None or allowed is None:
+        return
+    name, first, last = allowed
+    if not first <= slot <= last:
+        raise InvalidInput(
+            "out-of-range",
+            f"slot {slot} is not a {name} tool number: a {name} controller numbers its tools "
+            f"{first}-{last}; give a slot from {first} to {last}",
+            loc=loc,
+        )
+
+
+def check_vendor_change(
+    vendor: str | None, tools: Iterable[tuple[str, int | None]], *, loc: tuple[str, ...]
+) -> None:
+    """422 at `loc` when a robot's new vendor numbers tools in a range that some of its live
+    tools (name, slot) fall outside."""
+    allowed = slot_range(vendor)
+    if allowed is None:
+        return
+    name, first, last = allowed
+    outside = sorted(
+        f"{tool} (slot {slot})"
+        for tool, slot in tools
+        if slot is not None and not first <= slot <= last
+    )
+    if outside:
+        raise InvalidInput(
+            "out-of-range",
+            f"a {name} controller numbers its tools {first}-{last}, and this robot's "
+            f"{', '.join(outside)} would fall outside; change those slots first "
+            "(PATCH /v1/tools/{tool_id}), then the vendor",
+            loc=loc,
+        )
