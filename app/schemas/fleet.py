@@ -7,6 +7,7 @@ from typing import Literal
 from pydantic import BaseModel, Field
 
 from app.schemas.common import Timestamp
+from app.schemas.drift import FleetDrift
 
 CalibrationStatus = Literal["accepted", "out_of_tolerance"]
 
@@ -18,6 +19,7 @@ AttentionCode = Literal[
     "check_failed",
     "no_active_version",
     "stale",
+    "drifting",
 ]
 
 
@@ -57,7 +59,12 @@ class FleetTool(BaseModel):
         description="why the tool needs attention, empty when all is well: "
         "active_out_of_tolerance (the version served was stored out of tolerance), "
         "last_calibration_out_of_tolerance, check_failed (the newest check), "
-        "no_active_version, stale (no calibration or check for TCPCAL_STALE_DAYS days)",
+        "no_active_version, stale (no calibration or check for TCPCAL_STALE_DAYS days), "
+        "drifting (the drift trend leaves check_mm within 30 days at 95 % confidence)",
+    )
+    drift: FleetDrift | None = Field(
+        default=None,
+        description="the TCP's drift trend (docs/drift.md); null until three points over a day",
     )
 
 
@@ -102,4 +109,7 @@ CSV_COLUMNS = (
     "active_qx",
     "active_qy",
     "active_qz",
+    "drift_rate_mm_per_month",
+    "drift_sigma_mm_per_month",
+    "drift_crosses_check_at",
 )

@@ -23,6 +23,7 @@ from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonObject
 from app.models import AuditEvent, TcpVersion, Tool, table_of
 from app.schemas.drift import FleetDrift, SeriesTrend, ToolDrift
+from app.services.live import get_live
 from app.solvers.drift import Trend, crossing, fit_trend
 
 CHECK_ACTION = "tool.check"
@@ -88,6 +89,23 @@ def refresh_drift(
     if cached is not None:
         session.expire(cached, ["drift", "drift_crosses_at"])
     return drift
+
+
+def restate_drift(session: Session, tool: Tool) -> None:
+    """Refit a tool (an ORM object being changed) after its tolerance changed."""
+    drift = compute_drift(
+        session,
+        tool_id=tool.id,
+        active_version=tool.active_version,
+        check_mm=effective_tolerance(tool.tolerance).check_mm,
+    )
+    tool.drift = drift.model_dump(mode="json")
+    tool.drift_crosses_at = drift.fleet.crosses_check_at if drift.fleet else None
+
+
+def tool_drift(session: Session, tool_id: str) -> ToolDrift:
+    """A live tool's drift trends (404 otherwise)."""
+    return stored_or_computed(session, get_live(session, Tool, tool_id, for_update=False))
 
 
 def stored_or_computed(session: Session, tool: Tool) -> ToolDrift:

@@ -25,6 +25,7 @@ from app.schemas.fleet import (
     LastCalibration,
     LastCheck,
 )
+from app.services.drift import drifting_rule, fleet_drift
 from app.services.tools import get_tool
 
 CHECK_ACTION = "tool.check"
@@ -82,6 +83,8 @@ def attention_rules(now: datetime) -> dict[AttentionCode, ColumnElement[bool]]:
             func.coalesce(_newest_calibration(Calibration.created_at), Tool.created_at) < cutoff,
             func.coalesce(_newest_check(AuditEvent.at), Tool.created_at) < cutoff,
         ),
+        # The trend stored when a version or check was written projects out of check_mm.
+        "drifting": drifting_rule(now),
     }
 
 
@@ -103,6 +106,7 @@ _TOOL_COLUMNS = (
     Robot.cell,
     _ACTIVE.position_mm,
     _ACTIVE.quaternion,
+    Tool.drift,
 )
 
 
@@ -114,7 +118,19 @@ def _fleet_query(
     status: str | None,
     attention: bool | None,
     rules: dict[AttentionCode, ColumnElement[bool]],
-) -> Select[str, str, int | None, str, int | None, datetime, str, str | None, JsonArray, JsonArray]:
+) -> Select[
+    str,
+    str,
+    int | None,
+    str,
+    int | None,
+    datetime,
+    str,
+    str | None,
+    JsonArray,
+    JsonArray,
+    JsonObject | None,
+]:
     stmt = (
         select(*_TOOL_COLUMNS)
         .join(Robot, Robot.id == Tool.robot_id)
@@ -182,6 +198,7 @@ def list_fleet(
             position_mm=t.position_mm,
             quaternion=t.quaternion,
             attention=codes.get(t.id, []),
+            drift=fleet_drift(t.drift),
         )
         for t in tools
     ]
@@ -286,9 +303,22 @@ def fleet_csv(rows: Sequence[FleetTool]) -> str:
                 ";".join(r.attention),
                 *_numbers(r.position_mm, 3, 3),
                 *_numbers(r.quaternion, 4, 9),
+                *_drift_cells(r),
             ]
         )
     return out.getvalue()
+
+
+def _drift_cells(row: FleetTool) -> list[str]:
+    drift = row.drift
+    if drift is None:
+        return ["", "", ""]
+    at = drift.crosses_check_at
+    return [
+        f"{drift.rate_mm_per_month:.4f}",
+        f"{drift.sigma_mm_per_month:.4f}",
+        "" if at is None else at.isoformat(),
+    ]
 
 
 def _numbers(values: Sequence[float] | None, n: int, decimals: int) -> list[str]:

@@ -17,6 +17,7 @@ from app.helpers.tolerance import effective_tolerance
 from app.models import Tool, utcnow
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.services import audit
+from app.services.drift import restate_drift
 from app.services.live import get_live
 from app.services.robots import get_robot
 from app.services.slots import check_slot
@@ -158,6 +159,8 @@ def update_tool(
         changes["load"] = Load.model_validate({**tool.load, **changes["load"]}).model_dump()
     for key, value in changes.items():
         setattr(tool, key, value)
+    if "tolerance" in changes:  # another check_mm, another projection
+        restate_drift(session, tool)
     tool.updated_at = utcnow()
     tool.revision += 1
     audit.record(
