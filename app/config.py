@@ -38,6 +38,12 @@ class Settings(BaseSettings):
         description="a tool with no calibration and no check for this many days is flagged "
         "`stale` in the fleet list",
     )
+    public_url: str | None = Field(
+        default=None,
+        description="The server's URL as technicians and cell PCs reach it (e.g. "
+        "https://tcpcal.plant.example), written into controller files' headers; default: "
+        "the URL each request came to.",
+    )
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."
     )

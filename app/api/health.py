@@ -10,6 +10,7 @@ from app.db import get_engine
 from app.deps import ReadKey
 from app.metrics import render
 from app.migrate import current_revision, head_revision
+from app.outbox_metrics import OUTBOX
 
 router = APIRouter(tags=["operations"])
 
@@ -41,5 +42,5 @@ def ready() -> JSONResponse:
 def metrics(key: ReadKey) -> Response:
     """Prometheus text of the whole server (every worker); scrape with a read key (bearer
     token): only /health and /ready are open without one."""
-    body, content_type = render()
+    body, content_type = render(OUTBOX)
     return Response(body, media_type=content_type)
