@@ -155,3 +155,44 @@ def test_the_demo_torch_drifting_over_its_versions_is_measured(api: Api) -> None
     assert body["checks"] is None  # one check of the active version: no trend yet
     assert torch["drift"]["basis"] == "versions"
     assert torch["drift"]["rate_mm_per_month"] == pytest.approx(versions["speed_mm_per_month"])
+
+
+def test_a_fleet_page_reads_the_stored_drift_not_the_histories(
+    api: Api, fleet: dict[str, dict[str, Any]]
+) -> None:
+    """As many statements for a page of twelve tools with drift as for two, and none of them
+    reads the checks' or versions' history (the trend is stored on the tool)."""
+    from sqlalchemy import event
+
+    from app.db import get_engine
+
+    def statements() -> list[str]:
+        seen: list[str] = []
+
+        def grab(conn: object, cursor: object, statement: str, *_: object) -> None:
+            seen.append(statement)
+
+        event.listen(get_engine(), "before_cursor_execute", grab)
+        try:
+            assert api.get("/v1/tools?limit=100").status_code == 200
+        finally:
+            event.remove(get_engine(), "before_cursor_execute", grab)
+        return seen
+
+    statements()  # warm: the key, the caches
+    two = statements()
+    robot = api.robot("kr30", cell="weld-2")
+    point = _point(api, robot["id"])
+    start = datetime.now(UTC) - 40 * DAY
+    for i in range(10):
+        tool = api.tool(robot["id"], f"t{i}", slot=i + 1)
+        with clock_at(start - DAY):
+            api.manual(tool["id"], [0, 0, 100])
+        for day in (0, 20, 40):
+            with clock_at(start + day * DAY):
+                _check(api, tool["id"], point, 0.01 * day + 0.001 * i)
+    twelve = statements()
+    assert len(_rows(api)) == 12
+    assert all(r["drift"] for r in _rows(api).values())
+    assert len(twelve) == len(two)
+    assert not [s for s in twelve if "tcp_versions" in s and "active_tcp" not in s]
