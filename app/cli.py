@@ -78,7 +78,8 @@ def _fresh_metrics_directory() -> None:
 
 @cli.command()
 def publish() -> None:
-    """Publish every committed change to the plant (MQTT: TCPCAL_MQTT_URL, TCPCAL_MQTT_PREFIX)
+    """Publish every committed change to the plant (MQTT: TCPCAL_MQTT_URL, TCPCAL_MQTT_PREFIX;
+    OPC UA: TCPCAL_OPCUA_ENDPOINT, TCPCAL_OPCUA_ANONYMOUS)
     from the database's outbox: one publisher per fleet, a second one waits. Stops on
     SIGTERM. Exits 2 with a message when the configuration is wrong or the broker cannot be
     reached at start-up."""

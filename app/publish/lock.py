@@ -26,6 +26,7 @@ from sqlalchemy import Connection, Engine, text
 
 from app.db import is_sqlite
 from app.publish.sink import SinkError
+from app.services.outbox import PUBLISHER_LOCK, publisher_lock_file
 
 try:
     import fcntl
@@ -34,9 +35,9 @@ except ImportError:  # Windows: no flock
 
 log = logging.getLogger(__name__)
 
-#: The advisory lock key of the publisher ("tcpcal.publish" as an int64; the outbox's
-#: ordering lock, app.services.outbox.OUTBOX_ORDER_LOCK, is another key).
-PUBLISHER_LOCK = 0x7463_7063_616C_7002
+# The advisory lock key and the lock file's name are app.services.outbox's, where /metrics
+# (app.fleet_metrics) also reads whether a publisher holds the lock.
+__all__ = ["PUBLISHER_LOCK", "FleetLock", "fleet_lock", "lock_path"]
 
 
 class FleetLock:
@@ -66,7 +67,7 @@ def lock_path(engine: Engine) -> Path:
             "the publisher needs a database other processes share: a SQLite file or "
             f"PostgreSQL, not {engine.url.render_as_string(hide_password=True)!r}"
         )
-    return Path(f"{database}-publisher.lock")
+    return publisher_lock_file(database)
 
 
 @contextlib.contextmanager

@@ -1,7 +1,7 @@
 """The publisher's loop: drain the outbox in order into every sink, mark, prune.
 
 `tcpcal publish` (app.cli) builds the sinks from the configuration (`build_sinks`: MQTT
-when TCPCAL_MQTT_URL is set; the OPC UA sink plugs in there), then `Runner.run`:
+when TCPCAL_MQTT_URL is set, OPC UA when TCPCAL_OPCUA_ENDPOINT is), then `Runner.run`:
 
 1. takes the fleet lock (app.publish.lock): a second publisher waits here;
 2. opens every sink (a wrong configuration raises SinkError: the command prints it and
@@ -54,9 +54,21 @@ def build_sinks(settings: PublishSettings) -> list[Sink]:
         from app.publish.mqtt import MqttSink
 
         sinks.append(MqttSink.from_settings(settings))
+    if settings.opcua_endpoint:
+        from app.publish.opcua_sink import opcua_sink
+
+        sinks.append(
+            opcua_sink(
+                settings.opcua_endpoint,
+                anonymous=settings.opcua_anonymous,
+                certificate=settings.opcua_certificate,
+                private_key=settings.opcua_private_key,
+            )
+        )
     if not sinks:
         raise SinkError(
-            "nothing to publish to: set TCPCAL_MQTT_URL (e.g. mqtt://user:pass@broker:1883)"
+            "nothing to publish to: set TCPCAL_MQTT_URL (e.g. mqtt://user:pass@broker:1883) "
+            "and/or TCPCAL_OPCUA_ENDPOINT (e.g. opc.tcp://0.0.0.0:4840/tcpcal/)"
         )
     return sinks
 

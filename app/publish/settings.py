@@ -20,6 +20,23 @@ class PublishSettings(BaseSettings):
         default=None, description="CA bundle for mqtts:// (default: the system's)"
     )
     mqtt_connect_timeout_s: float = Field(default=5.0, gt=0)
+    opcua_endpoint: str | None = Field(
+        default=None,
+        description="opc.tcp://host:port/path the OPC UA server listens at, e.g. "
+        "opc.tcp://0.0.0.0:4840/tcpcal/; unset: no OPC UA",
+    )
+    opcua_anonymous: bool = Field(
+        default=False,
+        description="let OPC UA clients in without a user name and API key (still read-only)",
+    )
+    opcua_certificate: str | None = Field(
+        default=None,
+        description="the OPC UA server's certificate file (PEM or DER); unset with "
+        "opcua_private_key: a self-signed one is made at start-up",
+    )
+    opcua_private_key: str | None = Field(
+        default=None, description="the private key of opcua_certificate (PEM or DER)"
+    )
     publish_poll_s: float = Field(
         default=0.2, gt=0, le=1.0, description="how often an idle publisher reads the outbox"
     )

@@ -34,11 +34,18 @@ order, so a row that committed late is still sent on the next pass.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
+from pathlib import Path
 
-from sqlalchemy import func, insert, select, text
+from sqlalchemy import Engine, func, insert, select, text
 from sqlalchemy.orm import Session
+
+try:
+    import fcntl
+except ImportError:  # Windows: no flock
+    fcntl = None  # type: ignore[assignment]
 
 from app.db import DriverWrite, is_sqlite
 from app.jsontypes import JsonObject
@@ -49,6 +56,14 @@ from app.models import OutboxMessage, table_of
 #: (a constant of the service's own: int64 of "tcpcal.outbox.order").
 OUTBOX_ORDER_LOCK = 0x7463_7063_616C_6F01
 _ORDER = text("SELECT pg_advisory_xact_lock(:key)")
+#: The session advisory lock one publisher per fleet holds on PostgreSQL (app.publish.lock)
+#: ("tcpcal.publish" as an int64; another key than OUTBOX_ORDER_LOCK).
+PUBLISHER_LOCK = 0x7463_7063_616C_7002
+_PUBLISHER_HELD = text(
+    "SELECT EXISTS (SELECT 1 FROM pg_locks WHERE locktype = 'advisory' AND granted"
+    " AND database = (SELECT oid FROM pg_database WHERE datname = current_database())"
+    " AND classid = :hi AND objid = :lo AND objsubid = 1)"
+)
 _INSERT = DriverWrite(insert(table_of(OutboxMessage)))
 
 
@@ -128,3 +143,31 @@ def undelivered_count(session: Session) -> int:
         )
         or 0
     )
+
+
+def publisher_lock_file(database: str) -> Path:
+    """The file a SQLite database's publisher holds an exclusive flock on (app.publish.lock)."""
+    return Path(f"{database}-publisher.lock")
+
+
+def publisher_running(engine: Engine) -> bool:
+    """Whether a publisher (`tcpcal publish`) holds the fleet's publisher lock now."""
+    if not is_sqlite(engine):
+        with engine.connect() as conn:
+            held = conn.execute(
+                _PUBLISHER_HELD,
+                {"hi": PUBLISHER_LOCK >> 32, "lo": PUBLISHER_LOCK & 0xFFFF_FFFF},
+            ).scalar_one()
+        return bool(held)
+    database = engine.url.database or ""
+    path = publisher_lock_file(database)
+    if fcntl is None or not path.exists():
+        return False
+    with path.open("rb") as file:
+        try:  # a shared lock is refused while the publisher holds its exclusive one
+            fcntl.flock(file.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        with contextlib.suppress(OSError):
+            fcntl.flock(file.fileno(), fcntl.LOCK_UN)
+    return False
