@@ -21,7 +21,9 @@ class _Controller(BaseModel):
 
 
 class _Row(FleetTool):
-    attention: list[Literal["check_failed", "stale", "no_active_version"]] = Field(
+    # A subset of the codes on purpose (FleetTool may declare more): the gauges read the
+    # codes a model declares.
+    attention: list[Literal["check_failed", "stale", "no_active_version"]] = Field(  # type: ignore[assignment]
         default_factory=list
     )
     controller: _Controller | None = None
