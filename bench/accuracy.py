@@ -26,7 +26,7 @@ import numpy as np
 
 from app.errors import InvalidInput
 from app.solvers.npoint import ALGORITHMS, solve_npoint
-from bench import frame_accuracy
+from bench import frame_accuracy, plane_accuracy
 from tests.sim.touches import simulate_touches
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -275,9 +275,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--name", default="accuracy", help="results file stem")
     parser.add_argument(
         "--suite",
-        choices=("all", "npoint", "frames"),
+        choices=("all", "npoint", "plane", "frames"),
         default="all",
-        help="N-point grid, orientation and laser scenarios (bench.frame_accuracy), or both",
+        help="N-point grid, xyz_plane rows (bench.plane_accuracy), orientation and laser "
+        "scenarios (bench.frame_accuracy), or all",
     )
     args = parser.parse_args(argv)
     if args.suite in ("all", "frames"):
@@ -285,6 +286,9 @@ def main(argv: list[str] | None = None) -> None:
     if args.suite == "frames":
         return
     trials = args.trials or (60 if args.quick else 1000)
+    if args.suite == "plane":
+        _plane_only(args.name, trials, args.seed)
+        return
     start = time.perf_counter()
     rows = []
     for i, sc in enumerate(scenarios()):
@@ -296,6 +300,7 @@ def main(argv: list[str] | None = None) -> None:
             flush=True,
         )
     targets = check_targets(rows)
+    plane_rows = run_plane(trials, args.seed)
     meta = {
         "trials": trials,
         "seed": args.seed,
@@ -308,12 +313,41 @@ def main(argv: list[str] | None = None) -> None:
     }
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / f"{args.name}.json").write_text(
-        json.dumps({"meta": meta, "scenarios": rows, "targets": targets}, indent=2, default=float)
+        json.dumps(
+            {"meta": meta, "scenarios": rows, "targets": targets, "plane": plane_rows},
+            indent=2,
+            default=float,
+        )
     )
-    md = markdown(rows, targets, meta)
+    md = markdown(rows, targets, meta) + "\n" + plane_accuracy.markdown(plane_rows)
     (RESULTS / f"{args.name}.md").write_text(md)
     print()
     print(md.split("## Default algorithm")[1])
+
+
+def run_plane(trials: int, seed: int) -> list[dict[str, object]]:
+    """The xyz_plane rows (bench.plane_accuracy), seeded apart from the N-point grid."""
+    rows = []
+    for i, sc in enumerate(plane_accuracy.scenarios()):
+        row = plane_accuracy.run_scenario(sc, trials, seed + 7_000_000 + 100_000 * i)
+        rows.append(row)
+        print(f"[xyz_plane] {row['label']:55s} {plane_accuracy.markdown([row]).splitlines()[-1]}")
+    return rows
+
+
+def _plane_only(name: str, trials: int, seed: int) -> None:
+    """Rerun the xyz_plane rows only, keeping the N-point rows already in the results files."""
+    path = RESULTS / f"{name}.json"
+    data = json.loads(path.read_text())
+    start = time.perf_counter()
+    data["plane"] = run_plane(trials, seed)
+    data["meta"]["plane_command"] = f"python -m bench.accuracy --suite plane (trials {trials})"
+    data["meta"]["plane_seconds"] = time.perf_counter() - start
+    path.write_text(json.dumps(data, indent=2, default=float))
+    md = markdown(data["scenarios"], data["targets"], data["meta"])
+    md += "\n" + plane_accuracy.markdown(data["plane"])
+    (RESULTS / f"{name}.md").write_text(md)
+    print(plane_accuracy.markdown(data["plane"]))
 
 
 if __name__ == "__main__":

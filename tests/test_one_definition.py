@@ -26,4 +26,4 @@ def test_the_request_unions_are_the_registry() -> None:
     assert get_args(union) == tuple(m.request for m in METHODS)
     assert [m.__mro__[1] for m in SOLVE_MODELS] == [m.request for m in METHODS]
     assert [describe(m).name for m in METHODS] == list(METHOD_NAMES)
-    assert len(set(METHOD_NAMES)) == len(METHODS) == 7
+    assert len(set(METHOD_NAMES)) == len(METHODS) == 8

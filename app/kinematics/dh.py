@@ -26,6 +26,7 @@ from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
 from app.jsontypes import JsonObject
+from app.kinematics.urdf import UrdfChain, chain_from_spec
 from app.solvers.validation import check_finite
 
 Convention = Literal["dh", "mdh"]
@@ -102,8 +103,9 @@ def _dotted(loc: Sequence[str | int]) -> str:
     return ".".join(str(part) for part in loc)
 
 
-def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics:
-    """Read the API `kinematics` object: ``{"preset": name}`` or ``{"convention", "links"}``.
+def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics | UrdfChain:
+    """Read the API `kinematics` object: ``{"preset": name}``, ``{"convention", "links"}`` or
+    ``{"urdf", "base_link"?, "tip_link"?}`` (app.kinematics.urdf).
 
     Links are ``[{a, alpha, d, theta_offset}]`` with a, d in mm and angles in degrees
     (``theta_offset`` may be omitted: 0). A defect raises InvalidInput("invalid-options")
@@ -119,6 +121,8 @@ def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics:
         )
     # A serialised union model may carry the other variant's fields as None: not given.
     spec = {key: value for key, value in spec.items() if value is not None}
+    if "urdf" in spec:
+        return chain_from_spec(spec)
     if "preset" in spec:
         from app.kinematics.presets import PRESETS  # presets import this module
 

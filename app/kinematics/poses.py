@@ -31,6 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
 from app.kinematics.dh import Kinematics, flange_poses
+from app.kinematics.urdf import UrdfChain
 from app.solvers.validation import (
     check_finite,
     check_positions_mm,
@@ -157,6 +158,11 @@ def resolve_units(fmt: str, override: Mapping[str, str] | None) -> PoseUnits:
         length=cast(Length, override.get("length", units.length)),
         angle=cast(Angle, override.get("angle", units.angle)),
     )
+
+
+def _angle_given(units: PoseUnits | Mapping[str, str] | None) -> bool:
+    """Whether the request's units name the angle unit (a resolved PoseUnits always does)."""
+    return isinstance(units, PoseUnits) or (isinstance(units, Mapping) and "angle" in units)
 
 
 def _as_units(fmt: str, units: PoseUnits | Mapping[str, str] | None) -> PoseUnits:
@@ -355,7 +361,7 @@ def poses_from_format(
     poses: Sequence[object],
     *,
     units: PoseUnits | Mapping[str, str] | None = None,
-    kinematics: Kinematics | None = None,
+    kinematics: Kinematics | UrdfChain | None = None,
     loc: Loc = ("poses",),
 ) -> tuple[FloatArray, FloatArray]:
     """Read N poses in format `fmt` -> (base_from_flange (N, 3, 3), flange positions (N, 3) mm).
@@ -366,6 +372,8 @@ def poses_from_format(
     """
     _check_format(fmt)
     u = _as_units(fmt, units)
+    if isinstance(kinematics, UrdfChain) and not _angle_given(units):
+        u = PoseUnits(length=u.length, angle="rad")  # a URDF's joint values are radians
     loc = tuple(loc)
     if fmt == "joints":
         if kinematics is None:
@@ -388,6 +396,8 @@ def poses_from_format(
         assert kinematics is not None
         joints_deg = values * to_deg
         _check_angles_deg(joints_deg, labels, "joints", loc)
+        if isinstance(kinematics, UrdfChain):
+            return kinematics.flange_poses(np.radians(joints_deg), loc=loc)
         return flange_poses(kinematics, joints_deg, loc=loc)
 
     if fmt == "matrix":

@@ -7,12 +7,13 @@ are all read off this tuple.
 
 from __future__ import annotations
 
-from app.methods import laser, manual, npoint, orientation, reference
+from app.methods import laser, manual, npoint, orientation, plane, reference
 from app.methods.base import MethodRequest, RegisteredMethod
 
 #: Every calibration method this server runs, in the order /v1/methods lists them.
 METHODS: tuple[RegisteredMethod, ...] = (
     npoint.XYZ_NPOINT,
+    plane.XYZ_PLANE,
     reference.XYZ_REFERENCE,
     orientation.TCP_Z_X,
     orientation.ABC_2POINT,

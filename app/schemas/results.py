@@ -80,12 +80,39 @@ class LaserDetails(BaseModel):
     sigma: LaserSigma
 
 
+class PlaneOut(BaseModel):
+    """One plane an `xyz_plane` calibration touched, estimated with the TCP."""
+
+    label: str = Field(description="the plane's label: a, b or c")
+    normal: list[float] = Field(description="unit normal, robot base frame")
+    offset_mm: float = Field(description="d in n . x = d (mm, base frame): the plane's distance")
+    normal_sigma_deg: float = Field(description="1-sigma of the normal's direction (deg)")
+    offset_sigma_mm: float = Field(description="1-sigma of the offset (mm)")
+    n_touches: int = Field(description="how many touches touched this plane")
+
+
+class PlaneDetails(BaseModel):
+    """The plane method's planes and the TCP's uncertainty along the tool's own axes."""
+
+    planes: list[PlaneOut] = Field(description="each plane touched, in label order")
+    touch_planes: list[str] = Field(description="the plane each touch touched, in pose order")
+    tcp_sigma_tool_mm: list[float] | None = Field(
+        description="the TCP's 1-sigma along the x, y, z axes of the tool frame (the result's "
+        "orientation; z is the tool axis, usually the least certain: it is told from the "
+        "plane's offset only by how much the tilts differ)"
+    )
+    touch_noise_mm: float = Field(
+        description="the touch noise behind the uncertainty (configured, or estimated from the "
+        "distances to the plane)"
+    )
+
+
 class NoDetails(StrictModel):
     """Methods without intermediate figures report `details: {}`."""
 
 
 class ResultExtras(BaseModel):
-    """Figures only some methods report (orientation methods, the laser method)."""
+    """Figures only some methods report (orientation methods, the laser and plane methods)."""
 
     orientation_change_deg: float | None = Field(
         default=None, description="angle to the previously active orientation"
@@ -94,7 +121,7 @@ class ResultExtras(BaseModel):
     offset_mm: list[float] | None = None
     tool_length_mm: float | None = None
     widths_mm: list[float] | None = None
-    details: LaserDetails | NoDetails = Field(default_factory=NoDetails)
+    details: LaserDetails | PlaneDetails | NoDetails = Field(default_factory=NoDetails)
 
 
 class CalibrationResult(ResultExtras):

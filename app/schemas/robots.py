@@ -8,6 +8,7 @@ from pydantic import BaseModel, Field
 
 from app.kinematics.dh import MAX_LINK_DEG, MAX_LINK_MM
 from app.kinematics.presets import PRESETS
+from app.kinematics.urdf import MAX_URDF_CHARS
 from app.schemas.common import FiniteFloat, Name, ShortText, StrictModel, Timestamp
 
 LinkMm = Annotated[FiniteFloat, Field(ge=-MAX_LINK_MM, le=MAX_LINK_MM)]
@@ -30,7 +31,21 @@ class DHKinematics(StrictModel):
     links: Annotated[list[DHLinkIn], Field(min_length=1, max_length=12)]
 
 
-Kinematics = PresetKinematics | DHKinematics
+class UrdfKinematics(StrictModel):
+    urdf: Annotated[str, Field(min_length=1, max_length=MAX_URDF_CHARS)] = Field(
+        description="the robot's URDF document ('<robot ...>...</robot>'); lengths in metres, "
+        "joint values of `joints` poses in radians unless `units` says degrees"
+    )
+    base_link: Annotated[str, Field(min_length=1, max_length=200)] | None = Field(
+        default=None, description="the base frame's link (default: the URDF's root link)"
+    )
+    tip_link: Annotated[str, Field(min_length=1, max_length=200)] | None = Field(
+        default=None,
+        description="the flange link (default: the chain's last link, e.g. tool0)",
+    )
+
+
+Kinematics = PresetKinematics | DHKinematics | UrdfKinematics
 
 
 class RobotCreate(StrictModel):

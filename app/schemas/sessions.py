@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from app.methods import METHOD_NAMES
 from app.methods.base import Activate
 from app.methods.npoint import NPointOptions
 from app.schemas.common import (
@@ -89,7 +90,10 @@ class Plan(BaseModel):
 
 
 class SessionCreate(StrictModel):
-    method: Literal["xyz_npoint"]
+    method: Literal["xyz_npoint"] = Field(
+        description="guided sessions guide touches of one point (xyz_npoint); other methods "
+        "take their touches in one POST /v1/tools/{tool_id}/calibrations"
+    )
     format: PoseFormat
     units: Units | None = None
     target_sigma_mm: PositiveFloat | None = Field(
@@ -98,6 +102,17 @@ class SessionCreate(StrictModel):
     max_tilt_deg: TiltDeg = 40.0
     max_spin_deg: SpinDeg = 90.0
     options: NPointOptions = Field(default_factory=NPointOptions)
+
+    @field_validator("method", mode="before")
+    @classmethod
+    def _guided_method(cls, method: object) -> object:
+        if isinstance(method, str) and method != "xyz_npoint" and method in METHOD_NAMES:
+            raise ValueError(
+                f"guided sessions guide touches of one point (xyz_npoint) only, not {method}: "
+                "its next pose is planned to reach one point. Send the touches of "
+                f"{method} in one POST /v1/tools/{{tool_id}}/calibrations"
+            )
+        return method
 
 
 class TouchAdd(StrictModel):

@@ -230,6 +230,7 @@ def test_methods_lists_every_method_with_defaults(api: Api) -> None:
     items = {m["name"]: m for m in api.get("/v1/methods").json()["items"]}
     assert set(items) == {
         "xyz_npoint",
+        "xyz_plane",
         "xyz_reference",
         "tcp_z_x",
         "abc_2point",

@@ -238,14 +238,16 @@ def test_spec_preset_and_links() -> None:
     assert kinematics_from_spec({"preset": "ur5e"}) is PRESETS["ur5e"]
     spec = PRESETS["tm5_900"].to_spec()
     rebuilt = kinematics_from_spec(spec)
+    assert isinstance(rebuilt, Kinematics)
     assert rebuilt.links == PRESETS["tm5_900"].links
     assert rebuilt.convention == "dh"
     minimal = kinematics_from_spec({"convention": "mdh", "links": [{"a": 0, "alpha": 0, "d": 1}]})
+    assert isinstance(minimal, Kinematics)
     assert minimal.links[0].theta_offset_deg == 0.0
     # fields of the other variant left as None (a dumped union model) are ignored
-    assert (
-        kinematics_from_spec({"preset": "ur3e", "convention": None, "links": None}).name == "ur3e"
-    )
+    ur3e = kinematics_from_spec({"preset": "ur3e", "convention": None, "links": None})
+    assert isinstance(ur3e, Kinematics)
+    assert ur3e.name == "ur3e"
 
 
 @pytest.mark.parametrize(
