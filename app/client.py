@@ -532,7 +532,9 @@ def export(
     tool_id: Annotated[
         str | None,
         typer.Argument(
-            metavar="[TOOL]", help="the tool: its id, name, or robot/tool (not with --all)"
+            metavar="TOOL",
+            help="the tool: its id, its name when only one tool has it, or robot/tool "
+            "(not with --all)",
         ),
     ] = None,
     fmt: Annotated[

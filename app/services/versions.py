@@ -188,8 +188,9 @@ def activate(
 ) -> None:
     """Make `version` the active one and record who did it, when and why (a tool locked with
     `lock_tool`). `reason` is the kind (explicit, forced, rollback, calibration:auto, ...),
-    `reason_text` the person's own words; both go into the activation history and the audit
-    event (`action`, with `details` added)."""
+    `reason_text` the person's own words; both go into the activation history. The audit
+    event (`action`, with `details` added) carries the kind as `kind` and the why as
+    `reason`: the person's words when given, else the kind."""
     now = utcnow()
     previous, tool.active_version = tool.active_version, version
     tool.revision += 1
@@ -208,9 +209,12 @@ def activate(
         ],
     )
     _save(session, tool, now)
-    event: JsonObject = {"version": version, "previous_version": previous, "reason": reason}
-    if reason_text is not None:
-        event["reason_text"] = reason_text
+    event: JsonObject = {
+        "version": version,
+        "previous_version": previous,
+        "kind": reason,
+        "reason": reason if reason_text is None else reason_text,
+    }
     audit.record(
         session,
         actor=actor,

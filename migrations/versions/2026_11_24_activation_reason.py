@@ -4,7 +4,7 @@
 the text a person gave (at most 500 characters, checked by the API) goes beside it.
 
 Revision ID: 2026_11_24_activation_reason
-Revises: 2026_11_23_tools_live_created
+Revises: 2026_11_24_outbox
 Create Date: 2026-11-24 05:20:00
 """
 
@@ -16,7 +16,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = "2026_11_24_activation_reason"
-down_revision: str | None = "2026_11_23_tools_live_created"
+down_revision: str | None = "2026_11_24_outbox"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -2,7 +2,7 @@
 check is written, so that a fleet page reads it instead of every tool's history
 
 Revision ID: 2026_11_24_drift
-Revises: 2026_11_24_activation_reason, 2026_11_24_outbox
+Revises: 2026_11_24_activation_reason
 Create Date: 2026-11-24 06:00:00
 """
 
@@ -14,11 +14,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = "2026_11_24_drift"
-# Also the merge of this round's two other heads (the lead re-chains them when merging).
-down_revision: str | tuple[str, ...] | None = (
-    "2026_11_24_activation_reason",
-    "2026_11_24_outbox",
-)
+down_revision: str | None = "2026_11_24_activation_reason"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

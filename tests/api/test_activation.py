@@ -86,7 +86,7 @@ def test_rollback_returns_to_the_previously_active_version_not_the_number_below(
     [event] = _audit(tool_id, "version.rollback")
     assert event["version"] == 2
     assert event["previous_version"] == 4
-    assert event["reason_text"] == "v4 drifts on the weld seam"
+    assert (event["kind"], event["reason"]) == ("rollback", "v4 drifts on the weld seam")
 
 
 def test_rollback_with_a_stale_etag_is_412_and_changes_nothing(api: Api) -> None:
@@ -194,7 +194,7 @@ def test_out_of_tolerance_version_needs_force_and_a_reason(api: Api) -> None:
     )
     event = _audit(tool_id, "version.activate")[-1]
     assert (event["version"], event["force"], event["status"]) == (3, True, "out_of_tolerance")
-    assert event["reason_text"] == "interim until the new torch arrives"
+    assert (event["kind"], event["reason"]) == ("forced", "interim until the new torch arrives")
 
 
 def test_explicit_activation_keeps_the_reason(api: Api) -> None:

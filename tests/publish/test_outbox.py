@@ -20,6 +20,8 @@ from tests.conftest import Api, Database
 
 ACTOR = Principal(key_id="k", name="tester", scope="admin")
 
+NO_BODY = ActivationRequest()  # an activation without a reason
+
 
 def _rows() -> list[OutboxMessage]:
     with session_scope(write=False) as session:
@@ -75,12 +77,7 @@ def test_api_keys_and_reads_write_nothing(api: Api) -> None:
 def _activate_then_fail(tool_id: str) -> None:
     with session_scope(write=True) as session:
         activation.activate_version(
-            session,
-            tool_id=tool_id,
-            version=1,
-            body=ActivationRequest(),
-            if_match=None,
-            actor=ACTOR,
+            session, tool_id=tool_id, version=1, body=NO_BODY, if_match=None, actor=ACTOR
         )
         raise RuntimeError("the request failed after the activation")
 
@@ -94,12 +91,7 @@ def test_a_rolled_back_change_leaves_no_row(api: Api) -> None:
     assert len(_rows()) == before
     with session_scope(write=True) as session:
         activation.activate_version(
-            session,
-            tool_id=tool["id"],
-            version=1,
-            body=ActivationRequest(),
-            if_match=None,
-            actor=ACTOR,
+            session, tool_id=tool["id"], version=1, body=NO_BODY, if_match=None, actor=ACTOR
         )
     assert [r.action for r in _rows()[before:]] == ["version.activate"]
 
@@ -175,7 +167,7 @@ def test_concurrent_activations_reach_the_outbox_in_their_commit_order(api: Api)
                     session,
                     tool_id=tool["id"],
                     version=1 + (seed + i) % 3,
-                    body=ActivationRequest(),
+                    body=NO_BODY,
                     if_match=None,
                     actor=ACTOR,
                 )

@@ -21,8 +21,7 @@ class _Controller(BaseModel):
 
 
 class _Row(FleetTool):
-    # A subset of the codes on purpose (FleetTool may declare more): the gauges read the
-    # codes a model declares.
+    # Narrower codes than the fleet's own, on purpose: the gauges count what rows declare.
     attention: list[Literal["check_failed", "stale", "no_active_version"]] = Field(  # type: ignore[assignment]
         default_factory=list
     )
