@@ -177,6 +177,10 @@ class Tool(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
     archived_at: Mapped[datetime | None] = mapped_column()
+    #: The drift trend (app.services.drift), refreshed when a version or a check is written;
+    #: drift_crosses_at: when its projection leaves check_mm at 95 % confidence, if it does.
+    drift: Mapped[JsonObject | None] = mapped_column(JSON)
+    drift_crosses_at: Mapped[datetime | None] = mapped_column()
 
 
 class Calibration(Base):

@@ -11,8 +11,9 @@ from app.api.params import Cursor, Limit, PathId
 from app.deps import ReadKey, SessionDep
 from app.helpers.pagination import DEFAULT_LIMIT, MAX_LIMIT
 from app.schemas.common import ID_PATTERN, Page
+from app.schemas.drift import ToolDrift
 from app.schemas.fleet import CalibrationStatus, CheckRecord, FleetTool
-from app.services import fleet
+from app.services import drift, fleet
 
 router = APIRouter(tags=["fleet"])
 
@@ -90,3 +91,11 @@ def list_checks(
     """A tool's checks, newest first: the deviation, the verdict and who checked when."""
     items, next_cursor = fleet.list_checks(session, tool_id=tool_id, limit=limit, cursor=cursor)
     return {"items": items, "next_cursor": next_cursor}
+
+
+@router.get("/v1/tools/{tool_id}/drift", response_model=ToolDrift)
+def tool_drift(tool_id: PathId, session: SessionDep, key: ReadKey) -> ToolDrift:
+    """The tool's drift trends (docs/drift.md): its TCP over the calibrated versions and its
+    checks' deviations over time, each a robust line in mm/month with its 95 % interval, and
+    when the projection leaves check_mm at 95 % confidence."""
+    return drift.tool_drift(session, tool_id)

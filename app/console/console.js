@@ -193,7 +193,11 @@ const ATTENTION = {
   stale: "neither calibrated nor checked for a long time (TCPCAL_STALE_DAYS)",
   controller_drifted: "the robot's controller holds another TCP than the active one (deploy, or find out who changed it)",
   controller_unreachable: "the robot's controller could not be read at the last look",
+  drifting: "the drift trend leaves check_mm within 30 days at 95 % confidence",
 };
+
+// A drift rate as "0.274 ± 0.012 mm/month" (docs/drift.md).
+const rate = (value, sigma) => `${value.toFixed(3)} ± ${sigma.toFixed(3)} mm/month`;
 
 async function fleetPage() {
   document.title = "Fleet · tcpcal";
@@ -218,7 +222,7 @@ async function fleetPage() {
   const table = h(
     "table",
     { id: "fleet" },
-    h("thead", {}, h("tr", {}, ["Tool", "Robot", "Cell", "Slot", "Active", "Last calibration", "rms mm", "Age", "Last check", "Controller", "Attention"].map((c) => h("th", {}, c)))),
+    h("thead", {}, h("tr", {}, ["Tool", "Robot", "Cell", "Slot", "Active", "Last calibration", "rms mm", "Age", "Last check", "Controller", "Drift", "Attention"].map((c) => h("th", {}, c)))),
     body,
   );
   show(h("h1", {}, "Fleet"), filters, summary, table);
@@ -270,6 +274,8 @@ function fleetRow(tool) {
     h("td", { class: "num", title: last ? when(last.created_at) : "" }, last ? age(last.created_at) : "—"),
     h("td", {}, check ? h("span", { class: `badge ${check.within_tolerance ? "accepted" : "out_of_tolerance"}` }, `${check.within_tolerance ? "pass" : "fail"} ${mm(check.distance_mm)}`) : "—"),
     h("td", { class: "controller-state" }, controllerBadge(tool.controller)),
+    h("td", { class: "num drift", title: tool.drift ? `from the ${tool.drift.basis}${tool.drift.crosses_check_at ? `; out of check_mm by ${when(tool.drift.crosses_check_at)}` : ""}` : "fewer than three points over a day" },
+      tool.drift ? rate(tool.drift.rate_mm_per_month, tool.drift.sigma_mm_per_month) : "—"),
     h("td", { class: "reasons", title: codes.map((c) => ATTENTION[c] ?? c).join("; ") },
       codes.map((c) => h("span", { class: "code", "data-code": c }, c))),
   );
@@ -417,12 +423,13 @@ async function toolPage(toolId) {
   const etag = toolResponse.headers.get("ETag");
   const tool = await toolResponse.json();
   document.title = `${tool.name} · tcpcal`;
-  const [robot, versions, calibrations, checks, formats] = await Promise.all([
+  const [robot, versions, calibrations, checks, formats, drift] = await Promise.all([
     json(`/v1/robots/${tool.robot_id}`),
     json(`/v1/tools/${toolId}/versions`),
     everyPage(`/v1/tools/${toolId}/calibrations`),
     everyPage(`/v1/tools/${toolId}/checks`),
     json("/v1/formats"),
+    json(`/v1/tools/${toolId}/drift`),
   ]);
   const sigmaOf = new Map(calibrations.filter((c) => c.version !== null).map((c) => [c.version, c.quality.tcp_sigma_mm]));
 
@@ -504,8 +511,10 @@ async function toolPage(toolId) {
     h("p", {}, `Cell ${robot.cell ?? "—"} · slot ${tool.slot ?? "—"} · active version ${tool.active_version ?? "none"} · tolerance rms ${mm(tool.tolerance.max_rms_mm)} mm, residual ${mm(tool.tolerance.max_residual_mm)} mm, check ${mm(tool.tolerance.check_mm)} mm`),
     controllerSlot,
     h("section", {}, h("h2", {}, "Active TCP for the controllers"), tool.active_version === null ? h("p", {}, "No active TCP: calibrate or activate a version.") : controllerBox),
-    h("section", {}, h("h2", {}, "TCP over the versions"), versions.items.length ? h("div", { id: "plot-tcp", class: "plot" }) : h("p", { id: "no-versions" }, "No versions yet: calibrate the tool, or enter its TCP by hand (method manual).")),
-    h("section", {}, h("h2", {}, "Checks over time"), checks.length ? h("div", { id: "plot-checks", class: "plot" }) : h("p", {}, "No checks recorded yet.")),
+    h("section", {}, h("h2", {}, "TCP over the versions"), versions.items.length ? h("div", { id: "plot-tcp", class: "plot" }) : h("p", { id: "no-versions" }, "No versions yet: calibrate the tool, or enter its TCP by hand (method manual)."),
+      driftLine("drift-versions", drift.versions, "calibrated versions")),
+    h("section", {}, h("h2", {}, "Checks over time"), checks.length ? h("div", { id: "plot-checks", class: "plot" }) : h("p", {}, "No checks recorded yet."),
+      driftLine("drift-checks", drift.checks, "checks of the active version")),
     h("section", {}, h("h2", {}, "Versions"),
       writes && tool.active_version !== null ? h("p", {}, h("button", { type: "button", id: "rollback", onclick: rollBack }, "Roll back")) : null,
       h("table", { id: "versions" }, h("thead", {}, h("tr", {}, ["Version", "Status", "TCP x, y, z mm", "Source", "Why", "By", "When", "", ""].map((c) => h("th", {}, c)))), h("tbody", {}, versionRows))),
@@ -515,7 +524,7 @@ async function toolPage(toolId) {
 
   await drawController(null);
   if (versions.items.length) plotTcp(versions.items, sigmaOf);
-  if (checks.length) plotChecks(checks, tool.tolerance.check_mm);
+  if (checks.length) plotChecks(checks, tool.tolerance.check_mm, drift.checks);
   if (tool.active_version !== null) await fillControllers(toolId, controllers, formats.controller_files || {}, controllerBox);
 }
 
@@ -577,14 +586,40 @@ function plotTcp(versions, sigmaOf) {
   }, { displaylogo: false, responsive: true });
 }
 
-function plotChecks(checks, limit) {
+// A series' drift under its plot: the rate ± its standard error with the 95 % interval per
+// axis, and when the projection leaves check_mm; tinted when that is within 30 days.
+function driftLine(id, trend, what) {
+  if (!trend) return h("p", { id, class: "drift muted" }, `Drift: no trend yet (it needs three ${what} over a day or more).`);
+  const axes = ["x", "y", "z"].map((a, i) => `${a} ${trend.rate_mm_per_month[i].toFixed(3)} [${trend.low_mm_per_month[i].toFixed(3)}, ${trend.high_mm_per_month[i].toFixed(3)}]`).join(", ");
+  const crosses = trend.crosses_check_at;
+  const soon = crosses !== null && new Date(crosses).getTime() <= Date.now() + 30 * DAY_MS;
+  return h("p", { id, class: `drift${soon ? " attention" : ""}` },
+    h("strong", { class: "rate" }, `Drift ${rate(trend.speed_mm_per_month, trend.speed_sigma_mm_per_month)}`),
+    ` over ${trend.n} ${what} (per axis, 95 % interval: ${axes})`,
+    crosses ? `; projected out of check_mm by ${when(crosses)} at 95 % confidence.` : "; not projected out of check_mm within two years.");
+}
+
+// The checks' trend as a distance over time: |level + rate (t - t0)| from the first check to
+// 30 days past the last (or to where it leaves check_mm, when sooner).
+function trendTrace(trend) {
+  const start = new Date(trend.first_at).getTime();
+  const end = new Date(trend.last_at).getTime() + 30 * DAY_MS;
+  const t0 = new Date(trend.t0_at).getTime();
+  const xs = Array.from({ length: 50 }, (_, i) => start + ((end - start) * i) / 49);
+  const distance = (t) => Math.hypot(...trend.level_mm.map((l, i) => l + trend.rate_mm_per_month[i] * (t - t0) / (30.44 * DAY_MS)));
+  return { type: "scatter", mode: "lines", name: "trend", x: xs.map((t) => new Date(t).toISOString()), y: xs.map(distance), line: { dash: "dot", color: "#6a1b9a" } };
+}
+
+function plotChecks(checks, limit, trend) {
   const ordered = checks.slice().reverse();
-  const range = timeRange(ordered.map((c) => c.checked_at));
-  const top = 1.15 * Math.max(limit, ...ordered.map((c) => c.distance_mm));
+  const trace = trend ? trendTrace(trend) : null;
+  const range = timeRange([...ordered.map((c) => c.checked_at), ...(trace ? [trace.x[trace.x.length - 1]] : [])]);
+  const top = 1.15 * Math.max(limit, ...ordered.map((c) => c.distance_mm), ...(trace ? trace.y : []));
   Plotly.newPlot("plot-checks", [
     { type: "scatter", mode: "lines+markers", name: "distance mm", x: ordered.map((c) => c.checked_at), y: ordered.map((c) => c.distance_mm),
       marker: { color: ordered.map((c) => (c.within_tolerance ? "#2e7d32" : "#c62828")), size: 10 } },
     { type: "scatter", mode: "lines", name: "check_mm", x: range, y: [limit, limit], line: { dash: "dash", color: "#c62828" } },
+    ...(trace ? [trace] : []),
   ], { height: 280, margin: { t: 10, r: 10, b: 40, l: 70 }, xaxis: { type: "date", range }, yaxis: { title: { text: "distance mm" }, range: [0, top] } }, { displaylogo: false, responsive: true });
 }
 

@@ -7,6 +7,7 @@ from typing import Literal
 from pydantic import BaseModel, Field
 
 from app.schemas.common import Timestamp
+from app.schemas.drift import FleetDrift
 
 CalibrationStatus = Literal["accepted", "out_of_tolerance"]
 
@@ -20,6 +21,7 @@ AttentionCode = Literal[
     "stale",
     "controller_drifted",
     "controller_unreachable",
+    "drifting",
 ]
 
 
@@ -71,12 +73,17 @@ class FleetTool(BaseModel):
         "last_calibration_out_of_tolerance, check_failed (the newest check), "
         "no_active_version, stale (no calibration or check for TCPCAL_STALE_DAYS days), "
         "controller_drifted (the robot's controller holds another TCP than the active one), "
-        "controller_unreachable (it could not be read at the last look)",
+        "controller_unreachable (it could not be read at the last look), "
+        "drifting (the drift trend leaves check_mm within 30 days at 95 % confidence)",
     )
     controller: FleetController | None = Field(
         default=None,
         description="the tool's state in its robot's controller at the last reconcile or "
         "deployment; null when never looked at",
+    )
+    drift: FleetDrift | None = Field(
+        default=None,
+        description="the TCP's drift trend (docs/drift.md); null until three points over a day",
     )
 
 
@@ -124,4 +131,7 @@ CSV_COLUMNS = (
     "controller_state",
     "controller_checked_at",
     "controller_deviation_mm",
+    "drift_rate_mm_per_month",
+    "drift_sigma_mm_per_month",
+    "drift_crosses_check_at",
 )

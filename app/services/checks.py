@@ -17,12 +17,13 @@ from app.schemas.common import Units
 from app.schemas.references import CheckCreate, CheckResult, CheckTouch
 from app.services import audit
 from app.services.diagnosis import Fit, implausible_flanges, refuse_mix_up
+from app.services.drift import Point, refresh_drift
 from app.services.frames import frame_of, parse_poses_with
 from app.services.references import get_reference_point
 from app.services.robots import get_robot
 from app.services.tools import get_tool
 from app.services.verdict import check_summary
-from app.services.versions import active_version_row
+from app.services.versions import active_version_row, lock_tool
 from app.solvers.reference import TcpDeviation, check_tcp
 
 FloatArray = NDArray[np.float64]
@@ -124,5 +125,16 @@ def run_check(
                 "summary",
             },
         ),
+    )
+    # The check is the trend's newest point; the tool's lock orders concurrent checks, so
+    # each one's trend reads the ones committed before it.
+    locked = lock_tool(session, tool.id)
+    pending = Point(result.checked_at, result.deviation_flange_mm)
+    refresh_drift(
+        session,
+        tool_id=tool.id,
+        active_version=locked.active_version,
+        tolerance=locked.tolerance,
+        pending_check=pending if locked.active_version == result.version else None,
     )
     return result

@@ -26,6 +26,7 @@ from app.schemas.fleet import (
     LastCalibration,
     LastCheck,
 )
+from app.services.drift import drifting_rule, fleet_drift
 from app.services.tools import get_tool
 
 CHECK_ACTION = "tool.check"
@@ -86,6 +87,8 @@ def attention_rules(now: datetime) -> dict[AttentionCode, ColumnElement[bool]]:
         # What the last reconcile or deployment found in the robot's controller.
         "controller_drifted": _controller_state() == "drifted",
         "controller_unreachable": _controller_state() == "unreachable",
+        # The trend stored when a version or check was written projects out of check_mm.
+        "drifting": drifting_rule(now),
     }
 
 
@@ -117,6 +120,7 @@ _TOOL_COLUMNS = (
     Robot.cell,
     _ACTIVE.position_mm,
     _ACTIVE.quaternion,
+    Tool.drift,
 )
 
 
@@ -128,7 +132,19 @@ def _fleet_query(
     status: str | None,
     attention: bool | None,
     rules: dict[AttentionCode, ColumnElement[bool]],
-) -> Select[str, str, int | None, str, int | None, datetime, str, str | None, JsonArray, JsonArray]:
+) -> Select[
+    str,
+    str,
+    int | None,
+    str,
+    int | None,
+    datetime,
+    str,
+    str | None,
+    JsonArray,
+    JsonArray,
+    JsonObject | None,
+]:
     stmt = (
         select(*_TOOL_COLUMNS)
         .join(Robot, Robot.id == Tool.robot_id)
@@ -198,6 +214,7 @@ def list_fleet(
             quaternion=t.quaternion,
             attention=codes.get(t.id, []),
             controller=in_controller.get(t.id),
+            drift=fleet_drift(t.drift),
         )
         for t in tools
     ]
@@ -323,9 +340,22 @@ def fleet_csv(rows: Sequence[FleetTool]) -> str:
                 ctl.state if ctl else "",
                 ctl.checked_at.isoformat() if ctl else "",
                 "" if ctl is None or ctl.deviation_mm is None else f"{ctl.deviation_mm:.4f}",
+                *_drift_cells(r),
             ]
         )
     return out.getvalue()
+
+
+def _drift_cells(row: FleetTool) -> list[str]:
+    drift = row.drift
+    if drift is None:
+        return ["", "", ""]
+    at = drift.crosses_check_at
+    return [
+        f"{drift.rate_mm_per_month:.4f}",
+        f"{drift.sigma_mm_per_month:.4f}",
+        "" if at is None else at.isoformat(),
+    ]
 
 
 def _numbers(values: Sequence[float] | None, n: int, decimals: int) -> list[str]:

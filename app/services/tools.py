@@ -18,6 +18,7 @@ from app.models import Tool, utcnow
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.services import audit
 from app.services.controllers import check_slot_for_controller
+from app.services.drift import restate_drift
 from app.services.live import get_live
 from app.services.robots import get_robot
 from app.services.slots import check_slot
@@ -161,6 +162,8 @@ def update_tool(
         changes["load"] = Load.model_validate({**tool.load, **changes["load"]}).model_dump()
     for key, value in changes.items():
         setattr(tool, key, value)
+    if "tolerance" in changes:  # another check_mm, another projection
+        restate_drift(session, tool)
     tool.updated_at = utcnow()
     tool.revision += 1
     audit.record(

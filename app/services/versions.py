@@ -20,6 +20,7 @@ from app.jsontypes import JsonArray, JsonObject
 from app.models import Activation, ApiKey, Robot, TcpVersion, Tool, new_id, table_of, utcnow
 from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.services import audit
+from app.services.drift import refresh_drift
 from app.services.exports import ServedTool, ServedVersion, controller_text
 from app.services.live import live_or_404
 from app.services.robots import get_robot
@@ -170,6 +171,7 @@ def add_version(
         tool_id=tool.id,
         details={"version": tool.last_version, "source": source, "status": status},
     )
+    _refresh_drift(session, tool)
     return tool.last_version
 
 
@@ -222,6 +224,15 @@ def activate(
         robot_id=tool.robot_id,
         tool_id=tool.id,
         details={**event, **(details or {})},
+    )
+    _refresh_drift(session, tool)
+
+
+def _refresh_drift(session: Session, tool: LockedTool) -> None:
+    """The tool's drift trend after a new version or activation (a new version is a new point
+    of the TCP's series; another active version, another reference and set of checks)."""
+    refresh_drift(
+        session, tool_id=tool.id, active_version=tool.active_version, tolerance=tool.tolerance
     )
 
 
