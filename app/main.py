@@ -14,6 +14,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from app import __version__, solve_pool
 from app.api import (
+    audit,
     calibrations,
     console,
     docs,
@@ -109,6 +110,7 @@ def create_app() -> FastAPI:
         formats,
         fleet,
         sessions,
+        audit,
         docs,
         console,
     )

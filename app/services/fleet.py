@@ -16,6 +16,7 @@ from app.helpers.pagination import paginate_newest_first, paginate_rows
 from app.jsontypes import JsonObject
 from app.models import AuditEvent, Calibration, Robot, Tool
 from app.schemas.fleet import CSV_COLUMNS, CheckRecord, FleetTool, LastCalibration, LastCheck
+from app.services.live import in_scope
 from app.services.tools import get_tool
 
 CHECK_ACTION = "tool.check"
@@ -85,7 +86,9 @@ def list_fleet(
 ) -> tuple[list[FleetTool], str | None]:
     """One page of the fleet, oldest tool first; three queries per page whatever its size,
     each reading only the columns a row shows (rows, not ORM objects: a page is read-only)."""
-    stmt = _fleet_query(cell=cell, robot_id=robot_id, q=q, status=status)
+    stmt = in_scope(
+        session, _fleet_query(cell=cell, robot_id=robot_id, q=q, status=status), Robot.id
+    )
     tools, next_cursor = paginate_rows(
         session, stmt, created_col=Tool.created_at, id_col=Tool.id, limit=limit, cursor=cursor
     )
