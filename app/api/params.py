@@ -8,7 +8,6 @@ from typing import Annotated, Literal
 
 from fastapi import Path, Query, Request
 from fastapi.dependencies.models import Dependant
-from fastapi.routing import APIRoute
 
 from app.errors import InvalidInput
 from app.helpers.pagination import CURSOR_PATTERN, DEFAULT_LIMIT, MAX_LIMIT
@@ -37,10 +36,10 @@ def _query_names(dependant: Dependant) -> set[str]:
 def known_query_only(request: Request) -> None:
     """A dependency that refuses (422, naming them) query parameters the route does not
     take: where a misspelt filter would otherwise be ignored and answer with everything."""
-    route = request.scope.get("route")
-    if not isinstance(route, APIRoute):
+    dependant = getattr(request.scope.get("route"), "dependant", None)
+    if not isinstance(dependant, Dependant):
         return
-    known = _query_names(route.dependant)
+    known = _query_names(dependant)
     unknown = sorted(set(request.query_params) - known)
     if unknown:
         raise InvalidInput(
