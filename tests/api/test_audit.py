@@ -204,10 +204,7 @@ def test_each_filter_is_an_index_seek_not_a_scan(api: Api, where: str) -> None:
     engine = get_engine()
     if engine.dialect.name != "sqlite":
         pytest.skip("the plan is read from SQLite's EXPLAIN QUERY PLAN")
-    sql = (
-        f"SELECT * FROM audit_events WHERE {where} AND id < 1000 "  # noqa: S608 (test literals)
-        "ORDER BY id DESC LIMIT 51"
-    )
+    sql = f"SELECT * FROM audit_events WHERE {where} AND id < 1000 ORDER BY id DESC LIMIT 51"
     with engine.connect() as conn:
         plan = " | ".join(str(r[-1]) for r in conn.execute(text(f"EXPLAIN QUERY PLAN {sql}")))
     assert "SCAN audit_events" not in plan.replace("SCAN audit_events USING", "SEEK"), plan
