@@ -101,7 +101,8 @@ def test_filters(api: Api, history: dict[str, Any]) -> None:
     assert [e["action"] for e in by_robot] == ["tool.create", "robot.create"]
     assert {e["robot_id"] for e in by_robot} == {r2}
     by_actor = _audit(api, actor="test-calibrate")["items"]
-    assert by_actor and {e["actor"] for e in by_actor} == {"test-calibrate"}
+    assert by_actor
+    assert {e["actor"] for e in by_actor} == {"test-calibrate"}
     assert len(_audit(api, action="robot.create")["items"]) == 2
     assert _audit(api, action="robot.create", actor="nobody")["items"] == []
     now = datetime.now(UTC)

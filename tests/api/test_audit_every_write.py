@@ -41,7 +41,7 @@ class Call:
 
 
 def _robot(api: Api) -> str:
-    return api.robot(f"r-{uuid4().hex[:8]}", cell="cell-1")["id"]
+    return str(api.robot(f"r-{uuid4().hex[:8]}", cell="cell-1")["id"])
 
 
 def _tool(api: Api, *, active: bool = True) -> dict[str, Any]:

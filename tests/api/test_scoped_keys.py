@@ -173,7 +173,9 @@ def test_lists_and_the_csv_hold_only_the_keys_cells(
     assert api.get("/v1/tools", scope="c12-read", params={"cell": CELL7}).json()["items"] == []
     csv = api.get("/v1/tools", scope="c12-read", headers={"Accept": "text/csv"}).text
     lines = csv.strip().splitlines()
-    assert len(lines) == 2 and CELL12 in lines[1] and CELL7 not in csv
+    assert len(lines) == 2
+    assert CELL12 in lines[1]
+    assert CELL7 not in csv
     everyone = api.get("/v1/tools", scope="read", headers={"Accept": "text/csv"}).text
     assert len(everyone.strip().splitlines()) == 3
 
@@ -260,7 +262,8 @@ def test_a_cell_key_makes_and_sees_only_keys_of_its_cells(
     assert gone.json()["detail"] == f"no API key with id {unscoped}"
     # the trail of a cell key's admin: its cells' events only
     trail = api.get("/v1/audit", scope="c12-admin", params={"limit": 500}).json()["items"]
-    assert trail and {e["robot_id"] for e in trail} == {cells[CELL12]["robot"]}
+    assert trail
+    assert {e["robot_id"] for e in trail} == {cells[CELL12]["robot"]}
 
 
 @pytest.mark.parametrize(
