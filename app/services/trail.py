@@ -53,7 +53,7 @@ def list_events(
     its cells' robots only."""
     if query.since is not None and query.until is not None and query.since > query.until:
         raise InvalidInput(
-            "validation",
+            "invalid-interval",
             f"since ({query.since.isoformat()}) is after until ({query.until.isoformat()}): "
             "give since <= until",
             loc=("query", "since"),

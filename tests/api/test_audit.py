@@ -179,6 +179,14 @@ def test_bad_filters_are_a_422_naming_them(
     assert words.lower() in (problem["detail"] + str(problem["errors"])).lower(), problem
 
 
+def test_an_interval_that_ends_before_it_starts_is_its_own_problem(api: Api) -> None:
+    """Schema-valid, so not /validation (the contract test's hook): /invalid-interval."""
+    params = {"since": "2026-11-24T06:00:00Z", "until": "2026-11-24T05:00:00+00:00"}
+    problem = api.get("/v1/audit", scope="admin", params=params).json()
+    assert problem["type"].endswith("/invalid-interval")
+    assert problem["status"] == 422
+
+
 def test_the_trail_needs_an_admin_key(api: Api, history: dict[str, Any]) -> None:
     assert api.get("/v1/audit", scope="calibrate").status_code == 403
     assert api.get("/v1/audit", scope="read").status_code == 403
