@@ -13,7 +13,7 @@ from playwright.sync_api import Page, expect
 from tests.browser.test_console import Fleet, context, page  # noqa: F401 (fixtures)
 from tests.live.server import fresh_database, live_server
 
-pytestmark = pytest.mark.live
+pytestmark = [pytest.mark.live, pytest.mark.browser]
 
 
 @pytest.fixture(scope="module")
