@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
-.PHONY: run test lint typecheck openapi bench screenshots demo clean
+.PHONY: run test check lint typecheck openapi bench screenshots demo clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -32,9 +32,16 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
+# The whole suite: every test, live servers, browsers and killed processes included.
 test: lint typecheck
 	$(BIN)/tcpcal openapi --check
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q -n 2 --durations=20
+
+# The fast tier for the edit-test loop (under 2 minutes on 2 cores): lint, types and every
+# test that starts no server, browser or process of its own (markers in pyproject.toml).
+check: lint typecheck
+	$(BIN)/tcpcal openapi --check
+	$(BIN)/pytest -q -n 2 -m "not live and not browser and not kills"
 
 openapi: $(STAMP)
 	$(BIN)/tcpcal openapi
@@ -54,6 +61,7 @@ demo: $(STAMP)
 	mkdir -p var
 	TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal demo
 	@echo "serve it: TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal serve"
+	@echo "its key:  TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal keys create --scope admin --name me"
 
 clean:
 	rm -rf $(VENV) var .pytest_cache .mypy_cache .ruff_cache .hypothesis

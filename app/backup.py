@@ -9,17 +9,29 @@ miss what is still in the WAL). The result is a plain SQLite file, checked with
 PostgreSQL: `pg_dump --format=custom` (one snapshot transaction, so consistent under writes)
 and `pg_restore --clean --if-exists`; both come with the PostgreSQL client package.
 
-Restore replaces the database's content: stop the servers first.
+Restore replaces the database's content under every server reading it, so it refuses while
+another process has the database open (a running server, a publisher, a psql session), unless
+forced. SQLite: every connection to a WAL database holds a shared lock on the "dead man
+switch" byte of the -shm file for as long as it is open (os_unix.c, UNIX_SHM_DMS = byte 128),
+so an exclusive lock on that byte that cannot be had means another process has it open.
+PostgreSQL: pg_stat_activity lists the other sessions on the database.
 """
 
 from __future__ import annotations
 
+import fcntl
+import os
 import shutil
 import sqlite3
 import subprocess
 from pathlib import Path
 
+from sqlalchemy import create_engine, text
 from sqlalchemy.engine import make_url
+from sqlalchemy.pool import NullPool
+
+#: The byte of a WAL database's -shm file that every open connection holds a shared lock on.
+_SQLITE_SHM_DMS_BYTE = 128
 
 
 class BackupError(RuntimeError):
@@ -43,11 +55,18 @@ def backup(database_url: str, path: Path) -> str:
     return f"backed up {url.database} to {path} (pg_dump, custom format)"
 
 
-def restore(database_url: str, path: Path) -> str:
-    """Replace the database's content with a backup made by `backup`."""
+def restore(database_url: str, path: Path, *, force: bool = False) -> str:
+    """Replace the database's content with a backup made by `backup`; refused while another
+    process has the database open, unless `force`."""
     if not path.is_file():
         raise BackupError(f"{path} is not a file")
     url = make_url(database_url)
+    in_use = None if force else in_use_by(database_url)
+    if in_use:
+        raise BackupError(
+            f"the database is open in {in_use} (a running tcpcal server or publisher?): "
+            "stop every server and process using it, then restore; --force restores anyway"
+        )
     if url.get_backend_name() == "sqlite":
         _check_integrity(path)
         target = _sqlite_file(database_url)
@@ -60,6 +79,40 @@ def restore(database_url: str, path: Path) -> str:
         "pg_restore",
     )
     return f"restored {url.database} from {path}"
+
+
+def in_use_by(database_url: str) -> str | None:
+    """Who else has the database open, in words, or None when nobody does."""
+    if make_url(database_url).get_backend_name() == "sqlite":
+        return _sqlite_in_use(_sqlite_file(database_url))
+    engine = create_engine(database_url, poolclass=NullPool)
+    try:
+        with engine.connect() as conn:
+            others = conn.execute(
+                text(
+                    "SELECT count(*) FROM pg_stat_activity "
+                    "WHERE datname = current_database() AND pid <> pg_backend_pid()"
+                )
+            ).scalar_one()
+    finally:
+        engine.dispose()
+    return f"{others} other session(s)" if others else None
+
+
+def _sqlite_in_use(database: str) -> str | None:
+    shm = Path(database + "-shm")
+    if not shm.is_file():
+        return None  # no connection has the WAL index mapped
+    fd = os.open(shm, os.O_RDWR)
+    try:
+        fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB, 1, _SQLITE_SHM_DMS_BYTE, os.SEEK_SET)
+    except OSError:
+        return "another process"
+    else:
+        fcntl.lockf(fd, fcntl.LOCK_UN, 1, _SQLITE_SHM_DMS_BYTE, os.SEEK_SET)
+        return None
+    finally:
+        os.close(fd)
 
 
 def _sqlite_file(database_url: str) -> str:

@@ -108,7 +108,7 @@ def db_current() -> None:
 @cli.command()
 def demo() -> None:
     """Migrate the database (TCPCAL_DATABASE_URL) and fill it, if empty, with a small
-    realistic fleet: 5 robots, 10 tools, 14 months of calibrations and checks."""
+    realistic fleet and 14 months of calibrations and checks."""
     from app.config import get_settings
     from app.db import session_scope
     from app.demo import FleetNotEmpty, fill
@@ -123,7 +123,12 @@ def demo() -> None:
         raise typer.Exit(4) from None
     made = ", ".join(f"{n} {what}" for what, n in counts.items())
     typer.echo(f"demo fleet written: {made}")
-    typer.echo("sign in to the console with a key: tcpcal keys create --scope admin --name me")
+    # The key must go into the database just filled, not the default one.
+    url = get_settings().database_url
+    typer.echo(
+        "sign in to the console with a key of this database:\n"
+        f"  TCPCAL_DATABASE_URL={url} tcpcal keys create --scope admin --name me"
+    )
 
 
 @keys_cli.command("create")
@@ -252,13 +257,17 @@ def db_backup(
 @db_cli.command("restore")
 def db_restore(
     path: Annotated[Path, typer.Argument(help="a backup written by `tcpcal db backup`")],
+    force: Annotated[
+        bool, typer.Option(help="restore even while other processes have the database open")
+    ] = False,
 ) -> None:
-    """Replace the database's content with a backup (stop the servers first)."""
+    """Replace the database's content with a backup; refused while a server (or any other
+    process) has the database open: stop them first."""
     from app.backup import BackupError, restore
     from app.config import get_settings
 
     try:
-        typer.echo(restore(get_settings().database_url, path))
+        typer.echo(restore(get_settings().database_url, path, force=force))
     except BackupError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(1) from exc

@@ -342,8 +342,11 @@ def plan(
         body["n_poses"] = n
     if target is not None:
         body["target_sigma_mm"] = target
+    from app.kinematics.poses import format_components
+
     result = _send("POST", "/v1/plan", json=body).json()
-    table = Table("touch", *[f"v{i + 1}" for i in range(len(_flatten(result["poses"][0])))])
+    names = format_components(fmt)  # the server accepted the format: it is a known one
+    table = Table("touch", *names)
     rows = [_flatten(p) for p in result["poses"]]
     for i, row in enumerate(rows, start=1):
         table.add_row(str(i), *[f"{v:.3f}" for v in row])
@@ -355,8 +358,11 @@ def plan(
         highlight=False,
     )
     if csv_file is not None:
+        # The header names each number; `tcpcal calibrate --poses` reads the file as it is.
         with csv_file.open("w", newline="") as fh:
-            csv.writer(fh).writerows(rows)
+            writer = csv.writer(fh)
+            writer.writerow(names)
+            writer.writerows(rows)
         out.print(f"wrote {csv_file}")
 
 

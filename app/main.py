@@ -35,7 +35,7 @@ from app.auth import ensure_bootstrap_key
 from app.config import get_settings
 from app.db import get_engine, session_scope
 from app.logs import SERVING_ENV, configure_logging
-from app.middleware import BodyLimitMiddleware, RequestLogMiddleware
+from app.middleware import BodyLimitMiddleware, HeadAsGetMiddleware, RequestLogMiddleware
 from app.migrate import current_revision, head_revision
 from app.openapi import build_openapi
 
@@ -77,7 +77,10 @@ async def lifespan(_: FastAPI) -> AsyncIterator[None]:
     if os.environ.get(SERVING_ENV):  # a server (not a test's app): start solvers up front
         solve_pool.start()
         settle_heap()
-    yield
+    try:
+        yield
+    finally:
+        solve_pool.stop()
 
 
 def create_app() -> FastAPI:
@@ -118,6 +121,7 @@ def create_app() -> FastAPI:
         app.include_router(module.router)
     docs.mount_assets(app)
     console.mount_assets(app)
+    app.add_middleware(HeadAsGetMiddleware)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     # Outermost: every log line of the request, the access line included, has its id.
     app.add_middleware(RequestLogMiddleware)

@@ -80,6 +80,33 @@ class BodyLimitMiddleware:
         await self.app(scope, replay, send)
 
 
+class HeadAsGetMiddleware:
+    """Answer HEAD wherever GET is answered, with GET's status and headers and no body, as
+    HTTP requires of every GET resource (RFC 9110 9.3.2): monitors and load balancers probe
+    /health and /ui/ with HEAD, and FastAPI's routes answer only the methods they declare.
+    The access line still says HEAD, with the route and key the GET found."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or scope["method"] != "HEAD":
+            await self.app(scope, receive, send)
+            return
+
+        async def no_body(message: Message) -> None:
+            if message["type"] == "http.response.body":
+                message = {**message, "body": b""}
+            await send(message)
+
+        # The same scope, so the router's route and the key's name reach the access line.
+        scope["method"] = "GET"
+        try:
+            await self.app(scope, receive, no_body)
+        finally:
+            scope["method"] = "HEAD"
+
+
 #: Request ids accepted from clients: what a tracing header holds, nothing that could
 #: break a log line. Anything else is replaced by a generated id.
 _REQUEST_ID = re.compile(r"[A-Za-z0-9._:-]{1,128}")

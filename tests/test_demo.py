@@ -8,13 +8,17 @@ from datetime import UTC, datetime
 from typer.testing import CliRunner
 
 from app.cli import cli
-from tests.conftest import Api
+from tests.conftest import Api, Database
 
 
-def test_demo_fills_an_empty_database_with_every_case_the_console_shows(api: Api) -> None:
+def test_demo_fills_an_empty_database_with_every_case_the_console_shows(
+    api: Api, db: Database
+) -> None:
     result = CliRunner().invoke(cli, ["demo"])
     assert result.exit_code == 0, result.output
     assert "5 robots, 9 tools, 16 calibrations, 5 checks" in result.output
+    # The key it says to make must land in the database it filled, not the default one.
+    assert f"TCPCAL_DATABASE_URL={db.url} tcpcal keys create" in result.output
 
     tools = api.get("/v1/tools", params={"limit": 100}).json()["items"]
     assert len(tools) == 9
@@ -53,3 +57,10 @@ def test_demo_fills_an_empty_database_with_every_case_the_console_shows(api: Api
     assert again.exit_code == 4
     assert "already holds robots" in again.output
     assert len(api.get("/v1/tools", params={"limit": 100}).json()["items"]) == 9
+
+
+def test_demo_help_claims_no_count_the_fleet_does_not_have() -> None:
+    """It said 10 tools for a fleet of 9: the counts are printed by the run, from the fleet."""
+    text = CliRunner().invoke(cli, ["demo", "--help"]).output
+    assert "10 tools" not in text
+    assert "realistic fleet" in text

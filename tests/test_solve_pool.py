@@ -77,6 +77,7 @@ def test_the_default_leaves_one_core_to_the_event_loop(
         get_settings.cache_clear()
 
 
+@pytest.mark.kills
 def test_solvers_end_with_a_killed_server_worker() -> None:
     """A worker killed with SIGKILL (uvicorn's health check, the OOM killer) tells its pool
     nothing: the solvers must notice on their own and end, not live on forever."""

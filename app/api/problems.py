@@ -167,15 +167,19 @@ _METHODS = ("DELETE", "GET", "HEAD", "OPTIONS", "PATCH", "POST", "PUT")
 
 def _allowed_methods(request: Request) -> list[str]:
     """Every method some route of the app serves at the request's path, asked of the routes
-    themselves (Starlette's matching), so that nested routers are covered too."""
-    return [
+    themselves (Starlette's matching), so that nested routers are covered too. HEAD wherever
+    GET is (app.middleware.HeadAsGetMiddleware answers it)."""
+    allowed = {
         method
         for method in _METHODS
         if any(
             route.matches({**request.scope, "method": method})[0] == Match.FULL
             for route in request.app.router.routes
         )
-    ]
+    }
+    if "GET" in allowed:
+        allowed.add("HEAD")
+    return sorted(allowed)
 
 
 def install_error_handlers(app: FastAPI) -> None:

@@ -22,8 +22,10 @@ function h(tag, attrs = {}, ...children) {
   return el;
 }
 
+// Optional sections are written `cond ? node : null`; replaceChildren would print a null as
+// the text "null" (a manual calibration's report showed "null" and "nullnull").
 function show(...nodes) {
-  main.replaceChildren(...nodes);
+  main.replaceChildren(...nodes.filter((node) => node !== null && node !== undefined && node !== false));
 }
 
 const mm = (v) => (v === null || v === undefined ? "—" : Number(v).toFixed(3));
@@ -32,10 +34,28 @@ const when = (iso) => (iso ? new Date(iso).toLocaleString() : "—");
 
 function age(iso) {
   if (!iso) return "—";
-  const days = (Date.now() - new Date(iso).getTime()) / 86400000;
-  if (days < 1) return `${Math.max(1, Math.round(days * 24))} h`;
+  const minutes = (Date.now() - new Date(iso).getTime()) / 60000;
+  if (minutes < 1) return "now";
+  if (minutes < 60) return `${Math.round(minutes)} min`;
+  const days = minutes / 1440;
+  if (days < 1) return `${Math.round(days * 24)} h`;
   if (days < 60) return `${Math.round(days)} d`;
   return `${Math.round(days / 30.4)} mo`;
+}
+
+// A message about a click goes where the eye is: in a row right under the clicked button's row
+// (it was drawn at the top of the page, out of sight of a button further down), scrolled into
+// view. One such note per table: a new one replaces the last.
+function noteBeside(button, node) {
+  const row = button.closest("tr");
+  if (!row) {
+    button.after(node);
+    return;
+  }
+  row.closest("tbody").querySelectorAll("tr.row-note").forEach((old) => old.remove());
+  const note = h("tr", { class: "row-note" }, h("td", { colspan: row.children.length }, node));
+  row.after(note);
+  note.scrollIntoView({ block: "nearest" });
 }
 
 function badge(status) {
@@ -266,21 +286,20 @@ async function toolPage(toolId) {
     json("/v1/formats"),
   ]);
   const sigmaOf = new Map(calibrations.filter((c) => c.version !== null).map((c) => [c.version, c.quality.tcp_sigma_mm]));
-  const message = h("div", { id: "message" });
 
-  const activate = async (version) => {
+  const activate = async (version, button) => {
     try {
       await api(`/v1/tools/${toolId}/versions/${version}/activate`, { method: "POST", headers: { "If-Match": etag } });
       route();
     } catch (error) {
       if (error instanceof Problem && error.status === 412) {
-        message.replaceChildren(
+        noteBeside(button,
           h("div", { class: "problem", role: "alert" },
             h("strong", {}, "Not activated: this page is out of date."),
             h("p", {}, "The tool changed since this page was loaded (another activation or a new calibration). Nothing was changed. Reload to see the current versions, then decide again."),
             h("button", { type: "button", onclick: () => route() }, "Reload")),
         );
-      } else message.replaceChildren(problemBox(error));
+      } else noteBeside(button, problemBox(error));
     }
   };
 
@@ -297,7 +316,7 @@ async function toolPage(toolId) {
       h("td", {}, when(v.created_at)),
       h("td", {}, v.calibration_id ? h("a", { href: `/ui/calibrations/${v.calibration_id}` }, "report") : "—"),
       h("td", {}, v.active ? h("strong", {}, "active")
-        : h("button", { type: "button", class: "activate", onclick: () => activate(v.version) },
+        : h("button", { type: "button", class: "activate", onclick: (event) => activate(v.version, event.currentTarget) },
           tool.active_version !== null && v.version < tool.active_version ? "Roll back to this" : "Activate")),
     ),
   );
@@ -310,9 +329,8 @@ async function toolPage(toolId) {
   show(
     h("h1", {}, `${tool.name} `, h("span", { class: "muted" }, `on ${robot.name}`)),
     h("p", {}, `Cell ${robot.cell ?? "—"} · slot ${tool.slot ?? "—"} · active version ${tool.active_version ?? "none"} · tolerance rms ${mm(tool.tolerance.max_rms_mm)} mm, residual ${mm(tool.tolerance.max_residual_mm)} mm, check ${mm(tool.tolerance.check_mm)} mm`),
-    message,
     h("section", {}, h("h2", {}, "Active TCP for the controllers"), tool.active_version === null ? h("p", {}, "No active TCP: calibrate or activate a version.") : controllerBox),
-    h("section", {}, h("h2", {}, "TCP over the versions"), h("div", { id: "plot-tcp", class: "plot" })),
+    h("section", {}, h("h2", {}, "TCP over the versions"), versions.items.length ? h("div", { id: "plot-tcp", class: "plot" }) : h("p", { id: "no-versions" }, "No versions yet: calibrate the tool, or enter its TCP by hand (method manual).")),
     h("section", {}, h("h2", {}, "Checks over time"), checks.length ? h("div", { id: "plot-checks", class: "plot" }) : h("p", {}, "No checks recorded yet.")),
     h("section", {}, h("h2", {}, "Versions"),
       h("table", { id: "versions" }, h("thead", {}, h("tr", {}, ["Version", "Status", "TCP x, y, z mm", "Source", "Why", "By", "When", "", ""].map((c) => h("th", {}, c)))), h("tbody", {}, versionRows))),
@@ -321,7 +339,7 @@ async function toolPage(toolId) {
     await auditSection(toolId),
   );
 
-  plotTcp(versions.items, sigmaOf);
+  if (versions.items.length) plotTcp(versions.items, sigmaOf);
   if (checks.length) plotChecks(checks, tool.tolerance.check_mm);
   if (tool.active_version !== null) await fillControllers(toolId, controllers, controllerBox);
 }
@@ -388,6 +406,18 @@ async function fillControllers(toolId, controllers, box) {
   box.replaceChildren(...cards);
 }
 
+// A time axis over at least two days: with one point (or points made minutes apart) Plotly
+// zooms to a sub-millisecond span, and a limit line drawn from the first to the last point
+// has no length at all.
+const DAY_MS = 86400000;
+function timeRange(isoDates) {
+  const times = isoDates.map((iso) => new Date(iso).getTime());
+  const first = Math.min(...times);
+  const last = Math.max(...times);
+  const pad = last - first < 2 * DAY_MS ? DAY_MS : (last - first) * 0.05;
+  return [new Date(first - pad).toISOString(), new Date(last + pad).toISOString()];
+}
+
 function plotTcp(versions, sigmaOf) {
   const axes = ["x", "y", "z"];
   const traces = axes.map((axis, i) => ({
@@ -403,6 +433,7 @@ function plotTcp(versions, sigmaOf) {
   }));
   Plotly.newPlot("plot-tcp", traces, {
     grid: { rows: 3, columns: 1, shared_xaxes: true },
+    xaxis: { type: "date", range: timeRange(versions.map((v) => v.created_at)) },
     height: 480,
     margin: { t: 10, r: 10, b: 40, l: 70 },
     yaxis: { title: { text: "x mm" }, tickformat: ".3f" },
@@ -414,11 +445,13 @@ function plotTcp(versions, sigmaOf) {
 
 function plotChecks(checks, limit) {
   const ordered = checks.slice().reverse();
+  const range = timeRange(ordered.map((c) => c.checked_at));
+  const top = 1.15 * Math.max(limit, ...ordered.map((c) => c.distance_mm));
   Plotly.newPlot("plot-checks", [
     { type: "scatter", mode: "lines+markers", name: "distance mm", x: ordered.map((c) => c.checked_at), y: ordered.map((c) => c.distance_mm),
       marker: { color: ordered.map((c) => (c.within_tolerance ? "#2e7d32" : "#c62828")), size: 10 } },
-    { type: "scatter", mode: "lines", name: "check_mm", x: [ordered[0].checked_at, ordered.at(-1).checked_at], y: [limit, limit], line: { dash: "dash", color: "#c62828" } },
-  ], { height: 280, margin: { t: 10, r: 10, b: 40, l: 70 }, yaxis: { title: { text: "distance mm" }, rangemode: "tozero" } }, { displaylogo: false, responsive: true });
+    { type: "scatter", mode: "lines", name: "check_mm", x: range, y: [limit, limit], line: { dash: "dash", color: "#c62828" } },
+  ], { height: 280, margin: { t: 10, r: 10, b: 40, l: 70 }, xaxis: { type: "date", range }, yaxis: { title: { text: "distance mm" }, range: [0, top] } }, { displaylogo: false, responsive: true });
 }
 
 // ---- calibration report ---------------------------------------------------------------------

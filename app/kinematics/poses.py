@@ -486,3 +486,34 @@ def pose_to_format(
     else:  # ur_rotvec
         rot = np.degrees(rotvec_from_matrix(r)) * from_deg
     return [float(v) for v in np.concatenate([p_out, rot])]
+
+
+# --- controller conventions <-> unit quaternion (the controller connectors' conversions) ---
+
+
+def kuka_abc_from_quaternion_wxyz(quaternion: ArrayLike) -> FloatArray:
+    """Unit quaternion [w, x, y, z] -> KUKA A, B, C in degrees (R = Rz(A) Ry(B) Rx(C))."""
+    return kuka_abc_from_matrix(matrix_from_quaternion_wxyz(quaternion))
+
+
+def quaternion_wxyz_from_kuka_abc(abc_deg: ArrayLike) -> FloatArray:
+    """KUKA A, B, C in degrees -> unit quaternion [w, x, y, z] with w >= 0."""
+    return quaternion_wxyz_from_matrix(matrix_from_kuka_abc(abc_deg))
+
+
+def fanuc_wpr_from_quaternion_wxyz(quaternion: ArrayLike) -> FloatArray:
+    """Unit quaternion [w, x, y, z] -> Fanuc W, P, R in degrees (R = Rz(R) Ry(P) Rx(W))."""
+    return fanuc_wpr_from_matrix(matrix_from_quaternion_wxyz(quaternion))
+
+
+def quaternion_wxyz_from_fanuc_wpr(wpr_deg: ArrayLike) -> FloatArray:
+    """Fanuc W, P, R in degrees -> unit quaternion [w, x, y, z] with w >= 0."""
+    return quaternion_wxyz_from_matrix(matrix_from_fanuc_wpr(wpr_deg))
+
+
+def rotation_angle_deg(q_a: ArrayLike, q_b: ArrayLike) -> float:
+    """The angle in degrees of the rotation between two unit quaternions [w, x, y, z]."""
+    relative = Rotation.from_matrix(matrix_from_quaternion_wxyz(q_a)).inv() * Rotation.from_matrix(
+        matrix_from_quaternion_wxyz(q_b)
+    )
+    return float(np.degrees(relative.magnitude()))

@@ -59,16 +59,21 @@ class Reading:
 
     def describe(self) -> str:
         """E.g. "kuka_abc in mm and deg", "xyz_xyzw in m"."""
-        units: list[str] = []
+        return f"{self.format} in {' and '.join(self.units().values())}"
+
+    def units(self) -> dict[str, str]:
+        """The units of the numbers this format has: no angle unit for a quaternion or a
+        matrix (it would suggest the angles mattered), no length unit for joint angles."""
+        units: dict[str, str] = {}
         if self.format in _HAS_LENGTHS:
-            units.append(self.length)
+            units["length"] = self.length
         if self.format in _HAS_ANGLES:
-            units.append(self.angle)
-        return f"{self.format} in {' and '.join(units)}"
+            units["angle"] = self.angle
+        return units
 
     def as_request(self) -> dict[str, object]:
         """The `format` and `units` fields a client resends to read its numbers this way."""
-        return {"format": self.format, "units": {"length": self.length, "angle": self.angle}}
+        return {"format": self.format, "units": self.units()}
 
 
 def given_reading(fmt: str, units: dict[str, str] | None) -> Reading:

@@ -93,20 +93,24 @@ def refuse_mix_up(
         return
     given = given_reading(fmt, None if units is None else units.model_dump(exclude_none=True))
     candidates = []
+    outcomes: dict[Reading, Fit | InvalidInput] = {}
     for reading in other_readings(given):
         other_units = Units(length=reading.length, angle=reading.angle)
         try:
             if flange_near_base(positions(reading.format, other_units)):
                 continue
             fit = attempt(reading.format, other_units)
-        except InvalidInput:
+        except InvalidInput as refused:
+            outcomes[reading] = refused
             continue
+        outcomes[reading] = fit
         if fit.good:
             candidates.append(_Candidate(reading, fit, reading.changes_from(given)))
     best = _clear_winner(candidates)
     if best is None:
         if near_base:
-            raise _at_the_base(given, loc=(*within, poses_field))
+            in_metres = Reading(given.format, "m", given.angle)
+            raise _at_the_base(given, outcomes.get(in_metres), loc=(*within, poses_field))
         return
     given_rms = None if as_given is None else as_given.rms_mm
     if not near_base and given_rms is not None and given_rms < BETTER_BY * _floored(best):
@@ -131,14 +135,26 @@ def _floored(candidate: _Candidate) -> float:
     return max(candidate.fit.rms_mm, RMS_FLOOR_MM)
 
 
-def _at_the_base(given: Reading, loc: tuple[str, ...]) -> InvalidInput:
-    """No reading fits, but millimetres cannot be right either: never grade these."""
+def _at_the_base(
+    given: Reading, in_metres: Fit | InvalidInput | None, loc: tuple[str, ...]
+) -> InvalidInput:
+    """No reading fits, but millimetres cannot be right either: never grade these. Says what
+    the metres reading gave, so that "not millimetres" and "metres do not fit" do not read as
+    a contradiction."""
+    if isinstance(in_metres, Fit):
+        as_metres = f"read as metres they fit only to rms {in_metres.rms_mm:.3g} mm, beyond "
+        as_metres += "the tool's tolerance (touches too noisy or missed)"
+    elif isinstance(in_metres, InvalidInput):
+        as_metres = f"read as metres they are refused too: {in_metres.detail}"
+    else:
+        as_metres = "read as metres they do not fit either"
     return InvalidInput(
         "out-of-range",
         f"read as {given.describe()}, every flange position lies within {NEAR_BASE_MM:g} mm "
-        "of the robot base origin, where no flange can be: the lengths are not in millimetres "
-        "(metres? send units {'length': 'm'}), and no other reading of the numbers fits "
-        "within tolerance either; nothing was stored",
+        "of the robot base origin, where no flange can be, so the lengths cannot be "
+        f"millimetres; {as_metres}, and no other reading fits within tolerance, so none is "
+        "suggested. If the pendant exported metres, resend with units {'length': 'm'} once "
+        "the touches are redone; nothing was stored",
         loc=loc,
     )
 
@@ -154,9 +170,8 @@ def _mismatch(
         "convention-mismatch",
         f"the poses fit read as {suggested.describe()} (rms {best.fit.rms_mm:.3g} mm) far "
         f"better than as sent, {given.describe()} ({as_given}): they were probably recorded "
-        f"that way. Resend with format {suggested.format!r} and units "
-        f"{{'length': {suggested.length!r}, 'angle': {suggested.angle!r}}} if so; nothing "
-        "was stored",
+        f"that way. Resend with format {suggested.format!r} and units {suggested.units()!r} "
+        "if so; nothing was stored",
         loc=loc,
         members={
             "suggestion": suggested.as_request(),

@@ -89,6 +89,10 @@ def test_mix_up_is_refused_with_the_reading_that_fits_and_nothing_is_stored(
     problem = response.json()
     assert problem["type"].endswith("/convention-mismatch"), problem
     assert _same_reading(problem["suggestion"], _written_as(written, written_units)), problem
+    if problem["suggestion"]["format"] in ("xyz_wxyz", "xyz_xyzw"):
+        # A quaternion has no angles: a suggested angle unit would read as if it mattered.
+        assert set(problem["suggestion"]["units"]) == {"length"}
+        assert "'angle'" not in problem["detail"]
     assert problem["rms_as_suggested_mm"] < 0.2
     given = problem["rms_as_given_mm"]
     assert given is None or given > 10 * problem["rms_as_suggested_mm"] or given < 0.01
@@ -167,6 +171,9 @@ def test_metres_as_mm_that_no_reading_fits_is_refused_never_accepted(
     assert problem["type"].endswith("/out-of-range")
     assert "within 20 mm of the robot base origin" in problem["detail"]
     assert "units {'length': 'm'}" in problem["detail"]
+    # It said "not in millimetres (metres?)" and then "no other reading fits": it now says
+    # what the metres reading gave, so the two do not read as a contradiction.
+    assert "cannot be millimetres; read as metres they fit only to rms" in problem["detail"]
     assert row_counts(TABLES) == before
 
 

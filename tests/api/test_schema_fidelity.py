@@ -12,9 +12,9 @@ from tests.sim.touches import simulate_touches
 @pytest.mark.parametrize(
     ("path", "allowed"),
     [
-        ("/v1/robots", "GET, POST"),
-        ("/v1/robots/x1", "DELETE, GET, PATCH"),
-        ("/v1/keys", "GET, POST"),
+        ("/v1/robots", "GET, HEAD, POST"),
+        ("/v1/robots/x1", "DELETE, GET, HEAD, PATCH"),
+        ("/v1/keys", "GET, HEAD, POST"),
     ],
 )
 def test_405_lists_every_method_of_the_path(api: Api, path: str, allowed: str) -> None:
@@ -70,3 +70,23 @@ def test_if_match_of_the_wrong_shape_is_422_and_a_stale_one_412(api: Api) -> Non
     assert shape.json()["errors"][0]["loc"] == ["header", "if-match"]
     stale = api.patch(path, {"slot": 2}, headers={"If-Match": '"' + "0" * 20 + '"'})
     assert stale.status_code == 412
+
+
+@pytest.mark.parametrize("path", ["/health", "/ui/", "/ui/tools/x1", "/ready"])
+def test_head_is_answered_wherever_get_is(api: Api, path: str) -> None:
+    """HEAD /health and /ui/ answered 405: monitors and load balancers probe with HEAD."""
+    get = api.client.get(path)
+    head = api.client.head(path)
+    assert head.status_code == get.status_code == 200
+    assert head.content == b""
+    assert head.headers["content-type"] == get.headers["content-type"]
+    assert head.headers["content-length"] == str(len(get.content))
+
+
+def test_head_of_a_keyed_resource_needs_the_key_as_get_does(api: Api) -> None:
+    robot = api.robot()
+    assert api.client.head(f"/v1/robots/{robot['id']}").status_code == 401
+    head = api.request("HEAD", f"/v1/robots/{robot['id']}", "read")
+    assert head.status_code == 200
+    assert head.content == b""
+    assert api.request("HEAD", "/v1/robots/nope", "read").status_code == 404

@@ -11,9 +11,12 @@ import os
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import pytest
-from playwright.sync_api import Browser, Playwright, sync_playwright
+from playwright.sync_api import Browser, BrowserContext, Page, Playwright, Route, sync_playwright
+
+from tests.live.server import LiveServer
 
 CHROMIUM = os.environ.get("TCPCAL_CHROMIUM", "/usr/bin/chromium")
 #: Headless Chromium draws WebGL (Plotly's 3-D view) with its software renderer.
@@ -48,3 +51,41 @@ def browser(playwright: Playwright) -> Iterator[Browser]:
     browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
     yield browser
     browser.close()
+
+
+@pytest.fixture
+def context(browser: Browser, console_server: LiveServer) -> Iterator[BrowserContext]:
+    """A fresh browser profile in which every request to another host is aborted."""
+    ctx = browser.new_context(viewport={"width": 1400, "height": 1000}, accept_downloads=True)
+    own = urlsplit(console_server.url).netloc
+    ctx.blocked = []  # type: ignore[attr-defined]
+
+    def guard(route: Route) -> None:
+        if urlsplit(route.request.url).netloc == own or route.request.url.startswith(
+            ("data:", "blob:")
+        ):
+            route.continue_()
+        else:
+            ctx.blocked.append(route.request.url)  # type: ignore[attr-defined]
+            route.abort()
+
+    ctx.route("**/*", guard)
+    yield ctx
+    assert ctx.blocked == [], f"the console reached for other hosts: {ctx.blocked}"  # type: ignore[attr-defined]
+    ctx.close()
+
+
+@pytest.fixture
+def page(context: BrowserContext) -> Iterator[Page]:
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    yield page
+    assert errors == [], f"script errors on the page: {errors}"
+
+
+def sign_in_to(page: Page, server: LiveServer, path: str = "/") -> None:
+    """Open `path` on the console and sign in with the server's admin key."""
+    page.goto(server.url + path)
+    page.fill("input[name=api_key]", server.admin_key)
+    page.click("#sign-in button[type=submit]")

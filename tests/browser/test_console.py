@@ -12,18 +12,18 @@ import io
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
-from urllib.parse import urlsplit
 
 import httpx
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, BrowserContext, Page, Route, expect
+from playwright.sync_api import Page, expect
 
 from app.kinematics.poses import pose_to_format
+from tests.browser.conftest import sign_in_to
 from tests.live.server import LiveServer, fresh_database, live_server
 from tests.sim.touches import simulate_touches
 
-pytestmark = pytest.mark.live
+pytestmark = [pytest.mark.live, pytest.mark.browser]
 
 
 @dataclass
@@ -93,41 +93,14 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
         yield Fleet(server, robots, tools, missed)
 
 
-@pytest.fixture
-def context(browser: Browser, fleet: Fleet) -> Iterator[BrowserContext]:
-    """A fresh browser profile in which every request to another host is aborted."""
-    ctx = browser.new_context(viewport={"width": 1400, "height": 1000}, accept_downloads=True)
-    own = urlsplit(fleet.server.url).netloc
-    ctx.blocked = []  # type: ignore[attr-defined]
-
-    def guard(route: Route) -> None:
-        if urlsplit(route.request.url).netloc == own or route.request.url.startswith(
-            ("data:", "blob:")
-        ):
-            route.continue_()
-        else:
-            ctx.blocked.append(route.request.url)  # type: ignore[attr-defined]
-            route.abort()
-
-    ctx.route("**/*", guard)
-    yield ctx
-    assert ctx.blocked == [], f"the console reached for other hosts: {ctx.blocked}"  # type: ignore[attr-defined]
-    ctx.close()
-
-
-@pytest.fixture
-def page(context: BrowserContext) -> Iterator[Page]:
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
-    yield page
-    assert errors == [], f"script errors on the page: {errors}"
+@pytest.fixture(scope="module")
+def console_server(fleet: Fleet) -> LiveServer:
+    """The server the browser fixtures (tests/browser/conftest.py) let the pages reach."""
+    return fleet.server
 
 
 def sign_in(page: Page, fleet: Fleet, path: str = "/") -> None:
-    page.goto(fleet.server.url + path)
-    page.fill("input[name=api_key]", fleet.server.admin_key)
-    page.click("#sign-in button[type=submit]")
+    sign_in_to(page, fleet.server, path)
 
 
 def test_sign_in_is_asked_once_and_the_key_stays_out_of_urls(page: Page, fleet: Fleet) -> None:

@@ -46,9 +46,15 @@ def _free_port() -> int:
 
 @contextmanager
 def live_server(
-    database_url: str, *, workers: int = 2, log: IO[bytes] | None = None
+    database_url: str,
+    *,
+    workers: int = 2,
+    log: IO[bytes] | None = None,
+    process_group: bool = False,
 ) -> Iterator[LiveServer]:
     """Migrate, create an admin key, serve with `tcpcal serve --workers N`, stop afterwards.
+    With `process_group` the server leads a process group of its own, which a test can signal
+    as a terminal's Ctrl-C does (every process of the group: workers, solvers, forkservers).
 
     The server's output goes to `log` (default: a temporary file): a pipe nobody reads fills
     up after a few thousand access-log lines and the server then blocks.
@@ -79,6 +85,7 @@ def live_server(
         env=env,
         stdout=output,
         stderr=subprocess.STDOUT,
+        start_new_session=process_group,
     )
     url = f"http://127.0.0.1:{port}"
     try:

@@ -148,7 +148,12 @@ def test_client_plans_then_calibrates_touch_by_touch(
     )  # fmt: skip
     assert planned.exit_code == 0, planned.output
     assert "8 touches: predicted TCP 1-sigma" in planned.output
-    rows = list(csv.reader(planned_csv.open()))
+    # Columns named as the pendant names them (they were v1..v6), and the CSV says so too.
+    assert "v1" not in planned.output
+    for name in ("X", "Y", "Z", "A", "B", "C"):
+        assert f" {name} " in planned.output
+    header, *rows = list(csv.reader(planned_csv.open()))
+    assert header == ["X", "Y", "Z", "A", "B", "C"]
     assert len(rows) == 8
 
     # The operator touches each planned orientation (the real tip on the point, 0.02 mm noise)

@@ -1,0 +1,333 @@
+"""ABB tool data (a PERS ``tooldata``) over Robot Web Services 1.0 and 2.0.
+
+Followed: ABB *Application manual - Robot Web Services* (3HAC050973-001, the rwsApi pages
+of developercenter.robotstudio.com), "Operations on RAPID symbol data": get symbol data,
+"Update RAPID variable current value" (``action=set``, form field ``value``), the common
+``json=1`` parameter, HTTP status codes and the error body (``_embedded.status`` {code,
+msg} in 1.0, ``status`` at the top in 2.0, as captured RobotWare 7 replies show); checked
+against the clients abb-robot-client (PyPI, RWS 1.0), Schindler-EPFL-Lab/rws2 and rwswrap
+(PyPI) (RWS 2.0).
+
+RWS 1.0 (RobotWare 6, ``abb_rws1``): HTTP, Digest authentication, a session cookie
+(``-http-session-``, ``ABBCX``) kept for the session's requests;
+``GET /rw/rapid/symbol/data/RAPID/{task}/{module}/{symbol}?json=1`` -> ``_embedded._state[0]
+.value``; ``POST ...?action=set&json=1`` with ``value=<RAPID text>``.
+
+RWS 2.0 (RobotWare 7 / OmniCore, ``abb_rws2``): HTTPS with the controller's certificate,
+Basic authentication, media types carrying ``;v=2.0`` (``Accept:
+application/hal+json;v=2.0``, ``Content-Type: application/x-www-form-urlencoded;v=2.0``);
+``GET /rw/rapid/symbol/RAPID/{task}/{module}/{symbol}/data`` -> ``state[0].value``;
+``POST`` the same path with ``value=...`` while holding edit mastership:
+``POST /rw/mastership/edit/request`` before, ``POST /rw/mastership/edit/release`` after,
+whatever the write's outcome.
+
+A write keeps the controller's ``robhold`` and, when tcpcal has no load for the tool, its
+whole ``tload``; with a load it writes mass and centre of gravity and keeps the axes of
+moment and the inertia. Both sessions end with ``GET /logout`` (RobotWare keeps a small
+number of sessions). The password goes only into the Authorization header, never into a
+message.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ssl
+from dataclasses import replace
+from types import TracebackType
+
+import httpx
+
+from app.controllers.base import (
+    ControllerProtocolError,
+    ControllerRefused,
+    ControllerSettings,
+    ControllerUnreachable,
+    Deadline,
+    ToolData,
+    ToolLoad,
+    ToolTarget,
+    check_target,
+    finite_tool_data,
+    split_abb_symbol,
+)
+from app.controllers.rapid import RapidSyntaxError, RapidTool, format_tooldata, parse_tooldata
+from app.jsontypes import JsonObject
+
+#: ABB's factory user, used when the controller settings name none.
+DEFAULT_USER = "Default User"
+DEFAULT_PASSWORD = "robotics"
+V2_JSON = "application/hal+json;v=2.0"
+V2_FORM = "application/x-www-form-urlencoded;v=2.0"
+_LOGOUT_BUDGET_S = 1.0
+_WORDS_LIMIT = 300
+
+
+class AbbRwsConnector:
+    """One RWS session with an ABB controller: read and write PERS tooldata symbols."""
+
+    def __init__(self, settings: ControllerSettings) -> None:
+        if settings.protocol not in ("abb_rws1", "abb_rws2"):
+            raise ValueError(
+                f"AbbRwsConnector speaks abb_rws1 and abb_rws2, not {settings.protocol}"
+            )
+        self.protocol: str = settings.protocol
+        self._settings = settings
+        self._v2 = settings.protocol == "abb_rws2"
+        host = f"[{settings.host}]" if ":" in settings.host else settings.host
+        scheme = "https" if self._v2 else "http"
+        self._peer = f"ABB RWS {'2.0' if self._v2 else '1.0'} at {settings.host}:{settings.port}"
+        # ABB's factory user only when no user is named at all; a named user without a
+        # password sends an empty one (and the controller says whether that will do).
+        user = settings.username or DEFAULT_USER
+        password = settings.password or (DEFAULT_PASSWORD if not settings.username else "")
+        self._user = user
+        auth: httpx.Auth = (
+            httpx.BasicAuth(user, password) if self._v2 else httpx.DigestAuth(user, password)
+        )
+        self._client = httpx.Client(
+            base_url=f"{scheme}://{host}:{settings.port}",
+            auth=auth,
+            # The system's trust store (and SSL_CERT_FILE / SSL_CERT_DIR), where a plant puts
+            # its controllers' certificates; not a bundle of public CAs.
+            verify=ssl.create_default_context() if settings.tls_verify else False,
+            timeout=settings.timeout_s,
+            headers={"Accept": V2_JSON} if self._v2 else {},
+            follow_redirects=False,
+            trust_env=False,
+        )
+        self._logged_in = False
+        #: set once the controller stopped answering: no logout then (it would only wait)
+        self._dead = False
+
+    # --- the Connector interface -----------------------------------------------------------
+
+    def describe(self, target: ToolTarget) -> str:
+        """``T_ROB1/user/tTorch``."""
+        check_target(self.protocol, target)
+        assert target.symbol is not None
+        return target.symbol
+
+    def read_tool(self, target: ToolTarget) -> ToolData:
+        """The tooldata the controller holds in the PERS symbol `target.symbol`."""
+        check_target(self.protocol, target)
+        return _tool_data(self._read(target, Deadline(self._settings.timeout_s)))
+
+    def write_tool(self, target: ToolTarget, data: ToolData) -> None:
+        """Write tframe (and the load when `data.load` is set), keeping robhold and the rest."""
+        check_target(self.protocol, target)
+        finite_tool_data(data)
+        deadline = Deadline(self._settings.timeout_s)
+        held = self._read(target, deadline)
+        tool = replace(held, position_mm=data.position_mm, quaternion=data.quaternion)
+        if data.load is not None:
+            tool = replace(tool, mass_kg=data.load.mass_kg, cog_mm=data.load.cog_mm)
+        value = format_tooldata(tool)
+        if not self._v2:
+            self._send(
+                "POST",
+                self._data_path(target),
+                deadline,
+                params={"action": "set", "json": "1"},
+                data={"value": value},
+                what=f"set {target.symbol}",
+            )
+            return
+        self._send(
+            "POST",
+            "/rw/mastership/edit/request",
+            deadline,
+            form=True,
+            what="request edit mastership",
+        )
+        try:
+            self._send(
+                "POST",
+                self._data_path(target),
+                deadline,
+                data={"value": value},
+                form=True,
+                what=f"set {target.symbol}",
+            )
+        finally:
+            self._release_mastership(deadline)
+
+    def close(self) -> None:
+        """Log out (ends the controller's session) and close the connection; never raises."""
+        if self._logged_in:
+            with contextlib.suppress(httpx.HTTPError):
+                self._client.get("/logout", timeout=min(self._settings.timeout_s, _LOGOUT_BUDGET_S))
+            self._logged_in = False
+        self._client.close()
+
+    def __enter__(self) -> AbbRwsConnector:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    # --- requests --------------------------------------------------------------------------
+
+    def _data_path(self, target: ToolTarget) -> str:
+        assert target.symbol is not None
+        task, module, name = split_abb_symbol(target.symbol)
+        if self._v2:
+            return f"/rw/rapid/symbol/RAPID/{task}/{module}/{name}/data"
+        return f"/rw/rapid/symbol/data/RAPID/{task}/{module}/{name}"
+
+    def _read(self, target: ToolTarget, deadline: Deadline) -> RapidTool:
+        response = self._send(
+            "GET",
+            self._data_path(target),
+            deadline,
+            params=None if self._v2 else {"json": "1"},
+            what=f"read {target.symbol}",
+        )
+        value = _state_value(_json(response, self._peer))
+        if value is None:
+            raise ControllerProtocolError(
+                f"{self._peer}: no value in the answer for {target.symbol}"
+            )
+        try:
+            return parse_tooldata(value)
+        except RapidSyntaxError as err:
+            raise ControllerRefused(
+                f"{target.symbol} on the controller is not a tooldata: {err}",
+                controller_message=f"{target.symbol} = {value[:_WORDS_LIMIT]}",
+            ) from err
+
+    def _release_mastership(self, deadline: Deadline) -> None:
+        # Released even when the write failed or the deadline is spent: a held mastership
+        # locks the pendant and other clients out until the controller times it out.
+        if self._dead:
+            return
+        try:
+            budget = deadline.remaining()
+        except ControllerUnreachable:
+            budget = _LOGOUT_BUDGET_S
+        with contextlib.suppress(httpx.HTTPError):
+            self._client.post(
+                "/rw/mastership/edit/release",
+                headers={"Content-Type": V2_FORM},
+                timeout=budget,
+            )
+
+    def _send(
+        self,
+        method: str,
+        path: str,
+        deadline: Deadline,
+        *,
+        what: str,
+        params: dict[str, str] | None = None,
+        data: dict[str, str] | None = None,
+        form: bool = False,
+    ) -> httpx.Response:
+        headers = {"Content-Type": V2_FORM} if form else None
+        try:
+            response = self._client.request(
+                method,
+                path,
+                params=params,
+                data=data,
+                headers=headers,
+                timeout=httpx.Timeout(deadline.remaining()),
+            )
+        except httpx.TimeoutException as err:
+            self._dead = True
+            raise ControllerUnreachable(
+                f"{self._peer} did not answer within {deadline.timeout_s:g} s ({what})"
+            ) from err
+        except httpx.ConnectError as err:
+            raise ControllerUnreachable(_connect_failure(self._peer, err)) from err
+        except httpx.TransportError as err:
+            raise ControllerUnreachable(
+                f"{self._peer}: the connection failed ({what}): {err}"
+            ) from err
+        self._logged_in = True
+        if response.status_code >= 400:
+            raise self._refusal(response, what)
+        return response
+
+    def _refusal(self, response: httpx.Response, what: str) -> ControllerRefused:
+        words = _controller_words(response)
+        if response.status_code == 401:
+            return ControllerRefused(
+                f"the controller refused the credentials of user {self._user!r} "
+                f"(check the RWS user name and password): {words}",
+                controller_message=words,
+            )
+        return ControllerRefused(
+            f"the controller refused to {what}: {words}", controller_message=words
+        )
+
+
+def _tool_data(tool: RapidTool) -> ToolData:
+    # RAPID's loaddata has no "no load": a mass of 0 (or -1, "not set") is none to show.
+    load = ToolLoad(mass_kg=tool.mass_kg, cog_mm=tool.cog_mm) if tool.mass_kg > 0 else None
+    return ToolData(position_mm=tool.position_mm, quaternion=tool.quaternion, load=load)
+
+
+def _json(response: httpx.Response, peer: str) -> JsonObject:
+    try:
+        body = response.json()
+    except ValueError as err:
+        raise ControllerProtocolError(
+            f"{peer} answered {response.headers.get('content-type')!r}, not JSON"
+        ) from err
+    if not isinstance(body, dict):
+        raise ControllerProtocolError(f"{peer} answered a JSON {type(body).__name__}")
+    return body
+
+
+def _state_value(body: JsonObject) -> str | None:
+    """The ``value`` of the first state resource: RWS 1.0 ``_embedded._state``, RWS 2.0
+    ``state`` (or ``_embedded.resources``)."""
+    embedded = body.get("_embedded")
+    candidates = [body.get("state")]
+    if isinstance(embedded, dict):
+        candidates += [embedded.get("_state"), embedded.get("resources")]
+    for states in candidates:
+        if isinstance(states, list) and states and isinstance(states[0], dict):
+            value = states[0].get("value")
+            if isinstance(value, str):
+                return value
+    return None
+
+
+def _controller_words(response: httpx.Response) -> str:
+    """What the controller said: its status msg and code when it sent them, else the HTTP
+    status line and the start of its text."""
+    status_line = f"HTTP {response.status_code} {response.reason_phrase}".strip()
+    try:
+        body = response.json()
+    except ValueError:
+        body = None
+    if isinstance(body, dict):
+        embedded = body.get("_embedded")
+        status = body.get("status")
+        if isinstance(embedded, dict) and isinstance(embedded.get("status"), dict):
+            status = embedded["status"]
+        if isinstance(status, dict) and status.get("msg"):
+            code = status.get("code")
+            suffix = f" (code {code})" if code is not None else ""
+            return f"{status['msg']}{suffix}; {status_line}"[:_WORDS_LIMIT]
+    text = response.text.strip()
+    if text and not text.lstrip().startswith("<"):
+        return f"{status_line}: {text}"[:_WORDS_LIMIT]
+    return status_line
+
+
+def _connect_failure(peer: str, err: httpx.ConnectError) -> str:
+    reason = str(err) or type(err).__name__
+    if "CERTIFICATE" in reason.upper() or "SSL" in reason.upper():
+        return (
+            f"{peer}: the TLS handshake failed ({reason}); the controller's certificate is not "
+            "trusted here: install it in the system's trust store (or point SSL_CERT_FILE at "
+            "it; its name must match the host), or set tls_verify false"
+        )
+    return f"cannot connect to {peer}: {reason}"

@@ -1,0 +1,233 @@
+"""What every controller connector offers, and the data it reads and writes.
+
+A connector reads and writes one tool's frame (the TCP: where the tool's working point is
+and how it is oriented in the flange frame) in a robot controller, over the controller's
+own wire protocol. No database and no HTTP framework here: the service that deploys or
+reconciles runs a connector in a worker thread and owns everything else.
+
+Every connector converts through `app.kinematics.poses` (scipy Rotation), so the values a
+controller holds in its own convention (KUKA A B C, FANUC W P R, ABB quaternion) and the
+quaternion tcpcal holds are one rotation. Every connect and every read has a timeout, and
+each operation keeps to one deadline (`Deadline`): a controller that stalls fails the
+operation within ``timeout_s`` (plus scheduling slack), never a worker forever.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Literal, Protocol, get_args
+
+ProtocolName = Literal["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2"]
+PROTOCOLS: tuple[str, ...] = get_args(ProtocolName)
+
+#: The port each protocol listens on unless the plant changed it.
+DEFAULT_PORTS: dict[str, int] = {
+    "kuka_kvp": 7000,  # KUKAVARPROXY
+    "fanuc_rmi": 16001,  # Remote Motion Interface, FRC_Connect
+    "abb_rws1": 80,  # RobotWare 6 Robot Web Services, HTTP + Digest
+    "abb_rws2": 443,  # RobotWare 7 Robot Web Services 2.0, HTTPS + Basic
+}
+
+#: Tool numbers each slot-addressed protocol accepts, inclusive.
+SLOT_RANGES: dict[str, tuple[int, int]] = {
+    "kuka_kvp": (1, 16),  # $TOOL_DATA[1..16] in $config.dat
+    "fanuc_rmi": (1, 10),  # UTOOL[1..10]
+}
+
+#: Which field of a tool names its place in the controller, per protocol: "slot" (a tool
+#: number) or "symbol" (ABB "TASK/MODULE/SYMBOL"; the tool's `controller_symbol`).
+TARGET_FIELD: dict[str, Literal["slot", "symbol"]] = {
+    "kuka_kvp": "slot",
+    "fanuc_rmi": "slot",
+    "abb_rws1": "symbol",
+    "abb_rws2": "symbol",
+}
+
+# RAPID identifiers: a letter, then letters, digits or underscores, at most 32 characters
+# (ABB Technical reference manual - RAPID overview, "Identifiers").
+_RAPID_IDENTIFIER = r"[A-Za-z][A-Za-z0-9_]{0,31}"
+ABB_SYMBOL_PATTERN = re.compile(
+    rf"^({_RAPID_IDENTIFIER})/({_RAPID_IDENTIFIER})/({_RAPID_IDENTIFIER})$"
+)
+
+
+@dataclass(frozen=True)
+class ToolLoad:
+    """The tool's mass and the position of its centre of gravity in the flange frame."""
+
+    mass_kg: float
+    cog_mm: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class ToolData:
+    """A tool frame in the flange frame: position in mm, rotation as a unit quaternion."""
+
+    position_mm: tuple[float, float, float]
+    quaternion: tuple[float, float, float, float]  # w, x, y, z: tool frame in the flange frame
+    load: ToolLoad | None = None
+
+
+@dataclass(frozen=True)
+class ToolTarget:
+    """Where a tool lives in the controller: a tool number, or an ABB RAPID symbol."""
+
+    slot: int | None = None  # KUKA $TOOL_DATA[slot] 1-16, FANUC UTOOL[slot] 1-10
+    symbol: str | None = None  # ABB "TASK/MODULE/SYMBOL", e.g. "T_ROB1/user/tTorch"
+
+
+@dataclass(frozen=True)
+class ControllerSettings:
+    """How to reach one robot's controller (the password only ever in memory, in clear)."""
+
+    protocol: ProtocolName
+    host: str
+    port: int
+    username: str | None
+    password: str | None
+    timeout_s: float = 5.0
+    tls_verify: bool = True
+
+    def __repr__(self) -> str:
+        # The password never reaches a log line or a traceback through a repr.
+        secret = "set" if self.password else "none"
+        return (
+            f"ControllerSettings(protocol={self.protocol!r}, host={self.host!r}, "
+            f"port={self.port}, username={self.username!r}, password=<{secret}>, "
+            f"timeout_s={self.timeout_s}, tls_verify={self.tls_verify})"
+        )
+
+    __str__ = __repr__
+
+
+class ControllerError(Exception):
+    """Anything that went wrong talking to a controller."""
+
+
+class ControllerUnreachable(ControllerError):
+    """The controller could not be reached or stopped answering: refused, reset, timed out."""
+
+
+class ControllerRefused(ControllerError):
+    """The controller answered and said no; `controller_message` is its own words."""
+
+    def __init__(self, message: str, *, controller_message: str) -> None:
+        super().__init__(message)
+        self.controller_message = controller_message
+
+
+class ControllerProtocolError(ControllerError):
+    """The controller answered something this connector cannot read (not the protocol)."""
+
+
+class Connector(Protocol):
+    """One controller session: read and write tool frames. Use it as a context manager."""
+
+    protocol: str
+
+    def describe(self, target: ToolTarget) -> str:
+        """The target as the controller names it: "$TOOL_DATA[3]", "UTOOL[3]", "T_ROB1/user/t"."""
+        ...
+
+    def read_tool(self, target: ToolTarget) -> ToolData:
+        """The tool frame (and load, where the controller keeps one) the controller holds."""
+        ...
+
+    def write_tool(self, target: ToolTarget, data: ToolData) -> None:
+        """Write the tool frame (and the load when `data.load` is set) into the controller."""
+        ...
+
+    def close(self) -> None:
+        """End the session; never raises."""
+        ...
+
+    def __enter__(self) -> Connector: ...
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None: ...
+
+
+def target_problem(protocol: str, target: ToolTarget) -> str | None:
+    """Why `target` cannot address a tool under `protocol`, in a sentence; None when it can."""
+    field = TARGET_FIELD.get(protocol)
+    if field is None:
+        return f"unknown controller protocol {protocol!r}; known: {', '.join(PROTOCOLS)}"
+    if field == "slot":
+        low, high = SLOT_RANGES[protocol]
+        if target.slot is None:
+            return (
+                f"a {protocol} controller addresses tools by number: "
+                f"set the tool's slot ({low}-{high})"
+            )
+        if not low <= target.slot <= high:
+            return (
+                f"slot {target.slot} is outside {low}-{high}, "
+                f"the tool numbers of a {protocol} controller"
+            )
+        return None
+    if target.symbol is None:
+        return (
+            f"an {protocol} controller addresses tools by RAPID symbol: set the tool's "
+            'controller_symbol as "TASK/MODULE/SYMBOL", e.g. "T_ROB1/user/tTorch"'
+        )
+    return abb_symbol_problem(target.symbol)
+
+
+def abb_symbol_problem(symbol: str) -> str | None:
+    """Why `symbol` is not a "TASK/MODULE/SYMBOL" RAPID path, in a sentence; None when it is."""
+    if ABB_SYMBOL_PATTERN.match(symbol) is None:
+        return (
+            f'{symbol!r} is not "TASK/MODULE/SYMBOL" (three RAPID names of a letter then '
+            'letters, digits or _, at most 32 characters each), e.g. "T_ROB1/user/tTorch"'
+        )
+    return None
+
+
+def split_abb_symbol(symbol: str) -> tuple[str, str, str]:
+    """ "T_ROB1/user/tTorch" -> ("T_ROB1", "user", "tTorch"); ValueError naming the problem."""
+    match = ABB_SYMBOL_PATTERN.match(symbol)
+    if match is None:
+        raise ValueError(abb_symbol_problem(symbol))
+    task, module, name = match.groups()
+    return task, module, name
+
+
+def check_target(protocol: str, target: ToolTarget) -> None:
+    """ValueError saying what to set when `target` cannot address a tool under `protocol`."""
+    problem = target_problem(protocol, target)
+    if problem is not None:
+        raise ValueError(problem)
+
+
+class Deadline:
+    """One time budget for a whole operation: each wait gets what is left of it."""
+
+    def __init__(self, timeout_s: float) -> None:
+        self.timeout_s = timeout_s
+        self._end = time.monotonic() + timeout_s
+
+    def remaining(self) -> float:
+        """Seconds left; raises ControllerUnreachable once the budget is spent."""
+        left = self._end - time.monotonic()
+        if left <= 0:
+            raise ControllerUnreachable(
+                f"the controller did not answer within {self.timeout_s:g} s"
+            )
+        return left
+
+
+def finite_tool_data(data: ToolData) -> None:
+    """ValueError when a position, quaternion or load value is not a finite number."""
+    values = [*data.position_mm, *data.quaternion]
+    if data.load is not None:
+        values += [data.load.mass_kg, *data.load.cog_mm]
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"tool data holds a value that is not a finite number: {values}")

@@ -1,0 +1,285 @@
+"""FANUC tool frames over the Remote Motion Interface (option R912).
+
+Followed: FANUC *Remote Motion Interface Operator's Manual* B-84184EN (a copy in
+vertec-io/Fanuc_RMI_API ``docs/``, whose RMI_COMMANDS_REFERENCE.md and tests give the
+packets as real controllers send them): the communication packets (FRC_Connect on TCP
+16001 answers ``PortNumber``, the port of the session; FRC_Disconnect), the command packets
+(FRC_Initialize, FRC_Abort, FRC_ReadUToolData, FRC_WriteUToolData with ``ToolNumber`` 1-10
+and ``Frame`` {X, Y, Z mm, W, P, R deg}), and the ErrorID table of Appendix A.1 (RMIT-nnn
+alarms are 2556928 + nnn). Every packet is one JSON object ended by ``\r\n``; every packet
+sent is answered by one with the same ``Communication``/``Command`` name and an ``ErrorID``
+(0: done). FRC_Terminate and FRC_SystemFault can arrive unasked. The client fanuc-rmi
+(PyPI) reads the session port from ``Port``; the manual and captured replies say
+``PortNumber``, which this module follows.
+
+W, P, R are fixed-axis X-Y-Z angles: R = Rz(R) Ry(P) Rx(W) (``fanuc_wpr`` in
+app.kinematics.poses). RMI reads and writes only the frame of a UTOOL: the payload lives in
+PAYLOAD schedules that RMI cannot write, so a FANUC tool is read with ``load`` None and
+its load is not written.
+
+A session runs FRC_Connect -> (session port) FRC_Initialize -> reads/writes -> FRC_Abort ->
+FRC_Disconnect. The controller serves one RMI client at a time, and a session that dies
+without FRC_Disconnect holds the controller until its own timeout (vertec-io notes), so
+`close` sends FRC_Abort and FRC_Disconnect (within 1 s) whatever happened before, unless
+the controller has stopped answering (then waiting for it again would only stall).
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+from types import TracebackType
+
+import numpy as np
+
+from app.controllers.base import (
+    ControllerProtocolError,
+    ControllerRefused,
+    ControllerSettings,
+    ControllerUnreachable,
+    Deadline,
+    ToolData,
+    ToolTarget,
+    check_target,
+    finite_tool_data,
+)
+from app.controllers.sockets import close_quietly, open_connection, recv_until, send_all
+from app.jsontypes import JsonObject
+from app.kinematics.poses import fanuc_wpr_from_quaternion_wxyz, quaternion_wxyz_from_fanuc_wpr
+
+FRAME_KEYS = ("X", "Y", "Z", "W", "P", "R")
+RMIT_BASE = 2556928
+#: B-84184EN Appendix A: the RMIT alarms an ErrorID stands for (ErrorID = 2556928 + n).
+RMIT_MESSAGES: dict[int, str] = {
+    1: "Internal System Error",
+    2: "Invalid UTool Number",
+    3: "Invalid UFrame Number",
+    4: "Invalid Position Register",
+    5: "Invalid Speed Override",
+    6: "Cannot Execute TP program",
+    7: "Controller Servo is Off",
+    8: "Teach Pendant is Enabled",
+    9: "RMI is Not Running",
+    10: "TP Program is Not Paused",
+    11: "Cannot Resume TP Program",
+    12: "Cannot Reset Controller",
+    13: "Invalid RMI Command",
+    14: "RMI Command Fail",
+    15: "Invalid Controller State",
+    16: "Please Cycle Power",
+    17: "Invalid Payload Schedule",
+    18: "Invalid Motion Option",
+    19: "Invalid Vision Register",
+    20: "Invalid RMI Instruction",
+    21: "Invalid Value",
+    22: "Invalid Text String",
+    23: "Invalid Position Data",
+    24: "RMI is In HOLD State",
+    25: "Remote Device Disconnected",
+    26: "Robot is Already Connected",
+    27: "Wait for Command Done",
+    28: "Wait for Instruction Done",
+    29: "Invalid sequence ID number",
+    39: "Invalid Group Number",
+    40: "Invalid Group Mask",
+    43: "Robot in Single Step Mode",
+}
+#: MEMO alarms RMI reports with their bare number.
+MEMO_MESSAGES: dict[int, str] = {
+    7004: "MEMO-004 Specific program is in use",
+    7015: "MEMO-015 Program already exists",
+}
+_CLOSE_BUDGET_S = 1.0
+_NAME_KEYS = {"Communication", "Command", "Instruction"}
+
+
+def error_text(error_id: int) -> str:
+    """ "RMIT-002 Invalid UTool Number (ErrorID 2556930)", as the pendant names the alarm."""
+    n = error_id - RMIT_BASE
+    if n in RMIT_MESSAGES:
+        return f"RMIT-{n:03d} {RMIT_MESSAGES[n]} (ErrorID {error_id})"
+    if error_id in MEMO_MESSAGES:
+        return f"{MEMO_MESSAGES[error_id]} (ErrorID {error_id})"
+    return f"ErrorID {error_id}"
+
+
+def encode_packet(packet: JsonObject) -> bytes:
+    """One RMI packet as sent: JSON with every float in plain decimals (six places, never an
+    exponent: the manual's examples never show one), ended by CRLF."""
+    return _json_text(packet).encode("ascii") + b"\r\n"
+
+
+def _json_text(value: object) -> str:
+    if isinstance(value, dict):
+        items = (f"{json.dumps(str(k))}: {_json_text(v)}" for k, v in value.items())
+        return "{" + ", ".join(items) + "}"
+    if isinstance(value, float):
+        if not np.isfinite(value):
+            raise ValueError(f"{value} cannot be sent to the controller")
+        text = f"{value:.6f}"
+        return "0.000000" if text == "-0.000000" else text
+    return json.dumps(value)
+
+
+class FanucRmiConnector:
+    """One RMI session with a FANUC controller: read and write UTOOL frames."""
+
+    protocol = "fanuc_rmi"
+
+    def __init__(self, settings: ControllerSettings) -> None:
+        self._settings = settings
+        self._sock: socket.socket | None = None
+        self._buffer = bytearray()
+        #: set once the controller stopped answering: `close` then says no goodbye (it
+        #: would only wait again) and the controller frees the session on its own
+        self._dead = False
+        self._peer = f"FANUC RMI at {settings.host}:{settings.port}"
+        deadline = Deadline(settings.timeout_s)
+        session_port = self._session_port(deadline)
+        self._peer = f"FANUC RMI session at {settings.host}:{session_port}"
+        self._sock = open_connection(settings.host, session_port, deadline)
+        try:
+            self._request({"Command": "FRC_Initialize", "GroupMask": 1}, deadline)
+        except BaseException:
+            self.close()
+            raise
+
+    # --- the Connector interface -----------------------------------------------------------
+
+    def describe(self, target: ToolTarget) -> str:
+        """``UTOOL[3]``."""
+        check_target(self.protocol, target)
+        return f"UTOOL[{target.slot}]"
+
+    def read_tool(self, target: ToolTarget) -> ToolData:
+        """The frame of UTOOL[slot] (no load: RMI does not serve payloads)."""
+        check_target(self.protocol, target)
+        reply = self._request(
+            {"Command": "FRC_ReadUToolData", "ToolNumber": target.slot, "Group": 1},
+            Deadline(self._settings.timeout_s),
+        )
+        frame = reply.get("Frame")
+        if not isinstance(frame, dict):
+            raise ControllerProtocolError(f"{self._peer}: FRC_ReadUToolData without a Frame")
+        values = []
+        for key in FRAME_KEYS:
+            value = frame.get(key)
+            if not isinstance(value, int | float) or isinstance(value, bool):
+                raise ControllerProtocolError(f"{self._peer}: Frame.{key} is {value!r}")
+            values.append(float(value))
+        if not all(np.isfinite(values)):
+            raise ControllerProtocolError(f"{self._peer}: a Frame value is not finite: {values}")
+        q = quaternion_wxyz_from_fanuc_wpr(values[3:])
+        return ToolData(
+            position_mm=(values[0], values[1], values[2]),
+            quaternion=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+            load=None,
+        )
+
+    def write_tool(self, target: ToolTarget, data: ToolData) -> None:
+        """Write X, Y, Z, W, P, R into UTOOL[slot] (the load is not RMI's to write)."""
+        check_target(self.protocol, target)
+        finite_tool_data(data)
+        w, p, r = (float(v) for v in fanuc_wpr_from_quaternion_wxyz(np.asarray(data.quaternion)))
+        x, y, z = (float(v) for v in data.position_mm)
+        frame = dict(zip(FRAME_KEYS, (x, y, z, w, p, r), strict=True))
+        self._request(
+            {
+                "Command": "FRC_WriteUToolData",
+                "ToolNumber": target.slot,
+                "Frame": frame,
+                "Group": 1,
+            },
+            Deadline(self._settings.timeout_s),
+        )
+
+    def close(self) -> None:
+        """FRC_Abort and FRC_Disconnect (errors ignored), then close; never raises."""
+        if self._sock is None:
+            return
+        if self._dead:
+            close_quietly(self._sock)
+            self._sock = None
+            return
+        budget = Deadline(min(self._settings.timeout_s, _CLOSE_BUDGET_S))
+        for packet in ({"Command": "FRC_Abort"}, {"Communication": "FRC_Disconnect"}):
+            try:
+                self._request(packet, budget)
+            except ControllerRefused:
+                continue  # FRC_Abort with no RMI_MOVE running: nothing to abort
+            except Exception:
+                break
+        close_quietly(self._sock)
+        self._sock = None
+
+    def __enter__(self) -> FanucRmiConnector:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    # --- the packets -----------------------------------------------------------------------
+
+    def _session_port(self, deadline: Deadline) -> int:
+        sock = open_connection(self._settings.host, self._settings.port, deadline)
+        try:
+            reply = self._exchange(sock, bytearray(), {"Communication": "FRC_Connect"}, deadline)
+        finally:
+            close_quietly(sock)
+        port = reply.get("PortNumber")
+        if not isinstance(port, int) or not 0 < port < 65536:
+            raise ControllerProtocolError(f"{self._peer}: FRC_Connect answered port {port!r}")
+        return port
+
+    def _request(self, packet: JsonObject, deadline: Deadline) -> JsonObject:
+        if self._sock is None:
+            raise ControllerUnreachable(f"{self._peer}: the session is closed")
+        try:
+            return self._exchange(self._sock, self._buffer, packet, deadline)
+        except ControllerUnreachable:
+            self._dead = True
+            raise
+
+    def _exchange(
+        self, sock: socket.socket, buffer: bytearray, packet: JsonObject, deadline: Deadline
+    ) -> JsonObject:
+        kind = "Communication" if "Communication" in packet else "Command"
+        name = packet[kind]
+        send_all(sock, encode_packet(packet), deadline, peer=self._peer)
+        while True:
+            reply = self._read_packet(sock, buffer, deadline)
+            if reply.get("Communication") in ("FRC_Terminate", "FRC_SystemFault"):
+                raise ControllerUnreachable(
+                    f"{self._peer} ended the session ({reply['Communication']})"
+                )
+            if reply.get(kind) == name or not _NAME_KEYS & reply.keys():
+                break  # ours, or an unnamed answer (what a controller sends to a bad packet)
+            # an answer to something else (a late reply): not ours, keep reading
+        error_id = reply.get("ErrorID", 0)
+        if not isinstance(error_id, int):
+            raise ControllerProtocolError(f"{self._peer}: {name} answered ErrorID {error_id!r}")
+        if error_id != 0:
+            words = error_text(error_id)
+            raise ControllerRefused(
+                f"the FANUC controller refused {name}: {words}", controller_message=words
+            )
+        return reply
+
+    def _read_packet(
+        self, sock: socket.socket, buffer: bytearray, deadline: Deadline
+    ) -> JsonObject:
+        line = recv_until(sock, b"\r\n", buffer, deadline, peer=self._peer).strip()
+        if not line:
+            return {}
+        try:
+            packet = json.loads(line)
+        except (UnicodeDecodeError, json.JSONDecodeError) as err:
+            raise ControllerProtocolError(f"{self._peer} sent {line[:80]!r}: not JSON") from err
+        if not isinstance(packet, dict):
+            raise ControllerProtocolError(f"{self._peer} sent {line[:80]!r}: not a JSON object")
+        return packet

@@ -1,0 +1,234 @@
+"""KUKA KRC tool data over KUKAVARPROXY (the OpenShowVar protocol, TCP 7000).
+
+Followed: KUKAVARPROXY's own source, ImtsSrl/KUKAVARPROXY ``src/basMain.bas``
+(``readMsg``: the reply body) and ``src/frmMain.frm`` (``sockServer_Read``: the framing,
+several messages per read), checked against the client py-openshowvar (PyPI) and
+ImtsSrl/openshowvar. All integers are big-endian 16-bit words:
+
+    request  = msg_id, length, mode (1 byte: 0 read, 1 write), name_len, name
+               [, value_len, value]           length = bytes after the length word
+    reply    = msg_id, length, mode, value_len, value, 0x00 0x01, ok (1 byte: 1 or 0)
+
+The proxy answers each request with the request's message id. A read the KRC cannot
+resolve (unknown variable, index out of range) comes back as an empty value; a write the
+KRC refuses comes back with ok = 0. KUKAVARPROXY has no credentials of its own.
+
+Variables (KUKA System Software 8, Programming manual for system integrators, "$TOOL_DATA",
+"$LOAD_DATA"; declared in ``$config.dat``/``$machine.dat`` for tools 1-16):
+``$TOOL_DATA[n]`` is a FRAME ``{X, Y, Z (mm), A, B, C (deg)}`` with R = Rz(A) Ry(B) Rx(C);
+``$LOAD_DATA[n]`` is a LOAD ``{M (kg), CM FRAME (centre of mass, mm), J INERTIA (kg m2)}``,
+M = -1 meaning "the default load" (no load data). A write sends only the members tcpcal
+owns; the load's CM orientation and inertia are written back as the controller held them.
+"""
+
+from __future__ import annotations
+
+import socket
+import struct
+from types import TracebackType
+
+import numpy as np
+
+from app.controllers.base import (
+    ControllerProtocolError,
+    ControllerRefused,
+    ControllerSettings,
+    ControllerUnreachable,
+    Deadline,
+    ToolData,
+    ToolLoad,
+    ToolTarget,
+    check_target,
+    finite_tool_data,
+)
+from app.controllers.krl import KrlStruct, KrlSyntaxError, format_struct, numbers, parse_struct
+from app.controllers.sockets import close_quietly, open_connection, recv_exactly, send_all
+from app.kinematics.poses import kuka_abc_from_quaternion_wxyz, quaternion_wxyz_from_kuka_abc
+
+MODE_READ = 0
+MODE_WRITE = 1
+_HEADER = struct.Struct("!HH")
+_STATUS_OK = 1
+#: KUKA's "no load data" mass: the controller uses the robot's default load.
+DEFAULT_LOAD_MASS = -1.0
+
+
+class KukaKvpConnector:
+    """One KUKAVARPROXY session on a KRC: read and write ``$TOOL_DATA[n]``/``$LOAD_DATA[n]``."""
+
+    protocol = "kuka_kvp"
+
+    def __init__(self, settings: ControllerSettings) -> None:
+        self._settings = settings
+        self._peer = f"KUKAVARPROXY at {settings.host}:{settings.port}"
+        self._buffer = bytearray()
+        self._msg_id = 0
+        self._sock: socket.socket | None = open_connection(
+            settings.host, settings.port, Deadline(settings.timeout_s)
+        )
+
+    # --- the Connector interface -----------------------------------------------------------
+
+    def describe(self, target: ToolTarget) -> str:
+        """``$TOOL_DATA[3]``."""
+        check_target(self.protocol, target)
+        return f"$TOOL_DATA[{target.slot}]"
+
+    def read_tool(self, target: ToolTarget) -> ToolData:
+        """The tool frame and load the KRC holds for tool `target.slot`."""
+        check_target(self.protocol, target)
+        deadline = Deadline(self._settings.timeout_s)
+        frame = self._read_struct(f"$TOOL_DATA[{target.slot}]", deadline)
+        x, y, z, a, b, c = numbers(frame, ("X", "Y", "Z", "A", "B", "C"), what="$TOOL_DATA")
+        quaternion = quaternion_wxyz_from_kuka_abc([a, b, c])
+        load_struct = self._read_struct(f"$LOAD_DATA[{target.slot}]", deadline)
+        return ToolData(
+            position_mm=(x, y, z),
+            quaternion=(
+                float(quaternion[0]),
+                float(quaternion[1]),
+                float(quaternion[2]),
+                float(quaternion[3]),
+            ),
+            load=_load_from_struct(load_struct),
+        )
+
+    def write_tool(self, target: ToolTarget, data: ToolData) -> None:
+        """Write the frame into ``$TOOL_DATA[n]`` and, when `data.load` is set, M and CM's
+        position into ``$LOAD_DATA[n]``."""
+        check_target(self.protocol, target)
+        finite_tool_data(data)
+        deadline = Deadline(self._settings.timeout_s)
+        a, b, c = (float(v) for v in kuka_abc_from_quaternion_wxyz(np.asarray(data.quaternion)))
+        x, y, z = data.position_mm
+        frame = format_struct({"X": x, "Y": y, "Z": z, "A": a, "B": b, "C": c})
+        load_name = f"$LOAD_DATA[{target.slot}]"
+        # The load is read before anything is written: a KRC that cannot show it refuses
+        # the deployment before the frame changes.
+        load_text = (
+            _load_text(data.load, self._read_struct(load_name, deadline))
+            if data.load is not None
+            else None
+        )
+        self.write_variable(f"$TOOL_DATA[{target.slot}]", frame, deadline)
+        if load_text is not None:
+            self.write_variable(load_name, load_text, deadline)
+
+    def close(self) -> None:
+        """Close the TCP connection (KUKAVARPROXY keeps no session state)."""
+        close_quietly(self._sock)
+        self._sock = None
+
+    def __enter__(self) -> KukaKvpConnector:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    # --- the OpenShowVar exchange ----------------------------------------------------------
+
+    def read_variable(self, name: str, deadline: Deadline | None = None) -> str:
+        """The KRC's text of variable `name`; ControllerRefused when it has none."""
+        deadline = deadline or Deadline(self._settings.timeout_s)
+        value, ok = self._exchange(MODE_READ, name, None, deadline)
+        if not ok or not value:
+            raise ControllerRefused(
+                f"the KRC has no value for {name}: KUKAVARPROXY answered "
+                f"{'an empty value' if ok else 'a failed read'} (unknown variable or index "
+                "out of range)",
+                controller_message=f"{name}: empty value, status {int(ok)}",
+            )
+        return value
+
+    def _read_struct(self, name: str, deadline: Deadline) -> KrlStruct:
+        text = self.read_variable(name, deadline)
+        try:
+            return parse_struct(text)
+        except KrlSyntaxError as err:
+            raise ControllerProtocolError(f"{self._peer}: {name} = {text!r}: {err}") from err
+
+    def write_variable(self, name: str, value: str, deadline: Deadline | None = None) -> None:
+        """Set variable `name` to the KRL text `value`; ControllerRefused when the KRC says no."""
+        deadline = deadline or Deadline(self._settings.timeout_s)
+        _echo, ok = self._exchange(MODE_WRITE, name, value, deadline)
+        if not ok:
+            raise ControllerRefused(
+                f"the KRC refused to set {name} (KUKAVARPROXY write status 0: unknown "
+                "variable, index out of range, or a value the variable cannot hold)",
+                controller_message=f"{name}: write status 0",
+            )
+
+    def _exchange(
+        self, mode: int, name: str, value: str | None, deadline: Deadline
+    ) -> tuple[str, bool]:
+        sock = self._sock
+        if sock is None:
+            raise ControllerUnreachable(f"{self._peer}: the session is closed")
+        self._msg_id = (self._msg_id + 1) % 0x10000
+        send_all(sock, encode_request(self._msg_id, mode, name, value), deadline, peer=self._peer)
+        while True:
+            msg_id, length = _HEADER.unpack(
+                recv_exactly(sock, _HEADER.size, self._buffer, deadline, peer=self._peer)
+            )
+            body = recv_exactly(sock, length, self._buffer, deadline, peer=self._peer)
+            if msg_id == self._msg_id:
+                return decode_reply_body(body, peer=self._peer)
+            # A late answer to an earlier, timed-out request on this connection: skip it.
+
+
+def encode_request(msg_id: int, mode: int, name: str, value: str | None) -> bytes:
+    """One OpenShowVar request: read (`value` None) or write."""
+    payload = bytes([mode]) + _word_string(name)
+    if value is not None:
+        payload += _word_string(value)
+    return _HEADER.pack(msg_id, len(payload)) + payload
+
+
+def decode_reply_body(body: bytes, *, peer: str) -> tuple[str, bool]:
+    """A reply's body (after id and length) -> (value text, ok)."""
+    if len(body) < 3 + 3:
+        raise ControllerProtocolError(f"{peer}: a reply of {len(body)} bytes is too short")
+    (value_len,) = struct.unpack("!H", body[1:3])
+    if 3 + value_len + 3 != len(body):
+        raise ControllerProtocolError(
+            f"{peer}: a reply's value length {value_len} does not fit its {len(body)} bytes"
+        )
+    value = body[3 : 3 + value_len].decode("latin-1")
+    return value.strip(), body[-1] == _STATUS_OK
+
+
+def _word_string(text: str) -> bytes:
+    raw = text.encode("latin-1")
+    if len(raw) > 0xFFFF:
+        raise ValueError(f"{len(raw)} bytes do not fit an OpenShowVar field")
+    return struct.pack("!H", len(raw)) + raw
+
+
+def _load_from_struct(load: KrlStruct) -> ToolLoad | None:
+    mass = load.get("M")
+    cm = load.get("CM")
+    if not isinstance(mass, float) or mass < 0 or not isinstance(cm, dict):
+        return None  # M = -1: the KRC uses its default load; tcpcal has no load to show
+    x, y, z = numbers(cm, ("X", "Y", "Z"), what="$LOAD_DATA CM")
+    return ToolLoad(mass_kg=mass, cog_mm=(x, y, z))
+
+
+def _load_text(load: ToolLoad, held: KrlStruct) -> str:
+    """The LOAD value to write: tcpcal's mass and centre of gravity, the controller's CM
+    orientation and inertia (tcpcal does not know them)."""
+    cm_held = held.get("CM")
+    j_held = held.get("J")
+    cm: dict[str, float] = {"X": load.cog_mm[0], "Y": load.cog_mm[1], "Z": load.cog_mm[2]}
+    for axis in ("A", "B", "C"):
+        value = cm_held.get(axis) if isinstance(cm_held, dict) else None
+        cm[axis] = value if isinstance(value, float) else 0.0
+    inertia: dict[str, float] = {}
+    for axis in ("X", "Y", "Z"):
+        value = j_held.get(axis) if isinstance(j_held, dict) else None
+        inertia[axis] = value if isinstance(value, float) else 0.0
+    return format_struct({"M": load.mass_kg, "CM": cm, "J": inertia})

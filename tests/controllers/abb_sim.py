@@ -1,0 +1,499 @@
+"""An ABB controller's Robot Web Services, in memory: PERS tooldata symbols in RAPID tasks.
+
+Follows ABB *Application manual - Robot Web Services* (3HAC050973-001, the rwsApi pages):
+"Operations on RAPID symbol data" (get, and ``action=set`` with form field ``value``),
+``json=1``, the HTTP status codes, the error body (RWS 1.0 ``_embedded.status`` {code, msg}, RWS 2.0
+``status`` {code, msg} at the top), and
+``/logout``. Version 1 is RWS 1.0 as RobotWare 6 serves it (HTTP, Digest authentication,
+RFC 7616 MD5 with qop=auth, realm ``validusers@robapi.abb``, then the session cookies
+``-http-session-`` and ``ABBCX``; the shape abb-robot-client reads). Version 2 is RWS 2.0
+as RobotWare 7 serves it (HTTPS with a self-signed certificate made at start, Basic
+authentication, media types that must carry ``;v=2.0`` (406 for an Accept naming another
+type, 415 for a POST body without it), the path
+``/rw/rapid/symbol/RAPID/{task}/{module}/{symbol}/data``, the answer's ``state`` list, and
+edit mastership: ``POST /rw/mastership/edit/request`` / ``release``, or every domain's with
+``/rw/mastership/request`` / ``release``; a write without it is refused with 403). Answers
+are JSON only (hal+json), not the xhtml+xml RWS also serves. The error codes are this
+simulator's own; the messages say what failed.
+
+Tool data are held as RobotWare holds ``num`` (32-bit float) unless `single_precision` is
+False. `set_tool` / `tool` are the operator at the FlexPendant (Jogging > Tool, or the
+Program Data window); `mastership_holder` set to "FlexPendant" is an operator holding
+write access there.
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime
+import hashlib
+import ipaddress
+import json
+import re
+import secrets
+import ssl
+import tempfile
+import threading
+from dataclasses import dataclass, field
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from typing import Self
+from urllib.parse import parse_qs, urlsplit
+
+import numpy as np
+
+from app.controllers.rapid import RapidSyntaxError, parse_tooldata
+
+REALM = "validusers@robapi.abb"
+V2 = ";v=2.0"
+_V1_PATH = re.compile(r"^/rw/rapid/symbol/data/RAPID/([^/]+)/([^/]+)/([^/?]+)$")
+_V2_PATH = re.compile(r"^/rw/rapid/symbol/RAPID/([^/]+)/([^/]+)/([^/]+)/data$")
+NOT_FOUND_CODE = -1073442816
+#: codes RobotWare 7 sends (captured replies in public RWS 2.0 clients' tests)
+RESOURCE_NOT_FOUND_CODE = -1073445859
+PARAMETER_CODE = -1073445879
+TYPE_CODE = -1073442815
+MASTERSHIP_CODE = -1073445865
+
+
+@dataclass
+class Symbol:
+    """One PERS tooldata as the controller holds it."""
+
+    robhold: bool = True
+    trans: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rot: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    mass: float = 1.0
+    cog: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    aom: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    inertia: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def text(self) -> str:
+        def num(v: float) -> str:
+            # RobotWare prints a num (a 32-bit float) in its shortest form
+            if float(np.float32(v)) == v:
+                return np.format_float_positional(np.float32(v), trim="-")
+            return np.format_float_positional(v, trim="-")
+
+        def group(vs: tuple[float, ...]) -> str:
+            return "[" + ",".join(num(v) for v in vs) + "]"
+
+        return (
+            f"[{'TRUE' if self.robhold else 'FALSE'},[{group(self.trans)},{group(self.rot)}],"
+            f"[{num(self.mass)},{group(self.cog)},{group(self.aom)},"
+            f"{','.join(num(v) for v in self.inertia)}]]"
+        )
+
+
+@dataclass
+class _Session:
+    user: str
+    cookie: str
+    abbcx: str = field(default_factory=lambda: secrets.token_hex(4))
+
+
+class AbbRwsSimulator:
+    """RWS 1.0 (version=1) or 2.0 (version=2) on 127.0.0.1, a free port."""
+
+    def __init__(
+        self,
+        version: int = 1,
+        *,
+        username: str = "Default User",
+        password: str = "robotics",
+        single_precision: bool = True,
+    ) -> None:
+        if version not in (1, 2):
+            raise ValueError("RWS version 1 or 2")
+        self.version = version
+        self.users = {username: password}
+        self.single_precision = single_precision
+        self.host = "127.0.0.1"
+        self.port = 0
+        self.stalled = False
+        #: who holds edit mastership: None, a session cookie, or "FlexPendant"
+        self.mastership_holder: str | None = None
+        self.symbols: dict[str, Symbol] = {
+            "T_ROB1/user/tTorch": Symbol(),
+            "T_ROB1/user/tGripper": Symbol(robhold=False, mass=2.0, cog=(0.0, 0.0, 50.0)),
+            "T_ROB2/user/tTorch": Symbol(),
+        }
+        #: non-tooldata symbols a client may name by mistake: symbol -> RAPID text
+        self.other_symbols = {"T_ROB1/user/reg1": "0"}
+        self.requests: list[tuple[str, str, str]] = []  # method, path, authorization scheme
+        self.sessions: dict[str, _Session] = {}
+        self._nonces: set[str] = set()
+        self._lock = threading.Lock()
+        self._release = threading.Event()
+        self._server: ThreadingHTTPServer | None = None
+        self._thread: threading.Thread | None = None
+        self._tmp: tempfile.TemporaryDirectory[str] | None = None
+        self.certificate_pem: bytes = b""
+        #: the PEM file of the certificate (RWS 2.0), for a client that should trust it
+        self.certificate_path: Path | None = None
+
+    # --- lifecycle ----------------------------------------------------------------------
+
+    def start(self) -> Self:
+        """Serve on a free loopback port (the same one again after a `stop`)."""
+        self._release.clear()
+        server = ThreadingHTTPServer((self.host, self.port), _handler_for(self))
+        server.daemon_threads = True
+        if self.version == 2:
+            server.socket = self._tls_context().wrap_socket(server.socket, server_side=True)
+        self.port = server.server_address[1]
+        self._server = server
+        self._thread = threading.Thread(
+            target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True
+        )
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop serving and close the port (the controller switched off)."""
+        self._release.set()
+        server, self._server = self._server, None
+        if server is not None:
+            server.shutdown()
+            server.server_close()
+        if self._thread is not None:
+            self._thread.join(timeout=2)
+        self.sessions.clear()
+
+    def __enter__(self) -> Self:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+
+    @property
+    def base_url(self) -> str:
+        return f"{'https' if self.version == 2 else 'http'}://{self.host}:{self.port}"
+
+    # --- the pendant --------------------------------------------------------------------
+
+    def set_tool(
+        self,
+        symbol: str,
+        position_mm: tuple[float, float, float],
+        quaternion: tuple[float, float, float, float],
+        *,
+        mass: float | None = None,
+        cog: tuple[float, float, float] | None = None,
+    ) -> None:
+        """What an operator enters for a tooldata's tframe (and tload) on the FlexPendant."""
+        with self._lock:
+            held = self.symbols.setdefault(symbol, Symbol())
+            held.trans = self._reals(position_mm)  # type: ignore[assignment]
+            held.rot = self._reals(quaternion)  # type: ignore[assignment]
+            if mass is not None:
+                held.mass = self._reals((mass,))[0]
+            if cog is not None:
+                held.cog = self._reals(cog)  # type: ignore[assignment]
+
+    def tool(self, symbol: str) -> Symbol:
+        """A copy of the tooldata the controller holds in `symbol`."""
+        with self._lock:
+            held = self.symbols[symbol]
+            return Symbol(**held.__dict__)
+
+    def _reals(self, values: tuple[float, ...]) -> tuple[float, ...]:
+        if self.single_precision:
+            return tuple(float(np.float32(v)) for v in values)
+        return tuple(float(v) for v in values)
+
+    # --- what the controller does -------------------------------------------------------
+
+    def authenticate(self, method: str, headers: dict[str, str]) -> _Session | None:
+        """The session of a valid cookie or Authorization header; None: challenge."""
+        cookies = dict(
+            part.strip().split("=", 1)
+            for part in headers.get("cookie", "").split(";")
+            if "=" in part
+        )
+        with self._lock:
+            session = self.sessions.get(cookies.get("-http-session-", ""))
+        if session is not None:
+            return session
+        authorization = headers.get("authorization", "")
+        user = (
+            self._check_basic(authorization)
+            if self.version == 2
+            else self._check_digest(method, authorization)
+        )
+        if user is None:
+            return None
+        session = _Session(user=user, cookie=secrets.token_hex(16))
+        with self._lock:
+            self.sessions[session.cookie] = session
+        return session
+
+    def challenge(self) -> str:
+        if self.version == 2:
+            return f'Basic realm="{REALM}"'
+        nonce = secrets.token_hex(16)
+        with self._lock:
+            self._nonces.add(nonce)
+        opaque = secrets.token_hex(8)
+        return (
+            f'Digest realm="{REALM}", qop="auth", nonce="{nonce}", opaque="{opaque}", algorithm=MD5'
+        )
+
+    def _check_basic(self, authorization: str) -> str | None:
+        if not authorization.startswith("Basic "):
+            return None
+        try:
+            user, _, password = base64.b64decode(authorization[6:]).decode().partition(":")
+        except ValueError:
+            return None
+        return user if self.users.get(user) == password else None
+
+    def _check_digest(self, method: str, authorization: str) -> str | None:
+        if not authorization.startswith("Digest "):
+            return None
+        fields = {
+            k: v.strip('"') for k, v in re.findall(r'(\w+)=("[^"]*"|[^,\s]+)', authorization[7:])
+        }
+        user = fields.get("username", "")
+        password = self.users.get(user)
+        with self._lock:
+            known_nonce = fields.get("nonce") in self._nonces
+        if password is None or not known_nonce:
+            return None
+
+        def md5(text: str) -> str:
+            return hashlib.md5(text.encode()).hexdigest()
+
+        ha1 = md5(f"{user}:{REALM}:{password}")
+        ha2 = md5(f"{method}:{fields.get('uri', '')}")
+        expected = md5(
+            f"{ha1}:{fields.get('nonce')}:{fields.get('nc')}:{fields.get('cnonce')}:{fields.get('qop')}:{ha2}"
+        )
+        return user if secrets.compare_digest(expected, fields.get("response", "")) else None
+
+    def read_symbol(self, symbol: str) -> tuple[int, dict[str, object]]:
+        with self._lock:
+            held = self.symbols.get(symbol)
+            text = held.text() if held is not None else self.other_symbols.get(symbol)
+        if text is None:
+            return 400, _error(NOT_FOUND_CODE, f"Symbol not found: RAPID/{symbol}")
+        state = [{"_type": "rap-data", "_title": f"RAPID/{symbol}", "value": text}]
+        if self.version == 2:
+            return 200, {"_links": {"base": {"href": f"{self.base_url}/rw/rapid/"}}, "state": state}
+        return 200, {
+            "_links": {"base": {"href": f"{self.base_url}/rw/rapid/"}},
+            "_embedded": {"_state": state},
+        }
+
+    def write_symbol(
+        self, symbol: str, value: str, session: _Session
+    ) -> tuple[int, dict[str, object] | None]:
+        if self.version == 2 and self.mastership_holder != session.cookie:
+            holder = "the FlexPendant" if self.mastership_holder == "FlexPendant" else "nobody"
+            return 403, _error(
+                MASTERSHIP_CODE,
+                f"Operation not allowed: edit mastership is required (held by {holder})",
+            )
+        with self._lock:
+            if symbol not in self.symbols:
+                if symbol in self.other_symbols:
+                    return 400, _error(
+                        TYPE_CODE, f"Type mismatch: RAPID/{symbol} is not a tooldata"
+                    )
+                return 400, _error(NOT_FOUND_CODE, f"Symbol not found: RAPID/{symbol}")
+        try:
+            tool = parse_tooldata(value)
+        except RapidSyntaxError:
+            return 400, _error(
+                TYPE_CODE, f"Invalid value for tooldata RAPID/{symbol}: {value[:80]}"
+            )
+        norm = float(np.linalg.norm(tool.quaternion))
+        if abs(norm - 1.0) > 1e-5:
+            return 400, _error(
+                TYPE_CODE, f"Not a normalized quaternion in RAPID/{symbol} (|q| = {norm:.6f})"
+            )
+        with self._lock:
+            held = self.symbols[symbol]
+            held.robhold = tool.robhold
+            held.trans = self._reals(tool.position_mm)  # type: ignore[assignment]
+            held.rot = self._reals(tool.quaternion)  # type: ignore[assignment]
+            held.mass = self._reals((tool.mass_kg,))[0]
+            held.cog = self._reals(tool.cog_mm)  # type: ignore[assignment]
+            held.aom = self._reals(tool.aom)  # type: ignore[assignment]
+            held.inertia = self._reals(tool.inertia)  # type: ignore[assignment]
+        return 204, None
+
+    def mastership(self, action: str, session: _Session) -> tuple[int, dict[str, object] | None]:
+        with self._lock:
+            if action == "request":
+                if self.mastership_holder not in (None, session.cookie):
+                    return 403, _error(
+                        MASTERSHIP_CODE,
+                        "Mastership is held by another client (FlexPendant)"
+                        if self.mastership_holder == "FlexPendant"
+                        else "Mastership is held by another client",
+                    )
+                self.mastership_holder = session.cookie
+                return 204, None
+            if self.mastership_holder == session.cookie:
+                self.mastership_holder = None
+            return 204, None
+
+    def _tls_context(self) -> ssl.SSLContext:
+        from cryptography import x509
+        from cryptography.hazmat.primitives import hashes, serialization
+        from cryptography.hazmat.primitives.asymmetric import ec
+        from cryptography.x509.oid import NameOID
+
+        key = ec.generate_private_key(ec.SECP256R1())
+        name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "IRC5-OmniCore-sim")])
+        now = datetime.datetime.now(datetime.UTC)
+        cert = (
+            x509.CertificateBuilder()
+            .subject_name(name)
+            .issuer_name(name)
+            .public_key(key.public_key())
+            .serial_number(x509.random_serial_number())
+            .not_valid_before(now - datetime.timedelta(minutes=5))
+            .not_valid_after(now + datetime.timedelta(days=1))
+            .add_extension(
+                x509.SubjectAlternativeName([x509.IPAddress(ipaddress.ip_address(self.host))]),
+                critical=False,
+            )
+            .sign(key, hashes.SHA256())
+        )
+        if self._tmp is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="rws2-sim-")
+        cert_path = Path(self._tmp.name) / "cert.pem"
+        key_path = Path(self._tmp.name) / "key.pem"
+        self.certificate_pem = cert.public_bytes(serialization.Encoding.PEM)
+        cert_path.write_bytes(self.certificate_pem)
+        self.certificate_path = cert_path
+        key_path.write_bytes(
+            key.private_bytes(
+                serialization.Encoding.PEM,
+                serialization.PrivateFormat.PKCS8,
+                serialization.NoEncryption(),
+            )
+        )
+        context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+        context.load_cert_chain(cert_path, key_path)
+        return context
+
+
+def _error(code: int, msg: str) -> dict[str, object]:
+    return {"_links": {}, "_embedded": {"_type": "status", "status": {"code": code, "msg": msg}}}
+
+
+def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
+    class Handler(BaseHTTPRequestHandler):
+        protocol_version = "HTTP/1.1"
+        server_version = "Appweb/4"
+
+        def log_message(self, format: str, *args: object) -> None:
+            return  # quiet: the tests read `sim.requests`
+
+        def do_GET(self) -> None:
+            self._handle("GET")
+
+        def do_POST(self) -> None:
+            self._handle("POST")
+
+        def _handle(self, method: str) -> None:
+            length = int(self.headers.get("Content-Length") or 0)
+            body = self.rfile.read(length) if length else b""
+            if sim.stalled:
+                sim._release.wait()  # accepts, reads, never answers
+                self.close_connection = True
+                return
+            headers = {k.lower(): v for k, v in self.headers.items()}
+            scheme = headers.get("authorization", "").split(" ", 1)[0]
+            url = urlsplit(self.path)
+            sim.requests.append((method, url.path, scheme))
+            if sim.version == 2 and v2_media_problem(method, headers, self):
+                return
+            session = sim.authenticate(method, headers)
+            if session is None:
+                self._reply(401, None, extra={"WWW-Authenticate": sim.challenge()})
+                return
+            query = {k: v[0] for k, v in parse_qs(url.query).items()}
+            form = {k: v[0] for k, v in parse_qs(body.decode("utf-8", "replace")).items()}
+            status, payload = route(method, url.path, query, form, session)
+            self._reply(status, payload, cookie=session)
+
+        def _reply(
+            self,
+            status: int,
+            payload: dict[str, object] | None,
+            *,
+            extra: dict[str, str] | None = None,
+            cookie: _Session | None = None,
+        ) -> None:
+            if sim.version == 2 and payload is not None and "_embedded" in payload:
+                # RWS 2.0 puts an error's status at the top: {"_links", "status": {code, msg}}
+                embedded = payload["_embedded"]
+                assert isinstance(embedded, dict)
+                payload = {"_links": payload.get("_links", {}), "status": embedded["status"]}
+            data = json.dumps(payload).encode() if payload is not None else b""
+            self.send_response(status)
+            if data:
+                self.send_header(
+                    "Content-Type",
+                    "application/hal+json;v=2.0" if sim.version == 2 else "application/json",
+                )
+            self.send_header("Content-Length", str(len(data)))
+            for key, value in (extra or {}).items():
+                self.send_header(key, value)
+            if cookie is not None:
+                self.send_header("Set-Cookie", f"-http-session-={cookie.cookie}; path=/; httponly")
+                self.send_header("Set-Cookie", f"ABBCX={cookie.abbcx}; path=/")
+            self.end_headers()
+            self.wfile.write(data)
+
+    def v2_media_problem(method: str, headers: dict[str, str], handler: Handler) -> bool:
+        accept = headers.get("accept", "*/*")
+        if V2 not in accept and "*/*" not in accept:
+            handler._reply(406, _error(-1, "Not Acceptable: the Accept header needs ;v=2.0"))
+            return True
+        if method == "POST" and V2 not in headers.get("content-type", ""):
+            handler._reply(415, _error(-1, "Unsupported Media Type: the Content-Type needs ;v=2.0"))
+            return True
+        return False
+
+    def route(
+        method: str, path: str, query: dict[str, str], form: dict[str, str], session: _Session
+    ) -> tuple[int, dict[str, object] | None]:
+        if path == "/logout":
+            with sim._lock:
+                sim.sessions.pop(session.cookie, None)
+                if sim.mastership_holder == session.cookie:
+                    sim.mastership_holder = None
+            return 204, None
+        if (
+            sim.version == 2
+            and method == "POST"
+            and path
+            in (
+                "/rw/mastership/edit/request",
+                "/rw/mastership/edit/release",
+                "/rw/mastership/request",  # all domains, edit included
+                "/rw/mastership/release",
+            )
+        ):
+            return sim.mastership(path.rsplit("/", 1)[1], session)
+        match = (_V2_PATH if sim.version == 2 else _V1_PATH).match(path)
+        if match is None:
+            return 404, _error(RESOURCE_NOT_FOUND_CODE, "Resource not found")
+        symbol = "/".join(match.groups())
+        if method == "GET":
+            return sim.read_symbol(symbol)
+        if sim.version == 1 and query.get("action") != "set":
+            return 400, _error(PARAMETER_CODE, "Missing or unknown action")
+        if "value" not in form:
+            return 400, _error(PARAMETER_CODE, "Data parameter is required")
+        return sim.write_symbol(symbol, form["value"], session)
+
+    return Handler

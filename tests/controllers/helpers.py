@@ -1,0 +1,37 @@
+"""Shared checks for the connector tests: random tool data, timing, secrets in text."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from app.controllers import ToolData, ToolLoad
+
+
+def random_tool(seed: int, *, load: bool = True) -> ToolData:
+    """A plausible tool: position within 400 mm of the flange, any orientation, a load."""
+    rng = np.random.default_rng(seed)
+    xyzw = Rotation.random(random_state=rng).as_quat(canonical=True)
+    return ToolData(
+        position_mm=tuple(float(v) for v in rng.uniform(-400, 400, 3)),  # type: ignore[arg-type]
+        quaternion=(float(xyzw[3]), float(xyzw[0]), float(xyzw[1]), float(xyzw[2])),
+        load=ToolLoad(
+            mass_kg=float(rng.uniform(0.5, 20)),
+            cog_mm=tuple(float(v) for v in rng.uniform(-100, 200, 3)),  # type: ignore[arg-type]
+        )
+        if load
+        else None,
+    )
+
+
+def angle_between_deg(q_a: tuple[float, ...], q_b: tuple[float, ...]) -> float:
+    """Rotation angle between two [w, x, y, z] quaternions, degrees."""
+    a = Rotation.from_quat([q_a[1], q_a[2], q_a[3], q_a[0]])
+    b = Rotation.from_quat([q_b[1], q_b[2], q_b[3], q_b[0]])
+    return float(np.degrees((a.inv() * b).magnitude()))
+
+
+def float32_tolerance(values: tuple[float, ...] | list[float]) -> float:
+    """What a 32-bit REAL may lose on these values: one unit in the last place of the
+    largest, plus the connector's six written decimals."""
+    return float(np.spacing(np.float32(max(abs(v) for v in values)))) + 1e-6

@@ -1,0 +1,222 @@
+"""A KUKA KRC behind KUKAVARPROXY, in memory: the tool table ``$TOOL_DATA[1..16]`` and
+``$LOAD_DATA[1..16]`` spoken over the OpenShowVar protocol.
+
+Follows KUKAVARPROXY's source (ImtsSrl/KUKAVARPROXY ``src/frmMain.frm`` ``sockServer_Read``
+and ``src/basMain.bas`` ``readMsg``): big-endian words ``msg_id, length, mode, len, name
+[, len, value]``; the reply ``msg_id, length, mode, len, value, 0x00 0x01, ok``; several
+requests in one TCP read are answered in turn; ``PING`` answers ``PONG`` without the KRC.
+What the KRC does, as KUKAVARPROXY reports it: a read it cannot resolve (unknown variable,
+index outside 1-16) is an empty value with ok = 1 (``ShowVar`` returns True with an empty
+value); a write it refuses answers ok = 0 with the value echoed.
+
+Values are held as the KRC holds them: REAL is a 32-bit float, and a structure is printed
+``{FRAME: X 0.0,Y 0.0,...}``. A write is a KRL aggregate: the members it names change, the
+others keep their values. `set_tool` / `set_load` are the operator at the pendant.
+"""
+
+from __future__ import annotations
+
+import re
+import socket
+import struct
+import threading
+import time
+
+import numpy as np
+
+from app.controllers.krl import KrlStruct, KrlSyntaxError, parse_struct
+from tests.controllers.simbase import TcpSimulator
+
+SLOTS = range(1, 17)
+FRAME_MEMBERS = ("X", "Y", "Z", "A", "B", "C")
+_VARIABLE = re.compile(r"^\$(TOOL_DATA|LOAD_DATA)\[\s*(-?\d+)\s*\]$", re.IGNORECASE)
+
+
+def real(value: float, single_precision: bool = True) -> float:
+    """The value a KRL REAL (a 32-bit float) holds for `value`."""
+    return float(np.float32(value)) if single_precision else float(value)
+
+
+def print_real(value: float) -> str:
+    """A REAL as the KRC prints it (the shortest text that reads back the same value)."""
+    if float(np.float32(value)) == value:
+        return np.format_float_positional(np.float32(value), trim="0")
+    return np.format_float_positional(value, trim="0")
+
+
+class KukaSimulator(TcpSimulator):
+    """KUKAVARPROXY on a KRC with 16 tools; thread-safe pendant access."""
+
+    name = "KUKAVARPROXY"
+
+    def __init__(
+        self, robot_name: str = "KR16_R1610_SIM", *, single_precision: bool = True
+    ) -> None:
+        super().__init__()
+        self.robot_name = robot_name
+        #: True as on a KRC (REAL is 32-bit); False keeps every written digit (to test the
+        #: connector's conversions to 1e-6 without the controller's rounding)
+        self.single_precision = single_precision
+        self._data_lock = threading.Lock()
+        self.tools: dict[int, dict[str, float]] = {
+            s: dict.fromkeys(FRAME_MEMBERS, 0.0) for s in SLOTS
+        }
+        self.loads: dict[int, dict[str, float]] = {s: _default_load() for s in SLOTS}
+        #: True: each reply goes out a few bytes at a time (as TCP may deliver it)
+        self.split_replies = False
+        #: every (mode, variable name, value) received, for tests that look at the wire
+        self.requests: list[tuple[int, str, str | None]] = []
+
+    # --- the pendant --------------------------------------------------------------------
+
+    def set_tool(
+        self, slot: int, x: float, y: float, z: float, a: float, b: float, c: float
+    ) -> None:
+        """What an operator types into the tool data on the pendant (mm, deg)."""
+        with self._data_lock:
+            self.tools[slot] = {
+                k: real(v, self.single_precision)
+                for k, v in zip(FRAME_MEMBERS, (x, y, z, a, b, c), strict=True)
+            }
+
+    def tool(self, slot: int) -> tuple[float, ...]:
+        """X, Y, Z, A, B, C of $TOOL_DATA[slot] as the KRC holds them."""
+        with self._data_lock:
+            return tuple(self.tools[slot][k] for k in FRAME_MEMBERS)
+
+    def set_load(self, slot: int, mass_kg: float, cog_mm: tuple[float, float, float]) -> None:
+        """The operator sets $LOAD_DATA[slot]'s M and CM position."""
+        with self._data_lock:
+            load = self.loads[slot]
+            load["M"] = real(mass_kg, self.single_precision)
+            load["CM.X"], load["CM.Y"], load["CM.Z"] = (
+                real(v, self.single_precision) for v in cog_mm
+            )
+
+    def load(self, slot: int) -> dict[str, float]:
+        """$LOAD_DATA[slot] flattened: M, CM.X .. CM.C, J.X .. J.Z."""
+        with self._data_lock:
+            return dict(self.loads[slot])
+
+    # --- the variables ------------------------------------------------------------------
+
+    def show_var(self, name: str) -> str | None:
+        """The KRC's text of a variable, None when it has none."""
+        if name.strip().upper() == "$ROBNAME[]":
+            return f'"{self.robot_name}"'
+        match = _VARIABLE.match(name.strip())
+        if match is None or int(match.group(2)) not in SLOTS:
+            return None
+        slot = int(match.group(2))
+        with self._data_lock:
+            if match.group(1).upper() == "TOOL_DATA":
+                return _print_frame(self.tools[slot], "FRAME")
+            load = self.loads[slot]
+        cm = {k: load[f"CM.{k}"] for k in FRAME_MEMBERS}
+        inertia = {k: load[f"J.{k}"] for k in ("X", "Y", "Z")}
+        return (
+            f"{{LOAD: M {print_real(load['M'])},CM {_print_frame(cm, 'FRAME')},"
+            f"J {_print_frame(inertia, 'INERTIA')}}}"
+        )
+
+    def set_var(self, name: str, value: str) -> bool:
+        """Assign a KRL aggregate; False for what the KRC would refuse."""
+        match = _VARIABLE.match(name.strip())
+        if match is None or int(match.group(2)) not in SLOTS:
+            return False
+        try:
+            members = parse_struct(value)
+        except KrlSyntaxError:
+            return False
+        slot = int(match.group(2))
+        flat = _flatten(members)
+        if flat is None:
+            return False
+        with self._data_lock:
+            target = self.tools[slot] if match.group(1).upper() == "TOOL_DATA" else self.loads[slot]
+            if not set(flat) <= set(target):
+                return False
+            target.update({k: real(v, self.single_precision) for k, v in flat.items()})
+        return True
+
+    # --- the wire -----------------------------------------------------------------------
+
+    def serve(self, conn: socket.socket) -> None:
+        buffer = b""
+        while True:
+            chunk = conn.recv(65536)
+            if not chunk:
+                return
+            buffer += chunk
+            while len(buffer) >= 4:
+                msg_id, length = struct.unpack("!HH", buffer[:4])
+                if len(buffer) < 4 + length:
+                    break
+                body, buffer = buffer[4 : 4 + length], buffer[4 + length :]
+                answer = self._answer(msg_id, body)
+                if self.stalled:  # stalled mid-session: reads on, answers nothing
+                    continue
+                if not self.split_replies:
+                    conn.sendall(answer)
+                    continue
+                for start in range(0, len(answer), 3):
+                    conn.sendall(answer[start : start + 3])
+                    time.sleep(0.001)
+
+    def _answer(self, msg_id: int, body: bytes) -> bytes:
+        mode = body[0]
+        fields = _split_fields(body[1:])
+        name = fields[0].decode("latin-1") if fields else ""
+        value = fields[1].decode("latin-1") if len(fields) > 1 else None
+        self.requests.append((mode, name, value))
+        if mode == 0:
+            if name == "PING":
+                text, ok = "PONG", True
+            else:
+                shown = self.show_var(name)
+                text, ok = shown or "", True  # KUKAVARPROXY: ShowVar is True, value empty
+        elif mode == 1 and value is not None:
+            text, ok = value, self.set_var(name, value)
+        else:
+            text, ok = "", False
+        raw = text.encode("latin-1")
+        reply = bytes([mode]) + struct.pack("!H", len(raw)) + raw + b"\x00\x01" + bytes([int(ok)])
+        return struct.pack("!HH", msg_id, len(reply)) + reply
+
+
+def _split_fields(payload: bytes) -> list[bytes]:
+    fields = []
+    pos = 0
+    while pos + 2 <= len(payload):
+        (size,) = struct.unpack("!H", payload[pos : pos + 2])
+        fields.append(payload[pos + 2 : pos + 2 + size])
+        pos += 2 + size
+    return fields
+
+
+def _default_load() -> dict[str, float]:
+    load = {"M": -1.0}
+    load.update({f"CM.{k}": 0.0 for k in FRAME_MEMBERS})
+    load.update({f"J.{k}": 0.0 for k in ("X", "Y", "Z")})
+    return load
+
+
+def _print_frame(values: dict[str, float], type_name: str) -> str:
+    return (
+        "{" + f"{type_name}: " + ",".join(f"{k} {print_real(v)}" for k, v in values.items()) + "}"
+    )
+
+
+def _flatten(members: KrlStruct, prefix: str = "") -> dict[str, float] | None:
+    flat: dict[str, float] = {}
+    for key, value in members.items():
+        if isinstance(value, dict):
+            inner = _flatten(value, f"{prefix}{key.upper()}.")
+            if inner is None:
+                return None
+            flat.update(inner)
+        elif isinstance(value, float) and np.isfinite(value):
+            flat[f"{prefix}{key.upper()}"] = value
+        else:
+            return None
+    return flat

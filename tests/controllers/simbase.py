@@ -1,0 +1,107 @@
+"""What every socket simulator shares: a loopback listener on a free port, one thread per
+connection, start/stop, and a stalled mode that accepts connections and never answers."""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import threading
+from collections.abc import Callable
+from typing import Self
+
+
+class TcpSimulator:
+    """A TCP server on 127.0.0.1 (a free port) whose `serve` handles one connection."""
+
+    name = "simulator"
+
+    def __init__(self) -> None:
+        self.host = "127.0.0.1"
+        self.port = 0
+        #: True: accept connections, read what comes, answer nothing (a hung controller).
+        self.stalled = False
+        self._listeners: list[socket.socket] = []
+        self._connections: set[socket.socket] = set()
+        self._lock = threading.Lock()
+        self._threads: list[threading.Thread] = []
+        self.connections_accepted = 0
+
+    def start(self) -> Self:
+        """Listen on a free loopback port (the same one again after a `stop`)."""
+        self.port = self.add_listener(self.port, self.serve)
+        return self
+
+    def add_listener(self, port: int, handler: Callable[[socket.socket], None]) -> int:
+        """Listen on `port` (0: a free one) and serve its connections with `handler`."""
+        listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        listener.bind((self.host, port))
+        listener.listen(16)
+        self._listeners.append(listener)
+        self._spawn(self._accept_loop, listener, handler)
+        port_bound: int = listener.getsockname()[1]
+        return port_bound
+
+    def stop(self) -> None:
+        """Close the listeners and every open connection (a controller switched off)."""
+        listeners, self._listeners = self._listeners, []
+        for listener in listeners:
+            _shutdown(listener)
+        with self._lock:
+            connections = list(self._connections)
+            self._connections.clear()
+        for conn in connections:
+            _shutdown(conn)
+        for thread in self._threads:
+            thread.join(timeout=2)
+        self._threads = [t for t in self._threads if t.is_alive()]
+
+    def __enter__(self) -> Self:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    # --- for subclasses ---------------------------------------------------------------------
+
+    def serve(self, conn: socket.socket) -> None:
+        """Speak the protocol on one accepted connection until it closes."""
+        raise NotImplementedError
+
+    def _spawn(self, target: Callable[..., None], *args: object) -> None:
+        thread = threading.Thread(target=target, args=args, daemon=True)
+        thread.start()
+        self._threads.append(thread)
+
+    def _accept_loop(
+        self, listener: socket.socket, handler: Callable[[socket.socket], None]
+    ) -> None:
+        while True:
+            try:
+                conn, _ = listener.accept()
+            except OSError:
+                return
+            with self._lock:
+                self._connections.add(conn)
+                self.connections_accepted += 1
+            self._spawn(self._serve_one, conn, handler)
+
+    def _serve_one(self, conn: socket.socket, handler: Callable[[socket.socket], None]) -> None:
+        try:
+            if self.stalled:
+                while conn.recv(65536):
+                    pass
+            else:
+                handler(conn)
+        except OSError:
+            pass
+        finally:
+            with self._lock:
+                self._connections.discard(conn)
+            _shutdown(conn)
+
+
+def _shutdown(sock: socket.socket) -> None:
+    with contextlib.suppress(OSError):
+        sock.shutdown(socket.SHUT_RDWR)
+    sock.close()

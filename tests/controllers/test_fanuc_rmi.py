@@ -1,0 +1,203 @@
+"""The FANUC RMI connector against the RMI simulator, and the simulator against fanuc-rmi
+(a client others wrote from B-84184EN)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import time
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from scipy.spatial.transform import Rotation
+
+from app.controllers import ControllerRefused, ControllerUnreachable, ToolData, ToolTarget, connect
+from app.controllers.base import Deadline
+from app.controllers.fanuc_rmi import FanucRmiConnector, encode_packet, error_text
+from tests.controllers.fanuc_sim import FanucSimulator
+from tests.controllers.fixtures import fanuc_settings
+from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
+
+
+def fanuc_wpr(quaternion_wxyz: tuple[float, ...]) -> np.ndarray:
+    """Fanuc W, P, R of a quaternion: scipy's extrinsic x-y-z angles."""
+    w, x, y, z = quaternion_wxyz
+    wpr: np.ndarray = Rotation.from_quat([x, y, z, w]).as_euler("xyz", degrees=True)
+    return wpr
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_written_tool_is_held_in_wpr_and_reads_back_to_1e6(seed: int) -> None:
+    tool = random_tool(seed)
+    with FanucSimulator(single_precision=False) as sim, connect(fanuc_settings(sim)) as fanuc:
+        fanuc.write_tool(ToolTarget(slot=7), tool)
+        held = sim.tool(7)
+        back = fanuc.read_tool(ToolTarget(slot=7))
+    assert_allclose(held[:3], tool.position_mm, atol=1e-6)
+    assert_allclose(held[3:], fanuc_wpr(tool.quaternion), atol=1e-6)
+    assert_allclose(back.position_mm, tool.position_mm, atol=1e-6)
+    assert angle_between_deg(back.quaternion, tool.quaternion) < 1e-6
+    assert back.load is None, "RMI does not serve payloads"
+    assert sim.tool(6) == (0.0,) * 6
+
+
+def test_a_controller_holding_32_bit_reals_reads_back_within_its_resolution(
+    fanuc_sim: FanucSimulator,
+) -> None:
+    tool = random_tool(42)
+    with connect(fanuc_settings(fanuc_sim)) as fanuc:
+        fanuc.write_tool(ToolTarget(slot=10), tool)
+        back = fanuc.read_tool(ToolTarget(slot=10))
+    held = fanuc_sim.tool(10)
+    assert_allclose(held[:3], tool.position_mm, atol=float32_tolerance(tool.position_mm))
+    assert_allclose(held[3:], fanuc_wpr(tool.quaternion), atol=float32_tolerance([180.0]))
+    assert_allclose(back.position_mm, tool.position_mm, atol=1e-3)
+    assert angle_between_deg(back.quaternion, tool.quaternion) < 1e-3
+
+
+def test_the_session_follows_the_manual_and_ends_cleanly(fanuc_sim: FanucSimulator) -> None:
+    fanuc_sim.set_tool(1, 0.0, 0.0, 150.0, 90.0, 0.0, 0.0)
+    with connect(fanuc_settings(fanuc_sim)) as fanuc:
+        assert fanuc_sim.session_open
+        tool = fanuc.read_tool(ToolTarget(slot=1))
+    assert tool.position_mm == (0.0, 0.0, 150.0)
+    # W = 90 about x: the tool's y axis is the flange's z.
+    w, x, y, z = tool.quaternion
+    assert_allclose(Rotation.from_quat([x, y, z, w]).apply([0, 1, 0]), [0, 0, 1], atol=1e-9)
+    names = [p.get("Command", p.get("Communication")) for p in fanuc_sim.packets]
+    assert names == ["FRC_Initialize", "FRC_ReadUToolData", "FRC_Abort", "FRC_Disconnect"]
+    deadline = time.monotonic() + 2
+    while fanuc_sim.session_open and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert not fanuc_sim.session_open
+    with connect(fanuc_settings(fanuc_sim)):
+        pass  # a second session is accepted once the first is closed
+
+
+def test_the_controllers_errors_are_refusals_in_its_words(fanuc_sim: FanucSimulator) -> None:
+    with FanucRmiConnector(fanuc_settings(fanuc_sim)) as fanuc:
+        with pytest.raises(ControllerRefused) as err:
+            fanuc._request(
+                {"Command": "FRC_ReadUToolData", "ToolNumber": 11, "Group": 1},
+                Deadline(2.0),
+            )
+        assert err.value.controller_message == "RMIT-002 Invalid UTool Number (ErrorID 2556930)"
+        with pytest.raises(ControllerRefused, match="RMIT-013 Invalid RMI Command"):
+            fanuc._request(
+                {"Command": "FRC_ReadNoSuchThing"},
+                Deadline(2.0),
+            )
+        # A second client while this session is open: the controller serves one.
+        with pytest.raises(ControllerRefused, match="RMIT-026 Robot is Already Connected"):
+            connect(fanuc_settings(fanuc_sim))
+        assert fanuc.read_tool(ToolTarget(slot=1)).position_mm == (0.0, 0.0, 0.0)
+
+
+def test_initialize_refused_with_the_pendant_enabled(fanuc_sim: FanucSimulator) -> None:
+    fanuc_sim.teach_pendant_enabled = True
+    with pytest.raises(ControllerRefused, match="RMIT-008 Teach Pendant is Enabled"):
+        connect(fanuc_settings(fanuc_sim))
+    deadline = time.monotonic() + 2
+    while fanuc_sim.session_open and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert not fanuc_sim.session_open, "the refused session was disconnected, not left open"
+
+
+def test_a_slot_outside_1_10_never_reaches_the_wire(fanuc_sim: FanucSimulator) -> None:
+    with connect(fanuc_settings(fanuc_sim)) as fanuc, pytest.raises(ValueError, match="1-10"):
+        fanuc.write_tool(ToolTarget(slot=11), ToolData((0, 0, 0), (1, 0, 0, 0)))
+
+
+def test_a_stopped_controller_is_unreachable(fanuc_sim: FanucSimulator) -> None:
+    settings = fanuc_settings(fanuc_sim)
+    fanuc = connect(settings)
+    fanuc_sim.stop()
+    with pytest.raises(ControllerUnreachable):
+        fanuc.read_tool(ToolTarget(slot=1))
+    fanuc.close()
+    with pytest.raises(ControllerUnreachable, match="cannot connect"):
+        connect(settings)
+
+
+def test_a_controller_that_never_answers_fails_within_the_timeout(
+    fanuc_sim: FanucSimulator,
+) -> None:
+    fanuc_sim.stalled = True
+    settings = fanuc_settings(fanuc_sim, timeout_s=0.5)
+    started = time.monotonic()
+    with pytest.raises(ControllerUnreachable, match="did not answer"):
+        connect(settings)
+    elapsed = time.monotonic() - started
+    assert settings.timeout_s * 0.9 <= elapsed < settings.timeout_s + 1.0, elapsed
+
+
+def test_a_session_that_stalls_after_connecting_fails_each_call_within_the_timeout(
+    fanuc_sim: FanucSimulator,
+) -> None:
+    settings = fanuc_settings(fanuc_sim, timeout_s=0.5)
+    fanuc = connect(settings)
+    fanuc_sim.stalled = True  # the open session goes on reading and stops answering
+    started = time.monotonic()
+    with pytest.raises(ControllerUnreachable, match="did not answer"):
+        fanuc.read_tool(ToolTarget(slot=1))
+    assert settings.timeout_s * 0.9 <= time.monotonic() - started < settings.timeout_s + 1.0
+    started = time.monotonic()
+    fanuc.close()
+    assert time.monotonic() - started < 0.3, "a dead session is closed without waiting again"
+
+
+def test_error_text_names_rmit_and_memo_alarms() -> None:
+    assert error_text(2556930) == "RMIT-002 Invalid UTool Number (ErrorID 2556930)"
+    assert error_text(7015) == "MEMO-015 Program already exists (ErrorID 7015)"
+    assert error_text(12345) == "ErrorID 12345"
+
+
+def test_fanuc_rmi_client_reads_and_writes_the_simulator(fanuc_sim: FanucSimulator) -> None:
+    from fanuc_rmi import RobotClient
+
+    fanuc_sim.set_tool(2, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
+    # fanuc-rmi reads the session port from a "Port" member; B-84184EN (and this
+    # simulator) name it "PortNumber", so the client is told the port instead.
+    client = RobotClient(
+        host=fanuc_sim.host,
+        startup_port=fanuc_sim.port,
+        main_port=fanuc_sim.session_port,
+        attempts=1,
+        startup_pause=0.0,
+        socket_timeout=2.0,
+        reader_timeout=2.0,
+    )
+    with contextlib.redirect_stdout(io.StringIO()):  # the client prints every packet
+        client.connect()
+        try:
+            assert client.read_utool_data(2) == {
+                "X": 1.0,
+                "Y": 2.0,
+                "Z": 3.0,
+                "W": 4.0,
+                "P": 5.0,
+                "R": 6.0,
+            }
+            reply = client.write_utool_data(
+                2, {"X": 10.5, "Y": -20.25, "Z": 300.0, "W": 0.0, "P": -90.0, "R": 45.0}
+            )
+            assert reply["ErrorID"] == 0
+        finally:
+            client.close()
+    assert fanuc_sim.tool(2) == (10.5, -20.25, 300.0, 0.0, -90.0, 45.0)
+
+
+def test_packets_carry_plain_decimals_never_an_exponent() -> None:
+    packet = encode_packet(
+        {
+            "Command": "FRC_WriteUToolData",
+            "ToolNumber": 3,
+            "Frame": {"X": 1.5e-14, "Y": -2e-7, "Z": 150.0, "W": 1e20},
+        }
+    )
+    assert packet == (
+        b'{"Command": "FRC_WriteUToolData", "ToolNumber": 3, "Frame": {"X": 0.000000, '
+        b'"Y": 0.000000, "Z": 150.000000, "W": 100000000000000000000.000000}}\r\n'
+    )
+    assert b"e" not in packet.split(b"Frame")[1]

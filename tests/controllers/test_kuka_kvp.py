@@ -1,0 +1,232 @@
+"""The KUKAVARPROXY connector against the KRC simulator, and the simulator against
+py-openshowvar (a client others wrote from the same protocol)."""
+
+from __future__ import annotations
+
+import socket
+import struct
+import time
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from scipy.spatial.transform import Rotation
+
+from app.controllers import (
+    ControllerRefused,
+    ControllerUnreachable,
+    ToolData,
+    ToolLoad,
+    ToolTarget,
+    connect,
+)
+from app.controllers.krl import KrlSyntaxError, parse_struct
+from app.controllers.kuka_kvp import KukaKvpConnector
+from tests.controllers.fixtures import kuka_settings
+from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
+from tests.controllers.kuka_sim import KukaSimulator
+
+
+def kuka_abc(quaternion_wxyz: tuple[float, ...]) -> np.ndarray:
+    """KUKA A, B, C of a quaternion, computed here from scipy's intrinsic Z-Y'-X''."""
+    w, x, y, z = quaternion_wxyz
+    abc: np.ndarray = Rotation.from_quat([x, y, z, w]).as_euler("ZYX", degrees=True)
+    return abc
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_written_tool_is_held_in_kuka_abc_and_reads_back_to_1e6(seed: int) -> None:
+    tool = random_tool(seed)
+    assert tool.load is not None
+    with KukaSimulator(single_precision=False) as sim, connect(kuka_settings(sim)) as kuka:
+        kuka.write_tool(ToolTarget(slot=5), tool)
+        held = sim.tool(5)
+        assert_allclose(held[:3], tool.position_mm, atol=1e-6)
+        assert_allclose(held[3:], kuka_abc(tool.quaternion), atol=1e-6)
+        load = sim.load(5)
+        assert_allclose(load["M"], tool.load.mass_kg, atol=1e-6)
+        assert_allclose([load["CM.X"], load["CM.Y"], load["CM.Z"]], tool.load.cog_mm, atol=1e-6)
+        back = kuka.read_tool(ToolTarget(slot=5))
+    assert_allclose(back.position_mm, tool.position_mm, atol=1e-6)
+    assert angle_between_deg(back.quaternion, tool.quaternion) < 1e-6
+    assert back.load is not None
+    assert_allclose(back.load.cog_mm, tool.load.cog_mm, atol=1e-6)
+    assert sim.tool(4) == (0.0,) * 6, "another slot changed"
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_krc_holding_32_bit_reals_reads_back_within_its_resolution(
+    kuka_sim: KukaSimulator, seed: int
+) -> None:
+    tool = random_tool(100 + seed)
+    with connect(kuka_settings(kuka_sim)) as kuka:
+        kuka.write_tool(ToolTarget(slot=16), tool)
+        back = kuka.read_tool(ToolTarget(slot=16))
+    held = kuka_sim.tool(16)
+    assert_allclose(held[:3], tool.position_mm, atol=float32_tolerance(tool.position_mm))
+    assert_allclose(held[3:], kuka_abc(tool.quaternion), atol=float32_tolerance([180.0]))
+    assert_allclose(back.position_mm, tool.position_mm, atol=1e-3)
+    assert angle_between_deg(back.quaternion, tool.quaternion) < 1e-3
+
+
+def test_what_the_operator_types_on_the_pendant_is_read(kuka_sim: KukaSimulator) -> None:
+    kuka_sim.set_tool(3, 12.5, -4.0, 210.25, 90.0, 0.0, 180.0)
+    with connect(kuka_settings(kuka_sim)) as kuka:
+        tool = kuka.read_tool(ToolTarget(slot=3))
+    assert tool.position_mm == (12.5, -4.0, 210.25)
+    # A = 90 about Z then C = 180 about X: x -> y, y -> x, z -> -z.
+    expected = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    w, x, y, z = tool.quaternion
+    assert_allclose(Rotation.from_quat([x, y, z, w]).as_matrix(), expected, atol=1e-9)
+    assert tool.load is None, "M = -1 is the KRC's default load, not a load tcpcal can show"
+
+
+def test_a_write_without_load_keeps_the_controllers_load_and_inertia(
+    kuka_sim: KukaSimulator,
+) -> None:
+    kuka_sim.set_load(2, 7.5, (1.0, 2.0, 90.0))
+    with kuka_sim._data_lock:
+        kuka_sim.loads[2]["J.Z"] = 0.25
+    with connect(kuka_settings(kuka_sim)) as kuka:
+        kuka.write_tool(ToolTarget(slot=2), ToolData((0, 0, 100), (1, 0, 0, 0), None))
+        assert kuka.read_tool(ToolTarget(slot=2)).load == ToolLoad(7.5, (1.0, 2.0, 90.0))
+        kuka.write_tool(
+            ToolTarget(slot=2), ToolData((0, 0, 100), (1, 0, 0, 0), ToolLoad(3.0, (0, 0, 50)))
+        )
+    assert kuka_sim.load(2)["M"] == 3.0
+    assert kuka_sim.load(2)["CM.Z"] == 50.0
+    assert kuka_sim.load(2)["J.Z"] == 0.25, "the inertia tcpcal does not know was kept"
+
+
+def test_an_unknown_variable_or_index_is_refused_with_the_proxys_answer(
+    kuka_sim: KukaSimulator,
+) -> None:
+    with KukaKvpConnector(kuka_settings(kuka_sim)) as kuka:
+        with pytest.raises(ControllerRefused) as read_err:
+            kuka.read_variable("$TOOL_DATA[17]")
+        with pytest.raises(ControllerRefused) as write_err:
+            kuka.write_variable("$TOOL_DATA[17]", "{X 1.0}")
+        with pytest.raises(ControllerRefused):
+            kuka.write_variable("$TOOL_DATA[1]", "{Q 1.0}")
+        assert kuka.read_variable("$ROBNAME[]") == '"KR16_R1610_SIM"', "the session survives"
+    assert "$TOOL_DATA[17]" in read_err.value.controller_message
+    assert "empty value" in read_err.value.controller_message
+    assert "write status 0" in write_err.value.controller_message
+
+
+def test_a_slot_outside_1_16_never_reaches_the_wire(kuka_sim: KukaSimulator) -> None:
+    with connect(kuka_settings(kuka_sim)) as kuka, pytest.raises(ValueError, match="1-16"):
+        kuka.read_tool(ToolTarget(slot=17))
+    assert kuka_sim.requests == []
+
+
+def test_a_stopped_controller_is_unreachable(kuka_sim: KukaSimulator) -> None:
+    settings = kuka_settings(kuka_sim)
+    kuka = connect(settings)
+    kuka_sim.stop()
+    with pytest.raises(ControllerUnreachable):
+        kuka.read_tool(ToolTarget(slot=1))
+    kuka.close()
+    started = time.monotonic()
+    with pytest.raises(ControllerUnreachable, match="cannot connect"):
+        connect(settings)
+    assert time.monotonic() - started < settings.timeout_s
+
+
+def test_a_controller_that_never_answers_fails_within_the_timeout(kuka_sim: KukaSimulator) -> None:
+    kuka_sim.stalled = True
+    settings = kuka_settings(kuka_sim, timeout_s=0.5)
+    started = time.monotonic()
+    with pytest.raises(ControllerUnreachable, match="did not answer"), connect(settings) as kuka:
+        kuka.read_tool(ToolTarget(slot=1))
+    elapsed = time.monotonic() - started
+    assert elapsed < settings.timeout_s + 1.0, elapsed
+    assert elapsed >= settings.timeout_s * 0.9, "it gave up before its timeout"
+
+
+def test_a_session_that_stalls_after_connecting_fails_within_the_timeout(
+    kuka_sim: KukaSimulator,
+) -> None:
+    settings = kuka_settings(kuka_sim, timeout_s=0.5)
+    with connect(settings) as kuka:
+        kuka.read_tool(ToolTarget(slot=1))
+        kuka_sim.stalled = True
+        started = time.monotonic()
+        with pytest.raises(ControllerUnreachable, match="did not answer"):
+            kuka.write_tool(ToolTarget(slot=1), ToolData((0, 0, 1), (1, 0, 0, 0)))
+        assert settings.timeout_s * 0.9 <= time.monotonic() - started < settings.timeout_s + 1
+
+
+def test_replies_arriving_a_few_bytes_at_a_time_are_put_together(kuka_sim: KukaSimulator) -> None:
+    kuka_sim.split_replies = True
+    kuka_sim.set_tool(9, 1.0, 2.0, 3.0, 10.0, 20.0, 30.0)
+    with connect(kuka_settings(kuka_sim)) as kuka:
+        tool = kuka.read_tool(ToolTarget(slot=9))
+    assert tool.position_mm == (1.0, 2.0, 3.0)
+    assert_allclose(kuka_abc(tool.quaternion), [10.0, 20.0, 30.0], atol=1e-5)
+
+
+def test_the_simulator_answers_several_requests_sent_in_one_packet(kuka_sim: KukaSimulator) -> None:
+    def request(msg_id: int, name: bytes) -> bytes:
+        body = b"\x00" + struct.pack("!H", len(name)) + name
+        return struct.pack("!HH", msg_id, len(body)) + body
+
+    with socket.create_connection((kuka_sim.host, kuka_sim.port), timeout=2) as sock:
+        sock.sendall(request(7, b"PING") + request(8, b"$TOOL_DATA[1]"))
+        data = b""
+        while data.count(b"\x00\x01\x01") < 2:
+            data += sock.recv(4096)
+    assert data.startswith(b"\x00\x07\x00\x0a\x00\x00\x04PONG\x00\x01\x01")
+    assert data[14:16] == b"\x00\x08", "the second reply, with its own id"
+    assert b"{FRAME: X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}" in data
+
+
+def test_py_openshowvar_reads_and_writes_the_simulator(kuka_sim: KukaSimulator) -> None:
+    from py_openshowvar import openshowvar
+
+    kuka_sim.set_tool(4, 1.5, 2.5, 300.0, 0.0, 90.0, 0.0)
+    client = openshowvar(kuka_sim.host, kuka_sim.port)
+    try:
+        text = client.read("$TOOL_DATA[4]", debug=False)
+        assert text == b"{FRAME: X 1.5,Y 2.5,Z 300.0,A 0.0,B 90.0,C 0.0}"
+        assert client.read("$TOOL_DATA[4]", debug=False) == text, "message ids follow on"
+        echoed = client.write(
+            "$TOOL_DATA[4]", "{X 10.0,Y 20.0,Z 30.0,A 1.0,B 2.0,C 3.0}", debug=False
+        )
+        assert echoed == b"{X 10.0,Y 20.0,Z 30.0,A 1.0,B 2.0,C 3.0}"
+        # py-openshowvar returns None for a reply whose status byte is not 1.
+        assert client.write("$TOOL_DATA[99]", "{X 1.0}", debug=False) is None
+    finally:
+        client.close()
+    assert kuka_sim.tool(4) == (10.0, 20.0, 30.0, 1.0, 2.0, 3.0)
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("{FRAME: X 0.0,Y -1.5,Z 150.0,A 0.0,B 90.0,C -180.0}", {"X": 0.0, "Y": -1.5, "Z": 150.0}),
+        ("{X 1.0, Y 2.0 , Z 3.0,A 0.0,B 0.0,C 0.0}", {"X": 1.0, "Y": 2.0, "Z": 3.0}),
+        (
+            "  { FRAME :X 1.5E-05,Y 2,Z -3.25E+02,A 0,B 0,C 0 }",
+            {"X": 1.5e-5, "Y": 2.0, "Z": -325.0},
+        ),
+    ],
+)
+def test_krl_frames_as_the_krc_prints_them(text: str, expected: dict[str, float]) -> None:
+    parsed = parse_struct(text)
+    for key, value in expected.items():
+        assert parsed[key] == value
+
+
+def test_krl_nested_load_and_refusals() -> None:
+    load = parse_struct(
+        "{LOAD: M 2.5,CM {FRAME: X 0.0,Y 0.0,Z 80.0,A 0.0,B 0.0,C 0.0},"
+        "J {INERTIA: X 0.1,Y 0.2,Z 0.3}}"
+    )
+    assert load["M"] == 2.5
+    assert load["CM"] == {"X": 0.0, "Y": 0.0, "Z": 80.0, "A": 0.0, "B": 0.0, "C": 0.0}
+    assert load["J"] == {"X": 0.1, "Y": 0.2, "Z": 0.3}
+    assert parse_struct("{E6POS: }") == {}
+    for bad in ("", "X 1.0", "{X 1.0", "{X 1.0}}", "{X }", "{,}"):
+        with pytest.raises(KrlSyntaxError):
+            parse_struct(bad)
