@@ -5,15 +5,21 @@ trail needs an admin key."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 
 import httpx
 import pytest
 from playwright.sync_api import Page, expect
 
-from tests.browser.test_console import Fleet, context, page  # noqa: F401 (fixtures)
-from tests.live.server import fresh_database, live_server
+from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
+
+
+@dataclass
+class Fleet:
+    server: LiveServer
+    tools: dict[str, str]  # "robot/tool" -> id
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +37,13 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
                     json={"method": "manual", "tcp": {"position_mm": [0, 0, z]}, "note": note},
                 ).raise_for_status()
             http.post(f"/v1/tools/{tid}/versions/1/activate").raise_for_status()
-        yield Fleet(server, {"kr16": robot["id"]}, {"kr16/torch": tid}, {})
+        yield Fleet(server, {"kr16/torch": tid})
+
+
+@pytest.fixture(scope="module")
+def console_server(fleet: Fleet) -> LiveServer:
+    """The server the browser fixtures (tests/browser/conftest.py) let pages reach."""
+    return fleet.server
 
 
 def _sign_in(tab: Page, fleet: Fleet, key: str, path: str) -> None:
@@ -40,7 +52,7 @@ def _sign_in(tab: Page, fleet: Fleet, key: str, path: str) -> None:
     tab.click("#sign-in button[type=submit]")
 
 
-def test_an_admin_sees_the_tools_trail_newest_first(page: Page, fleet: Fleet) -> None:  # noqa: F811
+def test_an_admin_sees_the_tools_trail_newest_first(page: Page, fleet: Fleet) -> None:
     tid = fleet.tools["kr16/torch"]
     _sign_in(page, fleet, fleet.server.admin_key, f"/ui/tools/{tid}")
     rows = page.locator("#audit tbody tr")
@@ -59,7 +71,7 @@ def test_an_admin_sees_the_tools_trail_newest_first(page: Page, fleet: Fleet) ->
     expect(page.locator("#audit-needs-admin")).to_have_count(0)
 
 
-def test_a_read_key_is_told_the_trail_needs_an_admin_key(page: Page, fleet: Fleet) -> None:  # noqa: F811
+def test_a_read_key_is_told_the_trail_needs_an_admin_key(page: Page, fleet: Fleet) -> None:
     with fleet.server.client() as http:
         made = http.post("/v1/keys", json={"name": "viewer", "scope": "read"})
     key = made.json()["key"]
