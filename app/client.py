@@ -464,29 +464,15 @@ def audit(
 ) -> None:
     """The audit trail, newest first: when, who, what, which tool and version, and why
     (needs an admin key)."""
-    params = {
-        k: v
-        for k, v in (
-            ("tool_id", tool_id),
-            ("robot_id", robot_id),
-            ("action", action),
-            ("actor", actor),
-            ("since", since),
-            ("until", until),
-        )
-        if v
+    filters = {
+        "tool_id": tool_id,
+        "robot_id": robot_id,
+        "action": action,
+        "actor": actor,
+        "since": since,
+        "until": until,
     }
-    events: list[dict[str, Any]] = []
-    cursor = None
-    while len(events) < limit:
-        page_params = {**params, "limit": min(500, limit - len(events))}
-        if cursor:
-            page_params["cursor"] = cursor
-        body = _send("GET", "/v1/audit", params=page_params).json()
-        events += body["items"]
-        cursor = body["next_cursor"]
-        if cursor is None:
-            break
+    events = _audit_events({k: v for k, v in filters.items() if v}, limit)
     names = _tool_names({e["tool_id"] for e in events if e["tool_id"]})
     table = Table("when (UTC)", "who", "what", "tool / version", "why")
     for e in events:
@@ -502,6 +488,22 @@ def audit(
     out.print(table)
     if not events:
         out.print("no audit events match")
+
+
+def _audit_events(params: dict[str, str], limit: int) -> list[dict[str, Any]]:
+    """Up to `limit` audit events matching `params`, newest first, page after page."""
+    events: list[dict[str, Any]] = []
+    cursor = None
+    while len(events) < limit:
+        page_params: dict[str, Any] = {**params, "limit": min(500, limit - len(events))}
+        if cursor:
+            page_params["cursor"] = cursor
+        body = _send("GET", "/v1/audit", params=page_params).json()
+        events += body["items"]
+        cursor = body["next_cursor"]
+        if cursor is None:
+            break
+    return events
 
 
 def _tool_names(tool_ids: set[str]) -> dict[str, str]:
