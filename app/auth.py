@@ -167,3 +167,11 @@ def ensure_bootstrap_key(session: Session, key: str) -> None:
         session.commit()
     except IntegrityError:
         session.rollback()  # another worker inserted it first
+
+
+def authenticate_key(session: Session, key: str, *, required: str) -> Principal:
+    """The caller behind a bare API key (no Authorization header: an OPC UA password, say),
+    checked against the required scope: 401 unknown or revoked, 403 scope too small."""
+    digest = hash_key(key)
+    row = session.scalars(select(ApiKey).where(ApiKey.key_hash == digest)).one_or_none()
+    return admit(row, digest, required=required)

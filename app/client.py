@@ -429,23 +429,89 @@ def check(
 
 
 def export(
-    tool_id: Annotated[str, typer.Argument(help="the tool's id")],
+    tool_id: Annotated[str | None, typer.Argument(help="the tool's id (not with --all)")] = None,
     fmt: Annotated[
-        str, typer.Option("--format", help="kuka | abb | fanuc | ur | yaskawa | techman")
-    ],
+        str | None,
+        typer.Option(
+            "--format",
+            help="kuka | abb | fanuc | ur | yaskawa | techman (with --all: default the formats "
+            "of each robot's vendor, every format when it is not known)",
+        ),
+    ] = None,
     output: Annotated[Path | None, typer.Option("-o", "--output", help="file or directory")] = None,
+    all_dir: Annotated[
+        Path | None,
+        typer.Option(
+            "--all",
+            help="write every robot's files into this directory: DIR/<robot>/<file>, a fleet "
+            "backup a technician can restore from",
+        ),
+    ] = None,
 ) -> None:
-    """Write the active TCP as the controller's own text to a file."""
+    """Write the active TCP as the file the controller loads, or (--all DIR) every robot's."""
+    if all_dir is not None:
+        if tool_id is not None or output is not None:
+            _fail(EXIT_BAD_USE, "--all DIR writes every robot's files: give no tool id or -o")
+        _export_all(all_dir, fmt)
+        return
+    if tool_id is None or fmt is None:
+        _fail(EXIT_BAD_USE, "give a tool id and --format, or --all DIR")
     response = _send(
         "GET", f"/v1/tools/{tool_id}/tcp", params={"format": fmt}, headers={"Accept": "text/plain"}
     )
-    disposition = response.headers.get("Content-Disposition", "")
-    name = disposition.split('filename="')[-1].rstrip('"') if "filename=" in disposition else None
-    target = output or Path(name or f"{tool_id}.{fmt}.txt")
+    name = _file_name(response) or f"{tool_id}.{fmt}.txt"
+    target = output or Path(name)
     if target.is_dir():
-        target = target / (name or f"{tool_id}.{fmt}.txt")
+        target = target / name
     target.write_text(response.text)
     out.print(f"wrote {target}")
+
+
+def _file_name(response: httpx.Response) -> str | None:
+    """The file name Content-Disposition gives, without any directory part."""
+    disposition = response.headers.get("Content-Disposition", "")
+    if "filename=" not in disposition:
+        return None
+    return Path(disposition.split('filename="')[-1].rstrip('"')).name or None
+
+
+def _robots() -> list[dict[str, Any]]:
+    robots: list[dict[str, Any]] = []
+    cursor: str | None = None
+    while True:
+        params: dict[str, Any] = {"limit": 200}
+        if cursor:
+            params["cursor"] = cursor
+        page = _send("GET", "/v1/robots", params=params).json()
+        robots.extend(page["items"])
+        cursor = page.get("next_cursor")
+        if not cursor:
+            return robots
+
+
+def _export_all(directory: Path, fmt: str | None) -> None:
+    """DIR/<robot>/: each format's file of the robot's tools, and the tool table as JSON."""
+    from app.exports import vendor_formats
+    from app.exports.names import file_stem
+
+    robots = _robots()
+    used: set[str] = set()
+    for robot in robots:
+        folder_name = file_stem(robot["name"], 80)
+        while folder_name.lower() in used:
+            folder_name += "_"
+        used.add(folder_name.lower())
+        folder = directory / folder_name
+        folder.mkdir(parents=True, exist_ok=True)
+        path = f"/v1/robots/{robot['id']}/tool-table"
+        table = _send("GET", path).json()
+        (folder / "tool-table.json").write_text(json.dumps(table, indent=2) + "\n")
+        for each in (fmt,) if fmt else vendor_formats(robot.get("vendor")):
+            response = _send("GET", path, params={"format": each}, headers={"Accept": "text/plain"})
+            target = folder / (_file_name(response) or f"tools.{each}.txt")
+            target.write_text(response.text)
+            out.print(f"wrote {target}", highlight=False)
+    out.print(f"{len(robots)} robot(s) written to {directory}", highlight=False)
 
 
 # ---- the audit trail ----------------------------------------------------------------------

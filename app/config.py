@@ -32,6 +32,12 @@ class Settings(BaseSettings):
         "worker); default: one per core but one (the event loop's); 0 solves in the request's "
         "thread",
     )
+    public_url: str | None = Field(
+        default=None,
+        description="The server's URL as technicians and cell PCs reach it (e.g. "
+        "https://tcpcal.plant.example), written into controller files' headers; default: "
+        "the URL each request came to.",
+    )
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."
     )

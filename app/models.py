@@ -356,3 +356,34 @@ class GuidedSession(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str] = mapped_column(String(200))
+
+
+class OutboxMessage(Base):
+    """A change a consumer of the plant must see (MQTT, OPC UA), written in the transaction
+    of the change by app.services.outbox and read by `tcpcal publish` (app.publish).
+
+    `id` orders the messages as their transactions committed (app.services.outbox says how);
+    `delivered_at` is set once every sink acknowledged the message, and delivered rows are
+    pruned by the publisher.
+    """
+
+    __tablename__ = "outbox"
+    __table_args__ = (
+        # The publisher's drain: undelivered rows in id order, and the oldest one's age.
+        Index(
+            "ix_outbox_undelivered",
+            "id",
+            sqlite_where=text("delivered_at IS NULL"),
+            postgresql_where=text("delivered_at IS NULL"),
+        ),
+        Index("ix_outbox_delivered_at", "delivered_at"),
+    )
+
+    id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    action: Mapped[str] = mapped_column(String(60))
+    robot_id: Mapped[str | None] = mapped_column(String(36))
+    tool_id: Mapped[str | None] = mapped_column(String(36))
+    #: The event as published: action, tool_id, robot_id, version, actor, at, request_id.
+    payload: Mapped[JsonObject] = mapped_column(JSON)
+    delivered_at: Mapped[datetime | None] = mapped_column()

@@ -52,6 +52,7 @@ def database(
 
 
 TABLES = (
+    "outbox",
     "guided_sessions",
     "audit_events",
     "idempotency_records",

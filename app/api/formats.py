@@ -5,6 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from app.deps import ReadKey
+from app.exports import FILE_KINDS
 from app.kinematics.poses import (
     POSE_FORMATS,
     ROTATION_CONVENTIONS,
@@ -38,4 +39,4 @@ def all_formats() -> list[FormatInfo]:
 def list_formats(key: ReadKey) -> FormatList:
     """Every pose format: the names of its numbers in order, its default units (overridden
     by a request's `units`) and how its numbers make the rotation."""
-    return FormatList(items=all_formats())
+    return FormatList(items=all_formats(), controller_files=dict(FILE_KINDS))

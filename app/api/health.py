@@ -8,6 +8,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from app.db import get_engine
 from app.deps import ReadKey
+from app.fleet_metrics import FLEET
 from app.metrics import render
 from app.migrate import current_revision, head_revision
 
@@ -39,7 +40,8 @@ def ready() -> JSONResponse:
 
 @router.get("/metrics", response_class=PlainTextResponse)
 def metrics(key: ReadKey) -> Response:
-    """Prometheus text of the whole server (every worker); scrape with a read key (bearer
-    token): only /health and /ready are open without one."""
-    body, content_type = render()
+    """Prometheus text of the whole server (every worker) and of the fleet's state (read from
+    the database at each scrape); scrape with a read key (bearer token): only /health and
+    /ready are open without one."""
+    body, content_type = render(FLEET)
     return Response(body, media_type=content_type)

@@ -4,19 +4,18 @@ from __future__ import annotations
 
 from typing import Annotated, cast
 
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Header, Query, Request, Response
 from fastapi.responses import PlainTextResponse
 
 from app.api.params import PathId, RawParam, VersionNumber
 from app.api.tools import IfMatch
 from app.db import loop_engine
 from app.deps import CalibrateKey, ReadKey, SessionDep
-from app.exports import file_name
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
 from app.middleware import KEY_NAME
 from app.schemas.common import CONTROLLER_FORMATS, ID_PATTERN, ControllerFormat
 from app.schemas.tools import ActiveTcp, Tool, ToolTable, Version, VersionList
-from app.services import tools, versions
+from app.services import export_files, tools, versions
 
 router = APIRouter(tags=["versions"])
 
@@ -49,6 +48,10 @@ ACCEPT = RawParam(
     "header", "accept", "Accept", "at most 1000 characters (e.g. text/plain)", max_length=1000
 )
 FormatQuery = Annotated[ControllerFormat | None, Query(description="controller text format")]
+AcceptHeader = Annotated[
+    str | None,
+    Header(max_length=1000, description="text/plain: the controller file (with ?format=)"),
+]
 
 
 # First: the route cell controllers poll is matched before the others.
@@ -64,12 +67,16 @@ FormatQuery = Annotated[ControllerFormat | None, Query(description="controller t
 async def get_active_tcp(request: Request) -> Response:
     """The active TCP a cell controller reads, with a strong ETag (If-None-Match -> 304);
     `?format=` adds the controller's own text. With `Accept: text/plain` (and `?format=`) the
-    controller text alone, as a file to save and load (Content-Disposition names it)."""
+    file the controller loads (a RAPID module, $config.dat lines, a TP program, TOOL.CND, a
+    URScript function, a TMscript line) with a header saying which version, calibrated when
+    and by whom (Content-Disposition names it)."""
     tool_id = TOOL_ID.read(request)
     assert tool_id is not None  # a path parameter
     format = cast(ControllerFormat | None, FORMAT.read(request))
     if_none_match = IF_NONE_MATCH.read(request)
     as_text = "text/plain" in (ACCEPT.read(request) or "")
+    if as_text:
+        return _served_file(request, tool_id, format, if_none_match)
     # The hot path, on the event loop without a threadpool hop: the key check and the read
     # are one indexed statement (tens of microseconds on SQLite, one round trip on PostgreSQL).
     key, document, etag = versions.served_tcp_for_key(
@@ -78,18 +85,33 @@ async def get_active_tcp(request: Request) -> Response:
         tool_id=tool_id,
         fmt=format,
         if_none_match=if_none_match,
-        as_text=as_text,
     )
     request.scope[KEY_NAME] = key.name  # for the access log line; never the key
     headers = {"ETag": etag, "Vary": "Accept"}
     if document is None:
         return Response(status_code=304, headers=headers)
-    if as_text and document.controller is not None and format is not None:
-        name = file_name(format, document.tool_name, document.slot)
-        headers["Content-Disposition"] = f'attachment; filename="{name}"'
-        return PlainTextResponse(document.controller.text, headers=headers)
     # Serialised by pydantic in one pass (no dict, no json.dumps); validated when it was built.
     return Response(document.model_dump_json(), media_type="application/json", headers=headers)
+
+
+def _served_file(
+    request: Request, tool_id: str, format: str | None, if_none_match: str | None
+) -> Response:
+    """The tool's controller file (Content-Disposition names it), or 304."""
+    key, served, etag = export_files.served_file_for_key(
+        loop_engine(),
+        authorization=request.headers.get("authorization"),
+        tool_id=tool_id,
+        fmt=format,
+        if_none_match=if_none_match,
+        base_url=str(request.base_url),
+    )
+    request.scope[KEY_NAME] = key.name
+    headers = {"ETag": etag, "Vary": "Accept"}
+    if served is None:
+        return Response(status_code=304, headers=headers)
+    headers["Content-Disposition"] = f'attachment; filename="{served.name}"'
+    return PlainTextResponse(served.text, headers=headers)
 
 
 @router.get("/v1/tools/{tool_id}/versions", response_model=VersionList)
@@ -129,10 +151,26 @@ def activate_version(
     return tool
 
 
-@router.get("/v1/robots/{robot_id}/tool-table", response_model=ToolTable)
+@router.get(
+    "/v1/robots/{robot_id}/tool-table",
+    response_model=ToolTable,
+    responses={200: {"content": {"text/plain": {"schema": {"type": "string"}}}}},
+)
 def tool_table(
-    robot_id: PathId, session: SessionDep, key: ReadKey, format: FormatQuery = None
+    robot_id: PathId,
+    request: Request,
+    session: SessionDep,
+    key: ReadKey,
+    format: FormatQuery = None,
+    accept: AcceptHeader = None,
 ) -> object:
     """Every live tool of a robot with its active TCP, in one answer; tools without one are
-    listed apart."""
+    listed apart. With `Accept: text/plain` (and `?format=`) one file holding all of the
+    robot's tools, as the controller loads it (Content-Disposition names it)."""
+    if "text/plain" in (accept or ""):
+        served = export_files.robot_file(
+            session, robot_id=robot_id, fmt=format, base_url=str(request.base_url)
+        )
+        headers = {"Content-Disposition": f'attachment; filename="{served.name}"', "Vary": "Accept"}
+        return PlainTextResponse(served.text, headers=headers)
     return versions.tool_table(session, robot_id=robot_id, fmt=format)

@@ -341,7 +341,7 @@ async function toolPage(toolId) {
 
   if (versions.items.length) plotTcp(versions.items, sigmaOf);
   if (checks.length) plotChecks(checks, tool.tolerance.check_mm);
-  if (tool.active_version !== null) await fillControllers(toolId, controllers, controllerBox);
+  if (tool.active_version !== null) await fillControllers(toolId, controllers, formats.controller_files || {}, controllerBox);
 }
 
 // ---- the audit trail (admin keys) ------------------------------------------------------------
@@ -386,7 +386,7 @@ async function auditSection(toolId) {
       : h("p", {}, "No changes recorded for this tool."));
 }
 
-async function fillControllers(toolId, controllers, box) {
+async function fillControllers(toolId, controllers, files, box) {
   const cards = await Promise.all(controllers.map(async (fmt) => {
     const name = fmt;
     let doc;
@@ -399,7 +399,8 @@ async function fillControllers(toolId, controllers, box) {
     const text = doc.controller.text;
     const copy = h("button", { type: "button", class: "copy" }, "Copy");
     copy.addEventListener("click", () => copyText(text, copy));
-    const save = h("button", { type: "button", class: "download" }, "Download");
+    const kind = files[name] || "file";
+    const save = h("button", { type: "button", class: "download", title: `the ${kind} the controller loads, with a header naming the version` }, `Download ${kind}`);
     save.addEventListener("click", () => download(`/v1/tools/${toolId}/tcp?format=${name}`, "text/plain", `${name}.txt`));
     return h("div", { class: "card", "data-format": name }, h("h3", {}, name), h("pre", {}, text), h("div", { class: "actions" }, copy, save));
   }));

@@ -30,6 +30,7 @@ from app.exports.base import (
     parse_error,
     rounded,
 )
+from app.exports.names import identifier
 from app.solvers.validation import check_finite, normalised_quaternions
 
 FORMAT = "abb"
@@ -58,14 +59,9 @@ _PATTERN = re.compile(
 
 
 def rapid_identifier(name: str) -> str:
-    """`name` made a valid RAPID data name: [A-Za-z][A-Za-z0-9_]*, <= 32 chars, not reserved."""
-    ident = re.sub(r"[^A-Za-z0-9_]", "_", name.strip())
-    if not ident or not ident[0].isalpha():
-        ident = "t" + ident
-    ident = ident[:MAX_IDENTIFIER]
-    if ident.lower() in _RESERVED:
-        ident = (ident[: MAX_IDENTIFIER - 2] + "_1") if ident.lower() != "tool0" else "tool0_1"
-    return ident
+    """`name` made a valid RAPID data name: [A-Za-z][A-Za-z0-9_]*, <= 32 chars, not reserved
+    (accents taken off, other characters an underscore, "t" in front of a leading digit)."""
+    return identifier(name, MAX_IDENTIFIER, fallback="t", reserved=_RESERVED)
 
 
 def _checked_load(tool: ToolData) -> tuple[float, FloatArray]:

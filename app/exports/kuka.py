@@ -36,7 +36,7 @@ FORMAT = "kuka"
 MAX_SLOT = 16
 _FIELDS = ("X", "Y", "Z", "A", "B", "C")
 _PATTERN = re.compile(
-    r"\$TOOL_DATA\[\s*(\d+)\s*\]\s*=\s*\{\s*"
+    r"(?<![A-Za-z0-9_])\$?TOOL_DATA\[\s*(\d+)\s*\]\s*=\s*\{\s*"
     + r"\s*,\s*".join(rf"{name}\s+({NUMBER})" for name in _FIELDS)
     + r"\s*\}",
     re.IGNORECASE,
@@ -69,7 +69,8 @@ def export_kuka(tool: ToolData) -> ControllerExport:
 
 
 def parse_kuka(text: str) -> tuple[FloatArray, FloatArray]:
-    """KRL ``$TOOL_DATA[n]={X,Y,Z,A,B,C}`` -> (position (3,) mm, quaternion wxyz (4,))."""
+    """KRL ``$TOOL_DATA[n]={X,Y,Z,A,B,C}`` (or $config.dat's ``TOOL_DATA[n]=...``) ->
+    (position (3,) mm, quaternion wxyz (4,))."""
     match = _PATTERN.search(text)
     if match is None:
         raise parse_error(FORMAT, "$TOOL_DATA[n]={X x,Y y,Z z,A a,B b,C c}", text)

@@ -23,8 +23,9 @@ independent public code or manual excerpts", not "checked on a controller"):
   "Tool Load Information ... registered in the tool file", mirrored at
   https://stockdcs.com/Product/2630.html). INFORM sets a tool with ``SETTOOL TL#(n) P...``
   whose P variable holds 0.001 mm / 0.01 deg integers (RoboDK Motoman.py ``setTool``).
-  NOT VERIFIED: our ``TOOL[n]: X .. Rz .. W .. Xg ..`` line is our own layout, neither
-  TOOL.CND nor INFORM; tool numbers 0..63 (YRC1000/DX200; NX100 had 0..23, per its job data
+  NOT VERIFIED: our ``TOOL[n]: X .. Rz .. W .. Xg ..`` line (the JSON ``controller.text``) is
+  our own layout, neither TOOL.CND nor INFORM (the file is app.exports.cnd_file's TOOL.CND);
+  tool numbers 0..63 (YRC1000/DX200; NX100 had 0..23, per its job data
   format manual "///TOOL <N>: Tool No.(0 to 23)").
 - Techman. VERIFIED: ``ChangeTCP`` takes X, Y, Z, RX, RY, RZ (mm, deg) then the mass (kg):
   the Expression Editor manual's syntaxes (as summarised by third-party notes, manual
@@ -60,6 +61,7 @@ from app.exports.base import (
     parse_error,
     rounded,
 )
+from app.exports.names import ascii_text
 from app.kinematics.poses import (
     fanuc_wpr_from_matrix,
     matrix_from_fanuc_wpr,
@@ -77,14 +79,14 @@ _PREFIX = {"fanuc": "UTOOL", "yaskawa": "TOOL"}
 _SLOTS = {"fanuc": (1, 10), "yaskawa": (0, 63)}
 
 
-def _xyz_wpr(tool: ToolData) -> FloatArray:
+def xyz_wpr(tool: ToolData) -> FloatArray:
     position, quaternion = checked_tcp(tool)
     wpr = fanuc_wpr_from_matrix(matrix_from_quaternion_wxyz(quaternion))
     numbers: FloatArray = np.concatenate([position, wpr])
     return numbers
 
 
-def _check_slot(fmt: str, slot: int | None) -> None:
+def check_slot(fmt: str, slot: int | None) -> None:
     low, high = _SLOTS[fmt]
     if slot is not None and not low <= slot <= high:
         raise InvalidInput(
@@ -109,18 +111,18 @@ def _fields_text(fmt: str, numbers: FloatArray) -> str:
 
 def export_fanuc(tool: ToolData) -> ControllerExport:
     """``UTOOL[n]: X .. Y .. Z .. W .. P .. R ..`` (mm, deg), as on the Direct Entry screen."""
-    _check_slot("fanuc", tool.slot)
-    numbers = _xyz_wpr(tool)
+    check_slot("fanuc", tool.slot)
+    numbers = xyz_wpr(tool)
     head = f"UTOOL[{tool.slot}]" if tool.slot is not None else "UTOOL"
     values: dict[str, object] = {"slot": tool.slot, **_named_values("fanuc", numbers)}
-    text = f"{head}: {_fields_text('fanuc', numbers)}  ! {comment_text(tool.name)}"
+    text = f"{head}: {_fields_text('fanuc', numbers)}  ! {ascii_text(tool.name, 40, drop=';')}"
     return ControllerExport(format="fanuc", text=text, values=values)
 
 
 def export_yaskawa(tool: ToolData) -> ControllerExport:
     """``TOOL[n]: X Y Z Rx Ry Rz`` (mm, deg) and, with a load, ``W Xg Yg Zg`` (kg, mm)."""
-    _check_slot("yaskawa", tool.slot)
-    numbers = _xyz_wpr(tool)
+    check_slot("yaskawa", tool.slot)
+    numbers = xyz_wpr(tool)
     head = f"TOOL[{tool.slot}]" if tool.slot is not None else "TOOL"
     values: dict[str, object] = {"slot": tool.slot, **_named_values("yaskawa", numbers)}
     text = f"{head}: {_fields_text('yaskawa', numbers)}"
@@ -131,13 +133,13 @@ def export_yaskawa(tool: ToolData) -> ControllerExport:
             for label, c in zip(("Xg", "Yg", "Zg"), tool.cog_mm, strict=True):
                 values[label] = rounded(c, MM_DECIMALS)
                 text += f" {label} {fmt_number(c, MM_DECIMALS)}"
-    text = f"{text}  // {comment_text(tool.name)}"
+    text = f"{text}  // {ascii_text(tool.name, 40)}"
     return ControllerExport(format="yaskawa", text=text, values=values)
 
 
 def export_techman(tool: ToolData) -> ControllerExport:
     """TMscript ``ChangeTCP({X,Y,Z,RX,RY,RZ})`` (mm, deg), with the mass when known."""
-    numbers = _xyz_wpr(tool)
+    numbers = xyz_wpr(tool)
     values: dict[str, object] = {"slot": tool.slot, **_named_values("techman", numbers)}
     pose = ",".join(fmt_number(v, d) for v, d in zip(numbers, _DECIMALS, strict=True))
     if tool.mass_kg is not None and tool.mass_kg > 0:
@@ -149,7 +151,7 @@ def export_techman(tool: ToolData) -> ControllerExport:
     return ControllerExport(format="techman", text=text, values=values)
 
 
-def _tcp_from_numbers(numbers: list[float]) -> tuple[FloatArray, FloatArray]:
+def tcp_from_numbers(numbers: list[float]) -> tuple[FloatArray, FloatArray]:
     position: FloatArray = np.array(numbers[:3])
     quaternion = quaternion_wxyz_from_matrix(matrix_from_fanuc_wpr(np.array(numbers[3:6])))
     return position, quaternion
@@ -161,7 +163,7 @@ def _parse_labelled(fmt: str, text: str) -> tuple[FloatArray, FloatArray]:
     match = re.search(rf"(?<![A-Za-z]){pattern}", text)
     if match is None:
         raise parse_error(fmt, " ".join(f"{label} <number>" for label in labels), text)
-    return _tcp_from_numbers([float(g) for g in match.groups()])
+    return tcp_from_numbers([float(g) for g in match.groups()])
 
 
 # TP: a tool frame loaded from a position register whose six elements were set one by one,
@@ -182,7 +184,7 @@ def _parse_fanuc_tp(text: str) -> tuple[FloatArray, FloatArray] | None:
             elements[int(match.group(2))] = float(match.group(3))
     if len(elements) < 6:
         return None
-    return _tcp_from_numbers([elements[i] for i in range(1, 7)])
+    return tcp_from_numbers([elements[i] for i in range(1, 7)])
 
 
 def parse_fanuc(text: str) -> tuple[FloatArray, FloatArray]:
@@ -205,4 +207,4 @@ def parse_techman(text: str) -> tuple[FloatArray, FloatArray]:
     match = re.search(rf"ChangeTCP\s*\(\s*(\{{)?\s*{six}\s*(?(1)\}})\s*[,)]", text)
     if match is None:
         raise parse_error("techman", "ChangeTCP({X,Y,Z,RX,RY,RZ})", text)
-    return _tcp_from_numbers([float(g) for g in match.groups()[1:]])
+    return tcp_from_numbers([float(g) for g in match.groups()[1:]])

@@ -25,3 +25,8 @@ class FormatList(BaseModel):
         default_factory=lambda: list(get_args(ControllerFormat)),
         description="the controller text formats of GET /v1/tools/{id}/tcp?format=",
     )
+    controller_files: dict[str, str] = Field(
+        default_factory=dict,
+        description="what each controller format's file is (GET /v1/tools/{id}/tcp?format= "
+        'with Accept: text/plain), e.g. {"abb": "RAPID module"}',
+    )

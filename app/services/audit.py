@@ -15,6 +15,7 @@ from app.db import DriverWrite
 from app.jsontypes import JsonObject
 from app.logs import REQUEST_ID, events_logger
 from app.models import AuditEvent, table_of, utcnow
+from app.services import outbox
 
 
 def record(
@@ -159,6 +160,7 @@ def _write_rows(session: Session) -> None:
     rows = session.info.pop(_ROWS, None)
     if rows:
         _INSERT.execute(session, rows)
+        outbox.write(session, rows)  # the plant hears of the same changes, in this transaction
 
 
 @sa_event.listens_for(Session, "after_commit")

@@ -2,7 +2,7 @@
 API keys can be limited to robot cells
 
 Revision ID: 2026_11_24_audit_scoped_keys
-Revises: 2026_11_23_tools_live_created
+Revises: 2026_11_24_outbox
 Create Date: 2026-11-24 05:20:00
 """
 
@@ -14,7 +14,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = "2026_11_24_audit_scoped_keys"
-down_revision: str | None = "2026_11_23_tools_live_created"
+down_revision: str | None = "2026_11_24_outbox"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

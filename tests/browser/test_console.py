@@ -211,10 +211,21 @@ def test_tool_page_plots_versions_serves_controller_text_and_rolls_back(
         text = http.get(f"/v1/tools/{tool_id}/tcp", params={"format": "kuka"}).json()
     expect(kuka.locator("pre")).to_have_text(text["controller"]["text"])
     expect(page.locator("#controllers .card")).to_have_count(6)
+    # Each button says what the file is (issue 27); KUKA's is the $config.dat lines, header
+    # first, holding the card's TOOL_DATA without the "$" KUKAVARPROXY reads it by.
+    expect(kuka.get_by_role("button", name="Download $config.dat lines")).to_be_visible()
+    expect(page.locator("#controllers [data-format=abb] button.download")).to_have_text(
+        "Download RAPID module"
+    )
+    expect(page.locator("#controllers [data-format=fanuc] button.download")).to_have_text(
+        "Download TP program (.LS)"
+    )
     with page.expect_download() as info:
-        kuka.get_by_role("button", name="Download").click()
+        kuka.get_by_role("button", name="Download $config.dat lines").click()
     saved = open(info.value.path(), encoding="utf-8").read()  # noqa: SIM115
-    assert saved.strip() == text["controller"]["text"]
+    assert saved.startswith("; tcpcal tool data\n")
+    assert saved.endswith("\n")
+    assert text["controller"]["text"].lstrip("$") in saved.splitlines()
     assert info.value.suggested_filename.endswith(".dat")
 
     # A stale page: someone activates version 1 elsewhere; this page's click gets a 412,

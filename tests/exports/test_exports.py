@@ -188,13 +188,15 @@ def test_names_cannot_inject_lines() -> None:
     ("name", "ident"),
     [
         ("gripper", "gripper"),
-        ("Weld gun #2", "Weld_gun__2"),
+        ("Weld gun #2", "Weld_gun_2"),
         ("2nd tool", "t2nd_tool"),
         ("", "t"),
         ("tool0", "tool0_1"),
         ("PERS", "PERS_1"),
         ("a" * 40, "a" * 32),
-        ("Düse", "D_se"),
+        ("Düse", "Duse"),
+        ("🔥" * 60, "t"),
+        ("🔥 torch", "torch"),
     ],
 )
 def test_rapid_identifier(name: str, ident: str) -> None:
@@ -294,3 +296,11 @@ def test_parse_refuses_garbage(fmt: str) -> None:
         parse_controller_text(fmt, "hello robot")
     assert info.value.kind == "invalid-pose"
     assert info.value.loc == ("text",)
+
+
+@pytest.mark.parametrize("fmt", ["fanuc", "yaskawa"])
+def test_json_comments_hold_no_emoji(fmt: str) -> None:
+    """Issue 27: an emoji in the tool's name went into the Fanuc and Yaskawa comments."""
+    out = export_tool(fmt, tool(name="🔥 Düse torch"))
+    assert out.text.isascii()
+    assert out.text.endswith("Duse torch")

@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from app.cli import cli
+from app.exports import parse_controller_file
 from app.kinematics.poses import pose_to_format
 from tests.live.server import LiveServer, fresh_database, live_server
 from tests.sim.touches import Touches, simulate_touches
@@ -109,7 +110,46 @@ def test_client_calibrates_lists_rolls_back_exports_and_checks(
     exported = run.invoke(cli, ["export", tid, "--format", "kuka", "-o", str(tmp_path)])
     assert exported.exit_code == 0, exported.output
     text = (tmp_path / "tool3_torch.dat").read_text()
-    assert text.startswith("$TOOL_DATA[3]={X ")
+    assert text.startswith("; tcpcal tool data\n")  # the $config.dat lines, with their header
+    assert "\nTOOL_DATA[3]={X " in text
+
+    # A fleet backup: every robot's files, each in the formats of its vendor (all six when the
+    # vendor is not known), and the tool table as JSON; each file reads back to the active TCP.
+    with server.client() as http:
+        abb = http.post("/v1/robots", json={"name": "irb 🤖 4600", "vendor": "ABB"}).json()
+        gun = http.post(
+            f"/v1/robots/{abb['id']}/tools",
+            json={"name": "tGun", "load": {"mass_kg": 3.2, "cog_mm": [0, 0, 90]}},
+        ).json()
+        http.post(
+            f"/v1/tools/{gun['id']}/calibrations",
+            json={"method": "manual", "tcp": {"position_mm": [0, 0, 250]}},
+        ).raise_for_status()
+        active = http.get(f"/v1/tools/{tid}/tcp").json()["tcp"]["position_mm"]
+    backup = tmp_path / "backup"
+    written = run.invoke(cli, ["export", "--all", str(backup)])
+    assert written.exit_code == 0, written.output
+    assert sorted(p.name for p in (backup / "irb_4600").iterdir()) == [
+        "tcpcal_tools.mod",
+        "tool-table.json",
+    ]
+    kuka_files = sorted(p.name for p in (backup / "kr16").iterdir())
+    assert kuka_files == [
+        "TCPUTALL.LS", "TOOL.CND", "config_tools.dat", "tcpcal_tools.mod",
+        "tcpcal_tools.script", "tcpcal_tools.txt", "tool-table.json",
+    ]  # fmt: skip
+    for fmt, name in [("fanuc", "TCPUTALL.LS"), ("kuka", "config_tools.dat")]:
+        (parsed,) = [
+            t
+            for t in parse_controller_file(fmt, (backup / "kr16" / name).read_text())
+            if t.slot == 3
+        ]
+        assert np.allclose(parsed.position_mm, active, atol=1e-3)
+    (rapid,) = parse_controller_file("abb", (backup / "irb_4600" / "tcpcal_tools.mod").read_text())
+    assert (rapid.name, rapid.mass_kg) == ("tGun", 3.2)
+    assert "left out: torch" in (backup / "kr16" / "tcpcal_tools.mod").read_text()
+    bad_use = run.invoke(cli, ["export", tid, "--all", str(backup)])
+    assert bad_use.exit_code == 2
 
     with server.client() as http:
         pin = http.post(

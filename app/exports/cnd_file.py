@@ -1,0 +1,124 @@
+"""Yaskawa: TOOL.CND, the tool file as the controller saves and loads it.
+
+Followed: TOOL.CND files of controller backups in public repositories (DX100/FS100
+SinaiAranda/motoman_sda20d_sys TOOL.CND; DX200 lukelalondePZ/Fiberdome-GP88-Spindle-Cell
+TOOL.CND; YRC1000 lukelalondePZ/Komatsu-Press-Demo TOOL.CND), each tool a block::
+
+    //TOOL 0
+    ///NAME STANDARD TOOL
+    0.000,0.000,0.000,0.0000,90.0000,0.0000      X Y Z (mm, 3 decimals), Rx Ry Rz (deg, 4)
+    -16.507,-21.039,-136.477                      centre of gravity Xg Yg Zg (mm, flange)
+    104.011                                       mass W (kg)
+    0.000,0.000,0.000                             moments of inertia Ix Iy Iz (kg m2)
+    0.000,0,1                                     (not described publicly: written as the
+                                                   backups write it for a tool set by hand)
+
+and the Yaskawa manuals' "Tool Load Information ... registered in the tool file" (W, Xg, Yg,
+Zg; Ix, Iy, Iz) for the meaning of lines 2-4. Rx Ry Rz are the fixed-axis angles of
+app.exports.wpr (R = Rz Ry Rx). YRC1000 backups carry a ``///CRC`` line per block, a
+checksum whose algorithm is not public: it is left out, as the DX100/DX200 files have none.
+
+A condition file has no comment syntax: nothing but the blocks can be in it, so this file has
+no header (tool, version, calibration), only each tool's ``///NAME`` (at most 16 characters,
+ASCII, no comma). A robot's table holds the blocks of the tools tcpcal has (by tool number,
+0-63); the controller's other tools are not written. Save it as TOOL.CND and load it from the
+pendant's external memory (EX. MEMORY -> LOAD -> CONDITION DATA -> TOOL DATA).
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from app.errors import InvalidInput
+from app.exports.base import NUMBER, ToolData, parse_error
+from app.exports.files import ControllerFile, FileContext, FileTool, ParsedTool, split_fitting
+from app.exports.names import ascii_text
+from app.exports.wpr import check_slot, tcp_from_numbers, xyz_wpr
+
+FORMAT = "yaskawa"
+NAME_CHARS = 16
+MM_DECIMALS = 3
+DEG_DECIMALS = 4
+_UNKNOWN_LAST_LINE = "0.000,0,1"
+
+_N = rf"\s*({NUMBER})\s*"
+_BLOCK = re.compile(
+    r"^//TOOL\s+(\d+)\s*\n(?:///(?!NAME)[^\n]*\n)*///NAME ?([^\n]*)\n"
+    rf"{_N},{_N},{_N},{_N},{_N},{_N}\n{_N},{_N},{_N}\n{_N}\n",
+    re.MULTILINE,
+)
+
+
+def check_tool(tool: ToolData) -> None:
+    """A Yaskawa tool needs its tool number (0-63): InvalidInput otherwise."""
+    if tool.slot is None:
+        raise InvalidInput(
+            "invalid-options",
+            "a Yaskawa tool needs its tool number (slot 0..63) for TOOL.CND; it has none: "
+            "set the tool's slot",
+            loc=("slot",),
+        )
+    check_slot(FORMAT, tool.slot)
+    xyz_wpr(tool)
+
+
+def tool_name(name: str) -> str:
+    """A ///NAME value: ASCII, no comma, at most 16 characters."""
+    return ascii_text(name, NAME_CHARS, drop=",")
+
+
+def _fixed(value: float, decimals: int) -> str:
+    return f"{round(float(value), decimals) + 0.0:.{decimals}f}"
+
+
+def block(tool: ToolData) -> list[str]:
+    """One tool's seven lines."""
+    numbers = xyz_wpr(tool)
+    pose = [_fixed(v, MM_DECIMALS) for v in numbers[:3]]
+    pose += [_fixed(v, DEG_DECIMALS) for v in numbers[3:]]
+    has_load = tool.mass_kg is not None and tool.cog_mm is not None
+    cog = tool.cog_mm if tool.cog_mm is not None and has_load else np.zeros(3)
+    mass = tool.mass_kg if tool.mass_kg is not None else 0.0
+    return [
+        f"//TOOL {tool.slot}",
+        f"///NAME {tool_name(tool.name)}".rstrip(),
+        ",".join(pose),
+        ",".join(_fixed(c, MM_DECIMALS) for c in cog),
+        _fixed(mass, MM_DECIMALS),
+        "0.000,0.000,0.000",
+        _UNKNOWN_LAST_LINE,
+    ]
+
+
+def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
+    """The tools' blocks by tool number."""
+    kept, left = split_fitting(tools, check_tool, context)
+    lines: list[str] = []
+    for item in sorted(kept, key=lambda t: t.data.slot or 0):
+        lines += block(item.data)
+    text = "\n".join(lines) + "\n" if lines else ""
+    return ControllerFile(FORMAT, "TOOL.CND", text, tuple(left))
+
+
+def read(text: str) -> list[ParsedTool]:
+    """Every //TOOL block of a TOOL.CND text."""
+    tools = []
+    for match in _BLOCK.finditer(text.replace("\r\n", "\n")):
+        numbers = [float(g) for g in match.groups()[2:]]
+        position, quaternion = tcp_from_numbers(numbers[:6])
+        mass = numbers[9]
+        tools.append(
+            ParsedTool(
+                slot=int(match.group(1)),
+                name=match.group(2).strip() or None,
+                position_mm=position,
+                quaternion_wxyz=quaternion,
+                mass_kg=mass if mass > 0 else None,
+                cog_mm=np.array(numbers[6:9]) if mass > 0 else None,
+            )
+        )
+    if not tools:
+        raise parse_error(FORMAT, "TOOL.CND blocks (//TOOL n, ///NAME, X,Y,Z,Rx,Ry,Rz ...)", text)
+    return tools

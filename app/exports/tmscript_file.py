@@ -1,0 +1,61 @@
+"""Techman: TMscript lines that change the TCP, one per tool, for a TMflow Script or SET node.
+
+Followed: the TMflow *Expression Editor and Listen Node* manual's ``ChangeTCP(float[],
+float)`` (X Y Z mm, RX RY RZ deg, then the tool's mass kg), as app.exports.wpr sets out with
+its sources; TMscript comments are ``//`` to the end of the line and array literals use
+braces. Paste the line of the tool in use into the flow (a robot's table lists one line per
+tool, each under a comment naming it).
+"""
+
+from __future__ import annotations
+
+import re
+
+from app.exports.base import parse_error
+from app.exports.files import (
+    ControllerFile,
+    FileContext,
+    FileTool,
+    ParsedTool,
+    header_lines,
+    left_out_lines,
+    split_fitting,
+    wrap,
+)
+from app.exports.names import ascii_text, file_stem
+from app.exports.wpr import export_techman, parse_techman
+
+FORMAT = "techman"
+LINE_WIDTH = 78
+_CALL = re.compile(r"^\s*ChangeTCP\s*\(.*$", re.MULTILINE)
+_MASS = re.compile(r"\}\s*,\s*([-+]?\d+(?:\.\d*)?)\s*\)")
+
+
+def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
+    """Header comments, then per tool ``// <name>`` and its ChangeTCP line."""
+    kept, left = split_fitting(tools, export_techman, context)
+    lines: list[str] = []
+    for sentence in header_lines(kept, context) + left_out_lines(left):
+        lines.extend(f"// {piece}" for piece in wrap(sentence, LINE_WIDTH - 3))
+    for item in kept:
+        call = export_techman(item.data).text.split("  //", 1)[0]
+        lines += [f"// {ascii_text(item.data.name, 40) or 'tool'}", call]
+    if context.table or len(kept) != 1:
+        name = "tcpcal_tools.txt"
+    else:
+        name = f"tcpcal_{file_stem(kept[0].data.name)}.txt"
+    return ControllerFile(FORMAT, name, "\n".join(lines) + "\n", tuple(left))
+
+
+def read(text: str) -> list[ParsedTool]:
+    """Every ChangeTCP line of the text."""
+    tools = []
+    for match in _CALL.finditer(text):
+        position, quaternion = parse_techman(match.group(0))
+        mass = _MASS.search(match.group(0))
+        tools.append(
+            ParsedTool(None, None, position, quaternion, float(mass.group(1)) if mass else None)
+        )
+    if not tools:
+        raise parse_error(FORMAT, "ChangeTCP({X,Y,Z,RX,RY,RZ},mass) lines", text)
+    return tools

@@ -1,0 +1,312 @@
+"""The plant's OPC UA server: each live tool's active TCP as read-only variables.
+
+Address space (API.md v1.2, "Publishing to the plant"), namespace URI `urn:tcpcal`:
+`Objects/Robots/<robot name>/Tools/<tool name>/` with the variables `ActiveVersion` (Int32,
+0: no active version), `PositionMm` (Double[3], mm), `Quaternion` (Double[4], w x y z),
+`KukaABC` (Double[3], deg), `ControllerState` (String) and `UpdatedAt` (DateTime); the arrays
+are empty while the tool has no active version. Node ids are stable strings made of the
+robot's and tool's ids, so a client that stored one keeps reading the same tool when it is
+renamed (its browse name changes).
+
+Built on asyncua (https://github.com/FreeOpcUa/opcua-asyncio), following OPC UA Part 3
+(address space: Folders, Variables with ValueRank 1 and ArrayDimensions for fixed-length
+arrays, https://reference.opcfoundation.org/Core/Part3/v105/docs/) and Part 4's
+ActivateSession (https://reference.opcfoundation.org/Core/Part4/v105/docs/5.6.3): a
+UserNameIdentityToken is checked as user name = the API key's name, password = the key,
+which must have scope `read` or above; an AnonymousIdentityToken is accepted only when
+anonymous access is switched on. Clients get asyncua's `User` role: they may browse, read
+and subscribe, and every Write, AddNodes or DeleteNodes is refused (BadUserAccessDenied /
+BadNotWritable): the database is the one source of these values.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from datetime import UTC
+from typing import Any
+from urllib.parse import urlsplit
+
+from asyncua import ua
+from asyncua.common.node import Node
+from asyncua.crypto.permission_rules import User, UserRole
+from asyncua.server.server import Server
+from asyncua.server.user_managers import UserManager
+from asyncua.ua.attribute_ids import AttributeIds
+
+from app.publish.opcua_certs import APPLICATION_URI, ServerCertificate
+from app.publish.sink import SinkError
+from app.services.plant import PlantRobot, PlantTool
+
+log = logging.getLogger(__name__)
+# asyncua logs every node of the standard address space it loads, and every session, at
+# INFO: thousands of lines per start. Its warnings and errors still come through.
+logging.getLogger("asyncua").setLevel(logging.WARNING)
+
+NAMESPACE_URI = "urn:tcpcal"
+DEFAULT_PORT = 4840
+
+#: Checks an API key given as (user name, password); True when it may read.
+KeyCheck = Callable[[str, str], bool]
+
+
+class OpcUaStartError(SinkError):
+    """The OPC UA server cannot start (bad endpoint, port in use): the message says why."""
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """A parsed `opc.tcp://host:port/path` endpoint."""
+
+    url: str
+    host: str
+    port: int
+
+
+def parse_endpoint(url: str) -> Endpoint:
+    """Check an endpoint URL (`opc.tcp://host[:port][/path]`, port 1-65535, default 4840)."""
+    try:
+        parts = urlsplit(url.strip())
+        port = parts.port
+    except ValueError:  # urlsplit: a port that is not a number, or out of range
+        raise _bad_endpoint(url, "the port must be a number from 1 to 65535") from None
+    if parts.scheme != "opc.tcp":
+        raise _bad_endpoint(url, "the scheme must be opc.tcp://")
+    if not parts.hostname:
+        raise _bad_endpoint(url, "it names no host (use 0.0.0.0 to listen on every interface)")
+    if port == 0:
+        raise _bad_endpoint(url, "the port must be a number from 1 to 65535")
+    return Endpoint(url=url.strip(), host=parts.hostname, port=port or DEFAULT_PORT)
+
+
+def _bad_endpoint(url: str, why: str) -> OpcUaStartError:
+    return OpcUaStartError(
+        f"TCPCAL_OPCUA_ENDPOINT={url!r} is not usable: {why}; "
+        "expected e.g. opc.tcp://0.0.0.0:4840/tcpcal/"
+    )
+
+
+class ApiKeyUsers(UserManager):
+    """Signs clients in with an API key (user name: the key's name, password: the key)."""
+
+    def __init__(self, check: KeyCheck, *, anonymous: bool) -> None:
+        self._check = check
+        self._anonymous = anonymous
+
+    def get_user(
+        self,
+        iserver: Any,  # asyncua's InternalServer, unused
+        username: str | None = None,
+        password: str | None = None,
+        certificate: Any = None,
+    ) -> User | None:
+        """A read-only user for a good key (or anonymous when allowed), None to refuse."""
+        if username is None and password is None:
+            return User(role=UserRole.User, name="anonymous") if self._anonymous else None
+        if not username or not password or not self._check(username, password):
+            log.warning("OPC UA sign-in refused for user %r", username)
+            return None
+        return User(role=UserRole.User, name=username)
+
+
+#: Variable name -> (variant type, array length or None for a scalar).
+VARIABLES: dict[str, tuple[ua.VariantType, int | None]] = {
+    "ActiveVersion": (ua.VariantType.Int32, None),
+    "PositionMm": (ua.VariantType.Double, 3),
+    "Quaternion": (ua.VariantType.Double, 4),
+    "KukaABC": (ua.VariantType.Double, 3),
+    "ControllerState": (ua.VariantType.String, None),
+    "UpdatedAt": (ua.VariantType.DateTime, None),
+}
+
+
+def variable_values(tool: PlantTool) -> dict[str, object]:
+    """The variables' values for a tool (0 and empty arrays without an active version)."""
+    return {
+        "ActiveVersion": tool.active_version or 0,
+        "PositionMm": list(tool.position_mm or ()),
+        "Quaternion": list(tool.quaternion or ()),
+        "KukaABC": list(tool.kuka_abc or ()),
+        "ControllerState": tool.controller_state,
+        "UpdatedAt": tool.updated_at.astimezone(UTC),
+    }
+
+
+@dataclass
+class _RobotNodes:
+    name: str
+    folder: Node
+    tools_folder: Node
+    tools: dict[str, _ToolNodes]
+
+
+@dataclass
+class _ToolNodes:
+    name: str
+    folder: Node
+    variables: dict[str, Node]
+    values: dict[str, object]
+
+
+class PlantOpcUaServer:
+    """The asyncua server and the address space it keeps equal to the fleet it is given."""
+
+    def __init__(
+        self,
+        endpoint: str,
+        *,
+        check: KeyCheck,
+        anonymous: bool,
+        certificate: ServerCertificate | None = None,
+    ) -> None:
+        self.endpoint = parse_endpoint(endpoint)
+        self._server = Server(user_manager=ApiKeyUsers(check, anonymous=anonymous))
+        self._anonymous = anonymous
+        self._certificate = certificate
+        self._robots: dict[str, _RobotNodes] = {}
+        self._ns = 0
+        self._root: Node | None = None
+        self._lock = asyncio.Lock()
+
+    def _nid(self, name: str) -> ua.NodeId:
+        return ua.NodeId(ua.String(name), ua.Int16(self._ns))
+
+    async def start(self, robots: Sequence[PlantRobot] = ()) -> None:
+        """Build the address space with these robots, then listen on the endpoint (a client
+        never sees it half filled); OpcUaStartError when the port is taken or not bindable."""
+        server = self._server
+        await server.init()
+        server.set_endpoint(self.endpoint.url)
+        server.set_server_name("tcpcal")
+        await server.set_application_uri(APPLICATION_URI)
+        policies = [ua.SecurityPolicyType.NoSecurity]
+        if self._certificate is not None:
+            cert = self._certificate
+            await server.load_certificate(cert.certificate, cert.certificate_format)
+            await server.load_private_key(cert.private_key, format=cert.private_key_format)
+            policies.append(ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt)
+        server.set_security_policy(policies)
+        tokens: list[type] = [ua.UserNameIdentityToken]
+        if self._anonymous:
+            tokens.insert(0, ua.AnonymousIdentityToken)
+        server.set_identity_tokens(tokens)
+        self._ns = await server.register_namespace(NAMESPACE_URI)
+        self._root = await server.nodes.objects.add_folder(
+            self._nid("Robots"), ua.QualifiedName("Robots", self._ns)
+        )
+        await self.replace_all(robots)
+        try:
+            await server.start()
+        except OSError as exc:
+            raise OpcUaStartError(
+                f"the OPC UA server cannot listen on {self.endpoint.host}:{self.endpoint.port} "
+                f"({exc.strerror or exc}): is another server using the port? "
+                "Set TCPCAL_OPCUA_ENDPOINT to a free one."
+            ) from None
+
+    async def stop(self) -> None:
+        """Close every session and stop listening."""
+        await self._server.stop()
+
+    async def replace_all(self, robots: Sequence[PlantRobot]) -> None:
+        """Make the address space show exactly these robots and tools."""
+        async with self._lock:
+            wanted = {r.robot_id for r in robots}
+            for robot_id in [r for r in self._robots if r not in wanted]:
+                await self._drop_robot(robot_id)
+            for robot in robots:
+                await self._apply_robot(robot)
+
+    async def replace_robot(self, robot_id: str, robot: PlantRobot | None) -> None:
+        """Make one robot's subtree show this state (None: the robot is gone)."""
+        async with self._lock:
+            if robot is None:
+                await self._drop_robot(robot_id)
+            else:
+                await self._apply_robot(robot)
+
+    def tool_values(self) -> dict[tuple[str, str], dict[str, object]]:
+        """What the address space holds: (robot name, tool name) -> variable values."""
+        return {
+            (r.name, t.name): dict(t.values)
+            for r in self._robots.values()
+            for t in r.tools.values()
+        }
+
+    async def _apply_robot(self, robot: PlantRobot) -> None:
+        nodes = self._robots.get(robot.robot_id)
+        if nodes is not None and nodes.name != robot.name:  # renamed: a new browse name
+            await self._drop_robot(robot.robot_id)
+            nodes = None
+        if nodes is None:
+            nodes = await self._add_robot(robot)
+        wanted = {t.tool_id: t for t in robot.tools}
+        for tool_id in [t for t in nodes.tools if t not in wanted]:
+            await self._server.delete_nodes([nodes.tools.pop(tool_id).folder], recursive=True)
+        for tool in robot.tools:
+            await self._apply_tool(nodes, tool)
+
+    async def _add_robot(self, robot: PlantRobot) -> _RobotNodes:
+        assert self._root is not None, "start() first"
+        folder = await self._root.add_folder(
+            self._nid(f"robots/{robot.robot_id}"), ua.QualifiedName(robot.name, self._ns)
+        )
+        tools = await folder.add_folder(
+            self._nid(f"robots/{robot.robot_id}/Tools"),
+            ua.QualifiedName("Tools", self._ns),
+        )
+        nodes = _RobotNodes(name=robot.name, folder=folder, tools_folder=tools, tools={})
+        self._robots[robot.robot_id] = nodes
+        return nodes
+
+    async def _drop_robot(self, robot_id: str) -> None:
+        nodes = self._robots.pop(robot_id, None)
+        if nodes is not None:
+            await self._server.delete_nodes([nodes.folder], recursive=True)
+
+    async def _apply_tool(self, robot: _RobotNodes, tool: PlantTool) -> None:
+        nodes = robot.tools.get(tool.tool_id)
+        if nodes is not None and nodes.name != tool.tool_name:
+            await self._server.delete_nodes([robot.tools.pop(tool.tool_id).folder], recursive=True)
+            nodes = None
+        values = variable_values(tool)
+        if nodes is None:
+            robot.tools[tool.tool_id] = await self._add_tool(robot, tool, values)
+            return
+        for name, value in values.items():
+            if nodes.values.get(name) != value:
+                await self._write(nodes.variables[name], name, value)
+        nodes.values = values
+
+    async def _add_tool(
+        self, robot: _RobotNodes, tool: PlantTool, values: dict[str, object]
+    ) -> _ToolNodes:
+        base = f"tools/{tool.tool_id}"
+        folder = await robot.tools_folder.add_folder(
+            self._nid(base), ua.QualifiedName(tool.tool_name, self._ns)
+        )
+        variables: dict[str, Node] = {}
+        for name, (vtype, length) in VARIABLES.items():
+            node = await folder.add_variable(
+                self._nid(f"{base}/{name}"),
+                ua.QualifiedName(name, self._ns),
+                ua.Variant(values[name], vtype),
+                varianttype=vtype,
+            )
+            if length is not None:
+                await node.write_value_rank(ua.ValueRank.OneDimension)
+                await node.write_attribute(
+                    AttributeIds.ArrayDimensions,
+                    ua.DataValue(ua.Variant([length], ua.VariantType.UInt32)),
+                )
+            variables[name] = node
+        return _ToolNodes(name=tool.tool_name, folder=folder, variables=variables, values=values)
+
+    async def _write(self, node: Node, name: str, value: object) -> None:
+        vtype = VARIABLES[name][0]
+        await self._server.write_attribute_value(
+            node.nodeid,
+            ua.DataValue(ua.Variant(value, vtype), SourceTimestamp=ua.DateTime.now(UTC)),
+        )

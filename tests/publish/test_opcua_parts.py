@@ -1,0 +1,132 @@
+"""The OPC UA server's parts without a network: endpoints, the values of a tool's
+variables, and which robots a batch makes the sink read again."""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import pytest
+import yaml
+
+from app.publish.opcua import OpcUaStartError, parse_endpoint, variable_values
+from app.publish.opcua_certs import server_certificate
+from app.publish.opcua_sink import robots_concerned
+from app.publish.sink import SinkError
+from app.services.plant import PlantTool
+
+
+@pytest.mark.parametrize(
+    ("url", "host", "port"),
+    [
+        ("opc.tcp://0.0.0.0:4840/tcpcal/", "0.0.0.0", 4840),
+        ("opc.tcp://plant-gw/tcpcal/", "plant-gw", 4840),
+        ("opc.tcp://127.0.0.1:48010", "127.0.0.1", 48010),
+    ],
+)
+def test_good_endpoints(url: str, host: str, port: int) -> None:
+    endpoint = parse_endpoint(url)
+    assert (endpoint.host, endpoint.port) == (host, port)
+
+
+@pytest.mark.parametrize(
+    ("url", "why"),
+    [
+        ("http://127.0.0.1:4840/", "the scheme must be opc.tcp://"),
+        ("opc.tcp://:4840/", "names no host"),
+        ("opc.tcp://h:99999/", "the port must be a number from 1 to 65535"),
+        ("opc.tcp://h:0/", "the port must be a number from 1 to 65535"),
+        ("opc.tcp://h:port/", "the port must be a number from 1 to 65535"),
+    ],
+)
+def test_bad_endpoints_say_why_and_what_to_set(url: str, why: str) -> None:
+    with pytest.raises(OpcUaStartError) as err:
+        parse_endpoint(url)
+    assert why in str(err.value)
+    assert f"TCPCAL_OPCUA_ENDPOINT={url!r}" in str(err.value)
+    assert "opc.tcp://0.0.0.0:4840/tcpcal/" in str(err.value)
+
+
+def _tool(**kw: object) -> PlantTool:
+    s = math.sqrt(0.5)
+    fields: dict[str, object] = {
+        "tool_id": "t",
+        "robot_id": "r",
+        "robot_name": "kr16",
+        "tool_name": "torch",
+        "active_version": 4,
+        "position_mm": (1.0, 2.0, 3.0),
+        "quaternion": (s, 0.0, 0.0, s),
+        "kuka_abc": (90.0, 0.0, 0.0),
+        "controller_state": "in_sync",
+        "updated_at": datetime(2026, 11, 24, 5, 0, tzinfo=UTC),
+    }
+    fields.update(kw)
+    return PlantTool(**fields)  # type: ignore[arg-type]
+
+
+def test_variable_values_of_a_tool_and_of_one_without_an_active_version() -> None:
+    values = variable_values(_tool())
+    assert values["ActiveVersion"] == 4
+    assert values["PositionMm"] == [1.0, 2.0, 3.0]
+    assert values["KukaABC"] == [90.0, 0.0, 0.0]
+    assert values["ControllerState"] == "in_sync"
+    none = variable_values(_tool(active_version=None, position_mm=None, quaternion=None,
+                                 kuka_abc=None))  # fmt: skip
+    assert none["ActiveVersion"] == 0
+    assert none["PositionMm"] == none["Quaternion"] == none["KukaABC"] == []
+
+
+@dataclass
+class _Item:
+    robot_id: str | None
+    tool_id: str | None
+
+
+def test_a_batch_names_each_robot_once_and_tools_without_a_robot() -> None:
+    items = [_Item("r1", "t1"), _Item("r1", "t2"), _Item("r2", None), _Item(None, "t9")]
+    assert robots_concerned(items) == ({"r1", "r2"}, {"t9"})
+
+
+def test_certificate_settings_both_or_neither_and_readable(tmp_path: Path) -> None:
+    made = server_certificate(None, None, host="127.0.0.1")  # self-signed for the run
+    assert (made.certificate_format, made.private_key_format) == ("der", "pem")
+    (tmp_path / "cert.der").write_bytes(made.certificate)
+    (tmp_path / "key.pem").write_bytes(made.private_key)
+    loaded = server_certificate(str(tmp_path / "cert.der"), str(tmp_path / "key.pem"), host="h")
+    assert loaded == made
+    with pytest.raises(SinkError, match="set both TCPCAL_OPCUA_CERTIFICATE and"):
+        server_certificate(str(tmp_path / "cert.der"), None, host="h")
+    with pytest.raises(
+        SinkError, match=re.escape("TCPCAL_OPCUA_PRIVATE_KEY='/nowhere/key.pem' cannot")
+    ):
+        server_certificate(str(tmp_path / "cert.der"), "/nowhere/key.pem", host="h")
+
+
+def test_compose_publisher_serves_opcua_on_the_port_it_publishes() -> None:
+    compose = yaml.safe_load((Path(__file__).resolve().parents[2] / "compose.yaml").read_text())
+    publisher = compose["services"]["publisher"]
+    endpoint = parse_endpoint(publisher["environment"]["TCPCAL_OPCUA_ENDPOINT"])
+    assert endpoint.host == "0.0.0.0"  # reachable from outside the container
+    assert f"{endpoint.port}:{endpoint.port}" in publisher["ports"]
+
+
+@pytest.mark.parametrize(
+    ("name", "cells", "admitted"),
+    [("plc", None, True), ("plc", [], True), ("other", None, False), ("plc", ["cell-12"], False)],
+)
+def test_sign_in_needs_the_keys_own_name_and_a_key_for_every_cell(
+    monkeypatch: pytest.MonkeyPatch, name: str, cells: list[str] | None, admitted: bool
+) -> None:
+    from contextlib import nullcontext
+    from types import SimpleNamespace
+
+    from app.publish import opcua_sink
+
+    principal = SimpleNamespace(name="plc", scope="read", cells=cells)
+    monkeypatch.setattr(opcua_sink, "session_scope", lambda write: nullcontext(None))
+    monkeypatch.setattr(opcua_sink, "authenticate_key", lambda s, key, required: principal)
+    assert opcua_sink.key_may_read(name, "tcpcal_key") is admitted

@@ -1,0 +1,103 @@
+"""The runner's contract with a sink, in process: the full state per connection, batches in
+id order with the tools' current states, nothing marked delivered that a sink refused."""
+
+from __future__ import annotations
+
+import threading
+
+from sqlalchemy import select
+
+from app.db import get_engine, session_scope
+from app.models import OutboxMessage
+from app.publish.runner import DELIVERED, FAILED, IDLE, Runner
+from app.publish.sink import Batch
+from tests.conftest import Api
+
+
+class RecordingSink:
+    """Accepts (or, with `refuse`, refuses) what it is given, and keeps it."""
+
+    name = "recording"
+
+    def __init__(self) -> None:
+        self.connection = 1
+        self.refuse = False
+        self.batches: list[Batch] = []
+
+    def open(self, stopping: threading.Event) -> None:
+        del stopping
+
+    def connection_id(self) -> int:
+        return self.connection
+
+    def deliver(self, batch: Batch) -> bool:
+        self.batches.append(batch)
+        return not self.refuse
+
+    def close(self) -> None:
+        pass
+
+
+def _undelivered() -> list[str]:
+    with session_scope(write=False) as session:
+        return list(
+            session.scalars(
+                select(OutboxMessage.action).where(OutboxMessage.delivered_at.is_(None))
+            )
+        )
+
+
+def test_a_refused_batch_stays_undelivered_and_is_sent_again_with_fresh_states(
+    api: Api,
+) -> None:
+    robot = api.robot("r-runner")
+    tool = api.tool(robot["id"], "t")
+    api.manual(tool["id"], [1.0, 2.0, 3.0])
+    api.manual(tool["id"], [1.0, 2.0, 4.0], activate="never")
+    sink = RecordingSink()
+    runner = Runner(get_engine(), [sink], threading.Event(), keep_s=3600)
+
+    assert runner.step() == DELIVERED
+    full, first = sink.batches
+    assert full.full
+    assert not full.messages
+    assert [s.tool_id for s in full.states] == [tool["id"]]
+    assert [m.id for m in first.messages] == sorted(m.id for m in first.messages)
+    assert first.messages[0].action == "robot.create"
+    assert _undelivered() == []
+    assert runner.step() == IDLE
+
+    sink.refuse = True
+    activated = api.post(f"/v1/tools/{tool['id']}/versions/2/activate", scope="calibrate")
+    assert activated.status_code == 200
+    assert runner.step() == FAILED
+    assert _undelivered() == ["version.activate"]
+
+    sink.refuse = False
+    assert api.delete(f"/v1/tools/{tool['id']}").status_code == 204
+    assert runner.step() == DELIVERED
+    again = sink.batches[-1]
+    assert [m.action for m in again.messages] == ["version.activate", "tool.archive"]
+    (state,) = again.states
+    assert state.archived
+    assert state.document is None  # read now: archived, whatever the activation said
+    assert _undelivered() == []
+
+    sink.connection = 2  # reconnected: every live tool's state again, before the outbox
+    api.tool(robot["id"], "t2")
+    assert runner.step() == DELIVERED
+    assert sink.batches[-2].full
+    assert [s.tool_name for s in sink.batches[-2].states] == ["t2"]
+    assert [m.action for m in sink.batches[-1].messages] == ["tool.create"]
+
+
+def test_delivered_rows_are_pruned_after_keep_s(api: Api) -> None:
+    api.robot("r-prune")
+    sink = RecordingSink()
+    assert Runner(get_engine(), [sink], threading.Event(), keep_s=3600).step() == DELIVERED
+    with session_scope(write=False) as session:
+        assert len(list(session.scalars(select(OutboxMessage.id)))) == 1  # kept, delivered
+    api.robot("r-prune-2")
+    assert Runner(get_engine(), [sink], threading.Event(), keep_s=0).step() == DELIVERED
+    with session_scope(write=False) as session:
+        assert list(session.scalars(select(OutboxMessage.id))) == []

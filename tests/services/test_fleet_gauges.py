@@ -1,0 +1,85 @@
+"""The fleet gauges count what the fleet service reports: whatever codes and controller
+states its rows declare, each present (0 when no tool has it)."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime, timedelta
+from typing import Any, Literal
+
+import pytest
+from pydantic import BaseModel, Field
+
+from app.schemas.fleet import FleetTool, LastCalibration
+from app.services import fleet_gauges, outbox
+from app.services.fleet_gauges import declared_values, read_fleet_gauges
+
+NOW = datetime(2026, 11, 24, 6, 0, tzinfo=UTC)
+
+
+class _Controller(BaseModel):
+    state: Literal["in_sync", "drifted", "unreachable"]
+
+
+class _Row(FleetTool):
+    attention: list[Literal["check_failed", "stale", "no_active_version"]] = Field(
+        default_factory=list
+    )
+    controller: _Controller | None = None
+
+
+def _row(n: int, **kw: Any) -> _Row:
+    base: dict[str, Any] = {
+        "id": f"t{n}",
+        "name": f"tool{n}",
+        "slot": n,
+        "robot_id": "r1",
+        "robot_name": "kr16",
+        "cell": None,
+        "active_version": 1,
+        "last_calibration": None,
+        "last_check": None,
+    }
+    return _Row(**{**base, **kw})
+
+
+def test_declared_values_read_literals_through_lists_and_optionals() -> None:
+    assert declared_values(_Row, "attention") == ("check_failed", "stale", "no_active_version")
+    assert declared_values(_Controller, "state") == ("in_sync", "drifted", "unreachable")
+    assert declared_values(_Row, "name") == ()
+    assert declared_values(_Row, "no_such_field") == ()
+
+
+def test_counts_ages_and_zeros_over_pages(monkeypatch: pytest.MonkeyPatch) -> None:
+    cal = LastCalibration(id="c", status="accepted", created_at=NOW - timedelta(days=2),
+                          rms_mm=0.1)  # fmt: skip
+    rows = [
+        _row(1, attention=["check_failed", "stale"], controller=_Controller(state="drifted"),
+             last_calibration=cal),
+        _row(2, attention=["stale"], controller=_Controller(state="drifted")),
+        _row(3),
+    ]  # fmt: skip
+    pages = {None: (rows[:2], "next"), "next": (rows[2:], None)}  # two pages
+
+    def fake_list_fleet(session: object, **kw: Any) -> tuple[list[_Row], str | None]:
+        assert kw["limit"] == fleet_gauges.PAGE
+        return pages[kw["cursor"]]
+
+    monkeypatch.setattr(fleet_gauges, "list_fleet", fake_list_fleet)
+    monkeypatch.setattr(fleet_gauges, "FleetTool", _Row)
+    monkeypatch.setattr(outbox, "oldest_undelivered_age", lambda s: 12.5)
+    monkeypatch.setattr(outbox, "undelivered_count", lambda s: 3)
+    monkeypatch.setattr(outbox, "publisher_running", lambda e: True)
+
+    class _Session:
+        def get_bind(self) -> Any:
+            return type("B", (), {"engine": None})()
+
+    gauges = read_fleet_gauges(_Session(), now=NOW)  # type: ignore[arg-type]
+    assert gauges.attention == {"check_failed": 1, "stale": 2, "no_active_version": 0}
+    assert gauges.controller == {"none": 1, "in_sync": 0, "drifted": 2, "unreachable": 0}
+    assert [t.tool_id for t in gauges.tools] == ["t1", "t2", "t3"]
+    assert gauges.tools[0].calibration_age_s == pytest.approx(2 * 86400)
+    assert gauges.tools[1].calibration_age_s is None
+    assert gauges.tools[0].attention == ("check_failed", "stale")
+    assert (gauges.outbox_oldest_age_s, gauges.outbox_undelivered) == (12.5, 3)
+    assert gauges.publisher_running is True
