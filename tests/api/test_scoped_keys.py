@@ -104,6 +104,24 @@ def test_another_cells_things_are_absent_to_a_cell_key(
         assert api.get(template.format(**ids), scope="read").status_code == 200
 
 
+@pytest.mark.parametrize(
+    ("template", "named"),
+    [
+        ("/v1/tools/{tool}/tcp?format=kuka", "tool"),
+        ("/v1/robots/{robot}/tool-table?format=kuka", "robot"),
+    ],
+)
+def test_another_cells_controller_files_are_absent_to_a_cell_key(
+    api: Api, cells: dict[str, dict[str, str]], template: str, named: str
+) -> None:
+    """The controller files (Accept: text/plain) have a held read of their own."""
+    text = {"headers": {"Accept": "text/plain"}}
+    _as_if_absent(api, "GET", template, cells[CELL7], named, "c12-read", **text)
+    own = api.get(template.format(**cells[CELL12]), scope="c12-read", **text)
+    assert own.status_code == 200, own.text
+    assert own.headers["content-type"].startswith("text/plain")
+
+
 WRITES = [
     ("PATCH", "/v1/robots/{robot}", "robot", {"name": "mine now"}),
     ("DELETE", "/v1/robots/{robot}", "robot", None),
