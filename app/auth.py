@@ -15,6 +15,7 @@ from sqlalchemy.orm import Session
 
 from app.db import HeldRead
 from app.errors import Forbidden, Unauthorized
+from app.jsontypes import JsonArray
 from app.models import ApiKey
 
 SCOPES: tuple[str, ...] = ("read", "calibrate", "admin")
@@ -24,15 +25,38 @@ BOOTSTRAP_NAME = "bootstrap-admin"
 
 @dataclass(frozen=True)
 class Principal:
-    """Who is calling: the API key's id, name and scope."""
+    """Who is calling: the API key's id, name and scope, and the robot cells it is limited
+    to (None: every cell)."""
 
     key_id: str
     name: str
     scope: str
+    cells: tuple[str, ...] | None = None
 
     def allows(self, required: str) -> bool:
         """True when this key's scope includes `required`."""
         return SCOPES.index(self.scope) >= SCOPES.index(required)
+
+    def sees_cell(self, cell: str | None) -> bool:
+        """True when a robot in `cell` is visible to this key."""
+        return self.cells is None or (cell is not None and cell in self.cells)
+
+
+#: Where a session keeps the cells of the key it works for: every lookup of a robot or a
+#: tool by id, and every list, reads them (app.services.live, app.services.scope), so that
+#: the scope is applied once, by the session, not by each route.
+CELLS_INFO = "tcpcal.cells"
+
+
+def act_for(session: Session, principal: Principal) -> None:
+    """Limit what `session` finds to the robots (and their tools) `principal` may see."""
+    session.info[CELLS_INFO] = principal.cells
+
+
+def cells_of(session: Session) -> tuple[str, ...] | None:
+    """The cells a session is limited to (None: every cell)."""
+    cells: tuple[str, ...] | None = session.info.get(CELLS_INFO)
+    return cells
 
 
 def hash_key(key: str) -> str:
@@ -64,7 +88,9 @@ def authenticate(session: Session, header: str | None, *, required: str) -> Prin
     """The caller behind an Authorization header, checked against the required scope."""
     digest = digest_of(header)
     row = session.scalars(select(ApiKey).where(ApiKey.key_hash == digest)).one_or_none()
-    return admit(row, digest, required=required)
+    principal = admit(row, digest, required=required)
+    act_for(session, principal)
+    return principal
 
 
 #: The key lookup as one statement on the calling thread's held connection (app.db.HeldRead):
@@ -76,6 +102,7 @@ KEY_READ = HeldRead(
         ApiKey.__table__.c.scope,
         ApiKey.__table__.c.key_hash,
         ApiKey.__table__.c.revoked_at,
+        ApiKey.__table__.c.cells,
     ).where(ApiKey.__table__.c.key_hash == bindparam("digest"))
 )
 
@@ -104,6 +131,8 @@ class KeyRow(Protocol):
     def key_hash(self) -> str: ...
     @property
     def revoked_at(self) -> datetime | None: ...
+    @property
+    def cells(self) -> JsonArray | None: ...
 
 
 def admit(row: KeyRow | None, digest: str, *, required: str) -> Principal:
@@ -113,7 +142,8 @@ def admit(row: KeyRow | None, digest: str, *, required: str) -> Principal:
             "unknown or revoked API key",
             headers={"WWW-Authenticate": 'Bearer error="invalid_token"'},
         )
-    principal = Principal(key_id=row.id, name=row.name, scope=row.scope)
+    cells = None if row.cells is None else tuple(str(c) for c in row.cells)
+    principal = Principal(key_id=row.id, name=row.name, scope=row.scope, cells=cells)
     if not principal.allows(required):
         raise Forbidden(f"this key has scope '{row.scope}'; this operation needs '{required}'")
     return principal

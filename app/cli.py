@@ -156,19 +156,41 @@ def demo() -> None:
 def keys_create(
     scope: Annotated[str, typer.Option(help="read | calibrate | admin")],
     name: Annotated[str, typer.Option(help="who holds the key, e.g. cell-12")],
+    cells: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--cells",
+            help="limit the key to the robots of this cell (repeat, or comma-separate, for "
+            "several); leave out for every cell",
+        ),
+    ] = None,
 ) -> None:
     """Create an API key and print it (shown once; only its hash is stored)."""
+    from pydantic import ValidationError
+
     from app.auth import SCOPES
     from app.db import session_scope
+    from app.schemas.keys import KeyCreate
     from app.services.keys import create_key
 
     if scope not in SCOPES:
         typer.echo(f"scope must be one of {', '.join(SCOPES)}", err=True)
         raise typer.Exit(2)
+    names = None if not cells else [c.strip() for arg in cells for c in arg.split(",")]
+    try:  # the checks POST /v1/keys makes: names of cells, non-empty
+        KeyCreate.model_validate({"name": name, "scope": scope, "cells": names})
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        typer.echo(f"error: {where}: {first['msg']}", err=True)
+        raise typer.Exit(2) from None
     with session_scope(write=True) as session:
-        row, secret = create_key(session, name=name, scope=scope, actor=_cli_principal())
+        row, secret = create_key(
+            session, name=name, scope=scope, cells=names, actor=_cli_principal()
+        )
         key_id = row.id
-    typer.echo(f"id:    {key_id}\nscope: {scope}\nkey:   {secret}")
+    limited = f"\ncells: {', '.join(names)}" if names else ""
+    typer.echo(f"id:    {key_id}\nscope: {scope}{limited}\nkey:   {secret}")
 
 
 @keys_cli.command("list")
@@ -188,7 +210,8 @@ def keys_list() -> None:
                 break
         for row in rows:
             state = "revoked" if row.revoked_at else "active"
-            typer.echo(f"{row.id}  {row.scope:<9}  {state:<7}  {row.prefix}...  {row.name}")
+            cells = f"  cells {','.join(row.cells)}" if row.cells else ""
+            typer.echo(f"{row.id}  {row.scope:<9}  {state:<7}  {row.prefix}...  {row.name}{cells}")
 
 
 @keys_cli.command("revoke")

@@ -1,4 +1,4 @@
-"""The cell PC's client: `tcpcal tools|calibrate|history|activate|rollback|check|export`.
+"""The cell PC's client: `tcpcal tools|calibrate|history|activate|rollback|check|export|audit`.
 
 Every command that takes a TOOL accepts its id, its name when no other tool has it, or
 "robot/tool"; an ambiguous name lists the matches. Talks to a server over HTTP (TCPCAL_URL,
@@ -40,7 +40,7 @@ err = Console(stderr=True)
 
 def register(cli: typer.Typer) -> None:
     """Add the client's commands to the `tcpcal` command."""
-    for command in (tools, plan, calibrate, history, activate, rollback, check, export):
+    for command in (tools, plan, calibrate, history, activate, rollback, check, export, audit):
         cli.command(rich_help_panel="Client (talks to a server)")(command)
 
 
@@ -620,3 +620,111 @@ def _export_all(directory: Path, fmt: str | None) -> None:
             target.write_text(response.text)
             out.print(f"wrote {target}", highlight=False)
     out.print(f"{len(robots)} robot(s) written to {directory}", highlight=False)
+
+
+# ---- the audit trail ----------------------------------------------------------------------
+def audit(
+    tool_id: Annotated[str | None, typer.Option("--tool", help="only this tool (its id)")] = None,
+    robot_id: Annotated[
+        str | None, typer.Option("--robot", help="only this robot (its id)")
+    ] = None,
+    action: Annotated[str | None, typer.Option(help="e.g. version.activate, tool.update")] = None,
+    actor: Annotated[str | None, typer.Option(help="only this key's changes (its name)")] = None,
+    since: Annotated[
+        str | None, typer.Option(help="from this time, e.g. 2026-11-24T06:00Z")
+    ] = None,
+    until: Annotated[str | None, typer.Option(help="before this time")] = None,
+    limit: Annotated[int, typer.Option(min=1, max=10_000, help="at most this many")] = 50,
+) -> None:
+    """The audit trail, newest first: when, who, what, which tool and version, and why
+    (needs an admin key)."""
+    filters = {
+        "tool_id": tool_id,
+        "robot_id": robot_id,
+        "action": action,
+        "actor": actor,
+        "since": since,
+        "until": until,
+    }
+    events = _audit_events({k: v for k, v in filters.items() if v}, limit)
+    names = _tool_names({e["tool_id"] for e in events if e["tool_id"]})
+    table = Table("when (UTC)", "who", "what", "tool / version", "why")
+    for e in events:
+        tool = names.get(e["tool_id"], "") if e["tool_id"] else ""
+        version = "" if e["version"] is None else f"v{e['version']}"
+        table.add_row(
+            e["at"][:19].replace("T", " "),
+            e["actor"],
+            e["action"],
+            " ".join(p for p in (tool, version) if p),
+            audit_why(e["action"], e["detail"] or {}),
+        )
+    out.print(table)
+    if not events:
+        out.print("no audit events match")
+
+
+def _audit_events(params: dict[str, str], limit: int) -> list[dict[str, Any]]:
+    """Up to `limit` audit events matching `params`, newest first, page after page."""
+    events: list[dict[str, Any]] = []
+    cursor = None
+    while len(events) < limit:
+        page_params: dict[str, Any] = {**params, "limit": min(500, limit - len(events))}
+        if cursor:
+            page_params["cursor"] = cursor
+        body = _send("GET", "/v1/audit", params=page_params).json()
+        events += body["items"]
+        cursor = body["next_cursor"]
+        if cursor is None:
+            break
+    return events
+
+
+def _tool_names(tool_ids: set[str]) -> dict[str, str]:
+    """Each tool's name (its id's first 8 characters when it cannot be read: archived)."""
+    names = {}
+    for tid in sorted(tool_ids):
+        try:
+            with _http() as http:
+                response = http.get(f"/v1/tools/{tid}")
+        except httpx.HTTPError:
+            response = None
+        ok = response is not None and response.status_code == 200
+        names[tid] = str(response.json()["name"]) if ok and response else tid[:8]
+    return names
+
+
+def audit_why(action: str, detail: dict[str, Any]) -> str:
+    """The reason or the change an audit event records, in a few words."""
+    if "reason" in detail:
+        previous = detail.get("previous_version")
+        was = "" if previous is None else f" (was v{previous})"
+        return f"{detail['reason']}{was}"
+    if "changed" in detail:
+        return _changes_text(detail)
+    if action == "calibration.create":
+        note = f": {detail['note']}" if detail.get("note") else ""
+        return f"{detail.get('method')} {detail.get('status')}{note}"
+    if detail.get("summary"):
+        return str(detail["summary"])
+    shown = {k: v for k, v in detail.items() if not isinstance(v, dict | list) or k == "cells"}
+    return ", ".join(f"{k} {v}" for k, v in shown.items())
+
+
+def _changes_text(detail: dict[str, Any]) -> str:
+    """`field old -> new` for each changed field with values (nested: each changed member)."""
+    old, new = detail.get("from", {}), detail.get("to", {})
+    parts = []
+    for field in detail["changed"]:
+        if field not in new:
+            parts.append(field)
+        elif isinstance(new[field], dict) and isinstance(old.get(field), dict):
+            before = old[field]
+            parts += [
+                f"{field}.{k} {before.get(k)} -> {v}"
+                for k, v in new[field].items()
+                if before.get(k) != v
+            ]
+        else:
+            parts.append(f"{field} {old.get(field)} -> {new[field]}")
+    return "; ".join(parts)

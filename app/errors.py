@@ -158,6 +158,7 @@ INPUT_KINDS: dict[str, str] = {
     "unknown-reference": "Unknown reference",
     "needs-storage": "Needs stored data",
     "invalid-cursor": "Invalid cursor",
+    "invalid-interval": "Invalid time interval",
     "unsupported": "Not supported",
     "convention-mismatch": "Convention mismatch",
     "target-unreachable": "Target out of reach",

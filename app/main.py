@@ -14,6 +14,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from app import __version__, solve_pool, watcher
 from app.api import (
+    audit,
     calibrations,
     console,
     controllers,
@@ -120,6 +121,7 @@ def create_app() -> FastAPI:
         sessions,
         controllers,
         deployments,
+        audit,
         docs,
         console,
     )

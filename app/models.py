@@ -288,6 +288,8 @@ class ApiKey(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str | None] = mapped_column(String(200))
     revoked_at: Mapped[datetime | None] = mapped_column()
+    #: The robot cells the key is limited to (a list of names); null: every cell.
+    cells: Mapped[JsonArray | None] = mapped_column(JSON)
 
 
 class IdempotencyRecord(Base):
@@ -306,12 +308,21 @@ class IdempotencyRecord(Base):
 
 
 class AuditEvent(Base):
-    """Every write, with who and when: the audit trail."""
+    """Every write, with who, when and in which request: the audit trail.
+
+    GET /v1/audit reads it newest first (by id) under any one filter through an index that
+    ends in id, so that a filtered page is a seek whatever the length of the trail.
+    """
 
     __tablename__ = "audit_events"
     __table_args__ = (
         Index("ix_audit_events_resource", "resource_type", "resource_id"),
         Index("ix_audit_events_tool_action", "tool_id", "action", "id"),
+        Index("ix_audit_events_tool", "tool_id", "id"),
+        Index("ix_audit_events_robot", "robot_id", "id"),
+        Index("ix_audit_events_action", "action", "id"),
+        Index("ix_audit_events_actor", "actor", "id"),
+        Index("ix_audit_events_at", "at", "id"),
     )
 
     id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
@@ -322,7 +333,11 @@ class AuditEvent(Base):
     resource_type: Mapped[str] = mapped_column(String(40))
     resource_id: Mapped[str] = mapped_column(String(36))
     robot_id: Mapped[str | None] = mapped_column(String(36))
-    tool_id: Mapped[str | None] = mapped_column(String(36), index=True)
+    tool_id: Mapped[str | None] = mapped_column(String(36))
+    #: The TCP version the change concerns (a calibration's, an activation's, a check's).
+    version: Mapped[int | None] = mapped_column(Integer)
+    #: The X-Request-ID of the request that made the change (null from the command line).
+    request_id: Mapped[str | None] = mapped_column(String(128))
     details: Mapped[JsonObject | None] = mapped_column(JSON)
 
 

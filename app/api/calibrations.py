@@ -9,7 +9,7 @@ from starlette.concurrency import run_in_threadpool
 
 from app import solve_pool
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
-from app.auth import Principal, authenticate_held
+from app.auth import Principal, act_for, authenticate_held
 from app.config import get_settings
 from app.db import loop_engine, session_scope
 from app.deps import ReadKey, SessionDep
@@ -71,7 +71,7 @@ async def submit_calibration(
         if replay is not None:
             response.headers["Idempotent-Replayed"] = "true"
             return replay
-    snapshot, ctx = calibrate.snapshot_held(loop_engine(), tool_id)
+    snapshot, ctx = calibrate.snapshot_held(loop_engine(), tool_id, key)
     done = await solve_pool.run(
         calibrate.solve_and_submit,
         get_settings().database_url,
@@ -96,6 +96,7 @@ def _replay(
     tool_id: str, raw_body: JsonObject, idempotency_key: str, key: Principal
 ) -> Calibration | None:
     with session_scope(write=False) as session:
+        act_for(session, key)
         return calibrate.replayed(session, tool_id, raw_body, idempotency_key, key)
 
 

@@ -36,6 +36,8 @@ GLOSSARY: dict[str, str] = {
     "model": "robot model, e.g. KR 16 R1610-2",
     "serial": "serial number",
     "cell": "the robot cell the robot works in",
+    "cells": "the robot cells the key is limited to (robots whose `cell` is one of these, and "
+    "their tools; any other answers 404 as if absent); null: every cell",
     "kinematics": "the robot's kinematic chain, needed only for the `joints` pose format",
     "preset": "a built-in chain, e.g. ur5e",
     "convention": "dh (classic Denavit-Hartenberg) or mdh (modified, Craig)",

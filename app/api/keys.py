@@ -15,8 +15,13 @@ router = APIRouter(prefix="/v1/keys", tags=["keys"])
 
 @router.post("", status_code=201, response_model=KeyCreated)
 def create_key(body: KeyCreate, session: SessionDep, key: AdminKey) -> object:
-    """Create an API key of a scope; the key is shown in this answer only (stored as a hash)."""
-    row, secret = keys.create_key(session, name=body.name, scope=body.scope, actor=key)
+    """Create an API key of a scope, limited to robot cells when `cells` is given (it then
+    finds only those cells' robots and their tools: any other answers 404 as if absent);
+    the key is shown in this answer only (stored as a hash). A key limited to cells creates
+    keys limited to some of its cells only."""
+    row, secret = keys.create_key(
+        session, name=body.name, scope=body.scope, cells=body.cells, actor=key
+    )
     return {**KeyOut.model_validate(row, from_attributes=True).model_dump(), "key": secret}
 
 
@@ -25,7 +30,7 @@ def list_keys(
     session: SessionDep, key: AdminKey, limit: Limit = DEFAULT_PAGE, cursor: Cursor = None
 ) -> object:
     """Every API key with its name, scope, prefix and revocation time (never the key itself)."""
-    items, next_cursor = keys.list_keys(session, limit=limit, cursor=cursor)
+    items, next_cursor = keys.list_keys(session, limit=limit, cursor=cursor, actor=key)
     return {"items": items, "next_cursor": next_cursor}
 
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Annotated, Literal
 
 from fastapi import Path, Query, Request
+from fastapi.dependencies.models import Dependant
 
 from app.errors import InvalidInput
 from app.helpers.pagination import CURSOR_PATTERN, DEFAULT_LIMIT, MAX_LIMIT
@@ -22,6 +23,31 @@ DEFAULT_PAGE = DEFAULT_LIMIT
 PathId = Annotated[str, Path(pattern=ID_PATTERN, description="resource id")]
 #: Version numbers start at 1 and fit every database's 32-bit integer.
 VersionNumber = Annotated[int, Path(ge=1, le=2**31 - 1, description="version number")]
+
+
+def _query_names(dependant: Dependant) -> set[str]:
+    """The query parameters a route (or dependency) and its dependencies declare."""
+    names = {p.alias for p in dependant.query_params}
+    for sub in dependant.dependencies:
+        names |= _query_names(sub)
+    return names
+
+
+def known_query_only(request: Request) -> None:
+    """A dependency that refuses (422, naming them) query parameters the route does not
+    take: where a misspelt filter would otherwise be ignored and answer with everything."""
+    dependant = getattr(request.scope.get("route"), "dependant", None)
+    if not isinstance(dependant, Dependant):
+        return
+    known = _query_names(dependant)
+    unknown = sorted(set(request.query_params) - known)
+    if unknown:
+        raise InvalidInput(
+            "validation",
+            f"unknown query parameter{'s' if len(unknown) > 1 else ''} "
+            f"{', '.join(unknown)}: this route takes {', '.join(sorted(known))}",
+            loc=("query", unknown[0]),
+        )
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,7 @@ def get_session(session_id: PathId, session: SessionDep, key: ReadKey) -> object
 def add_touch(session_id: PathId, body: TouchAdd, session: SessionDep, key: CalibrateKey) -> object:
     """Add one touch. A touch that cannot be read, or that makes the set read as a unit or
     convention mix-up, is refused (422) and the session stays as it was; 409 once finished."""
-    return sessions.add_touch(session, session_id=session_id, pose=body.pose)
+    return sessions.add_touch(session, session_id=session_id, pose=body.pose, actor=key)
 
 
 @router.delete("/v1/sessions/{session_id}/poses/{index}", response_model=Session)
@@ -55,7 +55,7 @@ def delete_touch(
     session_id: PathId, index: TouchIndex, session: SessionDep, key: CalibrateKey
 ) -> object:
     """Remove a touch (a miss the session named); later touches move up one index."""
-    return sessions.delete_touch(session, session_id=session_id, index=index)
+    return sessions.delete_touch(session, session_id=session_id, index=index, actor=key)
 
 
 @router.post("/v1/sessions/{session_id}/finish", status_code=201, response_model=Calibration)

@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Body, Header, Request, Response
 
 from app import solve_pool
-from app.auth import authenticate_held
+from app.auth import act_for, authenticate_held
 from app.db import loop_engine, session_scope
 from app.methods import openapi_examples
 from app.middleware import KEY_NAME
@@ -36,6 +36,7 @@ async def solve(
         kinematics = calibrate.stateless_kinematics(None, body)
     else:
         with session_scope(write=False, engine=loop_engine()) as session:
+            act_for(session, key)  # a robot of another cell is not found
             kinematics = calibrate.stateless_kinematics(session, body)
     result = await solve_pool.run(calibrate.solve_detached, body, kinematics)
     # Built and validated in the solver process: serialised once, not validated again.

@@ -520,12 +520,55 @@ async function toolPage(toolId) {
       h("table", { id: "versions" }, h("thead", {}, h("tr", {}, ["Version", "Status", "TCP x, y, z mm", "Source", "Why", "By", "When", "", ""].map((c) => h("th", {}, c)))), h("tbody", {}, versionRows))),
     h("section", {}, h("h2", {}, "Activation history"),
       h("table", { id: "activations" }, h("thead", {}, h("tr", {}, ["When", "Version", "Previous", "Kind", "Reason", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, activationRows))),
+    await auditSection(toolId),
   );
 
   await drawController(null);
   if (versions.items.length) plotTcp(versions.items, sigmaOf);
   if (checks.length) plotChecks(checks, tool.tolerance.check_mm, drift.checks);
   if (tool.active_version !== null) await fillControllers(toolId, controllers, formats.controller_files || {}, controllerBox);
+}
+
+// ---- the audit trail (admin keys) ------------------------------------------------------------
+function auditWhy(event) {
+  const d = event.detail || {};
+  if ("reason" in d) return d.previous_version === null || d.previous_version === undefined ? d.reason : `${d.reason} (was v${d.previous_version})`;
+  if (Array.isArray(d.changed)) {
+    const from = d.from || {}, to = d.to || {};
+    return d.changed.flatMap((field) => {
+      if (!(field in to)) return [field];
+      if (to[field] && typeof to[field] === "object" && from[field] && typeof from[field] === "object") {
+        return Object.keys(to[field]).filter((k) => from[field][k] !== to[field][k]).map((k) => `${field}.${k} ${from[field][k]} → ${to[field][k]}`);
+      }
+      return [`${field} ${from[field]} → ${to[field]}`];
+    }).join("; ");
+  }
+  if (event.action === "calibration.create") return `${d.method} ${d.status}${d.note ? `: ${d.note}` : ""}`;
+  if (d.summary) return d.summary;
+  return Object.entries(d).filter(([, v]) => v === null || typeof v !== "object").map(([k, v]) => `${k} ${v}`).join(", ");
+}
+
+async function auditSection(toolId) {
+  const heading = h("h2", {}, "Audit trail");
+  let events;
+  try {
+    events = (await json(`/v1/audit?tool_id=${encodeURIComponent(toolId)}&limit=200`)).items;
+  } catch (error) {
+    if (error instanceof Problem && error.status === 403) {
+      return h("section", {}, heading, h("p", { id: "audit-needs-admin", class: "muted" }, "The audit trail (who changed what, when and why) needs an admin key: sign in with one to see it."));
+    }
+    return h("section", {}, heading, problemBox(error));
+  }
+  const rows = events.map((e) =>
+    h("tr", { "data-action": e.action },
+      h("td", {}, when(e.at)), h("td", {}, e.actor), h("td", {}, e.action),
+      h("td", { class: "num" }, e.version ?? "—"), h("td", {}, auditWhy(e)),
+      h("td", { class: "muted" }, e.request_id ?? "")),
+  );
+  return h("section", {}, heading,
+    events.length
+      ? h("table", { id: "audit" }, h("thead", {}, h("tr", {}, ["When", "Who", "What", "Version", "Why", "Request"].map((c) => h("th", {}, c)))), h("tbody", {}, rows))
+      : h("p", {}, "No changes recorded for this tool."));
 }
 
 async function fillControllers(toolId, controllers, files, box) {

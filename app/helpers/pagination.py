@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import re
 import uuid
 from collections.abc import Sequence
@@ -116,16 +117,28 @@ def paginate_newest_first(
     id_col: InstrumentedAttribute[int],
     limit: int,
     cursor: str | None,
+    query: str | None = None,
 ) -> tuple[Sequence[M], str | None]:
     """One page of `stmt` newest first, keyed on an increasing integer id (audit rows); the
-    cursor has the same 48-hex shape as the others, the id in its last 32 digits."""
+    cursor has the same 48-hex shape as the others, the id in its last 32 digits. `query`:
+    the filters that made `stmt`, as a string; the cursor then carries their fingerprint in
+    its first 16 digits, and a cursor made by another query is refused (422), since it
+    would skip or repeat rows of this one."""
+    tag = 0 if query is None else int(hashlib.sha256(query.encode()).hexdigest()[:16], 16)
     if cursor:
         decode_cursor(cursor)  # the shape check and its 422
+        if query is not None and int(cursor[:16], 16) != tag:
+            raise InvalidInput(
+                "invalid-cursor",
+                "cursor was made by another query (other filters): send it with the same "
+                "filters as the page it came from, or start again without cursor",
+                loc=("query", "cursor"),
+            )
         # ids beyond the database's 64-bit integers all mean "after every row"
         stmt = stmt.where(id_col < min(int(cursor[16:], 16), _MAX_ID))
     rows: list[M] = list(session.scalars(stmt.order_by(id_col.desc()).limit(limit + 1)))
     next_cursor = None
     if len(rows) > limit:
         rows = rows[:limit]
-        next_cursor = f"{0:016x}{int(getattr(rows[-1], 'id')):032x}"  # noqa: B009
+        next_cursor = f"{tag:016x}{int(getattr(rows[-1], 'id')):032x}"  # noqa: B009
     return rows, next_cursor

@@ -2,18 +2,31 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 from app.schemas.common import Name, StrictModel, Timestamp
 
 Scope = Literal["read", "calibrate", "admin"]
 
+#: The robot cells a key is limited to: names as robots carry them in `cell`.
+Cells = Annotated[
+    list[Annotated[Name, Field(strict=True)]],
+    Field(
+        min_length=1,
+        max_length=100,
+        description="the robot cells this key is limited to (robots whose `cell` is one of "
+        "these, and their tools); leave it out for a key of every cell",
+        examples=[["cell-12"]],
+    ),
+]
+
 
 class KeyCreate(StrictModel):
     name: Name
     scope: Scope
+    cells: Cells | None = None
 
 
 class KeyOut(BaseModel):
@@ -21,6 +34,7 @@ class KeyOut(BaseModel):
     name: str
     scope: Scope
     prefix: str
+    cells: list[str] | None = None
     created_at: Timestamp
     created_by: str | None
     revoked_at: Timestamp | None

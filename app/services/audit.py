@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Collection, Mapping
 from datetime import datetime
+from typing import Protocol, TypeVar
 
 from sqlalchemy import event as sa_event
 from sqlalchemy import insert
@@ -11,7 +13,7 @@ from sqlalchemy.orm import Session
 from app.auth import Principal
 from app.db import DriverWrite
 from app.jsontypes import JsonObject
-from app.logs import events_logger
+from app.logs import REQUEST_ID, events_logger
 from app.models import AuditEvent, table_of, utcnow
 from app.services import outbox
 
@@ -25,10 +27,14 @@ def record(
     resource_id: str,
     robot_id: str | None = None,
     tool_id: str | None = None,
+    version: int | None = None,
     details: JsonObject | None = None,
 ) -> None:
     """Append an audit event to the current transaction: written when it commits, with every
-    other event of the transaction in one statement, and logged once it has committed."""
+    other event of the transaction in one statement, and logged once it has committed. Its
+    request id is the one the access log line carries (app.logs.REQUEST_ID: set by the
+    request middleware, and by a solver process for the calibration it stores)."""
+    request_id = REQUEST_ID.get()
     session.info.setdefault(_ROWS, []).append(
         row(
             at=utcnow(),  # now, not when the transaction commits
@@ -39,6 +45,8 @@ def record(
             resource_id=resource_id,
             robot_id=robot_id,
             tool_id=tool_id,
+            version=version,
+            request_id=request_id,
             details=details,
         )
     )
@@ -48,9 +56,65 @@ def record(
         "resource_id": resource_id,
         "robot_id": robot_id,
         "tool_id": tool_id,
+        "version": version,
         **(details or {}),
     }
     session.info.setdefault(_PENDING, []).append((action, event))
+
+
+class _Created(Protocol):
+    """A new row of a table whose ids are made in Python (every resource but audit rows)."""
+
+    @property
+    def id(self) -> str: ...
+
+
+Created = TypeVar("Created", bound=_Created)
+
+
+def add_created(
+    session: Session,
+    new: Created,
+    *,
+    actor: Principal,
+    action: str,
+    resource_type: str,
+    robot_id: str | None = None,
+    tool_id: str | None = None,
+    details: JsonObject | None = None,
+) -> Created:
+    """Insert a new resource's row and its audit event in the current transaction: the one
+    way every service creates what it audits (the row is flushed, so its id and defaults
+    are set and a unique constraint fails here, before the event)."""
+    session.add(new)
+    session.flush()
+    record(
+        session,
+        actor=actor,
+        action=action,
+        resource_type=resource_type,
+        resource_id=new.id,
+        robot_id=robot_id,
+        tool_id=tool_id,
+        details=details,
+    )
+    return new
+
+
+def changes(
+    row: object,
+    new: Mapping[str, object],
+    *,
+    values_of: Collection[str],
+    before: Mapping[str, object] | None = None,
+) -> JsonObject:
+    """The details of a PATCH's audit event: every field it changed, and the old and new
+    values of those in `values_of` (the others, such as a robot's model of kilobytes, by
+    name). `before`: old values to show instead of the row's (a tolerance with its
+    defaults filled in)."""
+    shown = [k for k in sorted(new) if k in values_of]
+    old = {k: (before[k] if before and k in before else getattr(row, k)) for k in shown}
+    return {"changed": sorted(new), "from": old, "to": {k: new[k] for k in shown}}
 
 
 def row(
@@ -64,9 +128,13 @@ def row(
     robot_id: str | None,
     tool_id: str | None,
     details: JsonObject | None,
+    version: int | None = None,
+    request_id: str | None = None,
 ) -> dict[str, object]:
     """An audit_events row as inserted (also by bench/scale.py's bulk seeding)."""
     return {
+        "version": version,
+        "request_id": request_id,
         "at": at,
         "actor": actor,
         "api_key_id": api_key_id,

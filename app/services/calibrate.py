@@ -19,7 +19,7 @@ import numpy as np
 from sqlalchemy import Engine, and_, bindparam, insert, select
 from sqlalchemy.orm import Session
 
-from app.auth import Principal
+from app.auth import Principal, act_for
 from app.db import DriverWrite, HeldRead, engine_for, session_scope
 from app.errors import InvalidInput, NotFound, located_in
 from app.helpers.pagination import paginate
@@ -46,7 +46,7 @@ from app.services import audit, idempotency
 from app.services.contexts import DbContext, SnapshotContext, StatelessContext
 from app.services.diagnosis import EXPLAINABLE, Fit, implausible_flanges, refuse_mix_up
 from app.services.frames import frame_from, parse_poses_with
-from app.services.live import live_or_404
+from app.services.live import live_or_404, visible_tool
 from app.services.references import create_reference_point, ensure_reference_name_free
 from app.services.robots import get_robot, validate_kinematics
 from app.services.tools import get_tool
@@ -260,6 +260,7 @@ SNAPSHOT_READ = HeldRead(
         _TOOL.c.tolerance,
         _TOOL.c.active_version,
         _ROBOT.c.kinematics,
+        _ROBOT.c.cell,
         _VERSION.c.version,
         _VERSION.c.position_mm,
         _VERSION.c.quaternion,
@@ -276,10 +277,16 @@ SNAPSHOT_READ = HeldRead(
 )
 
 
-def snapshot_held(engine: Engine, tool_id: str) -> tuple[Snapshot, SnapshotContext]:
+def snapshot_held(
+    engine: Engine, tool_id: str, actor: Principal | None = None
+) -> tuple[Snapshot, SnapshotContext]:
     """What a calibration of this tool will solve against (no lock, no session): the
-    snapshot the write compares under the lock, and the solver's context."""
-    row = live_or_404(SNAPSHOT_READ.one_or_none(engine, tool_id=tool_id), "tool", tool_id)
+    snapshot the write compares under the lock, and the solver's context. A tool of a robot
+    outside the actor's cells is not found."""
+    row = SNAPSHOT_READ.one_or_none(engine, tool_id=tool_id)
+    if row is not None and actor is not None and not actor.sees_cell(row.cell):
+        row = None
+    row = live_or_404(row, "tool", tool_id)
     frame = None
     if row.version is not None:
         frame = frame_from(row.position_mm, row.quaternion, row.version, row.result)
@@ -328,6 +335,7 @@ def solve_and_submit(
     try:
         outcome = solve_snapshot(request, ctx)
         with session_scope(write=True, engine=engine_for(database_url)) as session:
+            act_for(session, actor)
             doc, replayed = submit(
                 session,
                 tool_id=tool_id,
@@ -396,11 +404,13 @@ def submit(
         resource_id=out.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
+        version=out.version,
         details={
             "method": request.method,
             "status": result.status,
-            "version": out.version,
             "activated": out.active,
+            "note": request.note,
+            "summary": result.summary,
         },
     )
     if idempotency_key is not None:
@@ -568,10 +578,9 @@ def list_calibrations(
 def get_calibration(session: Session, *, calibration_id: str) -> CalibrationDetail:
     """One calibration with the submission as received."""
     row = session.get(CalibrationRow, calibration_id)
-    if row is None:
+    tool = None if row is None else visible_tool(session, row.tool_id)
+    if row is None or tool is None:  # a tool of another cell's robot: as if absent
         raise NotFound(f"no calibration with id {calibration_id}")
-    tool = session.get(Tool, row.tool_id)
-    assert tool is not None
     out = calibration_out(row, tool)
     return CalibrationDetail(
         **out.model_dump(), request=row.request, geometry=_geometry(session, row, tool, out)

@@ -112,6 +112,7 @@ def run_check(
         resource_id=tool.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
+        version=frame.version,
         details=result.model_dump(
             mode="json",
             include={

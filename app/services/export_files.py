@@ -30,12 +30,13 @@ from app.exports import (
 )
 from app.helpers.etags import if_none_match_hit
 from app.jsontypes import JsonObject
-from app.models import ApiKey, TcpVersion, Tool, table_of
+from app.models import ApiKey, Robot, TcpVersion, Tool, table_of
 from app.services.robots import get_robot
 
 _KEY = ApiKey.__table__
 _TOOL = table_of(Tool)
 _VERSION = table_of(TcpVersion)
+_ROBOT = table_of(Robot)
 _FILE_READ = HeldRead(
     select(
         _KEY.c.id,
@@ -43,6 +44,8 @@ _FILE_READ = HeldRead(
         _KEY.c.scope,
         _KEY.c.key_hash,
         _KEY.c.revoked_at,
+        _KEY.c.cells,
+        _ROBOT.c.cell,
         _TOOL.c.id.label("tool_id"),
         _TOOL.c.name.label("tool_name"),
         _TOOL.c.slot,
@@ -57,6 +60,7 @@ _FILE_READ = HeldRead(
     )
     .select_from(_KEY)
     .outerjoin(_TOOL, _TOOL.c.id == bindparam("tool_id"))
+    .outerjoin(_ROBOT, _ROBOT.c.id == _TOOL.c.robot_id)
     .outerjoin(
         _VERSION,
         and_(_VERSION.c.tool_id == _TOOL.c.id, _VERSION.c.version == _TOOL.c.active_version),
@@ -139,7 +143,8 @@ def served_file_for_key(
     principal = admit(found, digest, required="read")
     assert found is not None
     fmt = needs_format(fmt)
-    if found.tool_id is None:
+    # A key limited to cells: another cell's tool is as absent as an unknown one.
+    if found.tool_id is None or not principal.sees_cell(found.cell):
         raise NotFound(f"no tool with id {tool_id}")
     if found.archived_at is not None:
         raise Archived(f"tool {tool_id} ({found.tool_name}) was archived")

@@ -27,6 +27,7 @@ from app.schemas.fleet import (
     LastCheck,
 )
 from app.services.drift import drifting_rule, fleet_drift
+from app.services.live import in_scope
 from app.services.tools import get_tool
 
 CHECK_ACTION = "tool.check"
@@ -186,10 +187,15 @@ def list_fleet(
 ) -> tuple[list[FleetTool], str | None]:
     """One page of the fleet, oldest tool first; four queries per page whatever its size,
     each reading only the columns a row shows (rows, not ORM objects: a page is read-only).
-    `attention`: only rows with (true) or without (false) an attention code."""
+    `attention`: only rows with (true) or without (false) an attention code. Only the robots
+    in the acting key's cells."""
     rules = attention_rules(utcnow())
-    stmt = _fleet_query(
-        cell=cell, robot_id=robot_id, q=q, status=status, attention=attention, rules=rules
+    stmt = in_scope(
+        session,
+        _fleet_query(
+            cell=cell, robot_id=robot_id, q=q, status=status, attention=attention, rules=rules
+        ),
+        Robot.id,
     )
     tools, next_cursor = paginate_rows(
         session, stmt, created_col=Tool.created_at, id_col=Tool.id, limit=limit, cursor=cursor

@@ -9,7 +9,7 @@ from sqlalchemy.orm import Session
 from app.auth import Principal
 from app.errors import InvalidInput, NotFound, located_in
 from app.methods.laser import sweeps_from
-from app.models import LaserDevice
+from app.models import LaserDevice, new_id
 from app.schemas.references import LaserDeviceCreate
 from app.services import audit
 from app.services.frames import active_frame, parse_poses_with
@@ -29,6 +29,7 @@ def create_laser_device(
         assert data.beam_a_y_mm is not None and data.beam_b_x_mm is not None  # noqa: PT018
         assert data.plane_z_mm is not None
         row = LaserDevice(
+            id=new_id(),
             robot_id=robot_id,
             name=data.name,
             beam_a_y_mm=data.beam_a_y_mm,
@@ -65,6 +66,7 @@ def create_laser_device(
                 trigger_noise_mm=teach.trigger_noise_mm,
             )
         row = LaserDevice(
+            id=new_id(),
             robot_id=robot_id,
             name=data.name,
             beam_a_y_mm=device.beam_a_y_mm,
@@ -82,18 +84,15 @@ def create_laser_device(
             },
             created_by=actor.name,
         )
-    session.add(row)
-    session.flush()
-    audit.record(
+    return audit.add_created(
         session,
+        row,
         actor=actor,
         action="laser_device.create",
         resource_type="laser_device",
-        resource_id=row.id,
         robot_id=robot_id,
         details={"name": row.name, "source": row.source},
     )
-    return row
 
 
 def get_laser_device(session: Session, *, robot_id: str, device_id: str) -> LaserDevice:

@@ -14,7 +14,7 @@ from app.auth import Principal
 from app.errors import Conflict, InvalidInput, NotFound, located_in
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance
-from app.models import LaserDevice, ReferencePoint
+from app.models import LaserDevice, ReferencePoint, new_id
 from app.schemas.common import Units
 from app.schemas.references import ReferencePointCreate
 from app.services import audit
@@ -70,6 +70,7 @@ def create_reference_point(
     get_robot(session, robot_id)
     ensure_reference_name_free(session, robot_id=robot_id, name=name)
     row = ReferencePoint(
+        id=new_id(),
         robot_id=robot_id,
         name=name,
         position_mm=[float(v) for v in position_mm],
@@ -78,18 +79,15 @@ def create_reference_point(
         calibration_id=calibration_id,
         created_by=actor.name,
     )
-    session.add(row)
-    session.flush()
-    audit.record(
+    return audit.add_created(
         session,
+        row,
         actor=actor,
         action="reference_point.create",
         resource_type="reference_point",
-        resource_id=row.id,
         robot_id=robot_id,
-        details={"name": name, "source": source},
+        details={"name": name, "source": source, "position_mm": row.position_mm},
     )
-    return row
 
 
 RobotRow = TypeVar("RobotRow", ReferencePoint, LaserDevice)

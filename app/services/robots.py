@@ -8,14 +8,14 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.errors import Conflict, InvalidInput
+from app.errors import Conflict, Forbidden, InvalidInput
 from app.helpers.pagination import paginate
 from app.jsontypes import JsonObject
 from app.kinematics.dh import kinematics_from_spec
-from app.models import Robot, Tool, utcnow
+from app.models import Robot, Tool, new_id, utcnow
 from app.schemas.robots import Kinematics, RobotCreate, RobotUpdate
 from app.services import audit
-from app.services.live import get_live
+from app.services.live import get_live, in_scope
 from app.services.slots import check_vendor_change
 
 
@@ -36,31 +36,42 @@ def _robot_name_free(session: Session, name: str, *, except_id: str | None = Non
         )
 
 
+def _cell_allowed(actor: Principal, cell: str | None) -> None:
+    """403 naming body.cell when a key limited to cells puts a robot outside them."""
+    if actor.sees_cell(cell):
+        return
+    assert actor.cells is not None
+    raise Forbidden(
+        f"this key is limited to the cells {', '.join(actor.cells)}: set cell to one of them "
+        "(a robot in another cell needs a key of that cell)",
+        loc=("body", "cell"),
+        msg="outside this key's cells",
+    )
+
+
 def create_robot(session: Session, *, data: RobotCreate, actor: Principal) -> Robot:
     """Register a robot (name unique among live robots)."""
+    _cell_allowed(actor, data.cell)
     _robot_name_free(session, data.name)
     values = data.model_dump()
     values["kinematics"] = validate_kinematics(data.kinematics)
-    robot = Robot(**values)
-    session.add(robot)
-    session.flush()
-    audit.record(
+    robot = Robot(id=new_id(), **values)
+    return audit.add_created(
         session,
+        robot,
         actor=actor,
         action="robot.create",
         resource_type="robot",
-        resource_id=robot.id,
         robot_id=robot.id,
-        details={"name": robot.name},
+        details={"name": robot.name, "cell": robot.cell},
     )
-    return robot
 
 
 def list_robots(
     session: Session, *, cell: str | None, name: str | None, limit: int, cursor: str | None
 ) -> tuple[Sequence[Robot], str | None]:
     """Live robots, optionally filtered by cell or exact name."""
-    stmt = select(Robot).where(Robot.archived_at.is_(None))
+    stmt = in_scope(session, select(Robot).where(Robot.archived_at.is_(None)), Robot.id)
     if cell is not None:
         stmt = stmt.where(Robot.cell == cell)
     if name is not None:
@@ -78,6 +89,8 @@ def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: P
         changes.pop("name", None)
     if "name" in changes:
         _robot_name_free(session, changes["name"], except_id=robot.id)
+    if "cell" in changes:
+        _cell_allowed(actor, changes["cell"])
     if "kinematics" in changes:
         changes["kinematics"] = validate_kinematics(data.kinematics)
     if changes.get("vendor") is not None:
@@ -87,6 +100,7 @@ def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: P
             )
         )
         check_vendor_change(changes["vendor"], ((n, s) for n, s in live), loc=("body", "vendor"))
+    details = audit.changes(robot, changes, values_of=("name", "vendor", "model", "serial", "cell"))
     for key, value in changes.items():
         setattr(robot, key, value)
     robot.updated_at = utcnow()
@@ -97,7 +111,7 @@ def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: P
         resource_type="robot",
         resource_id=robot.id,
         robot_id=robot.id,
-        details={"changed": sorted(changes)},
+        details=details,
     )
     return robot
 

@@ -46,6 +46,7 @@ from app.schemas.sessions import Session as SessionOut
 from app.services import audit, calibrate, idempotency
 from app.services.contexts import DbContext
 from app.services.frames import active_frame, parse_poses_with
+from app.services.live import in_scope, visible_tool
 from app.services.robots import get_robot
 from app.services.tools import get_tool
 from app.solvers.npoint import NOISE_CONTRADICTED
@@ -67,7 +68,7 @@ def plan(session: Session, data: PlanRequest) -> PlanOut:
     kinematics = None
     tcp = np.asarray(data.tcp_mm if data.tcp_mm is not None else DEFAULT_TCP_MM, dtype=float)
     if data.tool_id is not None:
-        tool = session.get(Tool, data.tool_id)
+        tool = visible_tool(session, data.tool_id)
         if tool is None or tool.archived_at is not None:
             raise InvalidInput(
                 "unknown-reference",
@@ -166,14 +167,12 @@ def create_session(
         status="open",
         created_by=actor.name,
     )
-    session.add(row)
-    session.flush()
-    audit.record(
+    audit.add_created(
         session,
+        row,
         actor=actor,
         action="session.create",
         resource_type="session",
-        resource_id=row.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
         details={"method": data.method, "format": data.format},
@@ -182,9 +181,16 @@ def create_session(
 
 
 def get_session(session: Session, session_id: str, *, for_update: bool = False) -> GuidedSession:
-    stmt = select(GuidedSession).where(GuidedSession.id == session_id)
+    """A guided session of a tool the caller's key may see, or 404."""
+    stmt = in_scope(
+        session,
+        select(GuidedSession)
+        .join(Tool, Tool.id == GuidedSession.tool_id)
+        .where(GuidedSession.id == session_id),
+        Tool.robot_id,
+    )
     if for_update:
-        stmt = stmt.with_for_update()
+        stmt = stmt.with_for_update(of=GuidedSession)
     row = session.scalars(stmt).one_or_none()
     if row is None:
         raise NotFound(f"no session with id {session_id}")
@@ -201,7 +207,30 @@ def _open(session: Session, session_id: str) -> GuidedSession:
     return row
 
 
-def add_touch(session: Session, *, session_id: str, pose: Pose) -> SessionOut:
+def _touch_event(
+    session: Session,
+    row: GuidedSession,
+    action: str,
+    actor: Principal,
+    details: JsonObject,
+    version: int | None = None,
+) -> None:
+    """The audit event of a change to a session's touches (index: 0-based, as in the URL)."""
+    tool = session.get(Tool, row.tool_id)
+    audit.record(
+        session,
+        actor=actor,
+        action=action,
+        resource_type="session",
+        resource_id=row.id,
+        robot_id=None if tool is None else tool.robot_id,
+        tool_id=row.tool_id,
+        version=version,
+        details=details,
+    )
+
+
+def add_touch(session: Session, *, session_id: str, pose: Pose, actor: Principal) -> SessionOut:
     """Keep one more touch, unless it cannot be read or the set now reads as a unit or
     convention mix-up: then refuse it and leave the session as it was."""
     row = _open(session, session_id)
@@ -223,10 +252,11 @@ def add_touch(session: Session, *, session_id: str, pose: Pose) -> SessionOut:
                 raise
     row.poses = poses
     row.updated_at = utcnow()
+    _touch_event(session, row, "session.touch_add", actor, {"index": len(poses) - 1, "pose": pose})
     return view(session, row, tool=tool)
 
 
-def delete_touch(session: Session, *, session_id: str, index: int) -> SessionOut:
+def delete_touch(session: Session, *, session_id: str, index: int, actor: Principal) -> SessionOut:
     row = _open(session, session_id)
     if not 0 <= index < len(row.poses):
         raise NotFound(
@@ -234,8 +264,10 @@ def delete_touch(session: Session, *, session_id: str, index: int) -> SessionOut
             f"{len(row.poses)} (touches 1 to {len(row.poses)}, indices 0 to "
             f"{len(row.poses) - 1}; touch n is index n - 1)"
         )
+    removed = row.poses[index]
     row.poses = [p for i, p in enumerate(row.poses) if i != index]
     row.updated_at = utcnow()
+    _touch_event(session, row, "session.touch_delete", actor, {"index": index, "pose": removed})
     return view(session, row)
 
 
@@ -285,6 +317,15 @@ def finish(
         actor=actor,
     )
     row.status, row.calibration_id, row.updated_at = "finished", out.id, utcnow()
+    if not replayed:
+        _touch_event(
+            session,
+            row,
+            "session.finish",
+            actor,
+            {"calibration_id": out.id, "touches": len(row.poses)},
+            version=out.version,
+        )
     return out, replayed
 
 

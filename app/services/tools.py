@@ -14,12 +14,12 @@ from app.errors import Conflict, InvalidInput, PreconditionFailed
 from app.helpers.etags import if_match_ok
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance
-from app.models import Tool, utcnow
+from app.models import Tool, new_id, utcnow
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.services import audit
 from app.services.controllers import check_slot_for_controller
 from app.services.drift import restate_drift
-from app.services.live import get_live
+from app.services.live import get_live, visible_tool
 from app.services.robots import get_robot
 from app.services.slots import check_slot
 
@@ -34,7 +34,7 @@ def tool_named_in_body(
 ) -> Tool:
     """A live tool of the robot that a request body names (a reference tool, a teaching
     tool): when there is none, the body field is wrong (422 at `loc`), not the URL (404)."""
-    tool = session.get(Tool, tool_id)
+    tool = visible_tool(session, tool_id)
     if tool is None or tool.archived_at is not None or tool.robot_id != robot_id:
         raise InvalidInput(
             "unknown-reference",
@@ -102,31 +102,32 @@ def create_tool(session: Session, *, robot_id: str, data: ToolCreate, actor: Pri
     _tool_unique(session, robot_id=robot_id, name=data.name, slot=data.slot)
     check_slot_for_controller(session, robot_id=robot_id, slot=data.slot)
     values = data.model_dump()
-    tool = Tool(robot_id=robot_id, last_version=0, revision=1, **values)
-    session.add(tool)
-    session.flush()
-    audit.record(
+    tool = Tool(id=new_id(), robot_id=robot_id, last_version=0, revision=1, **values)
+    return audit.add_created(
         session,
+        tool,
         actor=actor,
         action="tool.create",
         resource_type="tool",
-        resource_id=tool.id,
         robot_id=robot_id,
         tool_id=tool.id,
-        details={"name": tool.name, "slot": tool.slot},
+        details={"name": tool.name, "slot": tool.slot, "tolerance": tool.tolerance},
     )
-    return tool
 
 
 def list_tools(
     session: Session, *, robot_id: str, limit: int, cursor: str | None
 ) -> tuple[Sequence[Tool], str | None]:
     """Live tools of a robot."""
-    get_robot(session, robot_id)
+    get_robot(session, robot_id)  # 404 for a robot of another cell: its tools are not listed
     stmt = select(Tool).where(Tool.robot_id == robot_id, Tool.archived_at.is_(None))
     return paginate(
         session, stmt, created_col=Tool.created_at, id_col=Tool.id, limit=limit, cursor=cursor
     )
+
+
+#: The fields whose old and new values a tool's update event shows (all but the free text).
+_SHOWN_CHANGES = ("name", "slot", "serial", "load", "tolerance", "controller_symbol")
 
 
 def update_tool(
@@ -160,6 +161,12 @@ def update_tool(
             }
     if changes.get("load") is not None and tool.load is not None:
         changes["load"] = Load.model_validate({**tool.load, **changes["load"]}).model_dump()
+    details = audit.changes(
+        tool,
+        changes,
+        values_of=_SHOWN_CHANGES,
+        before={"tolerance": effective_tolerance(tool.tolerance).model_dump()},
+    )
     for key, value in changes.items():
         setattr(tool, key, value)
     if "tolerance" in changes:  # another check_mm, another projection
@@ -174,7 +181,7 @@ def update_tool(
         resource_id=tool.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
-        details={"changed": sorted(changes)},
+        details=details,
     )
     return tool
 

@@ -11,7 +11,7 @@ from datetime import datetime
 from sqlalchemy import Engine, and_, bindparam, insert, select, update
 from sqlalchemy.orm import Session
 
-from app.auth import Principal, admit, digest_of
+from app.auth import Principal, admit, cells_of, digest_of
 from app.config import get_settings
 from app.db import DriverWrite, HeldRead
 from app.errors import Archived, InvalidInput, NoActiveVersion, NotFound
@@ -48,6 +48,7 @@ _LOCK_TOOL = HeldRead(
         _TOOL.c.last_version,
         _TOOL.c.revision,
         _ROBOT.c.kinematics,
+        _ROBOT.c.cell,
     )
     .join(_ROBOT, _ROBOT.c.id == _TOOL.c.robot_id)
     .where(_TOOL.c.id == bindparam("tool_id"))
@@ -92,6 +93,9 @@ def lock_tool(session: Session, tool_id: str) -> LockedTool:
     404. Pending ORM changes are written first, so that the lock reads them."""
     session.flush()
     row = _LOCK_TOOL.one_or_none_in(session, tool_id=tool_id)
+    cells = cells_of(session)
+    if row is not None and cells is not None and row.cell not in cells:
+        row = None  # a tool of another cell's robot: as if absent
     row = live_or_404(row, "tool", tool_id)
     return LockedTool(
         row.id,
@@ -169,7 +173,8 @@ def add_version(
         resource_id=tool.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
-        details={"version": tool.last_version, "source": source, "status": status},
+        version=tool.last_version,
+        details={"source": source, "status": status},
     )
     _refresh_drift(session, tool)
     return tool.last_version
@@ -223,6 +228,7 @@ def activate(
         resource_id=tool.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
+        version=version,
         details={**event, **(details or {})},
     )
     _refresh_drift(session, tool)
@@ -392,6 +398,8 @@ HOT_READ = HeldRead(
         _KEY.c.scope,
         _KEY.c.key_hash,
         _KEY.c.revoked_at,
+        _KEY.c.cells,
+        _ROBOT.c.cell,
         _TOOL.c.id.label("tool_id"),
         _TOOL.c.robot_id,
         _TOOL.c.name.label("tool_name"),
@@ -406,6 +414,7 @@ HOT_READ = HeldRead(
     )
     .select_from(_KEY)
     .outerjoin(_TOOL, _TOOL.c.id == bindparam("tool_id"))
+    .outerjoin(_ROBOT, _ROBOT.c.id == _TOOL.c.robot_id)
     .outerjoin(
         _VERSION,
         and_(_VERSION.c.tool_id == _TOOL.c.id, _VERSION.c.version == _TOOL.c.active_version),
@@ -433,12 +442,20 @@ def served_tcp_for_key(
     key = (
         None
         if found is None
-        else _HotKey(found.key_id, found.key_name, found.scope, found.key_hash, found.revoked_at)
+        else _HotKey(
+            found.key_id,
+            found.key_name,
+            found.scope,
+            found.key_hash,
+            found.revoked_at,
+            found.cells,
+        )
     )
     principal = admit(key, digest, required="read")
     assert found is not None
     _text_needs_format(as_text, fmt)
-    if found.tool_id is None:
+    # The robot's cell came with the same statement: a key's cells cost no extra query.
+    if found.tool_id is None or not principal.sees_cell(found.cell):
         raise NotFound(f"no tool with id {tool_id}")
     if found.archived_at is not None:
         raise Archived(f"tool {tool_id} ({found.tool_name}) was archived")
@@ -462,6 +479,7 @@ class _HotKey:
     scope: str
     key_hash: str
     revoked_at: datetime | None
+    cells: JsonArray | None
 
 
 @dataclass(frozen=True, slots=True)

@@ -80,10 +80,11 @@ def test_a_rolled_back_write_leaves_no_version_and_no_audit_event(api: Api) -> N
             select(AuditEvent).where(AuditEvent.tool_id == tid).order_by(AuditEvent.id.desc())
         ).first()
     assert event is not None
-    assert (event.action, event.actor, event.details) == (
+    assert (event.action, event.actor, event.version, event.details) == (
         "version.create",
         "test",
-        {"version": n_versions, "source": "manual", "status": "accepted"},
+        n_versions,
+        {"source": "manual", "status": "accepted"},
     )
 
 

@@ -1,0 +1,116 @@
+"""`tcpcal audit` (a table: when, who, what, which tool and version, why; the filters as
+options) and `tcpcal keys create --cells`, through typer's runner; the client's HTTP goes to
+the app in process."""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import pytest
+from typer.testing import CliRunner
+
+from app.cli import cli
+from app.client import audit_why
+from tests.conftest import Api, Database
+
+
+@pytest.fixture
+def run(api: Api, monkeypatch: pytest.MonkeyPatch) -> CliRunner:
+    """The CLI with its client's requests sent to the app (an admin key)."""
+    from app import client
+    from app.main import create_app
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from fastapi.testclient import TestClient
+    app = create_app()
+
+    def in_process() -> Any:
+        return TestClient(app, headers={"Authorization": f"Bearer {api.keys['admin']}"})
+
+    monkeypatch.setattr(client, "_http", in_process)
+    monkeypatch.setenv("COLUMNS", "250")
+    return CliRunner()
+
+
+def test_audit_prints_when_who_what_which_and_why(api: Api, run: CliRunner) -> None:
+    robot = api.robot("kr16", cell="cell-12")
+    tool = api.tool(robot["id"], "torch", slot=3)
+    api.patch(f"/v1/tools/{tool['id']}", {"tolerance": {"max_rms_mm": 0.2}})
+    api.manual(tool["id"], [0, 0, 150], note="data sheet")
+    api.manual(tool["id"], [0, 0, 152], activate="never")
+    api.post(f"/v1/tools/{tool['id']}/versions/2/activate", scope="calibrate")
+
+    result = run.invoke(cli, ["audit", "--tool", tool["id"]])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    header = next(line for line in lines if "when (UTC)" in line)
+    for column in ("who", "what", "tool / version", "why"):
+        assert column in header
+    body = [line for line in lines if "torch" in line]
+    assert "version.activate" in body[0]  # newest first
+    assert "v2" in body[0]
+    assert "test-calibrate" in body[0]
+    assert "explicit (was v1)" in body[0]
+    assert any("tolerance.max_rms_mm 0.5 -> 0.2" in line for line in body)
+    assert any("manual accepted: data sheet" in line for line in body)
+
+    only = run.invoke(cli, ["audit", "--action", "robot.create", "--actor", "test-admin"])
+    assert only.exit_code == 0, only.output
+    assert "robot.create" in only.output
+    assert "tool.create" not in only.output
+
+    refused = run.invoke(cli, ["audit", "--since", "yesterday"])
+    assert refused.exit_code == 4, refused.output
+    assert "since" in refused.output
+
+
+def test_audit_needs_an_admin_key(
+    api: Api, run: CliRunner, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from fastapi.testclient import TestClient
+
+    from app import client
+    from app.main import create_app
+
+    app = create_app()
+    monkeypatch.setattr(
+        client,
+        "_http",
+        lambda: TestClient(app, headers={"Authorization": f"Bearer {api.keys['read']}"}),
+    )
+    result = run.invoke(cli, ["audit"])
+    assert result.exit_code == 5, result.output
+    assert "403" in result.output
+
+
+def test_why_in_a_few_words() -> None:
+    assert audit_why("key.create", {"name": "pc", "scope": "read", "cells": ["cell-12"]}) == (
+        "name pc, scope read, cells ['cell-12']"
+    )
+    update = {"changed": ["cell", "kinematics"], "from": {"cell": "a"}, "to": {"cell": "b"}}
+    assert audit_why("robot.update", update) == "cell a -> b; kinematics"
+    assert audit_why("tool.check", {"summary": "moved 0.3 mm"}) == "moved 0.3 mm"
+
+
+def test_keys_create_with_cells(db: Database) -> None:
+    runner = CliRunner()
+    made = runner.invoke(
+        cli, ["keys", "create", "--scope", "read", "--name", "pc", "--cells", "cell-12,cell-7"]
+    )
+    assert made.exit_code == 0, made.output
+    assert "cells: cell-12, cell-7" in made.output
+    listed = runner.invoke(cli, ["keys", "list"])
+    assert "cells cell-12,cell-7" in listed.output
+    bad = runner.invoke(cli, ["keys", "create", "--scope", "read", "--name", "pc", "--cells", ","])
+    assert bad.exit_code == 2, bad.output
+    assert "cells" in bad.output
+    from app.db import session_scope
+    from app.models import ApiKey, AuditEvent
+
+    with session_scope(write=False) as session:
+        rows = session.query(ApiKey).all()
+        events = session.query(AuditEvent).all()
+    assert [r.cells for r in rows] == [["cell-12", "cell-7"]]
+    assert [(e.action, e.actor[:4], e.request_id) for e in events] == [("key.create", "cli:", None)]

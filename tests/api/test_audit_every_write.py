@@ -1,0 +1,249 @@
+"""Every write route of the app leaves an audit event, with its actor and request id, in the
+transaction of the change; the audit of a key change never holds the key.
+
+The routes are enumerated from the app itself (every POST/PUT/PATCH/DELETE under /v1): a new
+write route that is not in CALLS below fails `test_every_write_route_is_in_the_table`, and one
+that writes no event fails `test_every_write_route_leaves_an_audit_event`.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+from uuid import uuid4
+
+import numpy as np
+import pytest
+from fastapi.routing import iter_route_contexts
+from sqlalchemy import text
+
+from app.kinematics.poses import pose_to_format
+from tests.api.touches import as_poses
+from tests.conftest import Api
+from tests.sim.touches import simulate_touches
+
+WRITE_METHODS = {"POST", "PUT", "PATCH", "DELETE"}
+TCP = [0.0, 0.0, 150.0]
+POINT = [800.0, 50.0, 300.0]
+
+
+@dataclass
+class Call:
+    """One request to a route: where, with what, and whether it changes anything."""
+
+    url: str
+    body: Any = None
+    headers: dict[str, str] = field(default_factory=dict)
+    scope: str = "admin"
+    writes: bool = True
+
+
+def _robot(api: Api) -> str:
+    return str(api.robot(f"r-{uuid4().hex[:8]}", cell="cell-1")["id"])
+
+
+def _tool(api: Api, *, active: bool = True) -> dict[str, Any]:
+    tool = api.tool(_robot(api), "torch", slot=1)
+    if active:
+        api.manual(tool["id"], TCP)
+    return tool
+
+
+def _touch_at_point() -> list[float]:
+    """A flange pose that puts TCP on POINT, the tool pointing down."""
+    rotation = np.diag([1.0, -1.0, -1.0])  # 180 deg about x
+    flange = np.asarray(POINT) - rotation @ np.asarray(TCP)
+    return [float(v) for v in pose_to_format("xyz_wxyz", rotation, flange)]  # type: ignore[arg-type]
+
+
+def _touches(n: int = 6) -> list[Any]:
+    return as_poses(
+        simulate_touches(n, seed=7, tcp_mm=np.asarray(TCP), touch_noise_mm=0.02), "kuka_abc"
+    )
+
+
+def _session(api: Api, touches: int) -> str:
+    tool = _tool(api)
+    made = api.post(
+        f"/v1/tools/{tool['id']}/sessions",
+        {"method": "xyz_npoint", "format": "kuka_abc"},
+        scope="calibrate",
+    )
+    assert made.status_code == 201, made.text
+    sid = str(made.json()["id"])
+    for pose in _touches()[:touches]:
+        added = api.post(f"/v1/sessions/{sid}/poses", {"pose": pose}, scope="calibrate")
+        assert added.status_code == 200, added.text
+    return sid
+
+
+def _reference(api: Api, robot_id: str) -> str:
+    made = api.post(
+        f"/v1/robots/{robot_id}/reference-points", {"name": "pin", "position_mm": POINT}
+    )
+    assert made.status_code == 201, made.text
+    return str(made.json()["id"])
+
+
+def _check(api: Api) -> Call:
+    tool = _tool(api)
+    point = _reference(api, tool["robot_id"])
+    body = {"reference_point_id": point, "format": "xyz_wxyz", "poses": [_touch_at_point()]}
+    return Call(f"/v1/tools/{tool['id']}/checks", body, scope="calibrate")
+
+
+def _activate(api: Api) -> Call:
+    tool = _tool(api)
+    api.manual(tool["id"], [0.0, 0.0, 151.0])
+    return Call(f"/v1/tools/{tool['id']}/versions/1/activate", scope="calibrate")
+
+
+def _revoke(api: Api) -> Call:
+    made = api.post("/v1/keys", {"name": "doomed", "scope": "read"})
+    return Call(f"/v1/keys/{made.json()['id']}")
+
+
+#: How to call each write route with a valid request (its prerequisites made first).
+CALLS: dict[tuple[str, str], Callable[[Api], Call]] = {
+    ("POST", "/v1/robots"): lambda api: Call("/v1/robots", {"name": "new", "cell": "cell-1"}),
+    ("PATCH", "/v1/robots/{robot_id}"): lambda api: Call(
+        f"/v1/robots/{_robot(api)}", {"cell": "cell-2"}
+    ),
+    ("DELETE", "/v1/robots/{robot_id}"): lambda api: Call(f"/v1/robots/{_robot(api)}"),
+    ("POST", "/v1/robots/{robot_id}/tools"): lambda api: Call(
+        f"/v1/robots/{_robot(api)}/tools", {"name": "gripper"}
+    ),
+    ("PATCH", "/v1/tools/{tool_id}"): lambda api: Call(
+        f"/v1/tools/{_tool(api, active=False)['id']}", {"tolerance": {"max_rms_mm": 0.2}}
+    ),
+    ("DELETE", "/v1/tools/{tool_id}"): lambda api: Call(
+        f"/v1/tools/{_tool(api, active=False)['id']}"
+    ),
+    ("POST", "/v1/tools/{tool_id}/calibrations"): lambda api: Call(
+        f"/v1/tools/{_tool(api, active=False)['id']}/calibrations",
+        {"method": "manual", "tcp": {"position_mm": TCP}},
+        scope="calibrate",
+    ),
+    ("POST", "/v1/tools/{tool_id}/versions/{version}/activate"): _activate,
+    ("POST", "/v1/tools/{tool_id}/checks"): _check,
+    ("POST", "/v1/robots/{robot_id}/reference-points"): lambda api: Call(
+        f"/v1/robots/{_robot(api)}/reference-points",
+        {"name": "pin", "position_mm": POINT},
+        scope="calibrate",
+    ),
+    ("POST", "/v1/robots/{robot_id}/laser-devices"): lambda api: Call(
+        f"/v1/robots/{_robot(api)}/laser-devices",
+        {"name": "beams", "beam_a_y_mm": 10.0, "beam_b_x_mm": -5.0, "plane_z_mm": 100.0},
+        scope="calibrate",
+    ),
+    ("POST", "/v1/keys"): lambda api: Call("/v1/keys", {"name": "cell-pc", "scope": "read"}),
+    ("DELETE", "/v1/keys/{key_id}"): _revoke,
+    ("POST", "/v1/tools/{tool_id}/sessions"): lambda api: Call(
+        f"/v1/tools/{_tool(api)['id']}/sessions",
+        {"method": "xyz_npoint", "format": "kuka_abc"},
+        scope="calibrate",
+    ),
+    ("POST", "/v1/sessions/{session_id}/poses"): lambda api: Call(
+        f"/v1/sessions/{_session(api, 0)}/poses", {"pose": _touches()[0]}, scope="calibrate"
+    ),
+    ("DELETE", "/v1/sessions/{session_id}/poses/{index}"): lambda api: Call(
+        f"/v1/sessions/{_session(api, 2)}/poses/1", scope="calibrate"
+    ),
+    ("POST", "/v1/sessions/{session_id}/finish"): lambda api: Call(
+        f"/v1/sessions/{_session(api, 6)}/finish", {}, scope="calibrate"
+    ),
+    # POSTs that compute and store nothing: called too, and must leave no event.
+    ("POST", "/v1/plan"): lambda api: Call(
+        "/v1/plan",
+        {"format": "kuka_abc", "start": _touches()[0], "tcp_mm": TCP},
+        scope="read",
+        writes=False,
+    ),
+    ("POST", "/v1/solve"): lambda api: Call(
+        "/v1/solve",
+        {"method": "xyz_npoint", "format": "kuka_abc", "poses": _touches()},
+        scope="read",
+        writes=False,
+    ),
+}
+
+
+def write_routes() -> list[tuple[str, str]]:
+    """Every (method, path) of the app that is not a read, under /v1."""
+    from app.main import create_app
+
+    found = set()
+    for route in iter_route_contexts(create_app().routes):  # the included routers' too
+        if route.path is not None and route.path.startswith("/v1/"):
+            for method in (route.methods or set()) & WRITE_METHODS:
+                found.add((method, route.path))
+    return sorted(found)
+
+
+def test_every_write_route_is_in_the_table() -> None:
+    routes = write_routes()
+    missing = [r for r in routes if r not in CALLS]
+    assert missing == [], (
+        f"write routes without an entry in CALLS: {missing}; add how to call each, and make "
+        "its service record an audit event (app.services.audit) in the same transaction"
+    )
+    stale = [r for r in CALLS if r not in routes]
+    assert stale == [], f"CALLS names routes the app no longer has: {stale}"
+
+
+def _events(api: Api) -> list[dict[str, Any]]:
+    from app.db import get_engine
+
+    with get_engine().connect() as conn:
+        rows = conn.execute(text("SELECT * FROM audit_events ORDER BY id")).mappings().all()
+    return [dict(r) for r in rows]
+
+
+@pytest.mark.parametrize("route", sorted(CALLS), ids=lambda r: f"{r[0]} {r[1]}")
+def test_every_write_route_leaves_an_audit_event(api: Api, route: tuple[str, str]) -> None:
+    method, _ = route
+    call = CALLS[route](api)
+    before = len(_events(api))
+    request_id = f"audit-test-{uuid4().hex}"
+    kw: dict[str, Any] = {"headers": {"X-Request-ID": request_id, **call.headers}}
+    if call.body is not None:
+        kw["json"] = call.body
+    response = api.request(method, call.url, call.scope, **kw)
+    assert response.status_code < 300, response.text
+    new = _events(api)[before:]
+    if not call.writes:
+        assert new == []
+        return
+    assert new, f"{method} {call.url} changed something and left no audit event"
+    for event in new:
+        assert event["actor"] == f"test-{call.scope}", event
+        assert event["request_id"] == request_id, event
+        assert event["at"] is not None
+    # And readable through the API, with the same request id.
+    trail = api.get("/v1/audit", scope="admin", params={"limit": 500}).json()["items"]
+    ids = {str(e["id"]) for e in new}
+    shown = [e for e in trail if e["id"] in ids]
+    assert len(shown) == len(new)
+    assert {e["request_id"] for e in shown} == {request_id}
+
+
+def test_the_audit_of_a_key_change_never_holds_the_key(api: Api) -> None:
+    from app.auth import hash_key
+
+    made = api.post("/v1/keys", {"name": "cell-12 pc", "scope": "calibrate", "cells": ["cell-12"]})
+    assert made.status_code == 201, made.text
+    secret, key_id = made.json()["key"], made.json()["id"]
+    assert api.delete(f"/v1/keys/{key_id}").status_code == 204
+    rows = [r for r in _events(api) if r["resource_id"] == key_id]
+    assert [r["action"] for r in rows] == ["key.create", "key.revoke"]
+    everything = json.dumps(_events(api), default=str)
+    assert secret not in everything
+    assert hash_key(secret) not in everything
+    assert secret[7:12] not in everything  # not even the part of the key a prefix shows
+    created = rows[0]
+    details = created["details"] if isinstance(created["details"], dict) else None
+    if details is None:
+        details = json.loads(created["details"])
+    assert details == {"name": "cell-12 pc", "scope": "calibrate", "cells": ["cell-12"]}
