@@ -20,6 +20,7 @@ from fastapi.routing import iter_route_contexts
 from sqlalchemy import text
 
 from app.kinematics.poses import pose_to_format
+from tests.api.controller_rigs import Rig, rig
 from tests.api.touches import as_poses
 from tests.conftest import Api
 from tests.sim.touches import simulate_touches
@@ -87,81 +88,115 @@ def _reference(api: Api, robot_id: str) -> str:
     return str(made.json()["id"])
 
 
-def _check(api: Api) -> Call:
+def _check(api: Api, _rig: Rig) -> Call:
     tool = _tool(api)
     point = _reference(api, tool["robot_id"])
     body = {"reference_point_id": point, "format": "xyz_wxyz", "poses": [_touch_at_point()]}
     return Call(f"/v1/tools/{tool['id']}/checks", body, scope="calibrate")
 
 
-def _activate(api: Api) -> Call:
+def _activate(api: Api, _rig: Rig) -> Call:
     tool = _tool(api)
     api.manual(tool["id"], [0.0, 0.0, 151.0])
     return Call(f"/v1/tools/{tool['id']}/versions/1/activate", scope="calibrate")
 
 
-def _revoke(api: Api) -> Call:
+def _revoke(api: Api, _rig: Rig) -> Call:
     made = api.post("/v1/keys", {"name": "doomed", "scope": "read"})
     return Call(f"/v1/keys/{made.json()['id']}")
 
 
 #: How to call each write route with a valid request (its prerequisites made first).
-CALLS: dict[tuple[str, str], Callable[[Api], Call]] = {
-    ("POST", "/v1/robots"): lambda api: Call("/v1/robots", {"name": "new", "cell": "cell-1"}),
-    ("PATCH", "/v1/robots/{robot_id}"): lambda api: Call(
+def _rollback(api: Api, _rig: Rig) -> Call:
+    tool = _tool(api)
+    api.manual(tool["id"], [0.0, 0.0, 151.0])  # v2 active, v1 before it
+    return Call(f"/v1/tools/{tool['id']}/rollback", scope="calibrate")
+
+
+def _on_controller(api: Api, rig: Rig, *, active: bool = True) -> dict[str, Any]:
+    """A tool of a robot whose controller is the rig's simulator."""
+    tool = api.tool(_robot(api), "torch", **rig.tool_fields)
+    put = api.request("PUT", f"/v1/robots/{tool['robot_id']}/controller", "admin",
+                      json=rig.controller_body())  # fmt: skip
+    assert put.status_code == 200, put.text
+    if active:
+        api.manual(tool["id"], TCP)
+    return tool
+
+
+def _controller_delete(api: Api, rig: Rig) -> Call:
+    return Call(f"/v1/robots/{_on_controller(api, rig, active=False)['robot_id']}/controller")
+
+
+#: How to call each write route with a valid request (its prerequisites made first; `Rig` is a
+#: KUKA controller simulator for the routes that talk to a controller).
+CALLS: dict[tuple[str, str], Callable[[Api, Rig], Call]] = {
+    ("POST", "/v1/robots"): lambda api, _rig: Call("/v1/robots", {"name": "new", "cell": "cell-1"}),
+    ("PATCH", "/v1/robots/{robot_id}"): lambda api, _rig: Call(
         f"/v1/robots/{_robot(api)}", {"cell": "cell-2"}
     ),
-    ("DELETE", "/v1/robots/{robot_id}"): lambda api: Call(f"/v1/robots/{_robot(api)}"),
-    ("POST", "/v1/robots/{robot_id}/tools"): lambda api: Call(
+    ("DELETE", "/v1/robots/{robot_id}"): lambda api, _rig: Call(f"/v1/robots/{_robot(api)}"),
+    ("POST", "/v1/robots/{robot_id}/tools"): lambda api, _rig: Call(
         f"/v1/robots/{_robot(api)}/tools", {"name": "gripper"}
     ),
-    ("PATCH", "/v1/tools/{tool_id}"): lambda api: Call(
+    ("PATCH", "/v1/tools/{tool_id}"): lambda api, _rig: Call(
         f"/v1/tools/{_tool(api, active=False)['id']}", {"tolerance": {"max_rms_mm": 0.2}}
     ),
-    ("DELETE", "/v1/tools/{tool_id}"): lambda api: Call(
+    ("DELETE", "/v1/tools/{tool_id}"): lambda api, _rig: Call(
         f"/v1/tools/{_tool(api, active=False)['id']}"
     ),
-    ("POST", "/v1/tools/{tool_id}/calibrations"): lambda api: Call(
+    ("POST", "/v1/tools/{tool_id}/calibrations"): lambda api, _rig: Call(
         f"/v1/tools/{_tool(api, active=False)['id']}/calibrations",
         {"method": "manual", "tcp": {"position_mm": TCP}},
         scope="calibrate",
     ),
     ("POST", "/v1/tools/{tool_id}/versions/{version}/activate"): _activate,
     ("POST", "/v1/tools/{tool_id}/checks"): _check,
-    ("POST", "/v1/robots/{robot_id}/reference-points"): lambda api: Call(
+    ("POST", "/v1/tools/{tool_id}/rollback"): _rollback,
+    ("PUT", "/v1/robots/{robot_id}/controller"): lambda api, rig: Call(
+        f"/v1/robots/{_robot(api)}/controller", rig.controller_body()
+    ),
+    ("DELETE", "/v1/robots/{robot_id}/controller"): _controller_delete,
+    ("POST", "/v1/tools/{tool_id}/deployments"): lambda api, rig: Call(
+        f"/v1/tools/{_on_controller(api, rig)['id']}/deployments", {}, scope="calibrate"
+    ),
+    ("POST", "/v1/robots/{robot_id}/reconcile"): lambda api, rig: Call(
+        f"/v1/robots/{_on_controller(api, rig)['robot_id']}/reconcile", scope="read"
+    ),
+    ("POST", "/v1/robots/{robot_id}/reference-points"): lambda api, _rig: Call(
         f"/v1/robots/{_robot(api)}/reference-points",
         {"name": "pin", "position_mm": POINT},
         scope="calibrate",
     ),
-    ("POST", "/v1/robots/{robot_id}/laser-devices"): lambda api: Call(
+    ("POST", "/v1/robots/{robot_id}/laser-devices"): lambda api, _rig: Call(
         f"/v1/robots/{_robot(api)}/laser-devices",
         {"name": "beams", "beam_a_y_mm": 10.0, "beam_b_x_mm": -5.0, "plane_z_mm": 100.0},
         scope="calibrate",
     ),
-    ("POST", "/v1/keys"): lambda api: Call("/v1/keys", {"name": "cell-pc", "scope": "read"}),
+    ("POST", "/v1/keys"): lambda api, _rig: Call("/v1/keys", {"name": "cell-pc", "scope": "read"}),
     ("DELETE", "/v1/keys/{key_id}"): _revoke,
-    ("POST", "/v1/tools/{tool_id}/sessions"): lambda api: Call(
+    ("POST", "/v1/tools/{tool_id}/sessions"): lambda api, _rig: Call(
         f"/v1/tools/{_tool(api)['id']}/sessions",
         {"method": "xyz_npoint", "format": "kuka_abc"},
         scope="calibrate",
     ),
-    ("POST", "/v1/sessions/{session_id}/poses"): lambda api: Call(
+    ("POST", "/v1/sessions/{session_id}/poses"): lambda api, _rig: Call(
         f"/v1/sessions/{_session(api, 0)}/poses", {"pose": _touches()[0]}, scope="calibrate"
     ),
-    ("DELETE", "/v1/sessions/{session_id}/poses/{index}"): lambda api: Call(
+    ("DELETE", "/v1/sessions/{session_id}/poses/{index}"): lambda api, _rig: Call(
         f"/v1/sessions/{_session(api, 2)}/poses/1", scope="calibrate"
     ),
-    ("POST", "/v1/sessions/{session_id}/finish"): lambda api: Call(
+    ("POST", "/v1/sessions/{session_id}/finish"): lambda api, _rig: Call(
         f"/v1/sessions/{_session(api, 6)}/finish", {}, scope="calibrate"
     ),
     # POSTs that compute and store nothing: called too, and must leave no event.
-    ("POST", "/v1/plan"): lambda api: Call(
+    ("POST", "/v1/plan"): lambda api, _rig: Call(
         "/v1/plan",
         {"format": "kuka_abc", "start": _touches()[0], "tcp_mm": TCP},
         scope="read",
         writes=False,
     ),
-    ("POST", "/v1/solve"): lambda api: Call(
+    ("POST", "/v1/solve"): lambda api, _rig: Call(
         "/v1/solve",
         {"method": "xyz_npoint", "format": "kuka_abc", "poses": _touches()},
         scope="read",
@@ -204,7 +239,11 @@ def _events(api: Api) -> list[dict[str, Any]]:
 @pytest.mark.parametrize("route", sorted(CALLS), ids=lambda r: f"{r[0]} {r[1]}")
 def test_every_write_route_leaves_an_audit_event(api: Api, route: tuple[str, str]) -> None:
     method, _ = route
-    call = CALLS[route](api)
+    with rig("kuka_kvp") as kuka:
+        _leaves_an_event(api, method, CALLS[route](api, kuka))
+
+
+def _leaves_an_event(api: Api, method: str, call: Call) -> None:
     before = len(_events(api))
     request_id = f"audit-test-{uuid4().hex}"
     kw: dict[str, Any] = {"headers": {"X-Request-ID": request_id, **call.headers}}
