@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.auth import Principal
+from app.auth import Principal, act_for
 from app.controllers import connect
 from app.controllers.base import (
     TARGET_FIELD,
@@ -192,6 +192,7 @@ def deploy(
     or mismatched attempt is recorded and then raised as its 502 with `deployment_id`."""
     fingerprint = idempotency.request_fingerprint(f"deploy:{tool_id}", raw_body)
     with session_scope(write=False) as session:
+        act_for(session, actor)  # only the robots the key's cells hold
         if idempotency_key is not None:
             replayed = idempotency.replay(
                 session, actor=actor, key=idempotency_key, fingerprint=fingerprint, purge=False
@@ -201,6 +202,7 @@ def deploy(
         plan = plan_deployment(session, tool_id)
     outcome = write_and_read_back(plan)
     with session_scope(write=True) as session:
+        act_for(session, actor)  # only the robots the key's cells hold
         row = _record(session, plan, outcome, actor)
         document = deployment_document(row).model_dump(mode="json")
         if idempotency_key is not None and outcome.status == "verified":

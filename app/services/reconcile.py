@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.auth import Principal
+from app.auth import Principal, act_for
 from app.controllers import connect
 from app.controllers.base import (
     ControllerError,
@@ -145,6 +145,7 @@ def reconcile_robot(
     the states; 404 for the robot, 409 when it has no controller. None when `cancelled()`
     turned true while the controller was read (a stopping watcher stores nothing)."""
     with session_scope(write=False) as session:
+        act_for(session, actor)  # only the robots the key's cells hold
         get_robot(session, robot_id)
         controller = get_controller(session, robot_id)
         settings = settings_of(controller)
@@ -157,6 +158,7 @@ def reconcile_robot(
     answer_tools: list[dict[str, object]] = []
     skipped: list[dict[str, object]] = []
     with session_scope(write=True) as session:
+        act_for(session, actor)  # only the robots the key's cells hold
         for tool in tools:
             if tool.target is None:
                 skipped.append({"tool_id": tool.tool_id, "reason": tool.problem})

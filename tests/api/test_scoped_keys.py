@@ -296,3 +296,41 @@ def test_cells_must_be_a_list_of_names(api: Api, cells_sent: Any) -> None:
     assert refused.headers["content-type"].startswith("application/problem+json")
     assert problem["errors"][0]["loc"][:2] == ["body", "cells"], problem
     assert api.get("/v1/keys", scope="admin").json()["items"] == before
+
+
+#: This round's routes of a robot's controller, its tools' deployments and drift, as a cell
+#: key would call them on cell 7's things: (method, url template, what the id names, body).
+CONTROLLER_ROUTES: list[tuple[str, str, str, Any]] = [
+    ("GET", "/v1/robots/{robot}/controller", "robot", None),
+    ("PUT", "/v1/robots/{robot}/controller", "robot", {"protocol": "kuka_kvp", "host": "h"}),
+    ("DELETE", "/v1/robots/{robot}/controller", "robot", None),
+    ("POST", "/v1/robots/{robot}/reconcile", "robot", None),
+    ("GET", "/v1/tools/{tool}/deployments", "tool", None),
+    ("POST", "/v1/tools/{tool}/deployments", "tool", {}),
+    ("GET", "/v1/tools/{tool}/drift", "tool", None),
+]
+
+
+@pytest.mark.parametrize(
+    ("method", "template", "named", "body"),
+    CONTROLLER_ROUTES,
+    ids=[r[1] for r in CONTROLLER_ROUTES],
+)
+def test_another_cells_controller_deployments_and_drift_are_absent_to_a_cell_key(
+    api: Api, cells: dict[str, dict[str, str]], method: str, template: str, named: str, body: Any
+) -> None:
+    ids = cells[CELL7]
+    # Cell 7's robot has a controller (unreachable: nothing here talks to it).
+    put = api.request(
+        "PUT",
+        f"/v1/robots/{ids['robot']}/controller",
+        "admin",
+        json={"protocol": "kuka_kvp", "host": "127.0.0.1", "port": 9, "timeout_s": 0.1},
+    )
+    assert put.status_code == 200, put.text
+    before = api.get(f"/v1/robots/{ids['robot']}/controller", scope="admin").json()
+    kw = {} if body is None else {"json": body}
+    _as_if_absent(api, method, template, ids, named, "c12-admin", **kw)
+    assert api.get(f"/v1/robots/{ids['robot']}/controller", scope="admin").json() == before
+    deployments = api.get(f"/v1/tools/{ids['tool']}/deployments", scope="admin").json()
+    assert deployments["items"] == []  # the cell key's POST made no attempt
