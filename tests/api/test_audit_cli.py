@@ -8,6 +8,7 @@ import warnings
 from typing import Any
 
 import pytest
+from rich.console import Console
 from typer.testing import CliRunner
 
 from app.cli import cli
@@ -30,7 +31,10 @@ def run(api: Api, monkeypatch: pytest.MonkeyPatch) -> CliRunner:
         return TestClient(app, headers={"Authorization": f"Bearer {api.keys['admin']}"})
 
     monkeypatch.setattr(client, "_http", in_process)
+    # Wide enough for every column's header on one line. COLUMNS alone is read when the
+    # client's console is made, which an earlier test in the same process may have done.
     monkeypatch.setenv("COLUMNS", "250")
+    monkeypatch.setattr(client, "out", Console(width=250))
     return CliRunner()
 
 
