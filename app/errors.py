@@ -164,6 +164,8 @@ INPUT_KINDS: dict[str, str] = {
     "target-unreachable": "Target out of reach",
     "missing-secret-key": "Secret key not configured",
     "controller-target": "Tool has no place in its controller",
+    "invalid-host": "Invalid host",
+    "reason-required": "Reason required",
 }
 
 

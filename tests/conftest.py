@@ -20,6 +20,11 @@ if TYPE_CHECKING:
     from fastapi.testclient import TestClient
 
 PG_URL = os.environ.get("TCPCAL_TEST_DATABASE_URL")
+
+# The CLI's rich consoles read COLUMNS once, when app.client is first imported, and a run
+# without a terminal (CI, xdist workers) otherwise gets 80: tables of ids and names then
+# truncate the very words the CLI tests look for, depending on which test imported it first.
+os.environ.setdefault("COLUMNS", "250")
 BACKENDS = ["sqlite"] + (["postgresql"] if PG_URL else [])
 
 

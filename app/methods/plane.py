@@ -51,7 +51,14 @@ class PlaneTouch(StrictModel):
 
 
 class PlaneOptions(StrictModel):
-    planes: Annotated[list[PlaneLabel], Field(min_length=1, max_length=3)] | None = Field(
+    # uniqueItems: the spec states what _distinct enforces.
+    planes: (
+        Annotated[
+            list[PlaneLabel],
+            Field(min_length=1, max_length=3, json_schema_extra={"uniqueItems": True}),
+        ]
+        | None
+    ) = Field(
         default=None,
         description="the labelled planes touched (up to 3); each touch then names its plane: "
         '{"plane": "a", "pose": [...]}. Without it, one plane and bare poses',
@@ -148,7 +155,7 @@ def touch_labels(request: XyzPlaneCalibration) -> list[str] | None:
         labelled = next((i for i, lab in enumerate(sent) if lab is not None), None)
         if labelled is not None:
             raise InvalidInput(
-                "validation",
+                "invalid-options",
                 f"touch #{labelled + 1} names plane {sent[labelled]!r} but options.planes is "
                 'not given: list the planes touched (options.planes, e.g. ["a", "b"]), or '
                 "send bare poses for one plane",
@@ -158,7 +165,7 @@ def touch_labels(request: XyzPlaneCalibration) -> list[str] | None:
     missing = next((i for i, lab in enumerate(sent) if lab is None), None)
     if missing is not None:
         raise InvalidInput(
-            "validation",
+            "invalid-options",
             f"touch #{missing + 1} does not say which plane it touched; with options.planes "
             f'{listed} every touch is {{"plane": ..., "pose": [...]}}',
             loc=("poses", missing),
@@ -167,7 +174,7 @@ def touch_labels(request: XyzPlaneCalibration) -> list[str] | None:
     for i, lab in enumerate(labels):
         if lab not in listed:
             raise InvalidInput(
-                "validation",
+                "invalid-options",
                 f"touch #{i + 1} names plane {lab!r}, which options.planes {listed} does not "
                 "list: add it there, or correct the touch's label",
                 loc=("poses", i, "plane"),
@@ -175,7 +182,7 @@ def touch_labels(request: XyzPlaneCalibration) -> list[str] | None:
     for lab in listed:
         if lab not in labels:
             raise InvalidInput(
-                "validation",
+                "invalid-options",
                 f"options.planes lists plane {lab!r} but no touch names it: touch it (3 or "
                 "more times) or take it off the list",
                 loc=("options", "planes"),

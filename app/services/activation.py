@@ -40,7 +40,7 @@ def activate_version(
     changed); `force` without a reason is a 422 on body.reason."""
     if body.force and body.reason is None:
         raise InvalidInput(
-            "validation",
+            "reason-required",
             'force needs a reason: say why this version must go live, e.g. {"force": true, '
             '"reason": "probe bent, interim TCP until the new one is calibrated"}',
             loc=("body", "reason"),

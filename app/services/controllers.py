@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import ipaddress
+import re
+
 from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
 
@@ -26,12 +29,36 @@ def get_controller(session: Session, robot_id: str) -> RobotController:
     return controller
 
 
+_LABEL = re.compile(r"^(?!-)[A-Za-z0-9-]{1,63}(?<!-)$")
+
+
+def check_host(host: str) -> None:
+    """A host name (RFC 1123 labels) or an IPv4/IPv6 address, as a controller is reached, else
+    422 /invalid-host on body.host. Checked here rather than in the request schema, whose
+    pattern language could not say it without admitting strings that are neither."""
+    try:
+        ipaddress.ip_address(host)
+        return
+    except ValueError:
+        pass
+    labels = host.rstrip(".").split(".")
+    if not all(_LABEL.match(label) for label in labels):
+        raise InvalidInput(
+            "invalid-host",
+            f"host {host!r} is neither a host name (letters, digits and -, in dot-separated "
+            "labels of at most 63) nor an IPv4/IPv6 address: give the controller's address "
+            "as its network settings show it",
+            loc=("body", "host"),
+        )
+
+
 def put_controller(
     session: Session, *, robot_id: str, data: ControllerIn, fields_sent: set[str], actor: Principal
 ) -> RobotController:
     """Set how to reach the robot's controller. A password left out keeps the stored one;
     null removes it. Its live tools must be addressable under the protocol (422 otherwise)."""
     get_robot(session, robot_id, for_update=True)
+    check_host(data.host)
     _tools_addressable(session, robot_id, data.protocol)
     controller = session.get(RobotController, robot_id)
     created = controller is None
