@@ -33,11 +33,11 @@ from __future__ import annotations
 import contextlib
 import ssl
 from dataclasses import replace
-from types import TracebackType
 
 import httpx
 
 from app.controllers.base import (
+    ClosingSession,
     ControllerProtocolError,
     ControllerRefused,
     ControllerSettings,
@@ -62,7 +62,7 @@ _LOGOUT_BUDGET_S = 1.0
 _WORDS_LIMIT = 300
 
 
-class AbbRwsConnector:
+class AbbRwsConnector(ClosingSession):
     """One RWS session with an ABB controller: read and write PERS tooldata symbols."""
 
     def __init__(self, settings: ControllerSettings) -> None:
@@ -158,17 +158,6 @@ class AbbRwsConnector:
                 self._client.get("/logout", timeout=min(self._settings.timeout_s, _LOGOUT_BUDGET_S))
             self._logged_in = False
         self._client.close()
-
-    def __enter__(self) -> AbbRwsConnector:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     # --- requests --------------------------------------------------------------------------
 

@@ -19,7 +19,7 @@ import re
 import time
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Literal, Protocol, get_args
+from typing import Literal, Protocol, Self, get_args
 
 ProtocolName = Literal["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2"]
 PROTOCOLS: tuple[str, ...] = get_args(ProtocolName)
@@ -153,6 +153,24 @@ class Connector(Protocol):
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None: ...
+
+
+class ClosingSession:
+    """The context-manager half of a Connector, written once: `with` closes the session."""
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
 
 
 def target_problem(protocol: str, target: ToolTarget) -> str | None:

@@ -28,11 +28,11 @@ from __future__ import annotations
 
 import json
 import socket
-from types import TracebackType
 
 import numpy as np
 
 from app.controllers.base import (
+    ClosingSession,
     ControllerProtocolError,
     ControllerRefused,
     ControllerSettings,
@@ -121,7 +121,7 @@ def _json_text(value: object) -> str:
     return json.dumps(value)
 
 
-class FanucRmiConnector:
+class FanucRmiConnector(ClosingSession):
     """One RMI session with a FANUC controller: read and write UTOOL frames."""
 
     protocol = "fanuc_rmi"
@@ -211,17 +211,6 @@ class FanucRmiConnector:
                 break
         close_quietly(self._sock)
         self._sock = None
-
-    def __enter__(self) -> FanucRmiConnector:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     # --- the packets -----------------------------------------------------------------------
 

@@ -25,11 +25,11 @@ from __future__ import annotations
 
 import socket
 import struct
-from types import TracebackType
 
 import numpy as np
 
 from app.controllers.base import (
+    ClosingSession,
     ControllerProtocolError,
     ControllerRefused,
     ControllerSettings,
@@ -53,7 +53,7 @@ _STATUS_OK = 1
 DEFAULT_LOAD_MASS = -1.0
 
 
-class KukaKvpConnector:
+class KukaKvpConnector(ClosingSession):
     """One KUKAVARPROXY session on a KRC: read and write ``$TOOL_DATA[n]``/``$LOAD_DATA[n]``."""
 
     protocol = "kuka_kvp"
@@ -118,17 +118,6 @@ class KukaKvpConnector:
         """Close the TCP connection (KUKAVARPROXY keeps no session state)."""
         close_quietly(self._sock)
         self._sock = None
-
-    def __enter__(self) -> KukaKvpConnector:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     # --- the OpenShowVar exchange ----------------------------------------------------------
 
