@@ -80,6 +80,10 @@ def db(database: Database, monkeypatch: pytest.MonkeyPatch) -> Iterator[Database
     """Point the app at the test database; empty every table afterwards."""
     monkeypatch.setenv("TCPCAL_DATABASE_URL", database.url)
     monkeypatch.delenv("TCPCAL_BOOTSTRAP_ADMIN_KEY", raising=False)
+    # In-process apps solve in the request's thread: a solver pool is a forkserver process
+    # that imports numpy, scipy and the methods (about a second) for every test's app, and
+    # the pool path has tests of its own (tests/test_solve_pool.py, the live servers).
+    monkeypatch.setenv("TCPCAL_SOLVE_PROCESSES", "0")
     _reset_app_caches()
     yield database
     from app.db import get_engine

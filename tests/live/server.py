@@ -67,7 +67,8 @@ def live_server(
     port = _free_port()
     # One solver process per server worker keeps start-up short on a 2-core CI machine (the
     # pool itself is exercised all the same); production defaults to one per core.
-    env = {"TCPCAL_SOLVE_PROCESSES": "1", **os.environ, "TCPCAL_DATABASE_URL": database_url}
+    # (Set after os.environ: the `db` fixture sets 0 for the in-process apps of the tests.)
+    env = {**os.environ, "TCPCAL_SOLVE_PROCESSES": "1", "TCPCAL_DATABASE_URL": database_url}
     tcpcal = Path(sys.executable).parent / "tcpcal"
     output = log if log is not None else tempfile.TemporaryFile()  # noqa: SIM115 (closed below)
     proc = subprocess.Popen(

@@ -6,6 +6,7 @@ from __future__ import annotations
 import subprocess
 from pathlib import Path
 
+import pytest
 import yaml
 
 from app.publish.mqtt import parse_url
@@ -38,6 +39,7 @@ def test_compose_runs_a_broker_and_one_publisher_wired_to_it() -> None:
     assert any("mosquitto.conf" in v for v in mqtt["volumes"])
 
 
+@pytest.mark.live
 @needs_mosquitto
 def test_the_broker_configuration_loads_and_refuses_anonymous_clients(tmp_path: Path) -> None:
     port = free_port()

@@ -20,7 +20,7 @@ from app.models import AuditEvent, OutboxMessage
 from tests.conftest import Api
 from tests.publish.mqtt_harness import Broker, Publisher, Subscriber, needs_mosquitto, wait_for
 
-pytestmark = needs_mosquitto
+pytestmark = [needs_mosquitto, pytest.mark.live]
 
 
 EVENT_FIELDS = ("action", "tool_id", "robot_id", "version", "actor", "at", "request_id")

@@ -41,6 +41,9 @@ NODE_CLIENT = REPO / "tests" / "opcua_client"
 TCPCAL = Path(sys.executable).parent / "tcpcal"
 NS = "urn:tcpcal"
 
+# Every test here runs `tcpcal publish` as a process of its own.
+pytestmark = pytest.mark.live
+
 
 def _free_port() -> int:
     with socket.socket() as s:

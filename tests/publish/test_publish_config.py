@@ -56,6 +56,7 @@ def test_bad_prefixes_are_refused(prefix: str) -> None:
         check_prefix(prefix)
 
 
+@pytest.mark.live
 def test_unreachable_broker_and_malformed_url_exit_non_zero(api: Api) -> None:
     database_url = os.environ["TCPCAL_DATABASE_URL"]
     port = free_port()  # nothing listens there
@@ -67,6 +68,7 @@ def test_unreachable_broker_and_malformed_url_exit_non_zero(api: Api) -> None:
     assert "TCPCAL_MQTT_URL" in output
 
 
+@pytest.mark.live
 @needs_mosquitto
 def test_wrong_password_exits_non_zero_and_the_right_one_publishes(
     api: Api, tmp_path: Path
@@ -89,6 +91,7 @@ def test_wrong_password_exits_non_zero_and_the_right_one_publishes(
         broker.stop()
 
 
+@pytest.mark.live
 def test_no_broker_configured_exits_non_zero(api: Api) -> None:
     code, output = run_publisher_once(os.environ["TCPCAL_DATABASE_URL"], "")
     assert code == 2, output
@@ -110,6 +113,7 @@ def test_the_api_serves_without_a_publisher_and_metrics_show_the_backlog(api: Ap
     assert float(waiting.group(1)) >= 3  # robot, tool, calibration (and its version)
 
 
+@pytest.mark.live
 @needs_mosquitto
 def test_tls_with_the_ca_publishes_and_without_it_exits_non_zero(api: Api, tmp_path: Path) -> None:
     broker = Broker(tmp_path, tls=True)
