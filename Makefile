@@ -6,6 +6,11 @@ STAMP := $(VENV)/.installed
 HOST ?= 127.0.0.1
 PORT ?= 8000
 
+# Python compiles to bytecode (and pytest caches its rewritten test modules) unless told not to:
+# a shell that sets PYTHONDONTWRITEBYTECODE made every run rewrite ~450 plugin and test modules
+# again (6 s per xdist worker).
+unexport PYTHONDONTWRITEBYTECODE
+
 .PHONY: run test check lint typecheck openapi bench screenshots demo clean
 
 $(STAMP): pyproject.toml
