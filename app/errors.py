@@ -205,7 +205,7 @@ if set(INPUT_TITLES) != set(get_args(InputKind)):
     raise RuntimeError("INPUT_TITLES must title every InputKind, and only those")
 
 #: The titles looked up by a plain string (a pydantic error type that may name a kind).
-INPUT_KINDS: dict[str, str] = {kind: title for kind, title in INPUT_TITLES.items()}
+INPUT_KINDS: dict[str, str] = dict(INPUT_TITLES.items())
 
 
 class InvalidInput(DomainError, ValueError):
