@@ -17,8 +17,8 @@ from app.db import HeldRead
 from app.errors import Forbidden, Unauthorized
 from app.jsontypes import JsonArray
 from app.models import ApiKey
+from app.scopes import SCOPES
 
-SCOPES: tuple[str, ...] = ("read", "calibrate", "admin")
 KEY_PREFIX = "tcpcal_"
 BOOTSTRAP_NAME = "bootstrap-admin"
 

@@ -168,9 +168,9 @@ def keys_create(
     """Create an API key and print it (shown once; only its hash is stored)."""
     from pydantic import ValidationError
 
-    from app.auth import SCOPES
     from app.db import session_scope
     from app.schemas.keys import KeyCreate
+    from app.scopes import SCOPES
     from app.services.keys import create_key
 
     if scope not in SCOPES:

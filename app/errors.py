@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
+from typing import Literal, get_args
 
 Loc = tuple[str | int, ...]
 #: Extension members of a problem document: JSON values only.
@@ -136,8 +137,41 @@ class Forbidden(DomainError):
     status, kind, title = 403, "forbidden", "Forbidden"
 
 
-#: Every kind of unusable input (422), with the short title of its problem document.
-INPUT_KINDS: dict[str, str] = {
+#: Every kind of unusable input (422): the last segment of its problem type. mypy checks
+#: each `InvalidInput(kind, ...)` against this list.
+InputKind = Literal[
+    "validation",
+    "too-few-poses",
+    "repeated-poses",
+    "degenerate-poses",
+    "insufficient-spread",
+    "invalid-rotation",
+    "non-finite",
+    "out-of-range",
+    "invalid-pose",
+    "invalid-options",
+    "invalid-kinematics",
+    "missing-kinematics",
+    "orientation-changed",
+    "invalid-direction",
+    "invalid-sweep",
+    "missing-load",
+    "unknown-format",
+    "unknown-reference",
+    "needs-storage",
+    "invalid-cursor",
+    "invalid-interval",
+    "unsupported",
+    "convention-mismatch",
+    "target-unreachable",
+    "missing-secret-key",
+    "controller-target",
+    "invalid-host",
+    "reason-required",
+]
+
+#: The short title of each kind's problem document (every kind has one: checked below).
+INPUT_TITLES: dict[InputKind, str] = {
     "validation": "Invalid request",
     "too-few-poses": "Too few poses",
     "repeated-poses": "Repeated poses",
@@ -167,27 +201,33 @@ INPUT_KINDS: dict[str, str] = {
     "invalid-host": "Invalid host",
     "reason-required": "Reason required",
 }
+if set(INPUT_TITLES) != set(get_args(InputKind)):
+    raise RuntimeError("INPUT_TITLES must title every InputKind, and only those")
+
+#: The titles looked up by a plain string (a pydantic error type that may name a kind).
+INPUT_KINDS: dict[str, str] = dict(INPUT_TITLES.items())
 
 
 class InvalidInput(DomainError, ValueError):
-    """Input that cannot be used (422), of one of the INPUT_KINDS."""
+    """Input that cannot be used (422), of one of the InputKind kinds."""
 
     status = 422
+    kind: InputKind
 
     def __init__(
         self,
-        kind: str,
+        kind: InputKind,
         detail: str,
         *,
         loc: Sequence[str | int] = (),
         context: Extra | None = None,
         members: Extra | None = None,
     ) -> None:
-        if kind not in INPUT_KINDS:
+        if kind not in INPUT_TITLES:  # a kind mypy could not see (e.g. from a string)
             raise ValueError(f"unknown input error kind {kind!r}")
         super().__init__(detail, loc=loc, context=context, members=members)
         self.kind = kind
-        self.title = INPUT_KINDS[kind]
+        self.title = INPUT_TITLES[kind]
 
 
 @contextmanager

@@ -33,6 +33,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.types import TypeDecorator
 
 from app.jsontypes import JsonArray, JsonObject
+from app.statuses import Status
 
 NAMING_CONVENTION = {
     "ix": "ix_%(column_0_label)s",
@@ -193,7 +194,7 @@ class Calibration(Base):
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
     method: Mapped[str] = mapped_column(String(40))
     algorithm: Mapped[str | None] = mapped_column(String(40))
-    status: Mapped[str] = mapped_column(String(40))
+    status: Mapped[Status] = mapped_column(String(40))
     request: Mapped[JsonObject] = mapped_column(JSON)
     result: Mapped[JsonObject] = mapped_column(JSON)
     version: Mapped[int | None] = mapped_column(Integer)
@@ -213,7 +214,7 @@ class TcpVersion(Base):
     position_mm: Mapped[JsonArray] = mapped_column(JSON)
     quaternion: Mapped[JsonArray] = mapped_column(JSON)
     source: Mapped[str] = mapped_column(String(40))
-    status: Mapped[str] = mapped_column(String(40))
+    status: Mapped[Status] = mapped_column(String(40))
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
     note: Mapped[str | None] = mapped_column(Text)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)

@@ -9,8 +9,10 @@ from app.api.methods import describe
 from app.exports import CONTROLLER_FORMATS
 from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHOD_NAMES, METHODS
+from app.methods.npoint import Algorithm
 from app.schemas.calibrations import SOLVE_MODELS, CalibrationRequest
 from app.schemas.common import ControllerFormat, PoseFormat
+from app.solvers.npoint import ALGORITHMS
 
 
 def test_pose_formats_match_the_parser() -> None:
@@ -19,6 +21,10 @@ def test_pose_formats_match_the_parser() -> None:
 
 def test_controller_formats_match_the_exporters() -> None:
     assert get_args(ControllerFormat) == tuple(CONTROLLER_FORMATS)
+
+
+def test_npoint_algorithms_match_the_solver() -> None:
+    assert get_args(Algorithm) == ALGORITHMS
 
 
 def test_the_request_unions_are_the_registry() -> None:

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from app.schemas.results import QualityOut, Status
+from app.schemas.results import QualityOut
 from app.schemas.tools import Tolerance
+from app.statuses import Status
 
 
 def effective_tolerance(stored: Mapping[str, object] | Tolerance | None) -> Tolerance:

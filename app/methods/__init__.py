@@ -23,6 +23,8 @@ METHODS: tuple[RegisteredMethod, ...] = (
 )
 METHODS_BY_NAME: dict[str, RegisteredMethod] = {m.name: m for m in METHODS}
 METHOD_NAMES: tuple[str, ...] = tuple(METHODS_BY_NAME)
+#: The methods whose TCP is entered by hand, not measured (`Method.measured`).
+ENTERED_BY_HAND: tuple[str, ...] = tuple(m.name for m in METHODS if not m.measured)
 
 
 def method_of(request: MethodRequest) -> RegisteredMethod:

@@ -171,6 +171,9 @@ class Method(Generic[R]):
     description: str
     #: a body that solves (tests post it), shown in the OpenAPI spec
     example: JsonObject
+    #: False for a TCP entered by hand: nothing was touched, so its summary says so and the
+    #: drift trend leaves it out
+    measured: bool = True
 
     @property
     def name(self) -> str:
@@ -217,6 +220,9 @@ class RegisteredMethod(Protocol):
 
     @property
     def example(self) -> JsonObject: ...
+
+    @property
+    def measured(self) -> bool: ...
 
     @property
     def pose_count(self) -> PoseCount: ...

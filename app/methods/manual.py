@@ -82,4 +82,5 @@ MANUAL = Method(
     run=run,
     description="a TCP entered by hand, as numbers or as one pose (e.g. a pasted $TOOL_DATA)",
     example={"method": "manual", "tcp": {"position_mm": [0.0, 0.0, 150.0]}, "note": "data sheet"},
+    measured=False,
 )

@@ -30,6 +30,8 @@ from app.schemas.results import QualityOut
 from app.solvers.npoint import MIN_POSES, NPointResult, solve_npoint
 from app.solvers.quality import format_vector
 
+#: The `method` of an N-point calibration, and of the guided sessions that collect one.
+XyzNpoint = Literal["xyz_npoint"]
 Algorithm = Literal["robust", "stacked", "pairwise", "sphere", "gls"]
 #: N touches of one fixed point, each from another orientation.
 Touches = Annotated[
@@ -46,7 +48,7 @@ class NPointOptions(StrictModel):
 
 
 class XyzNpointCalibration(PosesRequired):
-    method: Literal["xyz_npoint"]
+    method: XyzNpoint
     poses: Touches
     options: NPointOptions = Field(default_factory=NPointOptions)
 

@@ -8,8 +8,10 @@ from pydantic import BaseModel, Field
 
 from app.schemas.common import Timestamp
 from app.schemas.drift import FleetDrift
+from app.statuses import Status
 
-CalibrationStatus = Literal["accepted", "out_of_tolerance"]
+#: The status a fleet row can be filtered by: its last calibration's.
+CalibrationStatus = Status
 
 #: Why a fleet row needs a person's attention: every code, in the order rows list them (the
 #: one list of them; each has its rule in app.services.fleet.attention_rules).

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 from pydantic import BaseModel, Field
 
 from app.schemas.common import Name, StrictModel, Timestamp
-
-Scope = Literal["read", "calibrate", "admin"]
+from app.scopes import Scope
 
 #: The robot cells a key is limited to: names as robots carry them in `cell`.
 Cells = Annotated[

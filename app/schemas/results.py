@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Literal
-
 from pydantic import BaseModel, Field
 
 from app.schemas.common import StrictModel, Timestamp
 from app.schemas.tools import Tcp
 from app.solvers.quality import Quality, SigmaSource
-
-Status = Literal["accepted", "out_of_tolerance"]
+from app.statuses import Status
 
 
 class QualityOut(BaseModel):

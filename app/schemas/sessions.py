@@ -8,7 +8,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from app.methods import METHOD_NAMES
 from app.methods.base import Activate
-from app.methods.npoint import NPointOptions
+from app.methods.npoint import XYZ_NPOINT, NPointOptions, XyzNpoint
 from app.schemas.common import (
     FiniteFloat,
     LongText,
@@ -90,7 +90,7 @@ class Plan(BaseModel):
 
 
 class SessionCreate(StrictModel):
-    method: Literal["xyz_npoint"] = Field(
+    method: XyzNpoint = Field(
         description="guided sessions guide touches of one point (xyz_npoint); other methods "
         "take their touches in one POST /v1/tools/{tool_id}/calibrations"
     )
@@ -106,9 +106,10 @@ class SessionCreate(StrictModel):
     @field_validator("method", mode="before")
     @classmethod
     def _guided_method(cls, method: object) -> object:
-        if isinstance(method, str) and method != "xyz_npoint" and method in METHOD_NAMES:
+        guided = XYZ_NPOINT.name
+        if isinstance(method, str) and method != guided and method in METHOD_NAMES:
             raise ValueError(
-                f"guided sessions guide touches of one point (xyz_npoint) only, not {method}: "
+                f"guided sessions guide touches of one point ({guided}) only, not {method}: "
                 "its next pose is planned to reach one point. Send the touches of "
                 f"{method} in one POST /v1/tools/{{tool_id}}/calibrations"
             )

@@ -63,10 +63,11 @@ def record(
 
 
 class _Created(Protocol):
-    """A new row of a table whose ids are made in Python (every resource but audit rows)."""
+    """A new row with an id: made in Python (a uuid), or by the database (a deployment's
+    sequence number, known once the row is flushed)."""
 
     @property
-    def id(self) -> str: ...
+    def id(self) -> str | int: ...
 
 
 Created = TypeVar("Created", bound=_Created)
@@ -93,7 +94,7 @@ def add_created(
         actor=actor,
         action=action,
         resource_type=resource_type,
-        resource_id=new.id,
+        resource_id=str(new.id),
         robot_id=robot_id,
         tool_id=tool_id,
         details=details,

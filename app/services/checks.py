@@ -12,7 +12,8 @@ from sqlalchemy.orm import Session
 from app.auth import Principal
 from app.errors import located_in
 from app.helpers.tolerance import effective_tolerance
-from app.models import utcnow
+from app.jsontypes import JsonArray, JsonObject
+from app.models import Tool, utcnow
 from app.schemas.common import Units
 from app.schemas.references import CheckCreate, CheckResult, CheckTouch
 from app.services import audit
@@ -42,18 +43,41 @@ def run_check(
     frame = frame_of(session, active_version_row(session, tool))  # 404 /no-active-version
     point = get_reference_point(session, robot_id=robot.id, point_id=data.reference_point_id)
     limit = effective_tolerance(tool.tolerance).check_mm
+    touches = _measured_touches(
+        robot.kinematics,
+        data,
+        tcp_mm=frame.position_mm,
+        reference_mm=point.position_mm,
+        limit=limit,
+    )
+    assert frame.version is not None  # a stored version's frame
+    result = _check_result(
+        tool.id, version=frame.version, point_id=point.id, touches=touches, limit=limit, actor=actor
+    )
+    _record(session, tool, result, actor)
+    _refresh_trend(session, tool.id, result)
+    return result
+
+
+def _measured_touches(
+    kinematics: JsonObject | None,
+    data: CheckCreate,
+    *,
+    tcp_mm: FloatArray,
+    reference_mm: JsonArray,
+    limit: float,
+) -> list[TcpDeviation]:
+    """Each touch's deviation from the reference point; when the worst is past the limit or
+    the flanges sit implausibly near the base, a clearly better reading of the poses'
+    format or units is refused as a mix-up (app.services.diagnosis)."""
 
     def positions(fmt: str, units: Units | None) -> FloatArray:
-        return parse_poses_with(robot.kinematics, fmt, data.poses, units, loc=("poses",))[1]
+        return parse_poses_with(kinematics, fmt, data.poses, units, loc=("poses",))[1]
 
     def measure(fmt: str, units: Units | None) -> list[TcpDeviation]:
-        rotations, flanges = parse_poses_with(
-            robot.kinematics, fmt, data.poses, units, loc=("poses",)
-        )
+        rotations, flanges = parse_poses_with(kinematics, fmt, data.poses, units, loc=("poses",))
         return [
-            check_tcp(
-                tcp_mm=frame.position_mm, rotation=R, position_mm=f, reference_mm=point.position_mm
-            )
+            check_tcp(tcp_mm=tcp_mm, rotation=R, position_mm=f, reference_mm=reference_mm)
             for R, f in zip(rotations, flanges, strict=True)
         ]
 
@@ -70,33 +94,47 @@ def run_check(
         refuse_mix_up(
             data.format, data.units, attempt, positions, as_given=as_given, near_base=near_base
         )
+    return touches
+
+
+def _floats(values: FloatArray) -> list[float]:
+    return [float(v) for v in values]
+
+
+def _check_result(
+    tool_id: str,
+    *,
+    version: int,
+    point_id: str,
+    touches: list[TcpDeviation],
+    limit: float,
+    actor: Principal,
+) -> CheckResult:
     # The headline figures are the worst touch's, so they are the ones the verdict rests on:
     # a bent tool seen from several orientations would average towards zero.
     worst = max(touches, key=lambda t: t.distance_mm)
     mean_base = np.mean([t.deviation_base_mm for t in touches], axis=0)
-    within = float(worst.distance_mm) <= limit
-    assert frame.version is not None  # a stored version's frame
-    result = CheckResult(
-        tool_id=tool.id,
-        version=frame.version,
-        reference_point_id=point.id,
-        deviation_mm=[float(v) for v in worst.deviation_base_mm],
-        deviation_flange_mm=[float(v) for v in worst.deviation_flange_mm],
+    return CheckResult(
+        tool_id=tool_id,
+        version=version,
+        reference_point_id=point_id,
+        deviation_mm=_floats(worst.deviation_base_mm),
+        deviation_flange_mm=_floats(worst.deviation_flange_mm),
         distance_mm=float(worst.distance_mm),
-        mean_deviation_mm=[float(v) for v in mean_base],
+        mean_deviation_mm=_floats(mean_base),
         check_mm=limit,
-        within_tolerance=within,
+        within_tolerance=float(worst.distance_mm) <= limit,
         summary=check_summary(
             distance_mm=float(worst.distance_mm),
-            deviation_flange_mm=[float(v) for v in worst.deviation_flange_mm],
-            version=frame.version,
+            deviation_flange_mm=_floats(worst.deviation_flange_mm),
+            version=version,
             n_touches=len(touches),
             check_mm=limit,
         ),
         touches=[
             CheckTouch(
-                deviation_mm=[float(v) for v in t.deviation_base_mm],
-                deviation_flange_mm=[float(v) for v in t.deviation_flange_mm],
+                deviation_mm=_floats(t.deviation_base_mm),
+                deviation_flange_mm=_floats(t.deviation_flange_mm),
                 distance_mm=float(t.distance_mm),
             )
             for t in touches
@@ -104,6 +142,22 @@ def run_check(
         checked_at=utcnow(),
         checked_by=actor.name,
     )
+
+
+#: What a check's audit event keeps of its result (GET .../checks reads them back).
+_AUDITED = {
+    "version",
+    "reference_point_id",
+    "deviation_mm",
+    "distance_mm",
+    "check_mm",
+    "within_tolerance",
+    "deviation_flange_mm",
+    "summary",
+}
+
+
+def _record(session: Session, tool: Tool, result: CheckResult, actor: Principal) -> None:
     audit.record(
         session,
         actor=actor,
@@ -112,30 +166,20 @@ def run_check(
         resource_id=tool.id,
         robot_id=tool.robot_id,
         tool_id=tool.id,
-        version=frame.version,
-        details=result.model_dump(
-            mode="json",
-            include={
-                "version",
-                "reference_point_id",
-                "deviation_mm",
-                "distance_mm",
-                "check_mm",
-                "within_tolerance",
-                "deviation_flange_mm",
-                "summary",
-            },
-        ),
+        version=result.version,
+        details=result.model_dump(mode="json", include=_AUDITED),
     )
-    # The check is the trend's newest point; the tool's lock orders concurrent checks, so
-    # each one's trend reads the ones committed before it.
-    locked = lock_tool(session, tool.id)
+
+
+def _refresh_trend(session: Session, tool_id: str, result: CheckResult) -> None:
+    """The check is the trend's newest point; the tool's lock orders concurrent checks, so
+    each one's trend reads the ones committed before it."""
+    locked = lock_tool(session, tool_id)
     pending = Point(result.checked_at, result.deviation_flange_mm)
     refresh_drift(
         session,
-        tool_id=tool.id,
+        tool_id=tool_id,
         active_version=locked.active_version,
         tolerance=locked.tolerance,
         pending_check=pending if locked.active_version == result.version else None,
     )
-    return result

@@ -245,14 +245,12 @@ def _record(session: Session, plan: Plan, outcome: Outcome, actor: Principal) ->
         actor=actor.name,
         created_at=utcnow(),
     )
-    session.add(row)
-    session.flush()
-    audit.record(
+    audit.add_created(
         session,
+        row,
         actor=actor,
         action="tool.deploy",
         resource_type="deployment",
-        resource_id=str(row.id),
         robot_id=plan.robot_id,
         tool_id=plan.tool_id,
         details={

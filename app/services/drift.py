@@ -21,6 +21,7 @@ from sqlalchemy.orm import Session
 
 from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonObject
+from app.methods import ENTERED_BY_HAND
 from app.models import AuditEvent, TcpVersion, Tool, table_of
 from app.schemas.drift import FleetDrift, SeriesTrend, ToolDrift
 from app.services.live import get_live
@@ -201,7 +202,7 @@ def _version_points(session: Session, tool_id: str) -> list[Point]:
         .where(
             TcpVersion.tool_id == tool_id,
             TcpVersion.status == "accepted",
-            TcpVersion.source != "manual",
+            TcpVersion.source.not_in(ENTERED_BY_HAND),
         )
         .order_by(TcpVersion.version.desc())
         .limit(MAX_POINTS)

@@ -324,32 +324,50 @@ def fleet_csv(rows: Sequence[FleetTool]) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\r\n")
     writer.writerow(CSV_COLUMNS)
-    for r in rows:
-        cal, chk, ctl = r.last_calibration, r.last_check, r.controller
-        writer.writerow(
-            [
-                r.id,
-                r.name,
-                "" if r.slot is None else r.slot,
-                r.robot_name,
-                r.cell or "",
-                "" if r.active_version is None else r.active_version,
-                cal.status if cal else "",
-                "" if cal is None or cal.rms_mm is None else f"{cal.rms_mm:.3f}",
-                cal.created_at.isoformat() if cal else "",
-                "" if chk is None else str(chk.within_tolerance).lower(),
-                "" if chk is None else f"{chk.distance_mm:.3f}",
-                chk.created_at.isoformat() if chk else "",
-                ";".join(r.attention),
-                *_numbers(r.position_mm, 3, 3),
-                *_numbers(r.quaternion, 4, 9),
-                ctl.state if ctl else "",
-                ctl.checked_at.isoformat() if ctl else "",
-                "" if ctl is None or ctl.deviation_mm is None else f"{ctl.deviation_mm:.4f}",
-                *_drift_cells(r),
-            ]
-        )
+    writer.writerows(_csv_row(r) for r in rows)
     return out.getvalue()
+
+
+def _csv_row(r: FleetTool) -> list[object]:
+    return [
+        r.id,
+        r.name,
+        _blank_or(r.slot),
+        r.robot_name,
+        r.cell or "",
+        _blank_or(r.active_version),
+        *_calibration_cells(r.last_calibration),
+        *_check_cells(r.last_check),
+        ";".join(r.attention),
+        *_numbers(r.position_mm, 3, 3),
+        *_numbers(r.quaternion, 4, 9),
+        *_controller_cells(r.controller),
+        *_drift_cells(r),
+    ]
+
+
+def _blank_or(value: int | None) -> object:
+    return "" if value is None else value
+
+
+def _calibration_cells(cal: LastCalibration | None) -> list[str]:
+    if cal is None:
+        return ["", "", ""]
+    rms = "" if cal.rms_mm is None else f"{cal.rms_mm:.3f}"
+    return [cal.status, rms, cal.created_at.isoformat()]
+
+
+def _check_cells(chk: LastCheck | None) -> list[str]:
+    if chk is None:
+        return ["", "", ""]
+    return [str(chk.within_tolerance).lower(), f"{chk.distance_mm:.3f}", chk.created_at.isoformat()]
+
+
+def _controller_cells(ctl: FleetController | None) -> list[str]:
+    if ctl is None:
+        return ["", "", ""]
+    deviation = "" if ctl.deviation_mm is None else f"{ctl.deviation_mm:.4f}"
+    return [ctl.state, ctl.checked_at.isoformat(), deviation]
 
 
 def _drift_cells(row: FleetTool) -> list[str]:

@@ -15,6 +15,7 @@ touches (with 4 every touch is needed to solve; a miss cannot be told apart).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -336,63 +337,14 @@ def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> S
         tool, ctx = _context(session, row)
     else:
         ctx = DbContext(session, tool, get_robot(session, tool.robot_id))
-    tolerance = effective_tolerance(tool.tolerance)
-    target = row.target_sigma_mm or tolerance.max_rms_mm / 2.0
+    target = row.target_sigma_mm or effective_tolerance(tool.tolerance).max_rms_mm / 2.0
     poses = list(row.poses)
-    messages: list[str] = []
-    estimate, outliers, point, trusted = None, [], None, False
-    if len(poses) >= MIN_SOLVE_TOUCHES:
-        try:
-            outcome = calibrate.solve(_request(row, poses), ctx)
-        except InvalidInput as refusal:
-            messages.append(f"no estimate yet: {refusal.detail}")
-        else:
-            result = outcome.result
-            quality = result.quality
-            if quality.tcp_sigma_mm is not None and quality.rms_mm is not None:
-                estimate = Estimate(
-                    tcp_mm=result.tcp.position_mm,
-                    tcp_sigma_mm=quality.tcp_sigma_mm,
-                    rms_mm=quality.rms_mm,
-                )
-            point = result.reference_point_mm
-            if len(poses) >= OUTLIER_MIN_TOUCHES:
-                outliers = list(quality.outliers)
-                messages += [_miss_message(row.id, i, quality.residuals_mm[i]) for i in outliers]
-            trusted = result.status == "accepted" and not any(
-                NOISE_CONTRADICTED in w for w in result.warnings
-            )
-            if not trusted and not outliers:
-                messages.append(
-                    f"the touches disagree more than the touch noise explains (rms "
-                    f"{quality.rms_mm or 0.0:.3f} mm): touch on"
-                    + (
-                        "; a miss is named from 5 touches"
-                        if len(poses) < OUTLIER_MIN_TOUCHES
-                        else ""
-                    )
-                )
-    else:
-        messages.append(
-            f"{len(poses)} of at least {MIN_SOLVE_TOUCHES} touches: keep touching the point"
-            + (" from the suggested pose" if poses else "")
-        )
-    worst = max(estimate.tcp_sigma_mm) if estimate else None
-    done = (
-        row.status == "open" and trusted and worst is not None and worst <= target and not outliers
-    )
-    if done and worst is not None:
-        messages.append(
-            f"done: the TCP is known to {worst:.3f} mm (1 sigma, largest axis), within the "
-            f"target {target:g} mm; finish to store it"
-        )
-    elif worst is not None and trusted and not outliers:
-        messages.append(
-            f"the TCP is known to {worst:.3f} mm (1 sigma, largest axis); target {target:g} mm"
-        )
+    reading = _read(row, poses, ctx)
+    done = _progress(reading, target, open_session=row.status == "open")
+    estimate, outliers, messages = reading.estimate, reading.outliers, reading.messages
     next_pose = None
     if row.status == "open" and poses and not done:
-        next_pose = _next_pose(ctx, row, poses, outliers, estimate, point, messages)
+        next_pose = _next_pose(ctx, row, poses, outliers, estimate, reading.point, messages)
     return SessionOut(
         id=row.id,
         tool_id=row.tool_id,
@@ -412,6 +364,74 @@ def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> S
         created_at=row.created_at,
         updated_at=row.updated_at,
     )
+
+
+@dataclass
+class _Reading:
+    """What the kept touches say so far, and the sentences that say it."""
+
+    estimate: Estimate | None = None
+    outliers: list[int] = field(default_factory=list)
+    point: list[float] | None = None  # the touched point, as estimated with the TCP
+    trusted: bool = False  # accepted, and the touch noise not contradicted
+    messages: list[str] = field(default_factory=list)
+
+
+def _read(row: GuidedSession, poses: Sequence[Pose], ctx: DbContext) -> _Reading:
+    """Solve the touches as a calibration would (from MIN_SOLVE_TOUCHES on); misses are named
+    from OUTLIER_MIN_TOUCHES on."""
+    reading = _Reading()
+    if len(poses) < MIN_SOLVE_TOUCHES:
+        reading.messages.append(
+            f"{len(poses)} of at least {MIN_SOLVE_TOUCHES} touches: keep touching the point"
+            + (" from the suggested pose" if poses else "")
+        )
+        return reading
+    try:
+        result = calibrate.solve(_request(row, poses), ctx).result
+    except InvalidInput as refusal:
+        reading.messages.append(f"no estimate yet: {refusal.detail}")
+        return reading
+    quality = result.quality
+    if quality.tcp_sigma_mm is not None and quality.rms_mm is not None:
+        reading.estimate = Estimate(
+            tcp_mm=result.tcp.position_mm, tcp_sigma_mm=quality.tcp_sigma_mm, rms_mm=quality.rms_mm
+        )
+    reading.point = result.reference_point_mm
+    if len(poses) >= OUTLIER_MIN_TOUCHES:
+        reading.outliers = list(quality.outliers)
+        reading.messages += [
+            _miss_message(row.id, i, quality.residuals_mm[i]) for i in reading.outliers
+        ]
+    reading.trusted = result.status == "accepted" and not any(
+        NOISE_CONTRADICTED in w for w in result.warnings
+    )
+    if not reading.trusted and not reading.outliers:
+        reading.messages.append(
+            f"the touches disagree more than the touch noise explains (rms "
+            f"{quality.rms_mm or 0.0:.3f} mm): touch on"
+            + (_TOO_FEW_TO_NAME if len(poses) < OUTLIER_MIN_TOUCHES else "")
+        )
+    return reading
+
+
+def _progress(reading: _Reading, target: float, *, open_session: bool) -> bool:
+    """Whether an open session is done (a trusted estimate, no miss, its largest 1-sigma
+    within the target), saying how well the TCP is known when the estimate is trusted."""
+    if reading.estimate is None or not reading.trusted or reading.outliers:
+        return False
+    worst = max(reading.estimate.tcp_sigma_mm)
+    done = open_session and worst <= target
+    if done:
+        reading.messages.append(
+            f"done: the TCP is known to {worst:.3f} mm (1 sigma, largest axis), within the "
+            f"target {target:g} mm; finish to store it"
+        )
+    else:
+        reading.messages.append(
+            f"the TCP is known to {worst:.3f} mm (1 sigma, largest axis); target {target:g} mm"
+        )
+    return done
 
 
 def _miss_message(session_id: str, index: int, residual_mm: float) -> str:

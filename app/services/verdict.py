@@ -6,6 +6,7 @@ are numbered from 1 in every sentence (arrays stay 0-based).
 
 from __future__ import annotations
 
+from app.methods import ENTERED_BY_HAND
 from app.methods.base import ActiveFrame
 from app.schemas.results import CalibrationResult, QualityOut
 from app.schemas.tools import Tolerance
@@ -71,7 +72,7 @@ def summarise(
     if quality.rms_mm is not None:
         parts.append(f"{quality.rms_mm:.2f} mm rms over {_touches(quality.n_poses)}")
     elif quality.n_poses <= 1:
-        parts.append("entered by hand" if result.method == "manual" else "from one pose")
+        parts.append("entered by hand" if result.method in ENTERED_BY_HAND else "from one pose")
     if quality.outliers:
         parts.append(f"{numbered('touch', quality.outliers)} set aside as off the others")
     if result.orientation_change_deg is not None:
