@@ -110,7 +110,7 @@ class ControllerSettings:
 
 
 class ControllerError(Exception):
-    """Anything that went wrong talking to a controller."""
+    """Whatever went wrong talking to a controller."""
 
 
 class ControllerUnreachable(ControllerError):
