@@ -92,7 +92,7 @@ def resolve_tool(ref: str) -> str:
         if row["name"] == name and (not robot or row["robot_name"] == robot)
     ]
     if len(rows) == 1:
-        return str(rows[0]["id"])
+        return rows[0]["id"]
     if not rows:
         fail(EXIT_NOT_FOUND, f"no tool with id or name {ref!r}; tcpcal tools lists them")
     listed = "\n".join(f"  {r['robot_name']}/{r['name']}  {r['id']}" for r in rows)
