@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from app import client_http
 from app.client import register as register_client
 from app.client_controllers import register as register_controller_commands
 
@@ -314,17 +315,6 @@ def openapi(
     typer.echo(f"wrote {out}")
 
 
-def _client() -> httpx.Client:
-    import httpx
-
-    url = os.environ.get("TCPCAL_URL", "http://127.0.0.1:8000")
-    key = os.environ.get("TCPCAL_API_KEY")
-    if not key:
-        typer.echo("set TCPCAL_API_KEY (and TCPCAL_URL if not http://127.0.0.1:8000)", err=True)
-        raise typer.Exit(2)
-    return httpx.Client(base_url=url, headers={"Authorization": f"Bearer {key}"}, timeout=30)
-
-
 def _print_response(response: httpx.Response) -> None:
     typer.echo(json.dumps(response.json(), indent=2) if response.content else "")
     if response.status_code >= 400:
@@ -334,8 +324,7 @@ def _print_response(response: httpx.Response) -> None:
 @client_cli.command("get")
 def client_get(path: str) -> None:
     """GET a path, e.g. /v1/tools/<id>/tcp?format=kuka."""
-    with _client() as http:
-        _print_response(http.get(path))
+    _print_response(client_http.request("GET", path))
 
 
 @client_cli.command("post")
@@ -345,8 +334,7 @@ def client_post(
 ) -> None:
     """POST a JSON body, e.g. a calibration submission."""
     payload = json.load(sys.stdin) if str(body) == "-" else json.loads(body.read_text())
-    with _client() as http:
-        _print_response(http.post(path, json=payload))
+    _print_response(client_http.request("POST", path, json=payload))
 
 
 def main() -> None:

@@ -17,72 +17,50 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 import re
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated, Any, NoReturn
+from typing import Annotated
 
 import httpx
 import typer
-from rich.console import Console
 from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-EXIT_OUT_OF_TOLERANCE = 3
-EXIT_REFUSED = 4
-EXIT_NOT_FOUND = 5
-EXIT_UNREACHABLE = 6
-EXIT_BAD_USE = 2
-
-out = Console()
-err = Console(stderr=True)
+from app import client_http
+from app.client_bodies import (
+    AuditEvent,
+    Calibration,
+    CheckResult,
+    FleetTool,
+    Page,
+    Plan,
+    Pose,
+    Robot,
+    Session,
+    Tool,
+    VersionList,
+)
+from app.client_http import (
+    EXIT_BAD_USE,
+    EXIT_NOT_FOUND,
+    EXIT_OUT_OF_TOLERANCE,
+    Params,
+    err,
+    fail,
+    out,
+    problem,
+    refused,
+    request,
+    send,
+)
+from app.jsontypes import JsonArray, JsonObject
 
 
 def register(cli: typer.Typer) -> None:
     """Add the client's commands to the `tcpcal` command."""
     for command in (tools, plan, calibrate, history, activate, rollback, check, export, audit):
         cli.command(rich_help_panel="Client (talks to a server)")(command)
-
-
-# ---- HTTP ---------------------------------------------------------------------------------
-def _http() -> httpx.Client:
-    key = os.environ.get("TCPCAL_API_KEY")
-    if not key:
-        _fail(EXIT_BAD_USE, "set TCPCAL_API_KEY (and TCPCAL_URL if not http://127.0.0.1:8000)")
-    url = os.environ.get("TCPCAL_URL", "http://127.0.0.1:8000")
-    return httpx.Client(base_url=url, headers={"Authorization": f"Bearer {key}"}, timeout=120)
-
-
-def _send(method: str, path: str, **kw: Any) -> httpx.Response:
-    try:
-        with _http() as http:
-            response = http.request(method, path, **kw)
-    except httpx.HTTPError as exc:
-        _fail(EXIT_UNREACHABLE, f"could not reach {os.environ.get('TCPCAL_URL')}: {exc}")
-    if response.status_code >= 400:
-        _refused(response)
-    return response
-
-
-def _refused(response: httpx.Response) -> NoReturn:
-    try:
-        problem = response.json()
-    except ValueError:
-        problem = {"detail": response.text}
-    detail = problem.get("detail") or response.reason_phrase
-    if "suggestion" in problem:
-        detail += f"\nsuggestion: {json.dumps(problem['suggestion'])}"
-    code = response.status_code
-    if code in (401, 403, 404):
-        _fail(EXIT_NOT_FOUND, f"{code}: {detail}")
-    if code >= 500:
-        _fail(EXIT_UNREACHABLE, f"{code}: {detail}")
-    _fail(EXIT_REFUSED, f"{code}: {detail}")
-
-
-def _fail(code: int, message: str) -> NoReturn:
-    err.print(f"[bold red]error[/]: {message}", highlight=False)
-    raise typer.Exit(code)
 
 
 # ---- which tool ---------------------------------------------------------------------------
@@ -103,38 +81,34 @@ def resolve_tool(ref: str) -> str:
     several do."""
     robot, _, name = ref.rpartition("/")
     if not robot and _ID.match(ref):
-        try:
-            with _http() as http:
-                found = http.get(f"/v1/tools/{ref}")
-        except httpx.HTTPError as exc:
-            _fail(EXIT_UNREACHABLE, f"could not reach {os.environ.get('TCPCAL_URL')}: {exc}")
+        found = request("GET", f"/v1/tools/{ref}")
         if found.status_code == 200:
             return ref
         if found.status_code not in (404, 422):
-            _refused(found)
+            refused(found)
     rows = [
         row
         for row in _fleet_rows({"q": name})
         if row["name"] == name and (not robot or row["robot_name"] == robot)
     ]
     if len(rows) == 1:
-        return str(rows[0]["id"])
+        return rows[0]["id"]
     if not rows:
-        _fail(EXIT_NOT_FOUND, f"no tool with id or name {ref!r}; tcpcal tools lists them")
+        fail(EXIT_NOT_FOUND, f"no tool with id or name {ref!r}; tcpcal tools lists them")
     listed = "\n".join(f"  {r['robot_name']}/{r['name']}  {r['id']}" for r in rows)
-    _fail(
+    fail(
         EXIT_BAD_USE,
         f"{len(rows)} tools are named {name!r}; name one as robot/tool or by its id:\n{listed}",
     )
 
 
-def _fleet_rows(params: dict[str, str]) -> list[dict[str, Any]]:
+def _fleet_rows(params: dict[str, str]) -> list[FleetTool]:
     """Every row of GET /v1/tools with these filters, page after page."""
-    rows: list[dict[str, Any]] = []
+    rows: list[FleetTool] = []
     cursor = None
     while True:
         query = {**params, "limit": "500", **({"cursor": cursor} if cursor else {})}
-        body = _send("GET", "/v1/tools", params=query).json()
+        body: Page[FleetTool] = send("GET", "/v1/tools", params=query).json()
         rows += body["items"]
         cursor = body["next_cursor"]
         if cursor is None:
@@ -142,35 +116,40 @@ def _fleet_rows(params: dict[str, str]) -> list[dict[str, Any]]:
 
 
 # ---- pose files ---------------------------------------------------------------------------
-def read_poses(path: Path, fmt: str, units: dict[str, str]) -> list[Any]:
+def read_poses(path: Path, fmt: str, units: dict[str, str]) -> JsonArray:
     """The poses of a pendant export, checked locally in `fmt` and `units` (exit 2 if not)."""
     from app.errors import InvalidInput
     from app.kinematics.poses import poses_from_format
 
     if not path.is_file():
-        _fail(EXIT_BAD_USE, f"no file {path}")
+        fail(EXIT_BAD_USE, f"no file {path}")
     text = path.read_text()
-    poses: list[Any]
     if path.suffix.lower() == ".json":
         data = json.loads(text)
-        poses = data["poses"] if isinstance(data, dict) else data
+        poses: JsonArray = data["poses"] if isinstance(data, dict) else data
     else:
-        poses = []
-        for row in csv.reader(text.splitlines()):
-            cells = [c.strip() for c in row if c.strip()]
-            if not cells or cells[0].startswith("#"):
-                continue
-            try:
-                poses.append([float(c) for c in cells])
-            except ValueError:
-                if poses:  # a header is allowed on the first line only
-                    _fail(EXIT_BAD_USE, f"{path}: not a row of numbers: {row}")
+        poses = _csv_poses(path, text)
     if fmt != "joints":  # joint angles need the robot's model, which the server has
         try:
             poses_from_format(fmt, poses, units=units)
         except InvalidInput as exc:
             where = ".".join(str(p) for p in exc.loc)
-            _fail(EXIT_BAD_USE, f"{path}: {where}: {exc.detail}")
+            fail(EXIT_BAD_USE, f"{path}: {where}: {exc.detail}")
+    return poses
+
+
+def _csv_poses(path: Path, text: str) -> JsonArray:
+    """Each row of numbers of a CSV export (a header line and # comments skipped)."""
+    poses: JsonArray = []
+    for row in csv.reader(text.splitlines()):
+        cells = [c.strip() for c in row if c.strip()]
+        if not cells or cells[0].startswith("#"):
+            continue
+        try:
+            poses.append([float(c) for c in cells])
+        except ValueError:
+            if poses:  # a header is allowed on the first line only
+                fail(EXIT_BAD_USE, f"{path}: not a row of numbers: {row}")
     return poses
 
 
@@ -189,7 +168,7 @@ def tools(
     it needs attention, and its id (every other command takes the id or the tool's name)."""
     params = {k: v for k, v in (("cell", cell), ("q", q), ("status", status)) if v}
     if csv_file is not None:
-        response = _send("GET", "/v1/tools", params=params, headers={"Accept": "text/csv"})
+        response = send("GET", "/v1/tools", params=params, headers={"Accept": "text/csv"})
         csv_file.write_text(response.text)
         out.print(f"wrote {csv_file} ({response.text.count(chr(10)) - 1} tools)")
         return
@@ -199,21 +178,26 @@ def tools(
     )  # fmt: skip
     table.add_column("id", no_wrap=True, overflow="ignore", min_width=36)
     for row in _fleet_rows(params):
-        cal, chk = row["last_calibration"], row["last_check"]
-        rms = cal.get("rms_mm") if cal else None
-        table.add_row(
-            row["name"],
-            "" if row["slot"] is None else str(row["slot"]),
-            row["robot_name"],
-            row["cell"] or "",
-            "-" if row["active_version"] is None else f"v{row['active_version']}",
-            cal["status"] if cal else "-",
-            "" if rms is None else f"{rms:.3f}",
-            "-" if chk is None else ("ok" if chk["within_tolerance"] else "FAILED"),
-            ", ".join(row.get("attention", [])),
-            row["id"],
-        )
+        table.add_row(*_fleet_cells(row))
     out.print(table)
+
+
+def _fleet_cells(row: FleetTool) -> list[str]:
+    """One tool's cells in `tcpcal tools`' table."""
+    cal, chk = row["last_calibration"], row["last_check"]
+    rms = cal.get("rms_mm") if cal else None
+    return [
+        row["name"],
+        "" if row["slot"] is None else str(row["slot"]),
+        row["robot_name"],
+        row["cell"] or "",
+        "-" if row["active_version"] is None else f"v{row['active_version']}",
+        cal["status"] if cal else "-",
+        "" if rms is None else f"{rms:.3f}",
+        "-" if chk is None else ("ok" if chk["within_tolerance"] else "FAILED"),
+        ", ".join(row.get("attention", [])),
+        row["id"],
+    ]
 
 
 def calibrate(
@@ -238,16 +222,16 @@ def calibrate(
     verdict sentence."""
     units = _units(length, angle)
     if not fmt:
-        _fail(EXIT_BAD_USE, "give --format, the pendant's pose format (e.g. kuka_abc)")
+        fail(EXIT_BAD_USE, "give --format, the pendant's pose format (e.g. kuka_abc)")
     tool_id = resolve_tool(tool_id)
     if guided:
         cal = guided_session(tool_id, fmt, units, target, session, activate, note)
         _print_calibration(cal)
         return
     if poses_file is None:
-        _fail(EXIT_BAD_USE, "give a poses file, or --guided to touch one pose at a time")
+        fail(EXIT_BAD_USE, "give a poses file, or --guided to touch one pose at a time")
     poses = read_poses(poses_file, fmt, units)
-    body: dict[str, Any] = {"method": method, "format": fmt, "poses": poses, "activate": activate}
+    body: JsonObject = {"method": method, "format": fmt, "poses": poses, "activate": activate}
     if units:
         body["units"] = units
     if note:
@@ -255,11 +239,11 @@ def calibrate(
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
                   console=err, transient=True) as progress:  # fmt: skip
         progress.add_task(f"sending {len(poses)} poses and solving", total=None)
-        cal = _send("POST", f"/v1/tools/{tool_id}/calibrations", json=body).json()
+        cal = send("POST", f"/v1/tools/{tool_id}/calibrations", json=body).json()
     _print_calibration(cal)
 
 
-def _print_calibration(cal: dict[str, Any]) -> None:
+def _print_calibration(cal: Calibration) -> None:
     table = Table("version", "status", "active", "x mm", "y mm", "z mm", "rms mm", "touches")
     x, y, z = cal["tcp"]["position_mm"]
     rms = cal["quality"].get("rms_mm")
@@ -284,18 +268,18 @@ def guided_session(
     session_id: str | None,
     activate: str,
     note: str | None,
-) -> dict[str, Any]:
+) -> Calibration:
     """Touch by touch: each line on stdin is one pose as the pendant shows it; `d N` deletes
     touch N (from 1), `f` finishes, `q` leaves the session open to continue later."""
     if session_id is None:
-        body: dict[str, Any] = {"method": "xyz_npoint", "format": fmt}
+        body: JsonObject = {"method": "xyz_npoint", "format": fmt}
         if units:
             body["units"] = units
         if target is not None:
             body["target_sigma_mm"] = target
-        state = _send("POST", f"/v1/tools/{tool_id}/sessions", json=body).json()
+        state: Session = send("POST", f"/v1/tools/{tool_id}/sessions", json=body).json()
     else:
-        state = _send("GET", f"/v1/sessions/{session_id}").json()
+        state = send("GET", f"/v1/sessions/{session_id}").json()
     sid = state["id"]
     err.print(
         f"session {sid}: type each touch's pose ({fmt}) as shown on the pendant, one line of "
@@ -315,44 +299,39 @@ def guided_session(
             break
         if command.startswith("d "):
             index = int(command.split()[1]) - 1
-            state = _send("DELETE", f"/v1/sessions/{sid}/poses/{index}").json()
+            state = send("DELETE", f"/v1/sessions/{sid}/poses/{index}").json()
         else:
             pose = [float(v) for v in line.replace(",", " ").split()]
             state = _send_touch(sid, pose, state)
         _print_session(state)
         if state["done"]:
             err.print("[green]done[/]: type 'f' to store it (or touch more)")
-    finish: dict[str, Any] = {"activate": activate}
+    finish: JsonObject = {"activate": activate}
     if note:
         finish["note"] = note
-    result: dict[str, Any] = _send("POST", f"/v1/sessions/{sid}/finish", json=finish).json()
+    result: Calibration = send("POST", f"/v1/sessions/{sid}/finish", json=finish).json()
     return result
 
 
-def _input_lines() -> Any:
+def _input_lines() -> Iterator[str]:
     import sys
 
     yield from sys.stdin
 
 
-def _send_touch(sid: str, pose: list[float], state: dict[str, Any]) -> dict[str, Any]:
+def _send_touch(sid: str, pose: list[float], state: Session) -> Session:
     """Post one touch; a refused touch is explained and the session goes on as it was."""
-    try:
-        with _http() as http:
-            response = http.post(f"/v1/sessions/{sid}/poses", json={"pose": pose})
-    except httpx.HTTPError as exc:
-        _fail(EXIT_UNREACHABLE, f"could not reach the server: {exc}")
+    response = request("POST", f"/v1/sessions/{sid}/poses", json={"pose": pose})
     if response.status_code == 422:
-        problem = response.json()
-        err.print(f"[red]touch refused[/]: {problem.get('detail')}", highlight=False)
+        err.print(f"[red]touch refused[/]: {problem(response).get('detail')}", highlight=False)
         return state
     if response.status_code >= 400:
-        _refused(response)
-    new_state: dict[str, Any] = response.json()
+        refused(response)
+    new_state: Session = response.json()
     return new_state
 
 
-def _print_session(state: dict[str, Any]) -> None:
+def _print_session(state: Session) -> None:
     estimate = state["estimate"]
     if estimate:
         x, y, z = estimate["tcp_mm"]
@@ -369,7 +348,7 @@ def _print_session(state: dict[str, Any]) -> None:
         out.print(f"next: {numbers}", highlight=False)
 
 
-def _flatten(pose: list[Any]) -> list[float]:
+def _flatten(pose: Pose) -> list[float]:
     return [float(v) for row in pose for v in (row if isinstance(row, list) else [row])]
 
 
@@ -389,7 +368,7 @@ def plan(
 ) -> None:
     """Which touches to make before the robot moves: poses within the reachable cone that
     determine the TCP best, with the predicted uncertainty."""
-    body: dict[str, Any] = {
+    body: JsonObject = {
         "format": fmt,
         "start": [float(v) for v in start.replace(",", " ").split()],
         "touch_noise_mm": noise,
@@ -406,7 +385,7 @@ def plan(
         body["target_sigma_mm"] = target
     from app.kinematics.poses import format_components
 
-    result = _send("POST", "/v1/plan", json=body).json()
+    result: Plan = send("POST", "/v1/plan", json=body).json()
     names = format_components(fmt)  # the server accepted the format: it is a known one
     table = Table("touch", *names)
     rows = [_flatten(p) for p in result["poses"]]
@@ -432,7 +411,7 @@ def history(tool_id: ToolArg) -> None:
     """A tool's versions (status, who, when, why, which is active) and every activation with
     its reason."""
     tool_id = resolve_tool(tool_id)
-    body = _send("GET", f"/v1/tools/{tool_id}/versions").json()
+    body: VersionList = send("GET", f"/v1/tools/{tool_id}/versions").json()
     table = Table(
         "version", "status", "active", "x mm", "y mm", "z mm", "source", "by", "at", "note",
         title="versions",
@@ -456,7 +435,7 @@ def history(tool_id: ToolArg) -> None:
 
 def _etag(tool_id: str) -> str:
     """The tool's ETag now, sent as If-Match: a change made meanwhile is a 412, not undone."""
-    return str(_send("GET", f"/v1/tools/{tool_id}").headers.get("ETag", "*"))
+    return str(send("GET", f"/v1/tools/{tool_id}").headers.get("ETag", "*"))
 
 
 def activate(
@@ -472,14 +451,14 @@ def activate(
     """Make a version the tool's active TCP. A version stored out of tolerance needs --force
     and --reason."""
     if force and not reason:
-        _fail(EXIT_BAD_USE, "--force needs --reason: say why this version must go live")
+        fail(EXIT_BAD_USE, "--force needs --reason: say why this version must go live")
     tool_id = resolve_tool(tool_id)
-    body: dict[str, Any] = {}
+    body: JsonObject = {}
     if reason:
         body["reason"] = reason
     if force:
         body["force"] = True
-    tool = _send(
+    tool: Tool = send(
         "POST",
         f"/v1/tools/{tool_id}/versions/{version}/activate",
         json=body,
@@ -497,8 +476,8 @@ def rollback(
     """Go back to the version that was active before the current one (from the activation
     history; again walks further back)."""
     tool_id = resolve_tool(tool_id)
-    body = {"reason": reason} if reason else {}
-    tool = _send(
+    body: JsonObject = {"reason": reason} if reason else {}
+    tool: Tool = send(
         "POST", f"/v1/tools/{tool_id}/rollback", json=body, headers={"If-Match": _etag(tool_id)}
     ).json()
     out.print(f"tool {tool['name']}: rolled back, version {tool['active_version']} is active")
@@ -515,14 +494,14 @@ def check(
     """Touch a reference point with the active TCP: how far and which way the tool moved."""
     units = _units(length, angle)
     tool_id = resolve_tool(tool_id)
-    body: dict[str, Any] = {
+    body: JsonObject = {
         "reference_point_id": reference_point_id,
         "format": fmt,
         "poses": read_poses(poses_file, fmt, units),
     }
     if units:
         body["units"] = units
-    result = _send("POST", f"/v1/tools/{tool_id}/checks", json=body).json()
+    result: CheckResult = send("POST", f"/v1/tools/{tool_id}/checks", json=body).json()
     out.print(result["summary"], highlight=False)
     if not result["within_tolerance"]:
         raise typer.Exit(EXIT_OUT_OF_TOLERANCE)
@@ -558,13 +537,13 @@ def export(
     """Write the active TCP as the file the controller loads, or (--all DIR) every robot's."""
     if all_dir is not None:
         if tool_id is not None or output is not None:
-            _fail(EXIT_BAD_USE, "--all DIR writes every robot's files: give no tool id or -o")
+            fail(EXIT_BAD_USE, "--all DIR writes every robot's files: give no tool id or -o")
         _export_all(all_dir, fmt)
         return
     if tool_id is None or fmt is None:
-        _fail(EXIT_BAD_USE, "give a tool id and --format, or --all DIR")
+        fail(EXIT_BAD_USE, "give a tool id and --format, or --all DIR")
     tool_id = resolve_tool(tool_id)
-    response = _send(
+    response = send(
         "GET", f"/v1/tools/{tool_id}/tcp", params={"format": fmt}, headers={"Accept": "text/plain"}
     )
     name = _file_name(response) or f"{tool_id}.{fmt}.txt"
@@ -583,14 +562,14 @@ def _file_name(response: httpx.Response) -> str | None:
     return Path(disposition.split('filename="')[-1].rstrip('"')).name or None
 
 
-def _robots() -> list[dict[str, Any]]:
-    robots: list[dict[str, Any]] = []
+def _robots() -> list[Robot]:
+    robots: list[Robot] = []
     cursor: str | None = None
     while True:
-        params: dict[str, Any] = {"limit": 200}
+        params: dict[str, str | int] = {"limit": 200}
         if cursor:
             params["cursor"] = cursor
-        page = _send("GET", "/v1/robots", params=params).json()
+        page: Page[Robot] = send("GET", "/v1/robots", params=params).json()
         robots.extend(page["items"])
         cursor = page.get("next_cursor")
         if not cursor:
@@ -612,10 +591,10 @@ def _export_all(directory: Path, fmt: str | None) -> None:
         folder = directory / folder_name
         folder.mkdir(parents=True, exist_ok=True)
         path = f"/v1/robots/{robot['id']}/tool-table"
-        table = _send("GET", path).json()
+        table = send("GET", path).json()
         (folder / "tool-table.json").write_text(json.dumps(table, indent=2) + "\n")
         for each in (fmt,) if fmt else vendor_formats(robot.get("vendor")):
-            response = _send("GET", path, params={"format": each}, headers={"Accept": "text/plain"})
+            response = send("GET", path, params={"format": each}, headers={"Accept": "text/plain"})
             target = folder / (_file_name(response) or f"tools.{each}.txt")
             target.write_text(response.text)
             out.print(f"wrote {target}", highlight=False)
@@ -664,15 +643,17 @@ def audit(
         out.print("no audit events match")
 
 
-def _audit_events(params: dict[str, str], limit: int) -> list[dict[str, Any]]:
+def _audit_events(params: dict[str, str], limit: int) -> list[AuditEvent]:
     """Up to `limit` audit events matching `params`, newest first, page after page."""
-    events: list[dict[str, Any]] = []
+    events: list[AuditEvent] = []
     cursor = None
     while len(events) < limit:
-        page_params: dict[str, Any] = {**params, "limit": min(500, limit - len(events))}
-        if cursor:
-            page_params["cursor"] = cursor
-        body = _send("GET", "/v1/audit", params=page_params).json()
+        page_params: Params = {
+            **params,
+            "limit": min(500, limit - len(events)),
+            **({"cursor": cursor} if cursor else {}),
+        }
+        body: Page[AuditEvent] = send("GET", "/v1/audit", params=page_params).json()
         events += body["items"]
         cursor = body["next_cursor"]
         if cursor is None:
@@ -683,18 +664,19 @@ def _audit_events(params: dict[str, str], limit: int) -> list[dict[str, Any]]:
 def _tool_names(tool_ids: set[str]) -> dict[str, str]:
     """Each tool's name (its id's first 8 characters when it cannot be read: archived)."""
     names = {}
-    for tid in sorted(tool_ids):
-        try:
-            with _http() as http:
+    with client_http.connect() as http:
+        for tid in sorted(tool_ids):
+            try:
                 response = http.get(f"/v1/tools/{tid}")
-        except httpx.HTTPError:
-            response = None
-        ok = response is not None and response.status_code == 200
-        names[tid] = str(response.json()["name"]) if ok and response else tid[:8]
+            except httpx.HTTPError:
+                names[tid] = tid[:8]
+                continue
+            tool: Tool | None = response.json() if response.status_code == 200 else None
+            names[tid] = tool["name"] if tool else tid[:8]
     return names
 
 
-def audit_why(action: str, detail: dict[str, Any]) -> str:
+def audit_why(action: str, detail: JsonObject) -> str:
     """The reason or the change an audit event records, in a few words."""
     if "reason" in detail:
         previous = detail.get("previous_version")
@@ -711,7 +693,7 @@ def audit_why(action: str, detail: dict[str, Any]) -> str:
     return ", ".join(f"{k} {v}" for k, v in shown.items())
 
 
-def _changes_text(detail: dict[str, Any]) -> str:
+def _changes_text(detail: JsonObject) -> str:
     """`field old -> new` for each changed field with values (nested: each changed member)."""
     old, new = detail.get("from", {}), detail.get("to", {})
     parts = []

@@ -8,14 +8,22 @@ not be reached or failed.
 
 from __future__ import annotations
 
-import os
-from typing import Annotated, Any
+from typing import Annotated
 
 import httpx
 import typer
 from rich.table import Table
 
-from app.client import EXIT_NOT_FOUND, EXIT_REFUSED, EXIT_UNREACHABLE, _fail, _http, err, out
+from app.client_bodies import Deployment, Frame, Reconciliation
+from app.client_http import (
+    EXIT_NOT_FOUND,
+    EXIT_REFUSED,
+    EXIT_UNREACHABLE,
+    err,
+    out,
+    problem,
+    request,
+)
 
 EXIT_DRIFTED = 2
 EXIT_CONTROLLER_UNREACHABLE = 3
@@ -29,25 +37,9 @@ def register(cli: typer.Typer) -> None:
         cli.command(rich_help_panel="Client (talks to a server)", epilog=_EXITS)(command)
 
 
-def _post(path: str, **kw: Any) -> httpx.Response:
-    try:
-        with _http() as http:
-            return http.post(path, **kw)
-    except httpx.HTTPError as exc:
-        _fail(EXIT_UNREACHABLE, f"could not reach {os.environ.get('TCPCAL_URL')}: {exc}")
-
-
-def _problem(response: httpx.Response) -> dict[str, Any]:
-    try:
-        body = response.json()
-    except ValueError:
-        return {"detail": response.text}
-    return body if isinstance(body, dict) else {"detail": response.text}
-
-
 def _exit_for_problem(response: httpx.Response) -> int:
     """The exit code of a failed answer (the 502s by what the controller did)."""
-    kind = str(_problem(response).get("type", "")).rsplit("/", 1)[-1]
+    kind = str(problem(response).get("type", "")).rsplit("/", 1)[-1]
     by_kind = {
         "controller-unreachable": EXIT_CONTROLLER_UNREACHABLE,
         "controller-mismatch": EXIT_DRIFTED,
@@ -60,7 +52,7 @@ def _exit_for_problem(response: httpx.Response) -> int:
     return EXIT_UNREACHABLE if response.status_code >= 500 else EXIT_REFUSED
 
 
-def _frame(frame: dict[str, Any] | None) -> str:
+def _frame(frame: Frame | None) -> str:
     if not frame:
         return "-"
     x, y, z = frame["position_mm"]
@@ -80,16 +72,16 @@ def deploy(
 ) -> None:
     """Write the tool's active TCP into its robot's controller and read it back."""
     headers = {"Idempotency-Key": idempotency_key} if idempotency_key else {}
-    response = _post(f"/v1/tools/{tool_id}/deployments", json={}, headers=headers)
+    response = request("POST", f"/v1/tools/{tool_id}/deployments", json={}, headers=headers)
     if response.status_code >= 400:
-        problem = _problem(response)
-        words = f" (deployment {problem['deployment_id']})" if "deployment_id" in problem else ""
+        failed = problem(response)
+        words = f" (deployment {failed['deployment_id']})" if "deployment_id" in failed else ""
         err.print(
-            f"[bold red]{response.status_code}[/]: {problem.get('detail')}{words}",
+            f"[bold red]{response.status_code}[/]: {failed.get('detail')}{words}",
             highlight=False,
         )
         raise typer.Exit(_exit_for_problem(response))
-    dep = response.json()
+    dep: Deployment = response.json()
     table = Table("deployment", "version", "target", "status", "previous", "read back", "deviation")
     table.add_row(
         dep["id"],
@@ -111,11 +103,11 @@ def deploy(
 def reconcile(robot_id: Annotated[str, typer.Argument(help="the robot's id")]) -> None:
     """Read every tool's frame from the robot's controller and compare it with the active
     TCP (in sync within 0.01 mm and 0.01 deg)."""
-    response = _post(f"/v1/robots/{robot_id}/reconcile")
+    response = request("POST", f"/v1/robots/{robot_id}/reconcile")
     if response.status_code >= 400:
-        err.print(f"[bold red]{response.status_code}[/]: {_problem(response).get('detail')}")
+        err.print(f"[bold red]{response.status_code}[/]: {problem(response).get('detail')}")
         raise typer.Exit(_exit_for_problem(response))
-    result = response.json()
+    result: Reconciliation = response.json()
     table = Table("tool", "target", "state", "since", "controller", "active", "deviation")
     for t in result["tools"]:
         active = t["active"]

@@ -10,10 +10,11 @@ One module per wire protocol behind one `Connector` interface (app.controllers.b
 | abb_rws2 | abb_rws.py | ABB Robot Web Services 2.0 (RobotWare 7) |
 
 `connect(settings)` opens a session with the connector its protocol names. Beside them:
-`krl.py` (KRL structure texts), `rapid.py` (RAPID tooldata texts), `sockets.py` (TCP I/O
-under one deadline). Each read or write has its own deadline of ``timeout_s`` covering all
-its network waits; a session whose controller stopped answering closes without waiting
-again. The simulators the tests drive are in tests/controllers/.
+`krl.py` (KRL structure texts) and `rapid.py` (RAPID tooldata texts), both read with
+`scanner.py`, and `sockets.py` (TCP I/O under one deadline). Each read or write has its own
+deadline of ``timeout_s`` covering all its network waits; a session whose controller
+stopped answering closes without waiting again. The simulators the tests drive are in
+tests/controllers/.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from app.controllers.base import (
     ToolTarget,
     abb_symbol_problem,
     check_target,
+    describe_target,
     split_abb_symbol,
     target_problem,
 )
@@ -57,6 +59,7 @@ __all__ = [
     "abb_symbol_problem",
     "check_target",
     "connect",
+    "describe_target",
     "split_abb_symbol",
     "target_problem",
 ]

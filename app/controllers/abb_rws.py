@@ -47,6 +47,7 @@ from app.controllers.base import (
     ToolLoad,
     ToolTarget,
     check_target,
+    describe_target,
     finite_tool_data,
     split_abb_symbol,
 )
@@ -103,9 +104,7 @@ class AbbRwsConnector(ClosingSession):
 
     def describe(self, target: ToolTarget) -> str:
         """``T_ROB1/user/tTorch``."""
-        check_target(self.protocol, target)
-        assert target.symbol is not None
-        return target.symbol
+        return describe_target(self.protocol, target)
 
     def read_tool(self, target: ToolTarget) -> ToolData:
         """The tooldata the controller holds in the PERS symbol `target.symbol`."""

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Literal, Protocol, Self, get_args
 
+from app.exports.slots import TOOL_NUMBERS
+
 ProtocolName = Literal["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2"]
 PROTOCOLS: tuple[str, ...] = get_args(ProtocolName)
 
@@ -32,11 +34,14 @@ DEFAULT_PORTS: dict[str, int] = {
     "abb_rws2": 443,  # RobotWare 7 Robot Web Services 2.0, HTTPS + Basic
 }
 
-#: Tool numbers each slot-addressed protocol accepts, inclusive.
+#: Tool numbers each slot-addressed protocol accepts, inclusive (the exports' ranges).
 SLOT_RANGES: dict[str, tuple[int, int]] = {
-    "kuka_kvp": (1, 16),  # $TOOL_DATA[1..16] in $config.dat
-    "fanuc_rmi": (1, 10),  # UTOOL[1..10]
+    "kuka_kvp": TOOL_NUMBERS["kuka"],  # $TOOL_DATA[1..16] in $config.dat
+    "fanuc_rmi": TOOL_NUMBERS["fanuc"],  # UTOOL[1..10]
 }
+
+#: How each slot-addressed protocol names tool number n.
+SLOT_NAMES: dict[str, str] = {"kuka_kvp": "$TOOL_DATA[{}]", "fanuc_rmi": "UTOOL[{}]"}
 
 #: Which field of a tool names its place in the controller, per protocol: "slot" (a tool
 #: number) or "symbol" (ABB "TASK/MODULE/SYMBOL"; the tool's `controller_symbol`).
@@ -105,7 +110,7 @@ class ControllerSettings:
 
 
 class ControllerError(Exception):
-    """Anything that went wrong talking to a controller."""
+    """Whatever went wrong talking to a controller."""
 
 
 class ControllerUnreachable(ControllerError):
@@ -197,6 +202,15 @@ def target_problem(protocol: str, target: ToolTarget) -> str | None:
             'controller_symbol as "TASK/MODULE/SYMBOL", e.g. "T_ROB1/user/tTorch"'
         )
     return abb_symbol_problem(target.symbol)
+
+
+def describe_target(protocol: str, target: ToolTarget) -> str:
+    """The target as the controller names it: "$TOOL_DATA[3]", "UTOOL[3]", "T_ROB1/user/t";
+    ValueError saying what to set when `target` cannot address a tool under `protocol`."""
+    check_target(protocol, target)
+    if TARGET_FIELD[protocol] == "slot":
+        return SLOT_NAMES[protocol].format(target.slot)
+    return str(target.symbol)
 
 
 def abb_symbol_problem(symbol: str) -> str | None:

@@ -41,6 +41,7 @@ from app.controllers.base import (
     ToolData,
     ToolTarget,
     check_target,
+    describe_target,
     finite_tool_data,
 )
 from app.controllers.sockets import close_quietly, open_connection, recv_until, send_all
@@ -148,8 +149,7 @@ class FanucRmiConnector(ClosingSession):
 
     def describe(self, target: ToolTarget) -> str:
         """``UTOOL[3]``."""
-        check_target(self.protocol, target)
-        return f"UTOOL[{target.slot}]"
+        return describe_target(self.protocol, target)
 
     def read_tool(self, target: ToolTarget) -> ToolData:
         """The frame of UTOOL[slot] (no load: RMI does not serve payloads)."""

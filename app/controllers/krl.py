@@ -13,6 +13,8 @@ import math
 from collections.abc import Mapping
 from typing import Union
 
+from app.controllers.scanner import Scanner
+
 KrlValue = Union[float, str, "KrlStruct"]
 KrlStruct = dict[str, KrlValue]
 
@@ -28,9 +30,7 @@ def parse_struct(text: str) -> KrlStruct:
     """
     parser = _Parser(text)
     value = parser.struct()
-    parser.skip_spaces()
-    if parser.pos != len(text):
-        raise KrlSyntaxError(f"unexpected text after the structure: {text[parser.pos :]!r}")
+    parser.finish("structure")
     return value
 
 
@@ -65,24 +65,8 @@ def numbers(struct: KrlStruct, names: tuple[str, ...], *, what: str) -> tuple[fl
     return tuple(values)
 
 
-class _Parser:
-    def __init__(self, text: str) -> None:
-        self.text = text
-        self.pos = 0
-
-    def skip_spaces(self) -> None:
-        while self.pos < len(self.text) and self.text[self.pos].isspace():
-            self.pos += 1
-
-    def peek(self) -> str:
-        self.skip_spaces()
-        return self.text[self.pos] if self.pos < len(self.text) else ""
-
-    def expect(self, char: str) -> None:
-        if self.peek() != char:
-            found = self.text[self.pos : self.pos + 10] or "the end"
-            raise KrlSyntaxError(f"expected {char!r} at {self.pos} of {self.text!r}, got {found!r}")
-        self.pos += 1
+class _Parser(Scanner):
+    error = KrlSyntaxError
 
     def name(self) -> str:
         self.skip_spaces()
@@ -119,10 +103,7 @@ class _Parser:
     def value(self) -> KrlValue:
         if self.peek() == "{":
             return self.struct()
-        start = self.pos
-        while self.pos < len(self.text) and self.text[self.pos] not in ",}":
-            self.pos += 1
-        token = self.text[start : self.pos].strip()
+        start, token = self.token(",}")
         if not token:
             raise KrlSyntaxError(f"a member without a value at {start} of {self.text!r}")
         try:

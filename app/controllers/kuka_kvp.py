@@ -39,6 +39,7 @@ from app.controllers.base import (
     ToolLoad,
     ToolTarget,
     check_target,
+    describe_target,
     finite_tool_data,
 )
 from app.controllers.krl import KrlStruct, KrlSyntaxError, format_struct, numbers, parse_struct
@@ -71,8 +72,7 @@ class KukaKvpConnector(ClosingSession):
 
     def describe(self, target: ToolTarget) -> str:
         """``$TOOL_DATA[3]``."""
-        check_target(self.protocol, target)
-        return f"$TOOL_DATA[{target.slot}]"
+        return describe_target(self.protocol, target)
 
     def read_tool(self, target: ToolTarget) -> ToolData:
         """The tool frame and load the KRC holds for tool `target.slot`."""

@@ -13,6 +13,8 @@ import math
 from dataclasses import dataclass
 from typing import TypeAlias
 
+from app.controllers.scanner import Scanner
+
 RapidValue: TypeAlias = float | bool | str | list["RapidValue"]
 
 
@@ -37,9 +39,7 @@ def parse_value(text: str) -> RapidValue:
     """RAPID value text -> nested lists of floats, bools and other tokens (as text)."""
     parser = _Parser(text)
     value = parser.value()
-    parser.skip_spaces()
-    if parser.pos != len(text):
-        raise RapidSyntaxError(f"unexpected text after the value: {text[parser.pos :]!r}")
+    parser.finish("value")
     return value
 
 
@@ -103,23 +103,13 @@ def _numbers(value: RapidValue, count: int, what: str, text: str) -> list[float]
     return [float(v) for v in value if isinstance(v, float)]
 
 
-class _Parser:
-    def __init__(self, text: str) -> None:
-        self.text = text
-        self.pos = 0
-
-    def skip_spaces(self) -> None:
-        while self.pos < len(self.text) and self.text[self.pos].isspace():
-            self.pos += 1
+class _Parser(Scanner):
+    error = RapidSyntaxError
 
     def value(self) -> RapidValue:
-        self.skip_spaces()
-        if self.pos < len(self.text) and self.text[self.pos] == "[":
+        if self.peek() == "[":
             return self.aggregate()
-        start = self.pos
-        while self.pos < len(self.text) and self.text[self.pos] not in ",]":
-            self.pos += 1
-        token = self.text[start : self.pos].strip()
+        start, token = self.token(",]")
         if not token:
             raise RapidSyntaxError(f"a missing value at {start} of {self.text!r}")
         if token.upper() in ("TRUE", "FALSE"):
@@ -132,12 +122,10 @@ class _Parser:
     def aggregate(self) -> list[RapidValue]:
         self.pos += 1  # "["
         items = [self.value()]
-        self.skip_spaces()
-        while self.pos < len(self.text) and self.text[self.pos] == ",":
+        while self.peek() == ",":
             self.pos += 1
             items.append(self.value())
-            self.skip_spaces()
-        if self.pos >= len(self.text) or self.text[self.pos] != "]":
+        if self.peek() != "]":
             raise RapidSyntaxError(f"an aggregate not closed by ] at {self.pos} of {self.text!r}")
         self.pos += 1
         return items

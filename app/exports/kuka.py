@@ -25,6 +25,7 @@ from app.exports.base import (
     parse_error,
     rounded,
 )
+from app.exports.slots import TOOL_NUMBERS
 from app.kinematics.poses import (
     kuka_abc_from_matrix,
     matrix_from_kuka_abc,
@@ -33,7 +34,7 @@ from app.kinematics.poses import (
 )
 
 FORMAT = "kuka"
-MAX_SLOT = 16
+FIRST_SLOT, MAX_SLOT = TOOL_NUMBERS[FORMAT]
 _FIELDS = ("X", "Y", "Z", "A", "B", "C")
 _PATTERN = re.compile(
     r"(?<![A-Za-z0-9_])\$?TOOL_DATA\[\s*(\d+)\s*\]\s*=\s*\{\s*"
@@ -45,10 +46,10 @@ _PATTERN = re.compile(
 
 def export_kuka(tool: ToolData) -> ControllerExport:
     """``$TOOL_DATA[slot]={X,Y,Z (mm),A,B,C (deg)}``; InvalidInput if the slot is missing."""
-    if tool.slot is None or not 1 <= tool.slot <= MAX_SLOT:
+    if tool.slot is None or not FIRST_SLOT <= tool.slot <= MAX_SLOT:
         raise InvalidInput(
             "invalid-options",
-            f"a KUKA tool needs its tool number (slot 1..{MAX_SLOT}) for $TOOL_DATA[n]; "
+            f"a KUKA tool needs its tool number (slot {FIRST_SLOT}..{MAX_SLOT}) for $TOOL_DATA[n]; "
             f"got {tool.slot!r}",
             loc=("slot",),
         )

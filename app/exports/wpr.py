@@ -62,6 +62,7 @@ from app.exports.base import (
     rounded,
 )
 from app.exports.names import ascii_text
+from app.exports.slots import TOOL_NUMBERS
 from app.kinematics.poses import (
     fanuc_wpr_from_matrix,
     matrix_from_fanuc_wpr,
@@ -76,7 +77,6 @@ _LABELS: dict[str, tuple[str, ...]] = {
     "techman": ("X", "Y", "Z", "RX", "RY", "RZ"),
 }
 _PREFIX = {"fanuc": "UTOOL", "yaskawa": "TOOL"}
-_SLOTS = {"fanuc": (1, 10), "yaskawa": (0, 63)}
 
 
 def xyz_wpr(tool: ToolData) -> FloatArray:
@@ -87,7 +87,7 @@ def xyz_wpr(tool: ToolData) -> FloatArray:
 
 
 def check_slot(fmt: str, slot: int | None) -> None:
-    low, high = _SLOTS[fmt]
+    low, high = TOOL_NUMBERS[fmt]
     if slot is not None and not low <= slot <= high:
         raise InvalidInput(
             "invalid-options",

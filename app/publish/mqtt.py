@@ -32,11 +32,12 @@ import ssl
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any
 from urllib.parse import unquote, urlsplit
 
 import paho.mqtt.client as mqtt
+from paho.mqtt.client import ConnectFlags, DisconnectFlags
 from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode
+from paho.mqtt.properties import Properties
 from paho.mqtt.reasoncodes import ReasonCode
 
 from app.jsontypes import JsonObject
@@ -170,7 +171,12 @@ class MqttSink:
 
     # ---- paho's network thread -------------------------------------------------------
     def _on_connect(
-        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, ___: Any
+        self,
+        client: mqtt.Client,
+        _userdata: object,
+        _flags: ConnectFlags,
+        reason: ReasonCode,
+        _properties: Properties | None,
     ) -> None:
         if reason.is_failure:
             self._refused = str(reason)
@@ -183,7 +189,12 @@ class MqttSink:
         log.info("connected to %s", self.broker.where)
 
     def _on_disconnect(
-        self, _: mqtt.Client, __: Any, ___: Any, reason: ReasonCode, ____: Any
+        self,
+        _client: mqtt.Client,
+        _userdata: object,
+        _flags: DisconnectFlags,
+        reason: ReasonCode,
+        _properties: Properties | None,
     ) -> None:
         self._connected.clear()
         if not self._closing:

@@ -26,7 +26,7 @@ import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import UTC
-from typing import Any
+from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
 
 from asyncua import ua
@@ -39,6 +39,9 @@ from asyncua.ua.attribute_ids import AttributeIds
 from app.publish.opcua_certs import APPLICATION_URI, ServerCertificate
 from app.publish.sink import SinkError
 from app.services.plant import PlantRobot, PlantTool
+
+if TYPE_CHECKING:
+    from asyncua.server.internal_server import InternalServer
 
 log = logging.getLogger(__name__)
 # asyncua logs every node of the standard address space it loads, and every session, at
@@ -97,10 +100,10 @@ class ApiKeyUsers(UserManager):
 
     def get_user(
         self,
-        iserver: Any,  # asyncua's InternalServer, unused
+        iserver: InternalServer,  # unused
         username: str | None = None,
         password: str | None = None,
-        certificate: Any = None,
+        certificate: object = None,  # unused: keys sign in, not certificates
     ) -> User | None:
         """A read-only user for a good key (or anonymous when allowed), None to refuse."""
         if username is None and password is None:

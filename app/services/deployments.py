@@ -27,6 +27,7 @@ from app.controllers.base import (
     ToolData,
     ToolLoad,
     ToolTarget,
+    describe_target,
     target_problem,
 )
 from app.db import session_scope
@@ -74,15 +75,6 @@ class Outcome:
     controller_message: str | None = None
 
 
-def target_name(protocol: str, target: ToolTarget) -> str:
-    """The target as the controller names it: "$TOOL_DATA[3]", "UTOOL[3]", "T_ROB1/user/t"."""
-    if protocol == "kuka_kvp":
-        return f"$TOOL_DATA[{target.slot}]"
-    if protocol == "fanuc_rmi":
-        return f"UTOOL[{target.slot}]"
-    return str(target.symbol)
-
-
 def tool_target(protocol: str, slot: int | None, symbol: str | None) -> ToolTarget:
     """Where the tool lives in its controller; 422 naming the tool's field to set."""
     target = ToolTarget(slot=slot, symbol=symbol)
@@ -126,7 +118,7 @@ def plan_deployment(session: Session, tool_id: str) -> Plan:
         robot_id=tool.robot_id,
         version=version.version,
         target=target,
-        target_name=target_name(controller.protocol, target),
+        target_name=describe_target(controller.protocol, target),
         data=data,
         settings=settings_of(controller),
     )

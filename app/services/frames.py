@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,7 +49,7 @@ def frame_from(
     position_mm: Sequence[float],
     quaternion: Sequence[float],
     version: int,
-    calibration_result: Mapping[str, Any] | None,
+    calibration_result: Mapping[str, object] | None,
 ) -> ActiveFrame:
     """A stored version's frame, with the covariance from its calibration's result if any."""
     quality = calibration_result.get("quality") if calibration_result else None

@@ -22,6 +22,7 @@ from app.controllers.base import (
     ControllerUnreachable,
     ToolData,
     ToolTarget,
+    describe_target,
     target_problem,
 )
 from app.db import session_scope
@@ -32,7 +33,6 @@ from app.schemas.controllers import Reconciliation
 from app.services import controller_states
 from app.services.controller_states import SEVERITY, Observation
 from app.services.controllers import get_controller, settings_of
-from app.services.deployments import target_name
 from app.services.robots import get_robot
 
 
@@ -75,7 +75,7 @@ def _tools_to_check(session: Session, robot_id: str, protocol: str) -> list[Tool
             ToolToCheck(
                 tool_id=tool_id,
                 target=None if problem else target,
-                target_name=None if problem else target_name(protocol, target),
+                target_name=None if problem else describe_target(protocol, target),
                 problem=problem,
                 version=None if version is None else version.version,
                 position_mm=None if version is None else list(version.position_mm),

@@ -1,7 +1,7 @@
 """Which tool numbers (slots) a robot's controller has, by the robot's vendor.
 
-The ranges are the controllers' own, and the exports' (one definition: app.exports.kuka and
-app.exports.wpr, which cite the vendor documents): KUKA `$TOOL_DATA[1..16]` (KSS
+The ranges are the controllers' own, and the exports' (one definition: app.exports.slots;
+app.exports.kuka and app.exports.wpr cite the vendor documents): KUKA `$TOOL_DATA[1..16]` (KSS
 $config.dat), Fanuc `UTOOL[1..10]` (R-30iB default), Yaskawa tool files 0..63 (YRC1000 and
 DX200). ABB (a `tooldata` is a named RAPID variable) and Universal Robots (one TCP at a time,
 named in the installation) have no tool numbers: a slot on their tools is not checked and is
@@ -16,14 +16,13 @@ import re
 from collections.abc import Iterable
 
 from app.errors import InvalidInput
-from app.exports.kuka import MAX_SLOT as KUKA_MAX_SLOT
-from app.exports.wpr import _SLOTS as WPR_SLOTS
+from app.exports.slots import TOOL_NUMBERS
 
 #: The tool numbers of each vendor whose controller numbers its tools: (name, first, last).
 SLOT_RANGES: dict[str, tuple[str, int, int]] = {
-    "kuka": ("KUKA", 1, KUKA_MAX_SLOT),
-    "fanuc": ("Fanuc", *WPR_SLOTS["fanuc"]),
-    "yaskawa": ("Yaskawa", *WPR_SLOTS["yaskawa"]),
+    "kuka": ("KUKA", *TOOL_NUMBERS["kuka"]),
+    "fanuc": ("Fanuc", *TOOL_NUMBERS["fanuc"]),
+    "yaskawa": ("Yaskawa", *TOOL_NUMBERS["yaskawa"]),
 }
 _ALIASES = {"kuka": "kuka", "fanuc": "fanuc", "yaskawa": "yaskawa", "motoman": "yaskawa"}
 

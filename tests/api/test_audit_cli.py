@@ -19,7 +19,7 @@ from tests.conftest import Api, Database
 @pytest.fixture
 def run(api: Api, monkeypatch: pytest.MonkeyPatch) -> CliRunner:
     """The CLI with its client's requests sent to the app (an admin key)."""
-    from app import client
+    from app import client, client_http
     from app.main import create_app
 
     with warnings.catch_warnings():
@@ -30,7 +30,7 @@ def run(api: Api, monkeypatch: pytest.MonkeyPatch) -> CliRunner:
     def in_process() -> Any:
         return TestClient(app, headers={"Authorization": f"Bearer {api.keys['admin']}"})
 
-    monkeypatch.setattr(client, "_http", in_process)
+    monkeypatch.setattr(client_http, "connect", in_process)
     # Wide enough for every column's header on one line. COLUMNS alone is read when the
     # client's console is made, which an earlier test in the same process may have done.
     monkeypatch.setenv("COLUMNS", "250")
@@ -75,13 +75,13 @@ def test_audit_needs_an_admin_key(
 ) -> None:
     from fastapi.testclient import TestClient
 
-    from app import client
+    from app import client_http
     from app.main import create_app
 
     app = create_app()
     monkeypatch.setattr(
-        client,
-        "_http",
+        client_http,
+        "connect",
         lambda: TestClient(app, headers={"Authorization": f"Bearer {api.keys['read']}"}),
     )
     result = run.invoke(cli, ["audit"])

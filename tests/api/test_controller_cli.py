@@ -7,7 +7,7 @@ import httpx
 import pytest
 from typer.testing import CliRunner
 
-from app import client_controllers
+from app import client_http
 from app.cli import cli
 from tests.api.controller_rigs import rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, _setup
@@ -25,7 +25,7 @@ def runner(api: Api, monkeypatch: pytest.MonkeyPatch) -> CliRunner:
             headers=api.headers("calibrate"),
         )
 
-    monkeypatch.setattr(client_controllers, "_http", http)
+    monkeypatch.setattr(client_http, "connect", http)
     monkeypatch.setenv("COLUMNS", "250")
     return CliRunner()
 

@@ -1,0 +1,179 @@
+"""The JSON bodies the CLI reads from the server: the fields it prints, as TypedDicts.
+
+Named after the server's schemas in openapi/openapi.json (which the app's pydantic models in
+app.schemas define); the client declares only the members it reads and imports no model,
+so `tcpcal` starts without pydantic's models. A body is typed where `.json()` is taken.
+"""
+
+from __future__ import annotations
+
+from typing import Generic, TypedDict, TypeVar
+
+from app.jsontypes import JsonObject
+
+Item = TypeVar("Item")
+
+#: A pose as the server gives one: numbers, or rows of numbers (a matrix).
+Pose = list[float | list[float]]
+
+
+class Page(TypedDict, Generic[Item]):
+    items: list[Item]
+    next_cursor: str | None
+
+
+class Tcp(TypedDict):
+    position_mm: list[float]
+
+
+class Frame(TypedDict):
+    position_mm: list[float]
+    quaternion: list[float]
+
+
+class LastCalibration(TypedDict):
+    status: str
+    rms_mm: float | None
+
+
+class LastCheck(TypedDict):
+    within_tolerance: bool
+
+
+class FleetTool(TypedDict):
+    id: str
+    name: str
+    slot: int | None
+    robot_name: str
+    cell: str | None
+    active_version: int | None
+    last_calibration: LastCalibration | None
+    last_check: LastCheck | None
+    attention: list[str]
+
+
+class Quality(TypedDict):
+    rms_mm: float | None
+    n_poses: int
+
+
+class Calibration(TypedDict):
+    version: int
+    status: str
+    active: bool
+    tcp: Tcp
+    quality: Quality
+    summary: str
+    warnings: list[str]
+
+
+class Estimate(TypedDict):
+    tcp_mm: list[float]
+    tcp_sigma_mm: list[float]
+    rms_mm: float
+
+
+class Session(TypedDict):
+    id: str
+    estimate: Estimate | None
+    n_poses: int
+    target_sigma_mm: float
+    messages: list[str]
+    next_pose: Pose | None
+    done: bool
+
+
+class Plan(TypedDict):
+    poses: list[Pose]
+    n_poses: int
+    predicted_tcp_sigma_mm: list[float]
+    predicted_sigma_mm: float
+
+
+class Version(TypedDict):
+    version: int
+    status: str
+    active: bool
+    tcp: Tcp
+    source: str
+    created_by: str
+    created_at: str
+    note: str | None
+
+
+class Activation(TypedDict):
+    activated_at: str
+    version: int
+    previous_version: int | None
+    reason: str
+    reason_text: str | None
+    activated_by: str
+
+
+class VersionList(TypedDict):
+    items: list[Version]
+    activations: list[Activation]
+
+
+class Tool(TypedDict):
+    name: str
+    active_version: int | None
+
+
+class CheckResult(TypedDict):
+    summary: str
+    within_tolerance: bool
+
+
+class Robot(TypedDict):
+    id: str
+    name: str
+    vendor: str | None
+
+
+class AuditEvent(TypedDict):
+    at: str
+    actor: str
+    action: str
+    tool_id: str | None
+    version: int | None
+    detail: JsonObject | None
+
+
+class Deployment(TypedDict):
+    id: str
+    version: int
+    target: str
+    status: str
+    previous: Frame | None
+    read_back: Frame | None
+    deviation_mm: float | None
+    deviation_deg: float | None
+
+
+class ActiveFrame(Frame):
+    version: int
+
+
+class ReconciledTool(TypedDict):
+    tool_id: str
+    target: str | None
+    state: str
+    error: str | None
+    since: str
+    controller: Frame | None
+    active: ActiveFrame | None
+    deviation_mm: float | None
+    deviation_deg: float | None
+
+
+class NotAddressable(TypedDict):
+    tool_id: str
+    reason: str
+
+
+class Reconciliation(TypedDict):
+    robot_id: str
+    state: str
+    tools: list[ReconciledTool]
+    not_addressable: list[NotAddressable]
