@@ -33,7 +33,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.types import TypeDecorator
 
 from app.jsontypes import JsonArray, JsonObject
-from app.statuses import Status
+from app.statuses import DeploymentStatus, SessionStatus, Status, ToolState
 
 NAMING_CONVENTION = {
     "ix": "ix_%(column_0_label)s",
@@ -362,7 +362,7 @@ class GuidedSession(Base):
     max_spin_deg: Mapped[float] = mapped_column(Float)
     options: Mapped[JsonObject] = mapped_column(JSON)
     poses: Mapped[JsonArray] = mapped_column(JSON)
-    status: Mapped[str] = mapped_column(String(20), default="open")
+    status: Mapped[SessionStatus] = mapped_column(String(20), default="open")
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
@@ -398,7 +398,7 @@ class Deployment(Base):
     version: Mapped[int] = mapped_column(Integer)
     protocol: Mapped[str] = mapped_column(String(20))
     target: Mapped[str] = mapped_column(String(300))
-    status: Mapped[str] = mapped_column(String(20))
+    status: Mapped[DeploymentStatus] = mapped_column(String(20))
     previous: Mapped[JsonObject | None] = mapped_column(JSON)
     read_back: Mapped[JsonObject | None] = mapped_column(JSON)
     deviation_mm: Mapped[float | None] = mapped_column(Float)
@@ -415,7 +415,7 @@ class ToolControllerState(Base):
 
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"), primary_key=True)
     robot_id: Mapped[str] = mapped_column(String(36), index=True)
-    state: Mapped[str] = mapped_column(String(20))
+    state: Mapped[ToolState] = mapped_column(String(20))
     since: Mapped[datetime] = mapped_column()
     checked_at: Mapped[datetime] = mapped_column()
     target: Mapped[str | None] = mapped_column(String(300))

@@ -10,9 +10,16 @@ from app.exports import CONTROLLER_FORMATS
 from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHOD_NAMES, METHODS
 from app.methods.npoint import Algorithm
+from app.models import Deployment, GuidedSession, ToolControllerState
 from app.schemas.calibrations import SOLVE_MODELS, CalibrationRequest
 from app.schemas.common import ControllerFormat, PoseFormat
+from app.schemas.controllers import Deployment as DeploymentOut
+from app.schemas.controllers import ReconciledTool, Reconciliation
+from app.schemas.fleet import FleetController
+from app.schemas.sessions import Session as SessionOut
+from app.services.controller_states import EVENT_STATES, SEVERITY
 from app.solvers.npoint import ALGORITHMS
+from app.statuses import ROBOT_STATES, DeploymentStatus, RobotState, SessionStatus, ToolState
 
 
 def test_pose_formats_match_the_parser() -> None:
@@ -33,3 +40,25 @@ def test_the_request_unions_are_the_registry() -> None:
     assert [m.__mro__[1] for m in SOLVE_MODELS] == [m.request for m in METHODS]
     assert [describe(m).name for m in METHODS] == list(METHOD_NAMES)
     assert len(set(METHOD_NAMES)) == len(METHODS) == 8
+
+
+def test_the_status_documents_and_rows_share_one_literal() -> None:
+    documents = [
+        (SessionOut.model_fields["status"].annotation, SessionStatus),
+        (DeploymentOut.model_fields["status"].annotation, DeploymentStatus),
+        (ReconciledTool.model_fields["state"].annotation, ToolState),
+        (FleetController.model_fields["state"].annotation, ToolState),
+        (Reconciliation.model_fields["state"].annotation, RobotState),
+    ]
+    for annotation, literal in documents:
+        assert get_args(annotation) == get_args(literal)
+    # the rows name the same Literal (their annotations are strings: __future__ annotations)
+    assert GuidedSession.__annotations__["status"] == "Mapped[SessionStatus]"
+    assert Deployment.__annotations__["status"] == "Mapped[DeploymentStatus]"
+    assert ToolControllerState.__annotations__["state"] == "Mapped[ToolState]"
+
+
+def test_every_controller_state_has_a_severity_naming_a_robot_state() -> None:
+    assert set(SEVERITY) == set(get_args(ToolState))
+    assert all(ROBOT_STATES[SEVERITY[state]] == state for state in ROBOT_STATES)
+    assert set(EVENT_STATES) <= set(get_args(ToolState))

@@ -21,6 +21,7 @@ from pydantic import BaseModel, GetCoreSchemaHandler, GetJsonSchemaHandler
 from pydantic.json_schema import JsonSchemaValue
 from pydantic_core import PydanticCustomError, core_schema
 
+from app.errors import InputKind
 from app.jsontypes import JsonObject
 from app.schemas.common import (
     MAX_POSES,
@@ -39,6 +40,12 @@ FloatArray = NDArray[np.float64]
 
 
 # ---- the request ----------------------------------------------------------------------------
+def input_error(kind: InputKind, template: str, context: JsonObject) -> PydanticCustomError:
+    """A schema check's failure, answered as the problem `kind` (app.api.problems reads the
+    error type as the kind): a PydanticCustomError whose type mypy checks is an InputKind."""
+    return PydanticCustomError(kind, template, context)
+
+
 @dataclass(frozen=True)
 class PoseCount:
     """How many poses a method takes; checked by the schema, shown in /v1/methods.
@@ -55,14 +62,14 @@ class PoseCount:
         n = len(poses)
         wanted = f"exactly {self.min}" if self.min == self.max else f"at least {self.min}"
         if n < self.min:
-            raise PydanticCustomError(
+            raise input_error(
                 "too-few-poses",
                 "{wanted} poses needed, got {n}{hint}",
                 {"wanted": wanted, "n": n, "hint": f": {self.hint}" if self.hint else ""},
             )
         if n > self.max:
-            kind = "invalid-pose" if self.min == self.max else "validation"
-            raise PydanticCustomError(
+            kind: InputKind = "invalid-pose" if self.min == self.max else "validation"
+            raise input_error(
                 kind,
                 "{wanted} poses allowed, got {n}{hint}",
                 {

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 from pydantic import BaseModel, BeforeValidator, Field, SecretStr
 
 from app.controllers.base import ABB_SYMBOL_PATTERN, DEFAULT_PORTS, ProtocolName
 from app.schemas.common import ShortText, StrictModel, Timestamp, json_integer
+from app.statuses import DeploymentStatus, RobotState, ToolState
 
 Host = Annotated[
     str,
@@ -93,9 +94,6 @@ class DeploymentError(BaseModel):
     )
 
 
-DeploymentStatus = Literal["verified", "failed", "mismatch"]
-
-
 class Deployment(BaseModel):
     id: str
     tool_id: str
@@ -115,10 +113,6 @@ class Deployment(BaseModel):
 
 class DeploymentIn(StrictModel):
     """Deploys the tool's active version (and its load); nothing to choose."""
-
-
-ToolState = Literal["in_sync", "drifted", "no_active_version", "unreachable"]
-RobotState = Literal["in_sync", "drifted", "unreachable"]
 
 
 class ActiveFrame(Frame):

@@ -8,7 +8,7 @@ from pydantic import BaseModel, Field
 
 from app.schemas.common import Timestamp
 from app.schemas.drift import FleetDrift
-from app.statuses import Status
+from app.statuses import Status, ToolState
 
 #: The status a fleet row can be filtered by: its last calibration's.
 CalibrationStatus = Status
@@ -44,9 +44,7 @@ class LastCheck(BaseModel):
 class FleetController(BaseModel):
     """What the last look at the robot's controller found for the tool."""
 
-    state: Literal["in_sync", "drifted", "no_active_version", "unreachable"] = Field(
-        description="in_sync | drifted | no_active_version | unreachable"
-    )
+    state: ToolState = Field(description="in_sync | drifted | no_active_version | unreachable")
     checked_at: Timestamp
     deviation_mm: float | None = Field(description="controller vs active TCP: distance, mm")
 

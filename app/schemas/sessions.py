@@ -25,6 +25,7 @@ from app.schemas.common import (
     not_both,
 )
 from app.solvers.planning import MAX_TOUCHES, MIN_TOUCHES
+from app.statuses import SessionStatus
 
 TiltDeg = Annotated[
     float,
@@ -134,7 +135,7 @@ class Estimate(BaseModel):
 class Session(BaseModel):
     id: str
     tool_id: str
-    status: Literal["open", "finished"]
+    status: SessionStatus
     method: str
     format: str
     units: Units | None

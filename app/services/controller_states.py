@@ -14,11 +14,18 @@ from app.controllers.base import ToolData
 from app.jsontypes import JsonObject
 from app.models import Tool, ToolControllerState
 from app.services import audit
+from app.statuses import ToolState
 
 #: States whose start is an audit event `controller.<state>` (and counted in /metrics).
-EVENT_STATES = ("in_sync", "drifted", "unreachable")
-#: How bad each state is, for a robot's state (the worst of its tools').
-SEVERITY = {"in_sync": 0, "no_active_version": 0, "drifted": 1, "unreachable": 2}
+EVENT_STATES: tuple[ToolState, ...] = ("in_sync", "drifted", "unreachable")
+#: How bad each state is, for a robot's state (the worst of its tools'): an index into
+#: ROBOT_STATES.
+SEVERITY: dict[ToolState, int] = {
+    "in_sync": 0,
+    "no_active_version": 0,
+    "drifted": 1,
+    "unreachable": 2,
+}
 
 
 def frame_json(data: ToolData | None) -> JsonObject | None:
@@ -34,7 +41,7 @@ class Observation:
 
     tool_id: str
     robot_id: str
-    state: str
+    state: ToolState
     target: str | None
     controller: JsonObject | None
     active_version: int | None

@@ -48,6 +48,7 @@ from app.schemas.controllers import Deployment as DeploymentOut
 from app.services import audit, controller_states, idempotency
 from app.services.controllers import get_controller, settings_of
 from app.services.tools import get_tool
+from app.statuses import DeploymentStatus
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,7 @@ class Plan:
 class Outcome:
     """What the controller did with it."""
 
-    status: str  # verified | failed | mismatch
+    status: DeploymentStatus
     previous: ToolData | None = None
     read_back: ToolData | None = None
     deviation: tuple[float, float] | None = None

@@ -29,6 +29,7 @@ from app.schemas.fleet import (
 from app.services.drift import drifting_rule, fleet_drift
 from app.services.live import in_scope
 from app.services.tools import get_tool
+from app.statuses import ToolState
 
 CHECK_ACTION = "tool.check"
 T = TypeVar("T")
@@ -93,7 +94,7 @@ def attention_rules(now: datetime) -> dict[AttentionCode, ColumnElement[bool]]:
     }
 
 
-def _controller_state() -> ScalarSelect[str]:
+def _controller_state() -> ScalarSelect[ToolState]:
     """The tool's controller state, correlated to Tool (a primary-key seek)."""
     return (
         select(ToolControllerState.state)

@@ -34,6 +34,7 @@ from app.services import controller_states
 from app.services.controller_states import SEVERITY, Observation
 from app.services.controllers import get_controller, settings_of
 from app.services.robots import get_robot
+from app.statuses import ROBOT_STATES, ToolState
 
 
 @dataclass(frozen=True)
@@ -111,6 +112,7 @@ def _observation(robot_id: str, tool: ToolToCheck, reading: Reading) -> Observat
     """The state of one tool from what the controller held."""
     held = reading.data
     deviation = None
+    state: ToolState
     if held is None:
         state = "unreachable"
     elif tool.version is None or tool.position_mm is None or tool.quaternion is None:
@@ -154,7 +156,8 @@ def reconcile_robot(
     if cancelled():
         return None
     checked_at = utcnow()
-    entered: list[str] = []
+    entered: list[ToolState] = []
+    found: list[ToolState] = []
     answer_tools: list[dict[str, object]] = []
     skipped: list[dict[str, object]] = []
     with session_scope(write=True) as session:
@@ -165,19 +168,19 @@ def reconcile_robot(
                 continue
             seen = _observation(robot_id, tool, readings[tool.tool_id])
             row, changed = controller_states.observe(session, seen, at=checked_at, actor=actor)
+            found.append(seen.state)
             if changed:
                 entered.append(seen.state)
             answer_tools.append(_tool_answer(tool, seen, row.since))
     for state in entered:
         CONTROLLER_STATE_CHANGES.labels(state).inc()
-    worst = max((SEVERITY[str(t["state"])] for t in answer_tools), default=0)
-    state = ("in_sync", "drifted", "unreachable")[worst]
-    RECONCILES.labels(trigger, state).inc()
+    robot_state = ROBOT_STATES[max((SEVERITY[state] for state in found), default=0)]
+    RECONCILES.labels(trigger, robot_state).inc()
     return Reconciliation.model_validate(
         {
             "robot_id": robot_id,
             "checked_at": checked_at,
-            "state": state,
+            "state": robot_state,
             "tools": answer_tools,
             "not_addressable": skipped,
         }

@@ -348,7 +348,7 @@ def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> S
     return SessionOut(
         id=row.id,
         tool_id=row.tool_id,
-        status="finished" if row.status == "finished" else "open",
+        status=row.status,
         method=row.method,
         format=row.format,
         units=_units(row),
