@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app import models
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
@@ -44,8 +43,8 @@ def list_reference_points(
     cursor: Cursor = None,
 ) -> Page[ReferencePoint]:
     """A robot's reference points, oldest first."""
-    items, next_cursor = references.list_robot_rows(
-        session, models.ReferencePoint, robot_id=robot_id, limit=limit, cursor=cursor
+    items, next_cursor = references.list_reference_points(
+        session, robot_id=robot_id, limit=limit, cursor=cursor
     )
     return Page[ReferencePoint].model_validate(
         {"items": items, "next_cursor": next_cursor}, from_attributes=True
@@ -102,8 +101,8 @@ def list_laser_devices(
     cursor: Cursor = None,
 ) -> Page[LaserDevice]:
     """A robot's laser devices, oldest first."""
-    items, next_cursor = references.list_robot_rows(
-        session, models.LaserDevice, robot_id=robot_id, limit=limit, cursor=cursor
+    items, next_cursor = laser_devices.list_laser_devices(
+        session, robot_id=robot_id, limit=limit, cursor=cursor
     )
     return Page[LaserDevice].model_validate(
         {"items": items, "next_cursor": next_cursor}, from_attributes=True
