@@ -1,16 +1,23 @@
-"""FastAPI dependency aliases: the database session and the authenticated caller."""
+"""FastAPI dependency aliases: the database session and the authenticated caller.
+
+Every route learns who calls through one dependency here (`_principal`), which also names
+the key in the request's access log line; the hot read, whose key check is part of its one
+statement, names it through `label_request` as well.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Annotated
 
 from fastapi import Depends, Request
 from sqlalchemy.orm import Session
 
-from app.auth import Principal, authenticate
-from app.db import session_scope
-from app.middleware import KEY_NAME
+from app.auth import Principal, authenticate, authenticate_held
+from app.db import loop_engine, session_scope
+from app.errors import DomainError
+from app.logs import KEY_NAME
 
 READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 
@@ -28,16 +35,60 @@ def get_session(request: Request) -> Iterator[Session]:
 SessionDep = Annotated[Session, Depends(get_session, scope="function")]
 
 
+def label_request(request: Request, principal: Principal) -> Principal:
+    """Name the caller's key in the request's access log line (its name, never the key)."""
+    request.scope[KEY_NAME] = principal.name
+    return principal
+
+
 def _principal(scope: str) -> object:
+    """The caller, authenticated with the request's session, which is then limited to the
+    caller's cells (app.auth.act_for)."""
+
     def dependency(request: Request, session: SessionDep) -> Principal:
-        principal = authenticate(session, request.headers.get("authorization"), required=scope)
-        request.scope[KEY_NAME] = principal.name  # for the access log line; never the key
-        return principal
+        authorization = request.headers.get("authorization")
+        return label_request(request, authenticate(session, authorization, required=scope))
 
     dependency.__name__ = f"require_{scope}"
+    return Depends(dependency)
+
+
+@dataclass(frozen=True)
+class HeldCaller:
+    """The caller of a route that opens no session for it (a solve, a deployment, a
+    reconcile): the key read on the event loop's held connection (app.db.loop_engine).
+
+    The verdict waits for the handler: FastAPI runs dependencies before it validates the
+    body and the path, and these routes answer a malformed request (422) before a missing
+    or refused key (401, 403), as they always have."""
+
+    principal: Principal | None
+    refusal: DomainError | None
+
+    def admitted(self) -> Principal:
+        """The caller, or its refusal raised."""
+        if self.principal is None:
+            assert self.refusal is not None
+            raise self.refusal
+        return self.principal
+
+
+def _held_principal(scope: str) -> object:
+    async def dependency(request: Request) -> HeldCaller:
+        # On the event loop (async): the held connection is the loop thread's own.
+        authorization = request.headers.get("authorization")
+        try:
+            principal = authenticate_held(loop_engine(), authorization, required=scope)
+        except DomainError as refusal:  # 401 or 403, answered by the handler
+            return HeldCaller(None, refusal)
+        return HeldCaller(label_request(request, principal), None)
+
+    dependency.__name__ = f"require_{scope}_held"
     return Depends(dependency)
 
 
 ReadKey = Annotated[Principal, _principal("read")]
 CalibrateKey = Annotated[Principal, _principal("calibrate")]
 AdminKey = Annotated[Principal, _principal("admin")]
+HeldReadKey = Annotated[HeldCaller, _held_principal("read")]
+HeldCalibrateKey = Annotated[HeldCaller, _held_principal("calibrate")]

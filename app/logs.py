@@ -24,6 +24,9 @@ LOG_FORMAT_ENV = "TCPCAL_LOG_FORMAT"
 SERVING_ENV = "TCPCAL_SERVING"
 #: The id of the request being served (None outside one), for every log line it causes.
 REQUEST_ID: ContextVar[str | None] = ContextVar("tcpcal.request_id", default=None)
+#: Where the authenticated key's name is left in the ASGI scope for the access line
+#: (app.deps writes it, app.middleware reads it); never the key itself.
+KEY_NAME = "tcpcal.key_name"
 
 
 def _request_id(_: Any, __: str, event: MutableMapping[str, Any]) -> MutableMapping[str, Any]:

@@ -42,6 +42,9 @@ from app.migrate import current_revision, head_revision
 from app.openapi import build_openapi
 
 log = logging.getLogger("tcpcal")
+#: What each solver process imports as it starts: the solve path of the calibrations and of
+#: /v1/solve (numpy, scipy, the methods).
+SOLVER_PRELOAD = ("app.services.calibrate",)
 
 
 def settle_heap() -> None:
@@ -77,7 +80,7 @@ def _bootstrap() -> None:
 async def lifespan(_: FastAPI) -> AsyncIterator[None]:
     _bootstrap()
     if os.environ.get(SERVING_ENV):  # a server (not a test's app): start solvers up front
-        solve_pool.start()
+        solve_pool.start(preload=SOLVER_PRELOAD)
         settle_heap()
     interval = get_settings().reconcile_interval_s
     if interval > 0:

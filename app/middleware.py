@@ -9,12 +9,9 @@ from uuid import uuid4
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from app.api.problems import problem_response
-from app.logs import REQUEST_ID, access_logger
+from app.logs import KEY_NAME, REQUEST_ID, access_logger
 from app.metrics import REQUEST_SECONDS, REQUESTS
-
-#: Where the authenticated key's name is left in the ASGI scope for the access line.
-KEY_NAME = "tcpcal.key_name"
+from app.problem_json import problem_response
 
 BODY_METHODS = frozenset({"POST", "PUT", "PATCH"})
 

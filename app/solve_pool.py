@@ -18,6 +18,7 @@ other writer (app.db.SqliteWriters on SQLite, the tool's row lock on PostgreSQL)
 from __future__ import annotations
 
 import asyncio
+import importlib
 import multiprocessing
 import os
 import threading
@@ -27,7 +28,7 @@ from concurrent.futures.process import BrokenProcessPool
 from functools import partial
 from typing import ParamSpec, TypeVar
 
-from starlette.concurrency import run_in_threadpool
+from anyio.to_thread import run_sync
 
 from app.config import get_settings
 
@@ -35,6 +36,8 @@ P = ParamSpec("P")
 T = TypeVar("T")
 
 _pool: ProcessPoolExecutor | None = None
+#: The modules each solver process imports as it starts (given to `start`): the solve path.
+_preload: tuple[str, ...] = ()
 
 
 def processes() -> int:
@@ -56,20 +59,24 @@ def _get_pool() -> ProcessPoolExecutor:
     if _pool is None:
         context = multiprocessing.get_context("forkserver")
         _pool = ProcessPoolExecutor(
-            max_workers=processes(), mp_context=context, initializer=_start_solver
+            max_workers=processes(),
+            mp_context=context,
+            initializer=_start_solver,
+            initargs=(_preload,),
         )
     return _pool
 
 
-def _start_solver() -> None:
-    """Each solver process imports the solve path as it starts (numpy, scipy, the methods:
-    about a second), not in the middle of its first request, logs as its server worker does
+def _start_solver(preload: tuple[str, ...]) -> None:
+    """Each solver process imports the solve path as it starts (`preload`: numpy, scipy, the
+    methods: about a second), not in the middle of its first request, logs as its server worker does
     (the audit events of the calibrations it stores), leaves what it imported out of later
     garbage collections (see app.main.settle_heap), and ends with its server worker."""
     import gc
     import signal
 
-    import app.services.calibrate  # noqa: F401
+    for module in preload:  # named by the app that starts the pool, which sits above it
+        importlib.import_module(module)
 
     # Ctrl-C in a terminal reaches the whole process group: the server worker stops its pool
     # (stop()), so a solver need not, and must not die mid-call with a KeyboardInterrupt.
@@ -97,8 +104,11 @@ def _exit_with_parent() -> None:
     os._exit(0)
 
 
-def start() -> None:
-    """Start the solver processes now (at server start-up) so that no request waits for them."""
+def start(*, preload: tuple[str, ...] = ()) -> None:
+    """Start the solver processes now (at server start-up) so that no request waits for them,
+    each importing the modules named in `preload` as it starts."""
+    global _preload
+    _preload = preload
     if processes() > 0:
         pool = _get_pool()
         for future in [pool.submit(int) for _ in range(processes())]:
@@ -108,7 +118,7 @@ def start() -> None:
 async def run(fn: Callable[P, T], *args: P.args, **kwargs: P.kwargs) -> T:
     """fn(*args, **kwargs) in a solver process (its arguments and result must pickle)."""
     if processes() == 0:
-        return await run_in_threadpool(fn, *args, **kwargs)
+        return await run_sync(partial(fn, *args, **kwargs))
     loop = asyncio.get_running_loop()
     call = partial(fn, *args, **kwargs)
     try:

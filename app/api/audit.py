@@ -38,7 +38,7 @@ def list_audit(
     until: Annotated[Moment, Query(description="events before this time")] = None,
     limit: Limit = DEFAULT_LIMIT,
     cursor: Cursor = None,
-) -> object:
+) -> Page[AuditEvent]:
     """Every change (robots, tools and their tolerances, calibrations, versions, activations,
     checks, keys, guided sessions, reference points, laser devices), newest first, with who
     made it, when, in which request (`request_id`, as in the access log) and what changed.
@@ -48,4 +48,6 @@ def list_audit(
         tool_id=tool_id, robot_id=robot_id, action=action, actor=actor, since=since, until=until
     )
     items, next_cursor = trail.list_events(session, query=query, limit=limit, cursor=cursor)
-    return {"items": items, "next_cursor": next_cursor}
+    return Page[AuditEvent].model_validate(
+        {"items": items, "next_cursor": next_cursor}, from_attributes=True
+    )

@@ -5,24 +5,16 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Body, Header, Request, Response
-from starlette.concurrency import run_in_threadpool
 
-from app import solve_pool
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
-from app.auth import Principal, act_for, authenticate_held
-from app.config import get_settings
-from app.db import loop_engine, session_scope
-from app.deps import ReadKey, SessionDep
+from app.deps import HeldCalibrateKey, ReadKey, SessionDep
 from app.errors import InvalidInput
 from app.jsontypes import JsonObject
-from app.logs import REQUEST_ID
 from app.methods import openapi_examples
-from app.metrics import CALIBRATIONS
-from app.middleware import KEY_NAME
 from app.schemas.calibrations import CalibrationRequest
 from app.schemas.common import Page
 from app.schemas.results import Calibration, CalibrationDetail
-from app.services import calibrate
+from app.services import calibrate, submissions
 
 router = APIRouter(tags=["calibrations"])
 
@@ -51,9 +43,9 @@ async def submit_calibration(
     body: Annotated[CalibrationRequest, Body(openapi_examples=openapi_examples())],
     request: Request,
     response: Response,
+    caller: HeldCalibrateKey,
     idempotency_key: IdempotencyKey = None,
-    authorization: Annotated[str | None, Header(include_in_schema=False)] = None,
-) -> object:
+) -> Calibration | Response:
     """Solve a submission with its method, grade it against the tool's tolerance and store it as
     the tool's next version. Activated when `activate` allows ("auto": within tolerance and
     within max_change_mm of the active TCP). Unsolvable input is a 422 and writes nothing;
@@ -61,43 +53,19 @@ async def submit_calibration(
     (`convention-mismatch`, with the `suggestion` to resend). Retry-safe with
     `Idempotency-Key`."""
     raw_body = await raw_json_body(request)
-    # 1. Who, and what the solve reads: held reads on the event loop (a replay needs a session
-    # in a worker thread); 2. in a solver process, the solve with no transaction open, then
-    # the write under the tool's lock (re-solved there only if what the solve read changed).
-    key = authenticate_held(loop_engine(), authorization, required="calibrate")
-    request.scope[KEY_NAME] = key.name
-    if idempotency_key is not None:
-        replay = await run_in_threadpool(_replay, tool_id, raw_body, idempotency_key, key)
-        if replay is not None:
-            response.headers["Idempotent-Replayed"] = "true"
-            return replay
-    snapshot, ctx = calibrate.snapshot_held(loop_engine(), tool_id, key)
-    done = await solve_pool.run(
-        calibrate.solve_and_submit,
-        get_settings().database_url,
+    answer, replayed = await submissions.submit_calibration(
         tool_id=tool_id,
         request=body,
-        snapshot=snapshot,
-        ctx=ctx,
         raw_body=raw_body,
         idempotency_key=idempotency_key,
-        actor=key,
-        request_id=REQUEST_ID.get(),
+        actor=caller.admitted(),
     )
-    if done.replayed:
-        headers = {"Idempotent-Replayed": "true"}
-    else:
-        headers = {}
-        CALIBRATIONS.labels(done.method, done.status).inc()
-    return Response(done.body, status_code=201, media_type="application/json", headers=headers)
-
-
-def _replay(
-    tool_id: str, raw_body: JsonObject, idempotency_key: str, key: Principal
-) -> Calibration | None:
-    with session_scope(write=False) as session:
-        act_for(session, key)
-        return calibrate.replayed(session, tool_id, raw_body, idempotency_key, key)
+    headers = {"Idempotent-Replayed": "true"} if replayed else {}
+    if isinstance(answer, Calibration):  # a replay read back: served through the model
+        response.headers.update(headers)
+        return answer
+    # Built and validated in the solver process: served as it came.
+    return Response(answer, status_code=201, media_type="application/json", headers=headers)
 
 
 @router.get("/v1/tools/{tool_id}/calibrations", response_model=Page[Calibration])
@@ -107,16 +75,18 @@ def list_calibrations(
     key: ReadKey,
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
-) -> object:
+) -> Page[Calibration]:
     """A tool's calibrations, oldest first, each with its result, version and whether it is
     active."""
     items, next_cursor = calibrate.list_calibrations(
         session, tool_id=tool_id, limit=limit, cursor=cursor
     )
-    return {"items": items, "next_cursor": next_cursor}
+    return Page[Calibration].model_validate(
+        {"items": items, "next_cursor": next_cursor}, from_attributes=True
+    )
 
 
 @router.get("/v1/calibrations/{calibration_id}", response_model=CalibrationDetail)
-def get_calibration(calibration_id: PathId, session: SessionDep, key: ReadKey) -> object:
+def get_calibration(calibration_id: PathId, session: SessionDep, key: ReadKey) -> CalibrationDetail:
     """One calibration with its result and the submission exactly as received."""
     return calibrate.get_calibration(session, calibration_id=calibration_id)

@@ -2,27 +2,21 @@
 
 from __future__ import annotations
 
-from typing import Annotated
-
-from fastapi import APIRouter, Header, Response
+from fastapi import APIRouter, Response
 from starlette.concurrency import run_in_threadpool
 
 from app.api.params import PathId
-from app.auth import authenticate_held
-from app.db import loop_engine
-from app.deps import AdminKey, ReadKey, SessionDep
+from app.deps import AdminKey, HeldReadKey, ReadKey, SessionDep
 from app.schemas.controllers import Controller, ControllerIn, Reconciliation
 from app.services import controllers, reconcile
 
 router = APIRouter(tags=["controllers"])
 
-Authorization = Annotated[str | None, Header(include_in_schema=False)]
-
 
 @router.put("/v1/robots/{robot_id}/controller", response_model=Controller)
 def put_controller(
     robot_id: PathId, body: ControllerIn, session: SessionDep, key: AdminKey
-) -> object:
+) -> Controller:
     """Set how tcpcal reaches the robot's controller. `port` defaults to the protocol's;
     `password` is write-only and stored encrypted under TCPCAL_SECRET_KEY (422 while it is
     unset): left out, the stored one is kept; null removes it. The answer says
@@ -30,13 +24,18 @@ def put_controller(
     controller = controllers.put_controller(
         session, robot_id=robot_id, data=body, fields_sent=body.model_fields_set, actor=key
     )
-    return controllers.controller_document(controller)
+    return Controller.model_validate(
+        controllers.controller_document(controller), from_attributes=True
+    )
 
 
 @router.get("/v1/robots/{robot_id}/controller", response_model=Controller)
-def get_controller(robot_id: PathId, session: SessionDep, key: ReadKey) -> object:
+def get_controller(robot_id: PathId, session: SessionDep, key: ReadKey) -> Controller:
     """How tcpcal reaches the robot's controller (409 `/no-controller` when it has none)."""
-    return controllers.controller_document(controllers.get_controller(session, robot_id))
+    return Controller.model_validate(
+        controllers.controller_document(controllers.get_controller(session, robot_id)),
+        from_attributes=True,
+    )
 
 
 @router.delete("/v1/robots/{robot_id}/controller", status_code=204)
@@ -47,10 +46,13 @@ def delete_controller(robot_id: PathId, session: SessionDep, key: AdminKey) -> R
 
 
 @router.post("/v1/robots/{robot_id}/reconcile", response_model=Reconciliation)
-async def reconcile_robot(robot_id: PathId, authorization: Authorization = None) -> object:
+async def reconcile_robot(robot_id: PathId, caller: HeldReadKey) -> Reconciliation:
     """Read every live tool's frame from the robot's controller and compare it with the
     tool's active version: `in_sync` within 0.01 mm and 0.01 deg, else `drifted`;
     `unreachable` when it cannot be read. The robot's state is the worst of its tools'.
     Each change of a tool's state is an audit event. Read scope."""
-    key = authenticate_held(loop_engine(), authorization, required="read")
-    return await run_in_threadpool(reconcile.reconcile_robot, robot_id=robot_id, actor=key)
+    reconciled = await run_in_threadpool(
+        reconcile.reconcile_robot, robot_id=robot_id, actor=caller.admitted()
+    )
+    assert reconciled is not None  # None only when cancelled, which a request never is
+    return reconciled

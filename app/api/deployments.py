@@ -4,15 +4,12 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Header, Request, Response
+from fastapi import APIRouter, Body, Request, Response
 from starlette.concurrency import run_in_threadpool
 
 from app.api.calibrations import IdempotencyKey, raw_json_body
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
-from app.auth import authenticate_held
-from app.db import loop_engine
-from app.deps import ReadKey, SessionDep
-from app.middleware import KEY_NAME
+from app.deps import HeldCalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.controllers import Deployment, DeploymentIn
 from app.services import deployments
@@ -38,10 +35,10 @@ async def deploy_tool(
     tool_id: PathId,
     request: Request,
     response: Response,
+    caller: HeldCalibrateKey,
     body: Annotated[DeploymentIn | None, Body()] = None,
     idempotency_key: IdempotencyKey = None,
-    authorization: Annotated[str | None, Header(include_in_schema=False)] = None,
-) -> object:
+) -> Deployment:
     """Write the tool's active version (and its load) into its robot's controller, read it
     back and compare (within 0.001 mm and 0.001 deg: `verified`, with what the controller
     held before as `previous`). Every attempt is recorded; a failed one answers 502
@@ -49,8 +46,7 @@ async def deploy_tool(
     `deployment_id`. 409 `/no-active-version`; 422 naming the tool's `slot` or
     `controller_symbol` when the controller cannot address it. The body is `{}` (or none).
     Calibrate scope; retry-safe with `Idempotency-Key`."""
-    key = authenticate_held(loop_engine(), authorization, required="calibrate")
-    request.scope[KEY_NAME] = key.name
+    key = caller.admitted()
     raw_body = {} if body is None else await raw_json_body(request)  # no body: as {}
     document, replayed = await run_in_threadpool(
         lambda: deployments.deploy(
@@ -59,7 +55,7 @@ async def deploy_tool(
     )
     if replayed:
         response.headers["Idempotent-Replayed"] = "true"
-    return document
+    return Deployment.model_validate(document, from_attributes=True)
 
 
 @router.get("/v1/tools/{tool_id}/deployments", response_model=Page[Deployment])
@@ -69,10 +65,12 @@ def list_deployments(
     key: ReadKey,
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
-) -> object:
+) -> Page[Deployment]:
     """A tool's deployments, newest first: verified, failed or mismatch, each with what the
     controller held before and read back."""
     items, next_cursor = deployments.list_deployments(
         session, tool_id=tool_id, limit=limit, cursor=cursor
     )
-    return {"items": items, "next_cursor": next_cursor}
+    return Page[Deployment].model_validate(
+        {"items": items, "next_cursor": next_cursor}, from_attributes=True
+    )

@@ -54,7 +54,7 @@ def list_fleet(
     ] = None,
     limit: Limit = DEFAULT_LIMIT,
     cursor: Cursor = None,
-) -> object:
+) -> Response:
     """Every live tool of every robot with its robot, cell, active version and TCP, last
     calibration, last check and why it needs attention, oldest first, filtered. With
     `Accept: text/csv` every matching tool (not one page) as a CSV file, one row per tool."""
@@ -87,10 +87,12 @@ def list_checks(
     key: ReadKey,
     limit: Limit = DEFAULT_LIMIT,
     cursor: Cursor = None,
-) -> object:
+) -> Page[CheckRecord]:
     """A tool's checks, newest first: the deviation, the verdict and who checked when."""
     items, next_cursor = fleet.list_checks(session, tool_id=tool_id, limit=limit, cursor=cursor)
-    return {"items": items, "next_cursor": next_cursor}
+    return Page[CheckRecord].model_validate(
+        {"items": items, "next_cursor": next_cursor}, from_attributes=True
+    )
 
 
 @router.get("/v1/tools/{tool_id}/drift", response_model=ToolDrift)

@@ -4,13 +4,11 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse, PlainTextResponse, Response
-from sqlalchemy.exc import SQLAlchemyError
 
-from app.db import get_engine
 from app.deps import ReadKey
 from app.fleet_metrics import FLEET
 from app.metrics import render
-from app.migrate import current_revision, head_revision
+from app.services import readiness
 from app.watcher import watcher_document
 
 router = APIRouter(tags=["operations"])
@@ -26,23 +24,20 @@ def health() -> dict[str, str]:
 def ready() -> JSONResponse:
     """Readiness: the database answers and its migrations are at head (503 otherwise), and
     the state of this process's controller watcher. No key needed."""
-    head = head_revision()
-    try:
-        current = current_revision(get_engine())
-    except SQLAlchemyError as exc:
+    state = readiness.database_state()
+    if state.unreachable is not None:
         return JSONResponse(
-            {"ready": False, "database": "unreachable", "detail": type(exc).__name__},
+            {"ready": False, "database": "unreachable", "detail": state.unreachable},
             status_code=503,
         )
-    at_head = current == head
     body = {
-        "ready": at_head,
+        "ready": state.at_head,
         "database": "reachable",
-        "revision": current,
-        "head": head,
+        "revision": state.revision,
+        "head": state.head,
         "watcher": watcher_document(),
     }
-    return JSONResponse(body, status_code=200 if at_head else 503)
+    return JSONResponse(body, status_code=200 if state.at_head else 503)
 
 
 @router.get("/metrics", response_class=PlainTextResponse)

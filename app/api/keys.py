@@ -14,7 +14,7 @@ router = APIRouter(prefix="/v1/keys", tags=["keys"])
 
 
 @router.post("", status_code=201, response_model=KeyCreated)
-def create_key(body: KeyCreate, session: SessionDep, key: AdminKey) -> object:
+def create_key(body: KeyCreate, session: SessionDep, key: AdminKey) -> KeyCreated:
     """Create an API key of a scope, limited to robot cells when `cells` is given (it then
     finds only those cells' robots and their tools: any other answers 404 as if absent);
     the key is shown in this answer only (stored as a hash). A key limited to cells creates
@@ -22,23 +22,28 @@ def create_key(body: KeyCreate, session: SessionDep, key: AdminKey) -> object:
     row, secret = keys.create_key(
         session, name=body.name, scope=body.scope, cells=body.cells, actor=key
     )
-    return {**KeyOut.model_validate(row, from_attributes=True).model_dump(), "key": secret}
+    return KeyCreated.model_validate(
+        {**KeyOut.model_validate(row, from_attributes=True).model_dump(), "key": secret},
+        from_attributes=True,
+    )
 
 
 @router.get("", response_model=Page[KeyOut])
 def list_keys(
     session: SessionDep, key: AdminKey, limit: Limit = DEFAULT_PAGE, cursor: Cursor = None
-) -> object:
+) -> Page[KeyOut]:
     """Every API key with its name, scope, prefix and revocation time (never the key itself)."""
     items, next_cursor = keys.list_keys(session, limit=limit, cursor=cursor, actor=key)
-    return {"items": items, "next_cursor": next_cursor}
+    return Page[KeyOut].model_validate(
+        {"items": items, "next_cursor": next_cursor}, from_attributes=True
+    )
 
 
 @router.get("/me", response_model=KeyMe)
-def who_am_i(key: ReadKey) -> object:
+def who_am_i(key: ReadKey) -> KeyMe:
     """The key this request was made with: its id, name and scope (any valid key may ask; a
     client such as the console offers only what the scope allows)."""
-    return {"id": key.key_id, "name": key.name, "scope": key.scope}
+    return KeyMe(id=key.key_id, name=key.name, scope=key.scope)
 
 
 @router.delete("/{key_id}", status_code=204)

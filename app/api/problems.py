@@ -8,7 +8,7 @@ for every failure and never a stack trace.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -17,38 +17,11 @@ from sqlalchemy.exc import IntegrityError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
-from app.config import get_settings
 from app.errors import INPUT_KINDS, Conflict, DomainError, IdempotencyConflict
 from app.methods import METHOD_NAMES
+from app.problem_json import ErrorItem, problem_response
 
 log = logging.getLogger("tcpcal.errors")
-
-PROBLEM_JSON = "application/problem+json"
-ErrorItem = dict[str, object]
-
-
-def problem_response(
-    *,
-    status: int,
-    kind: str,
-    title: str,
-    detail: str,
-    errors: Sequence[ErrorItem] | None = None,
-    headers: Mapping[str, str] | None = None,
-    extra: Mapping[str, object] | None = None,
-) -> JSONResponse:
-    """An RFC 9457 problem document."""
-    body: dict[str, object] = {
-        "type": get_settings().problem_type(kind),
-        "title": title,
-        "status": status,
-        "detail": detail,
-    }
-    if errors:
-        body["errors"] = list(errors)
-    if extra:
-        body.update(extra)
-    return JSONResponse(body, status_code=status, media_type=PROBLEM_JSON, headers=headers)
 
 
 def domain_error_response(exc: DomainError) -> JSONResponse:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app import models
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import CalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
@@ -26,10 +25,13 @@ router = APIRouter(tags=["reference points and checks"])
 )
 def create_reference_point(
     robot_id: PathId, body: ReferencePointCreate, session: SessionDep, key: CalibrateKey
-) -> object:
+) -> ReferencePoint:
     """Register a fixed point in the robot base frame: as numbers, or touched by a tool whose
     active TCP is trusted."""
-    return references.register_reference_point(session, robot_id=robot_id, data=body, actor=key)
+    return ReferencePoint.model_validate(
+        references.register_reference_point(session, robot_id=robot_id, data=body, actor=key),
+        from_attributes=True,
+    )
 
 
 @router.get("/v1/robots/{robot_id}/reference-points", response_model=Page[ReferencePoint])
@@ -39,26 +41,31 @@ def list_reference_points(
     key: ReadKey,
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
-) -> object:
+) -> Page[ReferencePoint]:
     """A robot's reference points, oldest first."""
-    items, next_cursor = references.list_robot_rows(
-        session, models.ReferencePoint, robot_id=robot_id, limit=limit, cursor=cursor
+    items, next_cursor = references.list_reference_points(
+        session, robot_id=robot_id, limit=limit, cursor=cursor
     )
-    return {"items": items, "next_cursor": next_cursor}
+    return Page[ReferencePoint].model_validate(
+        {"items": items, "next_cursor": next_cursor}, from_attributes=True
+    )
 
 
 @router.get("/v1/robots/{robot_id}/reference-points/{point_id}", response_model=ReferencePoint)
 def get_reference_point(
     robot_id: PathId, point_id: PathId, session: SessionDep, key: ReadKey
-) -> object:
+) -> ReferencePoint:
     """One reference point of a robot."""
-    return references.get_reference_point(session, robot_id=robot_id, point_id=point_id)
+    return ReferencePoint.model_validate(
+        references.get_reference_point(session, robot_id=robot_id, point_id=point_id),
+        from_attributes=True,
+    )
 
 
 @router.post("/v1/tools/{tool_id}/checks", response_model=CheckResult)
 def check_tool(
     tool_id: PathId, body: CheckCreate, session: SessionDep, key: CalibrateKey
-) -> object:
+) -> CheckResult:
     """Touch a reference point with the active TCP and measure the drift against the tool's
     check_mm; the active TCP is not changed. `deviation_flange_mm` is how the tool moved
     (new minus active, flange frame) and `summary` says it in a sentence. Poses that fit
@@ -74,10 +81,13 @@ def check_tool(
 )
 def create_laser_device(
     robot_id: PathId, body: LaserDeviceCreate, session: SessionDep, key: CalibrateKey
-) -> object:
+) -> LaserDevice:
     """Register a crossed-beam laser device: as numbers, or taught by sweeps of a tool whose
     active TCP is trusted."""
-    return laser_devices.create_laser_device(session, robot_id=robot_id, data=body, actor=key)
+    return LaserDevice.model_validate(
+        laser_devices.create_laser_device(session, robot_id=robot_id, data=body, actor=key),
+        from_attributes=True,
+    )
 
 
 @router.get(
@@ -89,12 +99,14 @@ def list_laser_devices(
     key: ReadKey,
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
-) -> object:
+) -> Page[LaserDevice]:
     """A robot's laser devices, oldest first."""
-    items, next_cursor = references.list_robot_rows(
-        session, models.LaserDevice, robot_id=robot_id, limit=limit, cursor=cursor
+    items, next_cursor = laser_devices.list_laser_devices(
+        session, robot_id=robot_id, limit=limit, cursor=cursor
     )
-    return {"items": items, "next_cursor": next_cursor}
+    return Page[LaserDevice].model_validate(
+        {"items": items, "next_cursor": next_cursor}, from_attributes=True
+    )
 
 
 @router.get(
@@ -104,6 +116,9 @@ def list_laser_devices(
 )
 def get_laser_device(
     robot_id: PathId, device_id: PathId, session: SessionDep, key: ReadKey
-) -> object:
+) -> LaserDevice:
     """One laser device of a robot."""
-    return laser_devices.get_laser_device(session, robot_id=robot_id, device_id=device_id)
+    return LaserDevice.model_validate(
+        laser_devices.get_laser_device(session, robot_id=robot_id, device_id=device_id),
+        from_attributes=True,
+    )

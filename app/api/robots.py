@@ -16,10 +16,12 @@ router = APIRouter(prefix="/v1/robots", tags=["robots"])
 
 
 @router.post("", status_code=201, response_model=Robot)
-def create_robot(body: RobotCreate, session: SessionDep, key: AdminKey) -> object:
+def create_robot(body: RobotCreate, session: SessionDep, key: AdminKey) -> Robot:
     """Register a robot (its name unique among live robots), with kinematics when the `joints`
     pose format will be used."""
-    return robots.create_robot(session, data=body, actor=key)
+    return Robot.model_validate(
+        robots.create_robot(session, data=body, actor=key), from_attributes=True
+    )
 
 
 @router.get("", response_model=Page[Robot])
@@ -30,24 +32,28 @@ def list_robots(
     name: Annotated[str | None, Query(max_length=200)] = None,
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
-) -> object:
+) -> Page[Robot]:
     """Live robots, oldest first; filter by cell or name."""
     items, next_cursor = robots.list_robots(
         session, cell=cell, name=name, limit=limit, cursor=cursor
     )
-    return {"items": items, "next_cursor": next_cursor}
+    return Page[Robot].model_validate(
+        {"items": items, "next_cursor": next_cursor}, from_attributes=True
+    )
 
 
 @router.get("/{robot_id}", response_model=Robot)
-def get_robot(robot_id: PathId, session: SessionDep, key: ReadKey) -> object:
+def get_robot(robot_id: PathId, session: SessionDep, key: ReadKey) -> Robot:
     """One live robot (404 `/archived` once deleted)."""
-    return robots.get_robot(session, robot_id)
+    return Robot.model_validate(robots.get_robot(session, robot_id), from_attributes=True)
 
 
 @router.patch("/{robot_id}", response_model=Robot)
-def update_robot(robot_id: PathId, body: RobotUpdate, session: SessionDep, key: AdminKey) -> object:
+def update_robot(robot_id: PathId, body: RobotUpdate, session: SessionDep, key: AdminKey) -> Robot:
     """Change a robot's fields; only the fields sent change."""
-    return robots.update_robot(session, robot_id=robot_id, data=body, actor=key)
+    return Robot.model_validate(
+        robots.update_robot(session, robot_id=robot_id, data=body, actor=key), from_attributes=True
+    )
 
 
 @router.delete("/{robot_id}", status_code=204)

@@ -20,7 +20,7 @@ TouchIndex = Annotated[int, Path(ge=0, le=10_000, description="the touch's index
 
 
 @router.post("/v1/plan", response_model=Plan)
-def plan(body: PlanRequest, session: SessionDep, key: ReadKey) -> object:
+def plan(body: PlanRequest, session: SessionDep, key: ReadKey) -> Plan:
     """Flange poses that determine the TCP best (A-optimal: least expected squared TCP error)
     within the reachable cone around `start`, as full poses in the request's format that put
     the approximate TCP on the point; with `target_sigma_mm` the fewest that reach it (422
@@ -31,20 +31,22 @@ def plan(body: PlanRequest, session: SessionDep, key: ReadKey) -> object:
 @router.post("/v1/tools/{tool_id}/sessions", status_code=201, response_model=Session)
 def create_session(
     tool_id: PathId, body: SessionCreate, session: SessionDep, key: CalibrateKey
-) -> object:
+) -> Session:
     """Start a guided calibration: add touches one by one and follow `next_pose` until
     `done`, then finish."""
     return sessions.create_session(session, tool_id=tool_id, data=body, actor=key)
 
 
 @router.get("/v1/sessions/{session_id}", response_model=Session)
-def get_session(session_id: PathId, session: SessionDep, key: ReadKey) -> object:
+def get_session(session_id: PathId, session: SessionDep, key: ReadKey) -> Session:
     """The session: touches, estimate with its 1-sigma and rms, outliers, next pose, done."""
     return sessions.view(session, sessions.get_session(session, session_id))
 
 
 @router.post("/v1/sessions/{session_id}/poses", response_model=Session)
-def add_touch(session_id: PathId, body: TouchAdd, session: SessionDep, key: CalibrateKey) -> object:
+def add_touch(
+    session_id: PathId, body: TouchAdd, session: SessionDep, key: CalibrateKey
+) -> Session:
     """Add one touch. A touch that cannot be read, or that makes the set read as a unit or
     convention mix-up, is refused (422) and the session stays as it was; 409 once finished."""
     return sessions.add_touch(session, session_id=session_id, pose=body.pose, actor=key)
@@ -53,7 +55,7 @@ def add_touch(session_id: PathId, body: TouchAdd, session: SessionDep, key: Cali
 @router.delete("/v1/sessions/{session_id}/poses/{index}", response_model=Session)
 def delete_touch(
     session_id: PathId, index: TouchIndex, session: SessionDep, key: CalibrateKey
-) -> object:
+) -> Session:
     """Remove a touch (a miss the session named); later touches move up one index."""
     return sessions.delete_touch(session, session_id=session_id, index=index, actor=key)
 
@@ -66,7 +68,7 @@ def finish_session(
     key: CalibrateKey,
     body: SessionFinish | None = None,
     idempotency_key: IdempotencyKey = None,
-) -> object:
+) -> Calibration:
     """Store the kept touches as a calibration exactly as POST /calibrations would (grading,
     versioning, activation, idempotency, audit). Retry-safe with `Idempotency-Key`."""
     doc, replayed = sessions.finish(

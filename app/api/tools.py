@@ -24,12 +24,12 @@ IfMatch = Annotated[
 @router.post("/v1/robots/{robot_id}/tools", status_code=201, response_model=Tool)
 def create_tool(
     robot_id: PathId, body: ToolCreate, response: Response, session: SessionDep, key: AdminKey
-) -> object:
+) -> Tool:
     """Register a tool on a robot (name and slot unique among the robot's live tools); the
     answer carries the tool's ETag."""
     tool = tools.create_tool(session, robot_id=robot_id, data=body, actor=key)
     response.headers["ETag"] = tools.tool_etag(tool)
-    return tool
+    return Tool.model_validate(tool, from_attributes=True)
 
 
 @router.get("/v1/robots/{robot_id}/tools", response_model=Page[Tool])
@@ -39,19 +39,21 @@ def list_tools(
     key: ReadKey,
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
-) -> object:
+) -> Page[Tool]:
     """A robot's live tools, oldest first."""
     items, next_cursor = tools.list_tools(session, robot_id=robot_id, limit=limit, cursor=cursor)
-    return {"items": items, "next_cursor": next_cursor}
+    return Page[Tool].model_validate(
+        {"items": items, "next_cursor": next_cursor}, from_attributes=True
+    )
 
 
 @router.get("/v1/tools/{tool_id}", response_model=Tool)
-def get_tool(tool_id: PathId, response: Response, session: SessionDep, key: ReadKey) -> object:
+def get_tool(tool_id: PathId, response: Response, session: SessionDep, key: ReadKey) -> Tool:
     """One live tool, with its ETag (it changes with every change to the tool, its versions or
     its activation)."""
     tool = tools.get_tool(session, tool_id)
     response.headers["ETag"] = tools.tool_etag(tool)
-    return tool
+    return Tool.model_validate(tool, from_attributes=True)
 
 
 @router.patch("/v1/tools/{tool_id}", response_model=Tool)
@@ -62,12 +64,12 @@ def update_tool(
     session: SessionDep,
     key: AdminKey,
     if_match: IfMatch = None,
-) -> object:
+) -> Tool:
     """Change a tool's fields (tolerance and load merge with what is stored); honours If-Match
     with the tool's ETag."""
     tool = tools.update_tool(session, tool_id=tool_id, data=body, if_match=if_match, actor=key)
     response.headers["ETag"] = tools.tool_etag(tool)
-    return tool
+    return Tool.model_validate(tool, from_attributes=True)
 
 
 @router.delete("/v1/tools/{tool_id}", status_code=204)

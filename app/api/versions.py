@@ -9,10 +9,8 @@ from fastapi.responses import PlainTextResponse
 
 from app.api.params import PathId, RawParam, VersionNumber
 from app.api.tools import IfMatch
-from app.db import loop_engine
-from app.deps import CalibrateKey, ReadKey, SessionDep
+from app.deps import CalibrateKey, ReadKey, SessionDep, label_request
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
-from app.middleware import KEY_NAME
 from app.schemas.common import CONTROLLER_FORMATS, ID_PATTERN, ControllerFormat
 from app.schemas.tools import (
     ActivationRequest,
@@ -23,7 +21,7 @@ from app.schemas.tools import (
     Version,
     VersionList,
 )
-from app.services import activation, export_files, tools, versions
+from app.services import activation, export_files, hot_read, tools, versions
 
 router = APIRouter(tags=["versions"])
 
@@ -83,59 +81,45 @@ async def get_active_tcp(request: Request) -> Response:
     format = cast(ControllerFormat | None, FORMAT.read(request))
     if_none_match = IF_NONE_MATCH.read(request)
     as_text = "text/plain" in (ACCEPT.read(request) or "")
-    if as_text:
-        return _served_file(request, tool_id, format, if_none_match)
-    # The hot path, on the event loop without a threadpool hop: the key check and the read
-    # are one indexed statement (tens of microseconds on SQLite, one round trip on PostgreSQL).
-    key, document, etag = versions.served_tcp_for_key(
-        loop_engine(),
+    # On the event loop, no dependency and no threadpool hop: the key check and the read are
+    # one indexed statement (app.services.hot_read).
+    served = hot_read.active_tcp(
         authorization=request.headers.get("authorization"),
         tool_id=tool_id,
         fmt=format,
         if_none_match=if_none_match,
+        file_base_url=str(request.base_url) if as_text else None,
     )
-    request.scope[KEY_NAME] = key.name  # for the access log line; never the key
-    headers = {"ETag": etag, "Vary": "Accept"}
-    if document is None:
-        return Response(status_code=304, headers=headers)
-    # Serialised by pydantic in one pass (no dict, no json.dumps); validated when it was built.
-    return Response(document.model_dump_json(), media_type="application/json", headers=headers)
-
-
-def _served_file(
-    request: Request, tool_id: str, format: str | None, if_none_match: str | None
-) -> Response:
-    """The tool's controller file (Content-Disposition names it), or 304."""
-    key, served, etag = export_files.served_file_for_key(
-        loop_engine(),
-        authorization=request.headers.get("authorization"),
-        tool_id=tool_id,
-        fmt=format,
-        if_none_match=if_none_match,
-        base_url=str(request.base_url),
-    )
-    request.scope[KEY_NAME] = key.name
-    headers = {"ETag": etag, "Vary": "Accept"}
-    if served is None:
-        return Response(status_code=304, headers=headers)
-    headers["Content-Disposition"] = f'attachment; filename="{served.name}"'
-    return PlainTextResponse(served.text, headers=headers)
+    label_request(request, served.key)
+    headers = {"ETag": served.etag, "Vary": "Accept"}
+    if served.document is not None:
+        # Serialised by pydantic in one pass (no dict, no json.dumps); validated when built.
+        return Response(
+            served.document.model_dump_json(), media_type="application/json", headers=headers
+        )
+    if served.file is not None:
+        headers["Content-Disposition"] = f'attachment; filename="{served.file.name}"'
+        return PlainTextResponse(served.file.text, headers=headers)
+    return Response(status_code=304, headers=headers)
 
 
 @router.get("/v1/tools/{tool_id}/versions", response_model=VersionList)
-def list_versions(tool_id: PathId, session: SessionDep, key: ReadKey) -> object:
+def list_versions(tool_id: PathId, session: SessionDep, key: ReadKey) -> VersionList:
     """Every version of a tool's TCP with who made it and why, and the history of activations."""
     tool, rows, history = versions.list_versions(session, tool_id=tool_id)
-    return {
-        "items": [versions.version_document(r, tool) for r in rows],
-        "activations": history,
-    }
+    return VersionList.model_validate(
+        {
+            "items": [versions.version_document(r, tool) for r in rows],
+            "activations": history,
+        },
+        from_attributes=True,
+    )
 
 
 @router.get("/v1/tools/{tool_id}/versions/{version}", response_model=Version)
 def get_version(
     tool_id: PathId, version: VersionNumber, session: SessionDep, key: ReadKey
-) -> object:
+) -> Version:
     """One version of a tool's TCP."""
     row = versions.get_version(session, tool_id=tool_id, version=version)
     return versions.version_document(row, tools.get_tool(session, tool_id))
@@ -160,7 +144,7 @@ def activate_version(
     key: CalibrateKey,
     if_match: IfMatch = None,
     body: ActivationRequest | None = None,
-) -> object:
+) -> Tool:
     """Make a stored version the active TCP, with an optional `reason` kept in the activation
     history and the audit trail. A version stored as out_of_tolerance needs `{"force": true,
     "reason": ...}` (409 /out-of-tolerance otherwise, nothing changed). To go back to the
@@ -175,7 +159,7 @@ def activate_version(
         actor=key,
     )
     response.headers["ETag"] = tools.tool_etag(tool)
-    return tool
+    return Tool.model_validate(tool, from_attributes=True)
 
 
 @router.post(
@@ -193,7 +177,7 @@ def rollback(
     key: CalibrateKey,
     if_match: IfMatch = None,
     body: RollbackRequest | None = None,
-) -> object:
+) -> Tool:
     """Return to the version that was active before the current one, read from the activation
     history (never by number, never a version that was not active). Rolling back again walks
     further back; 409 /nothing-to-roll-back when no earlier activation is left. Optional
@@ -202,7 +186,7 @@ def rollback(
         session, tool_id=tool_id, body=body or RollbackRequest(), if_match=if_match, actor=key
     )
     response.headers["ETag"] = tools.tool_etag(tool)
-    return tool
+    return Tool.model_validate(tool, from_attributes=True)
 
 
 @router.get(
@@ -217,7 +201,7 @@ def tool_table(
     key: ReadKey,
     format: FormatQuery = None,
     accept: AcceptHeader = None,
-) -> object:
+) -> ToolTable | PlainTextResponse:
     """Every live tool of a robot with its active TCP, in one answer; tools without one are
     listed apart. With `Accept: text/plain` (and `?format=`) one file holding all of the
     robot's tools, as the controller loads it (Content-Disposition names it)."""

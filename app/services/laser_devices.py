@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 from sqlalchemy.orm import Session
@@ -13,7 +15,7 @@ from app.models import LaserDevice, new_id
 from app.schemas.references import LaserDeviceCreate
 from app.services import audit
 from app.services.frames import active_frame, parse_poses_with
-from app.services.references import ensure_name_free
+from app.services.references import ensure_name_free, list_robot_rows
 from app.services.robots import get_robot
 from app.services.tools import tool_named_in_body
 from app.solvers.laser import teach_device
@@ -102,3 +104,10 @@ def get_laser_device(session: Session, *, robot_id: str, device_id: str) -> Lase
     if row is None or row.robot_id != robot_id:
         raise NotFound(f"robot {robot_id} has no laser device {device_id}")
     return row
+
+
+def list_laser_devices(
+    session: Session, *, robot_id: str, limit: int, cursor: str | None
+) -> tuple[Sequence[LaserDevice], str | None]:
+    """One page of a robot's laser devices, oldest first."""
+    return list_robot_rows(session, LaserDevice, robot_id=robot_id, limit=limit, cursor=cursor)

@@ -179,3 +179,10 @@ def get_reference_point(session: Session, *, robot_id: str, point_id: str) -> Re
     if row is None or row.robot_id != robot_id:
         raise NotFound(f"robot {robot_id} has no reference point {point_id}")
     return row
+
+
+def list_reference_points(
+    session: Session, *, robot_id: str, limit: int, cursor: str | None
+) -> tuple[Sequence[ReferencePoint], str | None]:
+    """One page of a robot's reference points, oldest first."""
+    return list_robot_rows(session, ReferencePoint, robot_id=robot_id, limit=limit, cursor=cursor)

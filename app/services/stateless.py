@@ -1,0 +1,24 @@
+"""POST /v1/solve's use case: a calibration's answer with nothing stored, in one call."""
+
+from __future__ import annotations
+
+from app import solve_pool
+from app.auth import Principal, act_for
+from app.db import loop_engine, session_scope
+from app.methods.base import MethodRequest
+from app.schemas.results import SolveResult
+from app.services import calibrate
+
+
+async def solve_stateless(request: MethodRequest, *, actor: Principal) -> SolveResult:
+    """Solve a /v1/solve body for `actor` (a stored robot of another cell is not found)."""
+    # On the event loop, nothing awaited until the solve: a session is opened (on the loop's
+    # held connection) only for a stored robot's model. The solve then runs in a solver
+    # process (app.solve_pool) with no database connection held.
+    if calibrate.stateless_robot_id(request) is None:
+        kinematics = calibrate.stateless_kinematics(None, request)
+    else:
+        with session_scope(write=False, engine=loop_engine()) as session:
+            act_for(session, actor)
+            kinematics = calibrate.stateless_kinematics(session, request)
+    return await solve_pool.run(calibrate.solve_detached, request, kinematics)
