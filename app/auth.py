@@ -7,7 +7,7 @@ import hmac
 import secrets
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 from sqlalchemy import Engine, bindparam, select
 from sqlalchemy.exc import IntegrityError
@@ -93,17 +93,25 @@ def authenticate(session: Session, header: str | None, *, required: str) -> Prin
     return principal
 
 
+class KeyColumns(NamedTuple):
+    """A row of KEY_READ: what admitting a caller reads of a key (a KeyRow)."""
+
+    id: str
+    name: str
+    scope: str
+    key_hash: str
+    revoked_at: datetime | None
+    cells: JsonArray | None
+
+
+_KEY = ApiKey.__table__
 #: The key lookup as one statement on the calling thread's held connection (app.db.HeldRead):
 #: for routes on the event loop that need no session before their work (POST /v1/solve).
 KEY_READ = HeldRead(
+    KeyColumns,
     select(
-        ApiKey.__table__.c.id,
-        ApiKey.__table__.c.name,
-        ApiKey.__table__.c.scope,
-        ApiKey.__table__.c.key_hash,
-        ApiKey.__table__.c.revoked_at,
-        ApiKey.__table__.c.cells,
-    ).where(ApiKey.__table__.c.key_hash == bindparam("digest"))
+        _KEY.c.id, _KEY.c.name, _KEY.c.scope, _KEY.c.key_hash, _KEY.c.revoked_at, _KEY.c.cells
+    ).where(_KEY.c.key_hash == bindparam("digest")),
 )
 
 

@@ -11,12 +11,11 @@ import contextlib
 import os
 import threading
 import time
-from collections import namedtuple
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager, nullcontext
 from functools import lru_cache
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Generic, NamedTuple, TypeVar
 
 try:
     import fcntl
@@ -27,7 +26,7 @@ from sqlalchemy import Connection, Engine, Insert, Select, Update, create_engine
 from sqlalchemy.engine import URL, Dialect, make_url
 from sqlalchemy.engine.interfaces import DBAPIConnection
 from sqlalchemy.orm import Session, sessionmaker
-from sqlalchemy.pool import ConnectionPoolEntry, NullPool
+from sqlalchemy.pool import ConnectionPoolEntry, NullPool, Pool, PoolProxiedConnection
 
 from app.config import get_settings
 from app.metrics import DB_SECONDS, SESSIONS_OPEN
@@ -55,7 +54,7 @@ def _timed(engine: Engine) -> Engine:
     return engine
 
 
-def make_engine(url: str, **pool: Any) -> Engine:
+def make_engine(url: str, **pool: int | type[Pool]) -> Engine:
     """Create an engine with the per-dialect settings this service relies on (`pool`: its
     connection pool's settings, e.g. pool_size=1 or poolclass=NullPool)."""
     if not url.startswith("sqlite"):
@@ -126,43 +125,59 @@ def _held_engine(url: str) -> Engine:
     return make_engine(url, poolclass=NullPool)
 
 
-class HeldRead:
+#: A column type's conversion of a value read from the driver, or of one sent to it.
+Processor = Callable[[object], object]
+#: Parameters as the driver takes them: positional (SQLite's qmark style) or by name.
+DriverParams = tuple[object, ...] | Mapping[str, object]
+#: A held read's row type: a NamedTuple whose fields are the statement's columns, in order.
+RowT = TypeVar("RowT", bound=tuple[object, ...])
+
+
+class HeldRead(Generic[RowT]):
     """One SELECT on a DBAPI connection that the calling thread keeps open, for the read a
-    fleet of cell controllers polls (the active TCP).
+    fleet of cell controllers polls (the active TCP), its rows of a NamedTuple type declared
+    beside the statement.
 
     Through a SQLAlchemy Connection this one indexed statement cost 120 us a request (pool
     checkout, execution context, result object) against 6 us for the driver itself. Here the
     statement is compiled once per dialect and run on the driver's cursor; each column goes
     through its type's own result processor (the models' types, so JSON and UTC timestamps
-    come back as everywhere else). Reads only: SQLite's connections are in autocommit mode
-    (a SELECT holds no snapshot after it returns) and PostgreSQL's is set to autocommit, so
-    nothing is cached and every request sees the committed state. A connection that fails
-    is dropped and the read tried once more on a new one (a restarted PostgreSQL).
-    `one_or_none_in` runs the same statement inside a session's transaction instead (the
-    tool's row lock of a calibration's write).
+    come back as everywhere else), and the row type is made of the values as they are, with
+    no validation. Its fields must be the statement's selected column names, labels
+    included, in order: a HeldRead over another row type raises TypeError when it is built
+    (at import), so every field read that mypy checks is a column the statement returns.
+    Reads only: SQLite's connections are in autocommit mode (a SELECT holds no snapshot
+    after it returns) and PostgreSQL's is set to autocommit, so nothing is cached and every
+    request sees the committed state. A connection that fails is dropped and the read tried
+    once more on a new one (a restarted PostgreSQL). `one_or_none_in` runs the same
+    statement inside a session's transaction instead (the tool's row lock of a calibration's
+    write).
     """
 
-    def __init__(self, stmt: Select[Any]) -> None:
+    def __init__(self, row: type[RowT], stmt: Select[*tuple[object, ...]]) -> None:
+        _check_fields(row, tuple(stmt.selected_columns.keys()))
+        self._row = row
         self._stmt = stmt
-        self._row = namedtuple("HeldRow", list(stmt.selected_columns.keys()))  # type: ignore[misc]
-        self._by_dialect: dict[str, tuple[str, list[str] | None, list[Any]]] = {}
+        self._by_dialect: dict[str, _CompiledRead] = {}
 
-    def _compiled(self, engine: Engine) -> tuple[str, list[str] | None, list[Any]]:
-        """(SQL, the order of positional parameters or None, each column's processor)."""
+    def _compiled(self, engine: Engine) -> _CompiledRead:
         cache = self._by_dialect
         name = engine.dialect.name
         if name not in cache:
-            compiled = self._stmt.compile(dialect=engine.dialect)
+            dialect = engine.dialect
+            compiled = self._stmt.compile(dialect=dialect)
             order = list(compiled.positiontup or []) if compiled.positional else None
-            processors = [
-                col.type.dialect_impl(engine.dialect).result_processor(engine.dialect, None)
-                for col in self._stmt.selected_columns
+            processors: _Processors = [
+                (i, process)
+                for i, col in enumerate(self._stmt.selected_columns)
+                if (process := col.type.dialect_impl(dialect).result_processor(dialect, None))
+                is not None
             ]
-            cache[name] = (compiled.string, order, processors)
+            cache[name] = _CompiledRead(compiled.string, order, processors)
         return cache[name]
 
-    def _connection(self, engine: Engine) -> Any:
-        held: dict[URL, Any] = _HELD_BY_THREAD.__dict__.setdefault("held", {})
+    def _connection(self, engine: Engine) -> PoolProxiedConnection:
+        held: dict[URL, PoolProxiedConnection] = _HELD_BY_THREAD.__dict__.setdefault("held", {})
         conn = held.get(engine.url)
         if conn is None or conn.dbapi_connection is None:  # none yet, or closed by dispose_engines
             conn = _held_engine(engine.url.render_as_string(hide_password=False)).raw_connection()
@@ -173,26 +188,26 @@ class HeldRead:
         return conn
 
     def _drop(self, engine: Engine) -> None:
-        held: dict[URL, Any] = _HELD_BY_THREAD.__dict__.get("held", {})
+        held: dict[URL, PoolProxiedConnection] = _HELD_BY_THREAD.__dict__.get("held", {})
         conn = held.pop(engine.url, None)
         if conn is not None:
             HELD_CONNECTIONS.remove(conn)
             with contextlib.suppress(Exception):
                 conn.invalidate()
 
-    def statement(self, engine: Engine, **params: str) -> tuple[str, Any]:
+    def statement(self, engine: Engine, **params: str) -> tuple[str, DriverParams]:
         """The SQL and the driver's parameters sent for `params` (for EXPLAIN in bench/)."""
-        sql, order, _ = self._compiled(engine)
-        return sql, _driver_params(order, params)
+        compiled = self._compiled(engine)
+        return compiled.sql, _driver_params(compiled.order, params)
 
-    def one_or_none(self, engine: Engine, **params: str) -> Any:
-        """The statement's row for `params` (attributes named as its columns), or None."""
+    def one_or_none(self, engine: Engine, **params: str) -> RowT | None:
+        """The statement's row for `params`, or None."""
         sql, order, processors = self._compiled(engine)
         args = _driver_params(order, params)
         started = time.perf_counter()
         for attempt in (1, 2):
             try:
-                rows = _on_cursor(self._connection(engine), sql, [args])
+                rows = _fetch(self._connection(engine), sql, args)
                 break
             except engine.dialect.loaded_dbapi.Error:
                 self._drop(engine)
@@ -201,23 +216,51 @@ class HeldRead:
         DB_SECONDS.observe(time.perf_counter() - started)
         return self._one(rows, processors)
 
-    def one_or_none_in(self, session: Session, **params: str) -> Any:
+    def one_or_none_in(self, session: Session, **params: str) -> RowT | None:
         """The same read inside a session's transaction (its connection's driver cursor)."""
         conn = session.connection()
         sql, order, processors = self._compiled(conn.engine)
         started = time.perf_counter()
-        rows = _on_cursor(conn.connection.dbapi_connection, sql, [_driver_params(order, params)])
+        rows = _fetch(conn.connection.dbapi_connection, sql, _driver_params(order, params))
         DB_SECONDS.observe(time.perf_counter() - started)
         return self._one(rows, processors)
 
-    def _one(self, rows: list[Any], processors: list[Any]) -> Any:
+    def _one(self, rows: Sequence[Sequence[object]], processors: _Processors) -> RowT | None:
         """The one row read, its columns through their processors, or None."""
         if not rows:
             return None
         if len(rows) > 1:
             raise RuntimeError("a held read returned more than one row")
-        return self._row(
-            *(v if p is None else p(v) for v, p in zip(rows[0], processors, strict=True))
+        values = list(rows[0])
+        for i, process in processors:
+            values[i] = process(values[i])
+        return tuple.__new__(self._row, values)
+
+
+#: The (index, processor) of each column of a read that has a result processor.
+_Processors = list[tuple[int, Processor]]
+
+
+class _CompiledRead(NamedTuple):
+    """A held read compiled for a dialect."""
+
+    sql: str
+    order: list[str] | None  # the order of positional parameters; None: by name
+    processors: _Processors
+
+
+def _check_fields(row: type[tuple[object, ...]], columns: tuple[str, ...]) -> None:
+    """Refuse a row type whose fields are not `columns`, in order (TypeError)."""
+    fields = getattr(row, "_fields", None)
+    if not isinstance(fields, tuple):
+        raise TypeError(f"a held read's row type is a NamedTuple, not {row.__name__}")
+    if fields != columns:
+        missing = [c for c in columns if c not in fields]
+        extra = [f for f in fields if f not in columns]
+        raise TypeError(
+            f"{row.__name__}'s fields are not its statement's columns: "
+            f"missing {missing}, not selected {extra}"
+            + ("" if missing or extra else f", in another order than {list(columns)}")
         )
 
 
@@ -235,58 +278,82 @@ class DriverWrite:
 
     def __init__(self, stmt: Insert | Update) -> None:
         self._stmt = stmt
-        self._cache: dict[tuple[str, tuple[str, ...]], tuple[str, list[str] | None, Any]] = {}
+        self._cache: dict[tuple[str, tuple[str, ...]], _CompiledWrite] = {}
 
-    def _compiled(
-        self, dialect: Dialect, keys: tuple[str, ...]
-    ) -> tuple[str, list[str] | None, dict[str, Any]]:
+    def _compiled(self, dialect: Dialect, keys: tuple[str, ...]) -> _CompiledWrite:
         """(SQL, the order of positional parameters or None, each parameter's processor)."""
         cache = self._cache
         if (dialect.name, keys) not in cache:
             compiled = self._stmt.compile(dialect=dialect, column_keys=list(keys))
             order = list(compiled.positiontup or []) if compiled.positional else None
-            processors = {
+            processors: dict[str, Processor | None] = {
                 bind.key: bind.type.dialect_impl(dialect).bind_processor(dialect)
                 for bind in compiled.binds.values()
             }
             missing = set(processors) - set(keys)
             if missing:
                 raise ValueError(f"parameters without values: {sorted(missing)}")
-            cache[dialect.name, keys] = (compiled.string, order, processors)
+            cache[dialect.name, keys] = _CompiledWrite(compiled.string, order, processors)
         return cache[dialect.name, keys]
 
-    def execute(self, session: Session, rows: Sequence[Mapping[str, Any]]) -> None:
+    def execute(self, session: Session, rows: Sequence[Mapping[str, object]]) -> None:
         """Run the statement once per row (rows of the same keys), in the session's
         transaction."""
         conn = session.connection()
         sql, order, processors = self._compiled(conn.dialect, tuple(rows[0]))
-        args = []
-        for row in rows:
-            values = {
-                k: (v if (p := processors[k]) is None or v is None else p(v))
-                for k, v in row.items()
-            }
-            args.append(_driver_params(order, values))
+        bound: list[Mapping[str, object]] = [
+            {k: (v if (p := processors[k]) is None or v is None else p(v)) for k, v in row.items()}
+            for row in rows
+        ]
+        args: list[tuple[object, ...]] | list[Mapping[str, object]] = (
+            bound if order is None else [tuple(values[k] for k in order) for values in bound]
+        )
         started = time.perf_counter()
-        _on_cursor(conn.connection.dbapi_connection, sql, args)
+        _execute(conn.connection.dbapi_connection, sql, args)
         DB_SECONDS.observe(time.perf_counter() - started)
 
 
-def _on_cursor(dbapi_connection: Any, sql: str, args: list[Any]) -> list[Any]:
-    """Run `sql` once per parameter set on a new cursor of a driver connection; the rows it
-    returned (a statement run once), [] otherwise."""
+class _CompiledWrite(NamedTuple):
+    """A driver write compiled for a dialect and set of parameter names."""
+
+    sql: str
+    order: list[str] | None  # the order of positional parameters; None: by name
+    processors: dict[str, Processor | None]  # each parameter's bind processor, if any
+
+
+def _fetch(
+    dbapi_connection: DBAPIConnection | PoolProxiedConnection | None,
+    sql: str,
+    params: DriverParams,
+) -> Sequence[Sequence[object]]:
+    """The rows of `sql` run once on a new cursor of a driver connection."""
+    assert dbapi_connection is not None  # the connection of a session's transaction is open
     cursor = dbapi_connection.cursor()
     try:
-        if len(args) > 1:
-            cursor.executemany(sql, args)
-            return []
-        cursor.execute(sql, args[0])
-        return cursor.fetchall() if cursor.description is not None else []
+        cursor.execute(sql, params)
+        return cursor.fetchall()
     finally:
         cursor.close()
 
 
-def _driver_params(order: list[str] | None, params: Mapping[str, Any]) -> Any:
+def _execute(
+    dbapi_connection: DBAPIConnection | None,
+    sql: str,
+    args: list[tuple[object, ...]] | list[Mapping[str, object]],
+) -> None:
+    """Run `sql` once per parameter set on a new cursor of a driver connection."""
+    assert dbapi_connection is not None  # the connection of a session's transaction is open
+    cursor = dbapi_connection.cursor()
+    try:
+        if len(args) > 1:
+            cursor.executemany(sql, args)
+        else:
+            cursor.execute(sql, args[0])
+    finally:
+        cursor.close()
+
+
+def _driver_params(order: list[str] | None, params: Mapping[str, object]) -> DriverParams:
     """Parameters as the driver takes them: positional in `order` (SQLite), or by name."""
     return tuple(params[k] for k in order) if order is not None else params
 
@@ -295,7 +362,7 @@ def _driver_params(order: list[str] | None, params: Mapping[str, Any]) -> Any:
 #: per thread and database, however many statements are held).
 _HELD_BY_THREAD = threading.local()
 #: Every held connection of the process, closed by dispose_engines.
-HELD_CONNECTIONS: list[Any] = []
+HELD_CONNECTIONS: list[PoolProxiedConnection] = []
 
 
 def dispose_engines() -> None:

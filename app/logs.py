@@ -12,11 +12,11 @@ from __future__ import annotations
 import logging
 import os
 import sys
-from collections.abc import MutableMapping
 from contextvars import ContextVar
-from typing import Any
+from typing import Protocol
 
 import structlog
+from structlog.typing import EventDict, Processor, WrappedLogger
 
 LOG_FORMAT_ENV = "TCPCAL_LOG_FORMAT"
 #: Set by `tcpcal serve`: each worker configures logging when it builds the app (uvicorn is
@@ -29,14 +29,14 @@ REQUEST_ID: ContextVar[str | None] = ContextVar("tcpcal.request_id", default=Non
 KEY_NAME = "tcpcal.key_name"
 
 
-def _request_id(_: Any, __: str, event: MutableMapping[str, Any]) -> MutableMapping[str, Any]:
+def _request_id(_: WrappedLogger, __: str, event: EventDict) -> EventDict:
     request_id = REQUEST_ID.get()
     if request_id is not None:
         event.setdefault("request_id", request_id)
     return event
 
 
-_SHARED: list[Any] = [
+_SHARED: list[Processor] = [
     structlog.contextvars.merge_contextvars,
     _request_id,
     structlog.stdlib.add_log_level,
@@ -54,27 +54,34 @@ structlog.configure(
 )
 
 
+class EventLogger(Protocol):
+    """What a line is written with: a structlog logger, its event and fields (the JSON a
+    line carries)."""
+
+    def info(self, event: str, *args: object, **fields: object) -> object: ...
+
+
 ACCESS_LOGGER = "tcpcal.access"
 EVENTS_LOGGER = "tcpcal.events"
 #: The loggers written on every request: its access line, and the audit events of a write.
 #: stdlib logging's until configure_logging gives each a direct one.
-_direct: dict[str, Any] = {
+_direct: dict[str, EventLogger] = {
     name: structlog.stdlib.get_logger(name) for name in (ACCESS_LOGGER, EVENTS_LOGGER)
 }
 
 
-def access_logger() -> Any:
+def access_logger() -> EventLogger:
     """The logger of the one access line per request (app.middleware)."""
     return _direct[ACCESS_LOGGER]
 
 
-def events_logger() -> Any:
+def events_logger() -> EventLogger:
     """The logger of the audit events, one line per committed write (app.services.audit)."""
     return _direct[EVENTS_LOGGER]
 
 
-def _named(name: str) -> Any:
-    def add_name(_: Any, __: str, event: MutableMapping[str, Any]) -> MutableMapping[str, Any]:
+def _named(name: str) -> Processor:
+    def add_name(_: WrappedLogger, __: str, event: EventDict) -> EventDict:
         event["logger"] = name
         return event
 
@@ -84,7 +91,7 @@ def _named(name: str) -> Any:
 def configure_logging(level: int = logging.INFO) -> None:
     """Route structlog and stdlib logging through one renderer on stderr."""
     fmt = os.environ.get(LOG_FORMAT_ENV) or ("console" if sys.stderr.isatty() else "json")
-    renderer: Any = (
+    renderer: Processor = (
         structlog.dev.ConsoleRenderer() if fmt == "console" else structlog.processors.JSONRenderer()
     )
     # The access line, written on every request, and the audit events go straight to stderr
@@ -128,6 +135,6 @@ def configure_logging(level: int = logging.INFO) -> None:
     logging.getLogger("uvicorn.access").disabled = True
 
 
-def get_logger(name: str) -> Any:
+def get_logger(name: str) -> structlog.stdlib.BoundLogger:
     """A structlog logger; bind fields with keyword arguments: log.info("event", k=v)."""
     return structlog.stdlib.get_logger(name)

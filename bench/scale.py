@@ -56,7 +56,7 @@ from app.models import (
     TcpVersion,
     Tool,
 )
-from app.services import fleet, versions
+from app.services import fleet, hot_read, versions
 from app.services.audit import row as audit_row
 from bench.wrk_load import PG_URL, _percentile, _pg_reachable, _wrk, touches_body
 from tests.live.server import LiveServer, fresh_database, live_server
@@ -450,7 +450,7 @@ def plans(db: Seeded) -> dict[str, list[dict[str, Any]]]:
             call()
         if name == "tcp":  # sent on the held connection, past the engine's events
             digest = hash_key(db.server.admin_key)
-            sent.append(versions.HOT_READ.statement(db.engine, digest=digest, tool_id=db.tool_id))
+            sent.append(hot_read.HOT_READ.statement(db.engine, digest=digest, tool_id=db.tool_id))
         out[name] = []
         for statement, params in sent:
             plan = explain(db.engine, statement, params)

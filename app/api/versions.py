@@ -21,7 +21,7 @@ from app.schemas.tools import (
     Version,
     VersionList,
 )
-from app.services import activation, export_files, hot_read, tools, versions
+from app.services import activation, active_tcp, export_files, tools, versions
 
 router = APIRouter(tags=["versions"])
 
@@ -83,7 +83,7 @@ async def get_active_tcp(request: Request) -> Response:
     as_text = "text/plain" in (ACCEPT.read(request) or "")
     # On the event loop, no dependency and no threadpool hop: the key check and the read are
     # one indexed statement (app.services.hot_read).
-    served = hot_read.active_tcp(
+    served = active_tcp.active_tcp(
         authorization=request.headers.get("authorization"),
         tool_id=tool_id,
         fmt=format,

@@ -1,8 +1,8 @@
 """Controller files: a tool's active TCP, or every tool of a robot, as the file its controller
 loads (app.exports), with the header saying which version, calibrated when and by whom.
 
-The JSON read of GET /v1/tools/{id}/tcp (app.services.versions) is untouched: the file is
-served by its own one-statement read, which also reads who made the version.
+A tool's file is served by the one-statement read of GET /v1/tools/{id}/tcp
+(app.services.hot_read), which also reads who made the version.
 """
 
 from __future__ import annotations
@@ -13,13 +13,12 @@ from collections.abc import Sequence
 from datetime import datetime
 
 import numpy as np
-from sqlalchemy import Engine, and_, bindparam, select
+from sqlalchemy import Engine, and_, select
 from sqlalchemy.orm import Session
 
-from app.auth import Principal, admit, digest_of
+from app.auth import Principal
 from app.config import get_settings
-from app.db import HeldRead
-from app.errors import Archived, InvalidInput, NoActiveVersion, NotFound
+from app.errors import InvalidInput
 from app.exports import (
     ControllerFile,
     FileContext,
@@ -30,43 +29,9 @@ from app.exports import (
 )
 from app.helpers.etags import if_none_match_hit
 from app.jsontypes import JsonObject
-from app.models import ApiKey, Robot, TcpVersion, Tool, table_of
+from app.models import TcpVersion, Tool
+from app.services.hot_read import active_of, read_for_key
 from app.services.robots import get_robot
-
-_KEY = ApiKey.__table__
-_TOOL = table_of(Tool)
-_VERSION = table_of(TcpVersion)
-_ROBOT = table_of(Robot)
-_FILE_READ = HeldRead(
-    select(
-        _KEY.c.id,
-        _KEY.c.name,
-        _KEY.c.scope,
-        _KEY.c.key_hash,
-        _KEY.c.revoked_at,
-        _KEY.c.cells,
-        _ROBOT.c.cell,
-        _TOOL.c.id.label("tool_id"),
-        _TOOL.c.name.label("tool_name"),
-        _TOOL.c.slot,
-        _TOOL.c.load,
-        _TOOL.c.archived_at,
-        _VERSION.c.version,
-        _VERSION.c.position_mm,
-        _VERSION.c.quaternion,
-        _VERSION.c.source,
-        _VERSION.c.created_at,
-        _VERSION.c.created_by,
-    )
-    .select_from(_KEY)
-    .outerjoin(_TOOL, _TOOL.c.id == bindparam("tool_id"))
-    .outerjoin(_ROBOT, _ROBOT.c.id == _TOOL.c.robot_id)
-    .outerjoin(
-        _VERSION,
-        and_(_VERSION.c.tool_id == _TOOL.c.id, _VERSION.c.version == _TOOL.c.active_version),
-    )
-    .where(_KEY.c.key_hash == bindparam("digest"))
-)
 
 
 def needs_format(fmt: str | None) -> str:
@@ -137,36 +102,28 @@ def served_file_for_key(
     base_url: str,
 ) -> tuple[Principal, ControllerFile | None, str]:
     """(who, the tool's file or None when the client's copy is current, ETag): the key check,
-    the tool and its active version in one statement, as the JSON read does."""
-    digest = digest_of(authorization)
-    found = _FILE_READ.one_or_none(engine, digest=digest, tool_id=tool_id)
-    principal = admit(found, digest, required="read")
-    assert found is not None
+    the tool and its active version in the JSON read's one statement (app.services.hot_read).
+    A key limited to cells finds another cell's tool as absent as an unknown one."""
+    principal, found = read_for_key(engine, authorization, tool_id)
     fmt = needs_format(fmt)
-    # A key limited to cells: another cell's tool is as absent as an unknown one.
-    if found.tool_id is None or not principal.sees_cell(found.cell):
-        raise NotFound(f"no tool with id {tool_id}")
-    if found.archived_at is not None:
-        raise Archived(f"tool {tool_id} ({found.tool_name}) was archived")
-    if found.version is None:
-        raise NoActiveVersion(f"tool {tool_id} ({found.tool_name}) has no active TCP version yet")
+    tool, row = active_of(found, principal, tool_id)
     url = public_url(base_url)
-    tool_part = [found.tool_id, found.slot, found.tool_name, found.load]
-    version_part = [found.version, found.position_mm, found.quaternion, found.created_by]
+    tool_part = [tool.id, tool.slot, tool.name, tool.load]
+    version_part = [row.version, row.position_mm, row.quaternion, row.created_by]
     etag = _etag([*tool_part, *version_part, fmt, "file", url])
     if if_none_match_hit(if_none_match, etag):
         return principal, None, etag
     item = file_tool(
-        tool_id=found.tool_id,
-        name=found.tool_name,
-        slot=found.slot,
-        load=found.load,
-        version=found.version,
-        position_mm=found.position_mm,
-        quaternion=found.quaternion,
-        method=found.source,
-        created_at=found.created_at,
-        created_by=found.created_by,
+        tool_id=tool.id,
+        name=tool.name,
+        slot=tool.slot,
+        load=tool.load,
+        version=row.version,
+        position_mm=row.position_mm,
+        quaternion=row.quaternion,
+        method=row.source,
+        created_at=row.created_at,
+        created_by=row.created_by,
         base_url=url,
     )
     return principal, controller_file(fmt, [item], FileContext(server_url=url)), etag

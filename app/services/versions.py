@@ -7,21 +7,23 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
+from typing import NamedTuple
 
-from sqlalchemy import Engine, and_, bindparam, insert, select, update
+from sqlalchemy import Engine, bindparam, insert, select, update
 from sqlalchemy.orm import Session
 
-from app.auth import Principal, admit, cells_of, digest_of
+from app.auth import Principal, cells_of
 from app.config import get_settings
 from app.db import DriverWrite, HeldRead
-from app.errors import Archived, InvalidInput, NoActiveVersion, NotFound
+from app.errors import InvalidInput, NoActiveVersion, NotFound
 from app.helpers.etags import if_none_match_hit
-from app.jsontypes import JsonArray, JsonObject
-from app.models import Activation, ApiKey, Robot, TcpVersion, Tool, new_id, table_of, utcnow
+from app.jsontypes import JsonObject
+from app.models import Activation, Robot, TcpVersion, Tool, new_id, table_of, utcnow
 from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.services import audit
 from app.services.drift import refresh_drift
 from app.services.exports import ServedTool, ServedVersion, controller_text
+from app.services.hot_read import active_of, read_for_key
 from app.services.live import live_or_404
 from app.services.robots import get_robot
 from app.services.tools import get_tool
@@ -37,7 +39,25 @@ IDENTITY_QUATERNION = [1.0, 0.0, 0.0, 0.0]
 _TOOL = table_of(Tool)
 _VERSION = table_of(TcpVersion)
 _ROBOT = table_of(Robot)
+
+
+class _LockRow(NamedTuple):
+    """A row of _LOCK_TOOL."""
+
+    id: str
+    robot_id: str
+    name: str
+    archived_at: datetime | None
+    tolerance: JsonObject
+    active_version: int | None
+    last_version: int
+    revision: int
+    kinematics: JsonObject | None
+    cell: str | None
+
+
 _LOCK_TOOL = HeldRead(
+    _LockRow,
     select(
         _TOOL.c.id,
         _TOOL.c.robot_id,
@@ -52,7 +72,7 @@ _LOCK_TOOL = HeldRead(
     )
     .join(_ROBOT, _ROBOT.c.id == _TOOL.c.robot_id)
     .where(_TOOL.c.id == bindparam("tool_id"))
-    .with_for_update(of=_TOOL)
+    .with_for_update(of=_TOOL),
 )
 _SAVE_TOOL = DriverWrite(
     update(_TOOL)
@@ -389,40 +409,6 @@ def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> ToolTable
     return ToolTable(robot_id=robot_id, items=items, without_active_version=missing)
 
 
-# ---- the hot read: one statement for the key, the tool and its active version -------------
-_KEY = ApiKey.__table__
-HOT_READ = HeldRead(
-    select(
-        _KEY.c.id.label("key_id"),
-        _KEY.c.name.label("key_name"),
-        _KEY.c.scope,
-        _KEY.c.key_hash,
-        _KEY.c.revoked_at,
-        _KEY.c.cells,
-        _ROBOT.c.cell,
-        _TOOL.c.id.label("tool_id"),
-        _TOOL.c.robot_id,
-        _TOOL.c.name.label("tool_name"),
-        _TOOL.c.slot,
-        _TOOL.c.load,
-        _TOOL.c.archived_at,
-        _VERSION.c.version,
-        _VERSION.c.position_mm,
-        _VERSION.c.quaternion,
-        _VERSION.c.source,
-        _VERSION.c.created_at,
-    )
-    .select_from(_KEY)
-    .outerjoin(_TOOL, _TOOL.c.id == bindparam("tool_id"))
-    .outerjoin(_ROBOT, _ROBOT.c.id == _TOOL.c.robot_id)
-    .outerjoin(
-        _VERSION,
-        and_(_VERSION.c.tool_id == _TOOL.c.id, _VERSION.c.version == _TOOL.c.active_version),
-    )
-    .where(_KEY.c.key_hash == bindparam("digest"))
-)
-
-
 def served_tcp_for_key(
     engine: Engine,
     *,
@@ -433,68 +419,12 @@ def served_tcp_for_key(
     as_text: bool = False,
 ) -> tuple[Principal, ActiveTcp | None, str]:
     """`served_tcp` for the caller behind `authorization`: the key check, the tool and its
-    active version in one statement on the thread's held connection (app.db.HeldRead), no ORM,
-    no transaction around it: (who, document or None when the client's copy is current,
-    ETag). Nothing is cached, so a revoked key or a new activation is seen by the very next
-    request."""
-    digest = digest_of(authorization)
-    found = HOT_READ.one_or_none(engine, digest=digest, tool_id=tool_id)
-    key = (
-        None
-        if found is None
-        else _HotKey(
-            found.key_id,
-            found.key_name,
-            found.scope,
-            found.key_hash,
-            found.revoked_at,
-            found.cells,
-        )
-    )
-    principal = admit(key, digest, required="read")
-    assert found is not None
+    active version in one statement (app.services.hot_read): (who, document or None when the
+    client's copy is current, ETag)."""
+    principal, found = read_for_key(engine, authorization, tool_id)
     _text_needs_format(as_text, fmt)
-    # The robot's cell came with the same statement: a key's cells cost no extra query.
-    if found.tool_id is None or not principal.sees_cell(found.cell):
-        raise NotFound(f"no tool with id {tool_id}")
-    if found.archived_at is not None:
-        raise Archived(f"tool {tool_id} ({found.tool_name}) was archived")
-    if found.version is None:
-        raise NoActiveVersion(f"tool {tool_id} ({found.tool_name}) has no active TCP version yet")
-    # Plain records, not ORM objects: an instrumented __init__ cost 50 us a request here.
-    tool = _HotTool(found.tool_id, found.robot_id, found.tool_name, found.slot, found.load)
-    row = _HotVersion(
-        found.version, found.position_mm, found.quaternion, found.source, found.created_at
-    )
+    tool, row = active_of(found, principal, tool_id)
     etag = tcp_etag(tool, row, fmt, as_text)
     if if_none_match_hit(if_none_match, etag):
         return principal, None, etag
     return principal, active_document(tool, row, fmt), etag
-
-
-@dataclass(frozen=True, slots=True)
-class _HotKey:
-    id: str
-    name: str
-    scope: str
-    key_hash: str
-    revoked_at: datetime | None
-    cells: JsonArray | None
-
-
-@dataclass(frozen=True, slots=True)
-class _HotTool:
-    id: str
-    robot_id: str
-    name: str
-    slot: int | None
-    load: JsonObject | None
-
-
-@dataclass(frozen=True, slots=True)
-class _HotVersion:
-    version: int
-    position_mm: JsonArray
-    quaternion: JsonArray
-    source: str
-    created_at: datetime

@@ -99,8 +99,9 @@ def test_the_hot_read_survives_a_dropped_connection(api: Api, db: Database) -> N
         assert killed >= 1
     else:
         assert HELD_CONNECTIONS, "the read above should hold a connection"
-        for conn in HELD_CONNECTIONS:
-            conn.dbapi_connection.close()
+        for held in HELD_CONNECTIONS:
+            assert held.dbapi_connection is not None
+            held.dbapi_connection.close()
     answer = api.get(f"/v1/tools/{tid}/tcp")
     assert answer.status_code == 200, answer.text
     assert answer.json()["tcp"]["position_mm"] == [0.0, 0.0, 150.0]
