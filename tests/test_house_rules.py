@@ -1,0 +1,64 @@
+"""The shape of app/ that issue 28 set, kept by the suite rather than by memory: no function
+above a cyclomatic complexity of 15 (radon) or 80 lines, `Any` only at the DBAPI and JSON
+boundaries (at most 20 lines), and every route handler typed with what it returns."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+from radon.complexity import cc_visit
+
+APP = Path(__file__).resolve().parents[1] / "app"
+MAX_COMPLEXITY = 15
+MAX_LINES = 80
+MAX_ANY_LINES = 20
+
+
+def _sources() -> list[Path]:
+    return sorted(APP.rglob("*.py"))
+
+
+def test_no_function_above_complexity_15() -> None:
+    over = [
+        f"{path.relative_to(APP.parent)}:{block.lineno} {block.fullname} ({block.complexity})"
+        for path in _sources()
+        for block in cc_visit(path.read_text())
+        if block.complexity > MAX_COMPLEXITY
+    ]
+    assert not over, "split these (radon cc -s app):\n" + "\n".join(over)
+
+
+def test_no_function_above_80_lines() -> None:
+    over = [
+        f"{path.relative_to(APP.parent)}:{node.lineno} {node.name} "
+        f"({(node.end_lineno or node.lineno) - node.lineno + 1} lines)"
+        for path in _sources()
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+        and (node.end_lineno or node.lineno) - node.lineno + 1 > MAX_LINES
+    ]
+    assert not over, "\n".join(over)
+
+
+def test_any_only_at_the_boundaries() -> None:
+    uses = [
+        f"{path.relative_to(APP.parent)}:{number}: {line.strip()}"
+        for path in _sources()
+        for number, line in enumerate(path.read_text().splitlines(), 1)
+        if re.search(r"\bAny\b", line) and "import" not in line
+    ]
+    assert len(uses) <= MAX_ANY_LINES, "\n".join(uses)
+
+
+def test_no_route_handler_returns_object() -> None:
+    untyped = [
+        f"{path.relative_to(APP.parent)}:{node.lineno} {node.name}"
+        for path in sorted((APP / "api").glob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+        and (node.returns is None or ast.unparse(node.returns) == "object")
+        and any("router." in ast.unparse(d) for d in node.decorator_list)
+    ]
+    assert not untyped, "\n".join(untyped)
