@@ -32,12 +32,12 @@ that plane's tilt free: refused, naming the plane.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares, leastsq
 from scipy.stats import chi2, norm
 from scipy.stats import f as f_dist
 from scipy.stats import t as student_t
@@ -82,6 +82,9 @@ GRID_DIRECTIONS = 2000
 GRID_STARTS = 3
 #: Start normals closer than this (deg) count as one start.
 DISTINCT_START_DEG = 0.5
+#: A start whose iterate comes this close (relative to the coordinates' scale) to a minimum an
+#: earlier start found is taken to end there.
+SAME_MINIMUM_REL = 1e-6
 #: Refuse when the Jacobian's scaled condition number exceeds this (no unique solution).
 MAX_CONDITION = 1e12
 #: Below this many degrees of freedom an estimated touch noise is flagged as soft.
@@ -459,21 +462,77 @@ def _jacobian(touches: _Touches, t: FloatArray, normals: FloatArray) -> FloatArr
     return jac
 
 
-def _packed_jacobian(touches: _Touches, x: FloatArray) -> FloatArray:
-    """d r / d x in the packed layout (raw normal v, n = v / |v|): (N, 3 + 4K)."""
-    k = len(touches.labels)
-    t, normals, _ = _unpack(x, k)
-    raw_norms = np.linalg.norm(x[3:].reshape(k, 4)[:, :3], axis=1)
-    tips = touches.f + touches.R @ t
-    jac = np.zeros((touches.R.shape[0], 3 + 4 * k))
-    jac[:, :3] = np.einsum("nji,nj->ni", touches.R, normals[touches.plane])
-    for j in range(k):
-        rows = touches.plane == j
-        n = normals[j]
-        q = tips[rows]
-        jac[rows, 3 + 4 * j : 6 + 4 * j] = (q - np.outer(q @ n, n)) / raw_norms[j]
-        jac[rows, 6 + 4 * j] = -1.0
-    return jac
+class _SameMinimum(Exception):
+    """A start has reached a minimum an earlier start found: it cannot win, stop it."""
+
+
+class _PackedModel:
+    """The signed distances and their Jacobian in the packed layout x = [t, per plane (raw
+    normal v, d)], n = v / |v|: what the Levenberg-Marquardt starts evaluate some 50 times
+    each, so the per-plane row indices and the constant columns are laid out once, and the
+    Jacobian reuses the tips and normals of the residuals at the same x (MINPACK asks for it
+    at each accepted point, the last one whose residuals it asked for).
+
+    Most starts descend into the same minimum; their last iterations only refine digits the
+    earlier start has. A start whose accepted point comes within SAME_MINIMUM_REL * scale of a
+    minimum found before (t and d in mm, the normals scaled by `scale`), and no lower than the
+    best cost so far allows, would end in that minimum and lose the tie: it is stopped there
+    (raising _SameMinimum), which leaves the least-cost minimum, and so the solution, as is.
+    """
+
+    def __init__(self, touches: _Touches, scale: float) -> None:
+        self.R = touches.R
+        self.f = touches.f
+        self.plane = touches.plane
+        self.k = len(touches.labels)
+        self.scale = scale
+        self.rows = [np.flatnonzero(touches.plane == j) for j in range(self.k)]
+        self.template = np.zeros((touches.R.shape[0], 3 + 4 * self.k))
+        for j, rows in enumerate(self.rows):
+            self.template[rows, 6 + 4 * j] = -1.0
+        self.minima: list[FloatArray] = []  # unpacked [t, normals, offsets] of finished starts
+        self.floor = -math.inf  # a start below this cost may still win
+        self._key = b""
+        self._parts: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None
+
+    def _evaluate(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(normals (K, 3), |raw normals| (K,), tips (N, 3), residuals (N,)) at x."""
+        key = x.tobytes()
+        if key != self._key or self._parts is None:
+            rest = x[3:].reshape(self.k, 4)
+            raw = rest[:, :3]
+            raw_norms = np.sqrt(np.add.reduce(raw * raw, axis=1))
+            normals = raw / raw_norms[:, None]
+            tips = self.f + self.R @ x[:3]
+            res = np.einsum("ij,ij->i", normals[self.plane], tips) - rest[:, 3][self.plane]
+            self._key, self._parts = key, (normals, raw_norms, tips, res)
+        return self._parts
+
+    def residuals(self, x: FloatArray) -> FloatArray:
+        """Signed distance (mm) of each tip from its plane: (N,)."""
+        return self._evaluate(x)[3].copy()
+
+    def jacobian(self, x: FloatArray) -> FloatArray:
+        """d r / d x: (N, 3 + 4K)."""
+        normals, raw_norms, tips, res = self._evaluate(x)
+        if self.minima and float(res @ res) >= self.floor:
+            here = np.concatenate([x[:3], self.scale * normals.ravel(), x[6::4]])
+            for known in self.minima:
+                if float(np.abs(here - known).max()) <= SAME_MINIMUM_REL * self.scale:
+                    raise _SameMinimum
+        jac = self.template.copy()
+        jac[:, :3] = np.einsum("nji,nj->ni", self.R, normals[self.plane])
+        for j, rows in enumerate(self.rows):
+            n = normals[j]
+            q = tips[rows]
+            jac[rows, 3 + 4 * j : 6 + 4 * j] = (q - (q @ n)[:, None] * n) / raw_norms[j]
+        return jac
+
+    def finished(self, x: FloatArray, best_cost: float) -> None:
+        """Record a start's minimum x; best_cost: the least cost found so far."""
+        normals = self._evaluate(x)[0]
+        self.minima.append(np.concatenate([x[:3], self.scale * normals.ravel(), x[6::4]]))
+        self.floor = best_cost - 1e-12 * self.scale**2
 
 
 def _linear_given_normals(touches: _Touches, normals: FloatArray) -> FloatArray | None:
@@ -569,7 +628,7 @@ def _grid_normals(R: FloatArray, f: FloatArray) -> list[FloatArray]:
     Atb[:, :3] = -np.einsum("gc,gd,cda->ga", normals, normals, T)
     Atb[:, 3] = normals @ f.sum(axis=0)
     btb = np.einsum("gc,cd,gd->g", normals, F, normals)
-    well = np.linalg.cond(AtA) < 1e12
+    well = _well_conditioned(AtA, 1e12)
     if not well.any():
         return []
     sol = np.linalg.solve(AtA[well], Atb[well][..., None])[..., 0]
@@ -585,33 +644,58 @@ def _grid_normals(R: FloatArray, f: FloatArray) -> list[FloatArray]:
     return chosen
 
 
+def _well_conditioned(spd: FloatArray, limit: float) -> NDArray[np.bool_]:
+    """np.linalg.cond(spd) < limit for a stack of symmetric positive (semi)definite 4x4
+    matrices, without an SVD of each (the grid's 2000 were a third of a solve).
+
+    With spd = L L^T (Cholesky), cond = |spd|_2 |L^-1|_2^2 lies within a factor 8 below
+    P = |spd|_F |L^-1|_F^2 (the Frobenius norm of a 4x4 is at most twice the 2-norm), so
+    P < limit / 4 is well and P > 32 limit is ill-conditioned beyond rounding; the SVD decides
+    the few in between and every matrix of a stack Cholesky cannot factor.
+    """
+    try:
+        chol = np.linalg.cholesky(spd)
+    except np.linalg.LinAlgError:
+        well: NDArray[np.bool_] = np.linalg.cond(spd) < limit
+        return well
+    inv_sq = _triangular_inverse_frobenius_sq(np.asarray(chol, dtype=np.float64))
+    p = np.sqrt(np.einsum("gij,gij->g", spd, spd)) * inv_sq
+    well = p < limit / 4.0
+    unsure = ~well & ~(p > 32.0 * limit)
+    if unsure.any():
+        well[unsure] = np.linalg.cond(spd[unsure]) < limit
+    return well
+
+
+def _triangular_inverse_frobenius_sq(low: FloatArray) -> FloatArray:
+    """|L^-1|_F^2 for a stack of lower-triangular 4x4 L, by forward substitution (G,)."""
+    inv = np.zeros_like(low)
+    for i in range(4):
+        inv[:, i, i] = 1.0 / low[:, i, i]
+        for j in range(i):
+            inv[:, i, j] = -np.einsum("gk,gk->g", low[:, i, j:i], inv[:, j:i, j]) / low[:, i, i]
+    out: FloatArray = np.einsum("gij,gij->g", inv, inv)
+    return out
+
+
 def _fit(touches: _Touches, t0: FloatArray) -> FloatArray:
     """The packed solution of least cost over the starts."""
-    k = len(touches.labels)
     best: FloatArray | None = None
     best_cost = math.inf
     scale = max(1.0, float(np.abs(touches.f).max()))
-
-    def fun(x: FloatArray) -> FloatArray:
-        t, normals, offsets = _unpack(x, k)
-        return _residuals(touches, t, normals, offsets)
-
-    def jac(x: FloatArray) -> FloatArray:
-        return _packed_jacobian(touches, x)
-
+    model = _PackedModel(touches, scale)
     for normals in _start_normals(touches, t0):
         x0 = _linear_given_normals(touches, normals)
         if x0 is None:
             continue
-        # "lm" needs at least as many residuals as unknowns (the normals carry one spare
-        # coordinate each, the scale, which the residuals do not see); "trf" copes either way.
-        method = "lm" if touches.R.shape[0] >= x0.size else "trf"
-        fit = least_squares(
-            fun, x0, jac=jac, method=method, x_scale="jac", xtol=1e-8, ftol=1e-8, gtol=1e-8
-        )
-        cost = float(np.sum(fun(fit.x) ** 2))
+        try:
+            x = _levenberg_marquardt(model.residuals, model.jacobian, x0, touches.R.shape[0])
+        except _SameMinimum:
+            continue
+        cost = float(np.sum(model.residuals(x) ** 2))
         if cost < best_cost - 1e-12 * scale**2:
-            best, best_cost = np.asarray(fit.x, dtype=np.float64), cost
+            best, best_cost = x, cost
+        model.finished(x, best_cost)
     if best is None:
         raise InvalidInput(
             "degenerate-poses",
@@ -620,6 +704,31 @@ def _fit(touches: _Touches, t0: FloatArray) -> FloatArray:
             loc=("poses",),
         )
     return _polish(touches, best)
+
+
+def _levenberg_marquardt(
+    fun: Callable[[FloatArray], FloatArray],
+    jac: Callable[[FloatArray], FloatArray],
+    x0: FloatArray,
+    n_residuals: int,
+) -> FloatArray:
+    """MINPACK's Levenberg-Marquardt (lmder) from x0, scaled by the Jacobian's columns.
+
+    "lm" needs at least as many residuals as unknowns (the normals carry one spare coordinate
+    each, the scale, which the residuals do not see); "trf" copes either way. The "lm" case
+    calls MINPACK through leastsq, the same iterations as least_squares(method="lm",
+    x_scale="jac") without its per-call wrappers (most of the time of a small fit).
+    """
+    tol = 1e-8
+    if n_residuals < x0.size:
+        fit = least_squares(
+            fun, x0, jac=jac, method="trf", x_scale="jac", xtol=tol, ftol=tol, gtol=tol
+        )
+        return np.asarray(fit.x, dtype=np.float64)
+    x, *_ = leastsq(
+        fun, x0, Dfun=jac, full_output=True, xtol=tol, ftol=tol, gtol=tol, maxfev=100 * x0.size
+    )
+    return np.asarray(x, dtype=np.float64)
 
 
 def _polish(touches: _Touches, x: FloatArray) -> FloatArray:
