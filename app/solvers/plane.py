@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -145,7 +146,7 @@ def solve_plane(
     cannot give a trustworthy TCP.
     """
     touches = _checked(rotations, positions_mm, planes, touch_noise_mm)
-    _check_orientations(touches)
+    spread_deg = _check_orientations(touches)
     x = _fit(touches, _start_tcp(start_tcp_mm))
     t, normals, offsets = _unpack(x, len(touches.labels))
     _check_bounded(t, offsets)
@@ -166,7 +167,7 @@ def solve_plane(
         residuals_mm=np.abs(residuals),
         tcp_covariance_mm2=cov_t,
         sigma_source=source,
-        orientation_spread_deg=orientation_spread_deg(touches.R),
+        orientation_spread_deg=spread_deg,
         condition_number=_condition(jac),
         warnings=tuple(warnings),
         dof=None if source == SIGMA_CONFIGURED else dof,
@@ -272,8 +273,9 @@ def _start_tcp(start_tcp_mm: ArrayLike | None) -> FloatArray:
     return t if np.all(np.isfinite(t)) else np.zeros(3)
 
 
-def _check_orientations(touches: _Touches) -> None:
-    """Refuse touches whose orientations cannot tell the TCP from the planes' offsets."""
+def _check_orientations(touches: _Touches) -> float:
+    """Refuse touches whose orientations cannot tell the TCP from the planes' offsets; the
+    orientation spread (deg) of those accepted."""
     R = touches.R
     spread = orientation_spread_deg(R)
     if spread < TRANSLATION_ONLY_DEG:
@@ -288,7 +290,7 @@ def _check_orientations(touches: _Touches) -> None:
         )
     ratio, axis = _rotation_block(R)
     if ratio >= DEGENERACY_RATIO:
-        return
+        return spread
     base_axis = R[0] @ axis
     context = {"direction_flange": [float(v) for v in axis], "singular_value_ratio": ratio}
     if _parallel(base_axis, _flange_plane_normal(touches)):
@@ -384,9 +386,9 @@ def _check_tcp_shown(
         ssr_flange += float(s[-1] ** 2)
     gain = ssr_flange - ssr
     if touch_noise_mm is not None:
-        shown = gain > float(chi2.ppf(1.0 - SHOWN_ALPHA, 3)) * touch_noise_mm**2
+        shown = gain > _chi2_quantile(1.0 - SHOWN_ALPHA, 3) * touch_noise_mm**2
     else:
-        shown = gain > 3.0 * float(f_dist.ppf(1.0 - SHOWN_ALPHA, 3, dof)) * ssr / dof
+        shown = gain > 3.0 * _f_quantile(1.0 - SHOWN_ALPHA, 3, dof) * ssr / dof
     floor = (RESIDUAL_FLOOR_MM**2) * touches.R.shape[0]
     if shown and gain > floor:
         return
@@ -438,9 +440,16 @@ def _residuals(
 def _tangents(normal: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Two unit vectors completing `normal` to a right-handed orthonormal basis."""
     helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
-    e1 = np.cross(normal, helper)
+    e1 = _cross(normal, helper)
     e1 /= np.linalg.norm(e1)
-    return e1, np.cross(normal, e1)
+    return e1, _cross(normal, e1)
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a x b of two 3-vectors: np.cross's products and differences, without its overhead."""
+    a0, a1, a2 = (float(v) for v in a)
+    b0, b1, b2 = (float(v) for v in b)
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def _jacobian(touches: _Touches, t: FloatArray, normals: FloatArray) -> FloatArray:
@@ -596,14 +605,19 @@ def _distinct(candidates: list[FloatArray]) -> list[FloatArray]:
     return kept
 
 
-def _hemisphere(count: int) -> FloatArray:
-    """About `count` unit vectors spread evenly over the upper half sphere (Fibonacci)."""
+@lru_cache(maxsize=4)
+def _hemisphere(count: int) -> tuple[FloatArray, FloatArray]:
+    """About `count` unit vectors n spread evenly over the upper half sphere (Fibonacci), and
+    their outer products n n^T flattened (count, 9); read-only (shared by every solve)."""
     i = np.arange(count) + 0.5
     z = 1.0 - i / count
     r = np.sqrt(1.0 - z**2)
     phi = np.pi * (3.0 - np.sqrt(5.0)) * i
-    out: FloatArray = np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
-    return out
+    normals: FloatArray = np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+    outer: FloatArray = (normals[:, :, None] * normals[:, None, :]).reshape(count, 9)
+    normals.flags.writeable = False
+    outer.flags.writeable = False
+    return normals, outer
 
 
 def _grid_normals(R: FloatArray, f: FloatArray) -> list[FloatArray]:
@@ -616,16 +630,16 @@ def _grid_normals(R: FloatArray, f: FloatArray) -> list[FloatArray]:
     m = R.shape[0]
     if m < 5:
         return []
-    normals = _hemisphere(GRID_DIRECTIONS)
+    normals, outer = _hemisphere(GRID_DIRECTIONS)
     S = np.einsum("ica,idb->cdab", R, R)  # sum_i R_i[c, a] R_i[d, b]
     T = np.einsum("ica,id->cda", R, f)  # sum_i R_i[c, a] f_i[d]
     F = f.T @ f
     AtA = np.empty((normals.shape[0], 4, 4))
-    AtA[:, :3, :3] = np.einsum("gc,gd,cdab->gab", normals, normals, S)
+    AtA[:, :3, :3] = (outer @ S.reshape(9, 9)).reshape(-1, 3, 3)
     AtA[:, :3, 3] = AtA[:, 3, :3] = -normals @ R.sum(axis=0)
     AtA[:, 3, 3] = m
     Atb = np.empty((normals.shape[0], 4))
-    Atb[:, :3] = -np.einsum("gc,gd,cda->ga", normals, normals, T)
+    Atb[:, :3] = -(outer @ T.reshape(9, 3))
     Atb[:, 3] = normals @ f.sum(axis=0)
     btb = np.einsum("gc,cd,gd->g", normals, F, normals)
     well = _well_conditioned(AtA, 1e12)
@@ -815,6 +829,17 @@ def _noise(
     return max(sigma, 0.0), SIGMA_RESIDUALS, widening(dof)
 
 
+@lru_cache(maxsize=256)
+def _chi2_quantile(q: float, dof: int) -> float:
+    return float(chi2.ppf(q, dof))
+
+
+@lru_cache(maxsize=256)
+def _f_quantile(q: float, dfn: int, dfd: int) -> float:
+    return float(f_dist.ppf(q, dfn, dfd))
+
+
+@lru_cache(maxsize=256)
 def widening(dof: float) -> float:
     """t(0.975, dof) / 1.96: keeps +-1.96 sigma a 95 % interval when the noise behind sigma
     was estimated on dof degrees of freedom."""
@@ -825,8 +850,8 @@ def _ellipsoid_scale(dof: int | None) -> float:
     """k with (x - x^)^T Cov^-1 (x - x^) <= k^2 95 % of the time in 3-D: chi2 with a known
     noise, Hotelling's 3 F(3, dof) with one estimated on dof degrees of freedom."""
     if dof is None:
-        return float(math.sqrt(chi2.ppf(ELLIPSOID_PROBABILITY, 3)))
-    return float(math.sqrt(3.0 * f_dist.ppf(ELLIPSOID_PROBABILITY, 3, dof)))
+        return math.sqrt(_chi2_quantile(ELLIPSOID_PROBABILITY, 3))
+    return math.sqrt(3.0 * _f_quantile(ELLIPSOID_PROBABILITY, 3, dof))
 
 
 def check_predicted_sigma(
@@ -900,7 +925,7 @@ def _warnings(
         )
     if touch_noise_mm is not None:
         chi2_stat = float(np.sum(residuals**2)) / touch_noise_mm**2
-        if chi2_stat > float(chi2.ppf(1.0 - 1e-3, dof)):
+        if chi2_stat > _chi2_quantile(1.0 - 1e-3, dof):
             rms = float(np.sqrt(np.mean(residuals**2)))
             worst = int(np.argmax(np.abs(residuals)))
             warnings.append(
