@@ -641,16 +641,15 @@ def _grid_normals(R: FloatArray, f: FloatArray) -> list[FloatArray]:
     Atb = np.empty((normals.shape[0], 4))
     Atb[:, :3] = -(outer @ T.reshape(9, 3))
     Atb[:, 3] = normals @ f.sum(axis=0)
-    btb = np.einsum("gc,cd,gd->g", normals, F, normals)
-    well = _well_conditioned(AtA, 1e12)
+    btb = np.sum((normals @ F) * normals, axis=1)
+    well, cost = _profiled_costs(AtA, Atb, btb, 1e12)
     if not well.any():
         return []
-    sol = np.linalg.solve(AtA[well], Atb[well][..., None])[..., 0]
-    cost = btb[well] - np.einsum("gi,gi->g", Atb[well], sol)
+    candidates = normals[well]
     cos_limit = math.cos(math.radians(DISTINCT_START_DEG))
     chosen: list[FloatArray] = []
     for i in np.argsort(cost):
-        n = normals[well][i]
+        n = candidates[i]
         if all(abs(float(n @ c)) < cos_limit for c in chosen):
             chosen.append(n)
             if len(chosen) == GRID_STARTS:
@@ -658,38 +657,44 @@ def _grid_normals(R: FloatArray, f: FloatArray) -> list[FloatArray]:
     return chosen
 
 
-def _well_conditioned(spd: FloatArray, limit: float) -> NDArray[np.bool_]:
-    """np.linalg.cond(spd) < limit for a stack of symmetric positive (semi)definite 4x4
-    matrices, without an SVD of each (the grid's 2000 were a third of a solve).
+def _profiled_costs(
+    AtA: FloatArray, Atb: FloatArray, btb: FloatArray, limit: float
+) -> tuple[NDArray[np.bool_], FloatArray]:
+    """Which of a stack of normal equations (G, 4, 4) are well conditioned
+    (np.linalg.cond < limit), and for those the least-squares residual sum b'b - b'A x.
 
-    With spd = L L^T (Cholesky), cond = |spd|_2 |L^-1|_2^2 lies within a factor 8 below
-    P = |spd|_F |L^-1|_F^2 (the Frobenius norm of a 4x4 is at most twice the 2-norm), so
-    P < limit / 4 is well and P > 32 limit is ill-conditioned beyond rounding; the SVD decides
-    the few in between and every matrix of a stack Cholesky cannot factor.
+    Without an SVD and an LU solve of each (the grid's 2000 were a third of a solve): with
+    AtA = L L^T (Cholesky), cond = |AtA|_2 |L^-1|_2^2 lies within a factor 8 below
+    P = |AtA|_F |L^-1|_F^2 (the Frobenius norm of a 4x4 is at most twice the 2-norm), so
+    P < limit / 4 is well and P > 32 limit ill-conditioned beyond rounding (the SVD decides
+    the few in between), and the residual sum is b'b - |L^-1 A'b|^2. A stack Cholesky cannot
+    factor takes the SVD and LU way throughout.
     """
     try:
-        chol = np.linalg.cholesky(spd)
+        chol = np.asarray(np.linalg.cholesky(AtA), dtype=np.float64)
     except np.linalg.LinAlgError:
-        well: NDArray[np.bool_] = np.linalg.cond(spd) < limit
-        return well
-    inv_sq = _triangular_inverse_frobenius_sq(np.asarray(chol, dtype=np.float64))
-    p = np.sqrt(np.einsum("gij,gij->g", spd, spd)) * inv_sq
+        well: NDArray[np.bool_] = np.linalg.cond(AtA) < limit
+        sol = np.linalg.solve(AtA[well], Atb[well][..., None])[..., 0]
+        return well, btb[well] - np.einsum("gi,gi->g", Atb[well], sol)
+    inv = _triangular_inverse(chol)
+    p = np.sqrt(np.einsum("gij,gij->g", AtA, AtA)) * np.einsum("gij,gij->g", inv, inv)
     well = p < limit / 4.0
     unsure = ~well & ~(p > 32.0 * limit)
     if unsure.any():
-        well[unsure] = np.linalg.cond(spd[unsure]) < limit
-    return well
+        well[unsure] = np.linalg.cond(AtA[unsure]) < limit
+    y = np.einsum("gij,gj->gi", inv[well], Atb[well])
+    cost: FloatArray = btb[well] - np.sum(y * y, axis=1)
+    return well, cost
 
 
-def _triangular_inverse_frobenius_sq(low: FloatArray) -> FloatArray:
-    """|L^-1|_F^2 for a stack of lower-triangular 4x4 L, by forward substitution (G,)."""
+def _triangular_inverse(low: FloatArray) -> FloatArray:
+    """L^-1 for a stack of lower-triangular 4x4 L, by forward substitution (G, 4, 4)."""
     inv = np.zeros_like(low)
     for i in range(4):
         inv[:, i, i] = 1.0 / low[:, i, i]
         for j in range(i):
             inv[:, i, j] = -np.einsum("gk,gk->g", low[:, i, j:i], inv[:, j:i, j]) / low[:, i, i]
-    out: FloatArray = np.einsum("gij,gij->g", inv, inv)
-    return out
+    return inv
 
 
 def _fit(touches: _Touches, t0: FloatArray) -> FloatArray:
