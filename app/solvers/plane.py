@@ -495,14 +495,22 @@ class _PackedModel:
         self.plane = touches.plane
         self.k = len(touches.labels)
         self.scale = scale
-        self.rows = [np.flatnonzero(touches.plane == j) for j in range(self.k)]
+        # one plane: every row, as a view rather than a gather
+        self.rows: list[NDArray[np.intp] | slice] = (
+            [slice(None)]
+            if self.k == 1
+            else [np.flatnonzero(touches.plane == j) for j in range(self.k)]
+        )
         self.template = np.zeros((touches.R.shape[0], 3 + 4 * self.k))
         for j, rows in enumerate(self.rows):
             self.template[rows, 6 + 4 * j] = -1.0
-        self.minima: list[FloatArray] = []  # unpacked [t, normals, offsets] of finished starts
+        # unpacked [t, scale * normals, offsets] of the finished starts, one a row
+        self.minima = np.empty((0, 3 + 4 * self.k))
         self.floor = -math.inf  # a start below this cost may still win
         self._key = b""
         self._parts: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None
+        self._jac_key = b""
+        self._jac = self.template
 
     def _evaluate(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """(normals (K, 3), |raw normals| (K,), tips (N, 3), residuals (N,)) at x."""
@@ -518,29 +526,33 @@ class _PackedModel:
         return self._parts
 
     def residuals(self, x: FloatArray) -> FloatArray:
-        """Signed distance (mm) of each tip from its plane: (N,)."""
-        return self._evaluate(x)[3].copy()
+        """Signed distance (mm) of each tip from its plane: (N,); read only (MINPACK copies it)."""
+        return self._evaluate(x)[3]
 
     def jacobian(self, x: FloatArray) -> FloatArray:
-        """d r / d x: (N, 3 + 4K)."""
+        """d r / d x: (N, 3 + 4K); read only (MINPACK copies it)."""
+        key = x.tobytes()
+        if key == self._jac_key:  # leastsq checks it at x0, then MINPACK asks again
+            return self._jac
         normals, raw_norms, tips, res = self._evaluate(x)
-        if self.minima and float(res @ res) >= self.floor:
+        if self.minima.shape[0] and float(res @ res) >= self.floor:
             here = np.concatenate([x[:3], self.scale * normals.ravel(), x[6::4]])
-            for known in self.minima:
-                if float(np.abs(here - known).max()) <= SAME_MINIMUM_REL * self.scale:
-                    raise _SameMinimum
+            if float(np.abs(self.minima - here).max(axis=1).min()) <= SAME_MINIMUM_REL * self.scale:
+                raise _SameMinimum
         jac = self.template.copy()
         jac[:, :3] = np.einsum("nji,nj->ni", self.R, normals[self.plane])
         for j, rows in enumerate(self.rows):
             n = normals[j]
             q = tips[rows]
             jac[rows, 3 + 4 * j : 6 + 4 * j] = (q - (q @ n)[:, None] * n) / raw_norms[j]
+        self._jac_key, self._jac = key, jac
         return jac
 
     def finished(self, x: FloatArray, best_cost: float) -> None:
         """Record a start's minimum x; best_cost: the least cost found so far."""
         normals = self._evaluate(x)[0]
-        self.minima.append(np.concatenate([x[:3], self.scale * normals.ravel(), x[6::4]]))
+        here = np.concatenate([x[:3], self.scale * normals.ravel(), x[6::4]])
+        self.minima = np.vstack([self.minima, here])
         self.floor = best_cost - 1e-12 * self.scale**2
 
 
