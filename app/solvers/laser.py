@@ -21,7 +21,7 @@ Definitions used throughout:
   offset_mm = its (x, y).
 - axis_direction_flange: unit vector of the axis, pointing away from the flange.
 - runout_deg (tx, ty): u = Rx(tx) Ry(ty) z_hat (X-Y-Z Euler angles of the TCP frame,
-  rotation about Z ignored), computed with scipy's Rotation.as_euler("XYZ").
+  rotation about Z ignored), as scipy's Rotation.as_euler("XYZ") gives them.
 - tool_length_mm: distance along the axis from axis_point_flange_mm to the tip.
 - tip: the axis point at the beam plane when the final descent breaks a beam (a pointed
   tool; a flat-ended tool with runout breaks first at its rim, radius * sin(tilt) higher).
@@ -37,13 +37,13 @@ Definitions used throughout:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 from scipy.stats import norm
 from scipy.stats import t as student_t
 
@@ -426,8 +426,19 @@ def _solve_tool(p: _Parsed, x: NDArray[np.float64], dev: LaserDevice) -> _Tool:
     length = float((dev.plane_z_mm - descent[2] - (R0 @ axis_point)[2]) / u_b[2])
     tcp = axis_point + length * u
     Q = _tool_frame(u)
-    runout = Rotation.from_matrix(Q).as_euler("XYZ", degrees=True)[:2]
-    return _Tool(line, axis_point, u, length, tcp, Q, runout)
+    return _Tool(line, axis_point, u, length, tcp, Q, _runout_deg(u))
+
+
+def _runout_deg(u: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(tx, ty) deg: the first two intrinsic X-Y-Z Euler angles of the tool frame whose Z is u,
+    as Rotation.as_euler("XYZ") gives them. Only the frame's Z column enters them
+    (Rx(a) Ry(b) Rz(c) has Z column [sin b, -sin a cos b, cos a cos b]), and with |u_z| >=
+    0.5 (an accepted tool) cos b > 0, so two arctangents give them without the rotation
+    objects the sigma's finite differences would build some fifty times a solve."""
+    tx = math.atan2(-float(u[1]), float(u[2]))
+    ty = math.atan2(float(u[0]), math.hypot(float(u[1]), float(u[2])))
+    out: NDArray[np.float64] = np.degrees(np.array([tx, ty]))
+    return out
 
 
 def _noise(
