@@ -17,66 +17,22 @@ scipy's `Rotation`; no angle is turned into a matrix by hand.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
-from app.jsontypes import JsonObject
+from app.kinematics.dh_table import CONVENTIONS as CONVENTIONS
+from app.kinematics.dh_table import MAX_LINK_DEG as MAX_LINK_DEG
+from app.kinematics.dh_table import MAX_LINK_MM as MAX_LINK_MM
+from app.kinematics.dh_table import MAX_LINKS as MAX_LINKS
+from app.kinematics.dh_table import Convention as Convention
+from app.kinematics.dh_table import DHLink as DHLink
+from app.kinematics.dh_table import Kinematics as Kinematics
+from app.kinematics.presets import PRESETS
 from app.kinematics.urdf import UrdfChain, chain_from_spec
 from app.solvers.validation import check_finite
-
-Convention = Literal["dh", "mdh"]
-CONVENTIONS: tuple[Convention, ...] = ("dh", "mdh")
-#: Most joints an arm may have (7-axis arms plus a track or two).
-MAX_LINKS = 12
-#: Largest link length or offset accepted, mm.
-MAX_LINK_MM = 10_000.0
-#: Largest |angle| (deg) of a link's twist or joint offset.
-MAX_LINK_DEG = 360.0
-
-
-@dataclass(frozen=True)
-class DHLink:
-    """One row of a DH table: lengths mm, angles degrees."""
-
-    a_mm: float
-    alpha_deg: float
-    d_mm: float
-    theta_offset_deg: float = 0.0
-
-
-@dataclass(frozen=True)
-class Kinematics:
-    """A serial arm: its DH convention and links, base to flange."""
-
-    convention: Convention
-    links: tuple[DHLink, ...]
-    name: str | None = None
-
-    @property
-    def n_joints(self) -> int:
-        """Number of revolute joints."""
-        return len(self.links)
-
-    def to_spec(self) -> JsonObject:
-        """The API `kinematics` object that `kinematics_from_spec` reads back to this model."""
-        return {
-            "convention": self.convention,
-            "links": [
-                {
-                    "a": link.a_mm,
-                    "alpha": link.alpha_deg,
-                    "d": link.d_mm,
-                    "theta_offset": link.theta_offset_deg,
-                }
-                for link in self.links
-            ],
-        }
-
 
 _LINK_FIELDS = ("a", "alpha", "d", "theta_offset")
 
@@ -124,24 +80,7 @@ def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics | UrdfChain:
     if "urdf" in spec:
         return chain_from_spec(spec)
     if "preset" in spec:
-        from app.kinematics.presets import PRESETS  # presets import this module
-
-        extra_keys = sorted(set(spec) - {"preset"})
-        if extra_keys:
-            raise InvalidInput(
-                "invalid-options",
-                f"kinematics with a preset takes no other fields; got {extra_keys}",
-                loc=(*base, extra_keys[0]),
-            )
-        name = spec["preset"]
-        if not isinstance(name, str) or name not in PRESETS:
-            raise InvalidInput(
-                "invalid-options",
-                f"unknown kinematics preset {name!r}; known presets: {sorted(PRESETS)}",
-                loc=(*base, "preset"),
-            )
-        return PRESETS[name]
-
+        return _preset_from_spec(spec, base)
     unknown = sorted(set(spec) - {"convention", "links", "name"})
     if unknown:
         raise InvalidInput(
@@ -157,7 +96,35 @@ def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics | UrdfChain:
             f"kinematics.convention must be one of {list(CONVENTIONS)}, got {convention!r}",
             loc=(*base, "convention"),
         )
-    links_in = spec.get("links")
+    name = spec.get("name")
+    return Kinematics(
+        convention=convention,
+        links=_links_from_spec(spec.get("links"), base),
+        name=name if isinstance(name, str) else None,
+    )
+
+
+def _preset_from_spec(spec: Mapping[str, object], base: tuple[str | int, ...]) -> Kinematics:
+    """The preset ``{"preset": name}`` names, refusing other fields and unknown names."""
+    extra_keys = sorted(set(spec) - {"preset"})
+    if extra_keys:
+        raise InvalidInput(
+            "invalid-options",
+            f"kinematics with a preset takes no other fields; got {extra_keys}",
+            loc=(*base, extra_keys[0]),
+        )
+    name = spec["preset"]
+    if not isinstance(name, str) or name not in PRESETS:
+        raise InvalidInput(
+            "invalid-options",
+            f"unknown kinematics preset {name!r}; known presets: {sorted(PRESETS)}",
+            loc=(*base, "preset"),
+        )
+    return PRESETS[name]
+
+
+def _links_from_spec(links_in: object, base: tuple[str | int, ...]) -> tuple[DHLink, ...]:
+    """The links of ``{"links": [{a, alpha, d, theta_offset}]}``: 1 to MAX_LINKS, checked."""
     if not isinstance(links_in, Sequence) or isinstance(links_in, str | bytes):
         raise InvalidInput(
             "invalid-options",
@@ -170,44 +137,39 @@ def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics | UrdfChain:
             f"kinematics.links must have 1 to {MAX_LINKS} links, got {len(links_in)}",
             loc=(*base, "links"),
         )
-    links: list[DHLink] = []
-    for i, row in enumerate(links_in):
-        here: tuple[str | int, ...] = (*base, "links", i)
-        if not isinstance(row, Mapping):
-            raise InvalidInput(
-                "invalid-options",
-                f"kinematics.links.{i} must be an object {{a, alpha, d, theta_offset}}",
-                loc=here,
-            )
-        bad = sorted(set(row) - set(_LINK_FIELDS))
-        if bad:
-            raise InvalidInput(
-                "invalid-options",
-                f"kinematics.links.{i} has unknown field {bad[0]!r}; expected {list(_LINK_FIELDS)}",
-                loc=(*here, bad[0]),
-            )
-        for required in ("a", "alpha", "d"):
-            if required not in row:
-                raise InvalidInput(
-                    "invalid-options",
-                    f"kinematics.links.{i}.{required} is missing",
-                    loc=(*here, required),
-                )
-        links.append(
-            DHLink(
-                a_mm=_number(row["a"], (*here, "a"), limit=MAX_LINK_MM),
-                alpha_deg=_number(row["alpha"], (*here, "alpha"), limit=MAX_LINK_DEG),
-                d_mm=_number(row["d"], (*here, "d"), limit=MAX_LINK_MM),
-                theta_offset_deg=_number(
-                    row.get("theta_offset", 0.0), (*here, "theta_offset"), limit=MAX_LINK_DEG
-                ),
-            )
+    return tuple(_link_from_row(row, (*base, "links", i)) for i, row in enumerate(links_in))
+
+
+def _link_from_row(row: object, here: tuple[str | int, ...]) -> DHLink:
+    """One link ``{a, alpha, d, theta_offset?}`` at loc `here` (..., "links", i)."""
+    i = here[-1]
+    if not isinstance(row, Mapping):
+        raise InvalidInput(
+            "invalid-options",
+            f"kinematics.links.{i} must be an object {{a, alpha, d, theta_offset}}",
+            loc=here,
         )
-    name = spec.get("name")
-    return Kinematics(
-        convention=convention,
-        links=tuple(links),
-        name=name if isinstance(name, str) else None,
+    bad = sorted(set(row) - set(_LINK_FIELDS))
+    if bad:
+        raise InvalidInput(
+            "invalid-options",
+            f"kinematics.links.{i} has unknown field {bad[0]!r}; expected {list(_LINK_FIELDS)}",
+            loc=(*here, bad[0]),
+        )
+    for required in ("a", "alpha", "d"):
+        if required not in row:
+            raise InvalidInput(
+                "invalid-options",
+                f"kinematics.links.{i}.{required} is missing",
+                loc=(*here, required),
+            )
+    return DHLink(
+        a_mm=_number(row["a"], (*here, "a"), limit=MAX_LINK_MM),
+        alpha_deg=_number(row["alpha"], (*here, "alpha"), limit=MAX_LINK_DEG),
+        d_mm=_number(row["d"], (*here, "d"), limit=MAX_LINK_MM),
+        theta_offset_deg=_number(
+            row.get("theta_offset", 0.0), (*here, "theta_offset"), limit=MAX_LINK_DEG
+        ),
     )
 
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal, cast
+from typing import Literal, SupportsFloat, TypeGuard, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -204,13 +204,6 @@ def fanuc_wpr_from_matrix(rotation: ArrayLike) -> FloatArray:
     return wpr
 
 
-# Yaskawa (Rx, Ry, Rz) and Techman (RX, RY, RZ) are fixed-axis X-Y-Z angles, as Fanuc WPR.
-matrix_from_yaskawa_rxyz = matrix_from_fanuc_wpr
-yaskawa_rxyz_from_matrix = fanuc_wpr_from_matrix
-matrix_from_techman_rxyz = matrix_from_fanuc_wpr
-techman_rxyz_from_matrix = fanuc_wpr_from_matrix
-
-
 def matrix_from_rotvec(rotvec_rad: ArrayLike) -> FloatArray:
     """Rotation vector (axis * angle, rad; (3,) or (N, 3)) -> rotation matrix."""
     matrix: FloatArray = Rotation.from_rotvec(rotvec_rad).as_matrix()
@@ -252,7 +245,7 @@ def quaternion_xyzw_from_matrix(rotation: ArrayLike) -> FloatArray:
 # --- parsing -----------------------------------------------------------------------------
 
 
-def _is_number(value: object) -> bool:
+def _is_number(value: object) -> TypeGuard[SupportsFloat]:
     return isinstance(value, int | float | np.floating | np.integer) and not isinstance(value, bool)
 
 
@@ -276,36 +269,7 @@ def _rows(fmt: str, poses: object, labels: Sequence[str], units: PoseUnits, loc:
         return np.array(poses, dtype=np.float64).reshape(len(poses), arity)
     out = np.empty((len(poses), arity))
     for i, pose in enumerate(poses):
-        flat: object = pose
-        if (
-            fmt == "matrix"
-            and isinstance(pose, Sequence)
-            and len(pose) == 4
-            and all(isinstance(r, Sequence) and not isinstance(r, str) for r in pose)
-        ):
-            if any(len(r) != 4 for r in pose):
-                raise InvalidInput(
-                    "invalid-pose",
-                    f"pose {i + 1}: expected {_expected(fmt, labels, units)}, got rows of "
-                    f"lengths {[len(r) for r in pose]}",
-                    loc=(*loc, i),
-                )
-            flat = [v for r in pose for v in r]
-        if not isinstance(flat, Sequence) or isinstance(flat, str | bytes):
-            raise InvalidInput(
-                "invalid-pose",
-                f"pose {i + 1}: expected {_expected(fmt, labels, units)} for format {fmt!r}, "
-                f"got {type(pose).__name__}",
-                loc=(*loc, i),
-            )
-        if len(flat) != arity:
-            raise InvalidInput(
-                "invalid-pose",
-                f"pose {i + 1}: expected {_expected(fmt, labels, units)} for format {fmt!r}, "
-                f"got {len(flat)} values",
-                loc=(*loc, i),
-                context={"expected_arity": arity, "got_arity": len(flat)},
-            )
+        flat = _flattened(fmt, i, pose, labels, units, loc)
         for j, value in enumerate(flat):
             if not _is_number(value):
                 raise InvalidInput(
@@ -315,6 +279,43 @@ def _rows(fmt: str, poses: object, labels: Sequence[str], units: PoseUnits, loc:
                 )
             out[i, j] = float(value)
     return out
+
+
+def _flattened(
+    fmt: str, i: int, pose: object, labels: Sequence[str], units: PoseUnits, loc: Loc
+) -> Sequence[object]:
+    """Pose i's values as one flat sequence of the format's arity (a matrix may come as rows)."""
+    flat: object = pose
+    if (
+        fmt == "matrix"
+        and isinstance(pose, Sequence)
+        and len(pose) == 4
+        and all(isinstance(r, Sequence) and not isinstance(r, str) for r in pose)
+    ):
+        if any(len(r) != 4 for r in pose):
+            raise InvalidInput(
+                "invalid-pose",
+                f"pose {i + 1}: expected {_expected(fmt, labels, units)}, got rows of "
+                f"lengths {[len(r) for r in pose]}",
+                loc=(*loc, i),
+            )
+        flat = [v for r in pose for v in r]
+    if not isinstance(flat, Sequence) or isinstance(flat, str | bytes):
+        raise InvalidInput(
+            "invalid-pose",
+            f"pose {i + 1}: expected {_expected(fmt, labels, units)} for format {fmt!r}, "
+            f"got {type(pose).__name__}",
+            loc=(*loc, i),
+        )
+    if len(flat) != len(labels):
+        raise InvalidInput(
+            "invalid-pose",
+            f"pose {i + 1}: expected {_expected(fmt, labels, units)} for format {fmt!r}, "
+            f"got {len(flat)} values",
+            loc=(*loc, i),
+            context={"expected_arity": len(labels), "got_arity": len(flat)},
+        )
+    return flat
 
 
 def _fields(fmt: str, arity: int) -> list[tuple[str, slice]]:
@@ -375,23 +376,11 @@ def poses_from_format(
     if isinstance(kinematics, UrdfChain) and not _angle_given(units):
         u = PoseUnits(length=u.length, angle="rad")  # a URDF's joint values are radians
     loc = tuple(loc)
-    if fmt == "joints":
-        if kinematics is None:
-            raise InvalidInput(
-                "missing-kinematics",
-                "the robot has no kinematics; set robot.kinematics (a preset such as ur5e, "
-                "or DH links) to submit joint angles",
-                loc=("kinematics",),
-            )
-        labels: tuple[str, ...] = tuple(f"q{k + 1}" for k in range(kinematics.n_joints))
-    else:
-        labels = _LABELS[fmt]
+    labels = _labels(fmt, kinematics)
     values = _rows(fmt, poses, labels, u, loc)
     _check_values(fmt, values, labels, loc)
-    n = values.shape[0]
     mm = _MM_PER[u.length]
     to_deg = 1.0 if u.angle == "deg" else float(np.degrees(1.0))
-
     if fmt == "joints":
         assert kinematics is not None
         joints_deg = values * to_deg
@@ -399,43 +388,68 @@ def poses_from_format(
         if isinstance(kinematics, UrdfChain):
             return kinematics.flange_poses(np.radians(joints_deg), loc=loc)
         return flange_poses(kinematics, joints_deg, loc=loc)
-
     if fmt == "matrix":
-        m = values.reshape(n, 4, 4)
-        bottom_err = np.abs(m[:, 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=1, initial=0)
-        bad = np.flatnonzero(bottom_err > BOTTOM_ROW_ATOL)
-        if bad.size:
-            i = int(bad[0])
-            raise InvalidInput(
-                "invalid-pose",
-                f"pose {i + 1}: the last row of a 4x4 pose matrix must be [0, 0, 0, 1], got "
-                f"{m[i, 3].tolist()}",
-                loc=(*loc, i, "matrix"),
-            )
-        positions = check_positions_mm(m[:, :3, 3] * mm, loc=loc)
-        rotations = check_rotation_matrices(m[:, :3, :3], loc=loc)
-        return rotations.copy(), positions
-
+        return _from_matrix_rows(values, mm, loc)
     positions = check_positions_mm(values[:, :3] * mm, loc=loc)
+    return _rotations_from_rows(fmt, values, labels, to_deg, loc), positions
+
+
+def _labels(fmt: str, kinematics: Kinematics | UrdfChain | None) -> tuple[str, ...]:
+    """The names of a pose's values; for joints one per joint of the robot's model."""
+    if fmt != "joints":
+        return _LABELS[fmt]
+    if kinematics is None:
+        raise InvalidInput(
+            "missing-kinematics",
+            "the robot has no kinematics; set robot.kinematics (a preset such as ur5e, "
+            "or DH links) to submit joint angles",
+            loc=("kinematics",),
+        )
+    return tuple(f"q{k + 1}" for k in range(kinematics.n_joints))
+
+
+def _from_matrix_rows(values: FloatArray, mm: float, loc: Loc) -> tuple[FloatArray, FloatArray]:
+    """(R (N, 3, 3), positions (N, 3) mm) from rows of 16 values, each a 4x4 row-major."""
+    n = values.shape[0]
+    m = values.reshape(n, 4, 4)
+    bottom_err = np.abs(m[:, 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=1, initial=0)
+    bad = np.flatnonzero(bottom_err > BOTTOM_ROW_ATOL)
+    if bad.size:
+        i = int(bad[0])
+        raise InvalidInput(
+            "invalid-pose",
+            f"pose {i + 1}: the last row of a 4x4 pose matrix must be [0, 0, 0, 1], got "
+            f"{m[i, 3].tolist()}",
+            loc=(*loc, i, "matrix"),
+        )
+    positions = check_positions_mm(m[:, :3, 3] * mm, loc=loc)
+    rotations = check_rotation_matrices(m[:, :3, :3], loc=loc)
+    return rotations.copy(), positions
+
+
+def _rotations_from_rows(
+    fmt: str, values: FloatArray, labels: Sequence[str], to_deg: float, loc: Loc
+) -> FloatArray:
+    """R (N, 3, 3) from the rotation part (values[:, 3:]) of a quaternion or angle format."""
+    n = values.shape[0]
     if fmt in ("xyz_wxyz", "xyz_xyzw"):
         quats = normalised_quaternions(values[:, 3:7], loc=loc)
         if n == 0:
-            return np.zeros((0, 3, 3)), positions
+            return np.zeros((0, 3, 3))
         if fmt == "xyz_wxyz":
-            return matrix_from_quaternion_wxyz(quats).reshape(n, 3, 3), positions
-        return matrix_from_quaternion_xyzw(quats).reshape(n, 3, 3), positions
-
+            return matrix_from_quaternion_wxyz(quats).reshape(n, 3, 3)
+        return matrix_from_quaternion_xyzw(quats).reshape(n, 3, 3)
     angles_deg = values[:, 3:6] * to_deg
     _check_angles_deg(angles_deg, labels[3:], "rotation", loc)
     if n == 0:
-        return np.zeros((0, 3, 3)), positions
+        return np.zeros((0, 3, 3))
     if fmt == "kuka_abc":
         rotations = matrix_from_kuka_abc(angles_deg)
     elif fmt in WPR_FORMATS:
         rotations = matrix_from_fanuc_wpr(angles_deg)
     else:  # ur_rotvec
         rotations = matrix_from_rotvec(np.radians(angles_deg))
-    return rotations.reshape(n, 3, 3), positions
+    return rotations.reshape(n, 3, 3)
 
 
 def pose_from_format(

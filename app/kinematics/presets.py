@@ -8,7 +8,7 @@ an all-zero TCP; Techman: the flange with an all-zero tool), in the controller's
 
 from __future__ import annotations
 
-from app.kinematics.dh import DHLink, Kinematics
+from app.kinematics.dh_table import DHLink, Kinematics
 
 
 def _ur(name: str, d1: float, a2: float, a3: float, d4: float, d5: float, d6: float) -> Kinematics:

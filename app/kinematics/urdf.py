@@ -210,29 +210,9 @@ def _chain(text: str, base: str | None, tip: str | None) -> UrdfChain:
     """Parse and walk a URDF (cached: the same robot's URDF is read at every solve)."""
     _check_xml(text)
     model = _parse(text)
-    joints = list(model.robot.joints)
     links = [link.name for link in model.robot.links]
-    by_child: dict[str, _Joint] = {}
-    for joint in joints:
-        if joint.child in by_child:
-            raise _bad(f"link {joint.child!r} is the child of two joints: not a tree")
-        by_child[joint.child] = joint
-    roots = [name for name in links if name not in by_child]
-    if base is None and len(roots) != 1:
-        raise InvalidInput(
-            "invalid-kinematics",
-            f"the URDF has {len(roots)} root links ({', '.join(roots[:5])}): name the robot's "
-            "base as base_link",
-            loc=("kinematics", "base_link"),
-        )
-    base_link = base if base is not None else roots[0]
-    for name, field in ((base_link, "base_link"), (tip, "tip_link")):
-        if name is not None and name not in links:
-            raise InvalidInput(
-                "invalid-kinematics",
-                f"the URDF has no link {name!r} (its links: {', '.join(links[:20])})",
-                loc=("kinematics", field),
-            )
+    by_child = _joints_by_child(list(model.robot.joints))
+    base_link = _base_link(base, tip, links, by_child)
     base_path = _path_from_root(base_link, by_child)
     root = base_path[0].parent if base_path else base_link
     tip_link = tip if tip is not None else _default_tip(links, by_child, root)
@@ -269,6 +249,39 @@ def _chain(text: str, base: str | None, tip: str | None) -> UrdfChain:
         base_rotation=base_rot,
         base_translation_mm=base_pos,
     )
+
+
+def _joints_by_child(joints: list[_Joint]) -> dict[str, _Joint]:
+    """Each joint by its child link; refuses a link that is the child of two (not a tree)."""
+    by_child: dict[str, _Joint] = {}
+    for joint in joints:
+        if joint.child in by_child:
+            raise _bad(f"link {joint.child!r} is the child of two joints: not a tree")
+        by_child[joint.child] = joint
+    return by_child
+
+
+def _base_link(
+    base: str | None, tip: str | None, links: list[str], by_child: dict[str, _Joint]
+) -> str:
+    """The base link: the one named, else the URDF's only root; the named links must exist."""
+    roots = [name for name in links if name not in by_child]
+    if base is None and len(roots) != 1:
+        raise InvalidInput(
+            "invalid-kinematics",
+            f"the URDF has {len(roots)} root links ({', '.join(roots[:5])}): name the robot's "
+            "base as base_link",
+            loc=("kinematics", "base_link"),
+        )
+    base_link = base if base is not None else roots[0]
+    for name, field in ((base_link, "base_link"), (tip, "tip_link")):
+        if name is not None and name not in links:
+            raise InvalidInput(
+                "invalid-kinematics",
+                f"the URDF has no link {name!r} (its links: {', '.join(links[:20])})",
+                loc=("kinematics", field),
+            )
+    return base_link
 
 
 def _check_xml(text: str) -> None:

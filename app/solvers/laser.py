@@ -21,7 +21,7 @@ Definitions used throughout:
   offset_mm = its (x, y).
 - axis_direction_flange: unit vector of the axis, pointing away from the flange.
 - runout_deg (tx, ty): u = Rx(tx) Ry(ty) z_hat (X-Y-Z Euler angles of the TCP frame,
-  rotation about Z ignored), computed with scipy's Rotation.as_euler("XYZ").
+  rotation about Z ignored), as scipy's Rotation.as_euler("XYZ") gives them.
 - tool_length_mm: distance along the axis from axis_point_flange_mm to the tip.
 - tip: the axis point at the beam plane when the final descent breaks a beam (a pointed
   tool; a flat-ended tool with runout breaks first at its rim, radius * sin(tilt) higher).
@@ -37,13 +37,13 @@ Definitions used throughout:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 from scipy.stats import norm
 from scipy.stats import t as student_t
 
@@ -426,8 +426,19 @@ def _solve_tool(p: _Parsed, x: NDArray[np.float64], dev: LaserDevice) -> _Tool:
     length = float((dev.plane_z_mm - descent[2] - (R0 @ axis_point)[2]) / u_b[2])
     tcp = axis_point + length * u
     Q = _tool_frame(u)
-    runout = Rotation.from_matrix(Q).as_euler("XYZ", degrees=True)[:2]
-    return _Tool(line, axis_point, u, length, tcp, Q, runout)
+    return _Tool(line, axis_point, u, length, tcp, Q, _runout_deg(u))
+
+
+def _runout_deg(u: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(tx, ty) deg: the first two intrinsic X-Y-Z Euler angles of the tool frame whose Z is u,
+    as Rotation.as_euler("XYZ") gives them. Only the frame's Z column enters them
+    (Rx(a) Ry(b) Rz(c) has Z column [sin b, -sin a cos b, cos a cos b]), and with |u_z| >=
+    0.5 (an accepted tool) cos b > 0, so two arctangents give them without the rotation
+    objects the sigma's finite differences would build some fifty times a solve."""
+    tx = math.atan2(-float(u[1]), float(u[2]))
+    ty = math.atan2(float(u[0]), math.hypot(float(u[1]), float(u[2])))
+    out: NDArray[np.float64] = np.degrees(np.array([tx, ty]))
+    return out
 
 
 def _noise(
@@ -545,7 +556,28 @@ def solve_laser(
     tool = _solve_tool(p, x0, dev)
     widths = _check_widths(p, warnings)
     _check_line_residuals(p, tool.line, widths)
-    # Descent: the tip must lie beyond every swept section and on (one of) the beams.
+    _check_descent(p, tool, dev, widths)
+    noise, source, widen = _noise(p, tool.line, noise_in, warnings)
+    sigma = _laser_sigma(p, x0, dev, tool, noise, widen, source)
+    return LaserResult(
+        tcp_mm=tool.tcp,
+        rotation=tool.Q,
+        quaternion_wxyz=quaternion_wxyz_from_matrix(tool.Q),
+        axis_point_flange_mm=tool.axis_point,
+        axis_direction_flange=tool.u,
+        runout_deg=(float(tool.runout[0]), float(tool.runout[1])),
+        offset_mm=(float(tool.axis_point[0]), float(tool.axis_point[1])),
+        tool_length_mm=tool.length,
+        widths_mm=tuple(float(w) for w in widths),
+        residuals_mm=tuple(float(r) for r in np.linalg.norm(tool.line.residuals(), axis=1)),
+        heights_mm=tuple(float(h) for h in p.heights),
+        sigma=sigma,
+        warnings=tuple(warnings),
+    )
+
+
+def _check_descent(p: _Parsed, tool: _Tool, dev: LaserDevice, widths: FloatArray) -> None:
+    """The tip at the descent must lie beyond every swept section and on (one of) the beams."""
     R0 = p.R0
     u_b = R0 @ tool.u
     s_k = (tool.line.c[:, 2] - (R0 @ tool.axis_point)[2]) / u_b[2]
@@ -569,7 +601,18 @@ def solve_laser(
             loc=("descent_mm",),
             context={"miss_mm": float(miss)},
         )
-    noise, source, widen = _noise(p, tool.line, noise_in, warnings)
+
+
+def _laser_sigma(
+    p: _Parsed,
+    x0: FloatArray,
+    dev: LaserDevice,
+    tool: _Tool,
+    noise: float,
+    widen: float,
+    source: SigmaSource,
+) -> LaserSigma:
+    """1-sigma of every output, the trigger noise propagated through the whole solve."""
 
     def outputs(x: NDArray[np.float64]) -> NDArray[np.float64]:
         t = _solve_tool(p, x, dev)
@@ -585,7 +628,7 @@ def solve_laser(
 
     sig = linear_sigma(outputs, x0, np.full(x0.size, noise)) if noise > 0 else np.zeros(11)
     sig = widen * sig
-    sigma = LaserSigma(
+    return LaserSigma(
         tcp_mm=(float(sig[0]), float(sig[1]), float(sig[2])),
         runout_deg=(float(sig[3]), float(sig[4])),
         offset_mm=(float(sig[5]), float(sig[6])),
@@ -593,21 +636,6 @@ def solve_laser(
         rotation_deg=(float(sig[8]), float(sig[9]), float(sig[10])),
         source=source,
         trigger_noise_mm=noise,
-    )
-    return LaserResult(
-        tcp_mm=tool.tcp,
-        rotation=tool.Q,
-        quaternion_wxyz=quaternion_wxyz_from_matrix(tool.Q),
-        axis_point_flange_mm=tool.axis_point,
-        axis_direction_flange=tool.u,
-        runout_deg=(float(tool.runout[0]), float(tool.runout[1])),
-        offset_mm=(float(tool.axis_point[0]), float(tool.axis_point[1])),
-        tool_length_mm=tool.length,
-        widths_mm=tuple(float(w) for w in widths),
-        residuals_mm=tuple(float(r) for r in np.linalg.norm(tool.line.residuals(), axis=1)),
-        heights_mm=tuple(float(h) for h in p.heights),
-        sigma=sigma,
-        warnings=tuple(warnings),
     )
 
 
@@ -659,6 +687,43 @@ def teach_device(
     # The axis direction follows from midpoint differences alone: any device will do.
     probe = _fit_line(p, p.mids(x0), 0.0, 0.0, 0.0)
     measured = p.R0.T @ probe.direction_base()
+    u = _taught_tool_axis(p, measured, tool_axis_flange, warnings)
+    widths = _check_widths(p, warnings)
+    dev_vec, per = _teach(p, x0, t, u)
+    _check_heights_above_plane(p, float(dev_vec[2]))
+    res_vec = per - dev_vec[[1, 0]][None, :]
+    noise, source, widen = _device_noise(
+        noise_in, res_vec, probe, given_axis=tool_axis_flange is not None, warnings=warnings
+    )
+    sigma = np.zeros(3)
+    if noise > 0:
+
+        def outputs(x: NDArray[np.float64]) -> NDArray[np.float64]:
+            uu = u
+            if tool_axis_flange is None:
+                uu = p.R0.T @ _fit_line(p, p.mids(x), 0.0, 0.0, 0.0).direction_base()
+            return _teach(p, x, t, uu)[0]
+
+        sigma = widen * linear_sigma(outputs, x0, np.full(x0.size, noise))
+    device = LaserDevice(
+        beam_a_y_mm=float(dev_vec[0]), beam_b_x_mm=float(dev_vec[1]), plane_z_mm=float(dev_vec[2])
+    )
+    fit = DeviceFit(
+        residuals_mm=tuple(float(r) for r in np.linalg.norm(res_vec, axis=1)),
+        sigma_mm=(float(sigma[0]), float(sigma[1]), float(sigma[2])),
+        sigma_source=source,
+        axis_direction_flange=u,
+        widths_mm=tuple(float(w) for w in widths),
+        warnings=tuple(warnings),
+    )
+    return device, fit
+
+
+def _taught_tool_axis(
+    p: _Parsed, measured: FloatArray, tool_axis_flange: ArrayLike | None, warnings: list[str]
+) -> FloatArray:
+    """The trusted tool's axis (flange frame, unit): given, or the one the sweeps measured;
+    warns when the two disagree, refuses an axis that does not point down through the beams."""
     if tool_axis_flange is None:
         u = measured
     else:
@@ -684,53 +749,41 @@ def teach_device(
             "rotation: the laser method needs the tool pointing down",
             loc=("poses", 0, "rotation"),
         )
-    widths = _check_widths(p, warnings)
-    dev_vec, per = _teach(p, x0, t, u)
+    return u
+
+
+def _check_heights_above_plane(p: _Parsed, plane_z: float) -> None:
+    """Refuse a sweep height at or below the beam plane the descent found."""
     for k, h in enumerate(p.heights):
-        if h <= dev_vec[2]:
+        if h <= plane_z:
             raise InvalidInput(
                 "invalid-sweep",
                 f"at flange z {h:.2f} mm the flange is not above the beam plane found from "
-                f"the descent (z = {dev_vec[2]:.2f} mm)",
+                f"the descent (z = {plane_z:.2f} mm)",
                 loc=("sweeps", p.groups[k][0], "break_mm"),
             )
-    res_vec = per - dev_vec[[1, 0]][None, :]
-    residuals = np.linalg.norm(res_vec, axis=1)
-    K = len(p.groups)
-    source: SigmaSource
-    widen = 1.0
+
+
+def _device_noise(
+    noise_in: float | None,
+    res_vec: FloatArray,
+    probe: _Line,
+    *,
+    given_axis: bool,
+    warnings: list[str],
+) -> tuple[float, SigmaSource, float]:
+    """The trigger noise behind the device's sigma, its source and the Student's t widening:
+    configured, else from the heights' scatter when they have degrees of freedom to spare."""
+    K = res_vec.shape[0]
     if noise_in is not None:
-        noise, source = noise_in, "configured"
-    elif K >= 2 and tool_axis_flange is not None:
+        return noise_in, "configured", 1.0
+    if K >= 2 and given_axis:
         # Given axis: each height estimates x_B, y_A independently: K - 1 dof per beam.
         noise = float(np.sqrt(2.0 * np.sum(res_vec**2) / (2 * (K - 1))))
-        source, widen = "residuals", _widening(2 * (K - 1))
-    elif K >= 3:
+        return noise, "residuals", _widening(2 * (K - 1))
+    if K >= 3:
         res = probe.residuals()
         noise = float(np.sqrt(2.0 * np.sum(probe.weights * res**2) / (2 * (K - 2))))
-        source, widen = "residuals", _widening(2 * (K - 2))
-    else:
-        noise, source = 0.0, "none"
-        warnings.append("no trigger noise given: the device's uncertainty was not estimated")
-    sigma = np.zeros(3)
-    if noise > 0:
-
-        def outputs(x: NDArray[np.float64]) -> NDArray[np.float64]:
-            uu = u
-            if tool_axis_flange is None:
-                uu = p.R0.T @ _fit_line(p, p.mids(x), 0.0, 0.0, 0.0).direction_base()
-            return _teach(p, x, t, uu)[0]
-
-        sigma = widen * linear_sigma(outputs, x0, np.full(x0.size, noise))
-    device = LaserDevice(
-        beam_a_y_mm=float(dev_vec[0]), beam_b_x_mm=float(dev_vec[1]), plane_z_mm=float(dev_vec[2])
-    )
-    fit = DeviceFit(
-        residuals_mm=tuple(float(r) for r in residuals),
-        sigma_mm=(float(sigma[0]), float(sigma[1]), float(sigma[2])),
-        sigma_source=source,
-        axis_direction_flange=u,
-        widths_mm=tuple(float(w) for w in widths),
-        warnings=tuple(warnings),
-    )
-    return device, fit
+        return noise, "residuals", _widening(2 * (K - 2))
+    warnings.append("no trigger noise given: the device's uncertainty was not estimated")
+    return 0.0, "none", 1.0

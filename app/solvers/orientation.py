@@ -19,6 +19,7 @@ propagate and `sigma_source` is "none" (sigma reported as zeros, with a warning)
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal
@@ -114,6 +115,10 @@ def angle_between_deg(q1_wxyz: ArrayLike, q2_wxyz: ArrayLike) -> float:
     return float(np.degrees((r1.inv() * r2).magnitude()))
 
 
+#: rotation_error_deg takes the scipy way for rotations beyond 60 deg (cos below this).
+SMALL_ROTATION_COS = 0.5
+
+
 def rotation_error_deg(reference: ArrayLike, estimate: ArrayLike) -> NDArray[np.float64]:
     """Small rotation (deg) about the reference tool axes taking `reference` to `estimate`.
 
@@ -121,8 +126,19 @@ def rotation_error_deg(reference: ArrayLike, estimate: ArrayLike) -> NDArray[np.
     """
     ref = np.asarray(reference, dtype=np.float64)
     est = np.asarray(estimate, dtype=np.float64)
-    rotvec: NDArray[np.float64] = Rotation.from_matrix(ref.T @ est).as_rotvec(degrees=True)
-    return rotvec
+    m = ref.T @ est
+    cos = 0.5 * (float(np.trace(m)) - 1.0)
+    if cos < SMALL_ROTATION_COS:
+        rotvec: NDArray[np.float64] = Rotation.from_matrix(m).as_rotvec(degrees=True)
+        return rotvec
+    # Small rotation (the errors the sigmas' finite differences take): the log map from the
+    # skew part, theta = atan2(|s|, cos), as accurate as the quaternion way and without the
+    # rotation objects (most of a laser or 2-point solve's time).
+    skew = 0.5 * np.array([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
+    sin = float(np.linalg.norm(skew))
+    scale = math.atan2(sin, cos) / sin if sin > 0.0 else 1.0
+    out: NDArray[np.float64] = np.degrees(scale * skew)
+    return out
 
 
 def linear_sigma(
@@ -464,6 +480,26 @@ def orientation_from_touches(
             loc=("options", "working_axis"),
         )
     noise = _check_noise(touch_noise_mm, "touch_noise_mm")
+    t, R, f = _two_point_touches(tcp_mm, rotations, positions_mm)
+    Q, w, y = _frame_from_touch_points(t, R, f, working_axis)
+    warnings = _check_levers(w, y, working_axis)
+    sigma = None
+    if noise is not None:
+
+        def fn(xv: NDArray[np.float64]) -> NDArray[np.float64]:
+            Qp = _frame_from_touch_points(t, R, xv.reshape(3, 3), working_axis)[0]
+            return rotation_error_deg(Q, Qp)
+
+        sigma = linear_sigma(fn, f.ravel(), np.full(9, noise))
+    return _result(
+        Q, sigma, (0.0, 0.0, 0.0), warnings, "configured" if noise is not None else "none"
+    )
+
+
+def _two_point_touches(
+    tcp_mm: ArrayLike, rotations: ArrayLike, positions_mm: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The TCP (3,) and the 2-point method's three touches, R (3, 3, 3) and f (3, 3), checked."""
     t = check_finite(tcp_mm, loc=("options", "tcp_mm"))
     if t.shape != (3,):
         raise InvalidInput(
@@ -478,9 +514,13 @@ def orientation_from_touches(
             "behind it, a point on +Y",
             loc=("poses",),
         )
-    R = check_rotation_matrices(R, loc=("poses",))
-    f = check_positions_mm(f, loc=("poses",))
-    Q, w, y = _frame_from_touch_points(t, R, f, working_axis)
+    return t, check_rotation_matrices(R, loc=("poses",)), check_positions_mm(f, loc=("poses",))
+
+
+def _check_levers(
+    w: NDArray[np.float64], y: NDArray[np.float64], working_axis: WorkingAxis
+) -> list[str]:
+    """Refuse a working-axis or +Y lever shorter than MIN_LEVER_MM; warn below WARN_LEVER_MM."""
     lever_axis = float(np.linalg.norm(w))
     if lever_axis < MIN_LEVER_MM:
         raise InvalidInput(
@@ -501,24 +541,12 @@ def orientation_from_touches(
             loc=("poses", 2),
             context={"lever_mm": lever_y},
         )
-    warnings: list[str] = []
-    for name, lever in (("working-axis", lever_axis), ("+Y", lever_y)):
-        if lever < WARN_LEVER_MM:
-            warnings.append(
-                f"the {name} lever is only {lever:.1f} mm: touch errors are magnified into "
-                "orientation errors; use points further apart"
-            )
-    sigma = None
-    if noise is not None:
-
-        def fn(xv: NDArray[np.float64]) -> NDArray[np.float64]:
-            Qp = _frame_from_touch_points(t, R, xv.reshape(3, 3), working_axis)[0]
-            return rotation_error_deg(Q, Qp)
-
-        sigma = linear_sigma(fn, f.ravel(), np.full(9, noise))
-    return _result(
-        Q, sigma, (0.0, 0.0, 0.0), warnings, "configured" if noise is not None else "none"
-    )
+    return [
+        f"the {name} lever is only {lever:.1f} mm: touch errors are magnified into "
+        "orientation errors; use points further apart"
+        for name, lever in (("working-axis", lever_axis), ("+Y", lever_y))
+        if lever < WARN_LEVER_MM
+    ]
 
 
 # --------------------------------------------------------------------------------------
@@ -565,6 +593,25 @@ def orientation_from_world(
             loc=("options", "working_axis"),
         )
     R = check_rotation_matrices(np.asarray(rotation, dtype=np.float64)[None], loc=("poses",))[0]
+    named = _aligned_axes(align)
+    warnings: list[str] = []
+    if len(named) == 1:
+        ((a, b_base),) = named.items()
+        if a != _UNIT[working_axis]:
+            warnings.append(
+                f"5D alignment of tool {'xyz'[a]}, not of the working axis {working_axis}: "
+                "the rotation about tool " + "xyz"[a] + " was taken as close to the flange as "
+                "possible"
+            )
+        Q = _closest_alignment(a, R.T @ b_base, warnings)
+    else:
+        Q = R.T @ _aligned_frame(named)
+    return _result(Q, np.zeros(3), (), warnings, "none")
+
+
+def _aligned_axes(align: Mapping[str, str]) -> dict[int, NDArray[np.float64]]:
+    """Tool axis index -> the base direction (unit) it is aligned with, checked: one to three
+    distinct tool axes onto perpendicular base directions."""
     if not isinstance(align, Mapping) or not 1 <= len(align) <= 3:
         raise InvalidInput(
             "invalid-options",
@@ -596,49 +643,50 @@ def orientation_from_world(
                     loc=("options", "align", str(key)),
                 )
         named[_UNIT[k]] = v
-    warnings: list[str] = []
-    if len(named) == 1:
-        ((a, b_base),) = named.items()
-        if a != _UNIT[working_axis]:
-            warnings.append(
-                f"5D alignment of tool {'xyz'[a]}, not of the working axis {working_axis}: "
-                "the rotation about tool " + "xyz"[a] + " was taken as close to the flange as "
-                "possible"
-            )
-        w = R.T @ b_base  # the tool axis, in the flange frame
-        e = np.zeros(3)
-        e[a] = 1.0
-        cross = np.cross(e, w)
-        s = float(np.linalg.norm(cross))
-        c = float(e @ w)
-        if s < 1e-12:
-            if c > 0:
-                Q = np.eye(3)
-            else:
-                # Half-turn: every axis perpendicular to e is equally close; pick a fixed one.
-                spin = np.zeros(3)
-                spin[(a + 2) % 3] = 1.0
-                Q = Rotation.from_rotvec(np.pi * spin).as_matrix()
-                warnings.append(
-                    "the named direction is opposite the flange's own axis: the half-turn "
-                    f"about the flange {'xyz'[(a + 2) % 3]} axis was chosen"
-                )
-        else:
-            Q = Rotation.from_rotvec(cross / s * float(np.arctan2(s, c))).as_matrix()
-    else:
-        M = np.zeros((3, 3))
-        for a, v in named.items():
-            M[:, a] = v
-        if len(named) == 2:
-            missing = ({0, 1, 2} - set(named)).pop()
-            i, j = (missing + 1) % 3, (missing + 2) % 3
-            M[:, missing] = np.cross(M[:, i], M[:, j])
-        elif np.linalg.det(M) < 0:
-            raise InvalidInput(
-                "invalid-options",
-                "align names a left-handed set of axes (x cross y must equal z); name two "
-                "axes and let the third follow",
-                loc=("options", "align"),
-            )
-        Q = R.T @ M
-    return _result(Q, np.zeros(3), (), warnings, "none")
+    return named
+
+
+def _closest_alignment(a: int, w: NDArray[np.float64], warnings: list[str]) -> NDArray[np.float64]:
+    """The smallest rotation from the flange frame carrying flange axis a onto w (unit, flange
+    frame); the half-turn about a fixed perpendicular axis when w is opposite it."""
+    e = np.zeros(3)
+    e[a] = 1.0
+    cross = np.cross(e, w)
+    s = float(np.linalg.norm(cross))
+    c = float(e @ w)
+    if s >= 1e-12:
+        turned: NDArray[np.float64] = Rotation.from_rotvec(
+            cross / s * float(np.arctan2(s, c))
+        ).as_matrix()
+        return turned
+    if c > 0:
+        return np.eye(3)
+    # Half-turn: every axis perpendicular to e is equally close; pick a fixed one.
+    spin = np.zeros(3)
+    spin[(a + 2) % 3] = 1.0
+    warnings.append(
+        "the named direction is opposite the flange's own axis: the half-turn "
+        f"about the flange {'xyz'[(a + 2) % 3]} axis was chosen"
+    )
+    half_turn: NDArray[np.float64] = Rotation.from_rotvec(np.pi * spin).as_matrix()
+    return half_turn
+
+
+def _aligned_frame(named: dict[int, NDArray[np.float64]]) -> NDArray[np.float64]:
+    """M (3, 3) holding the named base directions as columns, the third one completing two
+    to a right-handed frame; refuses three that are left-handed."""
+    M = np.zeros((3, 3))
+    for a, v in named.items():
+        M[:, a] = v
+    if len(named) == 2:
+        missing = ({0, 1, 2} - set(named)).pop()
+        i, j = (missing + 1) % 3, (missing + 2) % 3
+        M[:, missing] = np.cross(M[:, i], M[:, j])
+    elif np.linalg.det(M) < 0:
+        raise InvalidInput(
+            "invalid-options",
+            "align names a left-handed set of axes (x cross y must equal z); name two "
+            "axes and let the third follow",
+            loc=("options", "align"),
+        )
+    return M
