@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Sequence
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.exports import (
     cnd_file,
@@ -21,7 +22,7 @@ from app.exports import (
     urscript_file,
 )
 from app.exports.abb import export_abb, parse_abb, rapid_identifier
-from app.exports.base import ControllerExport, FloatArray, ToolData
+from app.exports.base import ControllerExport, ToolData
 from app.exports.files import (
     ControllerFile,
     FileContext,

@@ -15,6 +15,7 @@ import re
 
 import numpy as np
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.exports.base import (
     KG_DECIMALS,
@@ -22,7 +23,6 @@ from app.exports.base import (
     NUMBER,
     QUATERNION_DECIMALS,
     ControllerExport,
-    FloatArray,
     ToolData,
     checked_tcp,
     fmt_list,

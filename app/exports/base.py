@@ -17,8 +17,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.jsontypes import JsonObject
 from app.solvers.validation import check_positions_mm, normalised_quaternions
@@ -29,8 +30,6 @@ QUATERNION_DECIMALS = 9
 SI_DECIMALS = 10
 #: Masses, kg: a gram is finer than any tool's load is known.
 KG_DECIMALS = 3
-
-FloatArray = NDArray[np.float64]
 
 
 def _vector(value: ArrayLike | None, size: int) -> FloatArray | None:

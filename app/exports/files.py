@@ -13,8 +13,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
-from app.exports.base import FloatArray, ToolData
+from app.exports.base import ToolData
 from app.exports.names import ascii_text
 
 #: Longest tool name shown in a header line.

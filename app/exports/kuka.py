@@ -12,13 +12,13 @@ import re
 
 import numpy as np
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.exports.base import (
     DEG_DECIMALS,
     MM_DECIMALS,
     NUMBER,
     ControllerExport,
-    FloatArray,
     ToolData,
     checked_tcp,
     fmt_number,

@@ -11,12 +11,12 @@ import re
 
 import numpy as np
 
+from app.arrays import FloatArray
 from app.exports.base import (
     KG_DECIMALS,
     NUMBER,
     SI_DECIMALS,
     ControllerExport,
-    FloatArray,
     ToolData,
     checked_tcp,
     comment_text,

@@ -46,6 +46,7 @@ import re
 
 import numpy as np
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.exports.base import (
     DEG_DECIMALS,
@@ -53,7 +54,6 @@ from app.exports.base import (
     MM_DECIMALS,
     NUMBER,
     ControllerExport,
-    FloatArray,
     ToolData,
     checked_tcp,
     comment_text,

@@ -19,9 +19,10 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.kinematics.dh_table import CONVENTIONS as CONVENTIONS
 from app.kinematics.dh_table import MAX_LINK_DEG as MAX_LINK_DEG
@@ -175,7 +176,7 @@ def _link_from_row(row: object, here: tuple[str | int, ...]) -> DHLink:
 
 def _check_joints(
     kinematics: Kinematics, joints_deg: ArrayLike, loc: Sequence[str | int]
-) -> NDArray[np.float64]:
+) -> FloatArray:
     """(N, n) joint angles in degrees, finite, n matching the model."""
     q = check_finite(joints_deg, loc=loc)
     if q.ndim != 2 or q.shape[1] != kinematics.n_joints:
@@ -193,7 +194,7 @@ def flange_poses(
     joints_deg: ArrayLike,
     *,
     loc: Sequence[str | int] = ("poses",),
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+) -> tuple[FloatArray, FloatArray]:
     """Flange poses in the base frame for (N, n) joint angles in degrees.
 
     Returns ``(base_from_flange rotations (N, 3, 3), flange positions (N, 3) mm)``.
@@ -221,13 +222,11 @@ def flange_poses(
             position = position + rotation.apply(np.array([link.a_mm, 0.0, 0.0]))
             rotation = rotation * rot_theta
             position = position + rotation.apply(np.array([0.0, 0.0, link.d_mm]))
-    matrices: NDArray[np.float64] = rotation.as_matrix().reshape(n_poses, 3, 3)
+    matrices: FloatArray = rotation.as_matrix().reshape(n_poses, 3, 3)
     return matrices, position
 
 
-def flange_pose(
-    kinematics: Kinematics, joints_deg: ArrayLike
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def flange_pose(kinematics: Kinematics, joints_deg: ArrayLike) -> tuple[FloatArray, FloatArray]:
     """Flange pose for one set of n joint angles in degrees: (R (3, 3), position (3,) mm)."""
     q = np.asarray(joints_deg, dtype=np.float64).reshape(1, -1)
     rotations, positions = flange_poses(kinematics, q, loc=("joints",))

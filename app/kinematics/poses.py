@@ -26,9 +26,10 @@ from dataclasses import dataclass
 from typing import Literal, SupportsFloat, TypeGuard, cast
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.kinematics.dh import Kinematics, flange_poses
 from app.kinematics.urdf import UrdfChain
@@ -61,7 +62,6 @@ BOTTOM_ROW_ATOL = 1e-6
 Length = Literal["mm", "m"]
 Angle = Literal["deg", "rad"]
 Loc = Sequence[str | int]
-FloatArray = NDArray[np.float64]
 
 _MM_PER: dict[str, float] = {"mm": 1.0, "m": 1000.0}
 

@@ -10,10 +10,10 @@ point p (base frame, mm), the flange sits at f = p - R t.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
-FloatArray = NDArray[np.float64]
+from app.arrays import FloatArray
 
 
 def cone_rotations(

@@ -33,13 +33,12 @@ from typing import Protocol
 
 import numpy as np
 from lxml import etree
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.solvers.validation import check_finite
-
-FloatArray = NDArray[np.float64]
 
 #: Largest URDF document accepted (characters); the arms' are 5-60 kB.
 MAX_URDF_CHARS = 1_000_000
@@ -67,8 +66,8 @@ class _Joint(Protocol):
     type: str
     parent: str
     child: str
-    origin: NDArray[np.float64] | None
-    axis: NDArray[np.float64] | None
+    origin: FloatArray | None
+    axis: FloatArray | None
     limit: _Limit | None
     mimic: _Mimic | None
 

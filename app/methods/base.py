@@ -15,12 +15,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Annotated, Generic, Literal, Protocol, TypeVar
 
-import numpy as np
-from numpy.typing import NDArray
 from pydantic import BaseModel, GetCoreSchemaHandler, GetJsonSchemaHandler
 from pydantic.json_schema import JsonSchemaValue
 from pydantic_core import PydanticCustomError, core_schema
 
+from app.arrays import FloatArray
 from app.errors import InputKind
 from app.jsontypes import JsonObject
 from app.schemas.common import (
@@ -36,7 +35,6 @@ from app.schemas.tools import Tolerance
 from app.solvers.orientation import angle_between_deg
 
 Activate = Literal["auto", "always", "never"]
-FloatArray = NDArray[np.float64]
 
 
 # ---- the request ----------------------------------------------------------------------------

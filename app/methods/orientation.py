@@ -11,9 +11,9 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import ConfigDict, Field
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.methods.base import (
-    FloatArray,
     Method,
     MethodContext,
     PoseCount,

@@ -6,9 +6,9 @@ A check never changes the active TCP; it is recorded in the audit trail either w
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 from sqlalchemy.orm import Session
 
+from app.arrays import FloatArray
 from app.auth import Principal
 from app.errors import located_in
 from app.helpers.tolerance import effective_tolerance
@@ -26,8 +26,6 @@ from app.services.tools import get_tool
 from app.services.verdict import check_summary
 from app.services.versions import active_version_row, lock_tool
 from app.solvers.reference import TcpDeviation, check_tcp
-
-FloatArray = NDArray[np.float64]
 
 
 def run_check(

@@ -12,9 +12,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 from sqlalchemy.orm import Session
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.helpers.tolerance import effective_tolerance
 from app.methods.base import ActiveFrame, StoredPoint
@@ -24,7 +24,7 @@ from app.schemas.tools import Tolerance
 from app.services.frames import active_frame, parse_poses_with
 
 #: Poses read: rotations (N, 3, 3) and flange positions (N, 3) mm.
-PosesRead = tuple[NDArray[np.float64], NDArray[np.float64]]
+PosesRead = tuple[FloatArray, FloatArray]
 
 
 class _Readings:

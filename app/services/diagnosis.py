@@ -16,9 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-import numpy as np
-from numpy.typing import NDArray
-
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.kinematics.readings import (
     NEAR_BASE_MM,
@@ -57,7 +55,7 @@ class _Candidate:
 
 
 #: Reads the submission's poses under a reading: flange positions (N, 3) mm.
-Positions = Callable[[str, Units | None], NDArray[np.float64]]
+Positions = Callable[[str, Units | None], FloatArray]
 #: Solves (or checks) the submission under a reading.
 Attempt = Callable[[str, Units], Fit]
 

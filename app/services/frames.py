@@ -5,9 +5,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 from sqlalchemy.orm import Session
 
+from app.arrays import FloatArray
 from app.kinematics.dh import kinematics_from_spec
 from app.kinematics.poses import poses_from_format
 from app.methods.base import ActiveFrame
@@ -23,7 +23,7 @@ def parse_poses_with(
     units: Units | None,
     *,
     loc: Sequence[str | int],
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+) -> tuple[FloatArray, FloatArray]:
     """Poses in any format -> (R, f), with the robot's kinematics for `joints`."""
     chain = kinematics_from_spec(kinematics) if kinematics else None
     unit_map = units.model_dump(exclude_none=True) if units else None

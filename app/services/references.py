@@ -5,11 +5,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TypeVar
 
-import numpy as np
-from numpy.typing import NDArray
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.arrays import FloatArray
 from app.auth import Principal
 from app.errors import Conflict, InvalidInput, NotFound, located_in
 from app.helpers.pagination import paginate
@@ -23,8 +22,6 @@ from app.services.frames import active_frame, parse_poses_with
 from app.services.robots import get_robot
 from app.services.tools import tool_named_in_body
 from app.solvers.reference import reference_point_from_touch
-
-FloatArray = NDArray[np.float64]
 
 
 def ensure_name_free(

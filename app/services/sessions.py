@@ -18,11 +18,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.arrays import FloatArray
 from app.auth import Principal
 from app.errors import Conflict, InvalidInput, NotFound
 from app.helpers.tolerance import effective_tolerance
@@ -52,8 +52,6 @@ from app.services.robots import get_robot
 from app.services.tools import get_tool
 from app.solvers.npoint import NOISE_CONTRADICTED
 from app.solvers.planning import Cone, next_touch, plan_touches, smallest_plan
-
-FloatArray = NDArray[np.float64]
 
 #: The TCP assumed when neither the request nor the tool gives one (mm, flange frame).
 DEFAULT_TCP_MM = (0.0, 0.0, 150.0)

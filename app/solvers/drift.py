@@ -31,13 +31,12 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy import stats
 from scipy.optimize import brentq
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
-
-FloatArray = NDArray[np.float64]
 
 #: Days per month in every rate (365.25 / 12).
 MONTH_DAYS = 30.44

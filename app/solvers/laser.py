@@ -43,10 +43,11 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.stats import norm
 from scipy.stats import t as student_t
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.solvers.orientation import (
     SigmaSource,
@@ -55,8 +56,6 @@ from app.solvers.orientation import (
     rotation_error_deg,
 )
 from app.solvers.validation import check_finite, check_positions_mm, check_rotation_matrices
-
-FloatArray = NDArray[np.float64]
 
 Beam = Literal["a", "b"]
 
@@ -113,11 +112,11 @@ class LaserSigma:
 class LaserResult:
     """Tool axis, TCP and frame from laser sweeps; see the module docstring for definitions."""
 
-    tcp_mm: NDArray[np.float64]
-    rotation: NDArray[np.float64]
+    tcp_mm: FloatArray
+    rotation: FloatArray
     quaternion_wxyz: tuple[float, float, float, float]
-    axis_point_flange_mm: NDArray[np.float64]
-    axis_direction_flange: NDArray[np.float64]
+    axis_point_flange_mm: FloatArray
+    axis_direction_flange: FloatArray
     runout_deg: tuple[float, float]
     offset_mm: tuple[float, float]
     tool_length_mm: float
@@ -135,7 +134,7 @@ class DeviceFit:
     residuals_mm: tuple[float, ...]
     sigma_mm: tuple[float, float, float]  # beam_a_y, beam_b_x, plane_z
     sigma_source: SigmaSource
-    axis_direction_flange: NDArray[np.float64]
+    axis_direction_flange: FloatArray
     widths_mm: tuple[float, ...]
     warnings: tuple[str, ...]
 
@@ -147,16 +146,16 @@ class DeviceFit:
 
 @dataclass(frozen=True)
 class _Parsed:
-    R0: NDArray[np.float64]
+    R0: FloatArray
     beams: tuple[str, ...]
-    breaks: NDArray[np.float64]  # (n, 3)
-    restores: NDArray[np.float64]  # (n, 3)
+    breaks: FloatArray  # (n, 3)
+    restores: FloatArray  # (n, 3)
     groups: tuple[tuple[int, ...], ...]  # sweep indices per height, by increasing z
-    heights: NDArray[np.float64]  # (K,) flange z per height
-    descent: NDArray[np.float64]  # (3,)
+    heights: FloatArray  # (K,) flange z per height
+    descent: FloatArray  # (3,)
     warnings: tuple[str, ...]
 
-    def noisy_inputs(self) -> NDArray[np.float64]:
+    def noisy_inputs(self) -> FloatArray:
         """The values trigger noise acts on: along-sweep break, restore; then descent z."""
         along = [_ALONG[b] for b in self.beams]
         idx = np.arange(len(self.beams))
@@ -164,15 +163,15 @@ class _Parsed:
             [self.breaks[idx, along], self.restores[idx, along], [self.descent[2]]]
         )
 
-    def mids(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+    def mids(self, x: FloatArray) -> FloatArray:
         n = len(self.beams)
-        out: NDArray[np.float64] = 0.5 * (x[:n] + x[n : 2 * n])
+        out: FloatArray = 0.5 * (x[:n] + x[n : 2 * n])
         return out
 
-    def widths(self) -> NDArray[np.float64]:
+    def widths(self) -> FloatArray:
         along = [_ALONG[b] for b in self.beams]
         idx = np.arange(len(self.beams))
-        out: NDArray[np.float64] = np.abs(self.restores[idx, along] - self.breaks[idx, along])
+        out: FloatArray = np.abs(self.restores[idx, along] - self.breaks[idx, along])
         return out
 
 
@@ -348,25 +347,25 @@ def _height_groups(
 class _Line:
     """Tool axis relative to the flange, base orientation: point at c_z = 0, slopes, fit."""
 
-    alpha: NDArray[np.float64]  # (2,) x, y at c_z = 0
-    beta: NDArray[np.float64]  # (2,) dx/dc_z, dy/dc_z
-    c: NDArray[np.float64]  # (K, 3) axis points per height
-    weights: NDArray[np.float64]  # (K, 2) sweeps per height for beam B (x) and A (y)
+    alpha: FloatArray  # (2,) x, y at c_z = 0
+    beta: FloatArray  # (2,) dx/dc_z, dy/dc_z
+    c: FloatArray  # (K, 3) axis points per height
+    weights: FloatArray  # (K, 2) sweeps per height for beam B (x) and A (y)
 
-    def residuals(self) -> NDArray[np.float64]:
+    def residuals(self) -> FloatArray:
         pred = self.alpha[None, :] + self.c[:, 2:3] * self.beta[None, :]
-        out: NDArray[np.float64] = self.c[:, :2] - pred
+        out: FloatArray = self.c[:, :2] - pred
         return out
 
-    def direction_base(self) -> NDArray[np.float64]:
+    def direction_base(self) -> FloatArray:
         """Unit axis direction in base orientation, pointing down (away from the flange)."""
         v = -np.array([self.beta[0], self.beta[1], 1.0])
-        out: NDArray[np.float64] = v / np.linalg.norm(v)
+        out: FloatArray = v / np.linalg.norm(v)
         return out
 
 
 def _fit_line(
-    p: _Parsed, mids: NDArray[np.float64], beam_b_x: float, beam_a_y: float, plane_z: float
+    p: _Parsed, mids: FloatArray, beam_b_x: float, beam_a_y: float, plane_z: float
 ) -> _Line:
     K = len(p.groups)
     c = np.empty((K, 3))
@@ -389,15 +388,15 @@ def _fit_line(
 @dataclass(frozen=True)
 class _Tool:
     line: _Line
-    axis_point: NDArray[np.float64]  # flange frame, z = 0
-    u: NDArray[np.float64]  # flange frame, unit, away from the flange
+    axis_point: FloatArray  # flange frame, z = 0
+    u: FloatArray  # flange frame, unit, away from the flange
     length: float
-    tcp: NDArray[np.float64]
-    Q: NDArray[np.float64]
-    runout: NDArray[np.float64]  # deg (tx, ty)
+    tcp: FloatArray
+    Q: FloatArray
+    runout: FloatArray  # deg (tx, ty)
 
 
-def _tool_frame(u: NDArray[np.float64]) -> NDArray[np.float64]:
+def _tool_frame(u: FloatArray) -> FloatArray:
     x = np.array([1.0, 0.0, 0.0])
     xo = x - float(x @ u) * u
     if float(np.linalg.norm(xo)) < 1e-9:
@@ -407,7 +406,7 @@ def _tool_frame(u: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.column_stack([xo, np.cross(u, xo), u])
 
 
-def _solve_tool(p: _Parsed, x: NDArray[np.float64], dev: LaserDevice) -> _Tool:
+def _solve_tool(p: _Parsed, x: FloatArray, dev: LaserDevice) -> _Tool:
     line = _fit_line(p, p.mids(x), dev.beam_b_x_mm, dev.beam_a_y_mm, dev.plane_z_mm)
     R0 = p.R0
     u_b = line.direction_base()
@@ -429,7 +428,7 @@ def _solve_tool(p: _Parsed, x: NDArray[np.float64], dev: LaserDevice) -> _Tool:
     return _Tool(line, axis_point, u, length, tcp, Q, _runout_deg(u))
 
 
-def _runout_deg(u: NDArray[np.float64]) -> NDArray[np.float64]:
+def _runout_deg(u: FloatArray) -> FloatArray:
     """(tx, ty) deg: the first two intrinsic X-Y-Z Euler angles of the tool frame whose Z is u,
     as Rotation.as_euler("XYZ") gives them. Only the frame's Z column enters them
     (Rx(a) Ry(b) Rz(c) has Z column [sin b, -sin a cos b, cos a cos b]), and with |u_z| >=
@@ -437,7 +436,7 @@ def _runout_deg(u: NDArray[np.float64]) -> NDArray[np.float64]:
     objects the sigma's finite differences would build some fifty times a solve."""
     tx = math.atan2(-float(u[1]), float(u[2]))
     ty = math.atan2(float(u[0]), math.hypot(float(u[1]), float(u[2])))
-    out: NDArray[np.float64] = np.degrees(np.array([tx, ty]))
+    out: FloatArray = np.degrees(np.array([tx, ty]))
     return out
 
 
@@ -488,7 +487,7 @@ def _check_noise(value: float | None) -> float | None:
     return v
 
 
-def _check_widths(p: _Parsed, warnings: list[str]) -> NDArray[np.float64]:
+def _check_widths(p: _Parsed, warnings: list[str]) -> FloatArray:
     widths = p.widths()
     for beam in ("a", "b"):
         wb = np.array([widths[i] for i in range(len(p.beams)) if p.beams[i] == beam])
@@ -501,7 +500,7 @@ def _check_widths(p: _Parsed, warnings: list[str]) -> NDArray[np.float64]:
     return widths
 
 
-def _check_line_residuals(p: _Parsed, line: _Line, widths: NDArray[np.float64]) -> None:
+def _check_line_residuals(p: _Parsed, line: _Line, widths: FloatArray) -> None:
     if len(p.groups) < 3:
         return
     res = np.linalg.norm(line.residuals(), axis=1)
@@ -614,7 +613,7 @@ def _laser_sigma(
 ) -> LaserSigma:
     """1-sigma of every output, the trigger noise propagated through the whole solve."""
 
-    def outputs(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    def outputs(x: FloatArray) -> FloatArray:
         t = _solve_tool(p, x, dev)
         return np.concatenate(
             [
@@ -640,8 +639,8 @@ def _laser_sigma(
 
 
 def _teach(
-    p: _Parsed, x: NDArray[np.float64], t: NDArray[np.float64], u: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    p: _Parsed, x: FloatArray, t: FloatArray, u: FloatArray
+) -> tuple[FloatArray, FloatArray]:
     """(device [y_A, x_B, z_L], per-height [x_B_k, y_A_k]) for trusted tcp t and axis u."""
     R0 = p.R0
     mids = p.mids(x)
@@ -698,7 +697,7 @@ def teach_device(
     sigma = np.zeros(3)
     if noise > 0:
 
-        def outputs(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        def outputs(x: FloatArray) -> FloatArray:
             uu = u
             if tool_axis_flange is None:
                 uu = p.R0.T @ _fit_line(p, p.mids(x), 0.0, 0.0, 0.0).direction_base()

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.solvers.validation import check_finite, check_positions_mm, check_rotation_matrices
 
@@ -62,10 +63,10 @@ class Direction:
     """
 
     axis: AxisName
-    rotation_from: NDArray[np.float64]
-    position_from_mm: NDArray[np.float64]
-    rotation_to: NDArray[np.float64]
-    position_to_mm: NDArray[np.float64]
+    rotation_from: FloatArray
+    position_from_mm: FloatArray
+    rotation_to: FloatArray
+    position_to_mm: FloatArray
 
 
 @dataclass(frozen=True)
@@ -78,7 +79,7 @@ class OrientationResult:
     the fitted axis; touches and world alignment are exactly determined: zeros / empty).
     """
 
-    rotation: NDArray[np.float64]
+    rotation: FloatArray
     quaternion_wxyz: tuple[float, float, float, float]
     sigma_deg: tuple[float, float, float]
     residuals: tuple[float, ...]
@@ -119,7 +120,7 @@ def angle_between_deg(q1_wxyz: ArrayLike, q2_wxyz: ArrayLike) -> float:
 SMALL_ROTATION_COS = 0.5
 
 
-def rotation_error_deg(reference: ArrayLike, estimate: ArrayLike) -> NDArray[np.float64]:
+def rotation_error_deg(reference: ArrayLike, estimate: ArrayLike) -> FloatArray:
     """Small rotation (deg) about the reference tool axes taking `reference` to `estimate`.
 
     Both are (3, 3) tool -> flange; the result is the rotation vector of reference^T estimate.
@@ -129,7 +130,7 @@ def rotation_error_deg(reference: ArrayLike, estimate: ArrayLike) -> NDArray[np.
     m = ref.T @ est
     cos = 0.5 * (float(np.trace(m)) - 1.0)
     if cos < SMALL_ROTATION_COS:
-        rotvec: NDArray[np.float64] = Rotation.from_matrix(m).as_rotvec(degrees=True)
+        rotvec: FloatArray = Rotation.from_matrix(m).as_rotvec(degrees=True)
         return rotvec
     # Small rotation (the errors the sigmas' finite differences take): the log map from the
     # skew part, theta = atan2(|s|, cos), as accurate as the quaternion way and without the
@@ -137,17 +138,17 @@ def rotation_error_deg(reference: ArrayLike, estimate: ArrayLike) -> NDArray[np.
     skew = 0.5 * np.array([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
     sin = float(np.linalg.norm(skew))
     scale = math.atan2(sin, cos) / sin if sin > 0.0 else 1.0
-    out: NDArray[np.float64] = np.degrees(scale * skew)
+    out: FloatArray = np.degrees(scale * skew)
     return out
 
 
 def linear_sigma(
-    fn: Callable[[NDArray[np.float64]], NDArray[np.float64]],
-    x0: NDArray[np.float64],
-    sigma_in: NDArray[np.float64],
+    fn: Callable[[FloatArray], FloatArray],
+    x0: FloatArray,
+    sigma_in: FloatArray,
     *,
     step: float = 1e-3,
-) -> NDArray[np.float64]:
+) -> FloatArray:
     """1-sigma of fn(x) for independent input errors sigma_in, by a central-difference Jacobian.
 
     fn maps the (n,) noisy inputs to (m,) outputs and must be smooth near x0 (all solvers
@@ -164,29 +165,29 @@ def linear_sigma(
     if not cols:
         return np.zeros_like(fn(x0))
     jac = np.stack(cols, axis=1)
-    out: NDArray[np.float64] = np.sqrt(np.sum(jac**2, axis=1))
+    out: FloatArray = np.sqrt(np.sum(jac**2, axis=1))
     return out
 
 
-def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    out: NDArray[np.float64] = v / np.linalg.norm(v)
+def _unit(v: FloatArray) -> FloatArray:
+    out: FloatArray = v / np.linalg.norm(v)
     return out
 
 
-def _orthogonalised(v: NDArray[np.float64], axis: NDArray[np.float64]) -> NDArray[np.float64]:
+def _orthogonalised(v: FloatArray, axis: FloatArray) -> FloatArray:
     """v with its component along the unit vector `axis` removed (not normalised)."""
-    out: NDArray[np.float64] = v - float(v @ axis) * axis
+    out: FloatArray = v - float(v @ axis) * axis
     return out
 
 
-def _frame_from_z_x(z: NDArray[np.float64], x_hint: NDArray[np.float64]) -> NDArray[np.float64]:
+def _frame_from_z_x(z: FloatArray, x_hint: FloatArray) -> FloatArray:
     """Right-handed frame [X Y Z] with Z = z and X = x_hint made orthogonal to Z."""
     zu = _unit(z)
     xu = _unit(_orthogonalised(x_hint, zu))
     return np.column_stack([xu, np.cross(zu, xu), zu])
 
 
-def _frame_from_x_y(x: NDArray[np.float64], y_hint: NDArray[np.float64]) -> NDArray[np.float64]:
+def _frame_from_x_y(x: FloatArray, y_hint: FloatArray) -> FloatArray:
     """Right-handed frame [X Y Z] with X = x and Y = y_hint made orthogonal to X."""
     xu = _unit(x)
     yu = _unit(_orthogonalised(y_hint, xu))
@@ -194,8 +195,8 @@ def _frame_from_x_y(x: NDArray[np.float64], y_hint: NDArray[np.float64]) -> NDAr
 
 
 def _result(
-    Q: NDArray[np.float64],
-    sigma: NDArray[np.float64] | None,
+    Q: FloatArray,
+    sigma: FloatArray | None,
     residuals: Sequence[float],
     warnings: list[str],
     source: SigmaSource,
@@ -224,17 +225,17 @@ def _check_noise(value: float | None, name: str) -> float | None:
     return v
 
 
-def _checked_rotation(R: ArrayLike, loc: tuple[str | int, ...], what: str) -> NDArray[np.float64]:
+def _checked_rotation(R: ArrayLike, loc: tuple[str | int, ...], what: str) -> FloatArray:
     try:
         arr = check_rotation_matrices(np.asarray(R, dtype=np.float64)[None], loc=loc)
     except InvalidInput as exc:
         detail = exc.detail.replace("pose 0", what)
         raise InvalidInput(exc.kind, detail, loc=loc) from None
-    out: NDArray[np.float64] = arr[0]
+    out: FloatArray = arr[0]
     return out
 
 
-def _checked_position(p: ArrayLike, loc: tuple[str | int, ...], what: str) -> NDArray[np.float64]:
+def _checked_position(p: ArrayLike, loc: tuple[str | int, ...], what: str) -> FloatArray:
     arr = np.asarray(p, dtype=np.float64)
     if arr.shape != (3,):
         raise InvalidInput("invalid-pose", f"{what}: a position needs 3 values (mm)", loc=loc)
@@ -242,7 +243,7 @@ def _checked_position(p: ArrayLike, loc: tuple[str | int, ...], what: str) -> ND
         out = check_positions_mm(arr[None], loc=loc)
     except InvalidInput as exc:
         raise InvalidInput(exc.kind, exc.detail.replace("pose 0", what), loc=loc) from None
-    pos: NDArray[np.float64] = out[0]
+    pos: FloatArray = out[0]
     return pos
 
 
@@ -252,10 +253,10 @@ def _checked_position(p: ArrayLike, loc: tuple[str | int, ...], what: str) -> ND
 
 
 def _translation_axes(
-    mid_rotations: Sequence[NDArray[np.float64]],
-    signs: NDArray[np.float64],
-    moves: NDArray[np.float64],
-) -> NDArray[np.float64]:
+    mid_rotations: Sequence[FloatArray],
+    signs: FloatArray,
+    moves: FloatArray,
+) -> FloatArray:
     """Signed tool-axis unit vectors in the flange frame, one per move ((n, 3))."""
     out = np.empty_like(moves)
     for i, (R, s, d) in enumerate(zip(mid_rotations, signs, moves, strict=True)):
@@ -263,17 +264,17 @@ def _translation_axes(
     return out
 
 
-def _combine(vectors: NDArray[np.float64], lengths: NDArray[np.float64]) -> NDArray[np.float64]:
+def _combine(vectors: FloatArray, lengths: FloatArray) -> FloatArray:
     """Weighted mean direction: weights L^2 (a move's angular noise scales as 1/L)."""
     return _unit(np.sum(vectors * (lengths**2)[:, None], axis=0))
 
 
 def _frame_from_moves(
-    mid_rotations: Sequence[NDArray[np.float64]],
-    signs: NDArray[np.float64],
+    mid_rotations: Sequence[FloatArray],
+    signs: FloatArray,
     is_z: NDArray[np.bool_],
-    moves: NDArray[np.float64],
-) -> NDArray[np.float64]:
+    moves: FloatArray,
+) -> FloatArray:
     axes = _translation_axes(mid_rotations, signs, moves)
     lengths = np.linalg.norm(moves, axis=1)
     z = _combine(axes[is_z], lengths[is_z])
@@ -330,7 +331,7 @@ def orientation_from_translations(
         x0 = np.concatenate([starts.ravel(), ends.ravel()])
         n = len(directions)
 
-        def fn(xv: NDArray[np.float64]) -> NDArray[np.float64]:
+        def fn(xv: FloatArray) -> FloatArray:
             mv = xv[3 * n :].reshape(n, 3) - xv[: 3 * n].reshape(n, 3)
             return rotation_error_deg(Q, _frame_from_moves(mids, signs, is_z, mv))
 
@@ -342,9 +343,9 @@ def orientation_from_translations(
 class _Move:
     """One checked translation: flange positions (3,) mm and the mean rotation (3, 3)."""
 
-    start: NDArray[np.float64]
-    end: NDArray[np.float64]
-    rotation: NDArray[np.float64]
+    start: FloatArray
+    end: FloatArray
+    rotation: FloatArray
 
 
 def _checked_move(i: int, d: Direction) -> _Move:
@@ -385,7 +386,7 @@ def _checked_move(i: int, d: Direction) -> _Move:
 
 
 def _check_same_axis_agreement(
-    directions: Sequence[Direction], axes: NDArray[np.float64], is_z: NDArray[np.bool_]
+    directions: Sequence[Direction], axes: FloatArray, is_z: NDArray[np.bool_]
 ) -> None:
     """Refuse a move that points away from the first move along the same tool axis.
 
@@ -405,7 +406,7 @@ def _check_same_axis_agreement(
             )
 
 
-def _x_against_z(x: NDArray[np.float64] | None, z: NDArray[np.float64], i_x: int) -> list[str]:
+def _x_against_z(x: FloatArray | None, z: FloatArray, i_x: int) -> list[str]:
     """Refuse an X move (first at index i_x) nearly parallel to Z; warn when it is not
     perpendicular, or when there is none."""
     if x is None:
@@ -434,11 +435,11 @@ def _x_against_z(x: NDArray[np.float64] | None, z: NDArray[np.float64], i_x: int
 
 
 def _frame_from_touch_points(
-    t: NDArray[np.float64],
-    rotations: NDArray[np.float64],
-    positions: NDArray[np.float64],
+    t: FloatArray,
+    rotations: FloatArray,
+    positions: FloatArray,
     working_axis: WorkingAxis,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """(Q, axis vector t - p2, y vector p3 - t) in the flange frame."""
     r = rotations[0] @ t + positions[0]
     p2 = rotations[1].T @ (r - positions[1])
@@ -486,7 +487,7 @@ def orientation_from_touches(
     sigma = None
     if noise is not None:
 
-        def fn(xv: NDArray[np.float64]) -> NDArray[np.float64]:
+        def fn(xv: FloatArray) -> FloatArray:
             Qp = _frame_from_touch_points(t, R, xv.reshape(3, 3), working_axis)[0]
             return rotation_error_deg(Q, Qp)
 
@@ -498,7 +499,7 @@ def orientation_from_touches(
 
 def _two_point_touches(
     tcp_mm: ArrayLike, rotations: ArrayLike, positions_mm: ArrayLike
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """The TCP (3,) and the 2-point method's three touches, R (3, 3, 3) and f (3, 3), checked."""
     t = check_finite(tcp_mm, loc=("options", "tcp_mm"))
     if t.shape != (3,):
@@ -517,9 +518,7 @@ def _two_point_touches(
     return t, check_rotation_matrices(R, loc=("poses",)), check_positions_mm(f, loc=("poses",))
 
 
-def _check_levers(
-    w: NDArray[np.float64], y: NDArray[np.float64], working_axis: WorkingAxis
-) -> list[str]:
+def _check_levers(w: FloatArray, y: FloatArray, working_axis: WorkingAxis) -> list[str]:
     """Refuse a working-axis or +Y lever shorter than MIN_LEVER_MM; warn below WARN_LEVER_MM."""
     lever_axis = float(np.linalg.norm(w))
     if lever_axis < MIN_LEVER_MM:
@@ -554,7 +553,7 @@ def _check_levers(
 # --------------------------------------------------------------------------------------
 
 
-def _parse_base_direction(value: object, key: str) -> NDArray[np.float64]:
+def _parse_base_direction(value: object, key: str) -> FloatArray:
     text = str(value).strip().lower()
     if len(text) == 1:
         text = "+" + text
@@ -609,7 +608,7 @@ def orientation_from_world(
     return _result(Q, np.zeros(3), (), warnings, "none")
 
 
-def _aligned_axes(align: Mapping[str, str]) -> dict[int, NDArray[np.float64]]:
+def _aligned_axes(align: Mapping[str, str]) -> dict[int, FloatArray]:
     """Tool axis index -> the base direction (unit) it is aligned with, checked: one to three
     distinct tool axes onto perpendicular base directions."""
     if not isinstance(align, Mapping) or not 1 <= len(align) <= 3:
@@ -618,7 +617,7 @@ def _aligned_axes(align: Mapping[str, str]) -> dict[int, NDArray[np.float64]]:
             "align must name one (5D) or two (6D) tool axes, e.g. {'x': '-z', 'y': '+y'}",
             loc=("options", "align"),
         )
-    named: dict[int, NDArray[np.float64]] = {}
+    named: dict[int, FloatArray] = {}
     for key, value in align.items():
         k = str(key).strip().lower()
         if k not in _UNIT:
@@ -646,7 +645,7 @@ def _aligned_axes(align: Mapping[str, str]) -> dict[int, NDArray[np.float64]]:
     return named
 
 
-def _closest_alignment(a: int, w: NDArray[np.float64], warnings: list[str]) -> NDArray[np.float64]:
+def _closest_alignment(a: int, w: FloatArray, warnings: list[str]) -> FloatArray:
     """The smallest rotation from the flange frame carrying flange axis a onto w (unit, flange
     frame); the half-turn about a fixed perpendicular axis when w is opposite it."""
     e = np.zeros(3)
@@ -655,9 +654,7 @@ def _closest_alignment(a: int, w: NDArray[np.float64], warnings: list[str]) -> N
     s = float(np.linalg.norm(cross))
     c = float(e @ w)
     if s >= 1e-12:
-        turned: NDArray[np.float64] = Rotation.from_rotvec(
-            cross / s * float(np.arctan2(s, c))
-        ).as_matrix()
+        turned: FloatArray = Rotation.from_rotvec(cross / s * float(np.arctan2(s, c))).as_matrix()
         return turned
     if c > 0:
         return np.eye(3)
@@ -668,11 +665,11 @@ def _closest_alignment(a: int, w: NDArray[np.float64], warnings: list[str]) -> N
         "the named direction is opposite the flange's own axis: the half-turn "
         f"about the flange {'xyz'[(a + 2) % 3]} axis was chosen"
     )
-    half_turn: NDArray[np.float64] = Rotation.from_rotvec(np.pi * spin).as_matrix()
+    half_turn: FloatArray = Rotation.from_rotvec(np.pi * spin).as_matrix()
     return half_turn
 
 
-def _aligned_frame(named: dict[int, NDArray[np.float64]]) -> NDArray[np.float64]:
+def _aligned_frame(named: dict[int, FloatArray]) -> FloatArray:
     """M (3, 3) holding the named base directions as columns, the third one completing two
     to a right-handed frame; refuses three that are left-handed."""
     M = np.zeros((3, 3))

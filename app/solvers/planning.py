@@ -24,10 +24,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.optimize import minimize
 
-FloatArray = NDArray[np.float64]
+from app.arrays import FloatArray
 
 MIN_TOUCHES = 4
 MAX_TOUCHES = 30

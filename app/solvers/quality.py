@@ -11,11 +11,11 @@ from functools import lru_cache
 from typing import Final, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2, f
 
-FloatArray = NDArray[np.float64]
+from app.arrays import FloatArray
 
 #: Probability content of the reported uncertainty ellipsoid.
 ELLIPSOID_PROBABILITY = 0.95

@@ -10,8 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.solvers.quality import SIGMA_CONFIGURED, Quality, make_quality
 from app.solvers.validation import (
@@ -20,8 +21,6 @@ from app.solvers.validation import (
     check_positions_mm,
     check_rotation_matrices,
 )
-
-FloatArray = NDArray[np.float64]
 
 #: Largest touch noise accepted (mm); larger values are unit mistakes.
 MAX_TOUCH_NOISE_MM = 100.0

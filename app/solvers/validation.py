@@ -5,8 +5,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 
 #: Largest coordinate accepted, mm (100 m). A tracker that lost the tool reports about
@@ -20,7 +21,7 @@ QUATERNION_NORM_ATOL = 1e-3
 Loc = Sequence[str | int]
 
 
-def check_finite(values: ArrayLike, *, loc: Loc = ()) -> NDArray[np.float64]:
+def check_finite(values: ArrayLike, *, loc: Loc = ()) -> FloatArray:
     """Return `values` as a float array; InvalidInput("non-finite") naming the first bad index."""
     arr = np.asarray(values, dtype=np.float64)
     bad = ~np.isfinite(arr)
@@ -34,7 +35,7 @@ def check_finite(values: ArrayLike, *, loc: Loc = ()) -> NDArray[np.float64]:
     return arr
 
 
-def check_positions_mm(positions: ArrayLike, *, loc: Loc = ("poses",)) -> NDArray[np.float64]:
+def check_positions_mm(positions: ArrayLike, *, loc: Loc = ("poses",)) -> FloatArray:
     """Check an (N, 3) array of positions in mm: finite and within 100 m of the origin."""
     arr = check_finite(positions, loc=loc)
     if arr.ndim != 2 or arr.shape[1] != 3:
@@ -55,7 +56,7 @@ def check_positions_mm(positions: ArrayLike, *, loc: Loc = ("poses",)) -> NDArra
 
 def check_rotation_matrices(
     rotations: ArrayLike, *, loc: Loc = ("poses",), atol: float = ROTATION_ATOL
-) -> NDArray[np.float64]:
+) -> FloatArray:
     """Check an (N, 3, 3) array of rotation matrices: finite, orthonormal and det +1."""
     arr = check_finite(rotations, loc=loc)
     if arr.ndim != 3 or arr.shape[1:] != (3, 3):
@@ -85,7 +86,7 @@ def check_rotation_matrices(
 
 def normalised_quaternions(
     quaternions: ArrayLike, *, loc: Loc = ("poses",), atol: float = QUATERNION_NORM_ATOL
-) -> NDArray[np.float64]:
+) -> FloatArray:
     """Check (N, 4) quaternions (any component order) have norm within `atol` of 1; normalise."""
     arr = check_finite(quaternions, loc=loc)
     if arr.ndim != 2 or arr.shape[1] != 4:
@@ -100,5 +101,5 @@ def normalised_quaternions(
                 f"pose {i + 1}: quaternion norm is {n:.6f}; it must be within {atol:g} of 1",
                 loc=(*loc, i, "quaternion"),
             )
-    normalised: NDArray[np.float64] = arr / norms[:, None]
+    normalised: FloatArray = arr / norms[:, None]
     return normalised

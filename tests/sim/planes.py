@@ -16,9 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from app.arrays import FloatArray
 from tests.sim.touches import random_tcp, touch_rotations
-
-FloatArray = NDArray[np.float64]
 
 #: Centres of the planes a, b, c (mm, base frame) and the base axis each faces.
 CENTRES = (

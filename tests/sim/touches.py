@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-FloatArray = NDArray[np.float64]
+from app.arrays import FloatArray
 
 #: Flange orientation with the tool pointing straight down.
 TOOL_DOWN = Rotation.from_euler("x", 180.0, degrees=True)

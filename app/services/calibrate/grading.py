@@ -12,11 +12,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput, located_in
 from app.helpers.tolerance import grade
 from app.jsontypes import JsonObject
 from app.methods import method_of
-from app.methods.base import FloatArray, MethodContext, MethodRequest, Solved, StoredPoint
+from app.methods.base import MethodContext, MethodRequest, Solved, StoredPoint
 from app.methods.npoint import NPointOptions
 from app.metrics import SOLVE_SECONDS
 from app.schemas.common import Units

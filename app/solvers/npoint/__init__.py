@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.solvers.npoint.checks import (
     ALGORITHMS,
@@ -44,14 +45,7 @@ from app.solvers.npoint.checks import (
     relative_cosines,
 )
 from app.solvers.npoint.estimators import ESTIMATORS
-from app.solvers.npoint.model import (
-    RESIDUAL_FLOOR_MM,
-    BoolArray,
-    Fit,
-    FloatArray,
-    Noise,
-    residual_vectors,
-)
+from app.solvers.npoint.model import RESIDUAL_FLOOR_MM, BoolArray, Fit, Noise, residual_vectors
 from app.solvers.npoint.noise import (
     FEW_DOF,
     NOISE_CONTRADICTED,
@@ -92,7 +86,6 @@ __all__ = [
     "SERIAL_MIN_POSES",
     "WEAK_DIRECTION_RATIO",
     "BoolArray",
-    "FloatArray",
     "NPointResult",
     "solve_npoint",
 ]

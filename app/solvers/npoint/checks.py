@@ -10,8 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
-from app.solvers.npoint.model import FloatArray, Noise
+from app.solvers.npoint.model import Noise
 from app.solvers.numbering import number
 from app.solvers.quality import (
     format_vector,

@@ -10,7 +10,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from app.solvers.npoint.model import Fit, FloatArray, Noise, design, residual_vectors, whiteners
+from app.arrays import FloatArray
+from app.solvers.npoint.model import Fit, Noise, design, residual_vectors, whiteners
 from app.solvers.npoint.noise import (
     REML_RTOL,
     estimate_touch_noise,

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from app.arrays import FloatArray
+
 BoolArray = NDArray[np.bool_]
 #: Residuals below this (mm) are never evidence of a missed touch (rounding on exact data).
 RESIDUAL_FLOOR_MM = 1e-6

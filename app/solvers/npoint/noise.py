@@ -11,10 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
+from app.arrays import FloatArray
 from app.solvers.npoint.model import (
     RESIDUAL_FLOOR_MM,
     Fit,
-    FloatArray,
     Noise,
     lever_directions,
     mahalanobis_sq,

@@ -13,13 +13,13 @@ from numpy.typing import NDArray
 from scipy.stats import chi2
 from scipy.stats import f as f_dist
 
+from app.arrays import FloatArray
 from app.solvers.npoint.checks import MIN_POSES
 from app.solvers.npoint.estimators import base_fit
 from app.solvers.npoint.model import (
     RESIDUAL_FLOOR_MM,
     BoolArray,
     Fit,
-    FloatArray,
     Noise,
     mahalanobis_sq,
     noise_cov,

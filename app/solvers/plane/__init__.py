@@ -41,6 +41,7 @@ from numpy.typing import ArrayLike
 from scipy.stats import norm
 from scipy.stats import t as student_t
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.solvers.plane.checks import (
     AXIS_MATCH_DEG,
@@ -62,13 +63,7 @@ from app.solvers.plane.checks import (
     rotation_block,
     start_tcp,
 )
-from app.solvers.plane.model import (
-    FloatArray,
-    PlaneTouches,
-    distance_jacobian,
-    signed_distances,
-    unpack,
-)
+from app.solvers.plane.model import PlaneTouches, distance_jacobian, signed_distances, unpack
 from app.solvers.plane.search import (
     DISTINCT_START_DEG,
     GRID_DIRECTIONS,
@@ -104,7 +99,6 @@ __all__ = [
     "TRANSLATION_ONLY_DEG",
     "WEAK_DIRECTION_RATIO",
     "FittedPlane",
-    "FloatArray",
     "PlaneResult",
     "check_predicted_sigma",
     "cramer_rao_tcp",

@@ -13,8 +13,9 @@ from numpy.typing import ArrayLike
 from scipy.stats import chi2
 from scipy.stats import f as f_dist
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
-from app.solvers.plane.model import FloatArray, PlaneTouches
+from app.solvers.plane.model import PlaneTouches
 from app.solvers.quality import (
     format_vector,
     orientation_spread_deg,

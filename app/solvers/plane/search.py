@@ -12,9 +12,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares, leastsq
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.solvers.plane.model import (
-    FloatArray,
     PlaneTouches,
     distance_jacobian,
     signed_distances,
