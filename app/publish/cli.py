@@ -1,4 +1,8 @@
-"""`tcpcal publish`: configuration checked, signals wired, the runner started."""
+"""`tcpcal publish`: configuration checked, signals wired, the runner started.
+
+The configuration is checked before the database and the outbox's services (numpy, scipy:
+about 2 s) are imported, so that a typo in it is reported at once.
+"""
 
 from __future__ import annotations
 
@@ -9,13 +13,10 @@ import threading
 from types import FrameType
 
 from pydantic import ValidationError
-from sqlalchemy.exc import SQLAlchemyError
 
-from app.db import get_engine
-from app.migrate import current_revision, head_revision
-from app.publish.runner import LockLost, Runner, build_sinks
 from app.publish.settings import PublishSettings
 from app.publish.sink import SinkError
+from app.publish.sinks import build_sinks
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +39,12 @@ def run_publisher() -> int:
         return _fail(f"bad configuration: {exc}")
     except SinkError as exc:
         return _fail(str(exc))
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from app.db import get_engine
+    from app.migrate import current_revision, head_revision
+    from app.publish.runner import LockLost, Runner
+
     engine = get_engine()
     try:
         current = current_revision(engine)

@@ -27,7 +27,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import UTC
 from typing import TYPE_CHECKING
-from urllib.parse import urlsplit
 
 from asyncua import ua
 from asyncua.common.node import Node
@@ -36,8 +35,11 @@ from asyncua.server.server import Server
 from asyncua.server.user_managers import UserManager
 from asyncua.ua.attribute_ids import AttributeIds
 
+from app.publish.endpoint import DEFAULT_PORT as DEFAULT_PORT
+from app.publish.endpoint import Endpoint as Endpoint
+from app.publish.endpoint import OpcUaStartError as OpcUaStartError
+from app.publish.endpoint import parse_endpoint as parse_endpoint
 from app.publish.opcua_certs import APPLICATION_URI, ServerCertificate
-from app.publish.sink import SinkError
 from app.services.plant import PlantRobot, PlantTool
 
 if TYPE_CHECKING:
@@ -49,46 +51,9 @@ log = logging.getLogger(__name__)
 logging.getLogger("asyncua").setLevel(logging.WARNING)
 
 NAMESPACE_URI = "urn:tcpcal"
-DEFAULT_PORT = 4840
 
 #: Checks an API key given as (user name, password); True when it may read.
 KeyCheck = Callable[[str, str], bool]
-
-
-class OpcUaStartError(SinkError):
-    """The OPC UA server cannot start (bad endpoint, port in use): the message says why."""
-
-
-@dataclass(frozen=True)
-class Endpoint:
-    """A parsed `opc.tcp://host:port/path` endpoint."""
-
-    url: str
-    host: str
-    port: int
-
-
-def parse_endpoint(url: str) -> Endpoint:
-    """Check an endpoint URL (`opc.tcp://host[:port][/path]`, port 1-65535, default 4840)."""
-    try:
-        parts = urlsplit(url.strip())
-        port = parts.port
-    except ValueError:  # urlsplit: a port that is not a number, or out of range
-        raise _bad_endpoint(url, "the port must be a number from 1 to 65535") from None
-    if parts.scheme != "opc.tcp":
-        raise _bad_endpoint(url, "the scheme must be opc.tcp://")
-    if not parts.hostname:
-        raise _bad_endpoint(url, "it names no host (use 0.0.0.0 to listen on every interface)")
-    if port == 0:
-        raise _bad_endpoint(url, "the port must be a number from 1 to 65535")
-    return Endpoint(url=url.strip(), host=parts.hostname, port=port or DEFAULT_PORT)
-
-
-def _bad_endpoint(url: str, why: str) -> OpcUaStartError:
-    return OpcUaStartError(
-        f"TCPCAL_OPCUA_ENDPOINT={url!r} is not usable: {why}; "
-        "expected e.g. opc.tcp://0.0.0.0:4840/tcpcal/"
-    )
 
 
 class ApiKeyUsers(UserManager):

@@ -1,6 +1,6 @@
 """The publisher's loop: drain the outbox in order into every sink, mark, prune.
 
-`tcpcal publish` (app.cli) builds the sinks from the configuration (`build_sinks`: MQTT
+`tcpcal publish` (app.cli) builds the sinks from the configuration (app.publish.sinks: MQTT
 when TCPCAL_MQTT_URL is set, OPC UA when TCPCAL_OPCUA_ENDPOINT is), then `Runner.run`:
 
 1. takes the fleet lock (app.publish.lock): a second publisher waits here;
@@ -31,7 +31,6 @@ from sqlalchemy.exc import SQLAlchemyError
 from app.db import session_scope
 from app.publish import source
 from app.publish.lock import FleetLock, fleet_lock
-from app.publish.settings import PublishSettings
 from app.publish.sink import Batch, Sink, SinkError
 
 log = logging.getLogger(__name__)
@@ -44,33 +43,6 @@ RETRY_S = 0.5
 
 class LockLost(SinkError):
     """The connection that held the fleet lock is gone (the database restarted)."""
-
-
-def build_sinks(settings: PublishSettings) -> list[Sink]:
-    """The sinks the configuration asks for; SinkError when it asks for none or one is
-    malformed (checked before the lock is taken, so a typo fails at once)."""
-    sinks: list[Sink] = []
-    if settings.mqtt_url:
-        from app.publish.mqtt import MqttSink
-
-        sinks.append(MqttSink.from_settings(settings))
-    if settings.opcua_endpoint:
-        from app.publish.opcua_sink import opcua_sink
-
-        sinks.append(
-            opcua_sink(
-                settings.opcua_endpoint,
-                anonymous=settings.opcua_anonymous,
-                certificate=settings.opcua_certificate,
-                private_key=settings.opcua_private_key,
-            )
-        )
-    if not sinks:
-        raise SinkError(
-            "nothing to publish to: set TCPCAL_MQTT_URL (e.g. mqtt://user:pass@broker:1883) "
-            "and/or TCPCAL_OPCUA_ENDPOINT (e.g. opc.tcp://0.0.0.0:4840/tcpcal/)"
-        )
-    return sinks
 
 
 class Runner:

@@ -16,8 +16,20 @@ from tests.live.server import LiveServer, fresh_database, live_server
 pytestmark = pytest.mark.live
 
 
+@pytest.fixture(scope="module", params=BACKENDS)
+def server(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[LiveServer]:
+    """One server per backend for the tests that only read it or count from zero what they
+    make (the only calibrations on it are the scrape test's): a server start is ~5 s of CPU."""
+    tmp = tmp_path_factory.mktemp("operations")
+    with fresh_database(request.param, tmp, PG_URL) as url, live_server(url) as srv:
+        yield srv
+
+
 @pytest.fixture(params=BACKENDS)
-def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[LiveServer]:
+def own_server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[LiveServer]:
+    """A server of the test's own, for a test that stops it."""
     with fresh_database(request.param, tmp_path, PG_URL) as url, live_server(url) as srv:
         yield srv
 
@@ -113,14 +125,14 @@ def test_one_json_log_line_per_request_carries_the_clients_request_id(tmp_path: 
     assert all("timestamp" in e and "level" in e for e in lines)
 
 
-def test_sigterm_lets_the_request_in_flight_finish(server: LiveServer) -> None:
+def test_sigterm_lets_the_request_in_flight_finish(own_server: LiveServer) -> None:
     """Stopping the server (SIGTERM, as Docker and systemd do) while a client is still
     uploading a calibration: the calibration is answered and stored, then the server exits."""
     import signal
     import threading
     import time
 
-    with server.client() as http:
+    with own_server.client() as http:
         robot = http.post("/v1/robots", json={"name": "stop"}).json()
         tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "t"}).json()
     body = b'{"method": "manual", "tcp": {"position_mm": [0, 0, 123]}, "note": "slow upload"}'
@@ -133,7 +145,7 @@ def test_sigterm_lets_the_request_in_flight_finish(server: LiveServer) -> None:
     answer: dict[str, httpx.Response] = {}
 
     def upload() -> None:
-        with server.client() as http:
+        with own_server.client() as http:
             answer["r"] = http.post(
                 f"/v1/tools/{tool['id']}/calibrations",
                 content=slowly(),
@@ -143,9 +155,9 @@ def test_sigterm_lets_the_request_in_flight_finish(server: LiveServer) -> None:
     thread = threading.Thread(target=upload)
     thread.start()
     time.sleep(0.4)  # the upload has begun and takes ~1 s more
-    assert server.process is not None
-    server.process.send_signal(signal.SIGTERM)
+    assert own_server.process is not None
+    own_server.process.send_signal(signal.SIGTERM)
     thread.join(timeout=30)
     assert answer["r"].status_code == 201, answer["r"].text
     assert answer["r"].json()["tcp"]["position_mm"] == [0, 0, 123]
-    assert server.process.wait(timeout=30) == 0
+    assert own_server.process.wait(timeout=30) == 0
