@@ -37,15 +37,15 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-# The whole suite: every test, live servers, browsers and killed processes included.
+# The whole suite: every test, live servers, browsers and killed processes included. (The
+# committed openapi.json is checked byte for byte by tests/test_openapi.py, which is what
+# `tcpcal openapi --check` does.)
 test: lint typecheck
-	$(BIN)/tcpcal openapi --check
 	$(BIN)/pytest -q -n 2 --durations=20
 
 # The fast tier for the edit-test loop (under 2 minutes on 2 cores): lint, types and every
 # test that starts no server, browser or process of its own (markers in pyproject.toml).
 check: lint typecheck
-	$(BIN)/tcpcal openapi --check
 	$(BIN)/pytest -q -n 2 -m "not live and not browser and not kills"
 
 openapi: $(STAMP)

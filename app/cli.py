@@ -302,8 +302,9 @@ def openapi(
 ) -> None:
     """Write (or --check) the committed OpenAPI spec from the app."""
     from app.main import create_app
+    from app.openapi import openapi_text
 
-    text = json.dumps(create_app().openapi(), indent=2, sort_keys=True) + "\n"
+    text = openapi_text(create_app())
     if check:
         if not out.is_file() or out.read_text() != text:
             typer.echo(f"{out} is stale; run `tcpcal openapi`", err=True)

@@ -7,6 +7,8 @@ answer (401/403 on /v1, 404 with a path id, 409/413 on writes, 412 with If-Match
 
 from __future__ import annotations
 
+import json
+
 from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
 
@@ -95,3 +97,8 @@ def build_openapi(app: FastAPI) -> JsonObject:
         _describe_properties(model, schema)
     app.openapi_schema = spec
     return spec
+
+
+def openapi_text(app: FastAPI) -> str:
+    """The document as committed in openapi/openapi.json, byte for byte."""
+    return json.dumps(app.openapi(), indent=2, sort_keys=True) + "\n"

@@ -24,7 +24,7 @@ from tests.controllers.kuka_sim import KukaSimulator
 
 #: Every protocol, each with its simulator.
 PROTOCOLS = ["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2"]
-TIMEOUT_S = 2.0
+TIMEOUT_S = 1.0
 SLOT = 3
 SYMBOL = "T_ROB1/user/tTorch"
 #: The simulated ABB controllers' user (tests/controllers/abb_sim.py).

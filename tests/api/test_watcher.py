@@ -9,11 +9,11 @@ import pytest
 from sqlalchemy import text
 
 from app.db import get_engine
-from tests.api.controller_rigs import rig
+from tests.api.controller_rigs import TIMEOUT_S, rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, _setup
 from tests.conftest import Api, Database
 
-INTERVAL_S = 1.0
+INTERVAL_S = 0.5
 
 
 @pytest.fixture
@@ -61,7 +61,7 @@ def test_the_watcher_finds_drift_within_two_intervals_and_records_it_once(
         assert _count(tool_id, "controller.drifted") == 1
         assert _count(tool_id, "controller.in_sync") == 1
         r.sim.stop()
-        _wait_for(api, robot_id, "unreachable", 2 * watching + 2.0)  # + the 2 s timeout
+        _wait_for(api, robot_id, "unreachable", 2 * watching + TIMEOUT_S + 1.0)  # + its timeout
         assert _count(tool_id, "controller.unreachable") == 1
 
 
