@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import socket
 from typing import Any
 from unittest.mock import MagicMock
@@ -26,8 +27,16 @@ def test_protocol_sets_nodelay_on_a_proto_zero_socket() -> None:
         transport.get_extra_info.side_effect = lambda name, default=None: extra.get(name, default)
         config = Config(app=lambda *a: None, http=HTTP_PROTOCOL)
         config.load()
-        protocol = NoDelayH11Protocol(config=config, server_state=ServerState(), app_state={})
-        protocol.connection_made(transport)
+        # A loop of its own: after any asyncio.run() in the same worker the main thread has
+        # none, and the protocol would ask for one (RuntimeError under pytest-xdist).
+        loop = asyncio.new_event_loop()
+        try:
+            protocol = NoDelayH11Protocol(
+                config=config, server_state=ServerState(), app_state={}, _loop=loop
+            )
+            protocol.connection_made(transport)
+        finally:
+            loop.close()
         assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) != 0
 
 
