@@ -11,7 +11,7 @@ PORT ?= 8000
 # again (6 s per xdist worker).
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: run test suite check lint typecheck openapi bench screenshots demo clean
+.PHONY: run test check lint typecheck openapi bench screenshots demo clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -40,12 +40,7 @@ typecheck: $(STAMP)
 # The whole suite: every test, live servers, browsers and killed processes included. (The
 # committed openapi.json is checked byte for byte by tests/test_openapi.py, which is what
 # `tcpcal openapi --check` does.)
-# Lint and types run beside the tests: the suite waits on servers, brokers and browsers much of
-# the time, and mypy's first run (no cache in a fresh clone) takes about 25 s on its own.
-test: $(STAMP)
-	$(MAKE) --no-print-directory -j3 --output-sync=target lint typecheck suite
-
-suite: $(STAMP)
+test: lint typecheck
 	$(BIN)/pytest -q -n 2 --durations=20
 
 # The fast tier for the edit-test loop (under 2 minutes on 2 cores): lint, types and every
