@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Sequence
-from datetime import datetime
+from typing import Protocol
 
 import numpy as np
 from sqlalchemy import Engine, and_, select
@@ -28,8 +27,8 @@ from app.exports import (
     controller_file,
 )
 from app.helpers.etags import if_none_match_hit
-from app.jsontypes import JsonObject
 from app.models import TcpVersion, Tool
+from app.services.exports import ServedTool, ServedVersion
 from app.services.hot_read import active_of, read_for_key
 from app.services.robots import get_robot
 
@@ -51,38 +50,33 @@ def public_url(request_base_url: str) -> str:
     return (get_settings().public_url or request_base_url).rstrip("/")
 
 
-def file_tool(
-    *,
-    tool_id: str,
-    name: str,
-    slot: int | None,
-    load: JsonObject | None,
-    version: int,
-    position_mm: Sequence[float],
-    quaternion: Sequence[float],
-    method: str,
-    created_at: datetime,
-    created_by: str | None,
-    base_url: str,
-) -> FileTool:
-    """A tool's active version as a file holds it, with its provenance."""
-    load = load or {}
+class FileVersion(ServedVersion, Protocol):
+    """What a file's header says of a version besides its values: who made it."""
+
+    @property
+    def created_by(self) -> str | None: ...
+
+
+def file_tool(tool: ServedTool, version: FileVersion, *, base_url: str) -> FileTool:
+    """A tool's active version as a file holds it, with its provenance (a models.Tool and
+    TcpVersion, or the hot read's HotTool and HotVersion)."""
+    load = tool.load or {}
     cog = load.get("cog_mm")
     mass = load.get("mass_kg")
     data = ToolData(
-        slot=slot,
-        name=name,
-        position_mm=np.asarray(position_mm, dtype=float),
-        quaternion_wxyz=np.asarray(quaternion, dtype=float),
+        slot=tool.slot,
+        name=tool.name,
+        position_mm=np.asarray(version.position_mm, dtype=float),
+        quaternion_wxyz=np.asarray(version.quaternion, dtype=float),
         mass_kg=float(mass) if isinstance(mass, int | float) else None,
         cog_mm=np.asarray(cog, dtype=float) if isinstance(cog, list) else None,
     )
     origin = Provenance(
-        version=version,
-        calibrated_at=created_at,
-        calibrated_by=created_by,
-        method=method,
-        url=f"{base_url}/ui/tools/{tool_id}",
+        version=version.version,
+        calibrated_at=version.created_at,
+        calibrated_by=version.created_by,
+        method=version.source,
+        url=f"{base_url}/ui/tools/{tool.id}",
     )
     return FileTool(data, origin)
 
@@ -113,19 +107,7 @@ def served_file_for_key(
     etag = _etag([*tool_part, *version_part, fmt, "file", url])
     if if_none_match_hit(if_none_match, etag):
         return principal, None, etag
-    item = file_tool(
-        tool_id=tool.id,
-        name=tool.name,
-        slot=tool.slot,
-        load=tool.load,
-        version=row.version,
-        position_mm=row.position_mm,
-        quaternion=row.quaternion,
-        method=row.source,
-        created_at=row.created_at,
-        created_by=row.created_by,
-        base_url=url,
-    )
+    item = file_tool(tool, row, base_url=url)
     return principal, controller_file(fmt, [item], FileContext(server_url=url)), etag
 
 
@@ -146,22 +128,7 @@ def robot_file(
         .order_by(Tool.slot, Tool.name)
     ).all()
     url = public_url(base_url)
-    items = [
-        file_tool(
-            tool_id=tool.id,
-            name=tool.name,
-            slot=tool.slot,
-            load=tool.load,
-            version=row.version,
-            position_mm=row.position_mm,
-            quaternion=row.quaternion,
-            method=row.source,
-            created_at=row.created_at,
-            created_by=row.created_by,
-            base_url=url,
-        )
-        for tool, row in rows
-    ]
+    items = [file_tool(tool, row, base_url=url) for tool, row in rows]
     uncalibrated = session.scalars(
         select(Tool.name)
         .where(Tool.robot_id == robot_id, Tool.archived_at.is_(None), Tool.active_version.is_(None))
