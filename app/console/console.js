@@ -168,6 +168,7 @@ function signIn(then, message) {
   );
   form.addEventListener("submit", async (event) => {
     event.preventDefault();
+    main.setAttribute("aria-busy", "true");
     sessionStorage.setItem(KEY_STORE, form.elements.api_key.value.trim());
     try {
       me = await json("/v1/keys/me");
@@ -180,6 +181,7 @@ function signIn(then, message) {
     }
   });
   show(form);
+  main.setAttribute("aria-busy", "false");
   document.getElementById("sign-out").hidden = true;
 }
 
@@ -748,8 +750,11 @@ function plot3d(cal, geometry) {
 }
 
 // ---- routing --------------------------------------------------------------------------------
+// main is aria-busy while a page is fetched and drawn: assistive technology waits for the
+// whole page, and so do the browser tests before they click (a plot drawn late moves buttons).
 async function route() {
   if (!sessionStorage.getItem(KEY_STORE)) return signIn(route);
+  main.setAttribute("aria-busy", "true");
   document.getElementById("sign-out").hidden = false;
   const path = window.location.pathname;
   const tool = path.match(/^\/ui\/tools\/([^/]+)$/);
@@ -763,6 +768,8 @@ async function route() {
   } catch (error) {
     if (error instanceof Problem && error.status === 401) return signIn(route, "Your key is no longer accepted; sign in again.");
     show(h("h1", {}, "Could not load this page"), problemBox(error), h("p", {}, h("a", { href: "/ui/" }, "Back to the fleet")));
+  } finally {
+    main.setAttribute("aria-busy", "false");
   }
 }
 

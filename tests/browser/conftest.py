@@ -92,11 +92,14 @@ def page(context: BrowserContext) -> Iterator[Page]:
     assert errors == [], f"script errors on the page: {errors}"
 
 
-def sign_in_to(page: Page, server: LiveServer, path: str = "/") -> None:
-    """Open `path` on the console and sign in with the server's admin key."""
+def sign_in_to(page: Page, server: LiveServer, path: str = "/", key: str | None = None) -> None:
+    """Open `path` on the console, sign in (the server's admin key unless `key` is given) and
+    wait until the page is drawn whole: main stops being aria-busy after the last plot and
+    table, so a click cannot land where a late plot has just moved a button."""
     page.goto(server.url + path)
-    page.fill("input[name=api_key]", server.admin_key)
+    page.fill("input[name=api_key]", key or server.admin_key)
     page.click("#sign-in button[type=submit]")
+    expect(page.locator("main")).to_have_attribute("aria-busy", "false")
 
 
 def confirm(page: Page, reason: str) -> None:

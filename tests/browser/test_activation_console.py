@@ -20,7 +20,7 @@ import pytest
 from playwright.sync_api import Page, expect
 
 from app.kinematics.poses import pose_to_format
-from tests.browser.conftest import confirm
+from tests.browser.conftest import confirm, sign_in_to
 from tests.live.server import LiveServer, fresh_database, live_server
 from tests.sim.touches import simulate_touches
 
@@ -106,9 +106,7 @@ def console_server(setup: Setup) -> LiveServer:
 
 
 def _sign_in(page: Page, setup: Setup, path: str, key: str | None = None) -> None:
-    page.goto(setup.server.url + path)
-    page.fill("input[name=api_key]", key or setup.server.admin_key)
-    page.click("#sign-in button[type=submit]")
+    sign_in_to(page, setup.server, path, key)
 
 
 def _tool(setup: Setup, name: str) -> dict[str, Any]:

@@ -11,6 +11,7 @@ import httpx
 import pytest
 from playwright.sync_api import Page, expect
 
+from tests.browser.conftest import sign_in_to
 from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
@@ -47,9 +48,7 @@ def console_server(fleet: Fleet) -> LiveServer:
 
 
 def _sign_in(tab: Page, fleet: Fleet, key: str, path: str) -> None:
-    tab.goto(fleet.server.url + path)
-    tab.fill("input[name=api_key]", key)
-    tab.click("#sign-in button[type=submit]")
+    sign_in_to(tab, fleet.server, path, key)
 
 
 def test_an_admin_sees_the_tools_trail_newest_first(page: Page, fleet: Fleet) -> None:

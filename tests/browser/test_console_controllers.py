@@ -13,6 +13,7 @@ from playwright.sync_api import Browser, Page, expect
 
 from tests.api.controller_rigs import Rig, rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q
+from tests.browser.conftest import sign_in_to
 from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = pytest.mark.live
@@ -59,9 +60,7 @@ def page(browser: Browser, cell: Cell) -> Iterator[Page]:
 
 
 def _sign_in(page: Page, cell: Cell, path: str) -> None:
-    page.goto(cell.server.url + path)
-    page.fill("input[name=api_key]", cell.server.admin_key)
-    page.click("#sign-in button[type=submit]")
+    sign_in_to(page, cell.server, path)
 
 
 def test_deploy_asks_first_then_shows_the_outcome_state_and_history(page: Page, cell: Cell) -> None:
