@@ -13,10 +13,13 @@ unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: run test check lint typecheck openapi bench screenshots demo clean
 
+# uv installs the project and its dependencies: 8 s on a fresh clone here, where pip took 56 s
+# (28 s of it compiling every installed module to bytecode, which Python does on first import
+# for the modules actually used).
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet 'uv>=0.5'
+	$(BIN)/uv pip install --quiet --python $(BIN)/python -e '.[dev]'
 	touch $(STAMP)
 
 run: $(STAMP)
@@ -41,7 +44,7 @@ typecheck: $(STAMP)
 # committed openapi.json is checked byte for byte by tests/test_openapi.py, which is what
 # `tcpcal openapi --check` does.)
 test: lint typecheck
-	$(BIN)/pytest -q -n 2 --durations=20
+	$(BIN)/pytest -q -n 2 --dist loadgroup --durations=20
 
 # The fast tier for the edit-test loop (under 2 minutes on 2 cores): lint, types and every
 # test that starts no server, browser or process of its own (markers in pyproject.toml).

@@ -27,6 +27,17 @@ PG_URL = os.environ.get("TCPCAL_TEST_DATABASE_URL")
 os.environ.setdefault("COLUMNS", "250")
 BACKENDS = ["sqlite"] + (["postgresql"] if PG_URL else [])
 
+#: The one backend of a test whose subject does not go through the database's SQL, locks or
+#: transactions: a network protocol, a configuration refused at start-up, a signal, a scrape.
+#: Such a test starts processes (a server, a publisher, a broker) that cost seconds of CPU, and
+#: the second backend would run the same code path again. PostgreSQL when the suite has it (the
+#: multi-instance deployment), SQLite otherwise. Everything that reads or writes through the
+#: database still runs on both (the in-process API tests, the outbox order, the publisher's
+#: lock, backups, concurrency).
+ONE_BACKEND = BACKENDS[-1]
+#: Pins a test using `db`/`api` (or `database`) to ONE_BACKEND.
+one_backend = pytest.mark.parametrize("database", [ONE_BACKEND], indirect=True)
+
 
 def _reset_app_caches() -> None:
     from app.config import get_settings
@@ -159,3 +170,11 @@ def api(db: Database) -> Iterator[Api]:
         from fastapi.testclient import TestClient
     with TestClient(create_app(), raise_server_exceptions=False) as client:
         yield Api(client, keys)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Every browser test on one pytest-xdist worker (the Makefile runs `--dist loadgroup`): one
+    Chromium for the session instead of one per worker, each with its own GPU process."""
+    for item in items:
+        if item.get_closest_marker("browser"):
+            item.add_marker(pytest.mark.xdist_group("chromium"))

@@ -121,13 +121,14 @@ def test_image_steps_run_outside_docker(tmp_path: Path) -> None:
     )
     try:
         deadline = time.monotonic() + 30
-        while True:
-            try:
-                ready = httpx.get(f"http://127.0.0.1:{port}/ready", timeout=1)
-                break
-            except httpx.HTTPError:
-                assert time.monotonic() < deadline, "server did not start"
-                time.sleep(0.2)
+        with httpx.Client(timeout=1) as http:  # one client: httpx.get builds one per call
+            while True:
+                try:
+                    ready = http.get(f"http://127.0.0.1:{port}/ready")
+                    break
+                except httpx.HTTPError:
+                    assert time.monotonic() < deadline, "server did not start"
+                    time.sleep(0.2)
         assert ready.status_code == 200
         assert ready.json()["ready"] is True
     finally:

@@ -24,7 +24,7 @@ from tests.browser.conftest import confirm, sign_in_to
 from tests.live.server import LiveServer, fresh_database, live_server
 from tests.sim.touches import simulate_touches
 
-pytestmark = pytest.mark.live
+pytestmark = [pytest.mark.live, pytest.mark.browser]
 
 
 @dataclass

@@ -16,7 +16,7 @@ from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q
 from tests.browser.conftest import sign_in_to
 from tests.live.server import LiveServer, fresh_database, live_server
 
-pytestmark = pytest.mark.live
+pytestmark = [pytest.mark.live, pytest.mark.browser]
 
 
 @dataclass

@@ -28,7 +28,7 @@ from app.services import calibrate, checks, references, robots, tools
 from tests.browser.conftest import sign_in_to
 from tests.live.server import LiveServer, fresh_database, live_server
 
-pytestmark = pytest.mark.live
+pytestmark = [pytest.mark.live, pytest.mark.browser]
 
 ACTOR = Principal(key_id="test", name="test", scope="admin")
 

@@ -44,6 +44,25 @@ def _free_port() -> int:
         return int(sock.getsockname()[1])
 
 
+def _wait_until_ready(proc: subprocess.Popen[bytes], url: str, output: IO[bytes]) -> None:
+    """Poll /ready through one client: `httpx.get` builds a client, and its TLS context, on every
+    call (50 ms of CPU each), which over a start of several seconds took CPU the server needed."""
+    deadline = time.monotonic() + 60
+    with httpx.Client(timeout=1) as http:
+        while True:
+            if proc.poll() is not None:
+                output.seek(0)
+                raise RuntimeError(f"server exited early:\n{output.read().decode()}")
+            try:
+                if http.get(f"{url}/ready").status_code == 200:
+                    return
+            except httpx.HTTPError:
+                pass
+            if time.monotonic() > deadline:
+                raise RuntimeError("server did not become ready within 60 s")
+            time.sleep(0.1)
+
+
 @contextmanager
 def live_server(
     database_url: str,
@@ -90,19 +109,7 @@ def live_server(
     )
     url = f"http://127.0.0.1:{port}"
     try:
-        deadline = time.monotonic() + 60
-        while True:
-            if proc.poll() is not None:
-                output.seek(0)
-                raise RuntimeError(f"server exited early:\n{output.read().decode()}")
-            try:
-                if httpx.get(f"{url}/ready", timeout=1).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            if time.monotonic() > deadline:
-                raise RuntimeError("server did not become ready within 60 s")
-            time.sleep(0.2)
+        _wait_until_ready(proc, url, output)
         yield LiveServer(url, key, proc)
     finally:
         proc.terminate()

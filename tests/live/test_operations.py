@@ -10,13 +10,13 @@ from pathlib import Path
 import httpx
 import pytest
 
-from tests.conftest import BACKENDS, PG_URL
+from tests.conftest import ONE_BACKEND, PG_URL
 from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = pytest.mark.live
 
 
-@pytest.fixture(scope="module", params=BACKENDS)
+@pytest.fixture(scope="module", params=[ONE_BACKEND])
 def server(
     request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
 ) -> Iterator[LiveServer]:
@@ -27,7 +27,7 @@ def server(
         yield srv
 
 
-@pytest.fixture(params=BACKENDS)
+@pytest.fixture(params=[ONE_BACKEND])
 def own_server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[LiveServer]:
     """A server of the test's own, for a test that stops it."""
     with fresh_database(request.param, tmp_path, PG_URL) as url, live_server(url) as srv:

@@ -1,6 +1,8 @@
 """`tcpcal publish` against a real Mosquitto, observed by a real subscriber (paho): the
 retained per-tool topic, the events, the status, broker and publisher deaths, two
-publishers. Every test runs on SQLite and, with TCPCAL_TEST_DATABASE_URL, on PostgreSQL."""
+publishers. The tests of the outbox's order, a drain cut short and the publishers' lock run on
+SQLite and, with TCPCAL_TEST_DATABASE_URL, on PostgreSQL; those of the broker protocol and the
+process (@one_backend) on one of them (tests/conftest.py says which and why)."""
 
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ from sqlalchemy import select
 
 from app.db import session_scope
 from app.models import AuditEvent, OutboxMessage
-from tests.conftest import Api
+from tests.conftest import Api, one_backend
 from tests.publish.mqtt_harness import Broker, Publisher, Subscriber, needs_mosquitto, wait_for
 
 pytestmark = [needs_mosquitto, pytest.mark.live]
@@ -115,6 +117,7 @@ def _per_tool(keys: list[tuple[str, str, str]], tool_id: str) -> list[tuple[str,
     return [k for k in keys if k[0] == tool_id]
 
 
+@one_backend
 def test_activation_is_retained_within_a_second_and_equals_get_tcp(
     api: Api, broker: Broker, prefix: str, tmp_path: Path, publishers: list[Publisher]
 ) -> None:
@@ -194,6 +197,7 @@ def _outbox_size() -> int:
         return len(list(session.scalars(select(OutboxMessage.id))))
 
 
+@one_backend
 def test_broker_killed_twenty_activations_then_restarted(
     api: Api, tmp_path: Path, prefix: str, publishers: list[Publisher]
 ) -> None:
@@ -233,6 +237,7 @@ def test_broker_killed_twenty_activations_then_restarted(
         broker.stop()
 
 
+@one_backend
 def test_a_restarted_broker_without_persistence_gets_every_tool_state_again(
     api: Api, broker: Broker, prefix: str, tmp_path: Path, publishers: list[Publisher]
 ) -> None:
@@ -316,6 +321,7 @@ def test_two_publishers_one_publishes_and_the_other_takes_over(
     sub.close()
 
 
+@one_backend
 def test_sigterm_stops_within_a_second_and_says_offline(
     api: Api, broker: Broker, prefix: str, tmp_path: Path, publishers: list[Publisher]
 ) -> None:

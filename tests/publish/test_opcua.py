@@ -34,7 +34,7 @@ from asyncua.sync import Client as SyncClient
 from asyncua.ua.uaerrors import UaError, UaStatusCodeError
 from prometheus_client.parser import text_string_to_metric_families
 
-from tests.conftest import Api, Database
+from tests.conftest import Api, Database, one_backend
 
 REPO = Path(__file__).resolve().parents[2]
 NODE_CLIENT = REPO / "tests" / "opcua_client"
@@ -163,6 +163,7 @@ def _rotated_tool(api: Api) -> tuple[dict[str, Any], dict[str, Any]]:
     return robot, tool
 
 
+@one_backend
 def test_node_opcua_client_browses_reads_and_sees_an_activation_within_1s(
     api: Api, db: Database
 ) -> None:
@@ -202,6 +203,7 @@ def _instant(text: str) -> float:
     return datetime.fromisoformat(text.replace("Z", "+00:00")).timestamp()
 
 
+@one_backend
 def test_a_wrong_password_and_anonymous_are_refused(api: Api, db: Database) -> None:
     api.robot("r1")
     with publisher(db) as endpoint:
@@ -316,6 +318,7 @@ def test_robots_and_tools_appear_and_disappear_with_the_database(api: Api, db: D
         _until(lambda: set(_tree(client)) == {"r-second-b"})
 
 
+@one_backend
 def test_clients_cannot_change_the_address_space(api: Api, db: Database) -> None:
     robot = api.robot("r1")
     tool = api.tool(robot["id"], "t1", slot=1)
@@ -359,6 +362,7 @@ def _run_publish(db: Database, **extra: str) -> subprocess.CompletedProcess[str]
     )  # fmt: skip
 
 
+@one_backend
 def test_a_port_in_use_or_a_bad_endpoint_stops_the_publisher_with_a_message(
     api: Api, db: Database
 ) -> None:

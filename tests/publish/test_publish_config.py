@@ -12,7 +12,7 @@ import pytest
 
 from app.publish.mqtt import check_prefix, parse_url
 from app.publish.sink import SinkError
-from tests.conftest import Api
+from tests.conftest import Api, one_backend
 from tests.publish.mqtt_harness import (
     Broker,
     Publisher,
@@ -57,6 +57,7 @@ def test_bad_prefixes_are_refused(prefix: str) -> None:
 
 
 @pytest.mark.live
+@one_backend
 def test_unreachable_broker_and_malformed_url_exit_non_zero(api: Api) -> None:
     database_url = os.environ["TCPCAL_DATABASE_URL"]
     port = free_port()  # nothing listens there
@@ -70,6 +71,7 @@ def test_unreachable_broker_and_malformed_url_exit_non_zero(api: Api) -> None:
 
 @pytest.mark.live
 @needs_mosquitto
+@one_backend
 def test_wrong_password_exits_non_zero_and_the_right_one_publishes(
     api: Api, tmp_path: Path
 ) -> None:
@@ -92,6 +94,7 @@ def test_wrong_password_exits_non_zero_and_the_right_one_publishes(
 
 
 @pytest.mark.live
+@one_backend
 def test_no_broker_configured_exits_non_zero(api: Api) -> None:
     code, output = run_publisher_once(os.environ["TCPCAL_DATABASE_URL"], "")
     assert code == 2, output
@@ -115,6 +118,7 @@ def test_the_api_serves_without_a_publisher_and_metrics_show_the_backlog(api: Ap
 
 @pytest.mark.live
 @needs_mosquitto
+@one_backend
 def test_tls_with_the_ca_publishes_and_without_it_exits_non_zero(api: Api, tmp_path: Path) -> None:
     broker = Broker(tmp_path, tls=True)
     broker.start()
