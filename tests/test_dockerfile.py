@@ -15,7 +15,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from tests.live.server import _free_port
+from tests.live.server import _free_port, http_client
 
 REPO = Path(__file__).resolve().parents[1]
 DOCKERFILE = (REPO / "Dockerfile").read_text()
@@ -121,7 +121,7 @@ def test_image_steps_run_outside_docker(tmp_path: Path) -> None:
     )
     try:
         deadline = time.monotonic() + 30
-        with httpx.Client(timeout=1) as http:  # one client: httpx.get builds one per call
+        with http_client(timeout=1) as http:  # one client: httpx.get builds one per call
             while True:
                 try:
                     ready = http.get(f"http://127.0.0.1:{port}/ready")

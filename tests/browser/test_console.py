@@ -20,7 +20,7 @@ from playwright.sync_api import Page, expect
 
 from app.kinematics.poses import pose_to_format
 from tests.browser.conftest import confirm, sign_in_to
-from tests.live.server import LiveServer, fresh_database, live_server
+from tests.live.server import LiveServer, fresh_database, http_client, live_server
 from tests.sim.touches import simulate_touches
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
@@ -160,7 +160,7 @@ def test_report_marks_the_missed_touch_and_shows_the_json_figures(page: Page, fl
     expect(page.locator("[data-field=outliers]")).to_have_text("3")
     x, y, z = cal["tcp"]["position_mm"]
     expect(page.locator("[data-field=tcp_mm]")).to_have_text(f"{x:.3f}, {y:.3f}, {z:.3f}")
-    with httpx.Client(base_url=fleet.server.url) as http:
+    with http_client(fleet.server.url) as http:
         detail = http.get(
             f"/v1/calibrations/{cal['id']}",
             headers={"Authorization": f"Bearer {fleet.server.admin_key}"},
@@ -207,7 +207,7 @@ def test_tool_page_plots_versions_serves_controller_text_and_rolls_back(
     expect(page.locator("#activations tbody tr")).to_have_count(2)
 
     kuka = page.locator("#controllers [data-format=kuka]")
-    with httpx.Client(base_url=fleet.server.url, headers=auth) as http:
+    with http_client(fleet.server.url, headers=auth) as http:
         text = http.get(f"/v1/tools/{tool_id}/tcp", params={"format": "kuka"}).json()
     expect(kuka.locator("pre")).to_have_text(text["controller"]["text"])
     expect(page.locator("#controllers .card")).to_have_count(6)
@@ -230,13 +230,13 @@ def test_tool_page_plots_versions_serves_controller_text_and_rolls_back(
 
     # A stale page: someone activates version 1 elsewhere; this page's click gets a 412,
     # explained, and nothing changes.
-    with httpx.Client(base_url=fleet.server.url, headers=auth) as http:
+    with http_client(fleet.server.url, headers=auth) as http:
         http.post(f"/v1/tools/{tool_id}/versions/1/activate").raise_for_status()
         http.post(f"/v1/tools/{tool_id}/versions/2/activate").raise_for_status()
     page.locator("#versions tr[data-version='1'] button").click()
     confirm(page, "back to commissioning")
     expect(page.get_by_role("alert")).to_contain_text("this page is out of date")
-    with httpx.Client(base_url=fleet.server.url, headers=auth) as http:
+    with http_client(fleet.server.url, headers=auth) as http:
         assert http.get(f"/v1/tools/{tool_id}").json()["active_version"] == 2
 
     # Reloaded, the activation goes through with the fresh ETag.
@@ -246,7 +246,7 @@ def test_tool_page_plots_versions_serves_controller_text_and_rolls_back(
     confirm(page, "back to commissioning")
     expect(page.locator("#versions tbody tr.active")).to_contain_text("commissioning")
     expect(page.locator("#activations tbody tr").first).to_contain_text("back to commissioning")
-    with httpx.Client(base_url=fleet.server.url, headers=auth) as http:
+    with http_client(fleet.server.url, headers=auth) as http:
         assert http.get(f"/v1/tools/{tool_id}").json()["active_version"] == 1
 
 

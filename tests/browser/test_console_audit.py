@@ -7,12 +7,11 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-import httpx
 import pytest
 from playwright.sync_api import Page, expect
 
 from tests.browser.conftest import sign_in_to
-from tests.live.server import LiveServer, fresh_database, live_server
+from tests.live.server import LiveServer, fresh_database, http_client, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 
@@ -81,6 +80,6 @@ def test_a_read_key_is_told_the_trail_needs_an_admin_key(page: Page, fleet: Flee
     expect(page.locator("#audit")).to_have_count(0)
     # the rest of the page is there for the read key
     expect(page.locator("#versions tbody tr")).to_have_count(2)
-    with httpx.Client(base_url=fleet.server.url) as http:
+    with http_client(fleet.server.url) as http:
         denied = http.get("/v1/audit", headers={"Authorization": f"Bearer {key}"})
     assert denied.status_code == 403

@@ -10,12 +10,11 @@ import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-import httpx
 import pytest
 from playwright.sync_api import Page, expect
 
 from tests.browser.conftest import confirm, sign_in_to
-from tests.live.server import LiveServer, fresh_database, live_server
+from tests.live.server import LiveServer, fresh_database, http_client, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 
@@ -109,7 +108,7 @@ def test_a_stale_page_explains_itself_beside_the_button_clicked(page: Page, cell
     button = page.locator("#versions tr[data-version='1'] button")
     expect(button).to_be_visible()
     auth = {"Authorization": f"Bearer {cell.server.admin_key}"}
-    with httpx.Client(base_url=cell.server.url, headers=auth) as http:
+    with http_client(cell.server.url, headers=auth) as http:
         http.post(f"/v1/tools/{cell.two}/versions/1/activate").raise_for_status()
         http.post(f"/v1/tools/{cell.two}/versions/2/activate").raise_for_status()
     button.click()

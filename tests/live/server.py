@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import socket
+import ssl
 import subprocess
 import sys
 import tempfile
@@ -12,7 +13,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import httpx
 
@@ -21,9 +22,19 @@ from app.migrate import upgrade
 from app.services.keys import create_key
 from tests.databases import fresh_database
 
-__all__ = ["LiveServer", "fresh_database", "live_server"]
+__all__ = ["LiveServer", "fresh_database", "http_client", "live_server"]
 
 REPO = Path(__file__).resolve().parents[2]
+
+#: httpx builds a TLS context and loads the CA bundle for every Client it is not given one,
+#: even for http:// on loopback: 30-50 ms of CPU per client, and the live tests make hundreds
+#: (a client per thread, per poll), CPU their servers needed.
+TLS = ssl.create_default_context()
+
+
+def http_client(base_url: str = "", **kw: Any) -> httpx.Client:
+    """An httpx client on the shared TLS context."""
+    return httpx.Client(base_url=base_url, verify=TLS, **kw)
 
 
 @dataclass
@@ -33,8 +44,8 @@ class LiveServer:
     process: subprocess.Popen[bytes] | None = None
 
     def client(self) -> httpx.Client:
-        return httpx.Client(
-            base_url=self.url, timeout=60, headers={"Authorization": f"Bearer {self.admin_key}"}
+        return http_client(
+            self.url, timeout=60, headers={"Authorization": f"Bearer {self.admin_key}"}
         )
 
 
@@ -45,10 +56,10 @@ def _free_port() -> int:
 
 
 def _wait_until_ready(proc: subprocess.Popen[bytes], url: str, output: IO[bytes]) -> None:
-    """Poll /ready through one client: `httpx.get` builds a client, and its TLS context, on every
-    call (50 ms of CPU each), which over a start of several seconds took CPU the server needed."""
+    """Poll /ready through one client (`httpx.get` builds a client, and its TLS context, on every
+    call)."""
     deadline = time.monotonic() + 60
-    with httpx.Client(timeout=1) as http:
+    with http_client(timeout=1) as http:
         while True:
             if proc.poll() is not None:
                 output.seek(0)

@@ -8,11 +8,10 @@ from __future__ import annotations
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import httpx
 import pytest
 
 from tests.api.touches import as_poses
-from tests.live.server import fresh_database, live_server
+from tests.live.server import fresh_database, http_client, live_server
 from tests.sim.touches import simulate_touches
 
 pytestmark = pytest.mark.live
@@ -36,7 +35,7 @@ def test_loop_side_reads_never_deadlock_with_thread_side_sessions(tmp_path: Path
         auth = {"Authorization": f"Bearer {srv.admin_key}"}
 
         def call(i: int) -> int:
-            with httpx.Client(base_url=srv.url, headers=auth, timeout=30) as client:
+            with http_client(srv.url, headers=auth, timeout=30) as client:
                 if i % 4 == 0:
                     return client.post("/v1/solve", json=solve).status_code
                 if i % 4 == 1:
