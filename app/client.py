@@ -20,9 +20,8 @@ import json
 import re
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import httpx
 import typer
 from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
@@ -55,6 +54,9 @@ from app.client_http import (
     send,
 )
 from app.jsontypes import JsonArray, JsonObject
+
+if TYPE_CHECKING:
+    import httpx
 
 
 def register(cli: typer.Typer) -> None:
@@ -663,6 +665,8 @@ def _audit_events(params: dict[str, str], limit: int) -> list[AuditEvent]:
 
 def _tool_names(tool_ids: set[str]) -> dict[str, str]:
     """Each tool's name (its id's first 8 characters when it cannot be read: archived)."""
+    import httpx
+
     names = {}
     with client_http.connect() as http:
         for tid in sorted(tool_ids):

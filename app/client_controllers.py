@@ -8,9 +8,8 @@ not be reached or failed.
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import httpx
 import typer
 from rich.table import Table
 
@@ -24,6 +23,9 @@ from app.client_http import (
     problem,
     request,
 )
+
+if TYPE_CHECKING:
+    import httpx
 
 EXIT_DRIFTED = 2
 EXIT_CONTROLLER_UNREACHABLE = 3

@@ -3,6 +3,10 @@ what an unreachable server or a refused request prints, and the exit codes they 
 
 Every client command (app.client, app.client_controllers, `tcpcal client get|post`) sends
 through `request` or `send`; tests point `connect` at the app in process.
+
+httpx is imported by the functions that send (it brings its own CLI's click, rich and pygments
+when imported: about 0.1 s of CPU): every tcpcal process imports this module with app.cli, the
+server's workers and solver processes too, and only a client command sends.
 """
 
 from __future__ import annotations
@@ -10,13 +14,15 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Mapping
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
-import httpx
 import typer
 from rich.console import Console
 
 from app.jsontypes import JsonArray, JsonObject
+
+if TYPE_CHECKING:
+    import httpx
 
 EXIT_BAD_USE = 2
 EXIT_OUT_OF_TOLERANCE = 3
@@ -47,6 +53,8 @@ def server_url() -> str:
 
 def connect() -> httpx.Client:
     """An HTTP client for the configured server with the configured key (exit 2 without)."""
+    import httpx
+
     key = os.environ.get("TCPCAL_API_KEY")
     if not key:
         fail(EXIT_BAD_USE, f"set TCPCAL_API_KEY (and TCPCAL_URL if not {DEFAULT_URL})")
@@ -64,6 +72,8 @@ def request(
     headers: Mapping[str, str] | None = None,
 ) -> httpx.Response:
     """The server's answer whatever its status; exit 6 when the server cannot be reached."""
+    import httpx
+
     try:
         with connect() as http:
             return http.request(method, path, params=params, json=json, headers=headers)

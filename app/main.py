@@ -43,8 +43,9 @@ from app.openapi import build_openapi
 
 log = logging.getLogger("tcpcal")
 #: What each solver process imports as it starts: the solve path of the calibrations and of
-#: /v1/solve (numpy, scipy, the methods).
-SOLVER_PRELOAD = ("app.services.calibrate",)
+#: /v1/solve (numpy, scipy, the methods), and scipy.optimize, which the fits import when they
+#: first run (app.solvers.plane.search): a server worker does not import it at start.
+SOLVER_PRELOAD = ("app.services.calibrate", "scipy.optimize")
 
 
 def settle_heap() -> None:

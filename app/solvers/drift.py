@@ -32,11 +32,10 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import stats
-from scipy.optimize import brentq
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
+from app.solvers.distributions import norm_cdf, norm_pdf, norm_sf, t_ppf
 
 #: Days per month in every rate (365.25 / 12).
 MONTH_DAYS = 30.44
@@ -53,12 +52,11 @@ HORIZON_DAYS = 730.0
 #: Huber's small weight).
 OUTLIER_UNITS = 3.0
 
-_N01 = stats.norm()
 #: E[psi(Z)^2] for Z ~ N(0, 1): makes proposal 2's scale the standard deviation on Gaussian noise.
 _PSI2 = float(
-    (2 * _N01.cdf(HUBER_K) - 1)
-    - 2 * HUBER_K * _N01.pdf(HUBER_K)
-    + 2 * HUBER_K**2 * _N01.sf(HUBER_K)
+    (2 * norm_cdf(HUBER_K) - 1)
+    - 2 * HUBER_K * norm_pdf(HUBER_K)
+    + 2 * HUBER_K**2 * norm_sf(HUBER_K)
 )
 
 
@@ -243,7 +241,7 @@ def _line_with_errors(tau: FloatArray, y: FloatArray, beta: FloatArray, scale: f
 @lru_cache(maxsize=256)
 def _t(level: float, dof: int) -> float:
     """Student's t quantile (scipy's ppf costs ~0.1 ms a call)."""
-    return float(stats.t.ppf(level, dof))
+    return t_ppf(level, dof)
 
 
 def crossing(
@@ -270,4 +268,6 @@ def crossing(
     if hit.size == 0:
         return None
     hi = float(grid[hit[0]])
+    from scipy.optimize import brentq  # a few hundred ms to import: by the first crossing only
+
     return float(brentq(excess, hi - 1.0, hi, xtol=1e-6))

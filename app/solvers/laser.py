@@ -44,11 +44,10 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.stats import norm
-from scipy.stats import t as student_t
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
+from app.solvers.distributions import norm_ppf, t_ppf
 from app.solvers.orientation import (
     SigmaSource,
     linear_sigma,
@@ -471,7 +470,7 @@ def _noise(
 def _widening(nu: float) -> float:
     """t(0.975, nu) / 1.96: the factor that keeps +-1.96 sigma a 95 % interval when the
     noise behind sigma was estimated on nu degrees of freedom (Student's t)."""
-    return float(student_t.ppf(0.975, nu) / norm.ppf(0.975))
+    return float(t_ppf(0.975, nu) / norm_ppf(0.975))
 
 
 def _check_noise(value: float | None) -> float | None:

@@ -24,7 +24,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from app.arrays import FloatArray
 
@@ -132,6 +131,8 @@ def _starts(n: int, cone: Cone) -> list[FloatArray]:
 
 def plan_touches(n: int, cone: Cone) -> Plan:
     """The A-optimal set of n touches within the cone (deterministic)."""
+    from scipy.optimize import minimize  # a few hundred ms: imported by the first plan only
+
     bounds = (
         [(0.0, cone.max_tilt_deg)] * n
         + [(None, None)] * n

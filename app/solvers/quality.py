@@ -13,9 +13,9 @@ from typing import Final, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
-from scipy.stats import chi2, f
 
 from app.arrays import FloatArray
+from app.solvers.distributions import chi2_ppf, f_ppf
 
 #: Probability content of the reported uncertainty ellipsoid.
 ELLIPSOID_PROBABILITY = 0.95
@@ -59,8 +59,8 @@ def ellipsoid95_scale(dof: float | None) -> float:
 @lru_cache(maxsize=1024)
 def _scale(dof: float | None) -> float:
     if dof is None:
-        return float(np.sqrt(chi2.ppf(ELLIPSOID_PROBABILITY, 3)))
-    return float(np.sqrt(3.0 * f.ppf(ELLIPSOID_PROBABILITY, 3, dof)))
+        return float(np.sqrt(chi2_ppf(ELLIPSOID_PROBABILITY, 3)))
+    return float(np.sqrt(3.0 * f_ppf(ELLIPSOID_PROBABILITY, 3, dof)))
 
 
 def ellipsoid_semi_axes(covariance: ArrayLike, scale: float) -> tuple[FloatArray, FloatArray]:

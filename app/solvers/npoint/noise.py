@@ -9,9 +9,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
 from app.arrays import FloatArray
+from app.solvers.distributions import chi2_ppf
 from app.solvers.npoint.model import (
     RESIDUAL_FLOOR_MM,
     Fit,
@@ -76,7 +76,7 @@ def noise_warnings(
     if noise.touch_mm is not None:
         cov = noise_cov(Ru, t, spread.s_p, noise.orientation_rad)
         sse = float(mahalanobis_sq(resu, cov).sum())
-        if sse > float(chi2.ppf(1.0 - 1e-3, 3 * m - 6)):
+        if sse > float(chi2_ppf(1.0 - 1e-3, 3 * m - 6)):
             rms = float(np.sqrt(np.mean(np.sum(resu**2, axis=1))))
             warnings.append(
                 f"the residuals (rms {rms:.3f} mm) {NOISE_CONTRADICTED} of "

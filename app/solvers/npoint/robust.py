@@ -10,10 +10,9 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
-from scipy.stats import f as f_dist
 
 from app.arrays import FloatArray
+from app.solvers.distributions import chi2_ppf, f_ppf
 from app.solvers.npoint.checks import MIN_POSES
 from app.solvers.npoint.estimators import base_fit
 from app.solvers.npoint.model import (
@@ -48,13 +47,13 @@ def _outlier_threshold(n: int, dof: int | None) -> float:
     """Squared Mahalanobis bound for one touch: Bonferroni over n touches at OUTLIER_ALPHA."""
     q = 1.0 - OUTLIER_ALPHA / n
     if dof is None:
-        return float(chi2.ppf(q, 3))
-    return float(3.0 * f_dist.ppf(q, 3, max(dof, 1)))
+        return float(chi2_ppf(q, 3))
+    return float(3.0 * f_ppf(q, 3, max(dof, 1)))
 
 
 @lru_cache(maxsize=512)
 def _sse_threshold(dof: int) -> float:
-    return float(chi2.ppf(1.0 - OUTLIER_ALPHA, dof))
+    return float(chi2_ppf(1.0 - OUTLIER_ALPHA, dof))
 
 
 def _touch_distances(
@@ -122,8 +121,8 @@ def _direction_limits(n: int, dof: FloatArray) -> FloatArray:
 def _direction_threshold(n: int, dof: int) -> float:
     q = 1.0 - OUTLIER_ALPHA / (3 * n)
     if dof >= _CHI2_DOF:
-        return float(chi2.ppf(q, 1))
-    return float(f_dist.ppf(q, 1, dof))
+        return float(chi2_ppf(q, 1))
+    return float(f_ppf(q, 1, dof))
 
 
 @lru_cache(maxsize=64)

@@ -38,11 +38,10 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.stats import norm
-from scipy.stats import t as student_t
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
+from app.solvers.distributions import norm_ppf, t_ppf
 from app.solvers.plane.checks import (
     AXIS_MATCH_DEG,
     DEGENERACY_RATIO,
@@ -268,7 +267,7 @@ def _noise(
 def widening(dof: float) -> float:
     """t(0.975, dof) / 1.96: keeps +-1.96 sigma a 95 % interval when the noise behind sigma
     was estimated on dof degrees of freedom."""
-    return float(student_t.ppf(0.975, dof) / norm.ppf(0.975))
+    return float(t_ppf(0.975, dof) / norm_ppf(0.975))
 
 
 def _ellipsoid_scale(dof: int | None) -> float:

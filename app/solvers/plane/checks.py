@@ -10,11 +10,10 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.stats import chi2
-from scipy.stats import f as f_dist
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
+from app.solvers.distributions import chi2_ppf, f_ppf
 from app.solvers.plane.model import PlaneTouches
 from app.solvers.quality import (
     format_vector,
@@ -261,9 +260,9 @@ def check_bounded(t: FloatArray, offsets: FloatArray) -> None:
 
 @lru_cache(maxsize=256)
 def chi2_quantile(q: float, dof: int) -> float:
-    return float(chi2.ppf(q, dof))
+    return float(chi2_ppf(q, dof))
 
 
 @lru_cache(maxsize=256)
 def f_quantile(q: float, dfn: int, dfd: int) -> float:
-    return float(f_dist.ppf(q, dfn, dfd))
+    return float(f_ppf(q, dfn, dfd))

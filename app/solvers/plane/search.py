@@ -10,7 +10,6 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares, leastsq
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
@@ -312,6 +311,10 @@ def _levenberg_marquardt(
     calls MINPACK through leastsq, the same iterations as least_squares(method="lm",
     x_scale="jac") without its per-call wrappers (most of the time of a small fit).
     """
+    # scipy.optimize costs a few hundred ms to import: every tcpcal process imports this module,
+    # only solvers fit (their forkserver imports it up front: app.main.SOLVER_PRELOAD)
+    from scipy.optimize import least_squares, leastsq
+
     tol = 1e-8
     if n_residuals < x0.size:
         fit = least_squares(
