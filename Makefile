@@ -43,8 +43,12 @@ typecheck: $(STAMP)
 # The whole suite: every test, live servers, browsers and killed processes included. (The
 # committed openapi.json is checked byte for byte by tests/test_openapi.py, which is what
 # `tcpcal openapi --check` does.)
+# --dist loadscope: each module on one xdist worker, so that a server or a seeded fleet its
+# tests share (a module fixture) starts once and not once on each worker; modules in the order
+# collected, so the live ones run mid-suite and the tail is short modules. (loadgroup with
+# xdist_group marks would group finer, but pytest 9.2 made it group nothing: pytest-xdist#1386.)
 test: lint typecheck
-	$(BIN)/pytest -q -n 2 --dist loadgroup --durations=20
+	$(BIN)/pytest -q -n 2 --dist loadscope --no-loadscope-reorder --durations=20
 
 # The fast tier for the edit-test loop (under 2 minutes on 2 cores): lint, types and every
 # test that starts no server, browser or process of its own (markers in pyproject.toml).

@@ -170,15 +170,3 @@ def api(db: Database) -> Iterator[Api]:
         from fastapi.testclient import TestClient
     with TestClient(create_app(), raise_server_exceptions=False) as client:
         yield Api(client, keys)
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Groups for pytest-xdist (the Makefile runs `--dist loadgroup`, which hands out the larger
-    groups first): every browser test on one worker, so one Chromium (and its GPU process) for
-    the session instead of one per worker; each module of live tests on one worker, so that a
-    server its tests share (a module fixture) starts once and not once on each worker."""
-    for item in items:
-        if item.get_closest_marker("browser"):
-            item.add_marker(pytest.mark.xdist_group("chromium"))
-        elif item.get_closest_marker("live") or item.get_closest_marker("kills"):
-            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))
