@@ -19,6 +19,7 @@ import pytest
 
 from tests.databases import TABLES as TABLES  # tests count rows of every table
 from tests.databases import Rows, delete_all, fresh_database, read_rows, write_rows
+from tests.inprocess import InProcessTransport
 
 if TYPE_CHECKING:
     from fastapi.testclient import TestClient
@@ -125,6 +126,14 @@ class Api:
         self.client = client
         self.keys = keys
         self.database = database
+        # The helpers' requests: the same app, one crossing to its loop a request
+        # (tests.inprocess); `client` is the TestClient itself, for tests that need it.
+        self.http = httpx.Client(
+            transport=InProcessTransport(client),
+            base_url="http://testserver",
+            headers={"user-agent": "testclient"},
+            follow_redirects=True,
+        )
 
     def world(self, build: Callable[[Api], T]) -> T:
         """What `build(self)` returns, and the database and keys as it left them: built by the
@@ -158,7 +167,7 @@ class Api:
 
     def request(self, method: str, path: str, scope: str, **kw: Any) -> httpx.Response:
         headers = {**self.headers(scope), **kw.pop("headers", {})}
-        response: httpx.Response = self.client.request(method, path, headers=headers, **kw)
+        response: httpx.Response = self.http.request(method, path, headers=headers, **kw)
         return response
 
     def get(self, path: str, scope: str = "read", **kw: Any) -> httpx.Response:
@@ -207,4 +216,6 @@ def api(db: Database) -> Iterator[Api]:
         warnings.simplefilter("ignore")
         from fastapi.testclient import TestClient
     with TestClient(create_app(), raise_server_exceptions=False) as client:
-        yield Api(client, keys, db)
+        api = Api(client, keys, db)
+        with api.http:
+            yield api
