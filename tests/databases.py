@@ -10,8 +10,9 @@ import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
-from sqlalchemy import create_engine, text
+from sqlalchemy import Connection, create_engine, text
 from sqlalchemy.engine import make_url
 
 
@@ -36,3 +37,80 @@ def fresh_database(
         with admin.connect() as conn:
             conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
         admin.dispose()
+
+
+#: Every table of the schema, children first (the order DELETE needs; INSERT goes backwards).
+TABLES = (
+    "deployments",
+    "tool_controller_states",
+    "robot_controllers",
+    "outbox",
+    "guided_sessions",
+    "audit_events",
+    "idempotency_records",
+    "activations",
+    "tcp_versions",
+    "reference_points",
+    "laser_devices",
+    "calibrations",
+    "tools",
+    "robots",
+    "api_keys",
+)
+
+#: Rows of every table as the driver stores them: (columns, rows) by table name.
+Rows = dict[str, tuple[list[str], list[tuple[object, ...]]]]
+
+
+def delete_all(conn: Connection) -> None:
+    """Empty every table, in the connection's transaction.
+
+    DELETE, children first, on both backends: PostgreSQL's TRUNCATE of 15 tables took about
+    0.5 s a test (it rewrites every table and its indexes), DELETE of a few rows milliseconds.
+    On the driver's connection, and on PostgreSQL as one statement list (one round trip):
+    through SQLAlchemy, 15 statements took 3.7 ms a test there and 1.2 ms on SQLite, against
+    1.5 ms and 0.5 ms."""
+    driver: Any = conn.connection.driver_connection
+    if conn.dialect.name == "postgresql":
+        driver.execute("; ".join(f"DELETE FROM {table}" for table in TABLES))
+        return
+    for table in TABLES:
+        driver.execute(f"DELETE FROM {table}")
+
+
+def read_rows(conn: Connection) -> Rows:
+    """Every table's rows, read at the driver: JSON columns as their stored text, so that
+    SQL NULL and JSON null stay apart (through SQLAlchemy both come back None, and would be
+    written back as one of them)."""
+    driver: Any = conn.connection.driver_connection
+    cursor = driver.cursor()
+    if conn.dialect.name == "postgresql":
+        from psycopg.types.string import TextLoader
+
+        cursor.adapters.register_loader("json", TextLoader)
+        cursor.adapters.register_loader("jsonb", TextLoader)
+    rows: Rows = {}
+    try:
+        for table in TABLES:
+            cursor.execute(f"SELECT * FROM {table}")
+            rows[table] = ([d[0] for d in cursor.description], list(cursor.fetchall()))
+    finally:
+        cursor.close()
+    return rows
+
+
+def write_rows(conn: Connection, rows: Rows) -> None:
+    """Insert rows read by `read_rows` as they were (ids included), parents first, in the
+    connection's transaction."""
+    mark = "%s" if conn.dialect.name == "postgresql" else "?"
+    driver: Any = conn.connection.driver_connection
+    cursor = driver.cursor()
+    try:
+        for table in reversed(TABLES):
+            columns, values = rows[table]
+            if values:
+                names = ", ".join(f'"{column}"' for column in columns)
+                marks = ", ".join([mark] * len(columns))
+                cursor.executemany(f"INSERT INTO {table} ({names}) VALUES ({marks})", values)
+    finally:
+        cursor.close()

@@ -15,6 +15,11 @@ from tests.conftest import Api
 
 @pytest.fixture
 def history(api: Api) -> dict[str, Any]:
+    """The history of `_history`: made once per backend, put back for each test (Api.world)."""
+    return api.world(_history)
+
+
+def _history(api: Api) -> dict[str, Any]:
     """Two robots with a tool each; a tolerance change, two versions and an activation."""
     r1 = api.robot("kr16", cell="cell-12")
     r2 = api.robot("irb", cell="cell-7")

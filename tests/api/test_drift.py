@@ -43,6 +43,12 @@ def _check(api: Api, tool_id: str, point_id: str, dx: float) -> None:
 
 @pytest.fixture
 def fleet(api: Api) -> dict[str, dict[str, Any]]:
+    """The two tools of `_fleet`: built once per backend, put back for each test (Api.world;
+    the dates are a few minutes older for the later tests, well within every margin here)."""
+    return api.world(_fleet)
+
+
+def _fleet(api: Api) -> dict[str, dict[str, Any]]:
     """'drifting': checks over 100 days moving 0.009 mm a day (0.9 mm now, check_mm 1.0);
     'steady': the same checks standing at 0.3 mm."""
     robot = api.robot("kr16", vendor="KUKA", cell="weld-1")

@@ -18,6 +18,11 @@ from tests.sim.touches import simulate_touches
 
 @pytest.fixture
 def fleet(api: Api) -> dict[str, JsonObject]:
+    """The fleet of `_fleet`: built once per backend, put back for each test (Api.world)."""
+    return api.world(_fleet)
+
+
+def _fleet(api: Api) -> dict[str, JsonObject]:
     """3 robots in 2 cells, 9 tools; some calibrated, one out of tolerance."""
     tools: dict[str, JsonObject] = {}
     for r, (robot, cell) in enumerate(

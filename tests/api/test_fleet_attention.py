@@ -46,6 +46,11 @@ def _check(api: Api, tool: dict[str, Any], dx: float) -> None:
 
 @pytest.fixture
 def tools(api: Api) -> dict[str, dict[str, Any]]:
+    """The tools of `_tools`: made once per backend, put back for each test (Api.world)."""
+    return api.world(_tools)
+
+
+def _tools(api: Api) -> dict[str, dict[str, Any]]:
     """One tool per attention case, and one that is fine."""
     robot = api.robot("kr16", vendor="KUKA", cell="weld-1")
     made = {

@@ -43,8 +43,7 @@ def _cell_world(api: Api, cell: str) -> dict[str, str]:
     }
 
 
-@pytest.fixture
-def cells(api: Api) -> dict[str, dict[str, str]]:
+def _two_cells(api: Api) -> dict[str, dict[str, str]]:
     """Cells 12 and 7, and keys of each scope limited to cell 12 (api scopes c12-<scope>)."""
     world = {CELL12: _cell_world(api, CELL12), CELL7: _cell_world(api, CELL7)}
     for scope in ("read", "calibrate", "admin"):
@@ -53,6 +52,13 @@ def cells(api: Api) -> dict[str, dict[str, str]]:
         assert made.json()["cells"] == [CELL12]
         api.keys[f"c12-{scope}"] = made.json()["key"]
     return world
+
+
+@pytest.fixture
+def cells(api: Api) -> dict[str, dict[str, str]]:
+    """The two cells and their keys: built by the module's first test on each backend, put
+    back as they were for every other (Api.world), not built again by each of ~45 cases."""
+    return api.world(_two_cells)
 
 
 #: Reads of one thing of cell 7 by id: (url template, what the id names).
