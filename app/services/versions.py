@@ -162,7 +162,9 @@ def add_version(
     created_at: datetime | None = None,
 ) -> int:
     """Append version n+1 of a tool locked with `lock_tool`; its number. `created_at`: the
-    time of the calibration it comes from (default now)."""
+    time of the calibration it comes from (default now). The caller refits the tool's drift
+    (`refresh_tool_drift`) once it has written the version and any activation of it: a
+    refit for each would store the first only for the second to replace it."""
     now = created_at or utcnow()
     tool.last_version = tool.next_version
     tool.revision += 1
@@ -196,7 +198,6 @@ def add_version(
         version=tool.last_version,
         details={"source": source, "status": status},
     )
-    _refresh_drift(session, tool)
     return tool.last_version
 
 
@@ -210,12 +211,14 @@ def activate(
     reason_text: str | None = None,
     action: str = "version.activate",
     details: JsonObject | None = None,
+    drift: bool = True,
 ) -> None:
     """Make `version` the active one and record who did it, when and why (a tool locked with
     `lock_tool`). `reason` is the kind (explicit, forced, rollback, calibration:auto, ...),
     `reason_text` the person's own words; both go into the activation history. The audit
     event (`action`, with `details` added) carries the kind as `kind` and the why as
-    `reason`: the person's words when given, else the kind."""
+    `reason`: the person's words when given, else the kind. `drift`: refit the tool's drift
+    trend (False: the caller does, once, after its other writes)."""
     now = utcnow()
     previous, tool.active_version = tool.active_version, version
     tool.revision += 1
@@ -251,10 +254,11 @@ def activate(
         version=version,
         details={**event, **(details or {})},
     )
-    _refresh_drift(session, tool)
+    if drift:
+        refresh_tool_drift(session, tool)
 
 
-def _refresh_drift(session: Session, tool: LockedTool) -> None:
+def refresh_tool_drift(session: Session, tool: LockedTool) -> None:
     """The tool's drift trend after a new version or activation (a new version is a new point
     of the TCP's series; another active version, another reference and set of checks)."""
     refresh_drift(
