@@ -49,7 +49,13 @@ class Point:
 def drifting_rule(now: datetime) -> ColumnElement[bool]:
     """The `drifting` attention code as a condition on a fleet row: the stored projection
     leaves check_mm within 30 days of now (or already has)."""
-    return and_(Tool.drift_crosses_at.is_not(None), Tool.drift_crosses_at <= now + DRIFTING_WITHIN)
+    return crosses_by(now + DRIFTING_WITHIN)
+
+
+def crosses_by(until: datetime | ColumnElement[datetime]) -> ColumnElement[bool]:
+    """The stored projection leaves check_mm by `until` (a moment, or a bound parameter of a
+    statement built once): `drifting_rule` at now + DRIFTING_WITHIN."""
+    return and_(Tool.drift_crosses_at.is_not(None), Tool.drift_crosses_at <= until)
 
 
 def fleet_drift(stored: JsonObject | None) -> FleetDrift | None:
