@@ -65,6 +65,23 @@ def fleet_drift(stored: JsonObject | None) -> FleetDrift | None:
     return ToolDrift.model_validate(stored).fleet
 
 
+def drift_columns(
+    session: Session, *, tool_id: str, active_version: int | None, tolerance: JsonObject | None
+) -> dict[str, object]:
+    """The tool's trends fitted, as the values of the columns that store them (drift,
+    drift_crosses_at), for a caller that writes them with the rest of the tool's row."""
+    drift = compute_drift(
+        session,
+        tool_id=tool_id,
+        active_version=active_version,
+        check_mm=effective_tolerance(tolerance).check_mm,
+    )
+    return {
+        "drift": drift.model_dump(mode="json"),
+        "drift_crosses_at": drift.fleet.crosses_check_at if drift.fleet else None,
+    }
+
+
 def refresh_drift(
     session: Session,
     *,
