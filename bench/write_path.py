@@ -2,7 +2,8 @@
 
 For each database (SQLite; PostgreSQL when reachable): a migrated database, 5 robots of 10
 tools (as bench/wrk_load.py seeds), then N POST /v1/tools/{id}/calibrations (xyz_npoint, 8
-simulated touches, activate=never: each stores a new version of the same tool) and N GET
+simulated touches, activate=never: each stores a new version of the same tool), N more with
+activate=auto (each version is also activated: calibrations_8_auto) and N GET
 /v1/tools?limit=50, through fastapi's TestClient with TCPCAL_SOLVE_PROCESSES=0 (the solve
 and the write in the request's thread). Each request is timed: the table gives the median
 wall time over all of them, the median CPU time of this process (every thread: client, event
@@ -111,13 +112,25 @@ def run(backend: str, n: int, tmp: Path, profile: str | None, stmts: Statements)
                     r = http.post(f"/v1/tools/{tool_id}/calibrations", content=body, headers=post)
                     assert r.status_code == 201, r.text
 
+                auto = touches_body({})
+
+                def calibrate_auto() -> None:
+                    r = http.post(f"/v1/tools/{tool_id}/calibrations", content=auto, headers=post)
+                    assert r.status_code == 201, r.text
+                    assert r.json()["active"], r.text
+
                 def fleet() -> None:
                     r = http.get("/v1/tools?limit=50")
                     assert r.status_code == 200, r.text
                     assert len(r.json()["items"]) == 50
 
                 out = {}
-                for name, call in (("calibrations_8", calibrate), ("fleet_50", fleet)):
+                plan = (
+                    ("calibrations_8", calibrate),
+                    ("calibrations_8_auto", calibrate_auto),
+                    ("fleet_50", fleet),
+                )
+                for name, call in plan:
                     for _ in range(5):  # warm up
                         call()
                     stmts.on = True
@@ -152,10 +165,10 @@ def _profiled(http: Any, name: str, tool_id: str, body: str, n: int, prefix: str
     threads = ThreadProfiles()
     with TestClient(create_app(), headers=dict(http.headers)) as other:
         for _ in range(n):
-            if name == "calibrations_8":
+            if name.startswith("calibrations_8"):
                 r = other.post(
                     f"/v1/tools/{tool_id}/calibrations",
-                    content=body,
+                    content=body if name == "calibrations_8" else touches_body({}),
                     headers={"Content-Type": "application/json"},
                 )
             else:
