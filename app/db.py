@@ -173,7 +173,14 @@ class HeldRead(Generic[RowT]):
                 if (process := col.type.dialect_impl(dialect).result_processor(dialect, None))
                 is not None
             ]
-            cache[name] = _CompiledRead(compiled.string, order, processors)
+            # The values the statement holds itself (a literal compared with, a LIMIT), each
+            # through its type's bind processor; a named bindparam is given by the caller.
+            fixed = {
+                name: _bound(bind.type.dialect_impl(dialect).bind_processor(dialect), value)
+                for name, bind in compiled.binds.items()
+                if (value := bind.effective_value) is not None
+            }
+            cache[name] = _CompiledRead(compiled.string, order, processors, fixed)
         return cache[name]
 
     def _connection(self, engine: Engine) -> PoolProxiedConnection:
@@ -195,15 +202,15 @@ class HeldRead(Generic[RowT]):
             with contextlib.suppress(Exception):
                 conn.invalidate()
 
-    def statement(self, engine: Engine, **params: str) -> tuple[str, DriverParams]:
+    def statement(self, engine: Engine, **params: object) -> tuple[str, DriverParams]:
         """The SQL and the driver's parameters sent for `params` (for EXPLAIN in bench/)."""
         compiled = self._compiled(engine)
-        return compiled.sql, _driver_params(compiled.order, params)
+        return compiled.sql, _driver_params(compiled.order, {**compiled.fixed, **params})
 
-    def one_or_none(self, engine: Engine, **params: str) -> RowT | None:
+    def one_or_none(self, engine: Engine, **params: object) -> RowT | None:
         """The statement's row for `params`, or None."""
-        sql, order, processors = self._compiled(engine)
-        args = _driver_params(order, params)
+        sql, order, processors, fixed = self._compiled(engine)
+        args = _driver_params(order, {**fixed, **params})
         started = time.perf_counter()
         for attempt in (1, 2):
             try:
@@ -216,14 +223,25 @@ class HeldRead(Generic[RowT]):
         DB_SECONDS.observe(time.perf_counter() - started)
         return self._one(rows, processors)
 
-    def one_or_none_in(self, session: Session, **params: str) -> RowT | None:
+    def one_or_none_in(self, session: Session, **params: object) -> RowT | None:
         """The same read inside a session's transaction (its connection's driver cursor)."""
+        return self._one(*self._fetch_in(session, params))
+
+    def all_in(self, session: Session, **params: object) -> list[RowT]:
+        """Every row of the statement for `params`, inside a session's transaction."""
+        rows, processors = self._fetch_in(session, params)
+        return [self._made(row, processors) for row in rows]
+
+    def _fetch_in(
+        self, session: Session, params: Mapping[str, object]
+    ) -> tuple[Sequence[Sequence[object]], _Processors]:
         conn = session.connection()
-        sql, order, processors = self._compiled(conn.engine)
+        sql, order, processors, fixed = self._compiled(conn.engine)
         started = time.perf_counter()
-        rows = _fetch(conn.connection.dbapi_connection, sql, _driver_params(order, params))
+        args = _driver_params(order, {**fixed, **params})
+        rows = _fetch(conn.connection.dbapi_connection, sql, args)
         DB_SECONDS.observe(time.perf_counter() - started)
-        return self._one(rows, processors)
+        return rows, processors
 
     def _one(self, rows: Sequence[Sequence[object]], processors: _Processors) -> RowT | None:
         """The one row read, its columns through their processors, or None."""
@@ -231,7 +249,11 @@ class HeldRead(Generic[RowT]):
             return None
         if len(rows) > 1:
             raise RuntimeError("a held read returned more than one row")
-        values = list(rows[0])
+        return self._made(rows[0], processors)
+
+    def _made(self, row: Sequence[object], processors: _Processors) -> RowT:
+        """A row of the row type, its columns through their processors."""
+        values = list(row)
         for i, process in processors:
             values[i] = process(values[i])
         return tuple.__new__(self._row, values)
@@ -247,6 +269,11 @@ class _CompiledRead(NamedTuple):
     sql: str
     order: list[str] | None  # the order of positional parameters; None: by name
     processors: _Processors
+    fixed: dict[str, object]  # the statement's own values, as sent to the driver
+
+
+def _bound(process: Processor | None, value: object) -> object:
+    return value if process is None else process(value)
 
 
 def _check_fields(row: type[tuple[object, ...]], columns: tuple[str, ...]) -> None:

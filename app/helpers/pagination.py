@@ -5,7 +5,7 @@ from __future__ import annotations
 import hashlib
 import re
 import uuid
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime, timedelta
 from typing import TypeVar, TypeVarTuple
 
@@ -103,11 +103,13 @@ def paginate_rows(
     id_col: InstrumentedAttribute[str],
     limit: int,
     cursor: str | None,
+    params: Mapping[str, object] | None = None,
 ) -> tuple[list[Row[*Ts]], str | None]:
     """`paginate` for a select of columns (rows with `created_at` and `id` among them): no
-    ORM objects, for pages that show a few columns of many rows."""
+    ORM objects, for pages that show a few columns of many rows. `params`: the values of
+    the statement's bound parameters."""
     stmt = _after(stmt, created_col, id_col, cursor).limit(limit + 1)
-    return _cut(list(session.execute(stmt)), limit)
+    return _cut(list(session.execute(stmt, params)), limit)
 
 
 def paginate_newest_first(

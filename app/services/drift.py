@@ -14,13 +14,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
+from typing import NamedTuple
 
 import numpy as np
 from sqlalchemy import ColumnElement, and_, bindparam, select, update
 from sqlalchemy.orm import Session
 
+from app.db import DriverWrite, HeldRead
 from app.helpers.tolerance import effective_tolerance
-from app.jsontypes import JsonObject
+from app.jsontypes import JsonArray, JsonObject
 from app.methods import ENTERED_BY_HAND
 from app.models import AuditEvent, TcpVersion, Tool, table_of
 from app.schemas.drift import FleetDrift, SeriesTrend, ToolDrift
@@ -47,7 +49,13 @@ class Point:
 def drifting_rule(now: datetime) -> ColumnElement[bool]:
     """The `drifting` attention code as a condition on a fleet row: the stored projection
     leaves check_mm within 30 days of now (or already has)."""
-    return and_(Tool.drift_crosses_at.is_not(None), Tool.drift_crosses_at <= now + DRIFTING_WITHIN)
+    return crosses_by(now + DRIFTING_WITHIN)
+
+
+def crosses_by(until: datetime | ColumnElement[datetime]) -> ColumnElement[bool]:
+    """The stored projection leaves check_mm by `until` (a moment, or a bound parameter of a
+    statement built once): `drifting_rule` at now + DRIFTING_WITHIN."""
+    return and_(Tool.drift_crosses_at.is_not(None), Tool.drift_crosses_at <= until)
 
 
 def fleet_drift(stored: JsonObject | None) -> FleetDrift | None:
@@ -55,6 +63,23 @@ def fleet_drift(stored: JsonObject | None) -> FleetDrift | None:
     if not stored or stored.get("fleet") is None:
         return None
     return ToolDrift.model_validate(stored).fleet
+
+
+def drift_columns(
+    session: Session, *, tool_id: str, active_version: int | None, tolerance: JsonObject | None
+) -> dict[str, object]:
+    """The tool's trends fitted, as the values of the columns that store them (drift,
+    drift_crosses_at), for a caller that writes them with the rest of the tool's row."""
+    drift = compute_drift(
+        session,
+        tool_id=tool_id,
+        active_version=active_version,
+        check_mm=effective_tolerance(tolerance).check_mm,
+    )
+    return {
+        "drift": drift.model_dump(mode="json"),
+        "drift_crosses_at": drift.fleet.crosses_check_at if drift.fleet else None,
+    }
 
 
 def refresh_drift(
@@ -76,8 +101,8 @@ def refresh_drift(
         pending_check=pending_check,
     )
     crosses = drift.fleet.crosses_check_at if drift.fleet else None
-    session.execute(
-        update(_TOOL).where(_TOOL.c.id == bindparam("tool_id")),
+    _SAVE_DRIFT.execute(
+        session,
         [
             {
                 "tool_id": tool_id,
@@ -130,6 +155,7 @@ def compute_drift(
     pending_check: Point | None = None,
 ) -> ToolDrift:
     """Both trends of a tool and the one a fleet row shows."""
+    session.flush()  # the reads below go to the driver: pending ORM changes first
     positions = _version_points(session, tool_id)
     active_mm = _active_position(session, tool_id, active_version)
     checks = _check_points(session, tool_id, active_version)
@@ -195,19 +221,62 @@ def _moment(days: float) -> datetime:
     return datetime.fromtimestamp(days * _DAY_S, UTC)
 
 
+# The series are read on the driver's cursor in the caller's transaction (app.db.HeldRead):
+# through Session.execute the three reads and the UPDATE of a refit cost a stored calibration
+# more than its solve (bench/write_path.py).
+class _VersionPoint(NamedTuple):
+    created_at: datetime
+    position_mm: JsonArray
+
+
+class _ActivePosition(NamedTuple):
+    position_mm: JsonArray
+
+
+class _CheckPoint(NamedTuple):
+    at: datetime
+    details: JsonObject | None
+
+
+_VERSION_POINTS = HeldRead(
+    _VersionPoint,
+    select(TcpVersion.created_at, TcpVersion.position_mm)
+    .where(
+        TcpVersion.tool_id == bindparam("tool_id"),
+        TcpVersion.status == "accepted",
+        # NOT IN of the methods entered by hand, one condition each (source is never NULL):
+        # a held read's statement is compiled once, with no list to expand
+        *(TcpVersion.source != method for method in ENTERED_BY_HAND),
+    )
+    .order_by(TcpVersion.version.desc())
+    .limit(MAX_POINTS),
+)
+_ACTIVE_POSITION = HeldRead(
+    _ActivePosition,
+    select(TcpVersion.position_mm).where(
+        TcpVersion.tool_id == bindparam("tool_id"), TcpVersion.version == bindparam("version")
+    ),
+)
+_CHECK_POINTS = HeldRead(
+    _CheckPoint,
+    select(AuditEvent.at, AuditEvent.details)
+    .where(AuditEvent.tool_id == bindparam("tool_id"), AuditEvent.action == CHECK_ACTION)
+    .order_by(AuditEvent.id.desc())
+    .limit(MAX_POINTS),
+)
+_SAVE_DRIFT = DriverWrite(
+    update(_TOOL)
+    .where(_TOOL.c.id == bindparam("tool_id"))
+    .values(drift=bindparam("drift"), drift_crosses_at=bindparam("drift_crosses_at"))
+)
+
+
 def _version_points(session: Session, tool_id: str) -> list[Point]:
     """The newest accepted, measured versions (seek in the (tool_id, version) index)."""
-    stmt = (
-        select(TcpVersion.created_at, TcpVersion.position_mm)
-        .where(
-            TcpVersion.tool_id == tool_id,
-            TcpVersion.status == "accepted",
-            TcpVersion.source.not_in(ENTERED_BY_HAND),
-        )
-        .order_by(TcpVersion.version.desc())
-        .limit(MAX_POINTS)
-    )
-    return [Point(at, [float(v) for v in xyz]) for at, xyz in session.execute(stmt)]
+    return [
+        Point(at, [float(v) for v in xyz])
+        for at, xyz in _VERSION_POINTS.all_in(session, tool_id=tool_id)
+    ]
 
 
 def _active_position(
@@ -215,12 +284,8 @@ def _active_position(
 ) -> list[float] | None:
     if active_version is None:
         return None
-    row = session.execute(
-        select(TcpVersion.position_mm).where(
-            TcpVersion.tool_id == tool_id, TcpVersion.version == active_version
-        )
-    ).scalar_one_or_none()
-    return None if row is None else [float(v) for v in row]
+    row = _ACTIVE_POSITION.one_or_none_in(session, tool_id=tool_id, version=active_version)
+    return None if row is None else [float(v) for v in row.position_mm]
 
 
 def _check_points(session: Session, tool_id: str, active_version: int | None) -> list[Point]:
@@ -229,14 +294,8 @@ def _check_points(session: Session, tool_id: str, active_version: int | None) ->
     recorded before the flange deviation was)."""
     if active_version is None:
         return []
-    stmt = (
-        select(AuditEvent.at, AuditEvent.details)
-        .where(AuditEvent.tool_id == tool_id, AuditEvent.action == CHECK_ACTION)
-        .order_by(AuditEvent.id.desc())
-        .limit(MAX_POINTS)
-    )
     points = []
-    for at, details in session.execute(stmt):
+    for at, details in _CHECK_POINTS.all_in(session, tool_id=tool_id):
         d = details or {}
         xyz = d.get("deviation_flange_mm") or d.get("deviation_mm")
         if d.get("version") == active_version and isinstance(xyz, list) and len(xyz) == 3:

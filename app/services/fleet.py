@@ -10,7 +10,19 @@ from collections.abc import Sequence
 from datetime import datetime, timedelta
 from typing import TypeVar
 
-from sqlalchemy import ColumnElement, Row, ScalarSelect, Select, and_, false, func, or_, select
+from sqlalchemy import (
+    BindParameter,
+    ColumnElement,
+    Row,
+    ScalarSelect,
+    Select,
+    and_,
+    bindparam,
+    false,
+    func,
+    or_,
+    select,
+)
 from sqlalchemy.orm import InstrumentedAttribute, Session, aliased
 
 from app.config import get_settings
@@ -26,7 +38,7 @@ from app.schemas.fleet import (
     LastCalibration,
     LastCheck,
 )
-from app.services.drift import drifting_rule, fleet_drift
+from app.services.drift import DRIFTING_WITHIN, crosses_by, fleet_drift
 from app.services.live import in_scope
 from app.services.tools import get_tool
 from app.statuses import ToolState
@@ -70,7 +82,21 @@ def attention_rules(now: datetime) -> dict[AttentionCode, ColumnElement[bool]]:
     """The rule of each attention code, as a condition on a fleet row (Tool, its robot and
     its active version joined): the codes a row shows and `?attention=` are both these.
     Each is an index seek per tool, never a scan of calibrations, versions or checks."""
-    cutoff = now - timedelta(days=get_settings().stale_days)
+    moments = rule_moments(now)
+    return _rules(moments["stale_before"], moments["drifting_until"])
+
+
+def rule_moments(now: datetime) -> dict[str, datetime]:
+    """The moments the rules compare with at `now`: the parameters of `RULES`."""
+    return {
+        "stale_before": now - timedelta(days=get_settings().stale_days),
+        "drifting_until": now + DRIFTING_WITHIN,
+    }
+
+
+def _rules(
+    cutoff: datetime | ColumnElement[datetime], drifting_until: datetime | ColumnElement[datetime]
+) -> dict[AttentionCode, ColumnElement[bool]]:
     return {
         "active_out_of_tolerance": _ACTIVE.status == OUT_OF_TOLERANCE,
         "last_calibration_out_of_tolerance": (
@@ -90,7 +116,7 @@ def attention_rules(now: datetime) -> dict[AttentionCode, ColumnElement[bool]]:
         "controller_drifted": _controller_state() == "drifted",
         "controller_unreachable": _controller_state() == "unreachable",
         # The trend stored when a version or check was written projects out of check_mm.
-        "drifting": drifting_rule(now),
+        "drifting": crosses_by(drifting_until),
     }
 
 
@@ -102,6 +128,11 @@ def _controller_state() -> ScalarSelect[ToolState]:
         .correlate(Tool)
         .scalar_subquery()
     )
+
+
+#: Every rule, built once: a fleet page's statements are executed with `rule_moments(now)`
+#: as their parameters (building the rules' eight subqueries cost a page 2 ms of Python).
+RULES = _rules(bindparam("stale_before"), bindparam("drifting_until"))
 
 
 def _any(rules: dict[AttentionCode, ColumnElement[bool]]) -> ColumnElement[bool]:
@@ -190,22 +221,27 @@ def list_fleet(
     each reading only the columns a row shows (rows, not ORM objects: a page is read-only).
     `attention`: only rows with (true) or without (false) an attention code. Only the robots
     in the acting key's cells."""
-    rules = attention_rules(utcnow())
+    moments = rule_moments(utcnow())
     stmt = in_scope(
         session,
         _fleet_query(
-            cell=cell, robot_id=robot_id, q=q, status=status, attention=attention, rules=rules
+            cell=cell, robot_id=robot_id, q=q, status=status, attention=attention, rules=RULES
         ),
         Robot.id,
     )
     tools, next_cursor = paginate_rows(
-        session, stmt, created_col=Tool.created_at, id_col=Tool.id, limit=limit, cursor=cursor
+        session,
+        stmt,
+        created_col=Tool.created_at,
+        id_col=Tool.id,
+        limit=limit,
+        cursor=cursor,
+        params=moments if attention is not None else None,
     )
-    ids = [t.id for t in tools]
-    last_cal = {c.tool_id: c for c in session.execute(_newest_calibrations(ids))}
-    last_check = {e.tool_id: e for e in session.execute(_newest_checks(ids))}
-    codes = _attention_of(session, ids, rules)
-    in_controller = controller_states(session, ids)
+    ids = {"ids": [t.id for t in tools]}
+    last_cal = {c.tool_id: c for c in session.execute(_NEWEST_CALIBRATIONS, ids)}
+    last_check = {e.tool_id: e for e in session.execute(_NEWEST_CHECKS, ids)}
+    codes, in_controller = _attention_of(session, ids["ids"], moments)
     rows = [
         FleetTool(
             id=t.id,
@@ -228,26 +264,47 @@ def list_fleet(
     return rows, next_cursor
 
 
-def _attention_of(
-    session: Session, ids: list[str], rules: dict[AttentionCode, ColumnElement[bool]]
-) -> dict[str, list[AttentionCode]]:
-    """The attention codes of the page's tools, each rule evaluated by the database (the
-    same conditions `?attention=` filters on)."""
-    if not ids:
-        return {}
-    order = list(rules)
-    stmt = (
-        select(Tool.id, *(rules[code].label(f"rule_{i}") for i, code in enumerate(order)))
-        .outerjoin(
-            _ACTIVE,
-            and_(_ACTIVE.tool_id == Tool.id, _ACTIVE.version == Tool.active_version),
-        )
-        .where(Tool.id.in_(ids))
+#: The page's tools by id (an expanding parameter: the statements below are built once).
+_IDS: BindParameter[list[str]] = bindparam("ids", expanding=True)
+_ORDER: list[AttentionCode] = list(RULES)
+#: The tool's controller state, joined on its primary key.
+_STATE = aliased(ToolControllerState, name="controller_state")
+#: Each rule of each tool of a page, evaluated by the database (the same conditions
+#: `?attention=` filters on), and its controller state.
+_ATTENTION = (
+    select(
+        Tool.id,
+        _STATE.state,
+        _STATE.checked_at,
+        _STATE.deviation_mm,
+        *(RULES[code].label(f"rule_{i}") for i, code in enumerate(_ORDER)),
     )
-    return {
-        row[0]: [code for code, hit in zip(order, row[1:], strict=True) if hit]
-        for row in session.execute(stmt)
-    }
+    .outerjoin(
+        _ACTIVE,
+        and_(_ACTIVE.tool_id == Tool.id, _ACTIVE.version == Tool.active_version),
+    )
+    .outerjoin(_STATE, _STATE.tool_id == Tool.id)
+    .where(Tool.id.in_(_IDS))
+)
+
+
+def _attention_of(
+    session: Session, ids: list[str], moments: dict[str, datetime]
+) -> tuple[dict[str, list[AttentionCode]], dict[str, FleetController]]:
+    """The attention codes of the page's tools, and the controller state of each that has
+    one, in one statement."""
+    if not ids:
+        return {}, {}
+    codes: dict[str, list[AttentionCode]] = {}
+    states: dict[str, FleetController] = {}
+    for row in session.execute(_ATTENTION, {"ids": ids, **moments}):
+        tool_id, state, checked_at, deviation_mm, *hits = row
+        codes[tool_id] = [code for code, hit in zip(_ORDER, hits, strict=True) if hit]
+        if state is not None:
+            states[tool_id] = FleetController(
+                state=state, checked_at=checked_at, deviation_mm=deviation_mm
+            )
+    return codes, states
 
 
 # The newest calibration and the newest check of each tool of a page, found through the
@@ -255,47 +312,23 @@ def _attention_of(
 # a tool has one calibration or a hundred thousand (bench/scale.py). Only the columns the row
 # shows: a calibration's stored request and result are kilobytes of JSON each, and decoding
 # 50 of them cost more than the rest of the page.
-def _newest_calibrations(
-    ids: list[str],
-) -> Select[str, str, str, datetime, float | None]:
-    newest = _newest_calibration(Calibration.id)
-    return select(
-        Calibration.id,
-        Calibration.tool_id,
-        Calibration.status,
-        Calibration.created_at,
-        Calibration.result["quality"]["rms_mm"].as_float().label("rms_mm"),
-    ).where(Calibration.id.in_(select(newest).where(Tool.id.in_(ids))))
-
-
-def _newest_checks(ids: list[str]) -> Select[int, str | None, datetime, JsonObject | None]:
-    newest = (
-        select(func.max(AuditEvent.id))
-        .where(AuditEvent.tool_id == Tool.id, AuditEvent.action == CHECK_ACTION)
-        .correlate(Tool)
-        .scalar_subquery()
-    )
-    return select(AuditEvent.id, AuditEvent.tool_id, AuditEvent.at, AuditEvent.details).where(
-        AuditEvent.id.in_(select(newest).where(Tool.id.in_(ids)))
-    )
-
-
-def controller_states(session: Session, ids: list[str]) -> dict[str, FleetController]:
-    """The controller state of each tool of a page that has one (one primary-key read)."""
-    rows = session.execute(
+_NEWEST_CALIBRATIONS = select(
+    Calibration.id,
+    Calibration.tool_id,
+    Calibration.status,
+    Calibration.created_at,
+    Calibration.result["quality"]["rms_mm"].as_float().label("rms_mm"),
+).where(Calibration.id.in_(select(_newest_calibration(Calibration.id)).where(Tool.id.in_(_IDS))))
+_NEWEST_CHECKS = select(AuditEvent.id, AuditEvent.tool_id, AuditEvent.at, AuditEvent.details).where(
+    AuditEvent.id.in_(
         select(
-            ToolControllerState.tool_id,
-            ToolControllerState.state,
-            ToolControllerState.checked_at,
-            ToolControllerState.deviation_mm,
-        ).where(ToolControllerState.tool_id.in_(ids))
+            select(func.max(AuditEvent.id))
+            .where(AuditEvent.tool_id == Tool.id, AuditEvent.action == CHECK_ACTION)
+            .correlate(Tool)
+            .scalar_subquery()
+        ).where(Tool.id.in_(_IDS))
     )
-    return {
-        r.tool_id: FleetController(
-            state=r.state, checked_at=r.checked_at, deviation_mm=r.deviation_mm
-        )
-        for r in rows
-    }
+)
 
 
 def _last_calibration(

@@ -21,7 +21,7 @@ from app.jsontypes import JsonObject
 from app.models import Activation, Robot, TcpVersion, Tool, new_id, table_of, utcnow
 from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.services import audit
-from app.services.drift import refresh_drift
+from app.services.drift import drift_columns, refresh_drift
 from app.services.exports import ServedTool, ServedVersion, controller_text
 from app.services.hot_read import active_of, read_for_key
 from app.services.live import live_or_404
@@ -84,6 +84,19 @@ _SAVE_TOOL = DriverWrite(
         updated_at=bindparam("updated_at"),
     )
 )
+#: The counters and the drift trend in one statement (`save_deferred`).
+_SAVE_TOOL_AND_DRIFT = DriverWrite(
+    update(_TOOL)
+    .where(_TOOL.c.id == bindparam("tool_id"))
+    .values(
+        active_version=bindparam("active_version"),
+        last_version=bindparam("last_version"),
+        revision=bindparam("revision"),
+        updated_at=bindparam("updated_at"),
+        drift=bindparam("drift"),
+        drift_crosses_at=bindparam("drift_crosses_at"),
+    )
+)
 _INSERT_VERSION = DriverWrite(insert(_VERSION))
 _INSERT_ACTIVATION = DriverWrite(insert(table_of(Activation)))
 
@@ -101,6 +114,8 @@ class LockedTool:
     last_version: int
     revision: int
     kinematics: JsonObject | None
+    #: When a deferred write (add_version or activate with `deferred`) changed the counters.
+    updated_at: datetime | None = None
 
     @property
     def next_version(self) -> int:
@@ -131,21 +146,38 @@ def lock_tool(session: Session, tool_id: str) -> LockedTool:
 
 def _save(session: Session, tool: LockedTool, now: datetime) -> None:
     """Write the locked tool's counters; an ORM copy of the row reads them back when next used."""
-    _SAVE_TOOL.execute(
-        session,
-        [
-            {
-                "tool_id": tool.id,
-                "active_version": tool.active_version,
-                "last_version": tool.last_version,
-                "revision": tool.revision,
-                "updated_at": now,
-            }
-        ],
-    )
+    _SAVE_TOOL.execute(session, [_counters(tool, now)])
+    _expire(session, tool)
+
+
+def _counters(tool: LockedTool, now: datetime) -> dict[str, object]:
+    return {
+        "tool_id": tool.id,
+        "active_version": tool.active_version,
+        "last_version": tool.last_version,
+        "revision": tool.revision,
+        "updated_at": now,
+    }
+
+
+def _expire(session: Session, tool: LockedTool) -> None:
     cached = session.identity_map.get(session.identity_key(Tool, tool.id))
     if cached is not None:
         session.expire(cached)
+
+
+def save_deferred(session: Session, tool: LockedTool) -> None:
+    """Write what deferred writes changed: the tool's counters and its drift trend, refitted
+    once for them all, in one UPDATE (a calibration's version and its activation each wrote
+    the row, and each refitted a trend that the next one replaced)."""
+    if tool.updated_at is None:
+        return
+    drift = drift_columns(
+        session, tool_id=tool.id, active_version=tool.active_version, tolerance=tool.tolerance
+    )
+    _SAVE_TOOL_AND_DRIFT.execute(session, [{**_counters(tool, tool.updated_at), **drift}])
+    tool.updated_at = None
+    _expire(session, tool)
 
 
 def add_version(
@@ -160,9 +192,12 @@ def add_version(
     note: str | None,
     actor: Principal,
     created_at: datetime | None = None,
+    deferred: bool = False,
 ) -> int:
     """Append version n+1 of a tool locked with `lock_tool`; its number. `created_at`: the
-    time of the calibration it comes from (default now)."""
+    time of the calibration it comes from (default now). The tool's counters and its drift
+    trend are written now, or with `deferred` by the caller's `save_deferred` once it has
+    written everything of the transaction."""
     now = created_at or utcnow()
     tool.last_version = tool.next_version
     tool.revision += 1
@@ -184,7 +219,10 @@ def add_version(
             }
         ],
     )
-    _save(session, tool, now)
+    if deferred:
+        tool.updated_at = now
+    else:
+        _save(session, tool, now)
     audit.record(
         session,
         actor=actor,
@@ -196,7 +234,8 @@ def add_version(
         version=tool.last_version,
         details={"source": source, "status": status},
     )
-    _refresh_drift(session, tool)
+    if not deferred:
+        _refresh_drift(session, tool)
     return tool.last_version
 
 
@@ -210,12 +249,14 @@ def activate(
     reason_text: str | None = None,
     action: str = "version.activate",
     details: JsonObject | None = None,
+    deferred: bool = False,
 ) -> None:
     """Make `version` the active one and record who did it, when and why (a tool locked with
     `lock_tool`). `reason` is the kind (explicit, forced, rollback, calibration:auto, ...),
     `reason_text` the person's own words; both go into the activation history. The audit
     event (`action`, with `details` added) carries the kind as `kind` and the why as
-    `reason`: the person's words when given, else the kind."""
+    `reason`: the person's words when given, else the kind. `deferred`: the counters and
+    the drift trend are written by the caller's `save_deferred`."""
     now = utcnow()
     previous, tool.active_version = tool.active_version, version
     tool.revision += 1
@@ -233,7 +274,10 @@ def activate(
             }
         ],
     )
-    _save(session, tool, now)
+    if deferred:
+        tool.updated_at = now
+    else:
+        _save(session, tool, now)
     event: JsonObject = {
         "version": version,
         "previous_version": previous,
@@ -251,7 +295,8 @@ def activate(
         version=version,
         details={**event, **(details or {})},
     )
-    _refresh_drift(session, tool)
+    if not deferred:
+        _refresh_drift(session, tool)
 
 
 def _refresh_drift(session: Session, tool: LockedTool) -> None:

@@ -35,6 +35,7 @@ from app.services.versions import (
     activate,
     add_version,
     lock_tool,
+    save_deferred,
 )
 
 
@@ -150,6 +151,7 @@ def submit(
     out = _store(session, tool=tool, request=request, raw_body=raw_body, result=result, actor=actor)
     if _activate_if_due(session, tool=tool, request=request, result=result, actor=actor):
         out.active = True
+    save_deferred(session, tool)  # the counters and the drift, once for both writes
     if keep_point and point_name is not None and point is not None:
         _save_touched_point(session, tool, point_name, point, request.method, out.id, actor)
     audit.record(
@@ -244,6 +246,7 @@ def _store(
         note=request.note,
         actor=actor,
         created_at=now,
+        deferred=True,  # saved by submit, with any activation of the version
     )
     return served(
         result,
@@ -279,5 +282,6 @@ def _activate_if_due(
             version=tool.last_version,
             reason=f"calibration:{request.activate}",
             actor=actor,
+            deferred=True,  # saved by submit with the version's
         )
     return due
