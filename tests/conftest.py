@@ -22,6 +22,7 @@ from tests.databases import Rows, delete_all, fresh_database, read_rows, write_r
 from tests.inprocess import InProcessTransport
 
 if TYPE_CHECKING:
+    from fastapi import FastAPI
     from fastapi.testclient import TestClient
 
 PG_URL = os.environ.get("TCPCAL_TEST_DATABASE_URL")
@@ -210,13 +211,31 @@ class Api:
         return dict(response.json())
 
 
+#: The apps of this process, by the one setting create_app() reads (the body limit). FastAPI
+#: builds an app's routes (each route's dependants and pydantic adapters) lazily, on the first
+#: requests that reach its routers, and an app made for every test built them again for every
+#: test: a quarter of the in-process API tests' CPU (py-spy over tests/api on both backends,
+#: `_IncludedRouter.effective_candidates`). Each test still has a TestClient of its own, so the
+#: app's start-up and shutdown (bootstrap key, watcher) run for it, on its own database.
+_APPS: dict[int, FastAPI] = {}
+
+
+def _app() -> FastAPI:
+    from app.config import get_settings
+    from app.main import create_app
+
+    limit = get_settings().max_body_bytes
+    if limit not in _APPS:
+        _APPS[limit] = create_app()
+    return _APPS[limit]
+
+
 @pytest.fixture
 def api(db: Database) -> Iterator[Api]:
     """The app over an in-process client, with one API key per scope."""
     import warnings
 
     from app.db import session_scope
-    from app.main import create_app
     from app.services.keys import create_key
 
     keys = {}
@@ -226,7 +245,7 @@ def api(db: Database) -> Iterator[Api]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         from fastapi.testclient import TestClient
-    with TestClient(create_app(), raise_server_exceptions=False) as client:
+    with TestClient(_app(), raise_server_exceptions=False) as client:
         api = Api(client, keys, db)
         with api.http:
             yield api
