@@ -46,15 +46,9 @@ class Point:
     xyz: Sequence[float]
 
 
-def drifting_rule(now: datetime) -> ColumnElement[bool]:
-    """The `drifting` attention code as a condition on a fleet row: the stored projection
-    leaves check_mm within 30 days of now (or already has)."""
-    return crosses_by(now + DRIFTING_WITHIN)
-
-
-def crosses_by(until: datetime | ColumnElement[datetime]) -> ColumnElement[bool]:
-    """The stored projection leaves check_mm by `until` (a moment, or a bound parameter of a
-    statement built once): `drifting_rule` at now + DRIFTING_WITHIN."""
+def crosses_by(until: ColumnElement[datetime]) -> ColumnElement[bool]:
+    """The stored projection leaves check_mm by `until`, as a condition on a fleet row: the
+    `drifting` attention code with `until` bound to now + DRIFTING_WITHIN."""
     return and_(Tool.drift_crosses_at.is_not(None), Tool.drift_crosses_at <= until)
 
 
@@ -65,21 +59,36 @@ def fleet_drift(stored: JsonObject | None) -> FleetDrift | None:
     return ToolDrift.model_validate(stored).fleet
 
 
-def drift_columns(
-    session: Session, *, tool_id: str, active_version: int | None, tolerance: JsonObject | None
-) -> dict[str, object]:
-    """The tool's trends fitted, as the values of the columns that store them (drift,
-    drift_crosses_at), for a caller that writes them with the rest of the tool's row."""
-    drift = compute_drift(
+class StoredDrift(NamedTuple):
+    """A fitted trend as the tool's columns store it."""
+
+    drift: JsonObject
+    drift_crosses_at: datetime | None
+
+
+def stored(drift: ToolDrift) -> StoredDrift:
+    """The values of the tool's columns that store `drift`."""
+    return StoredDrift(
+        drift.model_dump(mode="json"), drift.fleet.crosses_check_at if drift.fleet else None
+    )
+
+
+def fit_drift(
+    session: Session,
+    *,
+    tool_id: str,
+    active_version: int | None,
+    tolerance: JsonObject | None,
+    pending_check: Point | None = None,
+) -> ToolDrift:
+    """Both trends of a tool against its tolerance's check_mm (`compute_drift`)."""
+    return compute_drift(
         session,
         tool_id=tool_id,
         active_version=active_version,
         check_mm=effective_tolerance(tolerance).check_mm,
+        pending_check=pending_check,
     )
-    return {
-        "drift": drift.model_dump(mode="json"),
-        "drift_crosses_at": drift.fleet.crosses_check_at if drift.fleet else None,
-    }
 
 
 def refresh_drift(
@@ -93,24 +102,14 @@ def refresh_drift(
     """Fit the tool's trends and store them on the tool, in the caller's transaction.
     `pending_check`: a check recorded in this transaction (the audit trail is written at
     commit, so the query cannot see it yet)."""
-    drift = compute_drift(
+    drift = fit_drift(
         session,
         tool_id=tool_id,
         active_version=active_version,
-        check_mm=effective_tolerance(tolerance).check_mm,
+        tolerance=tolerance,
         pending_check=pending_check,
     )
-    crosses = drift.fleet.crosses_check_at if drift.fleet else None
-    _SAVE_DRIFT.execute(
-        session,
-        [
-            {
-                "tool_id": tool_id,
-                "drift": drift.model_dump(mode="json"),
-                "drift_crosses_at": crosses,
-            }
-        ],
-    )
+    _SAVE_DRIFT.execute(session, [{"tool_id": tool_id, **stored(drift)._asdict()}])
     cached = session.identity_map.get(session.identity_key(Tool, tool_id))
     if cached is not None:
         session.expire(cached, ["drift", "drift_crosses_at"])
@@ -119,14 +118,11 @@ def refresh_drift(
 
 def restate_drift(session: Session, tool: Tool) -> None:
     """Refit a tool (an ORM object being changed) after its tolerance changed."""
-    drift = compute_drift(
-        session,
-        tool_id=tool.id,
-        active_version=tool.active_version,
-        check_mm=effective_tolerance(tool.tolerance).check_mm,
+    tool.drift, tool.drift_crosses_at = stored(
+        fit_drift(
+            session, tool_id=tool.id, active_version=tool.active_version, tolerance=tool.tolerance
+        )
     )
-    tool.drift = drift.model_dump(mode="json")
-    tool.drift_crosses_at = drift.fleet.crosses_check_at if drift.fleet else None
 
 
 def tool_drift(session: Session, tool_id: str) -> ToolDrift:
@@ -138,11 +134,8 @@ def stored_or_computed(session: Session, tool: Tool) -> ToolDrift:
     """The tool's stored trend; computed (not stored) for a tool written before trends were."""
     if tool.drift is not None:
         return ToolDrift.model_validate(tool.drift)
-    return compute_drift(
-        session,
-        tool_id=tool.id,
-        active_version=tool.active_version,
-        check_mm=effective_tolerance(tool.tolerance).check_mm,
+    return fit_drift(
+        session, tool_id=tool.id, active_version=tool.active_version, tolerance=tool.tolerance
     )
 
 

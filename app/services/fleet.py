@@ -78,14 +78,6 @@ _ACTIVE = aliased(TcpVersion, name="active_tcp")
 OUT_OF_TOLERANCE = "out_of_tolerance"
 
 
-def attention_rules(now: datetime) -> dict[AttentionCode, ColumnElement[bool]]:
-    """The rule of each attention code, as a condition on a fleet row (Tool, its robot and
-    its active version joined): the codes a row shows and `?attention=` are both these.
-    Each is an index seek per tool, never a scan of calibrations, versions or checks."""
-    moments = rule_moments(now)
-    return _rules(moments["stale_before"], moments["drifting_until"])
-
-
 def rule_moments(now: datetime) -> dict[str, datetime]:
     """The moments the rules compare with at `now`: the parameters of `RULES`."""
     return {
@@ -95,8 +87,11 @@ def rule_moments(now: datetime) -> dict[str, datetime]:
 
 
 def _rules(
-    cutoff: datetime | ColumnElement[datetime], drifting_until: datetime | ColumnElement[datetime]
+    cutoff: ColumnElement[datetime], drifting_until: ColumnElement[datetime]
 ) -> dict[AttentionCode, ColumnElement[bool]]:
+    """The rule of each attention code, as a condition on a fleet row (Tool, its robot and
+    its active version joined): the codes a row shows and `?attention=` are both these.
+    Each is an index seek per tool, never a scan of calibrations, versions or checks."""
     return {
         "active_out_of_tolerance": _ACTIVE.status == OUT_OF_TOLERANCE,
         "last_calibration_out_of_tolerance": (

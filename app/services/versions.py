@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import NamedTuple
 
-from sqlalchemy import Engine, bindparam, insert, select, update
+from sqlalchemy import BindParameter, Engine, bindparam, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.auth import Principal, cells_of
@@ -21,7 +21,7 @@ from app.jsontypes import JsonObject
 from app.models import Activation, Robot, TcpVersion, Tool, new_id, table_of, utcnow
 from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.services import audit
-from app.services.drift import drift_columns, refresh_drift
+from app.services.drift import StoredDrift, fit_drift, refresh_drift, stored
 from app.services.exports import ServedTool, ServedVersion, controller_text
 from app.services.hot_read import active_of, read_for_key
 from app.services.live import live_or_404
@@ -74,28 +74,18 @@ _LOCK_TOOL = HeldRead(
     .where(_TOOL.c.id == bindparam("tool_id"))
     .with_for_update(of=_TOOL),
 )
+#: The tool's counters as its writes set them (`_counters` gives their values).
+_COUNTERS: dict[str, BindParameter[object]] = {
+    name: bindparam(name) for name in ("active_version", "last_version", "revision", "updated_at")
+}
 _SAVE_TOOL = DriverWrite(
-    update(_TOOL)
-    .where(_TOOL.c.id == bindparam("tool_id"))
-    .values(
-        active_version=bindparam("active_version"),
-        last_version=bindparam("last_version"),
-        revision=bindparam("revision"),
-        updated_at=bindparam("updated_at"),
-    )
+    update(_TOOL).where(_TOOL.c.id == bindparam("tool_id")).values(**_COUNTERS)
 )
 #: The counters and the drift trend in one statement (`save_deferred`).
 _SAVE_TOOL_AND_DRIFT = DriverWrite(
     update(_TOOL)
     .where(_TOOL.c.id == bindparam("tool_id"))
-    .values(
-        active_version=bindparam("active_version"),
-        last_version=bindparam("last_version"),
-        revision=bindparam("revision"),
-        updated_at=bindparam("updated_at"),
-        drift=bindparam("drift"),
-        drift_crosses_at=bindparam("drift_crosses_at"),
-    )
+    .values(**_COUNTERS, **{name: bindparam(name) for name in StoredDrift._fields})
 )
 _INSERT_VERSION = DriverWrite(insert(_VERSION))
 _INSERT_ACTIVATION = DriverWrite(insert(table_of(Activation)))
@@ -172,10 +162,11 @@ def save_deferred(session: Session, tool: LockedTool) -> None:
     the row, and each refitted a trend that the next one replaced)."""
     if tool.updated_at is None:
         return
-    drift = drift_columns(
+    drift = fit_drift(
         session, tool_id=tool.id, active_version=tool.active_version, tolerance=tool.tolerance
     )
-    _SAVE_TOOL_AND_DRIFT.execute(session, [{**_counters(tool, tool.updated_at), **drift}])
+    row = {**_counters(tool, tool.updated_at), **stored(drift)._asdict()}
+    _SAVE_TOOL_AND_DRIFT.execute(session, [row])
     tool.updated_at = None
     _expire(session, tool)
 
