@@ -25,9 +25,12 @@ class TcpSimulator:
         self._lock = threading.Lock()
         self._threads: list[threading.Thread] = []
         self.connections_accepted = 0
+        #: False once `stop` began: a connection accepted after that is closed at once
+        self._running = False
 
     def start(self) -> Self:
         """Listen on a free loopback port (the same one again after a `stop`)."""
+        self._running = True
         self.port = self.add_listener(self.port, self.serve)
         return self
 
@@ -44,6 +47,8 @@ class TcpSimulator:
 
     def stop(self) -> None:
         """Close the listeners and every open connection (a controller switched off)."""
+        with self._lock:
+            self._running = False
         listeners, self._listeners = self._listeners, []
         for listener in listeners:
             _shutdown(listener)
@@ -82,6 +87,11 @@ class TcpSimulator:
             except OSError:
                 return
             with self._lock:
+                # A client's connect completes in the kernel's backlog, before accept():
+                # one accepted while `stop` runs must be closed too, or it would be served.
+                if not self._running:
+                    _shutdown(conn)
+                    return
                 self._connections.add(conn)
                 self.connections_accepted += 1
             self._spawn(self._serve_one, conn, handler)
