@@ -15,6 +15,8 @@ from typing import Any
 from sqlalchemy import Connection, create_engine, text
 from sqlalchemy.engine import make_url
 
+from app.models import Base
+
 
 @contextmanager
 def fresh_database(
@@ -39,24 +41,9 @@ def fresh_database(
         admin.dispose()
 
 
-#: Every table of the schema, children first (the order DELETE needs; INSERT goes backwards).
-TABLES = (
-    "deployments",
-    "tool_controller_states",
-    "robot_controllers",
-    "outbox",
-    "guided_sessions",
-    "audit_events",
-    "idempotency_records",
-    "activations",
-    "tcp_versions",
-    "reference_points",
-    "laser_devices",
-    "calibrations",
-    "tools",
-    "robots",
-    "api_keys",
-)
+#: Every table of the schema, children first (the order DELETE needs; INSERT goes backwards):
+#: read off the models' foreign keys, so that a new table is emptied and restored too.
+TABLES = tuple(table.name for table in reversed(Base.metadata.sorted_tables))
 
 #: Rows of every table as the driver stores them: (columns, rows) by table name.
 Rows = dict[str, tuple[list[str], list[tuple[object, ...]]]]
