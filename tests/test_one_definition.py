@@ -1,36 +1,45 @@
-"""Each list is written once: the schema Literals equal the libraries' lists, and every
+"""Each list is written once: the schemas name the libraries' Literals, and every
 method-derived list equals the registry's."""
 
 from __future__ import annotations
 
 from typing import get_args
 
+from pydantic import BaseModel
+
 from app.api.methods import describe
-from app.exports import CONTROLLER_FORMATS
-from app.kinematics.poses import POSE_FORMATS
+from app.exports import CONTROLLER_FORMATS, ControllerFormat
+from app.kinematics.poses import POSE_FORMATS, PoseFormat
 from app.methods import METHOD_NAMES, METHODS
-from app.methods.npoint import Algorithm
+from app.methods.npoint import NPointOptions
 from app.models import Deployment, GuidedSession, ToolControllerState
 from app.schemas.calibrations import SOLVE_MODELS, CalibrationRequest
-from app.schemas.common import ControllerFormat, PoseFormat
 from app.schemas.controllers import Deployment as DeploymentOut
 from app.schemas.controllers import ReconciledTool, Reconciliation
 from app.schemas.fleet import FleetController
+from app.schemas.formats import FormatList
+from app.schemas.references import TouchIn
+from app.schemas.sessions import PlanRequest
 from app.schemas.sessions import Session as SessionOut
 from app.services.controller_states import EVENT_STATES, SEVERITY
-from app.solvers.npoint import ALGORITHMS
+from app.solvers.npoint import ALGORITHMS, Algorithm
 from app.statuses import ROBOT_STATES, DeploymentStatus, RobotState, SessionStatus, ToolState
 
 
-def test_pose_formats_match_the_parser() -> None:
-    assert get_args(PoseFormat) == tuple(POSE_FORMATS)
+def _annotation(model: type[BaseModel], field: str) -> object:
+    return model.model_fields[field].annotation
 
 
-def test_controller_formats_match_the_exporters() -> None:
-    assert get_args(ControllerFormat) == tuple(CONTROLLER_FORMATS)
-
-
-def test_npoint_algorithms_match_the_solver() -> None:
+def test_the_schemas_take_the_libraries_literals() -> None:
+    """Pose formats, controller formats and algorithms are each one Literal, in the library
+    that parses or solves them; the request and response models name that very object, and the
+    tuples the libraries check against are read off it."""
+    assert _annotation(PlanRequest, "format") is PoseFormat
+    assert _annotation(TouchIn, "format") is PoseFormat
+    assert get_args(PoseFormat) == POSE_FORMATS
+    assert _annotation(FormatList, "controllers") == list[ControllerFormat]
+    assert get_args(ControllerFormat) == CONTROLLER_FORMATS
+    assert _annotation(NPointOptions, "algorithm") is Algorithm
     assert get_args(Algorithm) == ALGORITHMS
 
 

@@ -10,8 +10,9 @@ from fastapi.responses import PlainTextResponse
 from app.api.params import PathId, RawParam, VersionNumber
 from app.api.tools import IfMatch
 from app.deps import CalibrateKey, ReadKey, SessionDep, label_request
+from app.exports import CONTROLLER_FORMATS, ControllerFormat
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
-from app.schemas.common import CONTROLLER_FORMATS, ID_PATTERN, ControllerFormat
+from app.schemas.common import ID_PATTERN
 from app.schemas.tools import (
     ActivationRequest,
     ActiveTcp,

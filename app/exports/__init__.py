@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Sequence
+from typing import Literal, get_args
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
@@ -42,7 +43,9 @@ from app.exports.wpr import (
     parse_yaskawa,
 )
 
-CONTROLLER_FORMATS: tuple[str, ...] = ("kuka", "abb", "fanuc", "ur", "yaskawa", "techman")
+#: The controllers' text formats (`?format=` and `controller.format`); the tuple is read off it.
+ControllerFormat = Literal["kuka", "abb", "fanuc", "ur", "yaskawa", "techman"]
+CONTROLLER_FORMATS: tuple[ControllerFormat, ...] = get_args(ControllerFormat)
 
 _EXPORTERS: dict[str, Callable[[ToolData], ControllerExport]] = {
     "kuka": export_kuka,
@@ -155,6 +158,7 @@ __all__ = [
     "FILE_KINDS",
     "ControllerExport",
     "ControllerFile",
+    "ControllerFormat",
     "FileContext",
     "FileTool",
     "LeftOut",

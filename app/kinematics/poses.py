@@ -23,7 +23,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal, SupportsFloat, TypeGuard, cast
+from typing import Literal, SupportsFloat, TypeGuard, cast, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -40,7 +40,9 @@ from app.solvers.validation import (
     normalised_quaternions,
 )
 
-POSE_FORMATS: tuple[str, ...] = (
+#: The pose formats the API takes (the `format` of touches and references); the tuple below
+#: is read off this Literal, so the schemas' enum and the parser cannot disagree.
+PoseFormat = Literal[
     "matrix",
     "xyz_wxyz",
     "xyz_xyzw",
@@ -50,7 +52,8 @@ POSE_FORMATS: tuple[str, ...] = (
     "techman_rxyz",
     "ur_rotvec",
     "joints",
-)
+]
+POSE_FORMATS: tuple[PoseFormat, ...] = get_args(PoseFormat)
 #: Formats that are X Y Z W P R with Rz(R) Ry(P) Rx(W) under another vendor's name.
 WPR_FORMATS: tuple[str, ...] = ("fanuc_wpr", "yaskawa_rxyz", "techman_rxyz")
 #: Largest angle accepted in any angle field, degrees (ten turns). Bigger values are a

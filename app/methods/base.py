@@ -22,11 +22,11 @@ from pydantic_core import PydanticCustomError, core_schema
 from app.arrays import FloatArray
 from app.errors import InputKind
 from app.jsontypes import JsonObject
+from app.kinematics.poses import PoseFormat
 from app.schemas.common import (
     MAX_POSES,
     LongText,
     Pose,
-    PoseFormat,
     StrictModel,
     Units,
 )

@@ -27,12 +27,11 @@ from app.schemas.common import (
     Units,
 )
 from app.schemas.results import QualityOut
-from app.solvers.npoint import MIN_POSES, NPointResult, solve_npoint
+from app.solvers.npoint import MIN_POSES, Algorithm, NPointResult, solve_npoint
 from app.solvers.quality import format_vector
 
 #: The `method` of an N-point calibration, and of the guided sessions that collect one.
 XyzNpoint = Literal["xyz_npoint"]
-Algorithm = Literal["robust", "stacked", "pairwise", "sphere", "gls"]
 #: N touches of one fixed point, each from another orientation.
 Touches = Annotated[
     list[Pose],

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Annotated, Generic, Literal, TypeVar, get_args
+from typing import Annotated, Generic, Literal, TypeVar
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PlainSerializer
 
@@ -55,20 +55,6 @@ ResourceId = Annotated[str, Field(pattern=ID_PATTERN, description="resource id")
 Pose = list[FiniteFloat] | list[Annotated[list[FiniteFloat], Field(max_length=4)]]
 MAX_POSES = 1000
 Poses = Annotated[list[Pose], Field(max_length=MAX_POSES)]
-
-PoseFormat = Literal[
-    "matrix",
-    "xyz_wxyz",
-    "xyz_xyzw",
-    "kuka_abc",
-    "fanuc_wpr",
-    "yaskawa_rxyz",
-    "techman_rxyz",
-    "ur_rotvec",
-    "joints",
-]
-ControllerFormat = Literal["kuka", "abb", "fanuc", "ur", "yaskawa", "techman"]
-CONTROLLER_FORMATS: tuple[ControllerFormat, ...] = get_args(ControllerFormat)
 
 
 def _rfc3339(value: datetime) -> str:

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from typing import get_args
-
 from pydantic import BaseModel, Field
 
-from app.schemas.common import ControllerFormat, Units
+from app.exports import CONTROLLER_FORMATS, ControllerFormat
+from app.schemas.common import Units
 
 
 class FormatInfo(BaseModel):
@@ -22,7 +21,7 @@ class FormatInfo(BaseModel):
 class FormatList(BaseModel):
     items: list[FormatInfo]
     controllers: list[ControllerFormat] = Field(
-        default_factory=lambda: list(get_args(ControllerFormat)),
+        default_factory=lambda: list(CONTROLLER_FORMATS),
         description="the controller text formats of GET /v1/tools/{id}/tcp?format=",
     )
     controller_files: dict[str, str] = Field(

@@ -7,12 +7,12 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.jsontypes import JsonObject
+from app.kinematics.poses import PoseFormat
 from app.methods.laser import SweepIn
 from app.schemas.common import (
     FiniteFloat,
     Name,
     Pose,
-    PoseFormat,
     Poses,
     PositiveFloat,
     ResourceId,

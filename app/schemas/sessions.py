@@ -6,6 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from app.kinematics.poses import PoseFormat
 from app.methods import METHOD_NAMES
 from app.methods.base import Activate
 from app.methods.npoint import XYZ_NPOINT, NPointOptions, XyzNpoint
@@ -13,7 +14,6 @@ from app.schemas.common import (
     FiniteFloat,
     LongText,
     Pose,
-    PoseFormat,
     PositiveFloat,
     ResourceId,
     StrictModel,

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -19,7 +20,9 @@ from app.solvers.quality import (
 )
 from app.solvers.validation import MAX_ABS_MM, check_positions_mm, check_rotation_matrices
 
-ALGORITHMS = ("robust", "stacked", "pairwise", "sphere", "gls")
+#: The N-point estimators (`options.algorithm`); the tuple is read off the Literal.
+Algorithm = Literal["robust", "stacked", "pairwise", "sphere", "gls"]
+ALGORITHMS: tuple[Algorithm, ...] = get_args(Algorithm)
 #: Fewest touches the method accepts (the "XYZ 4-point" method of the pendants).
 MIN_POSES = 4
 #: Two touches whose orientations differ by less than this (deg) count as one orientation.
