@@ -195,14 +195,6 @@ class PlantOpcUaServer:
             else:
                 await self._apply_robot(robot)
 
-    def tool_values(self) -> dict[tuple[str, str], dict[str, object]]:
-        """What the address space holds: (robot name, tool name) -> variable values."""
-        return {
-            (r.name, t.name): dict(t.values)
-            for r in self._robots.values()
-            for t in r.tools.values()
-        }
-
     async def _apply_robot(self, robot: PlantRobot) -> None:
         nodes = self._robots.get(robot.robot_id)
         if nodes is not None and nodes.name != robot.name:  # renamed: a new browse name
