@@ -35,6 +35,8 @@ def problem_response(
     }
     if errors:
         body["errors"] = list(errors)
-    if extra:
-        body.update(extra)
+    for name, value in (extra or {}).items():
+        # RFC 9457's own members keep their meaning: an extension never replaces them (a
+        # version's "status" once overwrote the HTTP status with a string).
+        body.setdefault(name, value)
     return JSONResponse(body, status_code=status, media_type=PROBLEM_JSON, headers=headers)

@@ -64,7 +64,7 @@ def activate_version(
 
 def _out_of_tolerance(session: Session, row: TcpVersion, *, tool_name: str) -> OutOfTolerance:
     """Why the version may not go live as it is (its status and worst figure), and how."""
-    figures: JsonObject = {"version": row.version, "status": row.status}
+    figures: JsonObject = {"version": row.version, "version_status": row.status}
     worst = ""
     if row.calibration_id is not None:
         result = session.scalars(

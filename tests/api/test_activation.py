@@ -177,7 +177,8 @@ def test_out_of_tolerance_version_needs_force_and_a_reason(api: Api) -> None:
         assert problem["type"].endswith("/out-of-tolerance")
         assert "out_of_tolerance" in problem["detail"]
         assert '"force": true' in problem["detail"]
-        assert problem["status"] == "out_of_tolerance"
+        assert problem["status"] == 409  # RFC 9457: the HTTP status, a number
+        assert problem["version_status"] == "out_of_tolerance"
         assert problem["max_mm"] > 1.0  # the worst touch, as stored
     assert row_counts(STATE) == before
     assert _active(api, tool_id) == 4

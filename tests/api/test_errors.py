@@ -9,6 +9,7 @@ import httpx
 import pytest
 
 from app.jsontypes import JsonObject
+from app.problem_json import problem_response
 from tests.conftest import Api
 
 PROBLEM = "application/problem+json"
@@ -255,3 +256,22 @@ def test_body_that_is_not_utf8_is_422(api: Api) -> None:
     )
     body = _problem(response, 422, "validation")
     assert body["errors"][0]["loc"] == ["body"]
+
+
+def test_extension_members_never_replace_the_problems_own() -> None:
+    """RFC 9457: `status` is the HTTP status (a number), `type`, `title` and `detail` say what
+    happened; an error's extension members stand beside them."""
+    response = problem_response(
+        status=409,
+        kind="out-of-tolerance",
+        title="Out of tolerance",
+        detail="why and how",
+        extra={"status": "out_of_tolerance", "title": "x", "version_status": "out_of_tolerance"},
+    )
+    body = json.loads(bytes(response.body))
+    assert (body["status"], body["title"], body["detail"]) == (
+        409,
+        "Out of tolerance",
+        "why and how",
+    )
+    assert body["version_status"] == "out_of_tolerance"
