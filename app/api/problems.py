@@ -64,8 +64,12 @@ def _loc(loc: Sequence[str | int]) -> list[str | int]:
     return path
 
 
-def validation_response(exc: RequestValidationError) -> JSONResponse:
-    """422 naming every offending field; the kind is the most specific one known."""
+def validation_response(
+    exc: RequestValidationError, content_type: str | None = None
+) -> JSONResponse:
+    """422 naming every offending field; the kind is the most specific one known. A body
+    refused as a whole that was not sent as JSON (curl -d without a Content-Type header sends a
+    form) says which header to send."""
     errors: list[ErrorItem] = []
     kinds: list[str] = []
     for err in exc.errors():
@@ -84,6 +88,9 @@ def validation_response(exc: RequestValidationError) -> JSONResponse:
     detail = f"{where}: {first['msg']}"
     if len(errors) > 1:
         detail += f" (and {len(errors) - 1} more)"
+    if first["loc"] == ["body"] and "json" not in (content_type or "").lower():
+        detail += f"; the body was sent as {content_type or 'no Content-Type'}: send JSON with "
+        detail += "the header Content-Type: application/json"
     kind = kinds[0] if kinds else "validation"
     return problem_response(
         status=422, kind=kind, title=INPUT_KINDS[kind], detail=detail, errors=errors
@@ -167,8 +174,8 @@ def install_error_handlers(app: FastAPI) -> None:
         return integrity_response(exc)
 
     @app.exception_handler(RequestValidationError)
-    async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
-        return validation_response(exc)
+    async def _validation(request: Request, exc: RequestValidationError) -> JSONResponse:
+        return validation_response(exc, request.headers.get("content-type"))
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:

@@ -93,6 +93,21 @@ def test_non_finite_numbers_are_422_non_finite(api: Api, token: str) -> None:
     assert api.get(f"/v1/tools/{tool['id']}/versions").json()["items"] == []
 
 
+def test_a_form_body_is_told_to_send_json(api: Api) -> None:
+    """curl -d without -H 'Content-Type: application/json' sends a form: the 422 says which
+    header to send; a JSON body of the wrong shape does not get that hint."""
+    form = api.client.post(
+        "/v1/robots",
+        content="name=r1",
+        headers={**api.headers(), "content-type": "application/x-www-form-urlencoded"},
+    )
+    problem = _problem(form, 422, "validation")
+    assert "application/x-www-form-urlencoded" in problem["detail"]
+    assert "Content-Type: application/json" in problem["detail"]
+    shaped = api.post("/v1/robots", ["r1"])
+    assert "Content-Type" not in _problem(shaped, 422, "validation")["detail"]
+
+
 def test_unknown_format_is_422_naming_format(api: Api) -> None:
     robot = api.robot()
     tool = api.tool(robot["id"])
