@@ -20,8 +20,10 @@ X, Y, Z angles (scipy "xyz"): both give the same matrix Rz Ry Rx, listed in oppo
 
 from __future__ import annotations
 
+import re
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Literal, SupportsFloat, TypeGuard, cast, get_args
 
@@ -455,6 +457,27 @@ def _rotations_from_rows(
     return rotations.reshape(n, 3, 3)
 
 
+@contextmanager
+def one_pose(loc: Loc, number: int = 1) -> Iterator[None]:
+    """Errors of reading a list of one pose, `[pose]` at `loc`, said of that one pose: its
+    `loc` without the list's index 0 (the body holds one pose, not a list) and its sentence
+    naming it `pose {number}` (a session's fifth touch is pose 5, not pose 1)."""
+    try:
+        yield
+    except InvalidInput as exc:
+        root = tuple(loc)
+        if exc.loc[: len(root)] == root and exc.loc[len(root) : len(root) + 1] == (0,):
+            exc.loc = (*root, *exc.loc[len(root) + 1 :])
+        exc.detail = _FIRST_POSE.sub(f"pose {number}", exc.detail, count=1)
+        exc.msg = _FIRST_POSE.sub(f"pose {number}", exc.msg, count=1)
+        exc.args = (exc.detail,)
+        raise
+
+
+#: How the readers name the first pose of a list (`f"pose {i + 1}: ..."`).
+_FIRST_POSE = re.compile(r"^pose 1\b")
+
+
 def pose_from_format(
     fmt: str,
     pose: Sequence[object],
@@ -462,11 +485,14 @@ def pose_from_format(
     units: PoseUnits | Mapping[str, str] | None = None,
     kinematics: Kinematics | None = None,
     loc: Loc = ("pose",),
+    number: int = 1,
 ) -> tuple[FloatArray, FloatArray]:
-    """Read one pose -> (R (3, 3), position (3,) mm); errors locate it as (*loc, 0, field)."""
-    rotations, positions = poses_from_format(
-        fmt, [pose], units=units, kinematics=kinematics, loc=loc
-    )
+    """Read one pose -> (R (3, 3), position (3,) mm); errors locate it as (*loc, field) and
+    name it `pose {number}` (`one_pose`)."""
+    with one_pose(loc, number):
+        rotations, positions = poses_from_format(
+            fmt, [pose], units=units, kinematics=kinematics, loc=loc
+        )
     return rotations[0], positions[0]
 
 

@@ -7,6 +7,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import ConfigDict, model_validator
 
+from app.kinematics.poses import one_pose
 from app.methods.base import (
     Method,
     MethodContext,
@@ -91,9 +92,13 @@ def _reference(
     assert options.reference_tool_id is not None
     assert options.reference_pose is not None
     frame = ctx.tool_frame(options.reference_tool_id)
-    rotations, positions = ctx.parse_poses(
-        request.format, [options.reference_pose], request.units, loc=("options", "reference_pose")
-    )
+    with one_pose(("options", "reference_pose")):
+        rotations, positions = ctx.parse_poses(
+            request.format,
+            [options.reference_pose],
+            request.units,
+            loc=("options", "reference_pose"),
+        )
     point, covariance = reference_point_from_touch(
         tcp_mm=frame.position_mm,
         tcp_covariance_mm2=frame.covariance_mm2,

@@ -17,7 +17,7 @@ from app.models import Tool, utcnow
 from app.schemas.common import Units
 from app.schemas.references import CheckCreate, CheckResult, CheckTouch
 from app.services import audit
-from app.services.diagnosis import Fit, implausible_flanges, refuse_mix_up
+from app.services.diagnosis import Fit, implausible_flanges, refuse_mix_up, refusing_mix_ups
 from app.services.drift import Point, refresh_drift
 from app.services.frames import frame_of, parse_poses_with
 from app.services.references import get_reference_point
@@ -83,7 +83,7 @@ def _measured_touches(
         worst = max(t.distance_mm for t in measure(fmt, units))
         return Fit(float(worst), float(worst) <= limit)
 
-    with located_in("body"):
+    with refusing_mix_ups(data.format, data.units, attempt, positions), located_in("body"):
         touches = measure(data.format, data.units)
     worst_mm = max(float(t.distance_mm) for t in touches)
     near_base = implausible_flanges(positions, data.format, data.units)

@@ -13,7 +13,8 @@ already failed, and it only speaks when exactly one simplest reading fits.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 from app.arrays import FloatArray
@@ -68,6 +69,43 @@ def implausible_flanges(positions: Positions, fmt: str | None, units: Units | No
         return flange_near_base(positions(fmt, units))
     except InvalidInput:
         return False
+
+
+@contextmanager
+def refusing_mix_ups(
+    fmt: str | None,
+    units: Units | None,
+    attempt: Attempt,
+    positions: Positions,
+    *,
+    within: tuple[str, ...] = ("body",),
+    poses_field: str = "poses",
+) -> Iterator[None]:
+    """Around reading or solving a submission as given: a refusal that another reading may
+    explain (EXPLAINABLE: a pendant's degrees read as radians are "out of range") becomes
+    `convention-mismatch` when one other reading clearly fits; otherwise it stands."""
+    try:
+        yield
+    except InvalidInput as refusal:
+        if refusal.kind in EXPLAINABLE:
+            near_base = implausible_flanges(positions, fmt, units)
+            refuse_mix_up(
+                fmt,
+                units,
+                attempt,
+                positions,
+                as_given=None,
+                near_base=near_base,
+                within=within,
+                poses_field=poses_field,
+            )
+        raise
+
+
+def one_touch_fits(fmt: str, units: Units) -> Fit:
+    """The `attempt` for a single touch: with nothing to fit it against, a reading under which
+    it reads (in range, the flange off the base) is as good as any."""
+    return Fit(0.0, good=True)
 
 
 def refuse_mix_up(

@@ -13,11 +13,17 @@ from app.auth import Principal
 from app.errors import Conflict, InvalidInput, NotFound, located_in
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance
+from app.kinematics.poses import one_pose
 from app.models import LaserDevice, ReferencePoint, new_id
 from app.schemas.common import Units
 from app.schemas.references import ReferencePointCreate
 from app.services import audit
-from app.services.diagnosis import Fit, implausible_flanges, refuse_mix_up
+from app.services.diagnosis import (
+    implausible_flanges,
+    one_touch_fits,
+    refuse_mix_up,
+    refusing_mix_ups,
+)
 from app.services.frames import active_frame, parse_poses_with
 from app.services.robots import get_robot
 from app.services.tools import tool_named_in_body
@@ -131,22 +137,35 @@ def register_reference_point(
         )
 
     def flange(fmt: str, units: Units | None) -> FloatArray:
-        pose = [touch.pose]
-        return parse_poses_with(robot.kinematics, fmt, pose, units, loc=("touch", "pose"))[1]
+        with one_pose(("touch", "pose")):
+            pose = [touch.pose]
+            return parse_poses_with(robot.kinematics, fmt, pose, units, loc=("touch", "pose"))[1]
 
+    # One touch has no redundancy: only whether it reads, and where the flange is, tell a
+    # mix-up apart.
     if implausible_flanges(flange, touch.format, touch.units):
-        # One touch has no redundancy: only where the flange is tells a mix-up apart.
         refuse_mix_up(
             touch.format,
             touch.units,
-            lambda fmt, units: Fit(0.0, good=True),
+            one_touch_fits,
             flange,
             as_given=None,
             near_base=True,
             within=("body", "touch"),
             poses_field="pose",
         )
-    with located_in("body"):
+    with (
+        refusing_mix_ups(
+            touch.format,
+            touch.units,
+            one_touch_fits,
+            flange,
+            within=("body", "touch"),
+            poses_field="pose",
+        ),
+        located_in("body"),
+        one_pose(("touch", "pose")),
+    ):
         rotations, positions = parse_poses_with(
             robot.kinematics, touch.format, [touch.pose], touch.units, loc=("touch", "pose")
         )

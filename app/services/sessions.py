@@ -27,7 +27,7 @@ from app.auth import Principal
 from app.errors import Conflict, InvalidInput, NotFound
 from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonObject
-from app.kinematics.poses import pose_to_format
+from app.kinematics.poses import one_pose, pose_to_format
 from app.kinematics.touchsets import cone_rotations, flange_positions
 from app.methods.base import MethodRequest
 from app.models import GuidedSession, Tool, utcnow
@@ -46,11 +46,13 @@ from app.schemas.sessions import Plan as PlanOut
 from app.schemas.sessions import Session as SessionOut
 from app.services import audit, calibrate, idempotency
 from app.services.contexts import DbContext
+from app.services.diagnosis import one_touch_fits, refusing_mix_ups
 from app.services.frames import active_frame, parse_poses_with
 from app.services.live import in_scope, visible_tool
 from app.services.robots import get_robot
 from app.services.tools import get_tool
 from app.solvers.npoint import NOISE_CONTRADICTED
+from app.solvers.numbering import number
 from app.solvers.planning import Cone, next_touch, plan_touches, smallest_plan
 
 #: The TCP assumed when neither the request nor the tool gives one (mm, flange frame).
@@ -240,8 +242,17 @@ def add_touch(session: Session, *, session_id: str, pose: Pose, actor: Principal
             loc=("body", "pose"),
         )
     tool, ctx = _context(session, row)
-    # Arity, NaN, sentinels, a non-rotation: refused for this touch, named at body.pose.
-    ctx.parse_poses(row.format, [pose], _units(row), loc=("body", "pose"))
+
+    def flange(fmt: str, units: Units | None) -> FloatArray:
+        # Arity, NaN, sentinels, a non-rotation: refused for this touch, named at body.pose
+        # and by its number in the session.
+        with one_pose(("body", "pose"), number(len(row.poses))):
+            return ctx.parse_poses(fmt, [pose], units, loc=("body", "pose"))[1]
+
+    # Out of range as the session reads it (a UR pendant's degrees read as radians, say) but
+    # plausible under one other reading: a mix-up, refused as one from the first touch on.
+    with refusing_mix_ups(row.format, _units(row), one_touch_fits, flange, poses_field="pose"):
+        flange(row.format, _units(row))
     poses = [*row.poses, pose]
     if len(poses) >= MIN_SOLVE_TOUCHES:
         try:

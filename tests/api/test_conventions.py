@@ -254,3 +254,70 @@ def test_every_pose_method_refuses_metres_sent_as_millimetres(api: Api, method: 
     assert resent.status_code == 200, resent.text
     solved = api.post("/v1/solve", example, scope="read").json()
     assert np.allclose(resent.json()["tcp"]["position_mm"], solved["tcp"]["position_mm"], atol=1e-6)
+
+
+#: A UR pendant's rotation vector in degrees, sent as the format's default radians: read as
+#: given the rotations are out of range, so the mix-up must be told before any fit.
+UR_IN_DEGREES = {"format": "ur_rotvec", "units": {"length": "m", "angle": "deg"}}
+
+
+def _pin_and_touches(api: Api, n: int) -> tuple[str, str, JsonObject, list[Any]]:
+    """A tool with an active TCP, a reference point, and n touches of it written in degrees."""
+    robot = api.robot("ur10", vendor="UR")
+    tool = api.tool(robot["id"], "gripper")
+    tcp = np.array([0.0, 0.0, 150.0])
+    api.manual(tool["id"], tcp.tolist())
+    pin = np.array([650.0, 80.0, 210.0])
+    point = api.post(
+        f"/v1/robots/{robot['id']}/reference-points",
+        {"name": "pin", "position_mm": pin.tolist()},
+        scope="calibrate",
+    ).json()
+    touches = simulate_touches(n, seed=5, touch_noise_mm=0.0, tcp_mm=tcp, pivot_mm=pin)
+    return robot["id"], tool["id"], point, _poses(touches, "ur_rotvec", {"angle": "deg"})
+
+
+def _is_ur_in_degrees(response: Any) -> JsonObject:
+    assert response.status_code == 422, response.text
+    problem: JsonObject = response.json()
+    assert problem["type"].endswith("/convention-mismatch"), problem
+    assert problem["suggestion"] == UR_IN_DEGREES, problem
+    assert "nothing was stored" in problem["detail"]
+    return problem
+
+
+def test_check_with_a_ur_pendants_degrees_is_a_mix_up_not_out_of_range(api: Api) -> None:
+    _, tool_id, point, poses = _pin_and_touches(api, 3)
+    body: JsonObject = {"reference_point_id": point["id"], "format": "ur_rotvec", "poses": poses}
+    before = row_counts(TABLES)
+    _is_ur_in_degrees(api.post(f"/v1/tools/{tool_id}/checks", body, scope="calibrate"))
+    assert row_counts(TABLES) == before
+    resent = api.post(f"/v1/tools/{tool_id}/checks", {**body, **UR_IN_DEGREES}, scope="calibrate")
+    assert resent.status_code == 200, resent.text
+    assert resent.json()["within_tolerance"] is True
+
+
+def test_session_touch_with_a_ur_pendants_degrees_is_a_mix_up_from_the_first(api: Api) -> None:
+    _, tool_id, _, poses = _pin_and_touches(api, 1)
+    session = api.post(
+        f"/v1/tools/{tool_id}/sessions",
+        {"method": "xyz_npoint", "format": "ur_rotvec"},
+        scope="calibrate",
+    ).json()
+    path = f"/v1/sessions/{session['id']}/poses"
+    _is_ur_in_degrees(api.post(path, {"pose": poses[0]}, scope="calibrate"))
+    assert api.get(f"/v1/sessions/{session['id']}").json()["poses"] == []
+
+
+def test_reference_touch_with_a_ur_pendants_degrees_is_a_mix_up(api: Api) -> None:
+    robot_id, tool_id, _, poses = _pin_and_touches(api, 1)
+    touch: JsonObject = {"tool_id": tool_id, "format": "ur_rotvec", "pose": poses[0]}
+    path = f"/v1/robots/{robot_id}/reference-points"
+    before = row_counts(TABLES)
+    problem = _is_ur_in_degrees(api.post(path, {"name": "p2", "touch": touch}, scope="calibrate"))
+    assert problem["errors"][0]["loc"] == ["body", "touch", "format"]
+    assert row_counts(TABLES) == before
+    fixed = {"name": "p2", "touch": {**touch, **UR_IN_DEGREES}}
+    created = api.post(path, fixed, scope="calibrate")
+    assert created.status_code == 201, created.text
+    assert np.allclose(created.json()["position_mm"], [650.0, 80.0, 210.0], atol=1e-6)

@@ -87,3 +87,47 @@ def test_pose_refusals_count_from_one(api: Api) -> None:
     problem = response.json()
     assert problem["detail"].startswith("pose 3:"), problem["detail"]
     assert problem["errors"][0]["loc"][:3] == ["body", "poses", 2]
+
+
+def test_a_bad_session_touch_is_named_by_its_number_at_body_pose(api: Api) -> None:
+    """The fourth touch sent to a session is pose 4 in the sentence, and its loc is the body's
+    one `pose` (no list index: the body holds one pose)."""
+    robot = api.robot("kr16", vendor="KUKA")
+    tool = api.tool(robot["id"], "torch", slot=1)
+    session = api.post(
+        f"/v1/tools/{tool['id']}/sessions",
+        {"method": "xyz_npoint", "format": "xyz_wxyz"},
+        scope="calibrate",
+    ).json()
+    poses = _fifth_missed()
+    for pose in poses[:3]:
+        kept = api.post(f"/v1/sessions/{session['id']}/poses", {"pose": pose}, scope="calibrate")
+        assert kept.status_code == 200, kept.text
+    bad = [*poses[3][:3], 2.0, 0.0, 0.0, 0.0]  # not a unit quaternion
+    refused = api.post(f"/v1/sessions/{session['id']}/poses", {"pose": bad}, scope="calibrate")
+    assert refused.status_code == 422, refused.text
+    problem = refused.json()
+    assert problem["detail"].startswith("pose 4:"), problem["detail"]
+    assert problem["errors"][0]["loc"] == ["body", "pose", "quaternion"], problem["errors"]
+    assert problem["errors"][0]["msg"].startswith("pose 4:"), problem["errors"]
+    far = [-3.7e28, *poses[3][1:]]
+    refused = api.post(f"/v1/sessions/{session['id']}/poses", {"pose": far}, scope="calibrate")
+    assert refused.json()["detail"].startswith("pose 4: coordinate x"), refused.text
+    assert refused.json()["errors"][0]["loc"][:3] == ["body", "pose", "position"]
+    assert len(api.get(f"/v1/sessions/{session['id']}").json()["poses"]) == 3
+
+
+def test_a_bad_reference_touch_is_located_at_its_one_pose(api: Api) -> None:
+    robot = api.robot()
+    tool = api.tool(robot["id"])
+    api.manual(tool["id"], [0, 0, 100])
+    touch = {"tool_id": tool["id"], "format": "xyz_wxyz", "pose": [500, 0, 400, 2, 0, 0, 0]}
+    refused = api.post(
+        f"/v1/robots/{robot['id']}/reference-points",
+        {"name": "pin", "touch": touch},
+        scope="calibrate",
+    )
+    assert refused.status_code == 422, refused.text
+    problem = refused.json()
+    assert problem["detail"].startswith("pose 1:"), problem["detail"]
+    assert problem["errors"][0]["loc"] == ["body", "touch", "pose", "quaternion"]

@@ -25,7 +25,7 @@ from app.schemas.results import (
     CalibrationResult,
 )
 from app.schemas.tools import Tcp
-from app.services.diagnosis import EXPLAINABLE, Fit, implausible_flanges, refuse_mix_up
+from app.services.diagnosis import Fit, implausible_flanges, refuse_mix_up, refusing_mix_ups
 from app.services.verdict import change_warning, held_for_change, summarise
 from app.services.versions import (
     IDENTITY_QUATERNION,
@@ -53,13 +53,8 @@ def solve(request: MethodRequest, ctx: MethodContext) -> Outcome:
         return ctx.parse_poses(fmt, request.poses or [], units, loc=())[1]
 
     fmt, units = request.format, request.units
-    try:
+    with refusing_mix_ups(fmt, units, attempt, positions):
         outcome = _solve_as_given(request, ctx)
-    except InvalidInput as refusal:
-        if refusal.kind in EXPLAINABLE:
-            near_base = implausible_flanges(positions, fmt, units)
-            refuse_mix_up(fmt, units, attempt, positions, as_given=None, near_base=near_base)
-        raise
     result = outcome.result
     near_base = implausible_flanges(positions, fmt, units)
     if result.status != "accepted" or near_base:
