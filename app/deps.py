@@ -8,7 +8,6 @@ statement, names it through `label_request` as well.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
 from typing import Annotated
 
 from fastapi import Depends, Request
@@ -16,7 +15,6 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal, authenticate, authenticate_held
 from app.db import loop_engine, session_scope
-from app.errors import DomainError
 from app.logs import KEY_NAME
 
 READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
@@ -53,35 +51,17 @@ def _principal(scope: str) -> object:
     return Depends(dependency)
 
 
-@dataclass(frozen=True)
-class HeldCaller:
+def _held_principal(scope: str) -> object:
     """The caller of a route that opens no session for it (a solve, a deployment, a
     reconcile): the key read on the event loop's held connection (app.db.loop_engine).
+    A missing, unknown or too narrow key is refused (401, 403) before the body is read, as
+    on every other route: an anonymous caller learns nothing of the request's schema."""
 
-    The verdict waits for the handler: FastAPI runs dependencies before it validates the
-    body and the path, and these routes answer a malformed request (422) before a missing
-    or refused key (401, 403), as they always have."""
-
-    principal: Principal | None
-    refusal: DomainError | None
-
-    def admitted(self) -> Principal:
-        """The caller, or its refusal raised."""
-        if self.principal is None:
-            assert self.refusal is not None
-            raise self.refusal
-        return self.principal
-
-
-def _held_principal(scope: str) -> object:
-    async def dependency(request: Request) -> HeldCaller:
+    async def dependency(request: Request) -> Principal:
         # On the event loop (async): the held connection is the loop thread's own.
         authorization = request.headers.get("authorization")
-        try:
-            principal = authenticate_held(loop_engine(), authorization, required=scope)
-        except DomainError as refusal:  # 401 or 403, answered by the handler
-            return HeldCaller(None, refusal)
-        return HeldCaller(label_request(request, principal), None)
+        principal = authenticate_held(loop_engine(), authorization, required=scope)
+        return label_request(request, principal)
 
     dependency.__name__ = f"require_{scope}_held"
     return Depends(dependency)
@@ -90,5 +70,5 @@ def _held_principal(scope: str) -> object:
 ReadKey = Annotated[Principal, _principal("read")]
 CalibrateKey = Annotated[Principal, _principal("calibrate")]
 AdminKey = Annotated[Principal, _principal("admin")]
-HeldReadKey = Annotated[HeldCaller, _held_principal("read")]
-HeldCalibrateKey = Annotated[HeldCaller, _held_principal("calibrate")]
+HeldReadKey = Annotated[Principal, _held_principal("read")]
+HeldCalibrateKey = Annotated[Principal, _held_principal("calibrate")]

@@ -43,7 +43,7 @@ async def submit_calibration(
     body: Annotated[CalibrationRequest, Body(openapi_examples=openapi_examples())],
     request: Request,
     response: Response,
-    caller: HeldCalibrateKey,
+    key: HeldCalibrateKey,
     idempotency_key: IdempotencyKey = None,
 ) -> Calibration | Response:
     """Solve a submission with its method, grade it against the tool's tolerance and store it as
@@ -58,7 +58,7 @@ async def submit_calibration(
         request=body,
         raw_body=raw_body,
         idempotency_key=idempotency_key,
-        actor=caller.admitted(),
+        actor=key,
     )
     headers = {"Idempotent-Replayed": "true"} if replayed else {}
     if isinstance(answer, Calibration):  # a replay read back: served through the model

@@ -46,13 +46,11 @@ def delete_controller(robot_id: PathId, session: SessionDep, key: AdminKey) -> R
 
 
 @router.post("/v1/robots/{robot_id}/reconcile", response_model=Reconciliation)
-async def reconcile_robot(robot_id: PathId, caller: HeldReadKey) -> Reconciliation:
+async def reconcile_robot(robot_id: PathId, key: HeldReadKey) -> Reconciliation:
     """Read every live tool's frame from the robot's controller and compare it with the
     tool's active version: `in_sync` within 0.01 mm and 0.01 deg, else `drifted`;
     `unreachable` when it cannot be read. The robot's state is the worst of its tools'.
     Each change of a tool's state is an audit event. Read scope."""
-    reconciled = await run_in_threadpool(
-        reconcile.reconcile_robot, robot_id=robot_id, actor=caller.admitted()
-    )
+    reconciled = await run_in_threadpool(reconcile.reconcile_robot, robot_id=robot_id, actor=key)
     assert reconciled is not None  # None only when cancelled, which a request never is
     return reconciled

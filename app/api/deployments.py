@@ -35,7 +35,7 @@ async def deploy_tool(
     tool_id: PathId,
     request: Request,
     response: Response,
-    caller: HeldCalibrateKey,
+    key: HeldCalibrateKey,
     body: Annotated[DeploymentIn | None, Body()] = None,
     idempotency_key: IdempotencyKey = None,
 ) -> Deployment:
@@ -46,7 +46,6 @@ async def deploy_tool(
     `deployment_id`. 409 `/no-active-version`; 422 naming the tool's `slot` or
     `controller_symbol` when the controller cannot address it. The body is `{}` (or none).
     Calibrate scope; retry-safe with `Idempotency-Key`."""
-    key = caller.admitted()
     raw_body = {} if body is None else await raw_json_body(request)  # no body: as {}
     document, replayed = await run_in_threadpool(
         lambda: deployments.deploy(

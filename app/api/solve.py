@@ -18,11 +18,11 @@ router = APIRouter(tags=["stateless"])
 @router.post("/v1/solve", response_model=SolveResult)
 async def solve(
     body: Annotated[SolveRequest, Body(openapi_examples=openapi_examples())],
-    caller: HeldReadKey,
+    key: HeldReadKey,
 ) -> Response:
     """Solve a calibration body without storing anything: the result a stored calibration would
     have, graded against the given (or default) tolerance; a unit or convention mix-up is
     refused with the reading that fits (`convention-mismatch`)."""
-    result = await stateless.solve_stateless(body, actor=caller.admitted())
+    result = await stateless.solve_stateless(body, actor=key)
     # Built and validated in the solver process: serialised once, not validated again.
     return Response(result.model_dump_json(), media_type="application/json")

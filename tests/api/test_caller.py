@@ -1,5 +1,6 @@
 """Who calls: one dependency authenticates and names the key in the access line (app.deps),
-and the routes that open no session answer a malformed request before a missing key."""
+and every route, with a session or without, refuses a missing or too narrow key before it
+reads the request (API.md: only /health and /ready are open)."""
 
 from __future__ import annotations
 
@@ -35,9 +36,7 @@ def access(monkeypatch: pytest.MonkeyPatch) -> _AccessLines:
 MANUAL = {"method": "manual", "tcp": {"position_mm": [1.0, 2.0, 3.0]}}
 
 
-def test_routes_without_a_session_answer_a_malformed_request_before_a_missing_key(
-    api: Api,
-) -> None:
+def test_every_route_refuses_a_missing_key_before_it_reads_the_request(api: Api) -> None:
     robot = api.robot()
     tool = api.tool(robot["id"])
     client = api.client
@@ -46,16 +45,21 @@ def test_routes_without_a_session_answer_a_malformed_request_before_a_missing_ke
         ("/v1/solve", MANUAL),
         (f"/v1/tools/{tool['id']}/calibrations", MANUAL),
         (deployments, {}),
+        ("/v1/robots", {"name": "r2"}),  # a route with a session
     ):
-        assert client.post(path, json={"method": "nope"}).status_code == 422, path
-        assert client.post(path, json=body).status_code == 401, path
-    assert client.post("/v1/tools/bad!id/calibrations", json=MANUAL).status_code == 422
-    assert client.post("/v1/robots/bad!id/reconcile").status_code == 422
+        for sent in ({"method": "nope"}, body):
+            anonymous = client.post(path, json=sent)
+            assert anonymous.status_code == 401, (path, anonymous.text)
+            assert "errors" not in anonymous.json()  # nothing of the request's schema
+        assert api.post(path, {"method": "nope"}, scope="admin").status_code == 422, path
+    assert client.post("/v1/tools/bad!id/calibrations", json=MANUAL).status_code == 401
+    assert client.post("/v1/robots/bad!id/reconcile").status_code == 401
     assert client.post(f"/v1/robots/{robot['id']}/reconcile").status_code == 401
-    refused = api.post(f"/v1/tools/{tool['id']}/calibrations", MANUAL, scope="read")
-    assert refused.status_code == 403
-    # A route with a session authenticates first, as it always has.
-    assert client.post("/v1/robots", json={"x": 1}).status_code == 401
+    assert api.post("/v1/robots/bad!id/reconcile", None, scope="read").status_code == 422
+    # a key of too narrow a scope: 403 before the body is looked at
+    for sent in (MANUAL, {"method": "nope"}):
+        refused = api.post(f"/v1/tools/{tool['id']}/calibrations", sent, scope="read")
+        assert refused.status_code == 403, refused.text
 
 
 def test_every_kind_of_route_names_its_key_in_the_access_line(
