@@ -82,6 +82,7 @@ def observe(
             resource_id=seen.tool_id,
             robot_id=seen.robot_id,
             tool_id=seen.tool_id,
+            version=seen.active_version,
             details={
                 "previous_state": previous,
                 "target": seen.target,

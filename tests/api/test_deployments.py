@@ -146,6 +146,10 @@ def test_reconcile_finds_a_frame_changed_behind_tcpcals_back(api: Api, protocol_
     assert again["state"] == "drifted"
     assert again["since"] == since
     assert _audit_actions(tool_id).count("controller.drifted") == 1
+    [event] = api.get(
+        "/v1/audit", params={"tool_id": tool_id, "action": "controller.drifted"}, scope="admin"
+    ).json()["items"]
+    assert (event["version"], event["detail"]["version"]) == (1, 1)  # the version it holds
     row = api.get("/v1/tools", params={"robot_id": robot_id}).json()["items"][0]
     assert row["controller"]["state"] == "drifted"
     assert row["attention"] == ["controller_drifted"]
