@@ -33,20 +33,30 @@ def _touches(n: int) -> str:
     return f"{n} touch" if n == 1 else f"{n} touches"
 
 
-def _worst_touch(quality: QualityOut) -> tuple[int, float] | None:
-    """The 0-based index and residual of the worst touch that was used in the fit."""
-    used = [(i, r) for i, r in enumerate(quality.residuals_mm) if i not in set(quality.outliers)]
-    return max(used, key=lambda item: item[1]) if used else None
+def _touches_beyond(quality: QualityOut, limit_mm: float) -> list[tuple[int, float]]:
+    """The 0-based index and residual of each touch used in the fit that is off by more than
+    `limit_mm`, in touch order."""
+    set_aside = set(quality.outliers)
+    return [
+        (i, r) for i, r in enumerate(quality.residuals_mm) if i not in set_aside and r > limit_mm
+    ]
 
 
 def _out_of_tolerance(result: CalibrationResult, tolerance: Tolerance) -> str:
     quality = result.quality
-    worst = _worst_touch(quality)
-    if worst is not None and worst[1] > tolerance.max_residual_mm:
-        index, residual = worst
+    limit = tolerance.max_residual_mm
+    beyond = _touches_beyond(quality, limit)
+    if len(beyond) == 1:
+        [(index, residual)] = beyond
         return (
-            f"out of tolerance: touch {index + 1} is {residual:.2f} mm off the others "
-            f"(max_residual_mm {tolerance.max_residual_mm:g}), touch it again"
+            f"out of tolerance: {numbered('touch', [index])} is {residual:.2f} mm off the "
+            f"others (max_residual_mm {limit:g}), touch it again"
+        )
+    if beyond:  # name every touch past the limit, not only the worst
+        figures = ", ".join(f"{residual:.2f}" for _, residual in beyond)
+        return (
+            f"out of tolerance: {numbered('touch', [i for i, _ in beyond])} are {figures} mm "
+            f"off the others (max_residual_mm {limit:g}), touch them again"
         )
     rms = quality.rms_mm or 0.0
     return (

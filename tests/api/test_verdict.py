@@ -90,6 +90,31 @@ def test_out_of_tolerance_names_the_missed_touch_from_one(api: Api) -> None:
     assert str(result["summary"]).endswith("touch it again")
 
 
+def test_out_of_tolerance_names_every_touch_past_the_limit_not_only_the_worst(api: Api) -> None:
+    tool_id = _tool(api)
+    touches = simulate_touches(10, seed=3, touch_noise_mm=0.02)
+    poses = as_poses(touches)
+    poses[2][1] += 2.5  # touches 3 and 7 both miss; the robust fit sets none aside
+    poses[6][0] -= 3.5
+    body = {
+        "method": "xyz_npoint",
+        "format": "xyz_wxyz",
+        "poses": poses,
+        "options": {"algorithm": "stacked"},
+    }
+    result = _calibrate(api, tool_id, body)
+    assert result["status"] == "out_of_tolerance"
+    quality = result["quality"]
+    beyond = [i + 1 for i, r in enumerate(quality["residuals_mm"]) if r > 1.0]
+    assert len(beyond) >= 2, quality["residuals_mm"]
+    summary = str(result["summary"])
+    named = ", ".join(str(n) for n in beyond[:-1]) + f" and {beyond[-1]}"
+    assert summary.startswith(f"out of tolerance: touches {named} are "), summary
+    figures = [f"{r:.2f}" for r in quality["residuals_mm"] if r > 1.0]
+    assert f"are {', '.join(figures)} mm off the others" in summary, summary
+    assert summary.endswith("touch them again")
+
+
 def test_stateless_solve_has_a_summary_and_no_change(api: Api) -> None:
     touches = simulate_touches(6, seed=5, touch_noise_mm=0.01)
     response = api.post(
