@@ -59,3 +59,24 @@ def test_every_operation_and_every_field_is_described() -> None:
     ]
     assert undescribed_ops == []
     assert undescribed_fields == []
+
+
+def test_every_error_response_is_a_problem_and_keeps_its_routes_words() -> None:
+    """Each 4xx/5xx response names the Problem schema; a status a route described itself
+    (activate's 409 is /out-of-tolerance, rollback's /nothing-to-roll-back) keeps that text
+    instead of the generic one."""
+    paths = json.loads(SPEC.read_text())["paths"]
+    for path, item in paths.items():
+        if path in {"/health", "/ready"}:
+            continue  # the probes: /ready's 503 is its readiness document, not a problem
+        for method, operation in item.items():
+            for code, response in operation["responses"].items():
+                if int(code) >= 400:
+                    content = response.get("content", {})
+                    assert "application/problem+json" in content, (path, method, code)
+    activate = paths["/v1/tools/{tool_id}/versions/{version}/activate"]["post"]["responses"]
+    assert "/out-of-tolerance" in activate["409"]["description"]
+    rollback = paths["/v1/tools/{tool_id}/rollback"]["post"]["responses"]
+    assert "/nothing-to-roll-back" in rollback["409"]["description"]
+    robots = paths["/v1/robots"]["post"]["responses"]
+    assert robots["409"]["description"].startswith("conflict (duplicate name")
