@@ -240,7 +240,7 @@ async function fleetPage() {
   };
   const render = (tools) => {
     const flagged = tools.filter((t) => t.attention.length).length;
-    summary.textContent = `${tools.length} tools, ${flagged} need attention`;
+    summary.textContent = `${tools.length} ${tools.length === 1 ? "tool" : "tools"}, ${flagged} ${flagged === 1 ? "needs" : "need"} attention`;
     body.replaceChildren(...tools.map((t) => fleetRow(t)));
   };
   let pending = 0;
@@ -420,6 +420,21 @@ function confirmDialog({ title, lines, confirm, onConfirm }) {
 }
 
 // ---- tool -----------------------------------------------------------------------------------
+// The versions a rollback can return to, the active one last: the server's rule
+// (rollback_stack in app/services/activation.py) replayed over GET .../versions' activations,
+// oldest first. Each activation moves its version to the top; a rollback first takes off the
+// version it left. Roll back is offered only when something lies below the top (it was offered
+// always, and a tool activated once got "409 Nothing to roll back" after giving a reason).
+function rollbackStack(activations) {
+  const stack = [];
+  for (const a of activations) {
+    if (a.reason === "rollback" && stack.length) stack.pop();
+    if (stack.includes(a.version)) stack.splice(stack.indexOf(a.version), 1);
+    stack.push(a.version);
+  }
+  return stack;
+}
+
 async function toolPage(toolId) {
   const toolResponse = await api(`/v1/tools/${toolId}`);
   const etag = toolResponse.headers.get("ETag");
@@ -468,11 +483,13 @@ async function toolPage(toolId) {
       onConfirm: (reason) => send(`/v1/tools/${toolId}/versions/${v.version}/activate`, outOfTolerance ? { reason, force: true } : { reason }, button),
     });
   };
+  const stack = rollbackStack(versions.activations);
+  const rollbackTo = tool.active_version !== null && stack.length >= 2 ? stack[stack.length - 2] : null;
   const rollBack = (event) => {
     const button = event.currentTarget;
     confirmDialog({
-      title: `Roll back ${tool.name}?`,
-      lines: [`Version ${tool.active_version} stops being served; the version that was active before it (from the activation history) goes live again.`],
+      title: `Roll back ${tool.name} to version ${rollbackTo}?`,
+      lines: [`Version ${tool.active_version} stops being served; version ${rollbackTo}, the one active before it (from the activation history), goes live again.`],
       confirm: "Roll back",
       onConfirm: (reason) => send(`/v1/tools/${toolId}/rollback`, { reason }, button),
     });
@@ -518,7 +535,9 @@ async function toolPage(toolId) {
     h("section", {}, h("h2", {}, "Checks over time"), checks.length ? h("div", { id: "plot-checks", class: "plot" }) : h("p", {}, "No checks recorded yet."),
       driftLine("drift-checks", drift.checks, "checks of the active version")),
     h("section", {}, h("h2", {}, "Versions"),
-      writes && tool.active_version !== null ? h("p", {}, h("button", { type: "button", id: "rollback", onclick: rollBack }, "Roll back")) : null,
+      writes && rollbackTo !== null ? h("p", {}, h("button", { type: "button", id: "rollback", onclick: rollBack }, `Roll back to version ${rollbackTo}`)) : null,
+      writes && tool.active_version !== null && rollbackTo === null
+        ? h("p", { id: "no-rollback", class: "muted" }, `Nothing to roll back to: no version was active before version ${tool.active_version}, or rollbacks have gone back through each one.`) : null,
       h("table", { id: "versions" }, h("thead", {}, h("tr", {}, ["Version", "Status", "TCP x, y, z mm", "Source", "Why", "By", "When", "", ""].map((c) => h("th", {}, c)))), h("tbody", {}, versionRows))),
     h("section", {}, h("h2", {}, "Activation history"),
       h("table", { id: "activations" }, h("thead", {}, h("tr", {}, ["When", "Version", "Previous", "Kind", "Reason", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, activationRows))),
@@ -573,6 +592,10 @@ async function auditSection(toolId) {
       : h("p", {}, "No changes recorded for this tool."));
 }
 
+// A controller line may wrap after a comma as well as at a space (UR's set_tcp(p[...]) has no
+// space in 80 characters and ran out of its card); <wbr> adds no character to a selection.
+const wrapAfterCommas = (text) => text.split(/(?<=,)/).flatMap((part, i) => (i ? [h("wbr"), part] : [part]));
+
 async function fillControllers(toolId, controllers, files, box) {
   const cards = await Promise.all(controllers.map(async (fmt) => {
     const name = fmt;
@@ -589,7 +612,7 @@ async function fillControllers(toolId, controllers, files, box) {
     const kind = files[name] || "file";
     const save = h("button", { type: "button", class: "download", title: `the ${kind} the controller loads, with a header naming the version` }, `Download ${kind}`);
     save.addEventListener("click", () => download(`/v1/tools/${toolId}/tcp?format=${name}`, "text/plain", `${name}.txt`));
-    return h("div", { class: "card", "data-format": name }, h("h3", {}, name), h("pre", {}, text), h("div", { class: "actions" }, copy, save));
+    return h("div", { class: "card", "data-format": name }, h("h3", {}, name), h("pre", {}, wrapAfterCommas(text)), h("div", { class: "actions" }, copy, save));
   }));
   box.replaceChildren(...cards);
 }

@@ -1,6 +1,7 @@
 """The console's guarded writes in a real headless Chromium: the fleet tints a tool whose
 active version is out of tolerance and names the code; Activate asks for confirmation and a
-reason (and says when a version is out of tolerance, then sends force); Roll back; a read key
+reason (and says when a version is out of tolerance, then sends force); Roll back, named by
+the version it returns to and offered only when the activation history has one; a read key
 sees no write button; a report of a set whose fifth touch missed says touch 5.
 
 Its own live server (SQLite, one worker): one KUKA robot with a torch (v1 accepted, v2 out of
@@ -165,22 +166,58 @@ def test_activate_asks_for_a_reason_and_forces_an_out_of_tolerance_version(
     assert _tool(setup, "torch")["active_version"] == 2
 
 
-def test_roll_back_button_returns_to_the_version_active_before(page: Page, setup: Setup) -> None:
+def test_roll_back_button_names_the_version_active_before_and_returns_to_it(
+    page: Page, setup: Setup
+) -> None:
     tool_id = setup.tools["gripper"]
     _sign_in(page, setup, f"/ui/tools/{tool_id}")
     expect(page.locator("#versions tbody tr.active")).to_have_attribute("data-version", "2")
-    page.get_by_role("button", name="Roll back").click()
-    expect(page.locator("dialog#confirm")).to_contain_text("Roll back gripper?")
+    expect(page.locator("#no-rollback")).to_have_count(0)
+    expect(page.locator("#rollback")).to_have_text("Roll back to version 1")
+    page.locator("#rollback").click()
+    expect(page.locator("dialog#confirm")).to_contain_text("Roll back gripper to version 1?")
     confirm(page, "v2 touches the fixture")
     expect(page.locator("#versions tbody tr.active")).to_have_attribute("data-version", "1")
     last = page.locator("#activations tbody tr").first
     expect(last).to_contain_text("rollback")
     expect(last).to_contain_text("v2 touches the fixture")
-    # Nothing earlier is left: the 409 is shown, and nothing changes.
-    page.get_by_role("button", name="Roll back").click()
-    confirm(page, "once more")
-    expect(page.get_by_role("alert")).to_contain_text("nothing to roll back")
     assert _tool(setup, "gripper")["active_version"] == 1
+    # Nothing earlier is left (the rollback's previous version, 2, is not a target): no
+    # button, which had asked for a reason and then shown 409 Nothing to roll back.
+    expect(page.locator("#no-rollback")).to_contain_text("Nothing to roll back to")
+    expect(page.get_by_role("button", name="Roll back")).to_have_count(0)
+
+
+def test_a_tool_activated_once_offers_no_roll_back(page: Page, setup: Setup) -> None:
+    _sign_in(page, setup, f"/ui/tools/{setup.tools['probe']}")
+    expect(page.locator("#versions tbody tr.active")).to_have_attribute("data-version", "1")
+    expect(page.locator("#activations tbody tr")).to_have_count(1)
+    expect(page.locator("#no-rollback")).to_contain_text(
+        "Nothing to roll back to: no version was active before version 1"
+    )
+    expect(page.get_by_role("button", name="Roll back")).to_have_count(0)
+    with setup.server.client() as http:  # the server agrees: nothing to roll back to
+        refused = http.post(f"/v1/tools/{setup.tools['probe']}/rollback", json={})
+    assert refused.status_code == 409, refused.text
+
+
+def test_roll_back_walks_back_through_the_activation_history(page: Page, setup: Setup) -> None:
+    """The torch went live as v1, v3, then v2 forced (the activation test ends there too):
+    rolling back returns to v3, then to v1 (not to v2, the version just left), then stops."""
+    tool_id = setup.tools["torch"]
+    _sign_in(page, setup, f"/ui/tools/{tool_id}")
+    expect(page.locator("#versions tbody tr.active")).to_have_attribute("data-version", "2")
+    for target, reason in ((3, "forced v2 no longer needed"), (1, "v3 was the spare torch")):
+        button = page.locator("#rollback")
+        expect(button).to_have_text(f"Roll back to version {target}")
+        button.click()
+        confirm(page, reason)
+        active = page.locator("#versions tbody tr.active")
+        expect(active).to_have_attribute("data-version", str(target))
+        expect(page.locator("main")).to_have_attribute("aria-busy", "false")  # drawn whole
+        assert _tool(setup, "torch")["active_version"] == target
+    expect(page.locator("#rollback")).to_have_count(0)
+    expect(page.locator("#no-rollback")).to_contain_text("before version 1")
 
 
 def test_a_read_key_sees_no_write_buttons(page: Page, setup: Setup) -> None:
@@ -189,6 +226,7 @@ def test_a_read_key_sees_no_write_buttons(page: Page, setup: Setup) -> None:
     expect(page.locator("#versions tbody tr")).to_have_count(2)
     expect(page.locator("button.activate")).to_have_count(0)
     expect(page.get_by_role("button", name="Roll back")).to_have_count(0)
+    expect(page.locator("#no-rollback")).to_have_count(0)
     expect(page.locator("#controllers [data-format=kuka] pre")).to_contain_text("$TOOL_DATA[3]")
 
 

@@ -102,6 +102,8 @@ def test_the_fleet_shows_a_drifted_controller_as_needing_attention(page: Page, c
     with cell.server.client() as http:
         assert http.post(f"/v1/robots/{cell.robot_id}/reconcile").json()["state"] == "drifted"
     _sign_in(page, cell, "/ui/")
+    # A fleet of one tool says so in the singular (it said "1 tools, 1 need attention").
+    expect(page.locator("#fleet-summary")).to_have_text("1 tool, 1 needs attention")
     row = page.locator(f"#fleet tbody tr[data-tool-id='{cell.tool_id}']")
     expect(row).to_have_class("attention")
     expect(row.locator("td.controller-state")).to_have_text("drifted 0.250 mm")

@@ -2,13 +2,15 @@
 a checks plot of one check (sub-millisecond axis, check_mm line of no length), three empty
 panels for a tool without versions, "null" and "nullnull" in a manual calibration's report,
 the 412 message drawn far from the button clicked, and "Age 1 h" for a two-minute-old
-calibration."""
+calibration; and from a later review, controller lines split inside a number ("401." /
+"86366") in the "Active TCP for the controllers" cards."""
 
 from __future__ import annotations
 
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
+from urllib.parse import urlsplit
 
 import pytest
 from playwright.sync_api import Page, expect
@@ -26,6 +28,8 @@ class Cell:
     bare: str  # a tool without versions
     manual: str  # the manual calibration of `checked`
     two: str  # a tool with two versions
+    turned: str  # a tool whose TCP is turned and has five decimals: long controller lines
+    robot: str  # the robot of them all, without a controller connection
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +40,7 @@ def cell(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cell]:
             robot = http.post("/v1/robots", json={"name": "r1", "cell": "c1"}).json()
             tools = [
                 http.post(f"/v1/robots/{robot['id']}/tools", json={"name": n, "slot": i}).json()
-                for i, n in enumerate(("checked", "bare", "two"), start=1)
+                for i, n in enumerate(("checked", "bare", "two", "turned"), start=1)
             ]
             manual = http.post(
                 f"/v1/tools/{tools[0]['id']}/calibrations",
@@ -59,7 +63,25 @@ def cell(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cell]:
                     f"/v1/tools/{tools[2]['id']}/calibrations",
                     json={"method": "manual", "tcp": {"position_mm": [0, 0, z]}},
                 ).raise_for_status()
-        yield Cell(server, tools[0]["id"], tools[1]["id"], manual["id"], tools[2]["id"])
+            turned = {  # turned by 10, -20, 30 deg about x, y, z
+                "position_mm": [401.86366, -12.5, 150.25],
+                "quaternion": [0.943714364, 0.127679441, -0.144878125, 0.268535823],
+            }
+            http.post(
+                f"/v1/tools/{tools[3]['id']}/calibrations", json={"method": "manual", "tcp": turned}
+            ).raise_for_status()
+            http.patch(
+                f"/v1/tools/{tools[3]['id']}", json={"load": {"mass_kg": 2.0, "cog_mm": [0, 0, 80]}}
+            ).raise_for_status()
+        yield Cell(
+            server,
+            tools[0]["id"],
+            tools[1]["id"],
+            manual["id"],
+            tools[2]["id"],
+            tools[3]["id"],
+            robot["id"],
+        )
 
 
 @pytest.fixture(scope="module")
@@ -127,3 +149,75 @@ def test_a_calibration_minutes_old_is_not_called_an_hour_old(page: Page, cell: C
     row = page.locator("#fleet tbody tr").filter(has_text="checked")
     # Made seconds ago, in this module's set-up: it read "1 h".
     expect(row.locator("td").nth(7)).to_have_text(re.compile(r"^(now|[1-9][0-9]? min)$"))
+
+
+#: Per number of a card's controller line: how many line boxes it is drawn on, and where.
+NUMBER_BOXES = """pre => {
+    const box = pre.getBoundingClientRect();
+    const texts = [];
+    const walk = document.createTreeWalker(pre, NodeFilter.SHOW_TEXT);
+    while (walk.nextNode()) texts.push(walk.currentNode);
+    return texts.flatMap((text) => [...text.data.matchAll(/-?\\d+(?:\\.\\d+)?/g)].map((m) => {
+        const range = document.createRange();
+        range.setStart(text, m.index);
+        range.setEnd(text, m.index + m[0].length);
+        const rects = [...range.getClientRects()].filter((r) => r.width > 0);
+        return {
+            number: m[0],
+            lines: new Set(rects.map((r) => Math.round(r.top))).size,
+            top: Math.round(rects[0].top),
+            inside: rects.every((r) => r.left >= box.left - 0.5 && r.right <= box.right + 0.5),
+        };
+    }));
+}"""
+
+
+@pytest.mark.parametrize("width", [1400, 900, 500])
+def test_controller_lines_wrap_between_numbers_never_inside_one(
+    page: Page, cell: Cell, width: int
+) -> None:
+    page.set_viewport_size({"width": width, "height": 1000})
+    sign_in_to(page, cell.server, f"/ui/tools/{cell.turned}")
+    cards = page.locator("#controllers .card pre")
+    expect(cards).to_have_count(6)
+    wrapped = 0
+    for pre in cards.all():
+        numbers = pre.evaluate(NUMBER_BOXES)
+        assert len(numbers) >= 6, numbers  # x, y, z and the orientation at least
+        split = [n["number"] for n in numbers if n["lines"] != 1]
+        assert split == [], f"split over two lines at {width} px: {split} in {pre.inner_text()!r}"
+        hidden = [n["number"] for n in numbers if not n["inside"]]
+        assert hidden == [], f"outside the card at {width} px: {hidden}"
+        rows = len({n["top"] for n in numbers})
+        wrapped += rows > len(pre.inner_text().strip().splitlines())
+    # Some line is wider than its card at each width: wrapped, not one long scrolled line.
+    assert wrapped, f"no card wraps at {width} px: the test looks at no wrapped line"
+
+
+def test_a_tool_page_of_a_robot_without_a_controller_logs_only_the_controllers_409(
+    page: Page, cell: Cell
+) -> None:
+    """The page asks GET /v1/robots/{id}/controller and Chromium logs its 409 /no-controller
+    (a fixed contract) as a console error. Nothing the console holds says beforehand whether
+    the robot has a connection: the robot document has no such field, and a fleet row's
+    `controller` is null also for a connection never looked at (reconcile or deploy). So that
+    one request stays until the API says so; nothing else on the page may fail."""
+    errors: list[str] = []
+    failed: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("requestfailed", lambda r: failed.append(f"failed {r.url}"))
+    page.on(
+        "response",
+        lambda r: failed.append(f"{r.status} {urlsplit(r.url).path}") if r.status >= 400 else None,
+    )
+    sign_in_to(page, cell.server, f"/ui/tools/{cell.turned}")
+    expect(page.locator("#controller-none")).to_contain_text("no controller connection")
+    expect(page.locator("#controllers .card pre")).to_have_count(6)  # every format, no error
+    for _ in range(20):  # Chromium's log message follows the response
+        if errors:
+            break
+        page.wait_for_timeout(100)
+    assert failed == [f"409 /v1/robots/{cell.robot}/controller"]
+    assert errors == [
+        "Failed to load resource: the server responded with a status of 409 (Conflict)"
+    ]
