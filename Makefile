@@ -30,6 +30,7 @@ run: $(STAMP)
 	@echo "Get an API key:  $(BIN)/tcpcal keys create --scope admin --name me"
 	@echo "  or start with: TCPCAL_BOOTSTRAP_ADMIN_KEY=<a long secret> make run"
 	@echo "Then: curl -H 'Authorization: Bearer <key>' http://$(HOST):$(PORT)/v1/robots"
+	@echo "  or open the console, http://$(HOST):$(PORT)/, and sign in with the key"
 	@echo ""
 	$(BIN)/tcpcal serve --host $(HOST) --port $(PORT)
 
@@ -88,8 +89,8 @@ screenshots: $(STAMP)
 demo: $(STAMP)
 	mkdir -p var
 	TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal demo
-	@echo "serve it: TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal serve"
-	@echo "its key:  TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal keys create --scope admin --name me"
+	@echo "serve it: TCPCAL_DATABASE_URL=sqlite:///var/demo.sqlite3 $(BIN)/tcpcal serve --port 8001"
+	@echo "  (port 8001: make run's server may hold 8000), then open http://127.0.0.1:8001/"
 
 clean:
 	rm -rf $(VENV) var .pytest_cache .mypy_cache .ruff_cache .hypothesis

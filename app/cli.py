@@ -147,9 +147,10 @@ def demo() -> None:
     typer.echo(f"demo fleet written: {made}")
     # The key must go into the database just filled, not the default one.
     url = get_settings().database_url
+    tcpcal = Path(sys.executable).parent / "tcpcal"  # this venv's, on PATH or not
     typer.echo(
         "sign in to the console with a key of this database:\n"
-        f"  TCPCAL_DATABASE_URL={url} tcpcal keys create --scope admin --name me"
+        f"  TCPCAL_DATABASE_URL={url} {tcpcal} keys create --scope admin --name me"
     )
 
 

@@ -3,7 +3,9 @@ spans months, and each thing the console flags is in it; it refuses a non-empty 
 
 from __future__ import annotations
 
+import sys
 from datetime import UTC, datetime
+from pathlib import Path
 
 from typer.testing import CliRunner
 
@@ -18,7 +20,8 @@ def test_demo_fills_an_empty_database_with_every_case_the_console_shows(
     assert result.exit_code == 0, result.output
     assert "5 robots, 9 tools, 16 calibrations, 5 checks" in result.output
     # The key it says to make must land in the database it filled, not the default one.
-    assert f"TCPCAL_DATABASE_URL={db.url} tcpcal keys create" in result.output
+    tcpcal = Path(sys.executable).parent / "tcpcal"  # the path that runs, not a bare name
+    assert f"TCPCAL_DATABASE_URL={db.url} {tcpcal} keys create" in result.output
 
     tools = api.get("/v1/tools", params={"limit": 100}).json()["items"]
     assert len(tools) == 9
