@@ -419,6 +419,38 @@ function confirmDialog({ title, lines, confirm, onConfirm }) {
   reason.focus();
 }
 
+// ---- plots ----------------------------------------------------------------------------------
+// Plotly (3.5 MB, the installed plotly package's own copy) is loaded by the pages that plot, once
+// per tab, as they start fetching their data: the fleet page and the sign-in never wait for it
+// (parsing it took 2.4-2.8 s of CPU per page load on a slow 2-core machine).
+const PLOTLY_URL = "/ui/vendor/plotly.min.js";
+let plotlyLoading = null;
+function plotly() {
+  plotlyLoading ??= new Promise((resolve, reject) => {
+    const script = h("script", { src: PLOTLY_URL });
+    script.addEventListener("load", () => resolve(window.Plotly));
+    script.addEventListener("error", () => {
+      plotlyLoading = null; // the next page tries again
+      reject(new Error(`could not load ${PLOTLY_URL}: the plots are not drawn`));
+    });
+    document.head.append(script);
+  });
+  return plotlyLoading;
+}
+
+// Draws a page's plots once Plotly is loaded; a page without plots never loads it. If it cannot
+// be loaded, each plot's box says so and the rest of the page stays.
+async function withPlotly(draw) {
+  if (!main.querySelector(".plot")) return;
+  try {
+    await plotly();
+  } catch (error) {
+    for (const box of main.querySelectorAll(".plot")) box.replaceChildren(h("p", { class: "muted" }, error.message));
+    return;
+  }
+  draw();
+}
+
 // ---- tool -----------------------------------------------------------------------------------
 // The versions a rollback can return to, the active one last: the server's rule
 // (rollback_stack in app/services/activation.py) replayed over GET .../versions' activations,
@@ -545,8 +577,10 @@ async function toolPage(toolId) {
   );
 
   await drawController(null);
-  if (versions.items.length) plotTcp(versions.items, sigmaOf);
-  if (checks.length) plotChecks(checks, tool.tolerance.check_mm, drift.checks);
+  await withPlotly(() => {
+    if (versions.items.length) plotTcp(versions.items, sigmaOf);
+    if (checks.length) plotChecks(checks, tool.tolerance.check_mm, drift.checks);
+  });
   if (tool.active_version !== null) await fillControllers(toolId, controllers, formats.controller_files || {}, controllerBox);
 }
 
@@ -731,8 +765,10 @@ async function reportPage(calibrationId) {
     geometry ? h("section", { class: "plot-section" }, h("h2", {}, "Touches in space (base frame, mm)"), h("div", { id: "plot-3d", class: "plot tall" })) : null,
     h("section", {}, h("h2", {}, "Request as received"), h("pre", { id: "raw-request", class: "raw" }, JSON.stringify(cal.request, null, 2))),
   );
-  if (q.residuals_mm.length) plotResiduals(q, tool.tolerance);
-  if (geometry) plot3d(cal, geometry);
+  await withPlotly(() => {
+    if (q.residuals_mm.length) plotResiduals(q, tool.tolerance);
+    if (geometry) plot3d(cal, geometry);
+  });
 }
 
 function plotResiduals(q, tolerance) {
@@ -782,6 +818,8 @@ async function route() {
   const path = window.location.pathname;
   const tool = path.match(/^\/ui\/tools\/([^/]+)$/);
   const report = path.match(/^\/ui\/calibrations\/([^/]+)$/);
+  // Plotly comes beside the page's data; the page awaits it, and shows its error, where it plots.
+  if (tool || report) plotly().catch(() => {});
   try {
     if (me === null) me = await json("/v1/keys/me");
     document.getElementById("who").textContent = `${me.name} (${me.scope})`;
@@ -803,5 +841,4 @@ document.getElementById("sign-out").addEventListener("click", () => {
   signIn(route);
 });
 
-// Plotly is a deferred classic script; module scripts run after it, so it is ready here.
 route();

@@ -183,7 +183,8 @@ def test_console_is_served_by_the_app_and_names_no_other_host(api: Api) -> None:
         assert "script-src 'self';" in csp  # no inline script, no other host
     shell = api.get("/ui/").text
     assets = re.findall(r'(?:src|href)="([^"]+)"', shell)
-    assert "/ui/vendor/plotly.min.js" in assets
+    assert "/ui/assets/console.js" in assets
+    assert "plotly" not in shell  # loaded by the pages that plot (console.js), not by the shell
     for url in assets:
         assert url.startswith(("/", "data:")), f"the console loads {url} from another host"
     for url in ("/ui/assets/console.js", "/ui/assets/console.css", "/ui/vendor/plotly.min.js"):
@@ -191,6 +192,7 @@ def test_console_is_served_by_the_app_and_names_no_other_host(api: Api) -> None:
         assert asset.status_code == 200, url
     script = api.get("/ui/assets/console.js").text
     assert re.findall(r"https?://", script) == []  # the console calls only its own origin
+    assert '"/ui/vendor/plotly.min.js"' in script
 
 
 def test_a_report_gets_the_touches_in_space_and_the_95_percent_ellipsoid(api: Api) -> None:

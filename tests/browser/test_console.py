@@ -121,6 +121,8 @@ def test_sign_in_is_asked_once_and_the_key_stays_out_of_urls(page: Page, fleet: 
 
 
 def test_fleet_page_finds_tools_flags_attention_and_downloads_csv(page: Page, fleet: Fleet) -> None:
+    requested: list[str] = []
+    page.on("request", lambda request: requested.append(request.url))
     sign_in(page, fleet)
     rows = page.locator("#fleet tbody tr")
     expect(rows).to_have_count(9)
@@ -147,6 +149,8 @@ def test_fleet_page_finds_tools_flags_attention_and_downloads_csv(page: Page, fl
     text = open(download.path(), encoding="utf-8").read()  # noqa: SIM115 (read at once)
     table = list(csv.DictReader(io.StringIO(text)))
     assert sorted(r["tool"] for r in table) == ["camera", "glue-nozzle", "gripper"]
+    # The sign-in and the fleet page draw no plot, and never load Plotly's 3.5 MB.
+    assert [url for url in requested if "plotly" in url] == []
 
 
 def test_report_marks_the_missed_touch_and_shows_the_json_figures(page: Page, fleet: Fleet) -> None:
@@ -254,3 +258,18 @@ def test_docs_load_offline(page: Page, fleet: Fleet) -> None:
     page.goto(fleet.server.url + "/docs")
     expect(page.locator(".swagger-ui .title")).to_contain_text("tcpcal")
     expect(page.locator(".opblock-summary-path").first).to_be_visible()
+
+
+def test_a_report_whose_plotly_cannot_load_keeps_its_figures_and_says_so(
+    page: Page, fleet: Fleet
+) -> None:
+    page.route("**/ui/vendor/plotly.min.js", lambda route: route.abort())
+    cal = fleet.missed
+    sign_in(page, fleet, f"/ui/calibrations/{cal['id']}")
+    expect(page.locator("#summary")).to_contain_text(cal["summary"])
+    rms = cal["quality"]["rms_mm"]
+    expect(page.locator("[data-field=rms_mm]")).to_have_text(f"{rms:.3f}")
+    for plot in ("#plot-residuals", "#plot-3d"):
+        expect(page.locator(plot)).to_have_text(
+            "could not load /ui/vendor/plotly.min.js: the plots are not drawn"
+        )
