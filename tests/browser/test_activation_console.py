@@ -94,7 +94,10 @@ def _seed(http: httpx.Client) -> tuple[dict[str, str], dict[str, Any], str]:
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Setup]:
     tmp = tmp_path_factory.mktemp("activation-console")
-    with fresh_database("sqlite", tmp, None) as url, live_server(url, workers=1) as server:
+    with (
+        fresh_database("sqlite", tmp, None) as url,
+        live_server(url, workers=1, solvers=0) as server,
+    ):
         with server.client() as http:
             tools, missed, read_key = _seed(http)
         yield Setup(server, read_key, tools, missed)

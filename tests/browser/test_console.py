@@ -87,7 +87,10 @@ def _seed(http: httpx.Client) -> tuple[dict[str, str], dict[str, str], dict[str,
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
     tmp = tmp_path_factory.mktemp("console")
-    with fresh_database("sqlite", tmp, None) as url, live_server(url, workers=1) as server:
+    with (
+        fresh_database("sqlite", tmp, None) as url,
+        live_server(url, workers=1, solvers=0) as server,
+    ):
         with server.client() as http:
             robots, tools, missed = _seed(http)
         yield Fleet(server, robots, tools, missed)

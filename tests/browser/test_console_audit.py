@@ -25,7 +25,10 @@ class Fleet:
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
     tmp = tmp_path_factory.mktemp("console-audit")
-    with fresh_database("sqlite", tmp, None) as url, live_server(url, workers=1) as server:
+    with (
+        fresh_database("sqlite", tmp, None) as url,
+        live_server(url, workers=1, solvers=0) as server,
+    ):
         with server.client() as http:
             robot = http.post("/v1/robots", json={"name": "kr16", "cell": "cell-12"}).json()
             tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "torch"}).json()

@@ -33,7 +33,7 @@ def cell(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cell]:
     with (
         rig("kuka_kvp") as r,
         fresh_database("sqlite", tmp, None) as url,
-        live_server(url, workers=1) as server,
+        live_server(url, workers=1, solvers=0) as server,
         server.client() as http,
     ):
         robot = http.post("/v1/robots", json={"name": "kr16-weld", "cell": "weld-1"}).json()

@@ -35,7 +35,10 @@ class Cell:
 @pytest.fixture(scope="module")
 def cell(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cell]:
     tmp = tmp_path_factory.mktemp("defects")
-    with fresh_database("sqlite", tmp, None) as url, live_server(url, workers=1) as server:
+    with (
+        fresh_database("sqlite", tmp, None) as url,
+        live_server(url, workers=1, solvers=0) as server,
+    ):
         with server.client() as http:
             robot = http.post("/v1/robots", json={"name": "r1", "cell": "c1"}).json()
             tools = [

@@ -95,7 +95,7 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Setup]:
         upgrade(url)
         drifting, steady = _seed(url)
         engine_for(url).dispose()
-        with live_server(url, workers=1) as server:
+        with live_server(url, workers=1, solvers=0) as server:
             yield Setup(server, drifting, steady)
 
 

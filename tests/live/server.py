@@ -79,12 +79,19 @@ def live_server(
     database_url: str,
     *,
     workers: int = 2,
+    solvers: int = 1,
     log: IO[bytes] | None = None,
     process_group: bool = False,
 ) -> Iterator[LiveServer]:
     """Migrate, create an admin key, serve with `tcpcal serve --workers N`, stop afterwards.
     With `process_group` the server leads a process group of its own, which a test can signal
     as a terminal's Ctrl-C does (every process of the group: workers, solvers, forkservers).
+
+    `solvers` is each worker's TCPCAL_SOLVE_PROCESSES. One keeps start-up short on a 2-core
+    machine and runs the pool as production does; 0 (solve in the request's thread, a
+    setting production has too) is for tests of what the server answers rather than how it
+    solves (the console's, the CLI's): a solver pool's forkserver and process cost a server
+    start about 3 s of CPU on a slow 2-core machine (5.9 -> 2.7 CPU-s for one worker).
 
     The server's output goes to `log` (default: a temporary file): a pipe nobody reads fills
     up after a few thousand access-log lines and the server then blocks.
@@ -95,10 +102,12 @@ def live_server(
         _, key = create_key(session, name="live-admin", scope="admin", actor=None)
     engine.dispose()
     port = _free_port()
-    # One solver process per server worker keeps start-up short on a 2-core CI machine (the
-    # pool itself is exercised all the same); production defaults to one per core.
     # (Set after os.environ: the `db` fixture sets 0 for the in-process apps of the tests.)
-    env = {**os.environ, "TCPCAL_SOLVE_PROCESSES": "1", "TCPCAL_DATABASE_URL": database_url}
+    env = {
+        **os.environ,
+        "TCPCAL_SOLVE_PROCESSES": str(solvers),
+        "TCPCAL_DATABASE_URL": database_url,
+    }
     tcpcal = Path(sys.executable).parent / "tcpcal"
     output = log if log is not None else tempfile.TemporaryFile()  # noqa: SIM115 (closed below)
     proc = subprocess.Popen(

@@ -23,7 +23,7 @@ pytestmark = pytest.mark.live
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveServer]:
     tmp = tmp_path_factory.mktemp("client")
-    with fresh_database("sqlite", tmp, None) as url, live_server(url, workers=1) as srv:
+    with fresh_database("sqlite", tmp, None) as url, live_server(url, workers=1, solvers=0) as srv:
         yield srv
 
 

@@ -35,7 +35,7 @@ def test_get_tcp_is_served_while_a_stalled_controller_holds_a_deployment(tmp_pat
     with (
         rig("kuka_kvp") as r,
         fresh_database("sqlite", tmp_path, None) as url,
-        live_server(url, workers=1) as srv,
+        live_server(url, workers=1, solvers=0) as srv,
         srv.client() as http,
     ):
         _, tool_id = _set_up(http, r.controller_body(timeout_s=timeout_s))
@@ -104,8 +104,8 @@ def test_two_instances_with_the_watcher_record_each_drift_once(
     with (
         rig("kuka_kvp") as r,
         fresh_database("postgresql", tmp_path, PG_URL) as url,
-        live_server(url, workers=2) as one,
-        live_server(url, workers=2) as two,
+        live_server(url, workers=2, solvers=0) as one,
+        live_server(url, workers=2, solvers=0) as two,
     ):
         servers: list[LiveServer] = [one, two]
         r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)

@@ -17,7 +17,7 @@ pytestmark = pytest.mark.live
 def test_a_session_survives_a_restart(tmp_path: Path) -> None:
     operator = Operator(seed=8, noise_mm=0.02, misses={})
     with fresh_database("sqlite", tmp_path, None) as url:
-        with live_server(url, workers=2) as server, server.client() as http:
+        with live_server(url, workers=2, solvers=0) as server, server.client() as http:
             robot = http.post("/v1/robots", json={"name": "kr16"}).json()
             tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "torch"}).json()
             sid = http.post(
@@ -40,7 +40,7 @@ def test_a_session_survives_a_restart(tmp_path: Path) -> None:
             before = http.get(f"/v1/sessions/{sid}").json()
         assert before["n_poses"] == 5
         assert before["estimate"] is not None
-        with live_server(url, workers=2) as server, server.client() as http:
+        with live_server(url, workers=2, solvers=0) as server, server.client() as http:
             after = http.get(f"/v1/sessions/{sid}").json()
             assert after == before  # same touches, estimate, next pose, messages
             state = after
