@@ -812,14 +812,15 @@ function plot3d(cal, geometry) {
 // main is aria-busy while a page is fetched and drawn: assistive technology waits for the
 // whole page, and so do the browser tests before they click (a plot drawn late moves buttons).
 async function route() {
-  if (!sessionStorage.getItem(KEY_STORE)) return signIn(route);
-  main.setAttribute("aria-busy", "true");
-  document.getElementById("sign-out").hidden = false;
   const path = window.location.pathname;
   const tool = path.match(/^\/ui\/tools\/([^/]+)$/);
   const report = path.match(/^\/ui\/calibrations\/([^/]+)$/);
-  // Plotly comes beside the page's data; the page awaits it, and shows its error, where it plots.
+  // A page that plots fetches Plotly at once (while its key is typed, beside its data); it
+  // awaits it, and shows its error, where it plots.
   if (tool || report) plotly().catch(() => {});
+  if (!sessionStorage.getItem(KEY_STORE)) return signIn(route);
+  main.setAttribute("aria-busy", "true");
+  document.getElementById("sign-out").hidden = false;
   try {
     if (me === null) me = await json("/v1/keys/me");
     document.getElementById("who").textContent = `${me.name} (${me.scope})`;
