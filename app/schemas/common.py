@@ -8,7 +8,7 @@ from typing import Annotated, Generic, Literal, TypeVar
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PlainSerializer
 
 from app.jsontypes import JsonObject
-from app.solvers.npoint import MAX_TOUCH_NOISE_MM, MIN_TOUCH_NOISE_MM
+from app.solvers.noise_limits import MAX_TOUCH_NOISE_MM, MIN_TOUCH_NOISE_MM
 
 #: A number that refuses NaN and +-Infinity at the door (422 /non-finite), and is strict: a
 #: boolean or a string is refused, not read as 0/1 or parsed (the spec says "number").

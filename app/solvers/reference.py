@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
+from app.solvers.noise_limits import MAX_TOUCH_NOISE_MM
 from app.solvers.quality import SIGMA_CONFIGURED, Quality, make_quality
 from app.solvers.validation import (
     MAX_ABS_MM,
@@ -21,9 +22,6 @@ from app.solvers.validation import (
     check_positions_mm,
     check_rotation_matrices,
 )
-
-#: Largest touch noise accepted (mm); larger values are unit mistakes.
-MAX_TOUCH_NOISE_MM = 100.0
 
 
 @dataclass(frozen=True)

@@ -25,13 +25,12 @@ from numpy.typing import ArrayLike
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
+from app.solvers.noise_limits import MAX_TOUCH_NOISE_MM, MIN_TOUCH_NOISE_MM
 from app.solvers.npoint.checks import (
     ALGORITHMS,
     DEGENERACY_RATIO,
     MAX_ORIENTATION_NOISE_DEG,
-    MAX_TOUCH_NOISE_MM,
     MIN_POSES,
-    MIN_TOUCH_NOISE_MM,
     REPEATED_POSE_DEG,
     WEAK_DIRECTION_RATIO,
     Algorithm,

@@ -13,6 +13,7 @@ from numpy.typing import ArrayLike
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
+from app.solvers.noise_limits import MAX_TOUCH_NOISE_MM, MIN_TOUCH_NOISE_MM
 from app.solvers.npoint.model import Noise
 from app.solvers.numbering import number
 from app.solvers.quality import (
@@ -32,10 +33,8 @@ REPEATED_POSE_DEG = 0.5
 DEGENERACY_RATIO = 1e-2
 #: Warn (but solve) when that ratio is below this.
 WEAK_DIRECTION_RATIO = 0.1
-#: Upper bounds on the noise options, to catch unit mistakes (m for mm, rad for deg).
-MAX_TOUCH_NOISE_MM = 100.0
-#: Below this (mm) a noise figure is no measurement, and its square vanishes in the weights.
-MIN_TOUCH_NOISE_MM = 1e-6
+#: Upper bound on the orientation noise option, to catch unit mistakes (rad for deg); the
+#: touch noise's bounds are in app.solvers.noise_limits.
 MAX_ORIENTATION_NOISE_DEG = 10.0
 
 
