@@ -72,6 +72,21 @@ def test_if_match_of_the_wrong_shape_is_422_and_a_stale_one_412(api: Api) -> Non
     assert stale.status_code == 412
 
 
+def test_if_match_with_a_weak_or_foreign_tag_fails_the_precondition(api: Api) -> None:
+    """RFC 9110 13.1.1: If-Match compares strongly. The tool's own tag weakened (as a
+    compressing proxy hands it on) or another server's tag is a well-formed header that does
+    not match: 412, not 422; the current tag still passes."""
+    robot = api.robot()
+    tool = api.tool(robot["id"])
+    path = f"/v1/tools/{tool['id']}"
+    etag = api.get(path).headers["etag"]
+    for header in (f"W/{etag}", '"v1"', f'"v1", W/{etag}'):
+        refused = api.patch(path, {"slot": 2}, headers={"If-Match": header})
+        assert refused.status_code == 412, (header, refused.text)
+        assert refused.json()["type"].endswith("/precondition-failed")
+    assert api.patch(path, {"slot": 2}, headers={"If-Match": f'"v1", {etag}'}).status_code == 200
+
+
 @pytest.mark.parametrize("path", ["/health", "/ui/", "/ui/tools/x1", "/ready"])
 def test_head_is_answered_wherever_get_is(api: Api, path: str) -> None:
     """HEAD /health and /ui/ answered 405: monitors and load balancers probe with HEAD."""
