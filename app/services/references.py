@@ -136,10 +136,13 @@ def register_reference_point(
             loc=("body", "touch", "tool_id"),
         )
 
-    def flange(fmt: str, units: Units | None) -> FloatArray:
+    def read(fmt: str, units: Units | None) -> tuple[FloatArray, FloatArray]:
         with one_pose(("touch", "pose")):
             pose = [touch.pose]
-            return parse_poses_with(robot.kinematics, fmt, pose, units, loc=("touch", "pose"))[1]
+            return parse_poses_with(robot.kinematics, fmt, pose, units, loc=("touch", "pose"))
+
+    def flange(fmt: str, units: Units | None) -> FloatArray:
+        return read(fmt, units)[1]
 
     # One touch has no redundancy: only whether it reads, and where the flange is, tell a
     # mix-up apart.
@@ -164,11 +167,8 @@ def register_reference_point(
             poses_field="pose",
         ),
         located_in("body"),
-        one_pose(("touch", "pose")),
     ):
-        rotations, positions = parse_poses_with(
-            robot.kinematics, touch.format, [touch.pose], touch.units, loc=("touch", "pose")
-        )
+        rotations, positions = read(touch.format, touch.units)
         point, covariance = reference_point_from_touch(
             tcp_mm=frame.position_mm,
             tcp_covariance_mm2=frame.covariance_mm2,
