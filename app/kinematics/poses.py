@@ -485,11 +485,10 @@ def pose_from_format(
     units: PoseUnits | Mapping[str, str] | None = None,
     kinematics: Kinematics | None = None,
     loc: Loc = ("pose",),
-    number: int = 1,
 ) -> tuple[FloatArray, FloatArray]:
-    """Read one pose -> (R (3, 3), position (3,) mm); errors locate it as (*loc, field) and
-    name it `pose {number}` (`one_pose`)."""
-    with one_pose(loc, number):
+    """Read one pose -> (R (3, 3), position (3,) mm); errors locate it as (*loc, field)
+    (`one_pose`)."""
+    with one_pose(loc):
         rotations, positions = poses_from_format(
             fmt, [pose], units=units, kinematics=kinematics, loc=loc
         )
