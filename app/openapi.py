@@ -30,10 +30,15 @@ DESCRIPTIONS = {
 }
 
 
+def _problem_content() -> JsonObject:
+    """A response's content as a problem+json body (a new dict: the spec is edited in place)."""
+    return {"application/problem+json": {"schema": PROBLEM_REF}}
+
+
 def _problem(code: str, description: str | None = None) -> JsonObject:
     return {
         "description": description or DESCRIPTIONS.get(code, ""),
-        "content": {"application/problem+json": {"schema": PROBLEM_REF}},
+        "content": _problem_content(),
     }
 
 
@@ -97,7 +102,7 @@ def build_openapi(app: FastAPI) -> JsonObject:
                 responses[code] = _problem(code, None if said in _FASTAPIS_WORDS else said)
             for code, response in responses.items():
                 if code.isdigit() and int(code) >= 400 and "content" not in response:
-                    response["content"] = _problem(code, "")["content"]  # e.g. deploy's 502
+                    response["content"] = _problem_content()  # e.g. deploy's 502
     for unused in ("HTTPValidationError", "ValidationError"):
         schemas.pop(unused, None)
     for model, schema in schemas.items():

@@ -18,11 +18,12 @@ def _tags(header: str) -> set[str]:
 
 
 def if_match_ok(header: str | None, etag: str) -> bool:
-    """If-Match: strong comparison (a weak tag never matches); absent header or "*" passes."""
+    """If-Match: strong comparison against our (strong) `etag`, so a weak tag in the header,
+    written W/"...", never equals it; absent header or "*" passes."""
     if header is None:
         return True
     tags = _tags(header)
-    return "*" in tags or (not etag.startswith("W/") and etag in tags)
+    return "*" in tags or etag in tags
 
 
 def if_none_match_hit(header: str | None, etag: str) -> bool:
