@@ -44,6 +44,23 @@ def _poses(touches: Touches, fmt: str, units: dict[str, str] | None) -> list[Any
     ]
 
 
+def _pin_and_touches(
+    api: Api, robot: JsonObject, tool: JsonObject, n: int, fmt: str, units: dict[str, str]
+) -> tuple[JsonObject, list[Any]]:
+    """`tool` given an active TCP of (0, 0, 150) mm, a reference point "pin" on `robot`, and n
+    exact touches of it written in `fmt` with `units`."""
+    tcp = np.array([0.0, 0.0, 150.0])
+    api.manual(tool["id"], tcp.tolist())
+    pin = np.array([650.0, 80.0, 210.0])
+    point = api.post(
+        f"/v1/robots/{robot['id']}/reference-points",
+        {"name": "pin", "position_mm": pin.tolist()},
+        scope="calibrate",
+    ).json()
+    touches = simulate_touches(n, seed=5, touch_noise_mm=0.0, tcp_mm=tcp, pivot_mm=pin)
+    return point, _poses(touches, fmt, units)
+
+
 def _written_as(fmt: str, units: dict[str, str] | None) -> JsonObject:
     full = {"length": "mm", "angle": "deg", **DEFAULTS.get(fmt, {}), **(units or {})}
     return {"format": fmt, "units": full}
@@ -180,20 +197,8 @@ def test_metres_as_mm_that_no_reading_fits_is_refused_never_accepted(
 def test_check_with_radians_sent_as_degrees_is_refused_and_not_recorded(api: Api) -> None:
     robot = api.robot("kr16")
     tool = api.tool(robot["id"], "torch", slot=3)
-    tcp = np.array([0.0, 0.0, 150.0])
-    api.manual(tool["id"], tcp.tolist())
-    pin = np.array([650.0, 80.0, 210.0])
-    point = api.post(
-        f"/v1/robots/{robot['id']}/reference-points",
-        {"name": "pin", "position_mm": pin.tolist()},
-        scope="calibrate",
-    ).json()
-    touches = simulate_touches(3, seed=5, touch_noise_mm=0.0, tcp_mm=tcp, pivot_mm=pin)
-    body = {
-        "reference_point_id": point["id"],
-        "format": "kuka_abc",
-        "poses": _poses(touches, "kuka_abc", {"angle": "rad"}),
-    }
+    point, poses = _pin_and_touches(api, robot, tool, 3, "kuka_abc", {"angle": "rad"})
+    body = {"reference_point_id": point["id"], "format": "kuka_abc", "poses": poses}
     before = row_counts(TABLES)
     response = api.post(f"/v1/tools/{tool['id']}/checks", body, scope="calibrate")
     assert response.status_code == 422, response.text
@@ -261,20 +266,13 @@ def test_every_pose_method_refuses_metres_sent_as_millimetres(api: Api, method: 
 UR_IN_DEGREES = {"format": "ur_rotvec", "units": {"length": "m", "angle": "deg"}}
 
 
-def _pin_and_touches(api: Api, n: int) -> tuple[str, str, JsonObject, list[Any]]:
-    """A tool with an active TCP, a reference point, and n touches of it written in degrees."""
+def _ur_pin_and_touches(api: Api, n: int) -> tuple[str, str, JsonObject, list[Any]]:
+    """A UR robot's tool with an active TCP, a reference point, and n touches of it written
+    in degrees."""
     robot = api.robot("ur10", vendor="UR")
     tool = api.tool(robot["id"], "gripper")
-    tcp = np.array([0.0, 0.0, 150.0])
-    api.manual(tool["id"], tcp.tolist())
-    pin = np.array([650.0, 80.0, 210.0])
-    point = api.post(
-        f"/v1/robots/{robot['id']}/reference-points",
-        {"name": "pin", "position_mm": pin.tolist()},
-        scope="calibrate",
-    ).json()
-    touches = simulate_touches(n, seed=5, touch_noise_mm=0.0, tcp_mm=tcp, pivot_mm=pin)
-    return robot["id"], tool["id"], point, _poses(touches, "ur_rotvec", {"angle": "deg"})
+    point, poses = _pin_and_touches(api, robot, tool, n, "ur_rotvec", {"angle": "deg"})
+    return robot["id"], tool["id"], point, poses
 
 
 def _is_ur_in_degrees(response: Any) -> JsonObject:
@@ -287,7 +285,7 @@ def _is_ur_in_degrees(response: Any) -> JsonObject:
 
 
 def test_check_with_a_ur_pendants_degrees_is_a_mix_up_not_out_of_range(api: Api) -> None:
-    _, tool_id, point, poses = _pin_and_touches(api, 3)
+    _, tool_id, point, poses = _ur_pin_and_touches(api, 3)
     body: JsonObject = {"reference_point_id": point["id"], "format": "ur_rotvec", "poses": poses}
     before = row_counts(TABLES)
     _is_ur_in_degrees(api.post(f"/v1/tools/{tool_id}/checks", body, scope="calibrate"))
@@ -298,7 +296,7 @@ def test_check_with_a_ur_pendants_degrees_is_a_mix_up_not_out_of_range(api: Api)
 
 
 def test_session_touch_with_a_ur_pendants_degrees_is_a_mix_up_from_the_first(api: Api) -> None:
-    _, tool_id, _, poses = _pin_and_touches(api, 1)
+    _, tool_id, _, poses = _ur_pin_and_touches(api, 1)
     session = api.post(
         f"/v1/tools/{tool_id}/sessions",
         {"method": "xyz_npoint", "format": "ur_rotvec"},
@@ -310,7 +308,7 @@ def test_session_touch_with_a_ur_pendants_degrees_is_a_mix_up_from_the_first(api
 
 
 def test_reference_touch_with_a_ur_pendants_degrees_is_a_mix_up(api: Api) -> None:
-    robot_id, tool_id, _, poses = _pin_and_touches(api, 1)
+    robot_id, tool_id, _, poses = _ur_pin_and_touches(api, 1)
     touch: JsonObject = {"tool_id": tool_id, "format": "ur_rotvec", "pose": poses[0]}
     path = f"/v1/robots/{robot_id}/reference-points"
     before = row_counts(TABLES)

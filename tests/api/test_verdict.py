@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import numpy as np
 
@@ -15,6 +16,17 @@ from tests.sim.touches import simulate_touches
 def _tool(api: Api) -> str:
     robot = api.robot("kr16")
     return str(api.tool(robot["id"], "torch", slot=3)["id"])
+
+
+def _stacked(poses: list[Any]) -> JsonObject:
+    """An N-point body fitted by plain least squares: it sets no touch aside, so a missed
+    touch stays in the fit and in the verdict (the robust default would set it aside)."""
+    return {
+        "method": "xyz_npoint",
+        "format": "xyz_wxyz",
+        "poses": poses,
+        "options": {"algorithm": "stacked"},
+    }
 
 
 def _calibrate(api: Api, tool_id: str, body: JsonObject) -> JsonObject:
@@ -76,13 +88,7 @@ def test_out_of_tolerance_names_the_missed_touch_from_one(api: Api) -> None:
     touches = simulate_touches(8, seed=3, touch_noise_mm=0.02)
     poses = as_poses(touches)
     poses[4][0] += 3.0  # touch #5 (index 4) misses by 3 mm
-    body = {
-        "method": "xyz_npoint",
-        "format": "xyz_wxyz",
-        "poses": poses,
-        "options": {"algorithm": "stacked"},
-    }
-    result = _calibrate(api, tool_id, body)
+    result = _calibrate(api, tool_id, _stacked(poses))
     assert result["status"] == "out_of_tolerance"
     assert re.match(
         r"out of tolerance: touch 5 is \d+\.\d\d mm off the others", str(result["summary"])
@@ -94,15 +100,9 @@ def test_out_of_tolerance_names_every_touch_past_the_limit_not_only_the_worst(ap
     tool_id = _tool(api)
     touches = simulate_touches(10, seed=3, touch_noise_mm=0.02)
     poses = as_poses(touches)
-    poses[2][1] += 2.5  # touches 3 and 7 both miss; the robust fit sets none aside
+    poses[2][1] += 2.5  # touches 3 and 7 both miss
     poses[6][0] -= 3.5
-    body = {
-        "method": "xyz_npoint",
-        "format": "xyz_wxyz",
-        "poses": poses,
-        "options": {"algorithm": "stacked"},
-    }
-    result = _calibrate(api, tool_id, body)
+    result = _calibrate(api, tool_id, _stacked(poses))
     assert result["status"] == "out_of_tolerance"
     quality = result["quality"]
     beyond = [i + 1 for i, r in enumerate(quality["residuals_mm"]) if r > 1.0]
