@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Literal, Protocol, Self, get_args
 
-from app.exports.slots import TOOL_NUMBERS
+from app.tool_numbers import TOOL_NUMBERS
 
 ProtocolName = Literal["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2"]
 PROTOCOLS: tuple[str, ...] = get_args(ProtocolName)

@@ -25,13 +25,13 @@ from app.exports.base import (
     parse_error,
     rounded,
 )
-from app.exports.slots import TOOL_NUMBERS
 from app.kinematics.poses import (
     kuka_abc_from_matrix,
     matrix_from_kuka_abc,
     matrix_from_quaternion_wxyz,
     quaternion_wxyz_from_matrix,
 )
+from app.tool_numbers import TOOL_NUMBERS
 
 FORMAT = "kuka"
 FIRST_SLOT, MAX_SLOT = TOOL_NUMBERS[FORMAT]

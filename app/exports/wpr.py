@@ -62,13 +62,13 @@ from app.exports.base import (
     rounded,
 )
 from app.exports.names import ascii_text
-from app.exports.slots import TOOL_NUMBERS
 from app.kinematics.poses import (
     fanuc_wpr_from_matrix,
     matrix_from_fanuc_wpr,
     matrix_from_quaternion_wxyz,
     quaternion_wxyz_from_matrix,
 )
+from app.tool_numbers import TOOL_NUMBERS
 
 _DECIMALS = (MM_DECIMALS,) * 3 + (DEG_DECIMALS,) * 3
 _LABELS: dict[str, tuple[str, ...]] = {

@@ -1,6 +1,6 @@
 """Which tool numbers (slots) a robot's controller has, by the robot's vendor.
 
-The ranges are the controllers' own, and the exports' (one definition: app.exports.slots;
+The ranges are the controllers' own, and the exports' (one definition: app.tool_numbers;
 app.exports.kuka and app.exports.wpr cite the vendor documents): KUKA `$TOOL_DATA[1..16]` (KSS
 $config.dat), Fanuc `UTOOL[1..10]` (R-30iB default), Yaskawa tool files 0..63 (YRC1000 and
 DX200). ABB (a `tooldata` is a named RAPID variable) and Universal Robots (one TCP at a time,
@@ -16,7 +16,7 @@ import re
 from collections.abc import Iterable
 
 from app.errors import InvalidInput
-from app.exports.slots import TOOL_NUMBERS
+from app.tool_numbers import TOOL_NUMBERS
 
 #: The tool numbers of each vendor whose controller numbers its tools: (name, first, last).
 SLOT_RANGES: dict[str, tuple[str, int, int]] = {
