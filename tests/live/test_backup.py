@@ -67,13 +67,19 @@ def test_backup_under_writers_holds_every_acknowledged_calibration(
                             acknowledged.append((time.monotonic(), r.json()["id"]))
                         i += 1
 
+            def acknowledged_past(count: int) -> None:
+                """Wait until more than `count` calibrations are acknowledged (or 60 s)."""
+                deadline = time.monotonic() + 60
+                while len(acknowledged) <= count and time.monotonic() < deadline:
+                    time.sleep(0.02)
+
             threads = [threading.Thread(target=post, args=(t["id"],)) for t in tools]
             for thread in threads:
                 thread.start()
-            time.sleep(1.5)
+            acknowledged_past(2 * len(tools))  # the writers are all under way
             began = time.monotonic()
             done = _tcpcal(url, "backup", str(backup))
-            time.sleep(0.5)
+            acknowledged_past(len(acknowledged))  # and still write after the backup
             stop.set()
             for thread in threads:
                 thread.join(timeout=60)
