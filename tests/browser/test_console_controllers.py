@@ -9,7 +9,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import pytest
-from playwright.sync_api import Browser, Page, expect
+from playwright.sync_api import Page, expect
 
 from tests.api.controller_rigs import Rig, rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q
@@ -48,15 +48,10 @@ def cell(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cell]:
         yield Cell(server, r, robot["id"], tool["id"])
 
 
-@pytest.fixture
-def page(browser: Browser, cell: Cell) -> Iterator[Page]:
-    ctx = browser.new_context(viewport={"width": 1400, "height": 1000})
-    page = ctx.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
-    yield page
-    ctx.close()
-    assert errors == [], f"script errors on the page: {errors}"
+@pytest.fixture(scope="module")
+def console_server(cell: Cell) -> LiveServer:
+    """The server the browser fixtures (tests/browser/conftest.py) let the pages reach."""
+    return cell.server
 
 
 def _sign_in(page: Page, cell: Cell, path: str) -> None:
