@@ -49,3 +49,11 @@ def test_the_solver_preload_imports_what_the_fits_use() -> None:
     )
     assert "scipy.optimize" in modules
     assert "scipy.stats" not in modules
+
+
+def test_the_controller_schemas_and_connectors_import_no_numeric_core() -> None:
+    """The tool numbers are plain data (app.tool_numbers): reaching them through the exports
+    package ran app/exports/__init__.py, and so every exporter and scipy.spatial, in whatever
+    touched a controller's schema or connector."""
+    modules = _imported_by("import app.controllers.base, app.schemas.controllers, app.tool_numbers")
+    assert "scipy" not in modules
