@@ -19,6 +19,7 @@ from sqlalchemy import create_engine, text
 
 from tests.conftest import BACKENDS, PG_URL
 from tests.live.server import fresh_database, live_server
+from tests.polling import wait_for
 
 pytestmark = pytest.mark.live
 TCPCAL = Path(sys.executable).parent / "tcpcal"
@@ -67,19 +68,15 @@ def test_backup_under_writers_holds_every_acknowledged_calibration(
                             acknowledged.append((time.monotonic(), r.json()["id"]))
                         i += 1
 
-            def acknowledged_past(count: int) -> None:
-                """Wait until more than `count` calibrations are acknowledged (or 60 s)."""
-                deadline = time.monotonic() + 60
-                while len(acknowledged) <= count and time.monotonic() < deadline:
-                    time.sleep(0.02)
-
             threads = [threading.Thread(target=post, args=(t["id"],)) for t in tools]
             for thread in threads:
                 thread.start()
-            acknowledged_past(2 * len(tools))  # the writers are all under way
+            under_way = 2 * len(tools)
+            wait_for(lambda: len(acknowledged) > under_way, 60, "the writers under way")
             began = time.monotonic()
             done = _tcpcal(url, "backup", str(backup))
-            acknowledged_past(len(acknowledged))  # and still write after the backup
+            at_backup = len(acknowledged)
+            wait_for(lambda: len(acknowledged) > at_backup, 60, "a write after the backup")
             stop.set()
             for thread in threads:
                 thread.join(timeout=60)

@@ -17,8 +17,11 @@ from tests.api.controller_rigs import rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q
 from tests.conftest import PG_URL
 from tests.live.server import LiveServer, fresh_database, live_server
+from tests.polling import wait_for
 
 pytestmark = pytest.mark.live
+#: Each poll of the audit counts opens an engine on PostgreSQL: a tenth of a second apart.
+POLL_S = 0.1
 
 
 def _set_up(http: httpx.Client, controller: dict[str, Any]) -> tuple[str, str]:
@@ -87,14 +90,6 @@ def _events(url: str, action: str) -> int:
         engine.dispose()
 
 
-def _wait(condition: Any, within_s: float, what: str) -> None:
-    deadline = time.monotonic() + within_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"{what} not within {within_s} s")
-        time.sleep(0.1)
-
-
 @pytest.mark.skipif(not PG_URL, reason="TCPCAL_TEST_DATABASE_URL (PostgreSQL) is not set")
 def test_two_instances_with_the_watcher_record_each_drift_once(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
@@ -116,21 +111,27 @@ def test_two_instances_with_the_watcher_record_each_drift_once(
         r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)
         with one.client() as http:
             robot_id, tool_id = _set_up(http, r.controller_body())
-        _wait(lambda: _events(url, "controller.in_sync") >= 1, settle, "in sync")
+        wait_for(lambda: _events(url, "controller.in_sync") >= 1, settle, "in sync", every=POLL_S)
         for srv in servers:
             watcher = httpx.get(f"{srv.url}/ready").json()["watcher"]
             assert watcher["enabled"] is True
             assert watcher["interval_s"] == interval
         moved = [ACTIVE_POSITION[0], ACTIVE_POSITION[1], ACTIVE_POSITION[2] - 0.3]
         r.set_behind_back(moved, ACTIVE_Q)
-        _wait(lambda: _events(url, "controller.drifted") >= 1, settle, "drift recorded")
+        wait_for(
+            lambda: _events(url, "controller.drifted") >= 1, settle, "drift recorded", every=POLL_S
+        )
         time.sleep(4 * interval)  # every watcher of both instances has had rounds since
         assert _events(url, "controller.drifted") == 1
         assert _events(url, "controller.in_sync") == 1
         r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)
-        _wait(lambda: _events(url, "controller.in_sync") >= 2, settle, "back in sync")
+        wait_for(
+            lambda: _events(url, "controller.in_sync") >= 2, settle, "back in sync", every=POLL_S
+        )
         r.set_behind_back(moved, ACTIVE_Q)
-        _wait(lambda: _events(url, "controller.drifted") >= 2, settle, "second drift")
+        wait_for(
+            lambda: _events(url, "controller.drifted") >= 2, settle, "second drift", every=POLL_S
+        )
         time.sleep(3 * interval)
         assert _events(url, "controller.drifted") == 2
         assert _events(url, "controller.in_sync") == 2

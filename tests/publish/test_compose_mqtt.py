@@ -10,12 +10,12 @@ import pytest
 import yaml
 
 from app.publish.mqtt import parse_url
+from tests.polling import wait_for
 from tests.publish.mqtt_harness import (
     MOSQUITTO,
     MOSQUITTO_PASSWD,
     free_port,
     needs_mosquitto,
-    wait_for,
 )
 
 REPO = Path(__file__).resolve().parents[2]

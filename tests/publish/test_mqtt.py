@@ -20,7 +20,8 @@ from sqlalchemy import select
 from app.db import session_scope
 from app.models import AuditEvent, OutboxMessage
 from tests.conftest import Api, one_backend
-from tests.publish.mqtt_harness import Broker, Publisher, Subscriber, needs_mosquitto, wait_for
+from tests.polling import wait_for
+from tests.publish.mqtt_harness import Broker, Publisher, Subscriber, needs_mosquitto
 
 pytestmark = [needs_mosquitto, pytest.mark.live]
 

@@ -13,6 +13,7 @@ import pytest
 from app.publish.mqtt import check_prefix, parse_url
 from app.publish.sink import SinkError
 from tests.conftest import Api, one_backend
+from tests.polling import wait_for
 from tests.publish.mqtt_harness import (
     Broker,
     Publisher,
@@ -20,7 +21,6 @@ from tests.publish.mqtt_harness import (
     free_port,
     needs_mosquitto,
     run_publisher_once,
-    wait_for,
 )
 
 
