@@ -61,7 +61,15 @@ typecheck: $(STAMP)
 # xdist_group marks would group finer, but pytest 9.2 made it group nothing: pytest-xdist#1386.)
 PYTEST := $(BIN)/pytest -q -n 2 --dist loadscope --no-loadscope-reorder --durations=20
 
-test: lint
+# The OPC UA server is tested with a client of another implementation, node-opcua, installed
+# from the lock file in tests/opcua_client. Without npm those tests skip (under CI they fail).
+NODE_CLIENT := tests/opcua_client
+$(NODE_CLIENT)/node_modules/.installed: $(NODE_CLIENT)/package-lock.json
+	@if command -v npm >/dev/null 2>&1; then \
+		(cd $(NODE_CLIENT) && npm ci --no-audit --no-fund) && touch $@; \
+	else echo "npm not found: the node-opcua client tests will be skipped (apt-get install npm)"; fi
+
+test: lint $(NODE_CLIENT)/node_modules/.installed
 	$(call beside_mypy,$(PYTEST))
 
 # The fast tier for the edit-test loop (under 2 minutes on 2 cores): lint, types and every

@@ -3,7 +3,7 @@
 `tcpcal publish` runs as its own process with TCPCAL_OPCUA_ENDPOINT on a free loopback port;
 the changes are made through the API (in-process) on the same database. The main test's
 client is node-opcua (another implementation than the server's asyncua), run by Node from
-tests/opcua_client (`npm ci` there; `.ci/run` does it); the quicker checks of the address
+tests/opcua_client (`npm ci` there; `make test` does it); the quicker checks of the address
 space's life use asyncua's client.
 """
 
