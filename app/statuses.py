@@ -15,8 +15,11 @@ Status = Literal["accepted", "out_of_tolerance"]
 #: A guided session: touches may still be added, or it ended in a calibration.
 SessionStatus = Literal["open", "finished"]
 
-#: A deployment: read back as written, not written (or not read), or read back otherwise.
-DeploymentStatus = Literal["verified", "failed", "mismatch"]
+#: A deployment, decided by where it stopped: read back as written (`verified`); failed
+#: before the write was sent, so the controller holds what it held (`not_written`); failed
+#: after the write was sent, so the controller may hold either frame (`unverified`, settled
+#: by the next reconcile round); read back otherwise than written (`mismatch`).
+DeploymentStatus = Literal["verified", "not_written", "unverified", "mismatch"]
 
 #: What the controller holds for a tool, against the tool's active version.
 ToolState = Literal["in_sync", "drifted", "no_active_version", "unreachable"]

@@ -17,6 +17,8 @@ from __future__ import annotations
 import math
 import re
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Literal, Protocol, Self, get_args
@@ -111,6 +113,10 @@ class ControllerSettings:
 
 class ControllerError(Exception):
     """Whatever went wrong talking to a controller."""
+
+    #: True once a write's bytes may have left for the controller: it may then hold the
+    #: new frame or the old one, and only a later read can tell (set by `write_sent`).
+    write_sent: bool = False
 
 
 class ControllerUnreachable(ControllerError):
@@ -237,6 +243,17 @@ def check_target(protocol: str, target: ToolTarget) -> None:
     problem = target_problem(protocol, target)
     if problem is not None:
         raise ValueError(problem)
+
+
+@contextmanager
+def write_sent() -> Iterator[None]:
+    """Wrap a write from the moment its bytes are handed to the socket: a ControllerError
+    raised inside says the controller may hold the new value (`write_sent`)."""
+    try:
+        yield
+    except ControllerError as exc:
+        exc.write_sent = True
+        raise
 
 
 class Deadline:

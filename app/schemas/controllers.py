@@ -101,7 +101,7 @@ class Deployment(BaseModel):
     version: int = Field(description="the version written (the active one at the time)")
     protocol: str = Field(description="the controller's protocol")
     target: str = Field(description='where it was written: "$TOOL_DATA[3]", "UTOOL[3]", a symbol')
-    status: DeploymentStatus = Field(description="verified | failed | mismatch")
+    status: DeploymentStatus = Field(description="verified | not_written | unverified | mismatch")
     previous: Frame | None = Field(description="what the controller held before; null if unread")
     read_back: Frame | None = Field(description="what the controller held after the write")
     deviation_mm: float | None = Field(description="read back vs written: distance, mm")

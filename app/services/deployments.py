@@ -148,19 +148,19 @@ def write_and_read_back(plan: Plan) -> Outcome:
             f"the controller at {plan.settings.host}:{plan.settings.port} could not be reached "
             f"within {timeout:g} s: {exc}; nothing was written"
         )
-        return Outcome("failed", error=error)
+        return Outcome("not_written", error=error)
     except ControllerRefused as exc:
         error = ControllerRefusedError(
             f"the controller refused: {exc.controller_message}",
             members={"controller_message": exc.controller_message},
         )
-        return Outcome("failed", error=error, controller_message=exc.controller_message)
+        return Outcome("not_written", error=error, controller_message=exc.controller_message)
     except ControllerError as exc:
         error = ControllerUnreachableError(
             f"the controller at {plan.settings.host}:{plan.settings.port} answered something "
             f"that is not its protocol: {exc}"
         )
-        return Outcome("failed", error=error)
+        return Outcome("not_written", error=error)
     data = plan.data
     deviation = frame_deviation(
         data.position_mm, data.quaternion, read_back.position_mm, read_back.quaternion

@@ -184,7 +184,7 @@ def test_a_stopped_controller_is_502_unreachable_within_the_timeout_and_recorded
     assert elapsed < TIMEOUT_S + 1
     listed = _deployments(api, tool_id)
     assert [d["id"] for d in listed] == [failed.json()["deployment_id"]]
-    assert listed[0]["status"] == "failed"
+    assert listed[0]["status"] == "not_written"
     assert listed[0]["error"]["type"] == "controller-unreachable"
     after = api.get(f"/v1/tools/{tool_id}")
     assert after.headers["etag"] == before.headers["etag"]  # nothing else changed
@@ -304,7 +304,7 @@ def test_a_wrong_password_is_502_refused_in_the_controllers_words(
         assert problem["controller_message"] in problem["detail"]
         listed = _deployments(api, tool_id)
         assert listed[0]["id"] == problem["deployment_id"]
-        assert listed[0]["status"] == "failed"
+        assert listed[0]["status"] == "not_written"
         assert listed[0]["error"]["controller_message"] == problem["controller_message"]
         recon = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
         assert recon.json()["state"] == "unreachable"
