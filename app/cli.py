@@ -186,6 +186,7 @@ def keys_create(
         where = ".".join(str(p) for p in first["loc"])
         typer.echo(f"error: {where}: {first['msg']}", err=True)
         raise typer.Exit(2) from None
+    _database_or_exit()
     with session_scope(write=True) as session:
         row, secret = create_key(
             session, name=name, scope=scope, cells=names, actor=_cli_principal()
@@ -202,6 +203,7 @@ def keys_list() -> None:
     from app.models import ApiKey
     from app.services.keys import list_keys
 
+    _database_or_exit()
     with session_scope(write=False) as session:
         cursor = None
         rows: list[ApiKey] = []
@@ -225,6 +227,7 @@ def keys_revoke(
     from app.errors import DomainError
     from app.services.keys import revoke_key
 
+    _database_or_exit()
     try:
         with session_scope(write=True) as session:
             revoke_key(session, key_id=key_id, actor=_cli_principal())
@@ -243,6 +246,7 @@ def keys_rotate(
     from app.errors import DomainError
     from app.services.keys import rotate_key
 
+    _database_or_exit()
     try:
         with session_scope(write=True) as session:
             row, secret = rotate_key(session, key_id=key_id, actor=_cli_principal())
@@ -251,6 +255,18 @@ def keys_rotate(
         typer.echo(f"error: {exc.detail}", err=True)
         raise typer.Exit(1) from exc
     typer.echo(f"revoked {key_id}\nid:    {new_id}\nscope: {scope}\nkey:   {secret}")
+
+
+def _database_or_exit() -> None:
+    """Exit 2 with one sentence when the configured database is not a tcpcal database (a
+    command run outside the project directory, or never migrated): never create one."""
+    from app.config import get_settings
+    from app.migrate import database_not_ready
+
+    problem = database_not_ready(get_settings().database_url)
+    if problem is not None:
+        typer.echo(f"error: {problem}", err=True)
+        raise typer.Exit(2)
 
 
 def _cli_principal() -> Principal:

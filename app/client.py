@@ -23,6 +23,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
+from rich import box
+from rich.padding import Padding
 from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
@@ -44,6 +46,7 @@ from app.client_http import (
     EXIT_BAD_USE,
     EXIT_NOT_FOUND,
     EXIT_OUT_OF_TOLERANCE,
+    EXIT_REFUSED,
     Params,
     err,
     fail,
@@ -102,6 +105,27 @@ def resolve_tool(ref: str) -> str:
         EXIT_BAD_USE,
         f"{len(rows)} tools are named {name!r}; name one as robot/tool or by its id:\n{listed}",
     )
+
+
+RobotArg = Annotated[
+    str,
+    typer.Argument(metavar="ROBOT", help="the robot: its id or its name (tcpcal tools lists them)"),
+]
+
+
+def resolve_robot(ref: str) -> str:
+    """The id of the robot `ref` names: an id or a robot name (unique: names are). Exit 5
+    when none matches."""
+    if _ID.match(ref):
+        found = request("GET", f"/v1/robots/{ref}")
+        if found.status_code == 200:
+            return ref
+        if found.status_code not in (404, 422):
+            refused(found)
+    for robot in _robots():
+        if robot["name"] == ref:
+            return robot["id"]
+    fail(EXIT_NOT_FOUND, f"no robot with id or name {ref!r}; tcpcal tools lists them")
 
 
 def _fleet_rows(params: dict[str, str]) -> list[FleetTool]:
@@ -225,10 +249,10 @@ def calibrate(
     units = _units(length, angle)
     if not fmt:
         fail(EXIT_BAD_USE, "give --format, the pendant's pose format (e.g. kuka_abc)")
-    tool_id = resolve_tool(tool_id)
+    ref, tool_id = tool_id, resolve_tool(tool_id)
     if guided:
         cal = guided_session(tool_id, fmt, units, target, session, activate, note)
-        _print_calibration(cal)
+        _print_calibration(cal, ref)
         return
     if poses_file is None:
         fail(EXIT_BAD_USE, "give a poses file, or --guided to touch one pose at a time")
@@ -242,10 +266,18 @@ def calibrate(
                   console=err, transient=True) as progress:  # fmt: skip
         progress.add_task(f"sending {len(poses)} poses and solving", total=None)
         cal = send("POST", f"/v1/tools/{tool_id}/calibrations", json=body).json()
-    _print_calibration(cal)
+    _print_calibration(cal, ref)
 
 
-def _print_calibration(cal: Calibration) -> None:
+def _force_advice(ref: str, version: int) -> str:
+    """How to put a version stored out of tolerance live anyway, as this CLI's flags."""
+    return (
+        f'to put it live anyway: tcpcal activate {ref} {version} --force --reason "<why>"; '
+        "or calibrate again"
+    )
+
+
+def _print_calibration(cal: Calibration, ref: str) -> None:
     table = Table("version", "status", "active", "x mm", "y mm", "z mm", "rms mm", "touches")
     x, y, z = cal["tcp"]["position_mm"]
     rms = cal["quality"].get("rms_mm")
@@ -259,6 +291,13 @@ def _print_calibration(cal: Calibration) -> None:
     for warning in cal["warnings"]:
         err.print(f"[yellow]warning[/]: {warning}", highlight=False)
     if cal["status"] != "accepted":
+        if not cal["active"]:
+            out.print(
+                f"version {cal['version']} is stored, not active; "
+                + _force_advice(ref, cal["version"]),
+                highlight=False,
+                soft_wrap=True,
+            )
         raise typer.Exit(EXIT_OUT_OF_TOLERANCE)
 
 
@@ -435,6 +474,11 @@ def history(tool_id: ToolArg) -> None:
     out.print(activations)
 
 
+def _problem_kind(response: httpx.Response) -> str:
+    """The last word of a problem's type: "out-of-tolerance", "controller-unreachable"."""
+    return str(problem(response).get("type", "")).rsplit("/", 1)[-1]
+
+
 def _etag(tool_id: str) -> str:
     """The tool's ETag now, sent as If-Match: a change made meanwhile is a 412, not undone."""
     return str(send("GET", f"/v1/tools/{tool_id}").headers.get("ETag", "*"))
@@ -454,18 +498,30 @@ def activate(
     and --reason."""
     if force and not reason:
         fail(EXIT_BAD_USE, "--force needs --reason: say why this version must go live")
-    tool_id = resolve_tool(tool_id)
+    ref, tool_id = tool_id, resolve_tool(tool_id)
     body: JsonObject = {}
     if reason:
         body["reason"] = reason
     if force:
         body["force"] = True
-    tool: Tool = send(
+    response = request(
         "POST",
         f"/v1/tools/{tool_id}/versions/{version}/activate",
         json=body,
         headers={"If-Match": _etag(tool_id)},
-    ).json()
+    )
+    if response.status_code == 409 and _problem_kind(response) == "out-of-tolerance":
+        # The server's advice is for an HTTP client ({"force": true, ...}); say it as flags.
+        refusal = problem(response)
+        worst = f" ({refusal['summary']})" if refusal.get("summary") else ""
+        fail(
+            EXIT_REFUSED,
+            f"version {version} is stored as out_of_tolerance{worst}; nothing was changed; "
+            + _force_advice(ref, version),
+        )
+    if response.status_code >= 400:
+        refused(response)
+    tool: Tool = response.json()
     out.print(f"tool {tool['name']}: version {tool['active_version']} is active")
 
 
@@ -628,21 +684,44 @@ def audit(
         "until": until,
     }
     events = _audit_events({k: v for k, v in filters.items() if v}, limit)
-    names = _tool_names({e["tool_id"] for e in events if e["tool_id"]})
-    table = Table("when (UTC)", "who", "what", "tool / version", "why")
+    names = tool_names({e["tool_id"] for e in events if e["tool_id"]})
+    rows = []
     for e in events:
         tool = names.get(e["tool_id"], "") if e["tool_id"] else ""
-        version = "" if e["version"] is None else f"v{e['version']}"
-        table.add_row(
-            e["at"][:19].replace("T", " "),
-            e["actor"],
-            e["action"],
-            " ".join(p for p in (tool, version) if p),
-            audit_why(e["action"], e["detail"] or {}),
+        number = e["version"] if e["version"] is not None else (e["detail"] or {}).get("version")
+        version = "" if number is None else f"v{number}"
+        rows.append(
+            (
+                e["at"][:19].replace("T", " "),
+                e["actor"],
+                e["action"],
+                " ".join(p for p in (tool, version) if p),
+                audit_why(e["action"], e["detail"] or {}),
+            )
         )
-    out.print(table)
+    _print_audit(rows)
     if not events:
         out.print("no audit events match")
+
+
+#: Below this many columns a five-column table wraps "why" to a word a line: each event is
+#: printed as a line of when, who, what, tool and version, and its why indented below.
+AUDIT_TABLE_MIN_WIDTH = 120
+
+
+def _print_audit(rows: list[tuple[str, str, str, str, str]]) -> None:
+    """The events as a table on a wide terminal, as two lines each on a narrow one."""
+    if out.width >= AUDIT_TABLE_MIN_WIDTH:
+        table = Table("when (UTC)", "who", "what", "tool / version", "why", box=box.SIMPLE)
+        for row in rows:
+            table.add_row(*row)
+        out.print(table)
+        return
+    out.print("when (UTC)  who  what  tool / version\n    why", highlight=False)
+    for when, who, what, tool, why in rows:
+        out.print(f"{when}  {who}  {what}  {tool}".rstrip(), highlight=False, soft_wrap=True)
+        if why:
+            out.print(Padding(why, (0, 0, 0, 4)), highlight=False)
 
 
 def _audit_events(params: dict[str, str], limit: int) -> list[AuditEvent]:
@@ -663,7 +742,7 @@ def _audit_events(params: dict[str, str], limit: int) -> list[AuditEvent]:
     return events
 
 
-def _tool_names(tool_ids: set[str]) -> dict[str, str]:
+def tool_names(tool_ids: set[str]) -> dict[str, str]:
     """Each tool's name (its id's first 8 characters when it cannot be read: archived)."""
     import httpx
 
@@ -681,11 +760,14 @@ def _tool_names(tool_ids: set[str]) -> dict[str, str]:
 
 
 def audit_why(action: str, detail: JsonObject) -> str:
-    """The reason or the change an audit event records, in a few words."""
-    if "reason" in detail:
-        previous = detail.get("previous_version")
-        was = "" if previous is None else f" (was v{previous})"
-        return f"{detail['reason']}{was}"
+    """The reason or the change an audit event records, in a few words: no `None`, figures
+    rounded to what a person reads (mm and deg to 3 decimals), errors in their own words."""
+    if "kind" in detail:  # an activation or a rollback
+        return _activation_why(detail)
+    if action == "tool.deploy":
+        return _deploy_why(detail)
+    if action.startswith("controller.") and "previous_state" in detail:
+        return _state_why(action.removeprefix("controller."), detail)
     if "changed" in detail:
         return _changes_text(detail)
     if action == "calibration.create":
@@ -693,8 +775,59 @@ def audit_why(action: str, detail: JsonObject) -> str:
         return f"{detail.get('method')} {detail.get('status')}{note}"
     if detail.get("summary"):
         return str(detail["summary"])
-    shown = {k: v for k, v in detail.items() if not isinstance(v, dict | list) or k == "cells"}
-    return ", ".join(f"{k} {v}" for k, v in shown.items())
+    shown = {
+        k: v
+        for k, v in detail.items()
+        if v is not None and (not isinstance(v, dict | list) or k == "cells")
+    }
+    return ", ".join(f"{k} {_shown(v)}" for k, v in shown.items())
+
+
+def _shown(value: object) -> str:
+    """A stored value as a person reads it: floats to 3 decimals (0.5, 0.3, 0), lists
+    joined, no None."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):  # 3 decimals, and no zeros after the last digit that counts
+        return f"{value:.3f}".rstrip("0").rstrip(".").replace("-0", "0") or "0"
+    if isinstance(value, list):
+        return ", ".join(_shown(v) for v in value)
+    return str(value)
+
+
+def _activation_why(detail: JsonObject) -> str:
+    """ "forced: probe bent (was v3)", "explicit (was v1)", "rollback: crash (was v4)"."""
+    kind, reason = detail["kind"], detail.get("reason")
+    words = str(kind) if reason in (None, kind) else f"{kind}: {reason}"
+    if detail.get("force") and kind != "forced":
+        words = f"forced, {words}"
+    previous = detail.get("previous_version")
+    return words + ("" if previous is None else f" (was v{previous})")
+
+
+def _deploy_why(detail: JsonObject) -> str:
+    """ "verified at $TOOL_DATA[3] (kuka_kvp)" or the status and the error's own words."""
+    words = f"{detail.get('status')} at {detail.get('target')} ({detail.get('protocol')})"
+    error = detail.get("error")
+    if isinstance(error, dict) and error.get("detail"):
+        words += f": {error['detail']}"
+    if detail.get("reason"):
+        words += f"; why: {detail['reason']}"
+    return words
+
+
+def _state_why(state: str, detail: JsonObject) -> str:
+    """ "drifted at UTOOL[3] (was in_sync): off by 0.000 mm, 0.500 deg"."""
+    was = detail.get("previous_state")
+    words = f"{state} at {detail.get('target')}" + ("" if was is None else f" (was {was})")
+    mm, deg = detail.get("deviation_mm"), detail.get("deviation_deg")
+    if state == "drifted" and isinstance(mm, float | int) and isinstance(deg, float | int):
+        words += f": off by {mm:.3f} mm, {deg:.3f} deg"
+    if detail.get("error"):
+        words += f": {detail['error']}"
+    return words
 
 
 def _changes_text(detail: JsonObject) -> str:
@@ -707,10 +840,10 @@ def _changes_text(detail: JsonObject) -> str:
         elif isinstance(new[field], dict) and isinstance(old.get(field), dict):
             before = old[field]
             parts += [
-                f"{field}.{k} {before.get(k)} -> {v}"
+                f"{field}.{k} {_shown(before.get(k))} -> {_shown(v)}"
                 for k, v in new[field].items()
                 if before.get(k) != v
             ]
         else:
-            parts.append(f"{field} {old.get(field)} -> {new[field]}")
+            parts.append(f"{field} {_shown(old.get(field))} -> {_shown(new[field])}")
     return "; ".join(parts)

@@ -11,9 +11,11 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Annotated
 
 import typer
+from rich import box
 from rich.table import Table
 
-from app.client_bodies import Deployment, Frame, Reconciliation
+from app.client import RobotArg, ToolArg, resolve_robot, resolve_tool, tool_names
+from app.client_bodies import Deployment, Frame, ReconciledTool, Reconciliation
 from app.client_http import (
     EXIT_NOT_FOUND,
     EXIT_REFUSED,
@@ -59,20 +61,29 @@ def _frame(frame: Frame | None) -> str:
         return "-"
     x, y, z = frame["position_mm"]
     w, qx, qy, qz = frame["quaternion"]
-    return f"{x:.3f} {y:.3f} {z:.3f} | q {w:.5f} {qx:.5f} {qy:.5f} {qz:.5f}"
+    return f"{x:.3f} {y:.3f} {z:.3f} mm | q {w:.5f} {qx:.5f} {qy:.5f} {qz:.5f}"
 
 
 def _deviation(mm: float | None, deg: float | None) -> str:
-    return "-" if mm is None or deg is None else f"{mm:.4f} mm {deg:.4f} deg"
+    return "-" if mm is None or deg is None else f"{mm:.4f} mm, {deg:.4f} deg"
+
+
+def _lines(rows: list[tuple[str, str]]) -> None:
+    """Label and value lines, never cut: a target such as $TOOL_DATA[16] or
+    T_ROB1/user/tTorch must reach a technician whole, at any terminal width."""
+    width = max(len(label) for label, _ in rows)
+    for label, value in rows:
+        out.print(f"  {label:<{width}}  {value}", highlight=False, soft_wrap=True)
 
 
 def deploy(
-    tool_id: Annotated[str, typer.Argument(help="the tool's id")],
+    tool_ref: ToolArg,
     idempotency_key: Annotated[
         str | None, typer.Option(help="retry-safe: the same key replays the first answer")
     ] = None,
 ) -> None:
     """Write the tool's active TCP into its robot's controller and read it back."""
+    tool_id = resolve_tool(tool_ref)
     headers = {"Idempotency-Key": idempotency_key} if idempotency_key else {}
     response = request("POST", f"/v1/tools/{tool_id}/deployments", json={}, headers=headers)
     if response.status_code >= 400:
@@ -81,20 +92,21 @@ def deploy(
         err.print(
             f"[bold red]{response.status_code}[/]: {failed.get('detail')}{words}",
             highlight=False,
+            soft_wrap=True,
         )
         raise typer.Exit(_exit_for_problem(response))
     dep: Deployment = response.json()
-    table = Table("deployment", "version", "target", "status", "previous", "read back", "deviation")
-    table.add_row(
-        dep["id"],
-        str(dep["version"]),
-        dep["target"],
-        dep["status"],
-        _frame(dep["previous"]),
-        _frame(dep["read_back"]),
-        _deviation(dep["deviation_mm"], dep["deviation_deg"]),
+    name = tool_names({tool_id}).get(tool_id, tool_ref)
+    out.print(f"deployment {dep['id']} of {name}: {dep['status']}", highlight=False)
+    _lines(
+        [
+            ("version", f"v{dep['version']}"),
+            ("target", dep["target"]),
+            ("previous", _frame(dep["previous"])),
+            ("read back", _frame(dep["read_back"])),
+            ("deviation", _deviation(dep["deviation_mm"], dep["deviation_deg"])),
+        ]
     )
-    out.print(table)
     out.print(
         f"{dep['status']}: {dep['target']} holds version {dep['version']}",
         highlight=False,
@@ -102,39 +114,58 @@ def deploy(
     )
 
 
-def reconcile(robot_id: Annotated[str, typer.Argument(help="the robot's id")]) -> None:
+def reconcile(robot_ref: RobotArg) -> None:
     """Read every tool's frame from the robot's controller and compare it with the active
     TCP (in sync within 0.01 mm and 0.01 deg)."""
+    robot_id = resolve_robot(robot_ref)
     response = request("POST", f"/v1/robots/{robot_id}/reconcile")
     if response.status_code >= 400:
-        err.print(f"[bold red]{response.status_code}[/]: {problem(response).get('detail')}")
+        err.print(
+            f"[bold red]{response.status_code}[/]: {problem(response).get('detail')}",
+            highlight=False,
+            soft_wrap=True,
+        )
         raise typer.Exit(_exit_for_problem(response))
     result: Reconciliation = response.json()
-    table = Table("tool", "target", "state", "since", "controller", "active", "deviation")
+    skipped = result.get("not_addressable", [])
+    names = tool_names({t["tool_id"] for t in [*result["tools"], *skipped]})
+    # Only the tool's name and the time may wrap: a state, a deviation or a target cut
+    # to "$TOOL_D..." tells a technician nothing.
+    table = Table(box=box.SIMPLE)
+    for column, wraps in (
+        ("tool", True), ("state", False), ("deviation", False), ("since (UTC)", True),
+        ("target", False),
+    ):  # fmt: skip
+        table.add_column(column, no_wrap=not wraps)
     for t in result["tools"]:
-        active = t["active"]
         table.add_row(
-            t["tool_id"],
-            t["target"] or "-",
-            t["state"] + (f" ({t['error']})" if t.get("error") else ""),
-            t["since"],
-            _frame(t["controller"]),
-            "-" if active is None else f"v{active['version']}: {_frame(active)}",
+            names.get(t["tool_id"], t["tool_id"]),
+            t["state"],
             _deviation(t["deviation_mm"], t["deviation_deg"]),
+            t["since"][:19].replace("T", " "),
+            t["target"] or "-",
         )
     out.print(table)
     for t in result["tools"]:
-        if t["state"] == "drifted":
-            out.print(
-                f"drifted: {t['tool_id']} at {t['target']} is off by "
-                f"{_deviation(t['deviation_mm'], t['deviation_deg'])}",
-                highlight=False,
-                soft_wrap=True,
-            )
-    for skipped in result.get("not_addressable", []):
-        out.print(
-            f"left out {skipped['tool_id']}: {skipped['reason']}", highlight=False, soft_wrap=True
-        )
-    out.print(f"robot {result['robot_id']}: {result['state']}", highlight=False, soft_wrap=True)
+        if t["state"] != "in_sync":
+            _explain(names.get(t["tool_id"], t["tool_id"]), t)
+    for left in skipped:
+        name = names.get(left["tool_id"], left["tool_id"])
+        out.print(f"left out {name}: {left['reason']}", highlight=False, soft_wrap=True)
+    out.print(f"robot {robot_ref}: {result['state']}", highlight=False, soft_wrap=True)
     exits = {"in_sync": 0, "drifted": EXIT_DRIFTED, "unreachable": EXIT_CONTROLLER_UNREACHABLE}
     raise typer.Exit(exits[result["state"]])
+
+
+def _explain(name: str, tool: ReconciledTool) -> None:
+    """What a tool that is not in sync holds, against its active version."""
+    active = tool["active"]
+    out.print(f"{tool['state']}: {name} at {tool['target']}", highlight=False, soft_wrap=True)
+    rows = [("controller", _frame(tool["controller"]))]
+    if active is not None:
+        rows.append((f"active v{active['version']}", _frame(active)))
+    if tool["state"] == "drifted":
+        rows.append(("off by", _deviation(tool["deviation_mm"], tool["deviation_deg"])))
+    if tool.get("error"):
+        rows.append(("error", str(tool["error"])))
+    _lines(rows)

@@ -62,3 +62,45 @@ def current_revision(engine: Engine) -> str | None:
 
     with engine.connect() as conn:
         return MigrationContext.configure(conn).get_current_revision()
+
+
+def database_not_ready(url: str) -> str | None:
+    """Why the database at `url` cannot serve a command that reads or writes it, in one
+    sentence that names the database and how to point at the right one; None when it can.
+
+    A SQLite file that does not exist is never created here: a command run outside the
+    project directory would otherwise make an empty database beside it and fail on its first
+    table (the default URL is relative to the working directory)."""
+    from sqlalchemy import create_engine
+    from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import SQLAlchemyError
+
+    parsed = make_url(url)
+    shown = parsed.render_as_string(hide_password=True)
+    point = (
+        "run it in the directory the server runs in, or set TCPCAL_DATABASE_URL to the "
+        "server's database (the same value the server has)"
+    )
+    if parsed.get_backend_name() == "sqlite":
+        database = parsed.database or ""
+        if database and database != ":memory:" and not database.startswith("file:"):
+            path = Path(database).resolve()
+            if not path.is_file():
+                return (
+                    f"no tcpcal database at {path} ({shown}, relative to this directory): {point}"
+                )
+    engine = create_engine(url)
+    try:
+        revision = current_revision(engine)
+    except SQLAlchemyError as exc:
+        cause = exc.__cause__ or exc
+        reason = str(cause).splitlines()[0]
+        return f"cannot open the database {shown} ({reason}): {point}"
+    finally:
+        engine.dispose()
+    if revision is None:
+        return (
+            f"the database {shown} has no tcpcal tables: migrate it with `tcpcal db upgrade`, "
+            f"or {point}"
+        )
+    return None

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from sqlalchemy import select
 from typer.testing import CliRunner
@@ -114,3 +116,34 @@ def test_cli_keys_list_revoke_rotate(db: Database) -> None:
     assert actions.count("key.revoke") == 2
     assert actions.count("key.create") == 2
     assert all(a.startswith("cli:") for a in actors)
+
+
+@pytest.mark.parametrize("command", [["keys", "create", "--scope", "admin", "--name", "me"],
+                                     ["keys", "list"]])  # fmt: skip
+def test_keys_outside_the_project_directory_say_which_database_and_create_none(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: list[str]
+) -> None:
+    from app.config import get_settings
+
+    monkeypatch.delenv("TCPCAL_DATABASE_URL", raising=False)
+    monkeypatch.chdir(tmp_path)
+    get_settings.cache_clear()
+    try:
+        result = CliRunner().invoke(cli, command)
+        assert result.exit_code == 2, result.output
+        said = " ".join(result.output.split())
+        assert f"no tcpcal database at {tmp_path.resolve()}/var/tcpcal.sqlite3" in said
+        assert "set TCPCAL_DATABASE_URL to the server's database" in said
+        assert "Traceback" not in result.output
+        assert not (tmp_path / "var").exists()  # no empty SQLite file left behind
+
+        (tmp_path / "empty.sqlite3").touch()  # a database never migrated
+        monkeypatch.setenv("TCPCAL_DATABASE_URL", "sqlite:///empty.sqlite3")
+        get_settings.cache_clear()
+        empty = CliRunner().invoke(cli, command)
+        assert empty.exit_code == 2, empty.output
+        assert "has no tcpcal tables: migrate it with `tcpcal db upgrade`" in " ".join(
+            empty.output.split()
+        )
+    finally:
+        get_settings.cache_clear()

@@ -91,11 +91,76 @@ def test_audit_needs_an_admin_key(
 
 def test_why_in_a_few_words() -> None:
     assert audit_why("key.create", {"name": "pc", "scope": "read", "cells": ["cell-12"]}) == (
-        "name pc, scope read, cells ['cell-12']"
+        "name pc, scope read, cells cell-12"
     )
     update = {"changed": ["cell", "kinematics"], "from": {"cell": "a"}, "to": {"cell": "b"}}
     assert audit_why("robot.update", update) == "cell a -> b; kinematics"
     assert audit_why("tool.check", {"summary": "moved 0.3 mm"}) == "moved 0.3 mm"
+
+
+def test_why_never_says_none_and_rounds_its_figures() -> None:
+    state = {
+        "previous_state": None,
+        "target": "UTOOL[3]",
+        "version": 7,
+        "controller": {"position_mm": [1.0, 2.0, 3.0]},
+        "deviation_mm": 6.2370441069042215e-06,
+        "deviation_deg": 0.5000000012,
+        "error": None,
+    }
+    drifted = audit_why("controller.drifted", state)
+    assert drifted == "drifted at UTOOL[3]: off by 0.000 mm, 0.500 deg"
+    key = audit_why("key.create", {"name": "pc", "scope": "read", "cells": None})
+    assert key == "name pc, scope read"
+    moved = audit_why(
+        "tool.update", {"changed": ["tolerance"], "from": {"tolerance": {"check_mm": None}},
+                        "to": {"tolerance": {"check_mm": 0.30000000000000004}}}
+    )  # fmt: skip
+    assert moved == "tolerance.check_mm - -> 0.3"
+    for text in (drifted, key, moved):
+        assert "None" not in text
+        assert "e-0" not in text
+
+
+def test_why_of_a_deployment_and_a_forced_activation() -> None:
+    failed = {
+        "status": "not_written",
+        "version": 3,
+        "protocol": "fanuc_rmi",
+        "target": "UTOOL[3]",
+        "error": {
+            "type": "x",
+            "detail": "cannot connect to 127.0.0.1:16001",
+            "controller_message": None,
+        },
+    }
+    assert audit_why("tool.deploy", failed) == (
+        "not_written at UTOOL[3] (fanuc_rmi): cannot connect to 127.0.0.1:16001"
+    )
+    forced = {"kind": "forced", "reason": "probe bent", "previous_version": 3, "force": True}
+    assert audit_why("version.activate", forced) == "forced: probe bent (was v3)"
+
+
+def test_audit_rows_carry_the_version_and_fit_80_columns(
+    api: Api, run: CliRunner, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from app import client
+    from tests.api.controller_rigs import rig
+    from tests.api.test_deployments import _setup
+
+    with rig("kuka_kvp") as r:
+        tool = _setup(api, r, name="torch")["tool"]
+        deployed = api.post(f"/v1/tools/{tool['id']}/deployments", {}, scope="calibrate")
+        assert deployed.status_code == 201, deployed.text
+    monkeypatch.setattr(client, "out", Console(width=80))
+    result = run.invoke(cli, ["audit", "--tool", tool["id"]])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert max(len(line) for line in lines) <= 80
+    at = next(i for i, line in enumerate(lines) if "tool.deploy" in line)
+    assert lines[at].endswith("tool.deploy  torch v1"), lines[at]
+    assert lines[at + 1].rstrip() == "    verified at $TOOL_DATA[3] (kuka_kvp)"
+    assert "None" not in result.output
 
 
 def test_keys_create_with_cells(db: Database) -> None:

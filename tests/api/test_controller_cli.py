@@ -11,6 +11,7 @@ from app import client_http
 from app.cli import cli
 from tests.api.controller_rigs import rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, _setup
+from tests.api.test_deployments import secret_key as secret_key  # ABB's password, autouse
 from tests.conftest import Api
 
 
@@ -43,13 +44,58 @@ def test_deploy_and_reconcile_exit_codes(api: Api, runner: CliRunner) -> None:
         r.set_behind_back([ACTIVE_POSITION[0] + 1, *ACTIVE_POSITION[1:]], ACTIVE_Q)
         drifted = runner.invoke(cli, ["reconcile", robot_id])
         assert drifted.exit_code == 2, drifted.output
-        assert f"drifted: {tool_id} at $TOOL_DATA[3] is off by 1.0000 mm" in drifted.output
+        assert "drifted: t1 at $TOOL_DATA[3]" in drifted.output
+        assert "off by      1.0000 mm, 0.0000 deg" in drifted.output
         r.sim.stop()
         gone = runner.invoke(cli, ["reconcile", robot_id])
         assert gone.exit_code == 3, gone.output
         failed = runner.invoke(cli, ["deploy", tool_id])
         assert failed.exit_code == 3, failed.output
         assert "deployment" in failed.output
+
+
+@pytest.fixture
+def narrow(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The client's consoles 80 columns wide, a cell PC's terminal."""
+    from rich.console import Console
+
+    from app import client, client_controllers
+
+    for module in (client_http, client, client_controllers):
+        monkeypatch.setattr(module, "out", Console(width=80))
+
+
+@pytest.mark.parametrize("protocol", ["kuka_kvp", "abb_rws2"])
+def test_deploy_and_reconcile_name_the_tool_and_show_the_whole_target_at_80_columns(
+    api: Api, runner: CliRunner, narrow: None, protocol: str
+) -> None:
+    with rig(protocol) as r:
+        ids = _setup(api, r, name="torch")
+        robot = ids["robot"]
+        target = "$TOOL_DATA[3]" if protocol == "kuka_kvp" else "T_ROB1/user/tTorch"
+        done = runner.invoke(cli, ["deploy", f"{robot['name']}/torch"])
+        assert done.exit_code == 0, done.output
+        assert "deployment 1 of torch: verified" in done.output
+        assert f"  target     {target}\n" in done.output
+        assert "…" not in done.output
+        assert f"verified: {target} holds version 1" in done.output
+        synced = runner.invoke(cli, ["reconcile", robot["name"]])
+        assert synced.exit_code == 0, synced.output
+        row = next(line for line in synced.output.splitlines() if "in_sync" in line)
+        assert row.split()[0] == "torch", synced.output  # the tool's name, not its id
+        assert target in row
+        assert "…" not in synced.output
+        assert f"robot {robot['name']}: in_sync" in synced.output
+
+
+def test_a_tool_or_robot_no_one_has_is_named_in_the_refusal(api: Api, runner: CliRunner) -> None:
+    api.robot("cell12-kr16")
+    gone = runner.invoke(cli, ["deploy", "cell12-kr16/no-such-tool"])
+    assert gone.exit_code == 5, gone.output
+    assert "no tool with id or name 'cell12-kr16/no-such-tool'" in gone.output
+    nobody = runner.invoke(cli, ["reconcile", "no-such-robot"])
+    assert nobody.exit_code == 5, nobody.output
+    assert "no robot with id or name 'no-such-robot'" in nobody.output
 
 
 def test_help_says_the_exit_codes() -> None:

@@ -254,6 +254,10 @@ def test_client_names_tools_activates_with_reasons_and_rolls_back_through_histor
          "--format", "kuka_abc"],
     )  # fmt: skip
     assert out_of_tol.exit_code == 3, out_of_tol.output  # version 4, stored, not active
+    advice = 'tcpcal activate only-cell7-kr 4 --force --reason "<why>"'
+    assert f"version 4 is stored, not active; to put it live anyway: {advice}" in " ".join(
+        out_of_tol.output.split()
+    )
     ambiguous = run.invoke(cli, ["history", "gripper"])
     assert ambiguous.exit_code == 2, ambiguous.output
     for key in ("cell7-kr/gripper", "cell8-kr/gripper"):
@@ -266,7 +270,10 @@ def test_client_names_tools_activates_with_reasons_and_rolls_back_through_histor
     # Out of tolerance: refused without --force (exit 4, the server says how), then forced.
     refused = run.invoke(cli, ["activate", "only-cell7-kr", "4"])
     assert refused.exit_code == 4, refused.output
-    assert "force" in refused.output
+    said = " ".join(refused.output.split())
+    assert "version 4 is stored as out_of_tolerance" in said
+    assert f"nothing was changed; to put it live anyway: {advice}" in said
+    assert '{"force"' not in said  # the CLI's flags, not the HTTP body
     assert run.invoke(cli, ["activate", "only-cell7-kr", "4", "--force"]).exit_code == 2
     forced = run.invoke(
         cli, ["activate", tid, "4", "--force", "--reason", "interim until the re-touch"]
@@ -278,6 +285,9 @@ def test_client_names_tools_activates_with_reasons_and_rolls_back_through_histor
     assert "out_of_tolerance" in history.output
     assert "forced" in history.output
     assert "interim until the re-touch" in history.output
+    trail = run.invoke(cli, ["audit", "--tool", tid, "--action", "version.activate"])
+    assert trail.exit_code == 0, trail.output
+    assert "forced: interim until the re-touch (was v3)" in trail.output
 
     # Rollbacks walk back through what was active: 4 -> 3 -> 2 -> 1, then nothing left.
     walked = []
