@@ -661,9 +661,11 @@ def _export_all(directory: Path, fmt: str | None) -> None:
 
 # ---- the audit trail ----------------------------------------------------------------------
 def audit(
-    tool_id: Annotated[str | None, typer.Option("--tool", help="only this tool (its id)")] = None,
+    tool_id: Annotated[
+        str | None, typer.Option("--tool", help="only this tool: its id, name or robot/tool")
+    ] = None,
     robot_id: Annotated[
-        str | None, typer.Option("--robot", help="only this robot (its id)")
+        str | None, typer.Option("--robot", help="only this robot: its id or name")
     ] = None,
     action: Annotated[str | None, typer.Option(help="e.g. version.activate, tool.update")] = None,
     actor: Annotated[str | None, typer.Option(help="only this key's changes (its name)")] = None,
@@ -676,8 +678,8 @@ def audit(
     """The audit trail, newest first: when, who, what, which tool and version, and why
     (needs an admin key)."""
     filters = {
-        "tool_id": tool_id,
-        "robot_id": robot_id,
+        "tool_id": None if tool_id is None else resolve_tool(tool_id),
+        "robot_id": None if robot_id is None else resolve_robot(robot_id),
         "action": action,
         "actor": actor,
         "since": since,

@@ -285,7 +285,9 @@ def test_client_names_tools_activates_with_reasons_and_rolls_back_through_histor
     assert "out_of_tolerance" in history.output
     assert "forced" in history.output
     assert "interim until the re-touch" in history.output
-    trail = run.invoke(cli, ["audit", "--tool", tid, "--action", "version.activate"])
+    trail = run.invoke(
+        cli, ["audit", "--tool", "cell7-kr/only-cell7-kr", "--action", "version.activate"]
+    )
     assert trail.exit_code == 0, trail.output
     assert "forced: interim until the re-touch (was v3)" in trail.output
 
