@@ -42,6 +42,15 @@ class Settings(BaseSettings):
         ge=0,
         description="reconcile every robot that has a controller this often (seconds); 0: never",
     )
+    reconcile_concurrency: int = Field(
+        default=8,
+        ge=1,
+        le=256,
+        description="controllers a reconcile round reads at once (threads, one controller "
+        "connection each; a database connection only before and after each read): a "
+        "controller that hangs holds one of them until its timeout_s and delays no other "
+        "robot unless this many hang together",
+    )
     public_url: str | None = Field(
         default=None,
         description="The server's URL as technicians and cell PCs reach it (e.g. "

@@ -1,5 +1,6 @@
 """The watcher in the app's lifespan: drift found within two intervals, one audit event per
-change, its state in /ready, and a stop within a second even when a controller stalls."""
+change, its state in /ready, a stop within a second even when a controller stalls, and a hung
+controller that delays no other robot's state change beyond the interval."""
 
 from __future__ import annotations
 
@@ -21,6 +22,10 @@ def watching(monkeypatch: pytest.MonkeyPatch) -> float:
     """The watcher on (set before the app starts)."""
     monkeypatch.setenv("TCPCAL_RECONCILE_INTERVAL_S", str(INTERVAL_S))
     return INTERVAL_S
+
+
+#: A hung controller's timeout in the concurrency test (the trial's figure).
+HUNG_TIMEOUT_S = 30.0
 
 
 def _count(tool_id: str, action: str) -> int:
@@ -75,6 +80,80 @@ def _wait_for(api: Api, robot_id: str, state: str, within_s: float) -> dict[str,
         if time.monotonic() > deadline:
             raise AssertionError(f"not {state} within {within_s} s: {row}")
         time.sleep(0.05)
+
+
+def test_a_hung_controller_delays_no_other_robots_drift_beyond_the_interval(
+    watching: float, api: Api
+) -> None:
+    """Issue 37: rounds read controllers one by one, so a controller that hangs (timeout_s
+    30) delayed another robot's pendant edit to 24.8 s with a 10 s interval. Read
+    concurrently, the responsive robot's edit is flagged within interval + 2 s, and the hung
+    controller's read still in flight is not started again by each round."""
+    with rig("kuka_kvp") as hung, rig("fanuc_rmi") as live:
+        hung.sim.stalled = True
+        hung_robot = _setup(api, hung, timeout_s=HUNG_TIMEOUT_S)["robot"]["id"]
+        assert api.patch(f"/v1/robots/{hung_robot}", {"name": "hung"}).status_code == 200
+        robot_id = _setup(api, live)["robot"]["id"]
+        live.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)
+        # the sequential rounds found it only after the hung read: allow that here, so the
+        # edit below is what fails on them
+        _wait_for(api, robot_id, "in_sync", HUNG_TIMEOUT_S + 5.0)
+        live.set_behind_back(
+            [ACTIVE_POSITION[0], ACTIVE_POSITION[1], ACTIVE_POSITION[2] + 0.2], ACTIVE_Q
+        )
+        started = time.monotonic()
+        _wait_for(api, robot_id, "drifted", watching + 2.0)
+        assert time.monotonic() - started <= watching + 2.0
+        # the hung controller was connected to once, not once per round
+        assert hung.sim.connections_accepted == 1
+        ready = api.client.get("/ready").json()["watcher"]
+        assert ready["reads_in_flight"] == 1
+        assert ready["rounds"] >= 2
+        # and the fleet lock stays held while it is: no other instance starts it meanwhile
+        from app.watcher import fleet_lock
+
+        with fleet_lock() as taken:
+            assert taken is False
+
+
+def test_the_read_pool_keeps_to_its_size_and_reads_a_robot_once_at_a_time() -> None:
+    import threading
+
+    from app.watcher import ReadPool
+
+    release = threading.Event()
+    running: list[str] = []
+    most = [0]
+    guard = threading.Lock()
+
+    def work(robot_id: str) -> None:
+        with guard:
+            running.append(robot_id)
+            most[0] = max(most[0], len(running))
+        release.wait(10)
+        with guard:
+            running.remove(robot_id)
+
+    before = set(threading.enumerate())  # another test's reads may still be ending
+    pool = ReadPool(2, work)
+    try:
+        assert pool.offer(["a", "b", "c"]) == {"a", "b", "c"}
+        assert pool.offer(["a", "b", "c", "d"]) == {"d"}  # in flight: not queued again
+        assert not pool.wait({"a"}, 0.3)
+        assert pool.in_flight() == 4
+        started = [t for t in threading.enumerate() if t not in before]
+        assert sorted(t.name for t in started if t.name.startswith("tcpcal-reconcile")) == [
+            "tcpcal-reconcile-1",
+            "tcpcal-reconcile-2",
+        ]
+        release.set()
+        assert pool.wait({"a", "b", "c", "d"}, 5)
+        assert pool.in_flight() == 0
+        assert most[0] == 2
+        assert pool.offer(["a"]) == {"a"}  # read again once its read ended
+        assert pool.wait({"a"}, 5)
+    finally:
+        pool.stop()
 
 
 def test_the_watcher_stops_within_a_second_while_a_controller_stalls(api: Api) -> None:
