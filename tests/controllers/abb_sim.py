@@ -16,6 +16,20 @@ edit mastership: ``POST /rw/mastership/edit/request`` / ``release``, or every do
 are JSON only (hal+json), not the xhtml+xml RWS also serves. The error codes are this
 simulator's own; the messages say what failed.
 
+A written value is read here, not with the connector's parser (this module imports nothing
+from app/): RAPID text as ABB *Technical reference manual - RAPID Instructions, Functions and
+Data types* (3HAC050917-001) gives it. ``tooldata`` is ``[robhold, tframe, tload]``: robhold
+a ``bool`` (TRUE/FALSE), tframe a ``pose`` ``[trans, rot]`` (``pos`` [x, y, z] mm, ``orient``
+[q1, q2, q3, q4], q1 the scalar part, normalized), tload a ``loaddata`` ``[mass, cog, aom,
+ix, iy, iz]`` (kg, ``pos`` mm, ``orient``, kg m2); the manual's own example is
+``[TRUE, [[97.4, 0, 223.1], [0.924, 0, 0.383, 0]], [5, [23, 0, 75], [1, 0, 0, 0], 0, 0,
+0]]``. Aggregates are bracketed and comma separated, spaces anywhere between tokens; a num
+literal (*Technical reference manual - RAPID kernel*, "Numeric literals") is digits with an
+optional decimal point and exponent (``7990``, ``23.67``, ``2E6``, ``2.5E-3``), a unary
+minus allowed: nothing Python's ``float`` takes beyond that (``nan``, ``inf``, ``1_000``).
+The answer to a read (``rap-data`` with its ``value``) is the RWS manual's "Get symbol
+data" (rwsApi ``rapid_symbol_data_page``).
+
 Tool data are held as RobotWare holds ``num`` (32-bit float) unless `single_precision` is
 False. `set_tool` / `tool` are the operator at the FlexPendant (Jogging > Tool, or the
 Program Data window); `mastership_holder` set to "FlexPendant" is an operator holding
@@ -41,8 +55,6 @@ from typing import Self
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
-
-from app.controllers.rapid import RapidSyntaxError, parse_tooldata
 
 REALM = "validusers@robapi.abb"
 V2 = ";v=2.0"
@@ -305,12 +317,12 @@ class AbbRwsSimulator:
                     )
                 return 400, _error(NOT_FOUND_CODE, f"Symbol not found: RAPID/{symbol}")
         try:
-            tool = parse_tooldata(value)
-        except RapidSyntaxError:
+            tool = read_tooldata(value)
+        except RapidValueError as err:
             return 400, _error(
-                TYPE_CODE, f"Invalid value for tooldata RAPID/{symbol}: {value[:80]}"
+                TYPE_CODE, f"Invalid value for tooldata RAPID/{symbol}: {err}: {value[:80]}"
             )
-        norm = float(np.linalg.norm(tool.quaternion))
+        norm = float(np.linalg.norm(tool.rot))
         if abs(norm - 1.0) > 1e-5:
             return 400, _error(
                 TYPE_CODE, f"Not a normalized quaternion in RAPID/{symbol} (|q| = {norm:.6f})"
@@ -318,10 +330,10 @@ class AbbRwsSimulator:
         with self._lock:
             held = self.symbols[symbol]
             held.robhold = tool.robhold
-            held.trans = self._reals(tool.position_mm)  # type: ignore[assignment]
-            held.rot = self._reals(tool.quaternion)  # type: ignore[assignment]
-            held.mass = self._reals((tool.mass_kg,))[0]
-            held.cog = self._reals(tool.cog_mm)  # type: ignore[assignment]
+            held.trans = self._reals(tool.trans)  # type: ignore[assignment]
+            held.rot = self._reals(tool.rot)  # type: ignore[assignment]
+            held.mass = self._reals((tool.mass,))[0]
+            held.cog = self._reals(tool.cog)  # type: ignore[assignment]
             held.aom = self._reals(tool.aom)  # type: ignore[assignment]
             held.inertia = self._reals(tool.inertia)  # type: ignore[assignment]
         return 204, None
@@ -382,6 +394,92 @@ class AbbRwsSimulator:
         context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
         context.load_cert_chain(cert_path, key_path)
         return context
+
+
+# --- RAPID text as the controller reads a write (this simulator's own reader) --------------
+
+RapidItem = float | bool | list["RapidItem"]
+
+
+class RapidValueError(ValueError):
+    """Not the RAPID value the symbol's type takes."""
+
+
+#: the largest num (a 32-bit float) RobotWare holds
+NUM_MAX = float(np.finfo(np.float32).max)
+_RAPID_TOKEN = re.compile(r"[\[\],]|[^\s\[\],]+")
+#: a num literal (RAPID kernel, "Numeric literals"), with a unary minus
+_RAPID_NUM = re.compile(r"-?(?:\d+\.?\d*|\.\d+)(?:[Ee][+-]?\d+)?")
+
+
+def read_value(text: str) -> RapidItem:
+    """``[TRUE,[1,2.5E-3]]`` -> [True, [1.0, 0.0025]]; RapidValueError for anything else."""
+    tokens = _RAPID_TOKEN.findall(text)
+    value, end = _item(tokens, 0)
+    if end != len(tokens):
+        raise RapidValueError(f"text after the value: {tokens[end : end + 3]}")
+    return value
+
+
+def _item(tokens: list[str], pos: int) -> tuple[RapidItem, int]:
+    if pos >= len(tokens):
+        raise RapidValueError("a value is missing")
+    token = tokens[pos]
+    if token == "[":
+        items: list[RapidItem] = []
+        pos += 1
+        while True:
+            item, pos = _item(tokens, pos)
+            items.append(item)
+            if pos < len(tokens) and tokens[pos] == ",":
+                pos += 1
+                continue
+            if pos < len(tokens) and tokens[pos] == "]":
+                return items, pos + 1
+            raise RapidValueError("an aggregate not closed by ]")
+    if token.upper() in ("TRUE", "FALSE"):
+        return token.upper() == "TRUE", pos + 1
+    if _RAPID_NUM.fullmatch(token):
+        return float(token), pos + 1
+    raise RapidValueError(f"{token!r} is not a bool, a num or an aggregate")
+
+
+def read_tooldata(text: str) -> Symbol:
+    """A tooldata's RAPID text -> the Symbol it sets (RapidValueError naming the member)."""
+    value = read_value(text)
+    if not isinstance(value, list) or len(value) != 3:
+        raise RapidValueError("a tooldata is [robhold, tframe, tload]")
+    robhold, tframe, tload = value
+    if not isinstance(robhold, bool):
+        raise RapidValueError("robhold is not a bool")
+    if not isinstance(tframe, list) or len(tframe) != 2:
+        raise RapidValueError("tframe is not a pose [trans, rot]")
+    if not isinstance(tload, list) or len(tload) != 6:
+        raise RapidValueError("tload is not a loaddata [mass, cog, aom, ix, iy, iz]")
+    tx, ty, tz = _nums(tframe[0], 3, "tframe.trans")
+    q1, q2, q3, q4 = _nums(tframe[1], 4, "tframe.rot")
+    cx, cy, cz = _nums(tload[1], 3, "tload.cog")
+    a1, a2, a3, a4 = _nums(tload[2], 4, "tload.aom")
+    ix, iy, iz = _nums(tload[3:], 3, "tload.ix, iy, iz")
+    return Symbol(
+        robhold=robhold,
+        trans=(tx, ty, tz),
+        rot=(q1, q2, q3, q4),
+        mass=_nums([tload[0]], 1, "tload.mass")[0],
+        cog=(cx, cy, cz),
+        aom=(a1, a2, a3, a4),
+        inertia=(ix, iy, iz),
+    )
+
+
+def _nums(value: RapidItem, count: int, member: str) -> tuple[float, ...]:
+    if (
+        not isinstance(value, list)
+        or len(value) != count
+        or not all(type(v) is float and abs(v) <= NUM_MAX for v in value)
+    ):
+        raise RapidValueError(f"{member} is not {count} nums")
+    return tuple(v for v in value if isinstance(v, float))
 
 
 def _error(code: int, msg: str) -> dict[str, object]:

@@ -1,8 +1,11 @@
 """A FANUC controller with option R912 Remote Motion Interface, in memory: UTOOL[1..10].
 
-Follows FANUC B-84184EN *Remote Motion Interface Operator's Manual*: JSON packets ended by
+Follows FANUC B-84184EN/03 *Remote Motion Interface Operator's Manual* (the copy in
+vertec-io/Fanuc_RMI_API ``docs/RMI Operators Manual.pdf``): JSON packets ended by
 ``\\r\\n``; FRC_Connect on the connect port answers ``PortNumber`` (the session port,
-here a second free loopback port) with ``MajorVersion``/``MinorVersion``; on the session
+here a second free loopback port) with ``MajorVersion``/``MinorVersion`` (2.2.1, Table 2.2.1,
+manual page 6; the client fanuc-rmi reads ``Port`` instead, and the manual is followed);
+FRC_ReadUToolData / FRC_WriteUToolData as 2.3.10 and 2.3.11 (pages 16-17); on the session
 port FRC_Initialize, FRC_Abort, FRC_ReadUToolData / FRC_WriteUToolData (``ToolNumber``,
 ``Frame`` {X, Y, Z, W, P, R}, ``Group``) and FRC_Disconnect, each answered with its name and
 ``ErrorID`` (Appendix A: RMIT-nnn = 2556928 + nnn). One RMI client at a time: FRC_Connect

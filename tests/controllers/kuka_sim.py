@@ -9,9 +9,29 @@ What the KRC does, as KUKAVARPROXY reports it: a read it cannot resolve (unknown
 index outside 1-16) is an empty value with ok = 1 (``ShowVar`` returns True with an empty
 value); a write it refuses answers ok = 0 with the value echoed.
 
-Values are held as the KRC holds them: REAL is a 32-bit float, and a structure is printed
-``{FRAME: X 0.0,Y 0.0,...}``. A write is a KRL aggregate: the members it names change, the
-others keep their values. `set_tool` / `set_load` are the operator at the pendant.
+How the KRC prints a structure, from ImtsSrl/openshowvar ``src/kukavar.cpp`` (its class
+comment quotes a reply, ``{E6POS: X -39.86226, Y 1601.820, Z 39.84885, A -104.2217, ...}``,
+and ``KukaVar::setValue`` splits members at ``", "`` and a nested structure at ``"}, "``;
+an unset structure is ``{E6POS: }``) and from replies captured through KUKAVARPROXY on a
+KSS 8 controller (``{E6POS: X 284.994965, Y -694.394653, Z 41.2478294, A 131.430344,
+B -0.0191543195, ...}``): braces, the type name and a colon, ``NAME value`` members
+separated by a comma and a space, nested structures printed the same way, a REAL with
+nine significant digits (what a 32-bit float needs to read back the same), zero as ``0.0``.
+This module prints and parses that text itself: it imports nothing from app/, so a
+mistake the connector's writer shares with the connector's parser cannot pass here.
+
+A write is a KRL aggregate (KUKA System Software 8, *Programming manual for system
+integrators*, "Aggregates" and "Data types: STRUC"): ``{[TYPE:] NAME value, ...}``, any
+spaces between tokens, a member a nested aggregate or a constant; a REAL constant is a
+decimal number with an optional exponent (``-1.5E+10``), nothing Python's ``float``
+accepts beyond that (no ``nan``, ``inf``, ``1_000``). The members it names change, the
+others keep their values; a member the variable does not have, a value of the wrong type or
+a member named twice is refused (ok = 0). The frame convention the KRC holds A, B, C in
+(R = Rz(A) Ry(B) Rx(C), intrinsic Z-Y'-X'') is the reader's business: this controller
+keeps the six numbers it was given.
+
+Values are held as the KRC holds them: REAL is a 32-bit float. `set_tool` / `set_load` are
+the operator at the pendant.
 """
 
 from __future__ import annotations
@@ -24,7 +44,6 @@ import time
 
 import numpy as np
 
-from app.controllers.krl import KrlStruct, KrlSyntaxError, parse_struct
 from tests.controllers.simbase import TcpSimulator
 
 SLOTS = range(1, 17)
@@ -38,10 +57,14 @@ def real(value: float, single_precision: bool = True) -> float:
 
 
 def print_real(value: float) -> str:
-    """A REAL as the KRC prints it (the shortest text that reads back the same value)."""
-    if float(np.float32(value)) == value:
-        return np.format_float_positional(np.float32(value), trim="0")
-    return np.format_float_positional(value, trim="0")
+    """A REAL as the KRC prints it: nine significant digits (``284.994965``, ``-0.0191543195``),
+    a whole number with ``.0``; a value no 32-bit float holds (a simulator keeping every
+    written digit) with as many digits as it takes to read back the same."""
+    text = f"{value:.9g}" if float(np.float32(value)) == value else repr(float(value))
+    text = text.upper()
+    if "." not in text and "E" not in text:
+        text += ".0"
+    return text
 
 
 class KukaSimulator(TcpSimulator):
@@ -115,7 +138,7 @@ class KukaSimulator(TcpSimulator):
         cm = {k: load[f"CM.{k}"] for k in FRAME_MEMBERS}
         inertia = {k: load[f"J.{k}"] for k in ("X", "Y", "Z")}
         return (
-            f"{{LOAD: M {print_real(load['M'])},CM {_print_frame(cm, 'FRAME')},"
+            f"{{LOAD: M {print_real(load['M'])}, CM {_print_frame(cm, 'FRAME')}, "
             f"J {_print_frame(inertia, 'INERTIA')}}}"
         )
 
@@ -125,13 +148,10 @@ class KukaSimulator(TcpSimulator):
         if match is None or int(match.group(2)) not in SLOTS:
             return False
         try:
-            members = parse_struct(value)
-        except KrlSyntaxError:
+            flat = _flatten(read_aggregate(value))
+        except KrlAggregateError:
             return False
         slot = int(match.group(2))
-        flat = _flatten(members)
-        if flat is None:
-            return False
         with self._data_lock:
             target = self.tools[slot] if match.group(1).upper() == "TOOL_DATA" else self.loads[slot]
             if not set(flat) <= set(target):
@@ -202,21 +222,86 @@ def _default_load() -> dict[str, float]:
 
 
 def _print_frame(values: dict[str, float], type_name: str) -> str:
+    """``{FRAME: X 0.0, Y 0.0, ...}``: the type, a colon, members after a comma and a space."""
     return (
-        "{" + f"{type_name}: " + ",".join(f"{k} {print_real(v)}" for k, v in values.items()) + "}"
+        "{" + f"{type_name}: " + ", ".join(f"{k} {print_real(v)}" for k, v in values.items()) + "}"
     )
 
 
-def _flatten(members: KrlStruct, prefix: str = "") -> dict[str, float] | None:
+# --- KRL aggregates as the KRC reads a write (this simulator's own reader) -------------------
+
+KrlAggregate = dict[str, "float | KrlAggregate"]
+
+
+class KrlAggregateError(ValueError):
+    """Not a KRL aggregate of REALs this controller would accept."""
+
+
+#: a KRL REAL or INT constant: digits, an optional decimal point, an optional exponent
+_KRL_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[Ee][+-]?\d+)?")
+#: the largest REAL (a 32-bit float) the KRC holds
+REAL_MAX = float(np.finfo(np.float32).max)
+_KRL_NAME = re.compile(r"[A-Za-z_$][A-Za-z0-9_$]*")
+_KRL_TOKEN = re.compile(r"[{},:]|[^\s{},:]+")
+
+
+def read_aggregate(text: str) -> KrlAggregate:
+    """``{FRAME: X 1.0, Y 2.0}`` or ``{X 1.0,CM {X 0.0}}`` -> {"X": 1.0, ...} (names upper
+    case, as KRL is case-blind); KrlAggregateError for anything else."""
+    tokens = _tokens(text)
+    aggregate, end = _aggregate(tokens, 0)
+    if end != len(tokens):
+        raise KrlAggregateError(f"text after the aggregate: {text!r}")
+    return aggregate
+
+
+def _tokens(text: str) -> list[str]:
+    """Braces, commas, colons and the words between them; spaces only separate."""
+    return _KRL_TOKEN.findall(text)
+
+
+def _aggregate(tokens: list[str], pos: int) -> tuple[KrlAggregate, int]:
+    if pos >= len(tokens) or tokens[pos] != "{":
+        raise KrlAggregateError(f"an aggregate opens with {{, not {tokens[pos : pos + 1]}")
+    pos += 1
+    if pos + 1 < len(tokens) and tokens[pos + 1] == ":":  # the type name, e.g. FRAME:
+        _name(tokens[pos])
+        pos += 2
+    members: KrlAggregate = {}
+    while pos < len(tokens) and tokens[pos] != "}":
+        if members:
+            if tokens[pos] != ",":
+                raise KrlAggregateError(f"members are separated by commas, not {tokens[pos]!r}")
+            pos += 1
+        name = _name(tokens[pos] if pos < len(tokens) else "")
+        if name in members:
+            raise KrlAggregateError(f"member {name} given twice")
+        pos += 1
+        if pos < len(tokens) and tokens[pos] == "{":
+            members[name], pos = _aggregate(tokens, pos)
+        elif pos < len(tokens) and _KRL_NUMBER.fullmatch(tokens[pos]):
+            members[name], pos = float(tokens[pos]), pos + 1
+        else:
+            raise KrlAggregateError(f"member {name} has no REAL: {tokens[pos : pos + 1]}")
+    if pos >= len(tokens):
+        raise KrlAggregateError("an aggregate not closed by }")
+    return members, pos + 1
+
+
+def _name(token: str) -> str:
+    if not _KRL_NAME.fullmatch(token):
+        raise KrlAggregateError(f"{token!r} is not a KRL name")
+    return token.upper()
+
+
+def _flatten(members: KrlAggregate, prefix: str = "") -> dict[str, float]:
+    """{"CM": {"X": 1.0}} -> {"CM.X": 1.0}; a REAL the KRC cannot hold is refused."""
     flat: dict[str, float] = {}
     for key, value in members.items():
         if isinstance(value, dict):
-            inner = _flatten(value, f"{prefix}{key.upper()}.")
-            if inner is None:
-                return None
-            flat.update(inner)
-        elif isinstance(value, float) and np.isfinite(value):
-            flat[f"{prefix}{key.upper()}"] = value
+            flat.update(_flatten(value, f"{prefix}{key}."))
+        elif abs(value) <= REAL_MAX:
+            flat[f"{prefix}{key}"] = value
         else:
-            return None
+            raise KrlAggregateError(f"{prefix}{key} {value} does not fit a REAL")
     return flat

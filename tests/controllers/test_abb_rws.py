@@ -289,6 +289,29 @@ def test_abb_robot_client_reads_and_writes_the_rws1_simulator(
         client.get_rapid_variable("user/tNothing")
 
 
+def test_the_controller_reads_a_write_as_rapid_not_as_python(
+    abb_rws1_sim: AbbRwsSimulator,
+) -> None:
+    """The simulator reads a write with its own RAPID reader: the RAPID manual's example
+    tooldata is taken, spaces and exponents included; what only Python's float would take
+    (``1_000``, ``nan``) is refused (the connector's parser takes ``1_000``: a writer sharing
+    it would pass a shared reader)."""
+    from abb_robot_client.rws import RWS, ABBException
+
+    tail = "[5,[23,0,75],[1,0,0,0],0,0,0]]"
+    assert parse_tooldata(f"[TRUE,[[1_000,0,0],[1,0,0,0]],{tail}").position_mm[0] == 1000.0
+    client = RWS(abb_rws1_sim.base_url, "Default User", "robotics")
+    client.set_rapid_variable(
+        "user/tTorch", f"[TRUE, [[97.5, 0, 2.2325E+02], [0.5, -0.5, 0.5, -0.5]], {tail}"
+    )
+    held = abb_rws1_sim.tool("T_ROB1/user/tTorch")
+    assert (held.trans, held.rot) == ((97.5, 0.0, 223.25), (0.5, -0.5, 0.5, -0.5))
+    for bad in ("[[1_000,0,0],[1,0,0,0]]", "[[nan,0,0],[1,0,0,0]]", "[[0,0,0],[1,0,0]]"):
+        with pytest.raises(ABBException, match="Invalid value for tooldata"):
+            client.set_rapid_variable("user/tTorch", f"[TRUE,{bad},{tail}")
+    assert abb_rws1_sim.tool("T_ROB1/user/tTorch").trans == held.trans
+
+
 @pytest.mark.filterwarnings("ignore::urllib3.exceptions.InsecureRequestWarning")
 def test_rwswrap_reads_and_writes_the_rws2_simulator(abb_rws2_sim: AbbRwsSimulator) -> None:
     from rwswrap.RWS import RWS as RWS2

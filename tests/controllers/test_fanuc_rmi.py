@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
+import socket
 import time
 
 import numpy as np
@@ -12,7 +14,14 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from app.controllers import ControllerRefused, ControllerUnreachable, ToolData, ToolTarget, connect
+from app.controllers import (
+    ControllerProtocolError,
+    ControllerRefused,
+    ControllerUnreachable,
+    ToolData,
+    ToolTarget,
+    connect,
+)
 from app.controllers.base import Deadline
 from app.controllers.fanuc_rmi import FanucRmiConnector, encode_packet, error_text
 from tests.controllers.fanuc_sim import FanucSimulator
@@ -153,12 +162,107 @@ def test_error_text_names_rmit_and_memo_alarms() -> None:
     assert error_text(12345) == "ErrorID 12345"
 
 
+# The one place fanuc-rmi (PyPI, 0.3.1) and the manual disagree: the name of the session
+# port in FRC_Connect's answer. FANUC B-84184EN/03, 2.2.1 "Packet Exchange", Table 2.2.1
+# "Packet Specifications" (manual page 6; page 14 of the PDF kept in vertec-io/Fanuc_RMI_API
+# docs/): the return packet is {"Communication": "FRC_Connect", "ErrorID", "PortNumber",
+# "MajorVersion", "MinorVersion"}, and "the PortNumber returned by the robot controller is
+# the port number that the remote device will connect to for the rest of the RMI session".
+# fanuc-rmi's RobotClient.connect reads response["Port"] and otherwise keeps its main_port
+# (16002 by default). The manual is right: the connector and the simulator say PortNumber.
+MANUAL_CONNECT_REPLY = {"Communication", "ErrorID", "PortNumber", "MajorVersion", "MinorVersion"}
+
+
+def frc_connect(sim: FanucSimulator) -> dict[str, object]:
+    """FRC_Connect sent by hand to the connect port; the answer as a dict."""
+    with socket.create_connection((sim.host, sim.port), timeout=2) as sock:
+        sock.sendall(b'{"Communication": "FRC_Connect"}\r\n')
+        data = b""
+        while not data.endswith(b"\r\n"):
+            chunk = sock.recv(4096)
+            assert chunk, "the controller closed the connection without answering"
+            data += chunk
+    reply: dict[str, object] = json.loads(data)
+    return reply
+
+
+class PortSpellingSimulator(FanucSimulator):
+    """FRC_Connect answered with "Port", the name fanuc-rmi reads: not the manual's packet."""
+
+    def serve(self, conn: socket.socket) -> None:
+        received = b""
+        while b"\r\n" not in received:  # one packet, FRC_Connect, then the answer
+            chunk = conn.recv(4096)
+            if not chunk:
+                return
+            received += chunk
+        answer = {"Communication": "FRC_Connect", "ErrorID": 0, "Port": self.session_port}
+        conn.sendall(json.dumps(answer).encode("ascii") + b"\r\n")
+
+
+def test_frc_connect_names_the_session_port_port_number_as_the_manual_does(
+    fanuc_sim: FanucSimulator,
+) -> None:
+    reply = frc_connect(fanuc_sim)
+    assert set(reply) == MANUAL_CONNECT_REPLY
+    assert reply["ErrorID"] == 0
+    assert reply["PortNumber"] == fanuc_sim.session_port != fanuc_sim.port
+
+
+def test_the_connector_finds_the_session_by_the_manuals_port_number(
+    fanuc_sim: FanucSimulator,
+) -> None:
+    fanuc_sim.set_tool(4, 1.0, 2.0, 3.0, 0.0, 0.0, 0.0)
+    with connect(fanuc_settings(fanuc_sim)) as fanuc:  # told the connect port only
+        assert fanuc.read_tool(ToolTarget(slot=4)).position_mm == (1.0, 2.0, 3.0)
+    with PortSpellingSimulator() as other:
+        with pytest.raises(ControllerProtocolError, match="FRC_Connect answered port None"):
+            connect(fanuc_settings(other))
+        assert other.packets == [], "no session was opened on a guessed port"
+
+
+def test_fanuc_rmi_reads_port_where_the_manual_says_port_number(
+    fanuc_sim: FanucSimulator,
+) -> None:
+    """fanuc-rmi against the simulator as the manual has it: it does not find the session
+    port in PortNumber and connects to the main_port it was given (a closed one here); against
+    a controller answering "Port" it finds the session."""
+    from fanuc_rmi import RobotClient
+
+    def client(sim: FanucSimulator, main_port: int) -> RobotClient:
+        return RobotClient(
+            host=sim.host,
+            startup_port=sim.port,
+            main_port=main_port,
+            attempts=1,
+            startup_pause=0.0,
+            socket_timeout=2.0,
+            reader_timeout=2.0,
+        )
+
+    closed = socket.socket()  # bound, never listening: a connect to it is refused
+    closed.bind(("127.0.0.1", 0))
+    try:
+        closed_port = closed.getsockname()[1]
+        with contextlib.redirect_stdout(io.StringIO()):  # the client prints every packet
+            with pytest.raises(RuntimeError, match=f"Unable to connect to 127.0.0.1:{closed_port}"):
+                client(fanuc_sim, closed_port).connect()
+            with PortSpellingSimulator() as other:
+                spelled = client(other, closed_port)
+                spelled.connect()
+                assert spelled.main_port == other.session_port
+                spelled.close()
+    finally:
+        closed.close()
+    assert fanuc_sim.packets == [], "fanuc-rmi never reached the session the manual names"
+
+
 def test_fanuc_rmi_client_reads_and_writes_the_simulator(fanuc_sim: FanucSimulator) -> None:
     from fanuc_rmi import RobotClient
 
     fanuc_sim.set_tool(2, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
-    # fanuc-rmi reads the session port from a "Port" member; B-84184EN (and this
-    # simulator) name it "PortNumber", so the client is told the port instead.
+    # fanuc-rmi reads the session port from "Port" where B-84184EN says "PortNumber" (the
+    # test above): it is told the port, to check the packets it sends on the session.
     client = RobotClient(
         host=fanuc_sim.host,
         startup_port=fanuc_sim.port,

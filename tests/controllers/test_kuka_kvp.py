@@ -178,7 +178,7 @@ def test_the_simulator_answers_several_requests_sent_in_one_packet(kuka_sim: Kuk
             data += sock.recv(4096)
     assert data.startswith(b"\x00\x07\x00\x0a\x00\x00\x04PONG\x00\x01\x01")
     assert data[14:16] == b"\x00\x08", "the second reply, with its own id"
-    assert b"{FRAME: X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}" in data
+    assert b"{FRAME: X 0.0, Y 0.0, Z 0.0, A 0.0, B 0.0, C 0.0}" in data
 
 
 def test_py_openshowvar_reads_and_writes_the_simulator(kuka_sim: KukaSimulator) -> None:
@@ -188,7 +188,7 @@ def test_py_openshowvar_reads_and_writes_the_simulator(kuka_sim: KukaSimulator) 
     client = openshowvar(kuka_sim.host, kuka_sim.port)
     try:
         text = client.read("$TOOL_DATA[4]", debug=False)
-        assert text == b"{FRAME: X 1.5,Y 2.5,Z 300.0,A 0.0,B 90.0,C 0.0}"
+        assert text == b"{FRAME: X 1.5, Y 2.5, Z 300.0, A 0.0, B 90.0, C 0.0}"
         assert client.read("$TOOL_DATA[4]", debug=False) == text, "message ids follow on"
         echoed = client.write(
             "$TOOL_DATA[4]", "{X 10.0,Y 20.0,Z 30.0,A 1.0,B 2.0,C 3.0}", debug=False
@@ -230,3 +230,17 @@ def test_krl_nested_load_and_refusals() -> None:
     for bad in ("", "X 1.0", "{X 1.0", "{X 1.0}}", "{X }", "{,}"):
         with pytest.raises(KrlSyntaxError):
             parse_struct(bad)
+
+
+def test_the_krc_reads_a_write_as_krl_not_as_python(kuka_sim: KukaSimulator) -> None:
+    """The simulator reads a write with its own KRL reader: what KRL accepts changes the
+    tool, what only Python's float would take is refused with write status 0 (the
+    connector's parser takes ``1_000.0``: a writer sharing it would pass a shared reader)."""
+    assert parse_struct("{X 1_000.0}") == {"X": 1000.0}
+    with KukaKvpConnector(kuka_settings(kuka_sim)) as kuka:
+        kuka.write_variable("$TOOL_DATA[2]", "{FRAME: x 1.5, Y -2.5E+02 ,Z .25}")
+        assert kuka_sim.tool(2) == (1.5, -250.0, 0.25, 0.0, 0.0, 0.0)
+        for bad in ("{X 1_000.0}", "{X nan}", "{X inf}", "{X 1.0,X 2.0}", "{X 1.0,}", "{X #NONE}"):
+            with pytest.raises(ControllerRefused, match="write status 0"):
+                kuka.write_variable("$TOOL_DATA[2]", bad)
+    assert kuka_sim.tool(2) == (1.5, -250.0, 0.25, 0.0, 0.0, 0.0), "a refused write changed it"
