@@ -687,23 +687,24 @@ def audit(
     }
     events = _audit_events({k: v for k, v in filters.items() if v}, limit)
     names = tool_names({e["tool_id"] for e in events if e["tool_id"]})
-    rows = []
-    for e in events:
-        tool = names.get(e["tool_id"], "") if e["tool_id"] else ""
-        number = e["version"] if e["version"] is not None else (e["detail"] or {}).get("version")
-        version = "" if number is None else f"v{number}"
-        rows.append(
-            (
-                e["at"][:19].replace("T", " "),
-                e["actor"],
-                e["action"],
-                " ".join(p for p in (tool, version) if p),
-                audit_why(e["action"], e["detail"] or {}),
-            )
-        )
-    _print_audit(rows)
+    _print_audit([_audit_row(e, names) for e in events])
     if not events:
         out.print("no audit events match")
+
+
+def _audit_row(event: AuditEvent, names: dict[str, str]) -> tuple[str, str, str, str, str]:
+    """When, who, what, which tool and version (a deployment's from its detail), and why."""
+    detail = event["detail"] or {}
+    tool = names.get(event["tool_id"], "") if event["tool_id"] else ""
+    number = event["version"] if event["version"] is not None else detail.get("version")
+    version = "" if number is None else f"v{number}"
+    return (
+        event["at"][:19].replace("T", " "),
+        event["actor"],
+        event["action"],
+        " ".join(p for p in (tool, version) if p),
+        audit_why(event["action"], detail),
+    )
 
 
 #: Below this many columns a five-column table wraps "why" to a word a line: each event is
