@@ -80,6 +80,38 @@ class ToolData:
 
 
 @dataclass(frozen=True)
+class Frame:
+    """A frame: position in mm and rotation as a unit quaternion w, x, y, z."""
+
+    position_mm: tuple[float, float, float]
+    quaternion: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class LiveTool:
+    """The TCP the robot moves by right now, as its controller reports it (contract v1.3
+    LiveTool): the tool number where the controller has one (KUKA $ACT_TOOL, FANUC's active
+    UTOOL, Yaskawa's reported tool) and the frame (KUKA $TOOL, FANUC UTOOL[n], UR
+    tcp_offset, Techman's current TCP); both None where the controller does not say (ABB:
+    RWS does not say which tooldata a program moves by)."""
+
+    number: int | None
+    frame: Frame | None
+
+
+@dataclass(frozen=True)
+class PoseReading:
+    """One read of where the robot stands: its flange in the robot's base frame (converted
+    per protocol through app.kinematics.frames), its joints, the tool it moves by, and every
+    value read, as the controller printed it (kept with a captured touch, for the audit)."""
+
+    flange: Frame
+    joints_deg: tuple[float, ...] | None
+    live_tool: LiveTool
+    readings: dict[str, str]
+
+
+@dataclass(frozen=True)
 class ToolTarget:
     """Where a tool lives in the controller: a tool number, or an ABB RAPID symbol."""
 
