@@ -80,12 +80,18 @@ def test_a_robots_tool_table_is_one_file_with_every_tool(api: Api, fmt: str) -> 
     assert response.status_code == 200, response.text
     assert response.text.endswith("\n")
     parsed = parse_controller_file(fmt, response.text)
-    positions = sorted(
-        (p.position_mm for p in parsed if np.linalg.norm(p.position_mm) > 0),
-        key=lambda p: float(p[2]),
+    calibrated = sorted(
+        (p for p in parsed if np.linalg.norm(p.position_mm) > 0),
+        key=lambda p: float(p.position_mm[2]),
     )
+    positions = [p.position_mm for p in calibrated]
     assert_allclose(positions, [[1.5, -2.0, 90.0], [1.5, -2.0, 150.0]], atol=5e-4)
-    assert all(p.mass_kg in (None, 2.5) for p in parsed)
+    # Both tools' 2.5 kg in every format that has a load; FANUC's TP program sets the tool
+    # frame (UTOOL[n]) alone. The empty entries (KUKA's table has all 16) hold no load.
+    mass = None if fmt == "fanuc" else 2.5
+    assert [p.mass_kg for p in calibrated] == [mass, mass]
+    empty = [p for p in parsed if np.linalg.norm(p.position_mm) == 0]
+    assert [p.mass_kg for p in empty] == [None] * len(empty)
     if fmt != "yaskawa":  # the tool never calibrated is named, not silently missing
         assert "never calibrated" in response.text
     # the JSON table is still served without Accept: text/plain
