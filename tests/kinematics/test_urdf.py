@@ -184,10 +184,22 @@ def test_continuous_joints_are_supported_without_limits() -> None:
         '<joint name="joint_6" type="revolute">', '<joint name="joint_6" type="continuous">'
     )
     chain = _chain(text)
-    q = np.zeros((1, 6))
-    q[0, 5] = 20.0  # radians, beyond the revolute limit of 400 deg
-    R, _ = chain.flange_poses(q)
-    assert np.isfinite(R).all()
+    q = np.zeros((2, 6))
+    q[1, 5] = 20.0  # radians, beyond the revolute limit of 400 deg
+    R, p = chain.flange_poses(q)
+    # tool0 is joint_6's child with no offset: it turns about its own z (joint_6's axis) by
+    # 20 rad, which is 20 - 6 pi = 1.150 rad, and stays where it was
+    turn = Rotation.from_matrix(R[0].T @ R[1])
+    assert_allclose(turn.as_rotvec(), [0.0, 0.0, 20.0 - 6 * np.pi], atol=1e-9)
+    assert_allclose(p[1], p[0], atol=1e-9)
+    # and as yourdfpy turns it, with the other joints off zero
+    model = yourdfpy.URDF.load(io.BytesIO(text.encode()), load_meshes=False)
+    q_any = np.array([0.3, -0.2, 0.4, 1.0, -0.5, 20.0])
+    model.update_cfg(dict(zip(chain.joint_names, q_any, strict=True)))
+    expected = model.get_transform(chain.tip_link, chain.base_link)
+    R_any, p_any = chain.flange_poses(q_any[None, :])
+    assert_allclose(R_any[0], expected[:3, :3], atol=1e-9)
+    assert_allclose(p_any[0], expected[:3, 3] * 1000.0, atol=1e-6)
 
 
 def test_a_branching_chain_asks_for_the_tip_link() -> None:
