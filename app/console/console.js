@@ -275,7 +275,7 @@ function fleetRow(tool) {
     h("td", { class: "num" }, last ? mm(last.rms_mm) : "—"),
     h("td", { class: "num", title: last ? when(last.created_at) : "" }, last ? age(last.created_at) : "—"),
     h("td", {}, check ? h("span", { class: `badge ${check.within_tolerance ? "accepted" : "out_of_tolerance"}` }, `${check.within_tolerance ? "pass" : "fail"} ${mm(check.distance_mm)}`) : "—"),
-    h("td", { class: "controller-state" }, controllerBadge(tool.controller)),
+    h("td", { class: "controller-state" }, controllerBadge(tool.controller, { degrees: true })),
     h("td", { class: "num drift", title: tool.drift ? `from the ${tool.drift.basis}${tool.drift.crosses_check_at ? `; out of check_mm by ${when(tool.drift.crosses_check_at)}` : ""}` : "fewer than three points over a day" },
       tool.drift ? rate(tool.drift.rate_mm_per_month, tool.drift.sigma_mm_per_month) : "—"),
     h("td", { class: "reasons", title: codes.map((c) => ATTENTION[c] ?? c).join("; ") },
@@ -291,11 +291,21 @@ const CONTROLLER_LABELS = {
   no_active_version: "no active TCP",
 };
 
-function controllerBadge(controller) {
+// A drifted badge gives the distance; with `degrees` (the fleet's cell) the angle too when the
+// controller's TCP turned: an orientation-only pendant edit read "drifted 0.000 mm".
+function controllerBadge(controller, { degrees = false } = {}) {
   if (!controller) return "—";
   const label = CONTROLLER_LABELS[controller.state] ?? controller.state;
-  const deviation = controller.state === "drifted" ? ` ${mm(controller.deviation_mm)} mm` : "";
+  const turned = degrees ? turnedBy(controller.deviation_deg) : "";
+  const deviation = controller.state === "drifted" ? ` ${mm(controller.deviation_mm)} mm${turned}` : "";
   return h("span", { class: `badge controller ${controller.state}`, title: `checked ${when(controller.checked_at)}` }, label + deviation);
+}
+
+// ", 0.500 deg", or nothing when the angle is none at the figures shown (3 decimals).
+function turnedBy(deg) {
+  if (deg === null || deg === undefined) return "";
+  const figure = Number(deg).toFixed(3);
+  return figure === "0.000" ? "" : `, ${figure} deg`;
 }
 
 const frameText = (f) => (f ? `${vec(f.position_mm)} | q ${f.quaternion.map((v) => v.toFixed(5)).join(", ")}` : "—");

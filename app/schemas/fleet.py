@@ -47,6 +47,10 @@ class FleetController(BaseModel):
     state: ToolState = Field(description="in_sync | drifted | no_active_version | unreachable")
     checked_at: Timestamp
     deviation_mm: float | None = Field(description="controller vs active TCP: distance, mm")
+    deviation_deg: float | None = Field(
+        description="controller vs active TCP: angle between the orientations, deg (an "
+        "orientation-only edit drifts with deviation_mm 0)"
+    )
 
 
 class FleetTool(BaseModel):
@@ -131,6 +135,7 @@ CSV_COLUMNS = (
     "controller_state",
     "controller_checked_at",
     "controller_deviation_mm",
+    "controller_deviation_deg",
     "drift_rate_mm_per_month",
     "drift_sigma_mm_per_month",
     "drift_crosses_check_at",

@@ -272,6 +272,7 @@ _ATTENTION = (
         _STATE.state,
         _STATE.checked_at,
         _STATE.deviation_mm,
+        _STATE.deviation_deg,
         *(RULES[code].label(f"rule_{i}") for i, code in enumerate(_ORDER)),
     )
     .outerjoin(
@@ -293,11 +294,14 @@ def _attention_of(
     codes: dict[str, list[AttentionCode]] = {}
     states: dict[str, FleetController] = {}
     for row in session.execute(_ATTENTION, {"ids": ids, **moments}):
-        tool_id, state, checked_at, deviation_mm, *hits = row
+        tool_id, state, checked_at, deviation_mm, deviation_deg, *hits = row
         codes[tool_id] = [code for code, hit in zip(_ORDER, hits, strict=True) if hit]
         if state is not None:
             states[tool_id] = FleetController(
-                state=state, checked_at=checked_at, deviation_mm=deviation_mm
+                state=state,
+                checked_at=checked_at,
+                deviation_mm=deviation_mm,
+                deviation_deg=deviation_deg,
             )
     return codes, states
 
@@ -394,9 +398,10 @@ def _check_cells(chk: LastCheck | None) -> list[str]:
 
 def _controller_cells(ctl: FleetController | None) -> list[str]:
     if ctl is None:
-        return ["", "", ""]
-    deviation = "" if ctl.deviation_mm is None else f"{ctl.deviation_mm:.4f}"
-    return [ctl.state, ctl.checked_at.isoformat(), deviation]
+        return ["", "", "", ""]
+    mm = "" if ctl.deviation_mm is None else f"{ctl.deviation_mm:.4f}"
+    deg = "" if ctl.deviation_deg is None else f"{ctl.deviation_deg:.4f}"
+    return [ctl.state, ctl.checked_at.isoformat(), mm, deg]
 
 
 def _drift_cells(row: FleetTool) -> list[str]:

@@ -103,3 +103,18 @@ def test_the_fleet_shows_a_drifted_controller_as_needing_attention(page: Page, c
     expect(row).to_have_class("attention")
     expect(row.locator("td.controller-state")).to_have_text("drifted 0.250 mm")
     expect(row.locator("td.reasons [data-code=controller_drifted]")).to_have_count(1)
+
+
+def test_the_fleet_tells_an_orientation_only_drift_in_degrees(page: Page, cell: Cell) -> None:
+    """Issue 37: turned 0.5 deg at the pendant, position kept, the fleet said "drifted
+    0.000 mm", as if nothing had moved."""
+    from scipy.spatial.transform import Rotation
+
+    active = Rotation.from_quat(ACTIVE_Q, scalar_first=True)
+    turned = active * Rotation.from_euler("x", 0.5, degrees=True)
+    cell.rig.set_behind_back(ACTIVE_POSITION, list(turned.as_quat(scalar_first=True)))
+    with cell.server.client() as http:
+        assert http.post(f"/v1/robots/{cell.robot_id}/reconcile").json()["state"] == "drifted"
+    _sign_in(page, cell, "/ui/")
+    row = page.locator(f"#fleet tbody tr[data-tool-id='{cell.tool_id}']")
+    expect(row.locator("td.controller-state")).to_have_text("drifted 0.000 mm, 0.500 deg")
