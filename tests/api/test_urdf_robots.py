@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
+import yourdfpy
+from numpy.testing import assert_allclose
 
 from tests.conftest import Api
 
@@ -69,19 +72,41 @@ def test_a_urdf_robot_solves_joint_angles_in_radians_like_the_dh_preset(api: Api
 
 
 def test_inline_urdf_kinematics_for_a_stateless_solve(api: Api) -> None:
-    joints = np.radians(_random_joints_deg(8, seed=5)).tolist()
+    """Touches that meet: the IRB 4600's arm held still and its wrist turned. Its wrist axes
+    (joint_4 to 6) cross at link_5's origin, so a tool point there, 135 mm behind tool0,
+    stays put: its flange poses, from yourdfpy, meet to a few micrometres (the URDF's
+    1.57076 rad is not quite pi/2). The solve with the URDF inline, at the default
+    tolerance, finds the least-squares TCP of yourdfpy's poses."""
+    rng = np.random.default_rng(5)
+    wrist = rng.uniform(-1.0, 1.0, size=(8, 3))
+    joints = np.column_stack([np.tile([0.3, 0.2, -0.1], (8, 1)), wrist])
+    model = yourdfpy.URDF.load(io.BytesIO(IRB4600.encode()), load_meshes=False)
+    rows, rhs = [], []
+    for q in joints:
+        model.update_cfg(dict(zip(model.actuated_joint_names, q, strict=True)))
+        flange = model.get_transform("tool0", "base_link")
+        rows.append(np.hstack([flange[:3, :3], -np.eye(3)]))  # R t - point = -p
+        rhs.append(-flange[:3, 3] * 1000.0)
+    solution = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
+    tcp, point = solution[:3], solution[3:]
+    assert_allclose(tcp, [0.0, 0.0, -135.0], atol=0.01)
     response = api.post(
         "/v1/solve",
         {
             "method": "xyz_npoint",
+            "options": {"algorithm": "stacked"},
             "format": "joints",
-            "poses": joints,
+            "poses": joints.tolist(),
             "kinematics": {"urdf": IRB4600},
-            "tolerance": {"max_rms_mm": 1e6, "max_residual_mm": 1e6},
         },
         scope="read",
     )
     assert response.status_code == 200, response.text
+    result = response.json()
+    assert result["status"] == "accepted"
+    assert_allclose(result["tcp"]["position_mm"], tcp, atol=1e-6)
+    assert_allclose(result["reference_point_mm"], point, atol=1e-6)
+    assert result["quality"]["rms_mm"] < 0.01
 
 
 def test_a_joint_outside_its_limits_is_refused_naming_it(api: Api) -> None:
