@@ -1,6 +1,19 @@
 """One rig per controller protocol for the API tests: its simulator (from
 tests/controllers/), the controller body that reaches it, the tool fields that address a tool
-in it, and the operator's view of the tool data in the controller's own convention."""
+in it, and the operator's view of the tool data in the controller's own convention.
+
+The conventions are written here with scipy from the vendors' documents, not taken from
+app.kinematics (the connectors' own conversions, which a deployment test would otherwise
+judge with themselves):
+- KUKA A, B, C (KSS 8 *Programming manual for system integrators*, FRAME; KUKA's A about Z,
+  then B about the new Y, then C about the newest X: intrinsic Z-Y'-X''):
+  R = Rz(A) Ry(B) Rx(C).
+- FANUC W, P, R (yaw, pitch, roll about the fixed X, Y, Z axes, in that order):
+  R = Rz(R) Ry(P) Rx(W).
+- ABB ``orient`` [q1, q2, q3, q4] (RAPID reference, orient): q1 the scalar part, so
+  [w, x, y, z] as tcpcal's quaternions.
+Each product is composed from single-axis rotations as the documents write it; the angles
+of a rotation are scipy's Euler angles for that product, checked against it."""
 
 from __future__ import annotations
 
@@ -10,14 +23,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from app.kinematics.poses import (
-    fanuc_wpr_from_quaternion_wxyz,
-    kuka_abc_from_quaternion_wxyz,
-    quaternion_wxyz_from_fanuc_wpr,
-    quaternion_wxyz_from_kuka_abc,
-    rotation_angle_deg,
-)
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator
@@ -29,6 +36,35 @@ SLOT = 3
 SYMBOL = "T_ROB1/user/tTorch"
 #: The simulated ABB controllers' user (tests/controllers/abb_sim.py).
 ABB_USER, ABB_PASSWORD = "Default User", "robotics"
+
+
+def rotation_of(quaternion_wxyz: list[float] | tuple[float, ...]) -> Rotation:
+    """A [w, x, y, z] quaternion (ABB's q1..q4) as a scipy Rotation (which takes x, y, z, w)."""
+    w, x, y, z = (float(v) for v in quaternion_wxyz)
+    return Rotation.from_quat([x, y, z, w])
+
+
+def kuka_rotation(a: float, b: float, c: float) -> Rotation:
+    """R = Rz(A) Ry(B) Rx(C), degrees."""
+    return (
+        Rotation.from_euler("z", a, degrees=True)
+        * Rotation.from_euler("y", b, degrees=True)
+        * Rotation.from_euler("x", c, degrees=True)
+    )
+
+
+def fanuc_rotation(w: float, p: float, r: float) -> Rotation:
+    """R = Rz(R) Ry(P) Rx(W), degrees."""
+    return (
+        Rotation.from_euler("z", r, degrees=True)
+        * Rotation.from_euler("y", p, degrees=True)
+        * Rotation.from_euler("x", w, degrees=True)
+    )
+
+
+#: protocol -> (the rotation of its three angles, scipy's name for the same product:
+#: upper case intrinsic, lower case about fixed axes)
+ANGLES = {"kuka_kvp": (kuka_rotation, "ZYX"), "fanuc_rmi": (fanuc_rotation, "xyz")}
 
 
 @dataclass
@@ -62,20 +98,26 @@ class Rig:
 
     def native_of(self, position_mm: list[float], quaternion: list[float]) -> list[float]:
         """A frame in the controller's own convention."""
-        if self.protocol == "kuka_kvp":
-            return [*position_mm, *map(float, kuka_abc_from_quaternion_wxyz(quaternion))]
-        if self.protocol == "fanuc_rmi":
-            return [*position_mm, *map(float, fanuc_wpr_from_quaternion_wxyz(quaternion))]
-        return [*position_mm, *quaternion]
+        if self.protocol not in ANGLES:
+            return [*position_mm, *quaternion]
+        compose, sequence = ANGLES[self.protocol]
+        angles = [float(v) for v in rotation_of(quaternion).as_euler(sequence, degrees=True)]
+        # the angles scipy gives are those of the documented product, or this rig is wrong
+        assert (compose(*angles).inv() * rotation_of(quaternion)).magnitude() < 1e-9, angles
+        return [*position_mm, *angles]
+
+    def rotation(self) -> Rotation:
+        """The rotation of the tool data the controller holds, read in its convention."""
+        values = self.native()
+        if self.protocol in ANGLES:
+            compose, _ = ANGLES[self.protocol]
+            return compose(*values[3:])
+        return rotation_of(values[3:])
 
     def held(self) -> tuple[list[float], list[float]]:
         """The tool data the controller holds as (position_mm, quaternion [w, x, y, z])."""
-        values = self.native()
-        if self.protocol == "kuka_kvp":
-            return values[:3], [float(v) for v in quaternion_wxyz_from_kuka_abc(values[3:])]
-        if self.protocol == "fanuc_rmi":
-            return values[:3], [float(v) for v in quaternion_wxyz_from_fanuc_wpr(values[3:])]
-        return values[:3], values[3:]
+        x, y, z, w = self.rotation().as_quat(canonical=True)
+        return self.native()[:3], [float(w), float(x), float(y), float(z)]
 
     def set_behind_back(self, position_mm: list[float], quaternion: list[float]) -> None:
         """The operator types a frame into the pendant."""
@@ -86,15 +128,14 @@ class Rig:
             self.sim.set_tool(SLOT, *native)
 
     def assert_holds(self, position_mm: list[float], quaternion: list[float]) -> None:
-        """The controller holds this frame within 0.001 mm and 0.001 deg, compared in its
-        own convention (angles modulo 360; ABB's quaternion by the angle between them)."""
-        held, expected = self.native(), self.native_of(position_mm, quaternion)
-        assert np.all(np.abs(np.subtract(held[:3], expected[:3])) <= 0.001), (held, expected)
-        if self.protocol.startswith("abb"):
-            assert rotation_angle_deg(held[3:], expected[3:]) <= 0.001, (held, expected)
-            return
-        diff = (np.subtract(held[3:], expected[3:]) + 180.0) % 360.0 - 180.0
-        assert np.all(np.abs(diff) <= 0.001), (held, expected)
+        """The controller holds this frame within 0.001 mm and 0.001 deg: its position as
+        given, its angles (or quaternion) composed in its own convention the rotation of
+        `quaternion` (a pair of angles swapped, or composed in another order, is a rotation
+        degrees away)."""
+        held = self.native()
+        assert np.all(np.abs(np.subtract(held[:3], position_mm)) <= 0.001), (held, position_mm)
+        off_deg = np.degrees((self.rotation().inv() * rotation_of(quaternion)).magnitude())
+        assert off_deg <= 0.001, (self.protocol, held, quaternion, off_deg)
 
 
 @contextmanager

@@ -14,6 +14,7 @@ from sqlalchemy import text
 from app.db import get_engine
 from tests.api.controller_rigs import PROTOCOLS, TIMEOUT_S, Rig, rig
 from tests.conftest import Api
+from tests.controllers.helpers import angle_between_deg
 
 ACTIVE_POSITION = [12.5, -3.25, 187.125]
 ACTIVE_Q = [
@@ -117,9 +118,7 @@ def test_deploy_writes_the_active_tcp_reads_it_back_and_records_previous(
 
 
 def _angle(q1: list[float], q2: list[float]) -> float:
-    from app.kinematics.poses import rotation_angle_deg
-
-    return rotation_angle_deg(q1, q2)
+    return angle_between_deg(tuple(q1), tuple(q2))
 
 
 def test_reconcile_finds_a_frame_changed_behind_tcpcals_back(api: Api, protocol_rig: Rig) -> None:
