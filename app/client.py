@@ -591,13 +591,27 @@ def export(
             "backup a technician can restore from",
         ),
     ] = None,
+    merge_into: Annotated[
+        Path | None,
+        typer.Option(
+            "--merge-into",
+            help="yaskawa: the controller's own TOOL.CND, saved from it; the file written is "
+            "that file with this tool's block replaced and every other tool kept (loading "
+            "TOOL.CND loads the whole tool file)",
+        ),
+    ] = None,
 ) -> None:
     """Write the active TCP as the file the controller loads, or (--all DIR) every robot's."""
     if all_dir is not None:
-        if tool_id is not None or output is not None:
-            fail(EXIT_BAD_USE, "--all DIR writes every robot's files: give no tool id or -o")
+        if tool_id is not None or output is not None or merge_into is not None:
+            fail(
+                EXIT_BAD_USE,
+                "--all DIR writes every robot's files: give no tool id, -o or --merge-into",
+            )
         _export_all(all_dir, fmt)
         return
+    if merge_into is not None and fmt != "yaskawa":
+        fail(EXIT_BAD_USE, "--merge-into merges into a Yaskawa TOOL.CND: give --format yaskawa")
     if tool_id is None or fmt is None:
         fail(EXIT_BAD_USE, "give a tool id and --format, or --all DIR")
     tool_id = resolve_tool(tool_id)
@@ -608,8 +622,31 @@ def export(
     target = output or Path(name)
     if target.is_dir():
         target = target / name
-    target.write_text(response.text)
+    text = response.text if merge_into is None else _merged_cnd(merge_into, response.text)
+    target.write_text(text)
     out.print(f"wrote {target}")
+    if fmt == "yaskawa" and merge_into is None:
+        out.print(YASKAWA_WHOLE_FILE, highlight=False)
+
+
+def _merged_cnd(saved: Path, ours: str) -> str:
+    """The controller's saved TOOL.CND with our blocks in place (exit 2 naming the problem)."""
+    from app.errors import InvalidInput
+    from app.exports.cnd_file import merge
+
+    try:
+        return merge(saved.read_text(encoding="ascii", errors="replace"), ours)
+    except (OSError, InvalidInput) as exc:
+        fail(EXIT_BAD_USE, f"--merge-into {saved}: {getattr(exc, 'detail', exc)}")
+
+
+#: What a Yaskawa TOOL.CND of tcpcal's tools changes: said beside it, as it has no comments.
+YASKAWA_WHOLE_FILE = (
+    "TOOL.CND holds only the tools tcpcal manages, and loading TOOL.CND loads the controller's "
+    "whole tool file: loaded as it is, it may clear the other tools. Save the controller's own "
+    "TOOL.CND, then `tcpcal export TOOL --format yaskawa --merge-into SAVED.CND` (or copy "
+    "these //TOOL n blocks over the same numbers' blocks) and load that."
+)
 
 
 def _file_name(response: httpx.Response) -> str | None:
@@ -656,6 +693,10 @@ def _export_all(directory: Path, fmt: str | None) -> None:
             target = folder / (_file_name(response) or f"tools.{each}.txt")
             target.write_text(response.text)
             out.print(f"wrote {target}", highlight=False)
+            if each == "yaskawa":  # TOOL.CND cannot say it itself: no comment syntax
+                note = target.with_name(target.name + ".README.txt")
+                note.write_text(YASKAWA_WHOLE_FILE + "\n")
+                out.print(f"wrote {note}", highlight=False)
     out.print(f"{len(robots)} robot(s) written to {directory}", highlight=False)
 
 

@@ -64,6 +64,25 @@ def rapid_identifier(name: str) -> str:
     return identifier(name, MAX_IDENTIFIER, fallback="t", reserved=_RESERVED)
 
 
+def rapid_name(tool: ToolData) -> str:
+    """The tooldata's data name: SYMBOL of the tool's controller_symbol "TASK/MODULE/SYMBOL"
+    (the persistent the robot's programs move by), else the tool's name made an identifier."""
+    if tool.controller_symbol:
+        return rapid_identifier(tool.controller_symbol.rsplit("/", 1)[-1])
+    return rapid_identifier(tool.name)
+
+
+def tooldata_value(tool: ToolData) -> str:
+    """``[TRUE,[[x,y,z],[q1..q4]],[mass,[cog],[1,0,0,0],0,0,0]]``: the tool's tooldata value."""
+    position, quaternion = checked_tcp(tool)
+    mass, cog = _checked_load(tool)
+    return (
+        f"[TRUE,[[{fmt_list(position, MM_DECIMALS)}],"
+        f"[{fmt_list(quaternion, QUATERNION_DECIMALS)}]],"
+        f"[{fmt_number(mass, KG_DECIMALS)},[{fmt_list(cog, MM_DECIMALS)}],[1,0,0,0],0,0,0]]"
+    )
+
+
 def _checked_load(tool: ToolData) -> tuple[float, FloatArray]:
     mass = tool.mass_kg
     if mass is None or not np.isfinite(mass) or mass <= 0:
@@ -89,12 +108,8 @@ def export_abb(tool: ToolData) -> ControllerExport:
     """``PERS tooldata <name>:=[TRUE,[[x,y,z],[q1..q4]],[mass,[cog],[1,0,0,0],0,0,0]];``."""
     position, quaternion = checked_tcp(tool)
     mass, cog = _checked_load(tool)
-    name = rapid_identifier(tool.name)
-    text = (
-        f"PERS tooldata {name}:=[TRUE,[[{fmt_list(position, MM_DECIMALS)}],"
-        f"[{fmt_list(quaternion, QUATERNION_DECIMALS)}]],"
-        f"[{fmt_number(mass, KG_DECIMALS)},[{fmt_list(cog, MM_DECIMALS)}],[1,0,0,0],0,0,0]];"
-    )
+    name = rapid_name(tool)
+    text = f"PERS tooldata {name}:={tooldata_value(tool)};"
     values: dict[str, object] = {
         "name": name,
         "robhold": True,

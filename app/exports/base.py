@@ -41,7 +41,8 @@ def _vector(value: ArrayLike | None, size: int) -> FloatArray | None:
 
 @dataclass(frozen=True)
 class ToolData:
-    """A tool as a controller stores it: slot, name, TCP in the flange frame, optional load.
+    """A tool as a controller stores it: slot, name, TCP in the flange frame, optional load,
+    and (ABB) the controller's name for it.
 
     position_mm (3,) and quaternion_wxyz (4,) give flange_from_tool; mass_kg and cog_mm (3,)
     (centre of gravity in the flange frame, mm) are the tool's load, when known.
@@ -53,6 +54,9 @@ class ToolData:
     quaternion_wxyz: FloatArray
     mass_kg: float | None = None
     cog_mm: FloatArray | None = field(default=None)
+    #: ABB: the tool's PERS tooldata on the controller, "TASK/MODULE/SYMBOL" (validated where
+    #: the tool is stored), so a file names the data the robot's programs use.
+    controller_symbol: str | None = None
 
     def __post_init__(self) -> None:
         # Accept lists: store float arrays of the documented shapes.

@@ -21,8 +21,17 @@ checksum whose algorithm is not public: it is left out, as the DX100/DX200 files
 A condition file has no comment syntax: nothing but the blocks can be in it, so this file has
 no header (tool, version, calibration), only each tool's ``///NAME`` (at most 16 characters,
 ASCII, no comma). A robot's table holds the blocks of the tools tcpcal has (by tool number,
-0-63); the controller's other tools are not written. Save it as TOOL.CND and load it from the
-pendant's external memory (EX. MEMORY -> LOAD -> CONDITION DATA -> TOOL DATA).
+0-63); the controller's other tools are not written.
+
+What it changes: loading TOOL.CND (EX. MEMORY -> LOAD -> CONDITION DATA -> TOOL DATA) loads the
+controller's whole tool file, and a controller's own TOOL.CND holds a block for every tool
+number (the backups above: 64 blocks, 0-63). Loaded as it is, this file, which holds only
+tcpcal's tools, may clear or refuse the others: it cannot say so itself, so the docs
+(docs/controller-files.md) and the CLI say it. What merges: `merge` puts its blocks in place of
+the same numbers' blocks of the controller's own TOOL.CND (saved from the controller first),
+every other byte kept (``tcpcal export ... --format yaskawa --merge-into SAVED.CND``); that
+file changes only tcpcal's tools when loaded. (A deployment over HSES does the same with the
+file it reads from the controller.)
 """
 
 from __future__ import annotations
@@ -100,6 +109,41 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
         lines += block(item.data)
     text = "\n".join(lines) + "\n" if lines else ""
     return ControllerFile(FORMAT, "TOOL.CND", text, tuple(left))
+
+
+_BLOCK_START = re.compile(r"^//TOOL\s+(\d+)\s*$", re.MULTILINE)
+
+
+def _blocks(text: str) -> dict[int, tuple[int, int]]:
+    """Tool number -> (start, end) of its block in `text` (a block runs to the next one)."""
+    starts = list(_BLOCK_START.finditer(text))
+    ends = [m.start() for m in starts[1:]] + [len(text)]
+    return {int(m.group(1)): (m.start(), end) for m, end in zip(starts, ends, strict=True)}
+
+
+def merge(saved: str, ours: str) -> str:
+    """The controller's own TOOL.CND `saved` with each block of `ours` in place of the block of
+    the same tool number; every other byte as it was. InvalidInput when `saved` is not a tool
+    file or lacks one of the tool numbers (a controller's file holds every number)."""
+    saved = saved.replace("\r\n", "\n")
+    mine = {n: ours[a:b] for n, (a, b) in _blocks(ours.replace("\r\n", "\n")).items()}
+    theirs = _blocks(saved)
+    if not theirs:
+        raise parse_error(FORMAT, "the controller's TOOL.CND (//TOOL 0 ... //TOOL 63)", saved)
+    missing = sorted(set(mine) - set(theirs))
+    if missing:
+        raise InvalidInput(
+            "invalid-pose",
+            f"the saved TOOL.CND has no block for tool(s) {missing}: save the tool file of "
+            "the robot's own controller (it holds every tool number) and merge into that",
+            loc=("text",),
+        )
+    out, at = [], 0
+    for number, (start, end) in sorted(theirs.items(), key=lambda kv: kv[1][0]):
+        if number in mine:
+            out += [saved[at:start], mine[number]]
+            at = end
+    return "".join(out) + saved[at:]
 
 
 def read(text: str) -> list[ParsedTool]:

@@ -17,11 +17,19 @@ which declare the tool table as::
     (LOAD_DATA[4]={M -1.00000,CM {X 0.0,...},J {X 0.0,Y 0.0,Z 0.0}} for an unused tool)
 
 Comments start with ``;``. TOOL_NAME is CHAR[24]: at most 24 characters, none of them a
-double quote. One tool's file is its three lines (replace the lines of the same tool number
-in $config.dat); a robot's table is the three whole arrays, tools tcpcal does not hold
-written as KSS writes unused ones (replace the three arrays). The numbers are those of the
-JSON ``controller.text`` (``$TOOL_DATA[n]`` as KUKAVARPROXY reads it; the $config.dat line
-drops the ``$``).
+double quote.
+
+What it changes, and how the controller merges it: a file (one tool's or a robot's table)
+holds, for each tool tcpcal manages, its array elements as single-element assignments,
+``TOOL_DATA[n]=...``, ``TOOL_NAME[n,]=...`` and, when tcpcal knows the tool's load,
+``LOAD_DATA[n]=...``: the lines $config.dat initialises each element with, one element each.
+Replace the lines of the same numbers in $config.dat with them (the ``DECL`` lines and every
+other tool's lines stay as they are), or run them as assignments in a KRL program. Never the
+whole arrays: $config.dat holds all 16 tools, most of them other people's, and an array
+written whole would set the tools tcpcal does not manage to zeros, ``M -1`` and ``" "``. A
+tool without a known load gets no LOAD_DATA line (the controller's load data stays). The
+numbers are those of the JSON ``controller.text`` (``$TOOL_DATA[n]`` as KUKAVARPROXY reads
+it; the $config.dat line drops the ``$``).
 """
 
 from __future__ import annotations
@@ -48,14 +56,12 @@ from app.exports.files import (
     split_fitting,
     wrap,
 )
-from app.exports.kuka import MAX_SLOT, export_kuka, parse_kuka
+from app.exports.kuka import export_kuka, parse_kuka
 from app.exports.names import ascii_text, file_stem
 
 FORMAT = "kuka"
 NAME_CHARS = 24
 LINE_WIDTH = 78
-_UNUSED_FRAME = "{X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}"
-_UNUSED_LOAD = "{M -1.0,CM {X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0},J {X 0.0,Y 0.0,Z 0.0}}"
 
 _N = rf"\s*({NUMBER})\s*"
 _TOOL_DATA = re.compile(r"^\s*\$?TOOL_DATA\[\s*(\d+)\s*\]\s*=.*$", re.IGNORECASE | re.MULTILINE)
@@ -78,11 +84,11 @@ def frame_value(tool: ToolData) -> str:
     return export_kuka(tool).text.split("=", 1)[1]
 
 
-def load_value(tool: ToolData) -> str:
-    """``{M ..,CM {X ..,Y ..,Z ..,A 0.0,B 0.0,C 0.0},J {X 0.0,Y 0.0,Z 0.0}}`` (M -1 without a
-    load: the controller's default)."""
+def load_value(tool: ToolData) -> str | None:
+    """``{M ..,CM {X ..,Y ..,Z ..,A 0.0,B 0.0,C 0.0},J {X 0.0,Y 0.0,Z 0.0}}``; None without a
+    known mass (the controller's load data is left as it is)."""
     if tool.mass_kg is None:
-        return _UNUSED_LOAD
+        return None
     cog = tool.cog_mm if tool.cog_mm is not None else np.zeros(3)
     x, y, z = (fmt_number(c, MM_DECIMALS) for c in cog)
     mass = fmt_number(tool.mass_kg, KG_DECIMALS)
@@ -90,19 +96,18 @@ def load_value(tool: ToolData) -> str:
 
 
 def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
-    """A tool's three $config.dat lines, or a robot's three arrays."""
+    """Each tool's TOOL_DATA[n], TOOL_NAME[n,] (and LOAD_DATA[n]) line, by tool number."""
     kept, left = split_fitting(tools, export_kuka, context)
+    by_slot = {item.data.slot: item.data for item in sorted(kept, key=lambda t: t.data.slot or 0)}
     lines: list[str] = []
-    for sentence in header_lines(kept, context) + left_out_lines(left) + [_how(context)]:
+    for sentence in header_lines(kept, context) + left_out_lines(left) + _how(by_slot):
         lines.extend(f"; {piece}" for piece in wrap(sentence, LINE_WIDTH - 2))
-    by_slot = {item.data.slot: item.data for item in kept}
-    if context.table:
-        lines.extend(_arrays(by_slot))
-    else:
-        for tool in by_slot.values():
-            lines.append(f"TOOL_DATA[{tool.slot}]={frame_value(tool)}")
-            lines.append(f'TOOL_NAME[{tool.slot},]="{tool_name(tool.name)}"')
-            lines.append(f"LOAD_DATA[{tool.slot}]={load_value(tool)}")
+    for slot, tool in by_slot.items():
+        lines.append(f"TOOL_DATA[{slot}]={frame_value(tool)}")
+        lines.append(f'TOOL_NAME[{slot},]="{tool_name(tool.name)}"')
+        load = load_value(tool)
+        if load is not None:
+            lines.append(f"LOAD_DATA[{slot}]={load}")
     if context.table:
         name = "config_tools.dat"
     else:
@@ -110,31 +115,24 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     return ControllerFile(FORMAT, name, "\n".join(lines) + "\n", tuple(left))
 
 
-def _how(context: FileContext) -> str:
-    if context.table:
-        return (
-            "replaces DECL FRAME TOOL_DATA, DECL CHAR TOOL_NAME and DECL LOAD LOAD_DATA "
-            "in KRC:\\R1\\System\\$config.dat"
+def _how(by_slot: dict[int | None, ToolData]) -> list[str]:
+    """The header's sentences on what the file changes and how it is applied."""
+    if not by_slot:
+        return ["changes nothing on the controller: it holds no tool"]
+    numbers = ", ".join(str(n) for n in by_slot)
+    unloaded = [str(n) for n, tool in by_slot.items() if load_value(tool) is None]
+    sentences = [
+        f"changes only tool(s) {numbers}: their TOOL_DATA, TOOL_NAME and LOAD_DATA elements; "
+        "every other tool is untouched",
+        "replace the lines of the same numbers in KRC:\\R1\\System\\$config.dat with these "
+        "(keep the DECL lines and every other line), or run them as KRL assignments",
+    ]
+    if unloaded:
+        sentences.append(
+            f"no load known for tool(s) {', '.join(unloaded)}: no LOAD_DATA line, the "
+            "controller's load data stays"
         )
-    return "replaces this tool's lines in KRC:\\R1\\System\\$config.dat"
-
-
-def _arrays(by_slot: dict[int | None, ToolData]) -> list[str]:
-    slots = range(1, MAX_SLOT + 1)
-    lines = [f"DECL FRAME TOOL_DATA[{MAX_SLOT}]"]
-    lines += [
-        f"TOOL_DATA[{n}]={frame_value(by_slot[n]) if n in by_slot else _UNUSED_FRAME}"
-        for n in slots
-    ]
-    lines.append(f"DECL CHAR TOOL_NAME[{MAX_SLOT},{NAME_CHARS}]")
-    lines += [
-        f'TOOL_NAME[{n},]="{tool_name(by_slot[n].name) if n in by_slot else " "}"' for n in slots
-    ]
-    lines.append(f"DECL LOAD LOAD_DATA[{MAX_SLOT}]")
-    lines += [
-        f"LOAD_DATA[{n}]={load_value(by_slot[n]) if n in by_slot else _UNUSED_LOAD}" for n in slots
-    ]
-    return lines
+    return sentences
 
 
 def read(text: str) -> list[ParsedTool]:

@@ -11,12 +11,18 @@ same shape: RobotStudio exports and robot cells' sources on GitHub, e.g. the
 ``MODULE ... PERS tooldata tGripper:=[TRUE,[[0.51636,-0.710444,275.457],[1,0,0,0]],
 [26,[80,0,180],[1,0,0,0],0,0,0]];`` modules found with the code search of issue 27.
 
-Load it with the FlexPendant's Program Editor (Modules -> File -> Load module) or RobotStudio;
-it declares no routine, so it runs nothing. A persistent that another loaded module already
-declares with the same name is one and the same object in RAPID: the module's value then
-does not replace the one in use (RAPID overview, "Persistents"), so remove or rename the old
-declaration first. The inertia is written as 0 (tcpcal stores mass and centre of gravity
-only: a point load, which RAPID accepts).
+What it changes, and how the controller merges it: only the tooldata of the tools it holds;
+no other data, routine or tool of the controller. A tool with a ``controller_symbol``
+("T_ROB1/user/tTorch") is named by its SYMBOL, the persistent the robot's programs move by, and
+is not declared again: its module (``user``) declares it. A tool without one is declared here
+(``PERS tooldata <name>``). Loading a module does not replace the value of a persistent that is
+already in use (RAPID overview, "Persistents": a persistent declared in several modules is one
+object, and its current value is kept), so the module holds a routine,
+``tcpcal_set_<tools|tool>``, that assigns each tool's value: load the module into the tool's
+task (FlexPendant: Program Editor -> Modules -> Load Module, or RobotStudio), run the routine
+once (PP to Routine). A module of the same name loaded before is tcpcal's own and is replaced.
+The inertia is written as 0 (tcpcal stores mass and centre of gravity only: a point load,
+which RAPID accepts).
 """
 
 from __future__ import annotations
@@ -25,12 +31,19 @@ import re
 
 import numpy as np
 
-from app.exports.abb import MAX_IDENTIFIER, export_abb, rapid_identifier
+from app.exports.abb import (
+    MAX_IDENTIFIER,
+    export_abb,
+    rapid_identifier,
+    rapid_name,
+    tooldata_value,
+)
 from app.exports.base import NUMBER, parse_error
 from app.exports.files import (
     ControllerFile,
     FileContext,
     FileTool,
+    LeftOut,
     ParsedTool,
     header_lines,
     left_out_lines,
@@ -46,8 +59,10 @@ LINE_WIDTH = 78
 TABLE_MODULE = "tcpcal_tools"
 
 _N = rf"\s*({NUMBER})\s*"
+# A declaration (``PERS tooldata name:=[...]``, also TASK or LOCAL) or an assignment in a
+# routine (``name:=[...]``) of a tooldata value.
 _TOOLDATA = re.compile(
-    r"PERS\s+tooldata\s+([A-Za-z][A-Za-z0-9_]*)\s*:=\s*\[\s*(TRUE|FALSE)\s*,"
+    r"(?<![A-Za-z0-9_])([A-Za-z][A-Za-z0-9_]*)\s*:=\s*\[\s*(TRUE|FALSE)\s*,"
     rf"\s*\[\s*\[{_N},{_N},{_N}\]\s*,\s*\[{_N},{_N},{_N},{_N}\]\s*\]\s*,"
     rf"\s*\[{_N},\s*\[{_N},{_N},{_N}\]",
     re.IGNORECASE,
@@ -63,41 +78,97 @@ def module_name(tools: list[FileTool], context: FileContext) -> str:
     return rapid_identifier("tcpcal_" + rapid_identifier(tools[0].data.name))
 
 
+def routine_name(module: str) -> str:
+    """The routine that assigns the tools: tcpcal_set_tools, tcpcal_set_<tool>."""
+    return rapid_identifier("tcpcal_set_" + module.removeprefix("tcpcal_"))
+
+
+def _data_names(
+    kept: list[FileTool], taken: list[str]
+) -> tuple[list[FileTool], list[str], list[LeftOut]]:
+    """(the tools, their tooldata names, the tools left out), in the tools' order: a
+    controller_symbol's name as it is (it names data on the controller; renaming it would make
+    a new persistent), the others' names made unique among all of them."""
+    seen = {n.lower() for n in taken}
+    symbol_names: dict[int, str] = {}
+    left: list[LeftOut] = []
+    for i, item in enumerate(kept):
+        if item.data.controller_symbol:
+            name = rapid_name(item.data)
+            if name.lower() in seen:
+                reason = f"another tool of this file has the tooldata name {name}"
+                left.append(LeftOut(item.data.name, reason))
+                continue
+            seen.add(name.lower())
+            symbol_names[i] = name
+    plain = [i for i, item in enumerate(kept) if not item.data.controller_symbol]
+    fixed = [*taken, *symbol_names.values()]
+    made = unique(fixed + [rapid_name(kept[i].data) for i in plain], MAX_IDENTIFIER)
+    names = {**symbol_names, **dict(zip(plain, made[len(fixed) :], strict=True))}
+    order = sorted(names)
+    return [kept[i] for i in order], [names[i] for i in order], left
+
+
+def _how(tools: list[FileTool], names: list[str], routine: str) -> list[str]:
+    """The header's sentences on what the module changes and how to load it."""
+    if not tools:
+        return ["changes nothing on the controller: it holds no tool"]
+    held = []
+    for item, name in zip(tools, names, strict=True):
+        symbol = item.data.controller_symbol
+        held.append(f"{name} ({symbol})" if symbol else f"{name} (declared here)")
+    symbols = [t.data.controller_symbol for t in tools if t.data.controller_symbol]
+    tasks = sorted({symbol.split("/")[0] for symbol in symbols})
+    task = f"task {', '.join(tasks)}" if tasks else "the robot's motion task (e.g. T_ROB1)"
+    return [
+        f"changes only the tooldata {', '.join(held)}; every other tool and all other data "
+        "of the controller are untouched",
+        f"load it into {task} (Program Editor, Modules, Load Module), then run "
+        f"{routine} once (PP to Routine): it assigns the values. Loading alone does not "
+        "change a persistent already in use (RAPID keeps its current value)",
+    ]
+
+
 def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
-    """One RAPID module: a header comment, then a PERS tooldata per tool."""
+    """One RAPID module: a header comment, a PERS tooldata for each tool without a
+    controller_symbol, and a routine assigning every tool's tooldata."""
     kept, left = split_fitting(tools, export_abb, context)
     module = module_name(tools, context)
-    names = unique([module] + [rapid_identifier(item.data.name) for item in kept], MAX_IDENTIFIER)[
-        1:
-    ]
+    routine = routine_name(module)
+    held, names, clashes = _data_names(kept, [module, routine])
+    left = [*left, *clashes]
     lines = [f"MODULE {module}"]
-    for sentence in header_lines(kept, context) + left_out_lines(left):
+    for sentence in header_lines(held, context) + left_out_lines(left) + _how(held, names, routine):
         lines.extend(f"  ! {piece}" for piece in wrap(sentence, LINE_WIDTH - 4))
-    for item, name in zip(kept, names, strict=True):
-        text = export_abb(item.data).text
-        lines.append(
-            "  " + re.sub(r"^PERS tooldata [A-Za-z0-9_]+:=", f"PERS tooldata {name}:=", text)
-        )
+    for item, name in zip(held, names, strict=True):
+        if not item.data.controller_symbol:
+            lines.append(f"  PERS tooldata {name}:={tooldata_value(item.data)};")
+    if held:
+        lines.append(f"  PROC {routine}()")
+        lines += [
+            f"    {name}:={tooldata_value(item.data)};"
+            for item, name in zip(held, names, strict=True)
+        ]
+        lines.append("  ENDPROC")
     lines.append("ENDMODULE")
     return ControllerFile(FORMAT, f"{module}.mod", "\n".join(lines) + "\n", tuple(left))
 
 
 def read(text: str) -> list[ParsedTool]:
-    """Every PERS tooldata of a RAPID module (MODULE ... ENDMODULE around them)."""
+    """Every tooldata of a RAPID module (MODULE ... ENDMODULE around them), declared or
+    assigned, once each by name (the last value written: what the module leaves)."""
     if _MODULE.search(text) is None or _END.search(text) is None:
         raise parse_error(FORMAT, "a RAPID module: MODULE <name> ... ENDMODULE", text)
-    tools = []
+    tools: dict[str, ParsedTool] = {}
     for match in _TOOLDATA.finditer(text):
         numbers = [float(g) for g in match.groups()[2:]]
         quaternion = normalised_quaternions(np.array([numbers[3:7]]), loc=("text",))[0]
-        tools.append(
-            ParsedTool(
-                slot=None,
-                name=match.group(1),
-                position_mm=np.array(numbers[:3]),
-                quaternion_wxyz=quaternion,
-                mass_kg=numbers[7],
-                cog_mm=np.array(numbers[8:11]),
-            )
+        tools[match.group(1).lower()] = ParsedTool(
+            slot=None,
+            name=match.group(1),
+            position_mm=np.array(numbers[:3]),
+            quaternion_wxyz=quaternion,
+            mass_kg=numbers[7],
+            cog_mm=np.array(numbers[8:11]),
         )
-    return tools
+    return list(tools.values())

@@ -5,6 +5,10 @@ float)`` (X Y Z mm, RX RY RZ deg, then the tool's mass kg), as app.exports.wpr s
 its sources; TMscript comments are ``//`` to the end of the line and array literals use
 braces. Paste the line of the tool in use into the flow (a robot's table lists one line per
 tool, each under a comment naming it).
+
+What it changes, and how the controller merges it: a ChangeTCP line, when the flow runs it,
+sets the current TCP (and mass) of the running project, until the project sets another one;
+the TCP list (the tools stored on the controller) is untouched. Its header comment says so.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     """Header comments, then per tool ``// <name>`` and its ChangeTCP line."""
     kept, left = split_fitting(tools, export_techman, context)
     lines: list[str] = []
-    for sentence in header_lines(kept, context) + left_out_lines(left):
+    for sentence in header_lines(kept, context) + left_out_lines(left) + _how(kept):
         lines.extend(f"// {piece}" for piece in wrap(sentence, LINE_WIDTH - 3))
     for item in kept:
         call = export_techman(item.data).text.split("  //", 1)[0]
@@ -45,6 +49,16 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     else:
         name = f"tcpcal_{file_stem(kept[0].data.name)}.txt"
     return ControllerFile(FORMAT, name, "\n".join(lines) + "\n", tuple(left))
+
+
+def _how(kept: list[FileTool]) -> list[str]:
+    """The header's sentences on what the lines change."""
+    if not kept:
+        return ["changes nothing: it holds no tool"]
+    return [
+        "each ChangeTCP line, run by the flow, sets the current TCP (and mass) of the running "
+        "project until it sets another; the TCP list stored on the controller is untouched"
+    ]
 
 
 def read(text: str) -> list[ParsedTool]:

@@ -18,6 +18,10 @@ more); COMMENT at most 16 characters; remarks (``!...``) at most 32, ASCII, no `
 have 3 decimals, as the controller shows frames. Position register PR[100] is used as scratch
 and overwritten (the program says so in a remark); the tool frames' numbers (UTOOL 1-10) come
 from the tools' slots. Load it with the ASCII Upload option (or ROBOGUIDE) and run it once.
+
+What it changes, and how the controller merges it: running it sets the tool frames of the
+tools it holds (``UTOOL[n]=PR[100]``, one frame each) and PR[100]; every other tool frame, the
+selected tool (UTOOL_NUM) and the payload schedules stay as they are. Its remarks say so.
 """
 
 from __future__ import annotations
@@ -103,8 +107,9 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     name = program_name(tools, context)
     body = [remark(piece) for s in header_lines(kept, context) + left_out_lines(left)
             for piece in wrap(s, REMARK_CHARS)]  # fmt: skip
+    body += [remark(p) for s in _how(kept) for p in wrap(s, REMARK_CHARS)]
     if kept:
-        body += [remark(f"uses PR[{SCRATCH_PR}] as scratch"), f"PR[{SCRATCH_PR}]=LPOS    ;"]
+        body.append(f"PR[{SCRATCH_PR}]=LPOS    ;")
     for item in sorted(kept, key=lambda t: t.data.slot or 0):
         body += _frame_lines(item.data)
     stamps = [as_utc(t.provenance.calibrated_at) for t in kept if t.provenance is not None]
@@ -116,6 +121,19 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     lines += [f"{n:4d}:  {line}" for n, line in enumerate(body, start=1)]
     lines += ["/POS", "/END"]
     return ControllerFile(FORMAT, f"{name}.LS", "\n".join(lines) + "\n", tuple(left))
+
+
+def _how(kept: list[FileTool]) -> list[str]:
+    """The remarks on what the program changes when it is run."""
+    if not kept:
+        return ["changes nothing: it holds no tool"]
+    slots = sorted(t.data.slot or 0 for t in kept)
+    return [
+        f"changes only tool frame(s) {', '.join(str(n) for n in slots)}",
+        "every other tool frame is untouched",
+        f"PR[{SCRATCH_PR}] carries the numbers: its old value is lost",
+        "UTOOL_NUM and payloads stay as they are",
+    ]
 
 
 def _dates(moment: datetime) -> list[str]:

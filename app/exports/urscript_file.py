@@ -7,6 +7,11 @@ name(): ... end``, identifiers of letters, digits and underscores starting with 
 comments (``#`` to the end of the line). Load the file in a Script node (File) of the robot
 program, or send it to the secondary interface, then call ``tcpcal_<tool>()`` where the tool
 is taken up. A tool without a load gets no set_payload (the payload in use is kept).
+
+What it changes, and how the controller merges it: loading the file defines functions and
+changes nothing; calling one sets the TCP (and payload) of the running program until it
+ends (a script-set TCP lasts until a program is played again: UR's payload article). The
+installation's TCPs and every other tool are untouched. Its header comment says so.
 """
 
 from __future__ import annotations
@@ -69,12 +74,23 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     kept, left = split_fitting(tools, export_ur, context)
     names = unique([function_name(item.data.name) for item in kept], NAME_CHARS)
     lines: list[str] = []
-    for sentence in header_lines(kept, context) + left_out_lines(left):
+    for sentence in header_lines(kept, context) + left_out_lines(left) + _how(names):
         lines.extend(f"# {piece}" for piece in wrap(sentence, LINE_WIDTH - 2))
     for item, name in zip(kept, names, strict=True):
         lines += [f"def {name}():", *_body(item.data), "end"]
     file_name = "tcpcal_tools.script" if context.table or len(kept) != 1 else f"{names[0]}.script"
     return ControllerFile(FORMAT, file_name, "\n".join(lines) + "\n", tuple(left))
+
+
+def _how(names: list[str]) -> list[str]:
+    """The header's sentences on what the file changes."""
+    if not names:
+        return ["changes nothing: it holds no tool"]
+    return [
+        f"defines {', '.join(f'{n}()' for n in names)} and changes nothing until one is "
+        "called: a call sets the TCP (and payload) of the running program until it ends",
+        "the installation's TCPs and every other tool are untouched",
+    ]
 
 
 def read(text: str) -> list[ParsedTool]:

@@ -70,6 +70,7 @@ def file_tool(tool: ServedTool, version: FileVersion, *, base_url: str) -> FileT
         quaternion_wxyz=np.asarray(version.quaternion, dtype=float),
         mass_kg=float(mass) if isinstance(mass, int | float) else None,
         cog_mm=np.asarray(cog, dtype=float) if isinstance(cog, list) else None,
+        controller_symbol=tool.controller_symbol,
     )
     origin = Provenance(
         version=version.version,
@@ -102,7 +103,7 @@ def served_file_for_key(
     fmt = needs_format(fmt)
     tool, row = active_of(found, principal, tool_id)
     url = public_url(base_url)
-    tool_part = [tool.id, tool.slot, tool.name, tool.load]
+    tool_part = [tool.id, tool.slot, tool.name, tool.load, tool.controller_symbol]
     version_part = [row.version, row.position_mm, row.quaternion, row.created_by]
     etag = _etag([*tool_part, *version_part, fmt, "file", url])
     if if_none_match_hit(if_none_match, etag):

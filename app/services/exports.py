@@ -25,6 +25,8 @@ class ServedTool(Protocol):
     def slot(self) -> int | None: ...
     @property
     def load(self) -> JsonObject | None: ...
+    @property
+    def controller_symbol(self) -> str | None: ...
 
 
 class ServedVersion(Protocol):
@@ -52,6 +54,7 @@ def controller_text(fmt: str, *, tool: ServedTool, version: ServedVersion) -> Co
         quaternion_wxyz=np.asarray(version.quaternion, dtype=float),
         mass_kg=load.get("mass_kg"),
         cog_mm=np.asarray(load["cog_mm"], dtype=float) if load.get("cog_mm") else None,
+        controller_symbol=tool.controller_symbol,
     )
     export = export_tool(fmt, data)
     return ControllerText(format=export.format, text=export.text, values=export.values)

@@ -38,6 +38,7 @@ class HotRow(NamedTuple):
     tool_name: str | None
     slot: int | None
     load: JsonObject | None
+    controller_symbol: str | None
     archived_at: datetime | None
     version: int | None
     position_mm: JsonArray | None
@@ -64,6 +65,7 @@ HOT_READ = HeldRead(
         _TOOL.c.name.label("tool_name"),
         _TOOL.c.slot,
         _TOOL.c.load,
+        _TOOL.c.controller_symbol,
         _TOOL.c.archived_at,
         _VERSION.c.version,
         _VERSION.c.position_mm,
@@ -93,6 +95,7 @@ class HotTool:
     name: str
     slot: int | None
     load: JsonObject | None
+    controller_symbol: str | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -138,7 +141,14 @@ def active_of(found: HotRow, principal: Principal, tool_id: str) -> tuple[HotToo
     assert found.source is not None
     assert found.created_at is not None
     assert found.created_by is not None
-    tool = HotTool(found.tool_id, found.robot_id, found.tool_name, found.slot, found.load)
+    tool = HotTool(
+        found.tool_id,
+        found.robot_id,
+        found.tool_name,
+        found.slot,
+        found.load,
+        found.controller_symbol,
+    )
     version = HotVersion(
         found.version,
         found.position_mm,

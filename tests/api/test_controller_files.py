@@ -87,7 +87,7 @@ def test_a_robots_tool_table_is_one_file_with_every_tool(api: Api, fmt: str) -> 
     positions = [p.position_mm for p in calibrated]
     assert_allclose(positions, [[1.5, -2.0, 90.0], [1.5, -2.0, 150.0]], atol=5e-4)
     # Both tools' 2.5 kg in every format that has a load; FANUC's TP program sets the tool
-    # frame (UTOOL[n]) alone. The empty entries (KUKA's table has all 16) hold no load.
+    # frame (UTOOL[n]) alone. Empty entries, if a file had any, hold no load.
     mass = None if fmt == "fanuc" else 2.5
     assert [p.mass_kg for p in calibrated] == [mass, mass]
     empty = [p for p in parsed if np.linalg.norm(p.position_mm) == 0]
@@ -123,3 +123,32 @@ def test_a_file_needs_a_format_and_a_known_robot(api: Api) -> None:
     assert api.get("/v1/robots/nope/tool-table?format=ur", headers=TEXT).status_code == 404
     bad = api.get(f"/v1/robots/{robot}/tool-table?format=staubli", headers=TEXT)
     assert bad.status_code == 422
+
+
+def test_the_abb_module_names_the_tool_by_its_controller_symbol(api: Api) -> None:
+    """The module declares or assigns the persistent the robot's programs move by, SYMBOL of
+    "TASK/MODULE/SYMBOL", not a data named after the tool (issue 37)."""
+    robot = api.robot("abb-2", vendor="ABB")["id"]
+    load = {"mass_kg": 3.0, "cog_mm": [0, 0, 50]}
+    tool = api.tool(robot, "welding torch", load=load, controller_symbol="T_ROB1/user/tTorch")
+    api.manual(tool["id"], [0, 0, 200])
+    for path in (
+        f"/v1/tools/{tool['id']}/tcp?format=abb",
+        f"/v1/robots/{robot}/tool-table?format=abb",
+    ):
+        text = api.get(path, headers=TEXT).text
+        assert re.search(r"^    tTorch:=\[TRUE,\[\[0\.0,0\.0,200\.0\]", text, re.MULTILINE), text
+        assert "welding_torch:=" not in text
+        assert [p.name for p in parse_controller_file("abb", text)] == ["tTorch"]
+    doc = api.get(f"/v1/tools/{tool['id']}/tcp?format=abb").json()
+    assert doc["controller"]["text"].startswith("PERS tooldata tTorch:=[TRUE,")
+
+
+def test_a_kuka_tool_table_holds_only_the_robots_tools(api: Api) -> None:
+    """The 14 tools tcpcal does not manage are not in the file: loading it cannot erase them."""
+    robot, _ = _robot_with_tools(api)
+    text = api.get(f"/v1/robots/{robot}/tool-table?format=kuka", headers=TEXT).text
+    code = [line for line in text.splitlines() if not line.startswith(";")]
+    assert sorted(int(n) for n in re.findall(r"^TOOL_DATA\[(\d+)\]=", text, re.M)) == [1, 2]
+    assert len(code) == 6, code
+    assert "; changes only tool(s) 1, 2:" in text

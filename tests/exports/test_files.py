@@ -52,9 +52,10 @@ def item(
     mass: float | None = 2.5,
     cog: list[float] | None = None,
     version: int = 4,
+    symbol: str | None = None,
 ) -> FileTool:
     data = ToolData(slot, name, np.array(position), np.array(quaternion), mass,
-                    np.array(cog if cog is not None else [0.0, 0.0, 80.0]))  # fmt: skip
+                    np.array(cog if cog is not None else [0.0, 0.0, 80.0]), symbol)  # fmt: skip
     origin = Provenance(version, WHEN, "alice", "xyz_npoint", f"{SERVER}/ui/tools/t{slot}")
     return FileTool(data, origin)
 
@@ -63,7 +64,15 @@ def golden_tools() -> list[FileTool]:
     h = float(np.sqrt(0.5))
     return [
         item("torch", 3, [1.5, -2.25, 150.0], [h, 0.0, -h, 0.0], 2.5, [0.0, 0.0, 80.0]),
-        item("gripper 🤖 Düse", 1, [0.0, 12.0, 95.5], [1.0, 0.0, 0.0, 0.0], 4.25, [5, 0, 40]),
+        item(
+            "gripper 🤖 Düse",
+            1,
+            [0.0, 12.0, 95.5],
+            [1.0, 0.0, 0.0, 0.0],
+            4.25,
+            [5, 0, 40],
+            symbol="T_ROB1/user/tGripper",
+        ),
         item("x" * 60, 5, [-10.0, 0.0, 210.0], [0.5, 0.5, 0.5, 0.5], None),
     ]
 
@@ -193,7 +202,7 @@ def test_any_name_gives_valid_identifiers(name: str) -> None:
     assert all(re.fullmatch(r"tcpcal_[A-Za-z][A-Za-z0-9_]*", f) for f in functions), functions
     krl = controller_file("kuka", tools, context).text
     kuka_names = re.findall(r'^TOOL_NAME\[\d+,\]="([^"]*)"$', krl, re.MULTILINE)
-    assert len(kuka_names) == 16
+    assert len(kuka_names) == 2
     assert all(0 < len(n) <= 24 for n in kuka_names)
     cnd = controller_file("yaskawa", tools, context).text
     assert all(len(n) <= 16 and "," not in n for n in re.findall(r"^///NAME ?(.*)$", cnd, re.M))

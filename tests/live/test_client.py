@@ -135,9 +135,11 @@ def test_client_calibrates_lists_rolls_back_exports_and_checks(
     ]
     kuka_files = sorted(p.name for p in (backup / "kr16").iterdir())
     assert kuka_files == [
-        "TCPUTALL.LS", "TOOL.CND", "config_tools.dat", "tcpcal_tools.mod",
-        "tcpcal_tools.script", "tcpcal_tools.txt", "tool-table.json",
+        "TCPUTALL.LS", "TOOL.CND", "TOOL.CND.README.txt", "config_tools.dat",
+        "tcpcal_tools.mod", "tcpcal_tools.script", "tcpcal_tools.txt", "tool-table.json",
     ]  # fmt: skip
+    # TOOL.CND has no comments: what it changes is said beside it
+    assert "may clear the other tools" in (backup / "kr16" / "TOOL.CND.README.txt").read_text()
     for fmt, name in [("fanuc", "TCPUTALL.LS"), ("kuka", "config_tools.dat")]:
         (parsed,) = [
             t
@@ -150,6 +152,30 @@ def test_client_calibrates_lists_rolls_back_exports_and_checks(
     assert "left out: torch" in (backup / "kr16" / "tcpcal_tools.mod").read_text()
     bad_use = run.invoke(cli, ["export", tid, "--all", str(backup)])
     assert bad_use.exit_code == 2
+
+    # Yaskawa: the tool's block merged into the controller's own TOOL.CND (a DX100 backup's
+    # first five tools), every other block kept byte for byte
+    saved = Path(__file__).parents[1] / "data" / "controller-files" / "yaskawa_TOOL.CND"
+    merged_path = tmp_path / "merged.CND"
+    args = [
+        "export",
+        tid,
+        "--format",
+        "yaskawa",
+        "--merge-into",
+        str(saved),
+        "-o",
+        str(merged_path),
+    ]
+    merged = run.invoke(cli, args)
+    assert merged.exit_code == 0, merged.output
+    merged_text, saved_text = merged_path.read_text(), saved.read_text()
+    assert merged_text.startswith(saved_text.split("//TOOL 3\n")[0])
+    assert merged_text.endswith(saved_text[saved_text.index("//TOOL 4\n") :])
+    blocks = {t.slot: t for t in parse_controller_file("yaskawa", merged_text)}
+    assert list(blocks) == [0, 1, 2, 3, 4]
+    assert np.allclose(blocks[3].position_mm, active, atol=1e-3)
+    assert run.invoke(cli, [*args[:3], "kuka", *args[4:]]).exit_code == 2  # yaskawa only
 
     with server.client() as http:
         pin = http.post(
