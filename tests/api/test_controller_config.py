@@ -104,9 +104,20 @@ def test_bad_fields_are_422_naming_the_field_and_store_nothing(
 
 
 def test_hosts_that_are_names_or_addresses_are_taken(api: Api) -> None:
+    """Each is stored as sent and served back: the PUT's answer, a later GET and the row the
+    connectors are given (app.services.controllers.settings_of) all hold it."""
+    from app.db import session_scope
+    from app.services.controllers import get_controller, settings_of
+
     robot = api.robot()
     for host in ["192.168.1.20", "fe80::1", "kr16-cell12.plant.local", "a" * 63 + ".b"]:
-        assert _put(api, robot["id"], protocol="fanuc_rmi", host=host).status_code == 200, host
+        r = _put(api, robot["id"], protocol="fanuc_rmi", host=host)
+        assert r.status_code == 200, r.text
+        assert r.json()["host"] == host
+        assert api.get(f"/v1/robots/{robot['id']}/controller").json()["host"] == host
+        assert _stored(robot["id"]).host == host
+        with session_scope(write=False) as session:
+            assert settings_of(get_controller(session, robot["id"])).host == host
 
 
 def test_a_password_without_a_secret_key_is_422_saying_what_to_set(
@@ -176,14 +187,40 @@ def test_the_password_is_never_served_logged_or_backed_up_in_clear(
 def test_a_password_under_another_secret_key_is_refused_when_used(
     api: Api, secret_key: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from app import secretbox
+    """A controller stored with a password, then the secret key changed: a reconcile and a
+    deployment through the API are 409 /secret-unavailable saying what to do, and neither
+    opens a connection to the controller (a listening socket at its address accepts none)
+    nor records a deployment."""
+    import socket
+
     from app.config import get_settings
 
-    token = secretbox.encrypt(PASSWORD)
-    monkeypatch.setenv("TCPCAL_SECRET_KEY", "another-secret-entirely-9876543210")
-    get_settings.cache_clear()
-    with pytest.raises(secretbox.SecretUnavailable, match="cannot be decrypted"):
-        secretbox.decrypt(token)
+    robot = api.robot()
+    load = {"mass_kg": 2.5, "cog_mm": [0, 0, 80]}
+    tool = api.tool(robot["id"], "torch", controller_symbol="T_ROB1/user/tTorch", load=load)
+    api.manual(tool["id"], [0.0, 0.0, 150.0])
+    with socket.socket() as controller:
+        controller.bind(("127.0.0.1", 0))
+        controller.listen(4)
+        controller.setblocking(False)
+        port = controller.getsockname()[1]
+        body = {"protocol": "abb_rws2", "host": "127.0.0.1", "port": port, "timeout_s": 0.5}
+        r = _put(api, robot["id"], **body, username="Admin", password=PASSWORD)
+        assert r.status_code == 200, r.text
+        monkeypatch.setenv("TCPCAL_SECRET_KEY", "another-secret-entirely-9876543210")
+        get_settings.cache_clear()
+        reconcile = api.post(f"/v1/robots/{robot['id']}/reconcile", scope="read")
+        deploy = api.post(f"/v1/tools/{tool['id']}/deployments", {}, scope="calibrate")
+        for refused in (reconcile, deploy):
+            assert refused.status_code == 409, refused.text
+            problem = refused.json()
+            assert problem["type"].endswith("/secret-unavailable")
+            assert "cannot be decrypted" in problem["detail"]
+            assert "set the previous one, or send the password again" in problem["detail"]
+            assert PASSWORD not in refused.text
+        with pytest.raises(BlockingIOError):
+            controller.accept()  # nobody knocked
+    assert api.get(f"/v1/tools/{tool['id']}/deployments").json()["items"] == []
 
 
 def test_abb_symbol_without_a_module_is_422_and_stores_nothing(api: Api) -> None:
