@@ -28,7 +28,6 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
-import ssl
 import threading
 import time
 from dataclasses import dataclass
@@ -48,6 +47,11 @@ log = logging.getLogger(__name__)
 
 #: Seconds a batch may wait for its PUBACKs while connected before it is tried again.
 ACK_TIMEOUT_S = 10.0
+#: Seconds a closing sink waits for paho's network thread to end (SIGTERM: exit within 1 s).
+STOP_WAIT_S = 0.2
+#: Seconds a closing sink waits for the broker to acknowledge its `offline` (a broker that
+#: answers does in milliseconds; a hung one must not hold up the exit).
+OFFLINE_WAIT_S = 0.3
 KEEPALIVE_S = 30
 
 
@@ -183,6 +187,9 @@ class MqttSink:
             log.error("broker %s refused the connection: %s", self.broker.where, reason)
             return
         self._refused = None
+        if self._closing:  # a reconnection that completed as the sink closed: not online
+            client.disconnect()
+            return
         client.publish(self.status_topic, b"online", qos=1, retain=True)
         self._connection += 1
         self._connected.set()
@@ -202,19 +209,23 @@ class MqttSink:
 
     # ---- the Sink protocol ---------------------------------------------------------------
     def open(self, stopping: threading.Event) -> None:
-        """Connect, or SinkError: unreachable broker, refused credentials, TLS failure."""
+        """Connect, or SinkError: unreachable broker, refused credentials, TLS failure.
+        Returns unconnected when `stopping` is set meanwhile (the runner then stops)."""
         self._stopping = stopping
-        try:
-            self._client.connect(self.broker.host, self.broker.port, keepalive=KEEPALIVE_S)
-        except (OSError, ssl.SSLError) as exc:  # refused, unknown host, timeout, TLS
+        failure = self._first_connect(stopping)
+        if stopping.is_set():
+            return
+        if failure is not None:  # refused, unknown host, timeout, TLS
             raise SinkError(
-                f"cannot reach the MQTT broker at {self.broker.where}: {exc}; check "
+                f"cannot reach the MQTT broker at {self.broker.where}: {failure}; check "
                 "TCPCAL_MQTT_URL and that the broker runs"
-            ) from None
+            )
         self._client.loop_start()
         deadline = time.monotonic() + self._connect_timeout_s
         while not self._connected.is_set() and self._refused is None:
-            if time.monotonic() > deadline or stopping.is_set():
+            if stopping.is_set():
+                return
+            if time.monotonic() > deadline:
                 self._give_up()
                 raise SinkError(
                     f"the MQTT broker at {self.broker.where} did not answer the connection "
@@ -228,10 +239,36 @@ class MqttSink:
                 f"{self._refused}; check the user name and password in TCPCAL_MQTT_URL"
             )
 
+    def _first_connect(self, stopping: threading.Event) -> OSError | None:
+        """paho's connect (TCP, and TLS's handshake) in a thread of its own, so that SIGTERM
+        is not kept waiting by a host that does not answer (up to the connect timeout): the
+        error, or None once connected or when `stopping` was set meanwhile (the thread is
+        left to end by itself)."""
+        failure: list[OSError] = []
+
+        def connect() -> None:
+            try:
+                self._client.connect(self.broker.host, self.broker.port, keepalive=KEEPALIVE_S)
+            except OSError as exc:  # ssl.SSLError is an OSError
+                failure.append(exc)
+
+        thread = threading.Thread(target=connect, name="mqtt-connect", daemon=True)
+        thread.start()
+        while thread.is_alive() and not stopping.is_set():
+            thread.join(0.05)
+        return failure[0] if failure and not stopping.is_set() else None
+
     def _give_up(self) -> None:
+        """Disconnect and stop paho's network thread, waiting for it at most
+        STOP_WAIT_S: while it waits to reconnect (a sleep of up to 1 s at a time) or for a
+        TCP handshake (up to the connect timeout) it cannot be interrupted, and a stopping
+        publisher does not wait for it (a daemon thread: it ends with the process; having
+        been told to disconnect, it connects no more)."""
         self._closing = True
         self._client.disconnect()
-        self._client.loop_stop()
+        stopper = threading.Thread(target=self._client.loop_stop, name="mqtt-stop", daemon=True)
+        stopper.start()
+        stopper.join(STOP_WAIT_S)
 
     def connection_id(self) -> int:
         """Changes at every (re)connection."""
@@ -277,5 +314,5 @@ class MqttSink:
         if self._connected.is_set():
             info = self._client.publish(self.status_topic, b"offline", qos=1, retain=True)
             with contextlib.suppress(RuntimeError, ValueError):
-                info.wait_for_publish(0.5)
+                info.wait_for_publish(OFFLINE_WAIT_S)
         self._give_up()

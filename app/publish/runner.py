@@ -77,6 +77,8 @@ class Runner:
                 for sink in self.sinks:
                     sink.open(self.stopping)
                     opened.append(sink)
+                if self.stopping.is_set():  # told to stop while a sink was connecting
+                    return
                 log.info("publishing to %s", ", ".join(s.name for s in self.sinks))
                 self._loop(lock)
             finally:
