@@ -17,6 +17,7 @@ import sys
 import threading
 import time
 import uuid
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,12 +32,38 @@ MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
 MOSQUITTO_PASSWD = shutil.which("mosquitto_passwd") or "/usr/bin/mosquitto_passwd"
 REPO = Path(__file__).resolve().parents[2]
 
-#: Skip the tests that need a broker when Mosquitto is not installed, except where it is
-#: required (`.ci/run` installs it and sets TCPCAL_REQUIRE_MOSQUITTO): there they fail.
+INSTALL = "apt-get install mosquitto mosquitto-clients"
+
+
+def mosquitto_required(environ: Mapping[str, str]) -> bool:
+    """Whether a missing Mosquitto fails the tests that need one instead of skipping them:
+    under CI (`CI` set, as .ci/run and CI services do) or with TCPCAL_REQUIRE_MOSQUITTO, as
+    a missing browser or node-opcua fails theirs (tests/browser/conftest.py): a CI run must
+    never pass with its broker tests silently skipped."""
+    return bool(environ.get("CI") or environ.get("TCPCAL_REQUIRE_MOSQUITTO"))
+
+
+def skip_without_mosquitto(installed: bool, environ: Mapping[str, str]) -> bool:
+    """Whether the tests that need a broker are skipped (only where it is not required)."""
+    return not installed and not mosquitto_required(environ)
+
+
+#: Skips the tests that need a broker when Mosquitto is not installed, except where it is
+#: required: there they run, and `Broker` fails them saying what to install.
 needs_mosquitto = pytest.mark.skipif(
-    not Path(MOSQUITTO).exists() and not os.environ.get("TCPCAL_REQUIRE_MOSQUITTO"),
-    reason="mosquitto is not installed (apt-get install mosquitto mosquitto-clients)",
+    skip_without_mosquitto(Path(MOSQUITTO).exists(), os.environ),
+    reason=f"mosquitto is not installed ({INSTALL})",
 )
+
+
+def require_mosquitto() -> None:
+    """Fail the test, saying what to install, when there is no Mosquitto (reached only where
+    it is required: needs_mosquitto skips the test elsewhere)."""
+    if not Path(MOSQUITTO).exists():
+        pytest.fail(
+            "mosquitto is required here (CI or TCPCAL_REQUIRE_MOSQUITTO is set) and there is "
+            f"none at {MOSQUITTO}: {INSTALL}"
+        )
 
 
 def free_port() -> int:
@@ -57,6 +84,7 @@ class Broker:
         persist: bool = False,
         tls: bool = False,
     ):
+        require_mosquitto()
         self.port = free_port()
         self.dir = tmp / f"mosquitto-{self.port}"
         self.dir.mkdir()

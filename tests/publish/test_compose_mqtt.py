@@ -16,6 +16,7 @@ from tests.publish.mqtt_harness import (
     MOSQUITTO_PASSWD,
     free_port,
     needs_mosquitto,
+    require_mosquitto,
 )
 
 REPO = Path(__file__).resolve().parents[2]
@@ -42,6 +43,7 @@ def test_compose_runs_a_broker_and_one_publisher_wired_to_it() -> None:
 @pytest.mark.live
 @needs_mosquitto
 def test_the_broker_configuration_loads_and_refuses_anonymous_clients(tmp_path: Path) -> None:
+    require_mosquitto()
     port = free_port()
     conf = CONF.read_text().replace("/mosquitto/data/", f"{tmp_path}/")
     conf = conf.replace("listener 1883", f"listener {port} 127.0.0.1") + "user root\n"

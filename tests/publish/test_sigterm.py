@@ -20,7 +20,13 @@ import pytest
 
 from tests.conftest import Api, one_backend
 from tests.polling import wait_for
-from tests.publish.mqtt_harness import Broker, Publisher, Subscriber, needs_mosquitto
+from tests.publish.mqtt_harness import (
+    Broker,
+    Publisher,
+    Subscriber,
+    free_port,
+    needs_mosquitto,
+)
 
 pytestmark = [needs_mosquitto, pytest.mark.live]
 
@@ -188,7 +194,7 @@ def test_sigterm_while_the_first_connection_waits(
     """At start-up, a broker that accepts and does not answer, or a host that does not
     answer at all: the publisher would wait TCPCAL_MQTT_CONNECT_TIMEOUT_S (30 s here) for
     it, unless told to stop; stopped so, it exits 0 (nothing was wrong with its settings)."""
-    port = Broker(tmp_path).port
+    port = free_port()
     other = SilentBroker(port) if peer == "silent" else DeadHost(port)
     try:
         publisher = _publisher(
