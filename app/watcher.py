@@ -158,6 +158,11 @@ class ReadPool:
             for _ in self._threads:
                 self._queue.put(None)
 
+    def join(self, until: float) -> None:
+        """Wait for the threads to end, until the monotonic time `until` at the latest."""
+        for thread in list(self._threads):
+            thread.join(max(0.0, until - time.monotonic()))
+
     def _run(self) -> None:
         while True:
             robot_id = self._queue.get()
@@ -226,12 +231,16 @@ class Watcher:
         self.status.running = True
 
     def stop(self, timeout_s: float = 0.9) -> None:
-        """Ask the loop to end and wait up to `timeout_s` for it (a read stalled on a
-        controller ends on its own at that controller's timeout; the threads are daemons)."""
+        """Ask the loop and its reads to end and wait up to `timeout_s` for them: a read that
+        has ended stores nothing after this, and one storing what it found finishes first (the
+        database may be closed next). A read stalled on a controller ends on its own at that
+        controller's timeout, storing nothing; the threads are daemons."""
+        until = time.monotonic() + timeout_s
         self._stop.set()
         self._pool.stop()
         if self._thread is not None:
             self._thread.join(timeout_s)
+        self._pool.join(until)
         self.status.running = False
 
     def _loop(self) -> None:
