@@ -52,7 +52,8 @@ DB_SECONDS = Histogram(
 )
 DEPLOYMENTS = Counter(
     "tcpcal_deployments",
-    "Deployments to robot controllers by protocol and status (verified, failed, mismatch).",
+    "Deployments to robot controllers by protocol and status "
+    "(verified, not_written, unverified, mismatch).",
     ["protocol", "status"],
 )
 CONTROLLER_STATE_CHANGES = Counter(

@@ -404,6 +404,11 @@ class Deployment(Base):
     deviation_mm: Mapped[float | None] = mapped_column(Float)
     deviation_deg: Mapped[float | None] = mapped_column(Float)
     error: Mapped[JsonObject | None] = mapped_column(JSON)
+    #: the person's own words for deploying (the request's `reason`), when given
+    reason: Mapped[str | None] = mapped_column(String(500))
+    #: an `unverified` one: what the next reconcile round found the controller holding
+    #: {"at", "holds": written | previous | other, "frame"}; null until then
+    settled: Mapped[JsonObject | None] = mapped_column(JSON)
     actor: Mapped[str] = mapped_column(String(200))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
 

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
+from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import pytest
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
-from sqlalchemy import inspect
+from sqlalchemy import inspect, text
 
 from app.db import make_engine
 from app.migrate import downgrade, head_revision, upgrade
@@ -67,3 +70,74 @@ def test_ready_is_false_until_migrated(empty_url: str, monkeypatch: pytest.Monke
     finally:
         dispose_engines()
         get_settings.cache_clear()
+
+
+#: The revision before deployments told a failure before the write from one after it.
+BEFORE_DEPLOYMENT_TRUTH = "2026_11_24_audit_scoped_keys"
+
+
+def test_old_failed_deployments_are_mapped_honestly(empty_url: str) -> None:
+    """'failed' meant either: a refusal becomes not_written, anything else unverified (the
+    old code could not tell), and its "nothing was written" no longer claims so."""
+    upgrade(empty_url, BEFORE_DEPLOYMENT_TRUTH)
+    engine = make_engine(empty_url)
+    now = datetime.now(UTC)
+    refused = {"type": "controller-refused", "detail": "the controller refused: no", "x": 1}
+    lost = {
+        "type": "controller-unreachable",
+        "detail": "the controller at 127.0.0.1:7000 could not be reached within 5 s: reset; "
+        "nothing was written",
+    }
+    try:
+        with engine.begin() as conn:
+            conn.execute(
+                text(
+                    "INSERT INTO robots (id, name, created_at, updated_at) "
+                    "VALUES ('r', 'r', :t, :t)"
+                ),
+                {"t": now},
+            )
+            conn.execute(
+                text(
+                    "INSERT INTO tools (id, robot_id, name, tolerance, last_version, revision, "
+                    "created_at, updated_at) VALUES ('t', 'r', 't', '{}', 1, 1, :t, :t)"
+                ),
+                {"t": now},
+            )
+            for status, error in (("failed", refused), ("failed", lost), ("verified", None)):
+                conn.execute(
+                    text(
+                        "INSERT INTO deployments (tool_id, robot_id, version, protocol, target, "
+                        "status, error, actor, created_at) VALUES ('t', 'r', 1, 'kuka_kvp', "
+                        "'$TOOL_DATA[3]', :s, :e, 'a', :t)"
+                    ),
+                    {"s": status, "e": None if error is None else json.dumps(error), "t": now},
+                )
+    finally:
+        engine.dispose()
+    upgrade(empty_url)
+    engine = make_engine(empty_url)
+    try:
+        with engine.connect() as conn:
+            rows = conn.execute(
+                text("SELECT status, error, reason, settled FROM deployments ORDER BY id")
+            ).all()
+    finally:
+        engine.dispose()
+    errors: list[Any] = [e if not isinstance(e, str) else json.loads(e) for _, e, _, _ in rows]
+    assert [r[0] for r in rows] == ["not_written", "unverified", "verified"]
+    assert errors[0] == refused
+    assert errors[1]["type"] == "controller-unreachable"
+    assert "nothing was written" not in errors[1]["detail"]
+    assert errors[1]["detail"].startswith("the controller at 127.0.0.1:7000 could not be reached")
+    assert "may have held this version or what it held before" in errors[1]["detail"]
+    assert errors[2] is None
+    assert [(r[2], r[3]) for r in rows] == [(None, None)] * 3
+    downgrade(empty_url, BEFORE_DEPLOYMENT_TRUTH)
+    engine = make_engine(empty_url)
+    try:
+        with engine.connect() as conn:
+            statuses = conn.execute(text("SELECT status FROM deployments ORDER BY id")).scalars()
+            assert list(statuses) == ["failed", "failed", "verified"]
+    finally:
+        engine.dispose()

@@ -19,8 +19,9 @@ router = APIRouter(tags=["deployments"])
 _FAILURES: dict[int | str, dict[str, object]] = {
     502: {
         "description": "the controller is unreachable, refused (its own words in "
-        "`controller_message`) or read back something else; `deployment_id` names the "
-        "recorded attempt",
+        "`controller_message`) or read back something else; `deployment_status` says "
+        "whether anything was written (not_written, unverified, mismatch) and the detail says "
+        "it in words; `deployment_id` names the recorded attempt",
     }
 }
 
@@ -43,13 +44,20 @@ async def deploy_tool(
     back and compare (within 0.001 mm and 0.001 deg: `verified`, with what the controller
     held before as `previous`). Every attempt is recorded; a failed one answers 502
     `/controller-unreachable`, `/controller-refused` or `/controller-mismatch` with its
-    `deployment_id`. 409 `/no-active-version`; 422 naming the tool's `slot` or
-    `controller_symbol` when the controller cannot address it. The body is `{}` (or none).
-    Calibrate scope; retry-safe with `Idempotency-Key`."""
+    `deployment_id` and `deployment_status`: `not_written` (it failed before the write was sent),
+    `unverified` (after: the controller may hold either frame, and the next reconcile round
+    records which) or `mismatch`. 409 `/no-active-version`; 422 naming the tool's `slot` or
+    `controller_symbol` when the controller cannot address it. The body is `{}` (or none) or
+    `{"reason": "..."}`. Calibrate scope; retry-safe with `Idempotency-Key`."""
     raw_body = {} if body is None else await raw_json_body(request)  # no body: as {}
+    reason = None if body is None else body.reason
     document, replayed = await run_in_threadpool(
         lambda: deployments.deploy(
-            tool_id=tool_id, actor=key, idempotency_key=idempotency_key, raw_body=raw_body
+            tool_id=tool_id,
+            actor=key,
+            idempotency_key=idempotency_key,
+            raw_body=raw_body,
+            reason=reason,
         )
     )
     if replayed:
@@ -65,8 +73,9 @@ def list_deployments(
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> Page[Deployment]:
-    """A tool's deployments, newest first: verified, failed or mismatch, each with what the
-    controller held before and read back."""
+    """A tool's deployments, newest first: verified, not_written, unverified (with what the
+    next reconcile round found, `settled`) or mismatch, each with what the controller held
+    before and read back, and the reason given."""
     items, next_cursor = deployments.list_deployments(
         session, tool_id=tool_id, limit=limit, cursor=cursor
     )

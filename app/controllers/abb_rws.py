@@ -50,6 +50,7 @@ from app.controllers.base import (
     describe_target,
     finite_tool_data,
     split_abb_symbol,
+    write_sent,
 )
 from app.controllers.rapid import RapidSyntaxError, RapidTool, format_tooldata, parse_tooldata
 from app.jsontypes import JsonObject
@@ -122,14 +123,16 @@ class AbbRwsConnector(ClosingSession):
             tool = replace(tool, mass_kg=data.load.mass_kg, cog_mm=data.load.cog_mm)
         value = format_tooldata(tool)
         if not self._v2:
-            self._send(
-                "POST",
-                self._data_path(target),
-                deadline,
-                params={"action": "set", "json": "1"},
-                data={"value": value},
-                what=f"set {target.symbol}",
-            )
+            # From the set's POST on the controller may hold the new tooldata.
+            with write_sent():
+                self._send(
+                    "POST",
+                    self._data_path(target),
+                    deadline,
+                    params={"action": "set", "json": "1"},
+                    data={"value": value},
+                    what=f"set {target.symbol}",
+                )
             return
         self._send(
             "POST",
@@ -138,17 +141,20 @@ class AbbRwsConnector(ClosingSession):
             form=True,
             what="request edit mastership",
         )
-        try:
-            self._send(
-                "POST",
-                self._data_path(target),
-                deadline,
-                data={"value": value},
-                form=True,
-                what=f"set {target.symbol}",
-            )
-        finally:
-            self._release_mastership(deadline)
+        # From the set's POST on the controller may hold the new tooldata, and the release
+        # after it changes nothing of that.
+        with write_sent():
+            try:
+                self._send(
+                    "POST",
+                    self._data_path(target),
+                    deadline,
+                    data={"value": value},
+                    form=True,
+                    what=f"set {target.symbol}",
+                )
+            finally:
+                self._release_mastership(deadline)
 
     def close(self) -> None:
         """Log out (ends the controller's session) and close the connection; never raises."""

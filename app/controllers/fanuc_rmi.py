@@ -43,6 +43,7 @@ from app.controllers.base import (
     check_target,
     describe_target,
     finite_tool_data,
+    write_sent,
 )
 from app.controllers.sockets import close_quietly, open_connection, recv_until, send_all
 from app.jsontypes import JsonObject
@@ -183,15 +184,17 @@ class FanucRmiConnector(ClosingSession):
         w, p, r = (float(v) for v in fanuc_wpr_from_quaternion_wxyz(np.asarray(data.quaternion)))
         x, y, z = (float(v) for v in data.position_mm)
         frame = dict(zip(FRAME_KEYS, (x, y, z, w, p, r), strict=True))
-        self._request(
-            {
-                "Command": "FRC_WriteUToolData",
-                "ToolNumber": target.slot,
-                "Frame": frame,
-                "Group": 1,
-            },
-            Deadline(self._settings.timeout_s),
-        )
+        packet: JsonObject = {
+            "Command": "FRC_WriteUToolData",
+            "ToolNumber": target.slot,
+            "Frame": frame,
+            "Group": 1,
+        }
+        deadline = Deadline(self._settings.timeout_s)
+        # Once the packet is handed to the socket the controller may have set the frame,
+        # whether or not its answer arrives.
+        with write_sent():
+            self._request(packet, deadline)
 
     def close(self) -> None:
         """FRC_Abort and FRC_Disconnect (errors ignored), then close; never raises."""

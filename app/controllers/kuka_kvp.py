@@ -41,6 +41,7 @@ from app.controllers.base import (
     check_target,
     describe_target,
     finite_tool_data,
+    write_sent,
 )
 from app.controllers.krl import KrlStruct, KrlSyntaxError, format_struct, numbers, parse_struct
 from app.controllers.sockets import close_quietly, open_connection, recv_exactly, send_all
@@ -110,9 +111,12 @@ class KukaKvpConnector(ClosingSession):
             if data.load is not None
             else None
         )
-        self.write_variable(f"$TOOL_DATA[{target.slot}]", frame, deadline)
-        if load_text is not None:
-            self.write_variable(load_name, load_text, deadline)
+        # From here on the KRC may hold the new frame whatever fails: the frame's write
+        # may have been applied, and the load's write comes after it.
+        with write_sent():
+            self.write_variable(f"$TOOL_DATA[{target.slot}]", frame, deadline)
+            if load_text is not None:
+                self.write_variable(load_name, load_text, deadline)
 
     def close(self) -> None:
         """Close the TCP connection (KUKAVARPROXY keeps no session state)."""

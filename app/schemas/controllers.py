@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, BeforeValidator, Field, SecretStr
 
 from app.controllers.base import ABB_SYMBOL_PATTERN, DEFAULT_PORTS, ProtocolName
-from app.schemas.common import ShortText, StrictModel, Timestamp, json_integer
+from app.schemas.common import Reason, ShortText, StrictModel, Timestamp, json_integer
 from app.statuses import DeploymentStatus, RobotState, ToolState
 
 Host = Annotated[
@@ -94,6 +94,17 @@ class DeploymentError(BaseModel):
     )
 
 
+class DeploymentSettled(BaseModel):
+    """What the reconcile round after an `unverified` deployment found the controller holding."""
+
+    at: Timestamp = Field(description="when the round read the controller")
+    holds: Literal["written", "previous", "other"] = Field(
+        description="written: the deployed version; previous: the frame it held before the "
+        "deployment; other: neither"
+    )
+    frame: Frame = Field(description="what the controller held")
+
+
 class Deployment(BaseModel):
     id: str
     tool_id: str
@@ -101,18 +112,34 @@ class Deployment(BaseModel):
     version: int = Field(description="the version written (the active one at the time)")
     protocol: str = Field(description="the controller's protocol")
     target: str = Field(description='where it was written: "$TOOL_DATA[3]", "UTOOL[3]", a symbol')
-    status: DeploymentStatus = Field(description="verified | not_written | unverified | mismatch")
+    status: DeploymentStatus = Field(
+        description="verified (read back as written) | not_written (failed before the write "
+        "was sent: the controller holds what it held) | unverified (failed after the write was "
+        "sent: it may hold either frame; `settled` tells) | mismatch (read back otherwise)"
+    )
     previous: Frame | None = Field(description="what the controller held before; null if unread")
     read_back: Frame | None = Field(description="what the controller held after the write")
     deviation_mm: float | None = Field(description="read back vs written: distance, mm")
     deviation_deg: float | None = Field(description="read back vs written: angle, deg")
     error: DeploymentError | None = Field(description="why it failed; null when verified")
+    reason: str | None = Field(default=None, description="why it was deployed, if given")
+    settled: DeploymentSettled | None = Field(
+        default=None,
+        description="unverified: what the next reconcile round found the controller holding; "
+        "null until then (and for every other status)",
+    )
     actor: str = Field(description="name of the API key that deployed")
     created_at: Timestamp
 
 
 class DeploymentIn(StrictModel):
-    """Deploys the tool's active version (and its load); nothing to choose."""
+    """Deploys the tool's active version (and its load); optionally says why."""
+
+    reason: Reason | None = Field(
+        default=None,
+        description="why it is deployed (1-500 characters); kept with the deployment and in "
+        "the audit trail",
+    )
 
 
 class ActiveFrame(Frame):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, BeforeValidator, Field, StrictBool, StringConstraints
+from pydantic import BaseModel, BeforeValidator, Field, StrictBool
 
 from app.jsontypes import JsonObject
 from app.schemas.common import (
@@ -13,6 +13,7 @@ from app.schemas.common import (
     NonNegativeFloat,
     PositiveFloat,
     Quaternion,
+    Reason,
     ShortText,
     StrictModel,
     Timestamp,
@@ -106,19 +107,6 @@ class Version(BaseModel):
     created_at: Timestamp
     created_by: str
     active: bool
-
-
-#: A person's reason for an activation or a rollback: 1-500 characters once trimmed, no
-#: control characters but tab and line breaks.
-Reason = Annotated[
-    str,
-    StringConstraints(
-        strip_whitespace=True,
-        min_length=1,
-        max_length=500,
-        pattern=r"^[^\x00-\x08\x0b\x0c\x0e-\x1f\x7f]*$",
-    ),
-]
 
 
 class ActivationRequest(StrictModel):

@@ -10,6 +10,7 @@ connectors are blocking I/O with a deadline.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -20,6 +21,7 @@ from app.auth import Principal, act_for
 from app.controllers import connect
 from app.controllers.base import (
     TARGET_FIELD,
+    Connector,
     ControllerError,
     ControllerRefused,
     ControllerSettings,
@@ -43,7 +45,7 @@ from app.helpers.frames import DEPLOY_TOLERANCE_DEG, DEPLOY_TOLERANCE_MM, frame_
 from app.helpers.pagination import paginate_newest_first
 from app.jsontypes import JsonObject
 from app.metrics import DEPLOYMENTS
-from app.models import Deployment, TcpVersion, utcnow
+from app.models import Deployment, TcpVersion, ToolControllerState, utcnow
 from app.schemas.controllers import Deployment as DeploymentOut
 from app.services import audit, controller_states, idempotency
 from app.services.controllers import get_controller, settings_of
@@ -62,6 +64,8 @@ class Plan:
     target_name: str
     data: ToolData
     settings: ControllerSettings
+    #: the version the controller held in sync at the last look, if another one
+    held_version: int | None = None
 
 
 @dataclass(frozen=True)
@@ -114,6 +118,10 @@ def plan_deployment(session: Session, tool_id: str) -> Plan:
         quaternion=_vec4(version.quaternion),
         load=load,
     )
+    state = session.get(ToolControllerState, tool.id)
+    held_version = None
+    if state is not None and state.state == "in_sync" and state.active_version != version.version:
+        held_version = state.active_version
     return Plan(
         tool_id=tool.id,
         robot_id=tool.robot_id,
@@ -122,6 +130,7 @@ def plan_deployment(session: Session, tool_id: str) -> Plan:
         target_name=describe_target(controller.protocol, target),
         data=data,
         settings=settings_of(controller),
+        held_version=held_version,
     )
 
 
@@ -135,43 +144,131 @@ def _vec4(values: object) -> tuple[float, float, float, float]:
     return w, x, y, z
 
 
+@dataclass
+class _Attempt:
+    """How far an attempt got: what was read before, whether the write may have reached
+    the controller, what was read after."""
+
+    previous: ToolData | None = None
+    sent: bool = False
+    read_back: ToolData | None = None
+
+
 def write_and_read_back(plan: Plan) -> Outcome:
-    """Write the plan into the controller and read it back (no database here)."""
-    timeout = plan.settings.timeout_s
+    """Write the plan into the controller and read it back (no database here). A failure
+    is `not_written` when it came before the write was sent, `unverified` after."""
+    attempt = _Attempt()
     try:
         with connect(plan.settings) as conn:
-            previous = conn.read_tool(plan.target)
-            conn.write_tool(plan.target, plan.data)
-            read_back = conn.read_tool(plan.target)
-    except ControllerUnreachable as exc:
-        error: DomainError = ControllerUnreachableError(
-            f"the controller at {plan.settings.host}:{plan.settings.port} could not be reached "
-            f"within {timeout:g} s: {exc}; nothing was written"
-        )
-        return Outcome("not_written", error=error)
-    except ControllerRefused as exc:
-        error = ControllerRefusedError(
-            f"the controller refused: {exc.controller_message}",
-            members={"controller_message": exc.controller_message},
-        )
-        return Outcome("not_written", error=error, controller_message=exc.controller_message)
+            attempt.previous = conn.read_tool(plan.target)
+            _write(conn, plan, attempt)
+            attempt.read_back = conn.read_tool(plan.target)
     except ControllerError as exc:
-        error = ControllerUnreachableError(
-            f"the controller at {plan.settings.host}:{plan.settings.port} answered something "
-            f"that is not its protocol: {exc}"
-        )
-        return Outcome("not_written", error=error)
+        return _failure(plan, attempt, exc)
+    read_back = attempt.read_back
     data = plan.data
     deviation = frame_deviation(
         data.position_mm, data.quaternion, read_back.position_mm, read_back.quaternion
     )
     if within(deviation, mm=DEPLOY_TOLERANCE_MM, deg=DEPLOY_TOLERANCE_DEG):
-        return Outcome("verified", previous, read_back, deviation)
+        return Outcome("verified", attempt.previous, read_back, deviation)
     error = ControllerMismatch(
         f"{plan.target_name} reads back {deviation[0]:.4f} mm and {deviation[1]:.4f} deg "
-        f"from what was written (allowed {DEPLOY_TOLERANCE_MM} mm, {DEPLOY_TOLERANCE_DEG} deg)"
+        f"from what was written (allowed {DEPLOY_TOLERANCE_MM} mm, {DEPLOY_TOLERANCE_DEG} deg)",
+        members={"deployment_status": "mismatch"},
     )
-    return Outcome("mismatch", previous, read_back, deviation, error=error)
+    return Outcome("mismatch", attempt.previous, read_back, deviation, error=error)
+
+
+def _write(conn: Connector, plan: Plan, attempt: _Attempt) -> None:
+    """Write, noting whether the write may have reached the controller. A refusal after
+    the write was sent (the controller still answers) is followed by one read: the
+    controller may show it kept what it held."""
+    try:
+        conn.write_tool(plan.target, plan.data)
+    except ControllerRefused as exc:
+        attempt.sent = exc.write_sent
+        if exc.write_sent:
+            with contextlib.suppress(ControllerError):
+                attempt.read_back = conn.read_tool(plan.target)
+        raise
+    except ControllerError as exc:
+        attempt.sent = exc.write_sent
+        raise
+    attempt.sent = True
+
+
+def _same_frame(a: ToolData, b: ToolData) -> bool:
+    deviation = frame_deviation(a.position_mm, a.quaternion, b.position_mm, b.quaternion)
+    return within(deviation, mm=DEPLOY_TOLERANCE_MM, deg=DEPLOY_TOLERANCE_DEG)
+
+
+def _failure_status(plan: Plan, attempt: _Attempt) -> DeploymentStatus:
+    """not_written when the write never left, or the controller refused it and still shows
+    what it held; unverified otherwise (it may hold either frame)."""
+    if not attempt.sent:
+        return "not_written"
+    held, before = attempt.read_back, attempt.previous
+    if (
+        held is not None
+        and before is not None
+        and _same_frame(held, before)
+        and not _same_frame(held, plan.data)
+    ):
+        return "not_written"
+    return "unverified"
+
+
+def status_words(status: DeploymentStatus, version: int, held_version: int | None) -> str:
+    """What a failed deployment's status means for the person at the cell, in words."""
+    if status == "not_written":
+        return "nothing was written: the controller still holds what it held"
+    if status == "unverified":
+        before = "what it held before" if held_version is None else f"v{held_version}"
+        return (
+            f"written, not confirmed: the controller may hold v{version} or {before}; "
+            "the next reconcile round will tell"
+        )
+    if status == "mismatch":
+        return f"written, and the controller holds something other than v{version}"
+    return f"verified: the controller holds v{version}"
+
+
+def _failure(plan: Plan, attempt: _Attempt, exc: ControllerError) -> Outcome:
+    status = _failure_status(plan, attempt)
+    where = f"{plan.settings.host}:{plan.settings.port}"
+    words = status_words(status, plan.version, plan.held_version)
+    members: dict[str, object] = {"deployment_status": status}
+    message = None
+    error: DomainError
+    if isinstance(exc, ControllerRefused):
+        message = exc.controller_message
+        members["controller_message"] = message
+        error = ControllerRefusedError(
+            f"the controller refused: {message}; {words}", members=members
+        )
+    elif isinstance(exc, ControllerUnreachable):
+        happened = (
+            "stopped answering after the write was sent"
+            if attempt.sent
+            else f"could not be reached within {plan.settings.timeout_s:g} s"
+        )
+        error = ControllerUnreachableError(
+            f"the controller at {where} {happened}: {exc}; {words}", members=members
+        )
+    else:
+        error = ControllerUnreachableError(
+            f"the controller at {where} answered something that is not its protocol: {exc}; "
+            f"{words}",
+            members=members,
+        )
+    return Outcome(
+        status,
+        attempt.previous,
+        attempt.read_back,
+        error=error,
+        controller_message=message,
+    )
 
 
 def deploy(
@@ -180,6 +277,7 @@ def deploy(
     actor: Principal,
     idempotency_key: str | None,
     raw_body: JsonObject,
+    reason: str | None = None,
 ) -> tuple[JsonObject, bool]:
     """Deploy the tool's active version: (the Deployment, whether it is a replay). A failed
     or mismatched attempt is recorded and then raised as its 502 with `deployment_id`."""
@@ -196,7 +294,7 @@ def deploy(
     outcome = write_and_read_back(plan)
     with session_scope(write=True) as session:
         act_for(session, actor)  # only the robots the key's cells hold
-        row = _record(session, plan, outcome, actor)
+        row = _record(session, plan, outcome, actor, reason)
         document = deployment_document(row).model_dump(mode="json")
         if idempotency_key is not None and outcome.status == "verified":
             idempotency.remember(
@@ -213,7 +311,9 @@ def deploy(
     return document, False
 
 
-def _record(session: Session, plan: Plan, outcome: Outcome, actor: Principal) -> Deployment:
+def _record(
+    session: Session, plan: Plan, outcome: Outcome, actor: Principal, reason: str | None
+) -> Deployment:
     """The attempt, its audit event and, when verified, the tool's state in sync."""
     error = None
     if outcome.error is not None:
@@ -235,6 +335,7 @@ def _record(session: Session, plan: Plan, outcome: Outcome, actor: Principal) ->
         deviation_mm=dev_mm,
         deviation_deg=dev_deg,
         error=error,
+        reason=reason,
         actor=actor.name,
         created_at=utcnow(),
     )
@@ -251,7 +352,9 @@ def _record(session: Session, plan: Plan, outcome: Outcome, actor: Principal) ->
             "version": plan.version,
             "protocol": plan.settings.protocol,
             "target": plan.target_name,
+            "previous": row.previous,
             "error": error,
+            "reason": reason,
         },
     )
     if outcome.status == "verified":
@@ -290,6 +393,8 @@ def deployment_document(row: Deployment) -> DeploymentOut:
             "deviation_mm": row.deviation_mm,
             "deviation_deg": row.deviation_deg,
             "error": row.error,
+            "reason": row.reason,
+            "settled": row.settled,
             "actor": row.actor,
             "created_at": row.created_at,
         }

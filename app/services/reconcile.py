@@ -30,7 +30,7 @@ from app.helpers.frames import SYNC_TOLERANCE_DEG, SYNC_TOLERANCE_MM, frame_devi
 from app.metrics import CONTROLLER_STATE_CHANGES, RECONCILES
 from app.models import Robot, RobotController, TcpVersion, Tool, utcnow
 from app.schemas.controllers import Reconciliation
-from app.services import controller_states
+from app.services import controller_states, settling
 from app.services.controller_states import SEVERITY, Observation
 from app.services.controllers import get_controller, settings_of
 from app.services.robots import get_robot
@@ -152,6 +152,7 @@ def reconcile_robot(
         controller = get_controller(session, robot_id)
         settings = settings_of(controller)
         tools = _tools_to_check(session, robot_id, controller.protocol)
+    read_from = utcnow()
     readings = read_controller(settings, tools)
     if cancelled():
         return None
@@ -168,6 +169,7 @@ def reconcile_robot(
                 continue
             seen = _observation(robot_id, tool, readings[tool.tool_id])
             row, changed = controller_states.observe(session, seen, at=checked_at, actor=actor)
+            settling.settle(session, seen, read_from=read_from, at=checked_at, actor=actor)
             found.append(seen.state)
             if changed:
                 entered.append(seen.state)

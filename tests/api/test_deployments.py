@@ -12,9 +12,10 @@ from scipy.spatial.transform import Rotation
 from sqlalchemy import text
 
 from app.db import get_engine
-from tests.api.controller_rigs import PROTOCOLS, TIMEOUT_S, Rig, rig
+from tests.api.controller_rigs import PROTOCOLS, SLOT, TIMEOUT_S, Rig, rig
 from tests.conftest import Api
 from tests.controllers.helpers import angle_between_deg
+from tests.controllers.simbase import go_silent
 
 ACTIVE_POSITION = [12.5, -3.25, 187.125]
 ACTIVE_Q = [
@@ -59,8 +60,10 @@ def _setup(
     return {"robot": robot, "tool": tool}
 
 
-def _deploy(api: Api, tool_id: str, **headers: str) -> Any:
-    return api.post(f"/v1/tools/{tool_id}/deployments", {}, scope="calibrate", headers=headers)
+def _deploy(api: Api, tool_id: str, body: dict[str, Any] | None = None, /, **headers: str) -> Any:
+    return api.post(
+        f"/v1/tools/{tool_id}/deployments", body or {}, scope="calibrate", headers=headers
+    )
 
 
 def _deployments(api: Api, tool_id: str) -> list[dict[str, Any]]:
@@ -361,3 +364,219 @@ def test_a_symbol_the_controller_does_not_know_is_refused_in_its_words(api: Api)
         assert states[missing["id"]]["state"] == "unreachable"
         assert states[missing["id"]]["error"].startswith("refused: ")
         assert recon["state"] == "unreachable"  # the worst of its tools'
+
+
+#: The write as each simulator names it.
+WRITE_REQUEST = {
+    "kuka_kvp": f"write $TOOL_DATA[{SLOT}]",
+    "fanuc_rmi": "FRC_WriteUToolData",
+    "abb_rws1": "POST /rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch",
+    "abb_rws2": "POST /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data",
+}
+#: The last request before the write, and which time it comes in a deployment. KUKA reads
+#: $LOAD_DATA for `previous` and again for the load members it keeps; ABB reads the tooldata
+#: for `previous` and again for the robhold and load it keeps. FANUC RMI sends nothing
+#: between its read of `previous` and the write, so that controller stops at the read.
+BEFORE_WRITE = {
+    "kuka_kvp": (f"read $LOAD_DATA[{SLOT}]", 2),
+    "fanuc_rmi": ("FRC_ReadUToolData", 1),
+    "abb_rws1": ("GET /rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch", 2),
+    "abb_rws2": ("GET /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data", 2),
+}
+NOT_CONFIRMED = (
+    "written, not confirmed: the controller may hold v1 or what it held before; "
+    "the next reconcile round will tell"
+)
+NOTHING_WRITTEN = "nothing was written: the controller still holds what it held"
+
+
+def _audit(api: Api, tool_id: str, action: str) -> list[dict[str, Any]]:
+    found = api.get("/v1/audit", params={"tool_id": tool_id, "action": action}, scope="admin")
+    assert found.status_code == 200, found.text
+    return list(found.json()["items"])
+
+
+def _failed_deploy(api: Api, tool_id: str, status: str) -> dict[str, Any]:
+    """A deployment that fails with `status` (recorded so, and in its audit event): its 502
+    problem, whose detail the record repeats (the tests check its `deployment_status`)."""
+    failed = _deploy(api, tool_id)
+    assert failed.status_code == 502, failed.text
+    problem: dict[str, Any] = failed.json()
+    [dep] = _deployments(api, tool_id)
+    assert dep["id"] == problem["deployment_id"]
+    assert dep["status"] == status
+    assert dep["error"]["detail"] == problem["detail"]
+    [event] = _audit(api, tool_id, "tool.deploy")
+    assert event["detail"]["status"] == status
+    assert event["detail"]["error"]["detail"] == problem["detail"]
+    return problem
+
+
+def test_a_controller_silent_right_after_the_write_is_unverified_until_reconcile_settles_it(
+    api: Api, protocol_rig: Rig
+) -> None:
+    """The controller applies the write and stops answering: it holds the new TCP, and the
+    deployment says it may (`unverified`, `previous` kept), never "nothing was written"."""
+    r = protocol_rig
+    r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)
+    ids = _setup(api, r)
+    tool_id, robot_id = ids["tool"]["id"], ids["robot"]["id"]
+    r.sim.fault = go_silent("after", WRITE_REQUEST[r.protocol])
+    problem = _failed_deploy(api, tool_id, "unverified")
+    r.assert_holds(ACTIVE_POSITION, ACTIVE_Q)  # the controller took the new TCP
+    [dep] = _deployments(api, tool_id)
+    np.testing.assert_allclose(dep["previous"]["position_mm"], PREVIOUS_POSITION, atol=1e-3)
+    assert _angle(dep["previous"]["quaternion"], PREVIOUS_Q) < 1e-3
+    assert problem["type"].endswith("/controller-unreachable")
+    assert problem["deployment_status"] == "unverified"  # RFC 9457 keeps `status` for HTTP
+    assert NOT_CONFIRMED in problem["detail"]
+    assert "nothing was written" not in problem["detail"]
+    assert dep["settled"] is None
+    # the controller back: the next round records what it holds, once
+    r.sim.stalled = False
+    recon = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
+    assert recon.json()["tools"][0]["state"] == "in_sync", recon.text
+    [dep] = _deployments(api, tool_id)
+    assert dep["status"] == "unverified"  # what was known then; `settled` says what came of it
+    assert dep["settled"]["holds"] == "written"
+    np.testing.assert_allclose(dep["settled"]["frame"]["position_mm"], ACTIVE_POSITION, atol=1e-3)
+    assert dep["settled"]["at"] == recon.json()["checked_at"]
+    api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
+    [event] = _audit(api, tool_id, "deployment.settled")
+    assert (event["resource_id"], event["version"]) == (dep["id"], 1)
+    assert event["detail"]["holds"] == "written"
+
+
+def test_a_controller_silent_before_the_write_is_not_written_and_keeps_its_frame(
+    api: Api, protocol_rig: Rig
+) -> None:
+    r = protocol_rig
+    r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)
+    ids = _setup(api, r)
+    tool_id, robot_id = ids["tool"]["id"], ids["robot"]["id"]
+    request, nth = BEFORE_WRITE[r.protocol]
+    r.sim.fault = go_silent("before", request, nth=nth)
+    problem = _failed_deploy(api, tool_id, "not_written")
+    r.assert_holds(PREVIOUS_POSITION, PREVIOUS_Q)  # untouched
+    [dep] = _deployments(api, tool_id)
+    if r.protocol == "fanuc_rmi":
+        assert dep["previous"] is None  # it stopped at that read
+    else:
+        np.testing.assert_allclose(dep["previous"]["position_mm"], PREVIOUS_POSITION, atol=1e-3)
+    assert problem["type"].endswith("/controller-unreachable")
+    assert problem["deployment_status"] == "not_written"
+    assert NOTHING_WRITTEN in problem["detail"]
+    r.sim.stalled = False
+    recon = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
+    assert recon.json()["tools"][0]["state"] == "drifted", recon.text
+    assert _deployments(api, tool_id)[0]["settled"] is None  # nothing to settle
+    assert _audit(api, tool_id, "deployment.settled") == []
+
+
+def test_a_write_sent_and_never_applied_is_unverified_and_settled_as_the_previous_frame(
+    api: Api, protocol_rig: Rig
+) -> None:
+    """The write left and the controller stopped before applying it: tcpcal cannot know,
+    so it says `unverified`; the next round finds the frame from before."""
+    r = protocol_rig
+    r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)
+    ids = _setup(api, r)
+    tool_id, robot_id = ids["tool"]["id"], ids["robot"]["id"]
+    r.sim.fault = go_silent("before", WRITE_REQUEST[r.protocol])
+    problem = _failed_deploy(api, tool_id, "unverified")
+    assert problem["deployment_status"] == "unverified"
+    assert NOT_CONFIRMED in problem["detail"]
+    r.assert_holds(PREVIOUS_POSITION, PREVIOUS_Q)
+    r.sim.stalled = False
+    recon = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
+    assert recon.json()["tools"][0]["state"] == "drifted", recon.text
+    [dep] = _deployments(api, tool_id)
+    assert dep["settled"]["holds"] == "previous"
+    np.testing.assert_allclose(dep["settled"]["frame"]["position_mm"], PREVIOUS_POSITION, atol=1e-3)
+    [event] = _audit(api, tool_id, "deployment.settled")
+    assert event["detail"]["holds"] == "previous"
+
+
+def test_an_unverified_deployment_is_settled_as_other_when_the_pendant_changed_it(
+    api: Api,
+) -> None:
+    with rig("kuka_kvp") as r:
+        ids = _setup(api, r)
+        tool_id, robot_id = ids["tool"]["id"], ids["robot"]["id"]
+        r.sim.fault = go_silent("after", WRITE_REQUEST[r.protocol])
+        _failed_deploy(api, tool_id, "unverified")
+        r.sim.stalled = False
+        elsewhere = [40.0, 0.0, 100.0]
+        r.set_behind_back(elsewhere, PREVIOUS_Q)
+        api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
+        settled = _deployments(api, tool_id)[0]["settled"]
+        assert settled["holds"] == "other"
+        np.testing.assert_allclose(settled["frame"]["position_mm"], elsewhere, atol=1e-3)
+
+
+def test_a_superseded_unverified_deployment_is_left_unsettled(api: Api) -> None:
+    """What the controller holds now says nothing about an attempt a later one followed."""
+    with rig("kuka_kvp") as r:
+        ids = _setup(api, r)
+        tool_id, robot_id = ids["tool"]["id"], ids["robot"]["id"]
+        r.sim.fault = go_silent("after", WRITE_REQUEST[r.protocol])
+        _failed_deploy(api, tool_id, "unverified")
+        r.sim.stalled = False
+        assert _deploy(api, tool_id).status_code == 201
+        api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
+        assert [d["settled"] for d in _deployments(api, tool_id)] == [None, None]
+
+
+def test_a_write_the_controller_refuses_is_not_written_when_it_still_shows_its_frame(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The KRC answers the write with status 0 (refused): the write was sent, so tcpcal
+    reads once more, finds the frame from before and says nothing was written."""
+    with rig("kuka_kvp") as r:
+        r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)
+        ids = _setup(api, r)
+        tool_id = ids["tool"]["id"]
+        monkeypatch.setattr(r.sim, "set_var", lambda name, value: False)
+        problem = _failed_deploy(api, tool_id, "not_written")
+        [dep] = _deployments(api, tool_id)
+        np.testing.assert_allclose(dep["read_back"]["position_mm"], PREVIOUS_POSITION, atol=1e-3)
+        assert problem["type"].endswith("/controller-refused")
+        assert problem["deployment_status"] == "not_written"
+        assert NOTHING_WRITTEN in problem["detail"]
+        r.assert_holds(PREVIOUS_POSITION, PREVIOUS_Q)
+
+
+def test_a_deployment_keeps_its_reason(api: Api) -> None:
+    with rig("kuka_kvp") as r:
+        ids = _setup(api, r)
+        tool_id = ids["tool"]["id"]
+        done = _deploy(api, tool_id, {"reason": "  new torch neck, ticket 4411 "})
+        assert done.status_code == 201, done.text
+        assert done.json()["reason"] == "new torch neck, ticket 4411"
+        assert _deployments(api, tool_id)[0]["reason"] == "new torch neck, ticket 4411"
+        [event] = _audit(api, tool_id, "tool.deploy")
+        assert event["detail"]["reason"] == "new torch neck, ticket 4411"
+        assert _deploy(api, tool_id).json()["reason"] is None
+        for bad in ("", " ", "x" * 501, 5):
+            refused = _deploy(api, tool_id, {"reason": bad})
+            assert refused.status_code == 422, (bad, refused.text)
+            assert "reason" in refused.text
+        assert len(_deployments(api, tool_id)) == 2
+
+
+def test_an_unverified_deployment_names_the_version_the_controller_held_in_sync(
+    api: Api,
+) -> None:
+    with rig("kuka_kvp") as r:
+        ids = _setup(api, r)
+        tool_id = ids["tool"]["id"]
+        assert _deploy(api, tool_id).status_code == 201  # v1, in sync
+        api.manual(tool_id, [10.0, 0.0, 190.0], activate="always")
+        assert api.get(f"/v1/tools/{tool_id}").json()["active_version"] == 2
+        r.sim.fault = go_silent("after", WRITE_REQUEST[r.protocol])
+        failed = _deploy(api, tool_id)
+        assert failed.json()["deployment_status"] == "unverified", failed.text
+        assert (
+            "written, not confirmed: the controller may hold v2 or v1; the next reconcile "
+            "round will tell" in failed.json()["detail"]
+        )

@@ -56,6 +56,8 @@ from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 
+from tests.controllers.simbase import Faults
+
 REALM = "validusers@robapi.abb"
 V2 = ";v=2.0"
 _V1_PATH = re.compile(r"^/rw/rapid/symbol/data/RAPID/([^/]+)/([^/]+)/([^/?]+)$")
@@ -104,7 +106,7 @@ class _Session:
     abbcx: str = field(default_factory=lambda: secrets.token_hex(4))
 
 
-class AbbRwsSimulator:
+class AbbRwsSimulator(Faults):
     """RWS 1.0 (version=1) or 2.0 (version=2) on 127.0.0.1, a free port."""
 
     def __init__(
@@ -522,7 +524,14 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
                 return
             query = {k: v[0] for k, v in parse_qs(url.query).items()}
             form = {k: v[0] for k, v in parse_qs(body.decode("utf-8", "replace")).items()}
-            status, payload = route(method, url.path, query, form, session)
+            stop = sim.fault_at(f"{method} {url.path}")
+            if stop != "before":
+                status, payload = route(method, url.path, query, form, session)
+            if stop is not None:  # silent from here, as when stalled
+                sim.stalled = True
+                sim._release.wait()
+                self.close_connection = True
+                return
             self._reply(status, payload, cookie=session)
 
         def _reply(

@@ -112,7 +112,12 @@ class FanucSimulator(TcpSimulator):
                 if packet.get("Communication") == "FRC_Disconnect":
                     _send(conn, {"Communication": "FRC_Disconnect", "ErrorID": 0})
                     return
+                stop = self.fault_at(str(packet.get("Command")))
+                if stop == "before":
+                    continue
                 reply = self._command(packet)
+                if stop == "after":
+                    self.stalled = True
                 if not self.stalled:  # stalled mid-session: reads on, answers nothing
                     _send(conn, reply)
         finally:

@@ -189,6 +189,9 @@ class KukaSimulator(TcpSimulator):
         name = fields[0].decode("latin-1") if fields else ""
         value = fields[1].decode("latin-1") if len(fields) > 1 else None
         self.requests.append((mode, name, value))
+        stop = self.fault_at(f"{'write' if mode == 1 else 'read'} {name}")
+        if stop == "before":
+            return b""  # stalled: `serve` sends nothing
         if mode == 0:
             if name == "PING":
                 text, ok = "PONG", True
@@ -199,6 +202,8 @@ class KukaSimulator(TcpSimulator):
             text, ok = value, self.set_var(name, value)
         else:
             text, ok = "", False
+        if stop == "after":
+            self.stalled = True
         raw = text.encode("latin-1")
         reply = bytes([mode]) + struct.pack("!H", len(raw)) + raw + b"\x00\x01" + bytes([int(ok)])
         return struct.pack("!HH", msg_id, len(reply)) + reply

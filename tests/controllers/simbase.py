@@ -1,5 +1,6 @@
 """What every socket simulator shares: a loopback listener on a free port, one thread per
-connection, start/stop, and a stalled mode that accepts connections and never answers."""
+connection, start/stop, and a stalled mode that accepts connections and never answers; and
+what every simulator shares, a test's fault hook (`Faults`)."""
 
 from __future__ import annotations
 
@@ -7,10 +8,47 @@ import contextlib
 import socket
 import threading
 from collections.abc import Callable
-from typing import Self
+from typing import Literal, Self
+
+#: Where a fault stops a controller at a request: before applying it, or right after.
+Stop = Literal["before", "after"]
 
 
-class TcpSimulator:
+class Faults:
+    """A test's fault hook. `fault`, when set, is asked about each request the controller is
+    about to apply, named in the simulator's words ("write $TOOL_DATA[3]",
+    "FRC_WriteUToolData", "POST /rw/rapid/..."), and answers where the controller goes
+    silent: "before" (the request is not applied) or "after" (applied, then not answered),
+    or None. Silent is `stalled` from then on, until the test clears it (the controller
+    back). A fault fires once."""
+
+    stalled: bool
+    fault: Callable[[str], Stop | None] | None = None
+
+    def fault_at(self, request: str) -> Stop | None:
+        """Where the fault stops the controller at `request`; "before" sets `stalled` (the
+        simulator sets it after applying for "after")."""
+        stop = None if self.fault is None else self.fault(request)
+        if stop is not None:
+            self.fault = None
+        if stop == "before":
+            self.stalled = True
+        return stop
+
+
+def go_silent(moment: Stop, request: str, *, nth: int = 1) -> Callable[[str], Stop | None]:
+    """A fault: the controller goes silent at the `nth` request named `request`."""
+    seen = 0
+
+    def fault(name: str) -> Stop | None:
+        nonlocal seen
+        seen += name == request
+        return moment if name == request and seen == nth else None
+
+    return fault
+
+
+class TcpSimulator(Faults):
     """A TCP server on 127.0.0.1 (a free port) whose `serve` handles one connection."""
 
     name = "simulator"

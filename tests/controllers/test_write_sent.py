@@ -1,0 +1,92 @@
+"""Each connector marks a failure that came after its write was handed to the socket
+(`ControllerError.write_sent`): the controller may then hold the new frame. A failure before
+the write leaves the mark off. The simulators go silent where a test's fault says
+(tests/controllers/simbase.py `Faults`)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from app.controllers import ControllerSettings, ControllerUnreachable, ToolTarget, connect
+from tests.controllers.abb_sim import AbbRwsSimulator
+from tests.controllers.fanuc_sim import FanucSimulator
+from tests.controllers.fixtures import abb_settings, fanuc_settings, kuka_settings
+from tests.controllers.helpers import random_tool
+from tests.controllers.kuka_sim import KukaSimulator
+from tests.controllers.simbase import go_silent
+
+TIMEOUT_S = 0.3
+SYMBOL = "T_ROB1/user/tTorch"
+#: protocol: (the write as the simulator names it, the request before it and its count)
+REQUESTS = {
+    # KUKA reads $LOAD_DATA once to keep its other members before writing; the frame is
+    # written first, the load after it
+    "kuka_kvp": ("write $TOOL_DATA[3]", ("read $LOAD_DATA[3]", 1)),
+    "fanuc_rmi": ("FRC_WriteUToolData", ("FRC_Initialize", 1)),
+    "abb_rws1": (
+        "POST /rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch",
+        ("GET /rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch", 1),
+    ),
+    "abb_rws2": (
+        "POST /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data",
+        ("POST /rw/mastership/edit/request", 1),
+    ),
+}
+
+
+@pytest.fixture(params=list(REQUESTS))
+def sim_and_settings(
+    request: pytest.FixtureRequest,
+) -> Iterator[tuple[str, Any, ControllerSettings]]:
+    protocol = request.param
+    sim: Any
+    if protocol == "kuka_kvp":
+        sim = KukaSimulator()
+    elif protocol == "fanuc_rmi":
+        sim = FanucSimulator()
+    else:
+        sim = AbbRwsSimulator(version=1 if protocol == "abb_rws1" else 2)
+    with sim:
+        if protocol == "kuka_kvp":
+            settings = kuka_settings(sim, timeout_s=TIMEOUT_S)
+        elif protocol == "fanuc_rmi":
+            settings = fanuc_settings(sim, timeout_s=TIMEOUT_S)
+        else:
+            settings = abb_settings(sim, timeout_s=TIMEOUT_S)
+        yield protocol, sim, settings
+
+
+def _target(protocol: str) -> ToolTarget:
+    return ToolTarget(symbol=SYMBOL) if protocol.startswith("abb") else ToolTarget(slot=3)
+
+
+def _write(settings: ControllerSettings, protocol: str) -> ControllerUnreachable:
+    with pytest.raises(ControllerUnreachable) as caught, connect(settings) as conn:
+        conn.write_tool(_target(protocol), random_tool(7))
+    return caught.value
+
+
+def test_a_controller_silent_after_the_write_marks_the_failure_write_sent(
+    sim_and_settings: tuple[str, Any, ControllerSettings],
+) -> None:
+    protocol, sim, settings = sim_and_settings
+    sim.fault = go_silent("after", REQUESTS[protocol][0])
+    assert _write(settings, protocol).write_sent is True
+    # and so when the write left but was never applied: the connector cannot tell
+    sim.stalled = False
+    if protocol == "abb_rws2":
+        sim.mastership_holder = None  # the silent session's, which this test is not about
+    sim.fault = go_silent("before", REQUESTS[protocol][0])
+    assert _write(settings, protocol).write_sent is True
+
+
+def test_a_controller_silent_before_the_write_leaves_the_mark_off(
+    sim_and_settings: tuple[str, Any, ControllerSettings],
+) -> None:
+    protocol, sim, settings = sim_and_settings
+    request, nth = REQUESTS[protocol][1]
+    sim.fault = go_silent("before", request, nth=nth)
+    assert _write(settings, protocol).write_sent is False
