@@ -48,8 +48,11 @@ NAME_CHARS = 40
 LINE_WIDTH = 78
 
 _DEF = re.compile(r"^\s*def\s+([A-Za-z][A-Za-z0-9_]*)\s*\(\s*\)\s*:", re.MULTILINE)
+# set_payload(m, cog), or set_target_payload(m, cog, inertia) as PolyScope 5.10+ writes a
+# program's payload (URScript manual; a PolyScope-saved .script in tests/data/controller-files).
 _PAYLOAD = re.compile(
-    rf"set_payload\(\s*({NUMBER})\s*,\s*\[\s*({NUMBER})\s*,\s*({NUMBER})\s*,\s*({NUMBER})\s*\]"
+    rf"set_(?:target_)?payload\(\s*({NUMBER})\s*,\s*\[\s*({NUMBER})\s*,\s*({NUMBER})\s*,"
+    rf"\s*({NUMBER})\s*\]"
 )
 
 

@@ -85,7 +85,10 @@ def _fits(fmt: str, tool: FileTool) -> bool:
 @pytest.mark.parametrize("table", [False, True], ids=["tool", "table"])
 def test_golden_files(fmt: str, table: bool) -> None:
     """The files as reviewed against each module's cited documentation (regenerate with
-    TCPCAL_WRITE_GOLDEN=1 and review the diff)."""
+    TCPCAL_WRITE_GOLDEN=1 and review the diff). A regression check of the layout only: the
+    code under test wrote them, and their rotations (-90 deg about Y; 90, 0, 90) cannot show a
+    swapped angle order. The conventions are held by test_outside_samples.py (files other
+    people wrote, and a general rotation computed with scipy)."""
     tools = golden_tools() if table else golden_tools()[:1]
     out = controller_file(fmt, tools, FileContext("cell7 KR16", SERVER, table=table))
     path = GOLDEN / f"{fmt}_{'table' if table else 'tool'}__{out.name}"
