@@ -7,7 +7,7 @@ so `tcpcal` starts without pydantic's models. A body is typed where `.json()` is
 
 from __future__ import annotations
 
-from typing import Generic, TypedDict, TypeVar
+from typing import Generic, NotRequired, TypedDict, TypeVar
 
 from app.jsontypes import JsonObject
 
@@ -149,6 +149,7 @@ class Deployment(TypedDict):
     read_back: Frame | None
     deviation_mm: float | None
     deviation_deg: float | None
+    reason: NotRequired[str | None]
 
 
 class ActiveFrame(Frame):

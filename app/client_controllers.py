@@ -81,32 +81,45 @@ def deploy(
     idempotency_key: Annotated[
         str | None, typer.Option(help="retry-safe: the same key replays the first answer")
     ] = None,
+    reason: Annotated[
+        str | None,
+        typer.Option(help="why it is deployed (1-500 characters), kept with the deployment"),
+    ] = None,
 ) -> None:
     """Write the tool's active TCP into its robot's controller and read it back."""
     tool_id = resolve_tool(tool_ref)
     headers = {"Idempotency-Key": idempotency_key} if idempotency_key else {}
-    response = request("POST", f"/v1/tools/{tool_id}/deployments", json={}, headers=headers)
+    body = {} if reason is None else {"reason": reason}
+    response = request("POST", f"/v1/tools/{tool_id}/deployments", json=body, headers=headers)
     if response.status_code >= 400:
         failed = problem(response)
-        words = f" (deployment {failed['deployment_id']})" if "deployment_id" in failed else ""
+        # The detail ends with what the controller may hold, in words ("nothing was
+        # written: ...", "written, not confirmed: ..."); the status follows it.
         err.print(
-            f"[bold red]{response.status_code}[/]: {failed.get('detail')}{words}",
+            f"[bold red]{response.status_code}[/]: {failed.get('detail')}",
             highlight=False,
             soft_wrap=True,
         )
+        if "deployment_id" in failed and "deployment_status" in failed:
+            err.print(
+                f"deployment {failed['deployment_id']}: {failed['deployment_status']}",
+                highlight=False,
+            )
         raise typer.Exit(_exit_for_problem(response))
     dep: Deployment = response.json()
     name = tool_names({tool_id}).get(tool_id, tool_ref)
     out.print(f"deployment {dep['id']} of {name}: {dep['status']}", highlight=False)
-    _lines(
-        [
-            ("version", f"v{dep['version']}"),
-            ("target", dep["target"]),
-            ("previous", _frame(dep["previous"])),
-            ("read back", _frame(dep["read_back"])),
-            ("deviation", _deviation(dep["deviation_mm"], dep["deviation_deg"])),
-        ]
-    )
+    rows = [
+        ("version", f"v{dep['version']}"),
+        ("target", dep["target"]),
+        ("previous", _frame(dep["previous"])),
+        ("read back", _frame(dep["read_back"])),
+        ("deviation", _deviation(dep["deviation_mm"], dep["deviation_deg"])),
+    ]
+    given = dep.get("reason")
+    if given:
+        rows.append(("reason", given))
+    _lines(rows)
     out.print(
         f"{dep['status']}: {dep['target']} holds version {dep['version']}",
         highlight=False,

@@ -9,10 +9,11 @@ from typer.testing import CliRunner
 
 from app import client_http
 from app.cli import cli
-from tests.api.controller_rigs import rig
-from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, _setup
+from tests.api.controller_rigs import SLOT, rig
+from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, WRITE_REQUEST, _setup
 from tests.api.test_deployments import secret_key as secret_key  # ABB's password, autouse
 from tests.conftest import Api
+from tests.controllers.simbase import go_silent
 
 
 @pytest.fixture
@@ -103,3 +104,32 @@ def test_help_says_the_exit_codes() -> None:
         shown = CliRunner().invoke(cli, [command, "--help"], env={"COLUMNS": "200"})
         assert "2 mismatch / drifted" in shown.output
         assert "3 controller unreachable" in shown.output
+
+
+def test_deploy_says_in_words_what_the_controller_may_hold_and_keeps_the_reason(
+    api: Api, runner: CliRunner
+) -> None:
+    with rig("kuka_kvp") as r:
+        ids = _setup(api, r)
+        tool_id = ids["tool"]["id"]
+        r.sim.fault = go_silent("after", WRITE_REQUEST["kuka_kvp"])
+        lost = runner.invoke(cli, ["deploy", tool_id, "--reason", "new torch neck"])
+        assert lost.exit_code == 3, lost.output
+        assert (
+            "written, not confirmed: the controller may hold v1 or what it held before; "
+            "the next reconcile round will tell" in lost.output
+        )
+        assert "nothing was written" not in lost.output
+        assert "deployment 1: unverified" in lost.output
+        r.sim.stalled = False
+        r.sim.fault = go_silent("before", f"read $LOAD_DATA[{SLOT}]", nth=2)
+        kept = runner.invoke(cli, ["deploy", tool_id])
+        assert kept.exit_code == 3, kept.output
+        assert "nothing was written: the controller still holds what it held" in kept.output
+        assert "deployment 2: not_written" in kept.output
+        r.sim.stalled = False
+        done = runner.invoke(cli, ["deploy", tool_id, "--reason", "new torch neck"])
+        assert done.exit_code == 0, done.output
+        assert "  reason     new torch neck\n" in done.output
+        listed = api.get(f"/v1/tools/{tool_id}/deployments").json()["items"]
+        assert [d["reason"] for d in listed] == ["new torch neck", None, "new torch neck"]
