@@ -15,8 +15,10 @@ TOOL.CND; YRC1000 lukelalondePZ/Komatsu-Press-Demo TOOL.CND), each tool a block:
 
 and the Yaskawa manuals' "Tool Load Information ... registered in the tool file" (W, Xg, Yg,
 Zg; Ix, Iy, Iz) for the meaning of lines 2-4. Rx Ry Rz are the fixed-axis angles of
-app.exports.wpr (R = Rz Ry Rx). YRC1000 backups carry a ``///CRC`` line per block, a
-checksum whose algorithm is not public: it is left out, as the DX100/DX200 files have none.
+app.exports.wpr (R = Rz Ry Rx). YRC1000 backups carry a ``///CRC`` line per block whose
+algorithm is not public: a written block leaves it out, as the DX100/DX200 files have none, and
+`merge` keeps the controller's own line (the public YRC1000 backup has the same value in every
+block, whatever its numbers).
 
 A condition file has no comment syntax: nothing but the blocks can be in it, so this file has
 no header (tool, version, calibration), only each tool's ``///NAME`` (at most 16 characters,
@@ -141,9 +143,23 @@ def merge(saved: str, ours: str) -> str:
     out, at = [], 0
     for number, (start, end) in sorted(theirs.items(), key=lambda kv: kv[1][0]):
         if number in mine:
-            out += [saved[at:start], mine[number]]
+            out += [saved[at:start], _with_crc(mine[number], saved[start:end])]
             at = end
     return "".join(out) + saved[at:]
+
+
+_CRC = re.compile(r"^///CRC[^\n]*\n", re.MULTILINE)
+
+
+def _with_crc(ours: str, theirs: str) -> str:
+    """Our block with the ``///CRC`` line the controller's own block has (YRC1000 files), kept
+    as it was: its algorithm is not public, and the public YRC1000 backup carries one value in
+    every block whatever the numbers (so it is not a checksum of the block's numbers)."""
+    crc = _CRC.search(theirs)
+    if crc is None or _CRC.search(ours):
+        return ours
+    head, _, rest = ours.partition("\n")
+    return f"{head}\n{crc.group(0)}{rest}"
 
 
 def read(text: str) -> list[ParsedTool]:

@@ -15,9 +15,11 @@ What it changes, and how the controller merges it: only the tooldata of the tool
 no other data, routine or tool of the controller. A tool with a ``controller_symbol``
 ("T_ROB1/user/tTorch") is named by its SYMBOL, the persistent the robot's programs move by, and
 is not declared again: its module (``user``) declares it. A tool without one is declared here
-(``PERS tooldata <name>``). Loading a module does not replace the value of a persistent that is
-already in use (RAPID overview, "Persistents": a persistent declared in several modules is one
-object, and its current value is kept), so the module holds a routine,
+(``PERS tooldata <name>``). Loading a module need not change a persistent already in use: a
+persistent declared in several modules is one object (RAPID overview, "Persistents"), and which
+declaration's initial value it then holds is not something a file should rely on; not
+declaring it at all (a controller_symbol's tool) changes nothing on loading. So the module
+holds a routine,
 ``tcpcal_set_<tools|tool>``, that assigns each tool's value: load the module into the tool's
 task (FlexPendant: Program Editor -> Modules -> Load Module, or RobotStudio), run the routine
 once (PP to Routine). A module of the same name loaded before is tcpcal's own and is replaced.
@@ -124,8 +126,8 @@ def _how(tools: list[FileTool], names: list[str], routine: str) -> list[str]:
         f"changes only the tooldata {', '.join(held)}; every other tool and all other data "
         "of the controller are untouched",
         f"load it into {task} (Program Editor, Modules, Load Module), then run "
-        f"{routine} once (PP to Routine): it assigns the values. Loading alone does not "
-        "change a persistent already in use (RAPID keeps its current value)",
+        f"{routine} once (PP to Routine): it assigns the values. Loading alone may leave a "
+        "tooldata already in use as it was",
     ]
 
 

@@ -160,3 +160,20 @@ def test_yaskawa_blocks_merge_into_the_controllers_own_tool_file() -> None:
     # a number the saved file lacks is refused, naming it, not appended
     with pytest.raises(Exception, match=r"no block for tool\(s\) \[5, 9\]"):
         merge(saved, table("yaskawa"))
+
+
+def test_yaskawa_merge_into_a_yrc1000_file_keeps_its_crc_lines() -> None:
+    """A YRC1000 TOOL.CND has a ///CRC line in every block (the same value in each): the
+    merged block keeps the controller's line, every other block stays as it was."""
+    from app.exports.cnd_file import merge
+
+    saved = (DATA / "yaskawa_TOOL_yrc1000.CND").read_text()
+    tool = ToolData(3, "tcpcal suction", np.array([1.0, 2.0, 3.0]), np.array([1.0, 0, 0, 0]))
+    merged = merge(saved, controller_file("yaskawa", [FileTool(tool)]).text)
+    block = merged[merged.index("//TOOL 3\n") : merged.index("//TOOL 4\n")]
+    assert block.splitlines()[:3] == ["//TOOL 3", "///CRC 3243358777", "///NAME tcpcal suction"]
+    assert merged.startswith(saved[: saved.index("//TOOL 3\n")])
+    assert merged.endswith(saved[saved.index("//TOOL 4\n") :])
+    assert [t.name for t in parse_controller_file("yaskawa", merged)] == [
+        "POINTER TCP", "tcpcal suction", "SUCTION2",
+    ]  # fmt: skip

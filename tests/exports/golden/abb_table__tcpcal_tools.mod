@@ -17,8 +17,7 @@ MODULE tcpcal_tools
   ! controller are untouched
   ! load it into task T_ROB1 (Program Editor, Modules, Load Module), then run
   ! tcpcal_set_tools once (PP to Routine): it assigns the values. Loading
-  ! alone does not change a persistent already in use (RAPID keeps its current
-  ! value)
+  ! alone may leave a tooldata already in use as it was
   PERS tooldata torch:=[TRUE,[[1.5,-2.25,150.0],[0.707106781,0.0,-0.707106781,0.0]],[2.5,[0.0,0.0,80.0],[1,0,0,0],0,0,0]];
   PROC tcpcal_set_tools()
     torch:=[TRUE,[[1.5,-2.25,150.0],[0.707106781,0.0,-0.707106781,0.0]],[2.5,[0.0,0.0,80.0],[1,0,0,0],0,0,0]];

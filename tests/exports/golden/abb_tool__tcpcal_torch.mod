@@ -8,8 +8,8 @@ MODULE tcpcal_torch
   ! other data of the controller are untouched
   ! load it into the robot's motion task (e.g. T_ROB1) (Program Editor,
   ! Modules, Load Module), then run tcpcal_set_torch once (PP to Routine): it
-  ! assigns the values. Loading alone does not change a persistent already in
-  ! use (RAPID keeps its current value)
+  ! assigns the values. Loading alone may leave a tooldata already in use as
+  ! it was
   PERS tooldata torch:=[TRUE,[[1.5,-2.25,150.0],[0.707106781,0.0,-0.707106781,0.0]],[2.5,[0.0,0.0,80.0],[1,0,0,0],0,0,0]];
   PROC tcpcal_set_torch()
     torch:=[TRUE,[[1.5,-2.25,150.0],[0.707106781,0.0,-0.707106781,0.0]],[2.5,[0.0,0.0,80.0],[1,0,0,0],0,0,0]];
