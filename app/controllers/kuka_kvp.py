@@ -13,6 +13,15 @@ The proxy answers each request with the request's message id. A read the KRC can
 resolve (unknown variable, index out of range) comes back as an empty value; a write the
 KRC refuses comes back with ok = 0. KUKAVARPROXY has no credentials of its own.
 
+Where the robot stands (KUKA System Software 8, *System Variables*): ``$POS_ACT`` (E6POS,
+the TCP of the frame ``$TOOL`` on the flange, in the frame ``$BASE``), ``$AXIS_ACT``
+(E6AXIS, deg), ``$ACT_TOOL`` (the tool number selected; -1 when ``$TOOL`` was set without
+one) and ``$IPO_MODE``: ``#BASE`` (the tool moves with the flange) or ``#TCP`` (external
+TCP: the workpiece rides on the flange past a fixed tool, and ``$POS_ACT`` is not a tool on
+the flange, so a read in that mode is refused). The six are asked for in one send (the
+proxy answers the requests of one TCP read in turn), so they describe one moment as
+nearly as the KRC allows; the flange is ``$BASE * $POS_ACT * inverse($TOOL)``.
+
 Variables (KUKA System Software 8, Programming manual for system integrators, "$TOOL_DATA",
 "$LOAD_DATA"; declared in ``$config.dat``/``$machine.dat`` for tools 1-16):
 ``$TOOL_DATA[n]`` is a FRAME ``{X, Y, Z (mm), A, B, C (deg)}`` with R = Rz(A) Ry(B) Rx(C);
@@ -23,18 +32,24 @@ owns; the load's CM orientation and inertia are written back as the controller h
 
 from __future__ import annotations
 
+import math
 import socket
 import struct
+from collections.abc import Sequence
 
 import numpy as np
 
 from app.controllers.base import (
+    SLOT_RANGES,
     ClosingSession,
     ControllerProtocolError,
     ControllerRefused,
     ControllerSettings,
     ControllerUnreachable,
     Deadline,
+    Frame,
+    LiveTool,
+    PoseReading,
     ToolData,
     ToolLoad,
     ToolTarget,
@@ -45,6 +60,7 @@ from app.controllers.base import (
 )
 from app.controllers.krl import KrlStruct, KrlSyntaxError, format_struct, numbers, parse_struct
 from app.controllers.sockets import close_quietly, open_connection, recv_exactly, send_all
+from app.kinematics.frames import Wxyz, flange_from_tcp
 from app.kinematics.poses import kuka_abc_from_quaternion_wxyz, quaternion_wxyz_from_kuka_abc
 
 MODE_READ = 0
@@ -53,6 +69,10 @@ _HEADER = struct.Struct("!HH")
 _STATUS_OK = 1
 #: KUKA's "no load data" mass: the controller uses the robot's default load.
 DEFAULT_LOAD_MASS = -1.0
+#: What a pose read asks the KRC for, in this order (all in one send).
+POSE_VARIABLES = ("$IPO_MODE", "$ACT_TOOL", "$TOOL", "$BASE", "$POS_ACT", "$AXIS_ACT")
+_FRAME = ("X", "Y", "Z", "A", "B", "C")
+_ROBOT_AXES = ("A1", "A2", "A3", "A4", "A5", "A6")
 
 
 class KukaKvpConnector(ClosingSession):
@@ -118,6 +138,62 @@ class KukaKvpConnector(ClosingSession):
             if load_text is not None:
                 self.write_variable(load_name, load_text, deadline)
 
+    def read_pose(self) -> PoseReading:
+        """Where the robot stands: the flange in the robot's base frame
+        (``$BASE * $POS_ACT * inverse($TOOL)``), A1..A6 of ``$AXIS_ACT``, the tool it moves by
+        (``$ACT_TOOL``, ``$TOOL``) and the six values as the KRC printed them. ControllerRefused
+        in external-TCP mode (``$IPO_MODE #TCP``)."""
+        readings = self.read_variables(POSE_VARIABLES, Deadline(self._settings.timeout_s))
+        ipo_mode = readings["$IPO_MODE"].upper()
+        if ipo_mode == "#TCP":
+            raise ControllerRefused(
+                "the robot moves in external-TCP mode ($IPO_MODE #TCP): the tool stands "
+                "fixed in the cell and the workpiece rides on the flange, so $POS_ACT is not "
+                "a tool on the flange and no flange pose can be taken from it. Move to the "
+                "touch with the tool on the flange and External TCP off (frame data "
+                "IPO_FRAME #BASE), so that $IPO_MODE reads #BASE, and capture again",
+                controller_message=f"$IPO_MODE {readings['$IPO_MODE']}",
+            )
+        if ipo_mode != "#BASE":
+            raise ControllerProtocolError(
+                f"{self._peer}: $IPO_MODE = {readings['$IPO_MODE']!r} is neither #BASE nor #TCP"
+            )
+        tool = _kuka_frame(self._numbers_of(readings, "$TOOL", _FRAME))
+        base = _kuka_frame(self._numbers_of(readings, "$BASE", _FRAME))
+        tcp = _kuka_frame(self._numbers_of(readings, "$POS_ACT", _FRAME))
+        position, quaternion = flange_from_tcp(tcp, tool=tool, base=base)
+        return PoseReading(
+            flange=Frame(position, quaternion),
+            joints_deg=self._numbers_of(readings, "$AXIS_ACT", _ROBOT_AXES),
+            live_tool=LiveTool(number=self._tool_number(readings["$ACT_TOOL"]), frame=Frame(*tool)),
+            readings=readings,
+        )
+
+    def _numbers_of(
+        self, readings: dict[str, str], name: str, members: tuple[str, ...]
+    ) -> tuple[float, ...]:
+        """The members of structure `name` as finite numbers; ControllerProtocolError
+        quoting the text when the KRC printed something else."""
+        text = readings[name]
+        try:
+            values = numbers(parse_struct(text), members, what=name)
+        except KrlSyntaxError as err:
+            raise ControllerProtocolError(f"{self._peer}: {name} = {text!r}: {err}") from err
+        if not all(math.isfinite(v) for v in values):
+            raise ControllerProtocolError(f"{self._peer}: {name} = {text!r} is not finite")
+        return values
+
+    def _tool_number(self, text: str) -> int | None:
+        """$ACT_TOOL as a tool number 1-16; None when no $TOOL_DATA entry is selected (-1)."""
+        try:
+            number = int(text)
+        except ValueError as err:
+            raise ControllerProtocolError(
+                f"{self._peer}: $ACT_TOOL = {text!r} is not an integer"
+            ) from err
+        low, high = SLOT_RANGES[self.protocol]
+        return number if low <= number <= high else None
+
     def close(self) -> None:
         """Close the TCP connection (KUKAVARPROXY keeps no session state)."""
         close_quietly(self._sock)
@@ -130,12 +206,7 @@ class KukaKvpConnector(ClosingSession):
         deadline = deadline or Deadline(self._settings.timeout_s)
         value, ok = self._exchange(MODE_READ, name, None, deadline)
         if not ok or not value:
-            raise ControllerRefused(
-                f"the KRC has no value for {name}: KUKAVARPROXY answered "
-                f"{'an empty value' if ok else 'a failed read'} (unknown variable or index "
-                "out of range)",
-                controller_message=f"{name}: empty value, status {int(ok)}",
-            )
+            raise _no_value(name, ok)
         return value
 
     def _read_struct(self, name: str, deadline: Deadline) -> KrlStruct:
@@ -156,22 +227,64 @@ class KukaKvpConnector(ClosingSession):
                 controller_message=f"{name}: write status 0",
             )
 
+    def read_variables(self, names: tuple[str, ...], deadline: Deadline) -> dict[str, str]:
+        """The KRC's text of each variable, the requests sent together and answered in
+        turn; ControllerRefused naming the first the KRC has no value for."""
+        requests = [(MODE_READ, name, None) for name in names]
+        replies = self._exchange_all(requests, deadline)
+        texts: dict[str, str] = {}
+        for name, (value, ok) in zip(names, replies, strict=True):
+            if not ok or not value:
+                raise _no_value(name, ok)
+            texts[name] = value
+        return texts
+
     def _exchange(
         self, mode: int, name: str, value: str | None, deadline: Deadline
     ) -> tuple[str, bool]:
+        (reply,) = self._exchange_all([(mode, name, value)], deadline)
+        return reply
+
+    def _exchange_all(
+        self, requests: Sequence[tuple[int, str, str | None]], deadline: Deadline
+    ) -> list[tuple[str, bool]]:
+        """Send every request at once, then collect the replies by message id."""
         sock = self._sock
         if sock is None:
             raise ControllerUnreachable(f"{self._peer}: the session is closed")
-        self._msg_id = (self._msg_id + 1) % 0x10000
-        send_all(sock, encode_request(self._msg_id, mode, name, value), deadline, peer=self._peer)
-        while True:
+        ids = []
+        payload = b""
+        for mode, name, value in requests:
+            self._msg_id = (self._msg_id + 1) % 0x10000
+            ids.append(self._msg_id)
+            payload += encode_request(self._msg_id, mode, name, value)
+        send_all(sock, payload, deadline, peer=self._peer)
+        replies: dict[int, tuple[str, bool]] = {}
+        while len(replies) < len(ids):
             msg_id, length = _HEADER.unpack(
                 recv_exactly(sock, _HEADER.size, self._buffer, deadline, peer=self._peer)
             )
             body = recv_exactly(sock, length, self._buffer, deadline, peer=self._peer)
-            if msg_id == self._msg_id:
-                return decode_reply_body(body, peer=self._peer)
-            # A late answer to an earlier, timed-out request on this connection: skip it.
+            if msg_id in ids:
+                replies[msg_id] = decode_reply_body(body, peer=self._peer)
+            # else a late answer to an earlier, timed-out request on this connection: skip it.
+        return [replies[msg_id] for msg_id in ids]
+
+
+def _no_value(name: str, ok: bool) -> ControllerRefused:
+    return ControllerRefused(
+        f"the KRC has no value for {name}: KUKAVARPROXY answered "
+        f"{'an empty value' if ok else 'a failed read'} (unknown variable or index "
+        "out of range)",
+        controller_message=f"{name}: empty value, status {int(ok)}",
+    )
+
+
+def _kuka_frame(values: tuple[float, ...]) -> tuple[tuple[float, float, float], Wxyz]:
+    """X, Y, Z, A, B, C (KUKA's R = Rz(A) Ry(B) Rx(C)) -> position and quaternion w, x, y, z."""
+    x, y, z, a, b, c = values
+    w, qx, qy, qz = (float(v) for v in quaternion_wxyz_from_kuka_abc([a, b, c]))
+    return (x, y, z), (w, qx, qy, qz)
 
 
 def encode_request(msg_id: int, mode: int, name: str, value: str | None) -> bytes:

@@ -32,6 +32,26 @@ keeps the six numbers it was given.
 
 Values are held as the KRC holds them: REAL is a 32-bit float. `set_tool` / `set_load` are
 the operator at the pendant.
+
+Where the robot stands (KUKA System Software 8, *System Variables* manual, and the
+*Programming manual for system integrators*, "Coordinate systems", "Status and Turn"):
+``$POS_ACT`` (E6POS) is the Cartesian position of the TCP, the frame ``$TOOL`` on the
+flange, in the frame ``$BASE``: $POS_ACT = inverse($BASE) * flange * $TOOL, the flange and
+``$BASE`` both in the robot's base frame ($ROBROOT = $WORLD here), A B C with
+R = Rz(A) Ry(B) Rx(C); S (Status) and T (Turn: bit n set when axis n+1 stands below
+0 deg) follow. ``$AXIS_ACT`` (E6AXIS) holds the axis angles A1..A6 and E1..E6.
+``$ACT_TOOL`` is the number of the tool selected (-1: ``$TOOL`` was set without one), and
+``$TOOL`` is ``$TOOL_DATA[$ACT_TOOL]`` (a KRC copies it at selection; this controller
+reselects it after every change). ``$IPO_MODE`` is ``#BASE`` (the tool on the flange moves
+through the base) or ``#TCP`` (external TCP: the workpiece rides on the flange past a fixed
+tool, and ``$POS_ACT`` means something else). They print as the replies captured through
+KUKAVARPROXY show them (a MATLAB session's capture, and a KRC 4 client's header quoting
+``$POS_ACT`` ``{E6POS: X 1339.90503, Y 15.9216757, Z 1787.32227, A 0.0, B 89.9999466,
+C -0.680795908, S 6, T 19, E1 0.0, ...}`` and ``$AXIS_ACT`` ``{E6AXIS: A1 0.0, A2 -90.0,
+...}``): the REALs as above, S and T as INTs, an ENUM as ``#BASE``, an INT as ``1``.
+This module computes the TCP from its own flange pose with numpy and scipy: the test sets
+the flange (`set_flange`, the operator jogging) and reads it back (`flange`) to judge a
+reader of ``$POS_ACT``.
 """
 
 from __future__ import annotations
@@ -43,11 +63,14 @@ import threading
 import time
 
 import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from tests.controllers.simbase import TcpSimulator
 
 SLOTS = range(1, 17)
 FRAME_MEMBERS = ("X", "Y", "Z", "A", "B", "C")
+AXES = ("A1", "A2", "A3", "A4", "A5", "A6", "E1", "E2", "E3", "E4", "E5", "E6")
 _VARIABLE = re.compile(r"^\$(TOOL_DATA|LOAD_DATA)\[\s*(-?\d+)\s*\]$", re.IGNORECASE)
 
 
@@ -89,6 +112,21 @@ class KukaSimulator(TcpSimulator):
         self.split_replies = False
         #: every (mode, variable name, value) received, for tests that look at the wire
         self.requests: list[tuple[int, str, str | None]] = []
+        # Where the robot stands: the flange in the robot's base frame (a 4x4 matrix, mm),
+        # the axis angles, the selected tool and base, the interpolation mode.
+        self._flange: NDArray[np.float64] = np.eye(4)
+        self._flange[:3, 3] = (1000.0, 0.0, 1000.0)
+        self.axes: dict[str, float] = dict.fromkeys(AXES, 0.0) | {"A2": -90.0, "A3": 90.0}
+        self.act_tool = -1
+        self._tool_frame: dict[str, float] = dict.fromkeys(FRAME_MEMBERS, 0.0)
+        self.base: dict[str, float] = dict.fromkeys(FRAME_MEMBERS, 0.0)
+        #: ``#BASE`` or ``#TCP`` (external TCP)
+        self.ipo_mode = "#BASE"
+        #: the Status bits S of $POS_ACT (the arm's configuration; not computed here)
+        self.status = 2
+        #: a moving robot: each read of $POS_ACT or $AXIS_ACT finds the flange this many mm
+        #: further along the base's x axis and A1 this many degrees further
+        self.moving_per_read = 0.0
 
     # --- the pendant --------------------------------------------------------------------
 
@@ -121,12 +159,86 @@ class KukaSimulator(TcpSimulator):
         with self._data_lock:
             return dict(self.loads[slot])
 
+    def set_flange(self, position_mm: tuple[float, ...], rotation: NDArray[np.float64]) -> None:
+        """The robot jogged: its flange at `position_mm` with the 3x3 `rotation`, both in the
+        robot's base frame."""
+        matrix = np.eye(4)
+        matrix[:3, :3] = Rotation.from_matrix(rotation).as_matrix()
+        matrix[:3, 3] = position_mm
+        with self._data_lock:
+            self._flange = matrix
+
+    def jog_flange(self, x: float, y: float, z: float, a: float, b: float, c: float) -> None:
+        """The flange at X, Y, Z (mm) and A, B, C (deg, KUKA's convention) in the robot's base."""
+        self.set_flange((x, y, z), _rotation_abc((a, b, c)).as_matrix())
+
+    def flange(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The flange's position (mm) and 3x3 rotation in the robot's base frame."""
+        with self._data_lock:
+            return self._flange[:3, 3].copy(), self._flange[:3, :3].copy()
+
+    def set_joints(self, *angles: float) -> None:
+        """$AXIS_ACT's A1, A2, ... (deg; E1..E6 after A6 for external axes)."""
+        with self._data_lock:
+            self.axes.update(zip(AXES, (float(v) for v in angles), strict=False))
+
+    def select_tool(self, number: int) -> None:
+        """The operator selects tool `number`: $ACT_TOOL = n, $TOOL = $TOOL_DATA[n]."""
+        if number not in SLOTS:
+            raise ValueError(f"tool {number} is not one of 1-16")
+        with self._data_lock:
+            self.act_tool = number
+
+    def set_tool_frame(self, x: float, y: float, z: float, a: float, b: float, c: float) -> None:
+        """A program sets $TOOL to a frame of its own: $ACT_TOOL = -1."""
+        with self._data_lock:
+            self.act_tool = -1
+            self._tool_frame = {
+                k: real(v, self.single_precision)
+                for k, v in zip(FRAME_MEMBERS, (x, y, z, a, b, c), strict=True)
+            }
+
+    def set_base(self, x: float, y: float, z: float, a: float, b: float, c: float) -> None:
+        """$BASE: the base frame in the robot's base frame (mm, deg)."""
+        with self._data_lock:
+            self.base = {
+                k: real(v, self.single_precision)
+                for k, v in zip(FRAME_MEMBERS, (x, y, z, a, b, c), strict=True)
+            }
+
+    def pos_act(self) -> dict[str, float]:
+        """$POS_ACT's X, Y, Z, A, B, C: the TCP of $TOOL in $BASE, from the flange."""
+        with self._data_lock:
+            return self._pos_act()
+
+    def _pos_act(self) -> dict[str, float]:
+        tool = self.tools[self.act_tool] if self.act_tool in SLOTS else self._tool_frame
+        tcp = np.linalg.inv(_matrix(self.base)) @ self._flange @ _matrix(tool)
+        abc = Rotation.from_matrix(tcp[:3, :3]).as_euler("ZYX", degrees=True)
+        values = (*tcp[:3, 3], *abc)
+        return {
+            k: real(float(v), self.single_precision)
+            for k, v in zip(FRAME_MEMBERS, values, strict=True)
+        }
+
+    def _move(self) -> None:
+        if self.moving_per_read:
+            self._flange[0, 3] += self.moving_per_read
+            self.axes["A1"] += self.moving_per_read
+
+    def _turn(self) -> int:
+        """T: bit n set when axis n+1 stands below 0 deg."""
+        return sum(1 << n for n, axis in enumerate(AXES[:6]) if self.axes[axis] < 0)
+
     # --- the variables ------------------------------------------------------------------
 
     def show_var(self, name: str) -> str | None:
         """The KRC's text of a variable, None when it has none."""
         if name.strip().upper() == "$ROBNAME[]":
             return f'"{self.robot_name}"'
+        pose_text = self._show_pose_variable(name.strip().upper())
+        if pose_text is not None:
+            return pose_text
         match = _VARIABLE.match(name.strip())
         if match is None or int(match.group(2)) not in SLOTS:
             return None
@@ -141,6 +253,29 @@ class KukaSimulator(TcpSimulator):
             f"{{LOAD: M {print_real(load['M'])}, CM {_print_frame(cm, 'FRAME')}, "
             f"J {_print_frame(inertia, 'INERTIA')}}}"
         )
+
+    def _show_pose_variable(self, name: str) -> str | None:
+        with self._data_lock:
+            if name in ("$POS_ACT", "$AXIS_ACT"):
+                self._move()
+            if name == "$POS_ACT":
+                pos = {k: print_real(v) for k, v in self._pos_act().items()}
+                axes = ", ".join(f"{k} {print_real(self.axes[k])}" for k in AXES[6:])
+                members = ", ".join(f"{k} {v}" for k, v in pos.items())
+                return f"{{E6POS: {members}, S {self.status}, T {self._turn()}, {axes}}}"
+            if name == "$AXIS_ACT":
+                axes_real = {k: real(v, self.single_precision) for k, v in self.axes.items()}
+                return _print_frame(axes_real, "E6AXIS")
+            if name == "$TOOL":
+                tool = self.tools[self.act_tool] if self.act_tool in SLOTS else self._tool_frame
+                return _print_frame(tool, "FRAME")
+            if name == "$BASE":
+                return _print_frame(self.base, "FRAME")
+            if name == "$ACT_TOOL":
+                return str(self.act_tool)
+            if name == "$IPO_MODE":
+                return self.ipo_mode
+        return None
 
     def set_var(self, name: str, value: str) -> bool:
         """Assign a KRL aggregate; False for what the KRC would refuse."""
@@ -224,6 +359,19 @@ def _default_load() -> dict[str, float]:
     load.update({f"CM.{k}": 0.0 for k in FRAME_MEMBERS})
     load.update({f"J.{k}": 0.0 for k in ("X", "Y", "Z")})
     return load
+
+
+def _rotation_abc(abc: tuple[float, ...]) -> Rotation:
+    """KUKA's A, B, C (deg): R = Rz(A) Ry(B) Rx(C), scipy's intrinsic "ZYX"."""
+    return Rotation.from_euler("ZYX", abc, degrees=True)
+
+
+def _matrix(frame: dict[str, float]) -> NDArray[np.float64]:
+    """A FRAME {X, Y, Z, A, B, C} as a 4x4 matrix."""
+    matrix = np.eye(4)
+    matrix[:3, :3] = _rotation_abc(tuple(frame[k] for k in ("A", "B", "C"))).as_matrix()
+    matrix[:3, 3] = [frame[k] for k in ("X", "Y", "Z")]
+    return matrix
 
 
 def _print_frame(values: dict[str, float], type_name: str) -> str:

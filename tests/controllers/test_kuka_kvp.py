@@ -13,6 +13,7 @@ from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
 from app.controllers import (
+    ControllerProtocolError,
     ControllerRefused,
     ControllerUnreachable,
     ToolData,
@@ -21,7 +22,7 @@ from app.controllers import (
     connect,
 )
 from app.controllers.krl import KrlSyntaxError, parse_struct
-from app.controllers.kuka_kvp import KukaKvpConnector
+from app.controllers.kuka_kvp import POSE_VARIABLES, KukaKvpConnector
 from tests.controllers.fixtures import kuka_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
 from tests.controllers.kuka_sim import KukaSimulator
@@ -244,3 +245,169 @@ def test_the_krc_reads_a_write_as_krl_not_as_python(kuka_sim: KukaSimulator) -> 
             with pytest.raises(ControllerRefused, match="write status 0"):
                 kuka.write_variable("$TOOL_DATA[2]", bad)
     assert kuka_sim.tool(2) == (1.5, -250.0, 0.25, 0.0, 0.0, 0.0), "a refused write changed it"
+
+
+# --- where the robot stands: $POS_ACT, $AXIS_ACT, $TOOL, $BASE, $ACT_TOOL, $IPO_MODE ------------
+
+
+def wxyz(matrix: np.ndarray) -> tuple[float, float, float, float]:
+    """A 3x3 rotation as a quaternion w, x, y, z (scipy)."""
+    x, y, z, w = Rotation.from_matrix(matrix).as_quat()
+    return float(w), float(x), float(y), float(z)
+
+
+def test_the_simulators_pos_act_is_the_tcp_of_tool_in_base_worked_by_hand(
+    kuka_sim: KukaSimulator,
+) -> None:
+    """The simulator's own arithmetic, checked against numbers worked out by hand: the
+    flange at (1000, 200, 800) turned A = 90 (its x along the robot's y), the tool 100 mm
+    along the flange's x, $BASE at (500, 0, 0) turned A = -30. The TCP is then at
+    (1000, 300, 800) in the robot's base, (500, 300, 800) from the base's origin, and seen
+    in the base turned by +30 deg about z; its orientation is A = 90 + 30."""
+    kuka_sim.set_tool(2, 100.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    kuka_sim.select_tool(2)
+    kuka_sim.set_base(500.0, 0.0, 0.0, -30.0, 0.0, 0.0)
+    kuka_sim.jog_flange(1000.0, 200.0, 800.0, 90.0, 0.0, 0.0)
+    cos30, sin30 = np.cos(np.radians(30.0)), np.sin(np.radians(30.0))
+    pos = kuka_sim.pos_act()
+    expected = [500 * cos30 - 300 * sin30, 500 * sin30 + 300 * cos30, 800.0, 120.0, 0.0, 0.0]
+    assert_allclose([pos[k] for k in "XYZABC"], expected, atol=1e-4)
+    kuka_sim.set_joints(10.0, -80.0, 95.0, -5.0, 30.0, -170.0)
+    text = kuka_sim.show_var("$POS_ACT")
+    assert text is not None
+    assert text.startswith("{E6POS: X 283.012")
+    # T: bit n set for axis n+1 below zero (A2, A4, A6: 2 + 8 + 32)
+    assert text.endswith(", S 2, T 42, E1 0.0, E2 0.0, E3 0.0, E4 0.0, E5 0.0, E6 0.0}")
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_read_pose_gives_the_simulators_own_flange_to_1e6(seed: int) -> None:
+    """A general pose: a tool and a base each shifted and turned by three unequal angles,
+    the flange anywhere; the connector's flange is the one the simulator computed $POS_ACT
+    from, to 1e-6 mm and 1e-6 deg (the simulator keeping every digit)."""
+    rng = np.random.default_rng(seed)
+    tool = (*rng.uniform(-150, 150, 2), rng.uniform(80, 300), 35.0, -20.0, 170.0 - 15 * seed)
+    base = (*rng.uniform(-800, 800, 3), -60.0 + seed, 7.5, -12.25)
+    flange_at = rng.uniform(-1200, 1200, 3)
+    flange_turn = Rotation.random(random_state=rng).as_matrix()
+    joints = tuple(float(v) for v in rng.uniform(-170, 170, 6))
+    with KukaSimulator(single_precision=False) as sim:
+        sim.set_tool(7, *tool)
+        sim.select_tool(7)
+        sim.set_base(*base)
+        sim.set_flange(tuple(flange_at), flange_turn)
+        sim.set_joints(*joints)
+        with KukaKvpConnector(kuka_settings(sim)) as kuka:
+            reading = kuka.read_pose()
+        shown = {name: sim.show_var(name) for name in POSE_VARIABLES}
+        held_at, held_turn = sim.flange()
+        pos_act = sim.pos_act()
+    assert np.linalg.norm(np.subtract([pos_act[k] for k in "XYZ"], held_at)) > 100, (
+        "the tool and base must move the TCP away from the flange, or this test shows nothing"
+    )
+    assert_allclose(reading.flange.position_mm, held_at, atol=1e-6)
+    assert angle_between_deg(reading.flange.quaternion, wxyz(held_turn)) < 1e-6
+    assert reading.joints_deg == joints
+    assert reading.live_tool.number == 7
+    assert reading.live_tool.frame is not None
+    assert_allclose(reading.live_tool.frame.position_mm, tool[:3], atol=1e-9)
+    assert_allclose(kuka_abc(reading.live_tool.frame.quaternion), tool[3:], atol=1e-9)
+    assert reading.readings == shown, "each value as the KRC printed it"
+    assert list(reading.readings) == list(POSE_VARIABLES)
+
+
+def test_read_pose_asks_for_the_six_variables_once(kuka_sim: KukaSimulator) -> None:
+    with KukaKvpConnector(kuka_settings(kuka_sim)) as kuka:
+        kuka.read_pose()
+    assert kuka_sim.requests == [(0, name, None) for name in POSE_VARIABLES]
+
+
+def test_a_tool_set_without_a_number_is_live_with_no_number(kuka_sim: KukaSimulator) -> None:
+    kuka_sim.set_tool_frame(0.0, 0.0, 250.0, 0.0, 0.0, 0.0)
+    kuka_sim.jog_flange(900.0, 0.0, 600.0, 0.0, 180.0, 0.0)
+    with KukaKvpConnector(kuka_settings(kuka_sim)) as kuka:
+        reading = kuka.read_pose()
+    assert reading.readings["$ACT_TOOL"] == "-1"
+    assert reading.live_tool.number is None
+    assert reading.live_tool.frame is not None
+    assert reading.live_tool.frame.position_mm == (0.0, 0.0, 250.0)
+    assert_allclose(reading.flange.position_mm, (900.0, 0.0, 600.0), atol=1e-3)
+
+
+def test_external_tcp_mode_is_refused_naming_it(kuka_sim: KukaSimulator) -> None:
+    kuka_sim.ipo_mode = "#TCP"
+    with (
+        KukaKvpConnector(kuka_settings(kuka_sim)) as kuka,
+        pytest.raises(ControllerRefused, match=r"\$IPO_MODE #TCP") as refused,
+    ):
+        kuka.read_pose()
+    assert refused.value.controller_message == "$IPO_MODE #TCP"
+    assert "External TCP off" in str(refused.value), "it says what to do"
+    assert "capture again" in str(refused.value)
+
+
+@pytest.mark.parametrize(
+    ("text", "what"),
+    [
+        ("{E6POS: }", "has no number X"),
+        ("{E6POS: X nan, Y 0.0, Z 0.0, A 0.0, B 0.0, C 0.0}", "is not finite"),
+    ],
+)
+def test_a_pos_act_without_six_finite_numbers_is_not_a_pose(
+    kuka_sim: KukaSimulator, monkeypatch: pytest.MonkeyPatch, text: str, what: str
+) -> None:
+    shown = kuka_sim.show_var
+    monkeypatch.setattr(
+        kuka_sim, "show_var", lambda name: text if name == "$POS_ACT" else shown(name)
+    )
+    with (
+        KukaKvpConnector(kuka_settings(kuka_sim)) as kuka,
+        pytest.raises(ControllerProtocolError, match=r"\$POS_ACT") as err,
+    ):
+        kuka.read_pose()
+    assert what in str(err.value)
+
+
+@pytest.mark.parametrize("when", ["from the start", "after a pose was read"])
+def test_a_pose_read_from_a_stalled_krc_fails_within_the_timeout(
+    kuka_sim: KukaSimulator, when: str
+) -> None:
+    settings = kuka_settings(kuka_sim, timeout_s=0.5)
+    kuka_sim.stalled = when == "from the start"
+    with KukaKvpConnector(settings) as kuka:
+        if not kuka_sim.stalled:
+            kuka.read_pose()
+            kuka_sim.stalled = True
+        started = time.monotonic()
+        with pytest.raises(ControllerUnreachable, match=r"did not answer within 0\.5 s"):
+            kuka.read_pose()
+        elapsed = time.monotonic() - started
+    assert settings.timeout_s * 0.9 <= elapsed < settings.timeout_s + 1.0, elapsed
+
+
+def test_py_openshowvar_reads_the_pos_act_the_connector_parses(kuka_sim: KukaSimulator) -> None:
+    from py_openshowvar import openshowvar
+
+    kuka_sim.set_tool(5, 12.0, -30.5, 210.0, 15.0, -25.0, 95.0)
+    kuka_sim.select_tool(5)
+    kuka_sim.set_base(1500.0, -250.0, 40.0, 170.0, 3.0, -1.5)
+    kuka_sim.jog_flange(1104.25, -431.5, 622.75, -140.0, 62.0, 178.0)
+    kuka_sim.set_joints(-35.5, -70.25, 101.0, 12.0, 48.5, -210.0)
+    client = openshowvar(kuka_sim.host, kuka_sim.port)
+    try:
+        pos_act = client.read("$POS_ACT", debug=False)
+        axis_act = client.read("$AXIS_ACT", debug=False)
+    finally:
+        client.close()
+    with KukaKvpConnector(kuka_settings(kuka_sim)) as kuka:
+        reading = kuka.read_pose()
+    assert pos_act is not None
+    assert pos_act.startswith(b"{E6POS: X ")
+    assert pos_act.decode() == reading.readings["$POS_ACT"] == kuka_sim.show_var("$POS_ACT")
+    assert axis_act == b"{E6AXIS: A1 -35.5, A2 -70.25, A3 101.0, A4 12.0, A5 48.5, A6 -210.0, " + (
+        b"E1 0.0, E2 0.0, E3 0.0, E4 0.0, E5 0.0, E6 0.0}"
+    )
+    held_at, held_turn = kuka_sim.flange()
+    # What 32-bit REALs of nine digits leave: well under a micrometre and a millidegree.
+    assert_allclose(reading.flange.position_mm, held_at, atol=1e-3)
+    assert angle_between_deg(reading.flange.quaternion, wxyz(held_turn)) < 1e-3
