@@ -11,8 +11,10 @@ from sqlalchemy import text
 
 from app.db import get_engine
 from tests.api.controller_rigs import TIMEOUT_S, rig
-from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, _setup
+from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, WRITE_REQUEST, _setup
 from tests.conftest import Api, Database
+from tests.controllers.simbase import go_silent
+from tests.polling import wait_for
 
 INTERVAL_S = 0.5
 
@@ -68,6 +70,29 @@ def test_the_watcher_finds_drift_within_two_intervals_and_records_it_once(
         r.sim.stop()
         _wait_for(api, robot_id, "unreachable", 2 * watching + TIMEOUT_S + 1.0)  # + its timeout
         assert _count(tool_id, "controller.unreachable") == 1
+
+
+def test_the_watcher_settles_an_unverified_deployment_at_its_next_round(
+    watching: float, api: Api
+) -> None:
+    with rig("kuka_kvp") as r:
+        ids = _setup(api, r)
+        tool_id = ids["tool"]["id"]
+        r.sim.fault = go_silent("after", WRITE_REQUEST["kuka_kvp"])
+        failed = api.post(f"/v1/tools/{tool_id}/deployments", {}, scope="calibrate")
+        assert failed.json()["deployment_status"] == "unverified", failed.text
+        r.sim.stalled = False  # the controller back
+
+        def settled() -> bool:
+            items = api.get(f"/v1/tools/{tool_id}/deployments").json()["items"]
+            return items[0]["settled"] is not None
+
+        # a round reading while the controller was silent waits out its timeout first
+        wait_for(settled, 2 * watching + TIMEOUT_S + 1.0, "the deployment settled")
+        [dep] = api.get(f"/v1/tools/{tool_id}/deployments").json()["items"]
+        assert dep["settled"]["holds"] == "written"
+        time.sleep(3 * watching)  # three more rounds settle nothing again
+        assert _count(tool_id, "deployment.settled") == 1
 
 
 def _wait_for(api: Api, robot_id: str, state: str, within_s: float) -> dict[str, object]:
