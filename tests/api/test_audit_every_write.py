@@ -9,6 +9,7 @@ that writes no event fails `test_every_write_route_leaves_an_audit_event`.
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -205,6 +206,59 @@ CALLS: dict[tuple[str, str], Callable[[Api, Rig], Call]] = {
 }
 
 
+#: What each write route is, as its audit events must say: (action, resource_type, where the
+#: resource's id is) for every event, in the order written. Where: "{param}" the request
+#: path's, else a path into the response's body ("id": the resource it made).
+EVENTS: dict[tuple[str, str], tuple[tuple[str, str, str], ...]] = {
+    ("POST", "/v1/robots"): (("robot.create", "robot", "id"),),
+    ("PATCH", "/v1/robots/{robot_id}"): (("robot.update", "robot", "{robot_id}"),),
+    ("DELETE", "/v1/robots/{robot_id}"): (("robot.archive", "robot", "{robot_id}"),),
+    ("POST", "/v1/robots/{robot_id}/tools"): (("tool.create", "tool", "id"),),
+    ("PATCH", "/v1/tools/{tool_id}"): (("tool.update", "tool", "{tool_id}"),),
+    ("DELETE", "/v1/tools/{tool_id}"): (("tool.archive", "tool", "{tool_id}"),),
+    ("POST", "/v1/tools/{tool_id}/calibrations"): (
+        ("version.create", "tool", "{tool_id}"),
+        ("version.activate", "tool", "{tool_id}"),  # a manual TCP is active at once
+        ("calibration.create", "calibration", "id"),
+    ),
+    ("POST", "/v1/tools/{tool_id}/versions/{version}/activate"): (
+        ("version.activate", "tool", "{tool_id}"),
+    ),
+    ("POST", "/v1/tools/{tool_id}/checks"): (("tool.check", "tool", "{tool_id}"),),
+    ("POST", "/v1/tools/{tool_id}/rollback"): (("version.rollback", "tool", "{tool_id}"),),
+    ("PUT", "/v1/robots/{robot_id}/controller"): (("controller.set", "robot", "{robot_id}"),),
+    ("DELETE", "/v1/robots/{robot_id}/controller"): (("controller.delete", "robot", "{robot_id}"),),
+    ("POST", "/v1/tools/{tool_id}/deployments"): (
+        ("tool.deploy", "deployment", "id"),
+        ("controller.in_sync", "tool", "{tool_id}"),  # read back: the controller holds it
+    ),
+    ("POST", "/v1/robots/{robot_id}/reconcile"): (
+        ("controller.drifted", "tool", "tools.0.tool_id"),  # the simulator holds another
+    ),
+    ("POST", "/v1/robots/{robot_id}/reference-points"): (
+        ("reference_point.create", "reference_point", "id"),
+    ),
+    ("POST", "/v1/robots/{robot_id}/laser-devices"): (
+        ("laser_device.create", "laser_device", "id"),
+    ),
+    ("POST", "/v1/keys"): (("key.create", "api_key", "id"),),
+    ("DELETE", "/v1/keys/{key_id}"): (("key.revoke", "api_key", "{key_id}"),),
+    ("POST", "/v1/tools/{tool_id}/sessions"): (("session.create", "session", "id"),),
+    ("POST", "/v1/sessions/{session_id}/poses"): (
+        ("session.touch_add", "session", "{session_id}"),
+    ),
+    ("DELETE", "/v1/sessions/{session_id}/poses/{index}"): (
+        ("session.touch_delete", "session", "{session_id}"),
+    ),
+    ("POST", "/v1/sessions/{session_id}/finish"): (
+        ("version.create", "tool", "tool_id"),
+        ("version.activate", "tool", "tool_id"),
+        ("calibration.create", "calibration", "id"),
+        ("session.finish", "session", "{session_id}"),
+    ),
+}
+
+
 def write_routes() -> list[tuple[str, str]]:
     """Every (method, path) of the app that is not a read, under /v1."""
     from app.main import create_app
@@ -226,6 +280,7 @@ def test_every_write_route_is_in_the_table() -> None:
     )
     stale = [r for r in CALLS if r not in routes]
     assert stale == [], f"CALLS names routes the app no longer has: {stale}"
+    assert [r for r in EVENTS if r not in CALLS] == [], "EVENTS names routes CALLS does not"
 
 
 def _events(api: Api) -> list[dict[str, Any]]:
@@ -238,12 +293,28 @@ def _events(api: Api) -> list[dict[str, Any]]:
 
 @pytest.mark.parametrize("route", sorted(CALLS), ids=lambda r: f"{r[0]} {r[1]}")
 def test_every_write_route_leaves_an_audit_event(api: Api, route: tuple[str, str]) -> None:
-    method, _ = route
     with rig("kuka_kvp") as kuka:
-        _leaves_an_event(api, method, CALLS[route](api, kuka))
+        _leaves_its_events(api, route, CALLS[route](api, kuka))
 
 
-def _leaves_an_event(api: Api, method: str, call: Call) -> None:
+def _path_params(template: str, url: str) -> dict[str, str]:
+    pattern = re.sub(r"\\{(\w+)\\}", r"(?P<\1>[^/]+)", re.escape(template))
+    match = re.fullmatch(pattern, url)
+    assert match is not None, (template, url)
+    return match.groupdict()
+
+
+def _resource_id(where: str, params: dict[str, str], body: Any) -> str:
+    """The id an event must name, from the request's path ("{param}") or its answer."""
+    if where.startswith("{"):
+        return params[where.strip("{}")]
+    for part in where.split("."):
+        body = body[int(part)] if part.isdigit() else body[part]
+    return str(body)
+
+
+def _leaves_its_events(api: Api, route: tuple[str, str], call: Call) -> None:
+    method, template = route
     before = len(_events(api))
     request_id = f"audit-test-{uuid4().hex}"
     kw: dict[str, Any] = {"headers": {"X-Request-ID": request_id, **call.headers}}
@@ -256,16 +327,57 @@ def _leaves_an_event(api: Api, method: str, call: Call) -> None:
         assert new == []
         return
     assert new, f"{method} {call.url} changed something and left no audit event"
+    assert route in EVENTS, f"add {route} to EVENTS: the action and resource of its events"
+    # What the route is: each event's action, resource and the resource's id.
+    params = _path_params(template, call.url)
+    body = response.json() if response.content else None
+    expected = [
+        (action, kind, _resource_id(where, params, body)) for action, kind, where in EVENTS[route]
+    ]
+    assert [(e["action"], e["resource_type"], e["resource_id"]) for e in new] == expected
     for event in new:
         assert event["actor"] == f"test-{call.scope}", event
         assert event["request_id"] == request_id, event
         assert event["at"] is not None
+        for column in ("robot_id", "tool_id"):  # the robot or tool the path names
+            if column in params:
+                assert event[column] == params[column], (column, event)
     # And readable through the API, with the same request id.
     trail = api.get("/v1/audit", scope="admin", params={"limit": 500}).json()["items"]
     ids = {str(e["id"]) for e in new}
     shown = [e for e in trail if e["id"] in ids]
     assert len(shown) == len(new)
     assert {e["request_id"] for e in shown} == {request_id}
+
+
+def _robot_names(api: Api) -> list[str]:
+    return [r["name"] for r in api.get("/v1/robots", params={"limit": 500}).json()["items"]]
+
+
+def test_an_event_and_its_change_commit_or_roll_back_together(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """One transaction: when the event's insert fails the robot is not created either, and
+    when the commit fails after the event was inserted (the outbox row, written last in the
+    transaction) neither is kept. Then, unbroken, both are."""
+    from app.services import audit, outbox
+
+    def broken(*_: object) -> None:
+        raise RuntimeError("planted by the test")
+
+    for module, name in ((audit._INSERT, "execute"), (outbox, "write")):
+        with monkeypatch.context() as patch:
+            patch.setattr(module, name, broken)
+            before = _events(api)
+            r = api.post("/v1/robots", {"name": f"lost-{name}", "cell": "cell-1"})
+            assert r.status_code == 500, r.text
+            assert _events(api) == before, name  # no event...
+            assert f"lost-{name}" not in _robot_names(api), name  # ...and no robot
+    made = api.post("/v1/robots", {"name": "kept", "cell": "cell-1"})
+    assert made.status_code == 201, made.text
+    assert "kept" in _robot_names(api)
+    (event,) = [e for e in _events(api) if e["resource_id"] == made.json()["id"]]
+    assert event["action"] == "robot.create"
 
 
 def test_the_audit_of_a_key_change_never_holds_the_key(api: Api) -> None:
