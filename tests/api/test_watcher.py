@@ -185,21 +185,40 @@ def test_the_read_pool_keeps_to_its_size_and_reads_a_robot_once_at_a_time() -> N
 
 
 def test_the_watcher_stops_within_a_second_while_a_controller_stalls(api: Api) -> None:
+    """stop() returns within a second while a read waits on a stalled controller; that read
+    ends at the controller's timeout (the rig's TIMEOUT_S) and stores nothing: no state of
+    the tool and no controller.* event, as if the round had never begun."""
     from app.watcher import Watcher
 
     with rig("kuka_kvp") as r:
-        _setup(api, r)
+        ids = _setup(api, r)
+        tool_id = ids["tool"]["id"]
         r.sim.stalled = True
         watcher = Watcher(0.2)
         watcher.start()
-        time.sleep(0.5)  # a round is now waiting for the stalled controller (2 s timeout)
+        wait_for(
+            lambda: watcher._pool.in_flight() == 1 and r.sim.connections_accepted >= 1,
+            2.0,
+            "a read waiting on the stalled controller",
+        )
         started = time.monotonic()
         watcher.stop()
         assert time.monotonic() - started < 1.0
         assert watcher.status.running is False
         assert watcher._thread is not None
-        watcher._thread.join(3)  # its round ends at the controller's timeout, storing nothing
+        wait_for(lambda: watcher._pool.in_flight() == 0, TIMEOUT_S + 1.0, "the stalled read ended")
         assert not watcher._thread.is_alive()
+    with get_engine().connect() as conn:
+        states = conn.execute(
+            text("SELECT count(*) FROM tool_controller_states WHERE tool_id = :t"), {"t": tool_id}
+        ).scalar_one()
+        events = conn.execute(
+            text(
+                "SELECT action FROM audit_events WHERE tool_id = :t AND action LIKE 'controller.%'"
+            ),
+            {"t": tool_id},
+        ).all()
+    assert (states, events) == (0, [])
 
 
 def test_one_round_at_a_time_per_database(api: Api) -> None:
