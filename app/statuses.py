@@ -15,11 +15,13 @@ Status = Literal["accepted", "out_of_tolerance"]
 #: A guided session: touches may still be added, or it ended in a calibration.
 SessionStatus = Literal["open", "finished"]
 
-#: A deployment, decided by where it stopped: read back as written (`verified`); failed
-#: before the write was sent, so the controller holds what it held (`not_written`); failed
-#: after the write was sent, so the controller may hold either frame (`unverified`, settled
-#: by the next reconcile round); read back otherwise than written (`mismatch`).
-DeploymentStatus = Literal["verified", "not_written", "unverified", "mismatch"]
+#: A deployment that failed short of a read-back, decided by where it stopped: before the
+#: write was sent, so the controller holds what it held (`not_written`); after it, so the
+#: controller may hold either frame (`unverified`, settled by the next reconcile round).
+FailedDeploymentStatus = Literal["not_written", "unverified"]
+#: A deployment: read back as written (`verified`), failed short of a read-back (above), or
+#: read back otherwise than written (`mismatch`).
+DeploymentStatus = Literal["verified", FailedDeploymentStatus, "mismatch"]
 
 #: What the controller holds for a tool, against the tool's active version.
 ToolState = Literal["in_sync", "drifted", "no_active_version", "unreachable"]

@@ -50,7 +50,7 @@ from app.schemas.controllers import Deployment as DeploymentOut
 from app.services import audit, controller_states, idempotency
 from app.services.controllers import get_controller, settings_of
 from app.services.tools import get_tool
-from app.statuses import DeploymentStatus
+from app.statuses import DeploymentStatus, FailedDeploymentStatus
 
 
 @dataclass(frozen=True)
@@ -203,7 +203,7 @@ def _same_frame(a: ToolData, b: ToolData) -> bool:
     return within(deviation, mm=DEPLOY_TOLERANCE_MM, deg=DEPLOY_TOLERANCE_DEG)
 
 
-def _failure_status(plan: Plan, attempt: _Attempt) -> DeploymentStatus:
+def _failure_status(plan: Plan, attempt: _Attempt) -> FailedDeploymentStatus:
     """not_written when the write never left, or the controller refused it and still shows
     what it held; unverified otherwise (it may hold either frame)."""
     if not attempt.sent:
@@ -219,19 +219,16 @@ def _failure_status(plan: Plan, attempt: _Attempt) -> DeploymentStatus:
     return "unverified"
 
 
-def status_words(status: DeploymentStatus, version: int, held_version: int | None) -> str:
-    """What a failed deployment's status means for the person at the cell, in words."""
+def status_words(status: FailedDeploymentStatus, version: int, held_version: int | None) -> str:
+    """What a deployment that failed short of a read-back leaves on the controller, in the
+    words of the person at the cell."""
     if status == "not_written":
         return "nothing was written: the controller still holds what it held"
-    if status == "unverified":
-        before = "what it held before" if held_version is None else f"v{held_version}"
-        return (
-            f"written, not confirmed: the controller may hold v{version} or {before}; "
-            "the next reconcile round will tell"
-        )
-    if status == "mismatch":
-        return f"written, and the controller holds something other than v{version}"
-    return f"verified: the controller holds v{version}"
+    before = "what it held before" if held_version is None else f"v{held_version}"
+    return (
+        f"written, not confirmed: the controller may hold v{version} or {before}; "
+        "the next reconcile round will tell"
+    )
 
 
 def _failure(plan: Plan, attempt: _Attempt, exc: ControllerError) -> Outcome:

@@ -120,13 +120,15 @@ def test_deploy_says_in_words_what_the_controller_may_hold_and_keeps_the_reason(
             "the next reconcile round will tell" in lost.output
         )
         assert "nothing was written" not in lost.output
-        assert "deployment 1: unverified" in lost.output
+        first = api.get(f"/v1/tools/{tool_id}/deployments").json()["items"][0]["id"]
+        assert f"deployment {first}: unverified" in lost.output
         r.sim.stalled = False
         r.sim.fault = go_silent("before", f"read $LOAD_DATA[{SLOT}]", nth=2)
         kept = runner.invoke(cli, ["deploy", tool_id])
         assert kept.exit_code == 3, kept.output
         assert "nothing was written: the controller still holds what it held" in kept.output
-        assert "deployment 2: not_written" in kept.output
+        second = api.get(f"/v1/tools/{tool_id}/deployments").json()["items"][0]["id"]
+        assert f"deployment {second}: not_written" in kept.output
         r.sim.stalled = False
         done = runner.invoke(cli, ["deploy", tool_id, "--reason", "new torch neck"])
         assert done.exit_code == 0, done.output
