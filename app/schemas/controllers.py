@@ -172,3 +172,9 @@ class Reconciliation(BaseModel):
         default_factory=list,
         description="live tools left out: no slot or controller_symbol this protocol can use",
     )
+
+
+class LiveToolMatch(BaseModel):
+    tool_id: str
+    version: int
+    active: bool = Field(description="whether this version is the tool's active one")
