@@ -93,6 +93,12 @@ class NoController(Conflict):
     kind, title = "no-controller", "Robot has no controller"
 
 
+class RobotMoving(Conflict):
+    """Two reads of a captured pose disagree: the robot was moving (nothing is kept)."""
+
+    kind, title = "robot-moving", "Robot moving"
+
+
 class SecretUnreadable(Conflict):
     kind, title = "secret-unavailable", "Stored secret unreadable"
 

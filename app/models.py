@@ -198,6 +198,10 @@ class Calibration(Base):
     request: Mapped[JsonObject] = mapped_column(JSON)
     result: Mapped[JsonObject] = mapped_column(JSON)
     version: Mapped[int | None] = mapped_column(Integer)
+    #: A guided session's touches: where each came from ("typed" | "controller"), and what
+    #: the controller printed for a captured one; null for a calibration not made touch by
+    #: touch.
+    touches: Mapped[JsonArray | None] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str] = mapped_column(String(200))
 
@@ -362,6 +366,8 @@ class GuidedSession(Base):
     max_spin_deg: Mapped[float] = mapped_column(Float)
     options: Mapped[JsonObject] = mapped_column(JSON)
     poses: Mapped[JsonArray] = mapped_column(JSON)
+    #: One entry per pose, in order: {"source": "typed" | "controller", "read_at", ...}.
+    touches: Mapped[JsonArray] = mapped_column(JSON, default=list)
     status: Mapped[SessionStatus] = mapped_column(String(20), default="open")
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)

@@ -2,15 +2,31 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Response
 from starlette.concurrency import run_in_threadpool
 
 from app.api.params import PathId
-from app.deps import AdminKey, HeldReadKey, ReadKey, SessionDep
-from app.schemas.controllers import Controller, ControllerIn, Reconciliation
-from app.services import controllers, reconcile
+from app.deps import AdminKey, HeldCalibrateKey, HeldReadKey, ReadKey, SessionDep
+from app.kinematics.poses import PoseFormat
+from app.schemas.controllers import Controller, ControllerIn, ControllerPose, Reconciliation
+from app.services import capture, controllers, reconcile
 
 router = APIRouter(tags=["controllers"])
+
+#: What a read of the robot's pose may answer besides 200 (GET .../controller/pose, and the
+#: captured touches of sessions and checks).
+CONTROLLER_FAILURES: dict[int | str, dict[str, object]] = {
+    409: {
+        "description": "`/robot-moving`: two reads 100 ms apart differ by more than 0.01 mm "
+        "or 0.01 deg (nothing kept); `/no-controller`"
+    },
+    502: {
+        "description": "`/controller-unreachable` within the controller's timeout_s, or "
+        "`/controller-refused` with the controller's own words in `controller_message`"
+    },
+}
 
 
 @router.put("/v1/robots/{robot_id}/controller", response_model=Controller)
@@ -43,6 +59,27 @@ def delete_controller(robot_id: PathId, session: SessionDep, key: AdminKey) -> R
     """Forget the robot's controller connection; its deployments stay in the history."""
     controllers.delete_controller(session, robot_id=robot_id, actor=key)
     return Response(status_code=204)
+
+
+@router.get(
+    "/v1/robots/{robot_id}/controller/pose",
+    response_model=ControllerPose,
+    responses=CONTROLLER_FAILURES,
+)
+async def read_controller_pose(
+    robot_id: PathId,
+    key: HeldCalibrateKey,
+    fmt: Annotated[PoseFormat, Query(alias="format")] = "matrix",
+) -> ControllerPose:
+    """Where the robot's flange is now, in its base frame, read from its controller twice at
+    least 100 ms apart within its timeout_s: 409 `/robot-moving` when the reads differ by
+    more than 0.01 mm or 0.01 deg (nothing is kept), 502 `/controller-unreachable` or
+    `/controller-refused` (the controller's words, e.g. a KUKA in `$IPO_MODE #TCP`). With
+    the joints, the tool the robot moves by (`live_tool`) and every value read as the
+    controller printed it. Calibrate scope (it is how a touch is captured)."""
+    return await run_in_threadpool(
+        lambda: capture.controller_pose(robot_id=robot_id, fmt=fmt, actor=key)
+    )
 
 
 @router.post("/v1/robots/{robot_id}/reconcile", response_model=Reconciliation)

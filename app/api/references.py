@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from fastapi import APIRouter
+from starlette.concurrency import run_in_threadpool
 
+from app.api.controllers import CONTROLLER_FAILURES
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
-from app.deps import CalibrateKey, ReadKey, SessionDep
+from app.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.references import (
     CheckCreate,
@@ -62,15 +64,20 @@ def get_reference_point(
     )
 
 
-@router.post("/v1/tools/{tool_id}/checks", response_model=CheckResult)
-def check_tool(
-    tool_id: PathId, body: CheckCreate, session: SessionDep, key: CalibrateKey
-) -> CheckResult:
+@router.post(
+    "/v1/tools/{tool_id}/checks", response_model=CheckResult, responses=CONTROLLER_FAILURES
+)
+async def check_tool(tool_id: PathId, body: CheckCreate, key: HeldCalibrateKey) -> CheckResult:
     """Touch a reference point with the active TCP and measure the drift against the tool's
     check_mm; the active TCP is not changed. `deviation_flange_mm` is how the tool moved
     (new minus active, flange frame) and `summary` says it in a sentence. Poses that fit
-    far better under another unit or convention are refused (`convention-mismatch`)."""
-    return checks.run_check(session, tool_id=tool_id, data=body, actor=key)
+    far better under another unit or convention are refused (`convention-mismatch`).
+    `{"capture": true}` in place of `format` and `poses` reads the one touch from the
+    robot's controller: 409 `/robot-moving` when two reads 100 ms apart differ, 502 when
+    the controller cannot be reached or refuses."""
+    return await run_in_threadpool(
+        lambda: checks.run_check_request(tool_id=tool_id, data=body, actor=key)
+    )
 
 
 @router.post(

@@ -5,11 +5,14 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Path, Response
+from starlette.concurrency import run_in_threadpool
 
 from app.api.calibrations import IdempotencyKey
-from app.api.params import PathId
-from app.deps import CalibrateKey, ReadKey, SessionDep
+from app.api.controllers import CONTROLLER_FAILURES
+from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
+from app.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep
 from app.metrics import CALIBRATIONS
+from app.schemas.common import Page
 from app.schemas.results import Calibration
 from app.schemas.sessions import Plan, PlanRequest, Session, SessionCreate, SessionFinish, TouchAdd
 from app.services import sessions
@@ -43,13 +46,34 @@ def get_session(session_id: PathId, session: SessionDep, key: ReadKey) -> Sessio
     return sessions.view(session, sessions.get_session(session, session_id))
 
 
-@router.post("/v1/sessions/{session_id}/poses", response_model=Session)
-def add_touch(
-    session_id: PathId, body: TouchAdd, session: SessionDep, key: CalibrateKey
-) -> Session:
-    """Add one touch. A touch that cannot be read, or that makes the set read as a unit or
-    convention mix-up, is refused (422) and the session stays as it was; 409 once finished."""
-    return sessions.add_touch(session, session_id=session_id, pose=body.pose, actor=key)
+@router.get("/v1/tools/{tool_id}/sessions", response_model=Page[Session])
+def list_sessions(
+    tool_id: PathId,
+    session: SessionDep,
+    key: ReadKey,
+    limit: Limit = DEFAULT_PAGE,
+    cursor: Cursor = None,
+) -> Page[Session]:
+    """The tool's guided sessions, newest first: an open one can be resumed."""
+    items, next_cursor = sessions.list_sessions(
+        session, tool_id=tool_id, limit=limit, cursor=cursor
+    )
+    return Page[Session](items=items, next_cursor=next_cursor)
+
+
+@router.post(
+    "/v1/sessions/{session_id}/poses", response_model=Session, responses=CONTROLLER_FAILURES
+)
+async def add_touch(session_id: PathId, body: TouchAdd, key: HeldCalibrateKey) -> Session:
+    """Add one touch: `pose`, typed in the session's format, or `{"capture": true}`: read
+    from the tool's robot's controller (two reads 100 ms apart; 409 `/robot-moving` when
+    they differ, 502 when the controller cannot be reached or refuses), converted to the
+    session's format and added as a typed pose is. A touch that cannot be read, or that
+    makes the set read as a unit or convention mix-up, is refused (422) and the session
+    stays as it was; 409 once finished. `touches` says where each came from."""
+    return await run_in_threadpool(
+        lambda: sessions.add_touch_request(session_id=session_id, data=body, actor=key)
+    )
 
 
 @router.delete("/v1/sessions/{session_id}/poses/{index}", response_model=Session)

@@ -60,16 +60,20 @@ def _after(
     created_col: InstrumentedAttribute[datetime],
     id_col: InstrumentedAttribute[str],
     cursor: str | None,
+    *,
+    newest_first: bool = False,
 ) -> Select[*Ts]:
-    """`stmt` from the row after the cursor on, in (created_at, id) order."""
+    """`stmt` from the row after the cursor on, in (created_at, id) order (newest first:
+    descending, "after" then meaning older)."""
     if cursor:
         after_created, after_id = decode_cursor(cursor)
         # A row value: both SQLite and PostgreSQL seek to it in a (created_at, id) index,
         # where the equivalent OR of two conditions scanned every row before it.
-        stmt = stmt.where(
-            tuple_(created_col, id_col)
-            > tuple_(literal(after_created, created_col.type), literal(after_id, id_col.type))
-        )
+        key = tuple_(created_col, id_col)
+        at = tuple_(literal(after_created, created_col.type), literal(after_id, id_col.type))
+        stmt = stmt.where(key < at if newest_first else key > at)
+    if newest_first:
+        return stmt.order_by(created_col.desc(), id_col.desc())
     return stmt.order_by(created_col, id_col)
 
 
@@ -89,9 +93,12 @@ def paginate(
     id_col: InstrumentedAttribute[str],
     limit: int,
     cursor: str | None,
+    newest_first: bool = False,
 ) -> tuple[Sequence[M], str | None]:
-    """One page of `stmt` (one entity) ordered by (created_at, id) and the next cursor."""
-    stmt = _after(stmt, created_col, id_col, cursor).limit(limit + 1)
+    """One page of `stmt` (one entity) ordered by (created_at, id), or newest first, and
+    the next cursor."""
+    stmt = _after(stmt, created_col, id_col, cursor, newest_first=newest_first)
+    stmt = stmt.limit(limit + 1)
     return _cut(list(session.scalars(stmt)), limit)
 
 

@@ -178,3 +178,35 @@ class LiveToolMatch(BaseModel):
     tool_id: str
     version: int
     active: bool = Field(description="whether this version is the tool's active one")
+
+
+class LiveToolOut(BaseModel):
+    """The TCP the robot moves by right now, as its controller reports it."""
+
+    number: int | None = Field(
+        description="the controller's tool number (KUKA $ACT_TOOL, FANUC's active UTOOL); "
+        "null where the controller does not say (ABB)"
+    )
+    frame: Frame | None = Field(
+        description="the live tool frame in the flange frame; null where the controller "
+        "does not say (ABB: RWS does not say which tooldata a program uses)"
+    )
+    matches: list[LiveToolMatch] = Field(
+        description="every version of this robot's tools equal to the live frame within "
+        "0.01 mm and 0.01 deg"
+    )
+
+
+class ControllerPose(BaseModel):
+    """Where the robot's flange is, read from its controller twice and found still."""
+
+    pose: list[float] | list[list[float]] = Field(
+        description="the flange in the robot's base frame, in `format`"
+    )
+    format: str = Field(description="the pose format of `pose`")
+    joints_deg: list[float] | None = Field(description="the joint angles, deg; null if unread")
+    read_at: Timestamp = Field(description="when the second, confirming read ended")
+    protocol: str = Field(description="the controller's protocol")
+    still: bool = Field(description="true: two reads 100 ms apart agreed (else 409)")
+    live_tool: LiveToolOut = Field(description="the TCP the robot moves by right now")
+    readings: dict[str, str] = Field(description="every value read, as the controller printed it")

@@ -77,10 +77,40 @@ class ReferencePoint(BaseModel):
 
 
 class CheckCreate(StrictModel):
+    """Touches of the point typed (`format` and `poses`), or one read from the tool's
+    robot's controller (`capture`: true)."""
+
+    model_config = ConfigDict(
+        json_schema_extra=one_of(
+            (("format", "poses"), ("capture",)), (("capture",), ("format", "poses", "units"))
+        )
+    )
+
     reference_point_id: ResourceId
-    format: PoseFormat
-    poses: Annotated[Poses, Field(min_length=1)]
+    format: PoseFormat | None = None
+    poses: Annotated[Poses, Field(min_length=1)] | None = None
     units: Units | None = None
+    capture: Literal[True] | None = Field(
+        default=None,
+        description="true: touch the point once and read the pose from the controller (two "
+        "reads 100 ms apart that must agree) in place of `format` and `poses`",
+    )
+
+    @model_validator(mode="after")
+    def _typed_or_captured(self) -> CheckCreate:
+        typed = self.format is not None and self.poses is not None
+        if self.capture is not None:
+            if self.format is not None or self.poses is not None or self.units is not None:
+                raise ValueError(
+                    '"capture": true reads the pose from the controller: leave out format, '
+                    "poses and units"
+                )
+        elif not typed:
+            raise ValueError(
+                'give "format" and "poses" (typed touches) or "capture": true (read from '
+                "the controller)"
+            )
+        return self
 
 
 class CheckTouch(BaseModel):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import BaseModel, Field
 
 from app.schemas.common import StrictModel, Timestamp
@@ -167,10 +169,26 @@ class TouchGeometry(BaseModel):
     )
 
 
+class TouchSource(BaseModel):
+    index: int = Field(description="the touch's index in poses, from 0")
+    source: Literal["typed", "controller"] = Field(
+        description="typed by a person, or read from the robot's controller"
+    )
+    read_at: Timestamp | None = Field(description="when the controller was read; null if typed")
+    readings: dict[str, str] | None = Field(
+        default=None, description="what the controller printed, as read; null if typed"
+    )
+
+
 class CalibrationDetail(Calibration):
     request: dict[str, object] = Field(description="the submission exactly as received")
     geometry: TouchGeometry | None = Field(
         default=None, description="the touches in space; null for numbers entered by hand"
+    )
+    touches: list[TouchSource] | None = Field(
+        default=None,
+        description="where each pose came from (typed, or read from the controller with "
+        "what it printed), for a calibration a guided session finished; else null",
     )
 
 

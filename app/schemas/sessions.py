@@ -23,7 +23,9 @@ from app.schemas.common import (
     Vec3,
     json_integer,
     not_both,
+    one_of,
 )
+from app.schemas.results import TouchSource
 from app.solvers.planning import MAX_TOUCHES, MIN_TOUCHES
 from app.statuses import SessionStatus
 
@@ -118,7 +120,25 @@ class SessionCreate(StrictModel):
 
 
 class TouchAdd(StrictModel):
-    pose: Pose
+    model_config = ConfigDict(
+        json_schema_extra=one_of((("pose",), ("capture",)), (("capture",), ("pose",)))
+    )
+
+    pose: Pose | None = Field(default=None, description="the touch, in the session's format")
+    capture: Literal[True] | None = Field(
+        default=None,
+        description="true: read the touch from the tool's robot's controller (two reads "
+        "100 ms apart that must agree) in place of `pose`",
+    )
+
+    @model_validator(mode="after")
+    def _pose_or_capture(self) -> TouchAdd:
+        if (self.pose is None) == (self.capture is None):
+            raise ValueError(
+                'give "pose" (a typed touch) or "capture": true (read it from the '
+                "controller), one of the two"
+            )
+        return self
 
 
 class SessionFinish(StrictModel):
@@ -141,6 +161,7 @@ class Session(BaseModel):
     units: Units | None
     n_poses: int
     poses: list[Pose] = Field(description="the touches kept so far, in order (index from 0)")
+    touches: list[TouchSource] = Field(description="where each pose came from, in order")
     estimate: Estimate | None
     outliers: list[int] = Field(
         description="0-based index into poses of each touch the others say was missed "

@@ -5,18 +5,22 @@ A check never changes the active TCP; it is recorded in the audit trail either w
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
+
 import numpy as np
 from sqlalchemy.orm import Session
 
 from app.arrays import FloatArray
-from app.auth import Principal
+from app.auth import Principal, act_for
+from app.db import session_scope
 from app.errors import located_in
 from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonArray, JsonObject
 from app.models import Tool, utcnow
-from app.schemas.common import Units
+from app.schemas.common import Pose, Units
 from app.schemas.references import CheckCreate, CheckResult, CheckTouch
-from app.services import audit
+from app.services import audit, capture
 from app.services.diagnosis import Fit, implausible_flanges, refuse_mix_up, refusing_mix_ups
 from app.services.drift import Point, refresh_drift
 from app.services.frames import frame_of, parse_poses_with
@@ -28,22 +32,52 @@ from app.services.versions import active_version_row, lock_tool
 from app.solvers.reference import TcpDeviation, check_tcp
 
 
+def run_check_request(*, tool_id: str, data: CheckCreate, actor: Principal) -> CheckResult:
+    """POST /v1/tools/{id}/checks: typed touches, or (`capture`) one read from the tool's
+    robot's controller with no transaction open meanwhile, then checked as a typed one."""
+    captured = None
+    if data.capture:
+        with session_scope(write=False) as session:
+            act_for(session, actor)  # only the robots the key's cells hold
+            tool = get_tool(session, tool_id)
+            # Refused before the controller is read: no active version, no such point.
+            active_version_row(session, tool)
+            get_reference_point(session, robot_id=tool.robot_id, point_id=data.reference_point_id)
+            settings = capture.settings_for_robot(session, tool.robot_id)
+        captured = capture.read_still(settings, robot_id=tool.robot_id)
+        pose = capture.pose_in_format(captured, CAPTURE_FORMAT, None, loc=("body", "capture"))
+        data = data.model_copy(update={"capture": None, "format": CAPTURE_FORMAT, "poses": [pose]})
+    with session_scope(write=True) as session:
+        act_for(session, actor)
+        return run_check(session, tool_id=tool_id, data=data, actor=actor, captured=captured)
+
+
+#: The format a captured check touch is converted to (any would do: it is read back at once).
+CAPTURE_FORMAT = "matrix"
+
+
 def run_check(
     session: Session,
     *,
     tool_id: str,
     data: CheckCreate,
     actor: Principal,
+    captured: capture.Capture | None = None,
 ) -> CheckResult:
-    """Deviation of the active TCP at a reference point, against the tool's check_mm."""
+    """Deviation of the active TCP at a reference point, against the tool's check_mm.
+    `captured`: the controller's reading the one pose was converted from (audited)."""
     tool = get_tool(session, tool_id)
     robot = get_robot(session, tool.robot_id)
     frame = frame_of(session, active_version_row(session, tool))  # 404 /no-active-version
     point = get_reference_point(session, robot_id=robot.id, point_id=data.reference_point_id)
     limit = effective_tolerance(tool.tolerance).check_mm
+    fmt, poses = data.format, data.poses
+    # typed, or captured and converted
+    assert fmt is not None
+    assert poses is not None
     touches = _measured_touches(
         robot.kinematics,
-        data,
+        Typed(fmt, poses, data.units),
         tcp_mm=frame.position_mm,
         reference_mm=point.position_mm,
         limit=limit,
@@ -52,14 +86,23 @@ def run_check(
     result = _check_result(
         tool.id, version=frame.version, point_id=point.id, touches=touches, limit=limit, actor=actor
     )
-    _record(session, tool, result, actor)
+    _record(session, tool, result, actor, captured)
     _refresh_trend(session, tool.id, result)
     return result
 
 
+@dataclass(frozen=True)
+class Typed:
+    """A check's touches as poses in a format."""
+
+    format: str
+    poses: Sequence[Pose]
+    units: Units | None
+
+
 def _measured_touches(
     kinematics: JsonObject | None,
-    data: CheckCreate,
+    data: Typed,
     *,
     tcp_mm: FloatArray,
     reference_mm: JsonArray,
@@ -155,7 +198,18 @@ _AUDITED = {
 }
 
 
-def _record(session: Session, tool: Tool, result: CheckResult, actor: Principal) -> None:
+def _record(
+    session: Session,
+    tool: Tool,
+    result: CheckResult,
+    actor: Principal,
+    captured: capture.Capture | None,
+) -> None:
+    details = result.model_dump(mode="json", include=_AUDITED)
+    # Where the touch came from, and what the controller printed for a captured one.
+    details["sources"] = [{"source": "typed", "read_at": None}] * len(result.touches)
+    if captured is not None:
+        details["sources"] = [captured.touch_record()]
     audit.record(
         session,
         actor=actor,
@@ -165,7 +219,7 @@ def _record(session: Session, tool: Tool, result: CheckResult, actor: Principal)
         robot_id=tool.robot_id,
         tool_id=tool.id,
         version=result.version,
-        details=result.model_dump(mode="json", include=_AUDITED),
+        details=details,
     )
 
 

@@ -23,13 +23,16 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.arrays import FloatArray
-from app.auth import Principal
+from app.auth import Principal, act_for
+from app.db import session_scope
 from app.errors import Conflict, InvalidInput, NotFound
+from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonObject
 from app.kinematics.poses import one_pose, pose_to_format
 from app.kinematics.touchsets import cone_rotations, flange_positions
 from app.methods.base import MethodRequest
+from app.models import Calibration as CalibrationRow
 from app.models import GuidedSession, Tool, utcnow
 from app.schemas.calibrations import CALIBRATION_REQUESTS
 from app.schemas.common import MAX_POSES, Pose, Units
@@ -41,10 +44,11 @@ from app.schemas.sessions import (
     PlanRequest,
     SessionCreate,
     SessionFinish,
+    TouchAdd,
 )
 from app.schemas.sessions import Plan as PlanOut
 from app.schemas.sessions import Session as SessionOut
-from app.services import audit, calibrate, idempotency
+from app.services import audit, calibrate, capture, idempotency
 from app.services.contexts import DbContext
 from app.services.diagnosis import one_touch_fits, refusing_mix_ups
 from app.services.frames import active_frame, parse_poses_with
@@ -198,8 +202,32 @@ def get_session(session: Session, session_id: str, *, for_update: bool = False) 
     return row
 
 
-def _open(session: Session, session_id: str) -> GuidedSession:
-    row = get_session(session, session_id, for_update=True)
+def list_sessions(
+    session: Session, *, tool_id: str, limit: int, cursor: str | None
+) -> tuple[list[SessionOut], str | None]:
+    """A tool's guided sessions, newest first (an open one can be resumed)."""
+    tool = get_tool(session, tool_id)
+    rows, next_cursor = paginate(
+        session,
+        select(GuidedSession).where(GuidedSession.tool_id == tool.id),
+        created_col=GuidedSession.created_at,
+        id_col=GuidedSession.id,
+        limit=limit,
+        cursor=cursor,
+        newest_first=True,
+    )
+    return [view(session, r, tool=tool) for r in rows], next_cursor
+
+
+def keep_touches(session: Session, *, calibration_id: str, touches: list[JsonObject]) -> None:
+    """The calibration a session finished keeps where each of its touches came from."""
+    row = session.get(CalibrationRow, calibration_id)
+    assert row is not None  # just stored
+    row.touches = list(touches)
+
+
+def _open(session: Session, session_id: str, *, for_update: bool = True) -> GuidedSession:
+    row = get_session(session, session_id, for_update=for_update)
     if row.status != "open":
         raise Conflict(
             f"session {session_id} is finished (calibration {row.calibration_id}): "
@@ -231,9 +259,38 @@ def _touch_event(
     )
 
 
-def add_touch(session: Session, *, session_id: str, pose: Pose, actor: Principal) -> SessionOut:
+def add_touch_request(*, session_id: str, data: TouchAdd, actor: Principal) -> SessionOut:
+    """POST /v1/sessions/{id}/poses: a typed pose, or (`capture`) one read from the tool's
+    robot's controller with no transaction open meanwhile, then added as a typed one is."""
+    captured = None
+    pose = data.pose
+    if data.capture:
+        with session_scope(write=False) as session:
+            act_for(session, actor)  # only the robots the key's cells hold
+            row = _open(session, session_id, for_update=False)  # refused before any I/O
+            tool = session.get(Tool, row.tool_id)
+            assert tool is not None
+            settings = capture.settings_for_robot(session, tool.robot_id)
+            fmt, units = row.format, _units(row)
+        captured = capture.read_still(settings, robot_id=tool.robot_id)
+        pose = capture.pose_in_format(captured, fmt, units, loc=("body", "capture"))
+    assert pose is not None  # TouchAdd holds a pose or capture
+    with session_scope(write=True) as session:
+        act_for(session, actor)
+        return add_touch(session, session_id=session_id, pose=pose, actor=actor, captured=captured)
+
+
+def add_touch(
+    session: Session,
+    *,
+    session_id: str,
+    pose: Pose,
+    actor: Principal,
+    captured: capture.Capture | None = None,
+) -> SessionOut:
     """Keep one more touch, unless it cannot be read or the set now reads as a unit or
-    convention mix-up: then refuse it and leave the session as it was."""
+    convention mix-up: then refuse it and leave the session as it was. `captured`: the
+    controller's reading the pose was converted from (kept with the touch)."""
     row = _open(session, session_id)
     if len(row.poses) >= MAX_POSES:
         raise InvalidInput(
@@ -260,10 +317,21 @@ def add_touch(session: Session, *, session_id: str, pose: Pose, actor: Principal
         except InvalidInput as refusal:
             if refusal.kind == "convention-mismatch":
                 raise
-    row.poses = poses
+    record = _TYPED if captured is None else captured.touch_record()
+    row.poses, row.touches = poses, [*_touch_records(row), record]
     row.updated_at = utcnow()
-    _touch_event(session, row, "session.touch_add", actor, {"index": len(poses) - 1, "pose": pose})
+    details: JsonObject = {"index": len(poses) - 1, "pose": pose, **record}
+    _touch_event(session, row, "session.touch_add", actor, details)
     return view(session, row, tool=tool)
+
+
+#: The source of a pose a person typed.
+_TYPED: JsonObject = {"source": "typed", "read_at": None}
+
+
+def _touch_records(row: GuidedSession) -> list[JsonObject]:
+    """One record per kept pose, in order."""
+    return [dict(t) for t in row.touches]
 
 
 def delete_touch(session: Session, *, session_id: str, index: int, actor: Principal) -> SessionOut:
@@ -276,6 +344,7 @@ def delete_touch(session: Session, *, session_id: str, index: int, actor: Princi
         )
     removed = row.poses[index]
     row.poses = [p for i, p in enumerate(row.poses) if i != index]
+    row.touches = [t for i, t in enumerate(_touch_records(row)) if i != index]
     row.updated_at = utcnow()
     _touch_event(session, row, "session.touch_delete", actor, {"index": index, "pose": removed})
     return view(session, row)
@@ -328,12 +397,14 @@ def finish(
     )
     row.status, row.calibration_id, row.updated_at = "finished", out.id, utcnow()
     if not replayed:
+        keep_touches(session, calibration_id=out.id, touches=_touch_records(row))
         _touch_event(
             session,
             row,
             "session.finish",
             actor,
-            {"calibration_id": out.id, "touches": len(row.poses)},
+            # what the controller printed for each captured touch, in the calibration's audit
+            {"calibration_id": out.id, "touches": len(row.poses), "sources": row.touches},
             version=out.version,
         )
     return out, replayed
@@ -363,6 +434,7 @@ def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> S
         units=_units(row),
         n_poses=len(poses),
         poses=poses,
+        touches=capture.touch_sources(_touch_records(row)),
         estimate=estimate,
         outliers=outliers,
         next_pose=next_pose,

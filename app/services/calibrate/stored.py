@@ -20,6 +20,7 @@ from app.schemas.results import (
     CalibrationResult,
     TouchGeometry,
 )
+from app.services.capture import touch_sources
 from app.services.frames import parse_poses_with
 from app.services.live import visible_tool
 from app.services.robots import get_robot
@@ -88,7 +89,10 @@ def get_calibration(session: Session, *, calibration_id: str) -> CalibrationDeta
         raise NotFound(f"no calibration with id {calibration_id}")
     out = calibration_out(row, tool)
     return CalibrationDetail(
-        **out.model_dump(), request=row.request, geometry=_geometry(session, row, tool, out)
+        **out.model_dump(),
+        request=row.request,
+        geometry=_geometry(session, row, tool, out),
+        touches=None if row.touches is None else touch_sources(row.touches),
     )
 
 

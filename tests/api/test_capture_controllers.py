@@ -1,0 +1,165 @@
+"""Touches straight from the controller, end to end against each protocol's simulator
+(issue 39): a tool on a controller with a non-zero active tool and base frame, calibrated
+from 8 captured touches, lands within 0.01 mm of the truth (no noise); the same poses typed
+give the same TCP to 1e-9 mm; a moving robot is refused with nothing kept; an unreachable or
+stalled one answers 502 within timeout_s + 1 s."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from tests.api.controller_rigs import SLOT, TIMEOUT_S, Rig, rig
+from tests.api.touches import row_counts
+from tests.conftest import Api
+from tests.sim.touches import simulate_touches
+
+TRUE_TCP = np.array([12.0, -6.5, 171.25])
+TOUCHES = simulate_touches(8, seed=7, touch_noise_mm=0.0, tcp_mm=TRUE_TCP)
+
+
+def _kuka(r: Rig) -> Callable[[np.ndarray, np.ndarray], None]:
+    """The KRC moves by $TOOL_DATA[3] (an oriented TCP) in a $BASE away from the robot's."""
+    r.sim.set_tool(SLOT, *TRUE_TCP, 20.0, -10.0, 5.0)
+    r.sim.select_tool(SLOT)
+    r.sim.set_base(400.0, -250.0, 30.0, 35.0, 2.0, -1.5)
+
+    def place(rotation: np.ndarray, position: np.ndarray) -> None:
+        r.sim.set_flange(tuple(float(v) for v in position), rotation)
+
+    return place
+
+
+#: protocol -> sets the controller up (active tool, base frame) and returns how to jog it.
+#: Each protocol joins as its connector's read_pose lands (issue 39: FANUC, ABB to come).
+SETUPS: dict[str, Callable[[Rig], Callable[[np.ndarray, np.ndarray], None]]] = {"kuka_kvp": _kuka}
+
+
+@pytest.fixture(params=sorted(SETUPS))
+def cell(request: pytest.FixtureRequest) -> Iterator[tuple[Rig, Callable[..., None]]]:
+    with rig(request.param) as r:
+        yield r, SETUPS[request.param](r)
+
+
+@pytest.fixture(autouse=True)
+def secret_key(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    """ABB controllers take a password, stored encrypted under this key."""
+    from app.config import get_settings
+
+    monkeypatch.setenv("TCPCAL_SECRET_KEY", "capture-tests-secret-key-0123456789")
+    get_settings.cache_clear()
+    yield
+    get_settings.cache_clear()
+
+
+def _tool(api: Api, r: Rig, **controller: Any) -> dict[str, Any]:
+    robot = api.robot()
+    body = r.controller_body(**controller)
+    put = api.request("PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=body)
+    assert put.status_code == 200, put.text
+    return api.tool(robot["id"], **r.tool_fields)
+
+
+def _session(api: Api, tool_id: str) -> str:
+    body = {"method": "xyz_npoint", "format": "kuka_abc", "options": {"touch_noise_mm": 0.01}}
+    created = api.post(f"/v1/tools/{tool_id}/sessions", body, scope="calibrate")
+    assert created.status_code == 201, created.text
+    return str(created.json()["id"])
+
+
+def _finish(api: Api, sid: str) -> np.ndarray:
+    done = api.post(f"/v1/sessions/{sid}/finish", {"activate": "never"}, scope="calibrate")
+    assert done.status_code == 201, done.text
+    return np.asarray(done.json()["tcp"]["position_mm"])
+
+
+def test_eight_captured_touches_calibrate_the_tool_and_equal_the_same_poses_typed(
+    api: Api, cell: tuple[Rig, Callable[..., None]]
+) -> None:
+    r, place = cell
+    tool = _tool(api, r)
+    captured = _session(api, tool["id"])
+    for rotation, position in zip(TOUCHES.R, TOUCHES.f, strict=True):
+        place(rotation, position)
+        added = api.post(f"/v1/sessions/{captured}/poses", {"capture": True}, scope="calibrate")
+        assert added.status_code == 200, added.text
+    state = api.get(f"/v1/sessions/{captured}").json()
+    assert [t["source"] for t in state["touches"]] == ["controller"] * 8
+    assert all(t["readings"] for t in state["touches"])
+    tcp_captured = _finish(api, captured)
+    assert np.linalg.norm(tcp_captured - TRUE_TCP) < 0.01, tcp_captured
+    typed = _session(api, tool["id"])
+    for pose in state["poses"]:
+        api.post(f"/v1/sessions/{typed}/poses", {"pose": pose}, scope="calibrate")
+    assert np.linalg.norm(_finish(api, typed) - tcp_captured) < 1e-9
+
+
+def test_the_pose_read_is_the_flange_in_the_robots_base_frame(
+    api: Api, cell: tuple[Rig, Callable[..., None]]
+) -> None:
+    r, place = cell
+    tool = _tool(api, r)
+    place(TOUCHES.R[3], TOUCHES.f[3])
+    read = api.get(f"/v1/robots/{tool['robot_id']}/controller/pose", scope="calibrate")
+    assert read.status_code == 200, read.text
+    matrix = np.asarray(read.json()["pose"])
+    assert np.linalg.norm(matrix[:3, 3] - TOUCHES.f[3]) < 0.01
+    off = Rotation.from_matrix(matrix[:3, :3]).inv() * Rotation.from_matrix(TOUCHES.R[3])
+    assert off.magnitude() < np.radians(0.01)
+    assert read.json()["protocol"] == r.protocol
+    assert read.json()["readings"]
+
+
+def test_a_moving_robot_is_refused_and_the_session_is_unchanged(
+    api: Api, cell: tuple[Rig, Callable[..., None]]
+) -> None:
+    r, place = cell
+    tool = _tool(api, r)
+    sid = _session(api, tool["id"])
+    place(TOUCHES.R[0], TOUCHES.f[0])
+    assert api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate").is_success
+    before = api.get(f"/v1/sessions/{sid}").json()
+    counts = row_counts(("audit_events", "guided_sessions", "calibrations"))
+    r.sim.moving_per_read = 0.5
+    moving = api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate")
+    assert moving.status_code == 409, moving.text
+    assert moving.json()["type"].endswith("/robot-moving")
+    assert "nothing was kept" in moving.json()["detail"]
+    assert api.get(f"/v1/sessions/{sid}").json() == before
+    assert row_counts(("audit_events", "guided_sessions", "calibrations")) == counts
+
+
+@pytest.mark.parametrize("fault", ["stopped", "stalled"])
+def test_an_unreachable_controller_is_502_within_its_timeout(
+    api: Api, cell: tuple[Rig, Callable[..., None]], fault: str
+) -> None:
+    r, _ = cell
+    tool = _tool(api, r)
+    sid = _session(api, tool["id"])
+    before = api.get(f"/v1/sessions/{sid}").json()
+    if fault == "stopped":
+        r.sim.stop()
+    else:
+        r.sim.stalled = True
+    started = time.monotonic()
+    failed = api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate")
+    elapsed = time.monotonic() - started
+    assert failed.status_code == 502, failed.text
+    assert failed.json()["type"].endswith("/controller-unreachable")
+    assert elapsed < TIMEOUT_S + 1
+    assert api.get(f"/v1/sessions/{sid}").json() == before
+
+
+def test_a_kuka_in_external_tcp_mode_is_refused_naming_it(api: Api) -> None:
+    with rig("kuka_kvp") as r:
+        tool = _tool(api, r)
+        r.sim.ipo_mode = "#TCP"
+        refused = api.get(f"/v1/robots/{tool['robot_id']}/controller/pose", scope="calibrate")
+    assert refused.status_code == 502, refused.text
+    assert refused.json()["type"].endswith("/controller-refused")
+    assert refused.json()["controller_message"] == "$IPO_MODE #TCP"
