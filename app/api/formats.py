@@ -14,6 +14,7 @@ from app.kinematics.poses import (
 )
 from app.schemas.common import Units
 from app.schemas.formats import FormatInfo, FormatList
+from app.tool_numbers import TOOL_NUMBERS
 
 router = APIRouter(tags=["stateless"])
 
@@ -39,4 +40,6 @@ def all_formats() -> list[FormatInfo]:
 def list_formats(key: ReadKey) -> FormatList:
     """Every pose format: the names of its numbers in order, its default units (overridden
     by a request's `units`) and how its numbers make the rotation."""
-    return FormatList(items=all_formats(), controller_files=dict(FILE_KINDS))
+    return FormatList(
+        items=all_formats(), controller_files=dict(FILE_KINDS), tool_numbers=dict(TOOL_NUMBERS)
+    )

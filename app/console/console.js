@@ -308,17 +308,87 @@ function turnedBy(deg) {
   return figure === "0.000" ? "" : `, ${figure} deg`;
 }
 
-const frameText = (f) => (f ? `${vec(f.position_mm)} | q ${f.quaternion.map((v) => v.toFixed(5)).join(", ")}` : "—");
+// A frame on two lines (position, then orientation), each kept whole: on one line it was
+// 420 px that could not wrap and pushed the deployments table past a 1400 px window.
+const frameText = (f) => (f ? [h("span", { class: "line" }, vec(f.position_mm)), h("span", { class: "line" }, `q ${f.quaternion.map((v) => v.toFixed(5)).join(", ")}`)] : "—");
+
+// The version whose TCP a frame is (within 0.01 mm and 0.01 deg, as the live tool's matches),
+// as "v6"; else null.
+function versionOf(frame, versions) {
+  if (!frame) return null;
+  const match = versions.find((v) => {
+    const off = Math.hypot(...v.tcp.position_mm.map((p, i) => p - frame.position_mm[i]));
+    const dot = Math.abs(v.tcp.quaternion.reduce((sum, q, i) => sum + q * frame.quaternion[i], 0));
+    return off <= 0.01 && (2 * Math.acos(Math.min(1, dot)) * 180) / Math.PI <= 0.01;
+  });
+  return match ? `v${match.version}` : null;
+}
+
+// What each deployment status (contract v1.3) means at the cell, in words a technician acts
+// on. The server's `detail` of a failure ends with these words (and names the version held
+// before from its records); a row whose detail does not say them (one recorded before v1.3, a
+// read-back mismatch) gets them here.
+const DEPLOYMENT_LABELS = { verified: "verified", not_written: "not written", unverified: "written, not confirmed", mismatch: "reads back otherwise" };
+const DEPLOYMENT_SAID = { not_written: "nothing was written", unverified: "written, not confirmed" };
+function deploymentWords(d, versions) {
+  if (d.status === "verified") return `the controller holds v${d.version} (read back within ${d.deviation_mm.toFixed(4)} mm, ${d.deviation_deg.toFixed(4)} deg)`;
+  if (d.status === "not_written") return "nothing was written: the controller still holds what it held";
+  if (d.status === "unverified") {
+    const before = versionOf(d.previous, versions) ?? (d.previous ? "the frame it held before" : "what it held before");
+    return `written, not confirmed: the controller may hold v${d.version} or ${before}; the next reconcile round will tell`;
+  }
+  if (d.status === "mismatch" && d.deviation_mm !== null) {
+    return `written, but the controller reads back ${d.deviation_mm.toFixed(4)} mm and ${d.deviation_deg.toFixed(4)} deg off v${d.version}: it does not hold v${d.version}; deploy again, or look on the pendant`;
+  }
+  return d.status;
+}
+const saysStatus = (detail, status) => Boolean(detail && DEPLOYMENT_SAID[status] && detail.includes(DEPLOYMENT_SAID[status]));
+
+// `settled`: what the reconcile round after an unverified deployment found the controller
+// holding (the deployed version, the frame it held before, or neither), and when.
+function settledText(d, versions) {
+  const s = d.settled;
+  if (!s) return null;
+  const before = versionOf(d.previous, versions);
+  const holds = {
+    written: `the controller holds v${d.version}`,
+    previous: `the controller holds what it held before${before ? ` (${before})` : ""}: v${d.version} did not take`,
+    other: `the controller holds neither v${d.version} nor what it held before`,
+  }[s.holds] ?? s.holds;
+  return `Settled ${when(s.at)}: ${holds}`;
+}
+
+function deploymentBadge(status) {
+  return h("span", { class: `badge deploy ${status}` }, DEPLOYMENT_LABELS[status] ?? status);
+}
+
+function deploymentRow(d, versions) {
+  const detail = d.error?.detail;
+  const settled = settledText(d, versions);
+  return h("tr", { "data-deployment": d.id, "data-status": d.status, class: d.status === "verified" ? null : "failed" },
+    h("td", {}, when(d.created_at)),
+    h("td", { class: "num" }, d.version),
+    h("td", { class: "target anywhere" }, d.target),
+    h("td", { class: "outcome" },
+      deploymentBadge(d.status),
+      saysStatus(detail, d.status) ? null : h("p", { class: "words" }, deploymentWords(d, versions)),
+      detail ? h("p", { class: "detail anywhere" }, detail) : null,
+      settled ? h("p", { class: "settled" }, settled) : null),
+    h("td", { class: "num frame" }, frameText(d.previous)),
+    h("td", { class: "num" }, d.deviation_mm === null ? "—" : `${d.deviation_mm.toFixed(4)} mm, ${d.deviation_deg.toFixed(4)} deg`),
+    h("td", {}, d.actor, d.reason ? h("p", { class: "reason" }, `Why: ${d.reason}`) : null));
+}
 
 // The tool page's controller section: the state found at the last look, the connection, a
 // Deploy button that asks for confirmation first, and every deployment, newest first.
-async function controllerSection(tool, onChange) {
+async function controllerSection(tool, versions, onChange) {
   const section = h("section", { id: "controller" }, h("h2", {}, "Controller"));
   let connection = null;
   try {
     connection = await json(`/v1/robots/${tool.robot_id}/controller`);
   } catch (error) {
-    if (!(error instanceof Problem) || error.status !== 409) throw error;
+    // /no-controller: 409 up to v1.2, 404 from contract v1.3 on.
+    if (!(error instanceof Problem) || !String(error.doc.type || "").endsWith("/no-controller")) throw error;
   }
   const [rows, deployments] = await Promise.all([
     everyPage(`/v1/tools?robot_id=${tool.robot_id}`),
@@ -336,24 +406,25 @@ async function controllerSection(tool, onChange) {
     );
     section.append(deployControls(tool, connection, onChange));
   }
-  const deploymentRows = deployments.map((d) =>
-    h("tr", { "data-deployment": d.id, class: d.status === "verified" ? null : "failed" },
-      h("td", {}, when(d.created_at)),
-      h("td", { class: "num" }, d.version),
-      h("td", {}, d.target),
-      h("td", {}, h("span", { class: `badge ${d.status === "verified" ? "accepted" : "out_of_tolerance"}` }, d.status)),
-      h("td", { class: "num" }, frameText(d.previous)),
-      h("td", { class: "num" }, d.deviation_mm === null ? "—" : `${d.deviation_mm.toFixed(4)} mm, ${d.deviation_deg.toFixed(4)} deg`),
-      h("td", {}, d.error ? d.error.detail : ""),
-      h("td", {}, d.actor)),
-  );
   section.append(
     h("h3", {}, "Deployments"),
     deployments.length
-      ? h("table", { id: "deployments" }, h("thead", {}, h("tr", {}, ["When", "Version", "Target", "Status", "Held before", "Read back off by", "Error", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, deploymentRows))
+      ? h("table", { id: "deployments" }, h("thead", {}, h("tr", {}, ["When", "Version", "Target", "Outcome", "Held before", "Read back off by", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, deployments.map((d) => deploymentRow(d, versions))))
       : h("p", { id: "no-deployments" }, "Never deployed from tcpcal."),
   );
   return section;
+}
+
+// After a refused deployment: its status (the 502's `deployment_status`) as a headline, then
+// the server's detail, which says what the controller may hold now in words.
+function deployProblem(error) {
+  const status = error instanceof Problem ? error.doc.deployment_status : undefined;
+  if (!DEPLOYMENT_LABELS[status]) return problemBox(error);
+  const label = DEPLOYMENT_LABELS[status];
+  return h("div", { class: "problem", role: "alert", "data-status": status },
+    h("strong", { class: "status" }, `${label[0].toUpperCase()}${label.slice(1)}`),
+    h("p", { class: "detail anywhere" }, error.doc.detail || ""),
+    h("p", { class: "muted" }, `${error.status} ${error.doc.title || ""} · deployment ${error.doc.deployment_id ?? "not recorded"}`));
 }
 
 function deployControls(tool, connection, onChange) {
@@ -385,7 +456,7 @@ function deployControls(tool, connection, onChange) {
       const d = await json(`/v1/tools/${tool.id}/deployments`, { method: "POST", body: {} });
       outcome.replaceChildren(h("p", { class: "summary accepted", role: "status" }, `Verified: ${d.target} holds version ${d.version} (read back within ${d.deviation_mm.toFixed(4)} mm, ${d.deviation_deg.toFixed(4)} deg).`));
     } catch (error) {
-      outcome.replaceChildren(problemBox(error));
+      outcome.replaceChildren(deployProblem(error));
     }
     confirmBox.hidden = true;
     await onChange(outcome);
@@ -546,7 +617,7 @@ async function toolPage(toolId) {
       h("td", {}, badge(v.status)),
       h("td", { class: "num" }, vec(v.tcp.position_mm)),
       h("td", {}, v.source),
-      h("td", {}, v.note ?? ""),
+      h("td", { class: "anywhere" }, v.note ?? ""),
       h("td", {}, v.created_by),
       h("td", {}, when(v.created_at)),
       h("td", {}, v.calibration_id ? h("a", { href: `/ui/calibrations/${v.calibration_id}` }, "report") : "—"),
@@ -555,15 +626,14 @@ async function toolPage(toolId) {
     ),
   );
   const activationRows = versions.activations.slice().reverse().map((a) =>
-    h("tr", {}, h("td", {}, when(a.activated_at)), h("td", { class: "num" }, a.version), h("td", { class: "num" }, a.previous_version ?? "—"), h("td", {}, a.reason), h("td", { class: "reason-text" }, a.reason_text ?? ""), h("td", {}, a.activated_by)),
+    h("tr", {}, h("td", {}, when(a.activated_at)), h("td", { class: "num" }, a.version), h("td", { class: "num" }, a.previous_version ?? "—"), h("td", {}, a.reason), h("td", { class: "reason-text anywhere" }, a.reason_text ?? ""), h("td", {}, a.activated_by)),
   );
 
-  const controllers = formats.controllers;
   const controllerBox = h("div", { id: "controllers", class: "grid" });
   const controllerSlot = h("div", { id: "controller-slot" });
   // After a deployment the section is drawn again (its state and history), keeping the outcome.
   const drawController = async (outcome) => {
-    const section = await controllerSection(tool, drawController);
+    const section = await controllerSection(tool, versions.items, drawController);
     if (outcome) section.querySelector("#deploy-outcome")?.replaceWith(outcome);
     controllerSlot.replaceChildren(section);
   };
@@ -591,7 +661,7 @@ async function toolPage(toolId) {
     if (versions.items.length) plotTcp(versions.items, sigmaOf);
     if (checks.length) plotChecks(checks, tool.tolerance.check_mm, drift.checks);
   });
-  if (tool.active_version !== null) await fillControllers(toolId, controllers, formats.controller_files || {}, controllerBox);
+  if (tool.active_version !== null) await fillControllers(tool, formats, controllerBox);
 }
 
 // ---- the audit trail (admin keys) ------------------------------------------------------------
@@ -627,8 +697,8 @@ async function auditSection(toolId) {
   const rows = events.map((e) =>
     h("tr", { "data-action": e.action },
       h("td", {}, when(e.at)), h("td", {}, e.actor), h("td", {}, e.action),
-      h("td", { class: "num" }, e.version ?? "—"), h("td", {}, auditWhy(e)),
-      h("td", { class: "muted" }, e.request_id ?? "")),
+      h("td", { class: "num" }, e.version ?? "—"), h("td", { class: "anywhere" }, auditWhy(e)),
+      h("td", { class: "muted anywhere" }, e.request_id ?? "")),
   );
   return h("section", {}, heading,
     events.length
@@ -640,12 +710,31 @@ async function auditSection(toolId) {
 // space in 80 characters and ran out of its card); <wbr> adds no character to a selection.
 const wrapAfterCommas = (text) => text.split(/(?<=,)/).flatMap((part, i) => (i ? [h("wbr"), part] : [part]));
 
-async function fillControllers(toolId, controllers, files, box) {
-  const cards = await Promise.all(controllers.map(async (fmt) => {
-    const name = fmt;
+// A card's file download. A format whose file addresses the tool by its number (FANUC's
+// UTOOL[n] in a .LS, Yaskawa's TOOL.CND) has no file for a tool without a slot: the button is
+// off and says why (it did nothing when clicked). Any refusal on a click is shown in the card.
+function downloadButton(tool, name, kind, numbers) {
+  const label = `Download ${kind}`;
+  if (numbers && tool.slot === null) {
+    const why = `Set the tool's slot (${numbers[0]}-${numbers[1]} on ${name.toUpperCase()}) to download its ${kind}: the file addresses the tool by its number, and this tool has none.`;
+    return [h("button", { type: "button", class: "download", disabled: true, title: why }, label), h("p", { class: "unavailable muted" }, why)];
+  }
+  const save = h("button", { type: "button", class: "download", title: `the ${kind} the controller loads, with a header naming the version` }, label);
+  save.addEventListener("click", () => {
+    save.closest(".card").querySelector(".problem")?.remove();
+    download(`/v1/tools/${tool.id}/tcp?format=${name}`, "text/plain", `${name}.txt`)
+      .catch((error) => save.closest(".card").append(problemBox(error)));
+  });
+  return [save];
+}
+
+async function fillControllers(tool, formats, box) {
+  const files = formats.controller_files || {};
+  const numbered = formats.tool_numbers || {};
+  const cards = await Promise.all(formats.controllers.map(async (name) => {
     let doc;
     try {
-      doc = await json(`/v1/tools/${toolId}/tcp?format=${name}`);
+      doc = await json(`/v1/tools/${tool.id}/tcp?format=${name}`);
     } catch (error) {
       if (!(error instanceof Problem)) throw error;
       return h("div", { class: "card", "data-format": name }, h("h3", {}, name), h("p", { class: "muted" }, error.message));
@@ -653,10 +742,8 @@ async function fillControllers(toolId, controllers, files, box) {
     const text = doc.controller.text;
     const copy = h("button", { type: "button", class: "copy" }, "Copy");
     copy.addEventListener("click", () => copyText(text, copy));
-    const kind = files[name] || "file";
-    const save = h("button", { type: "button", class: "download", title: `the ${kind} the controller loads, with a header naming the version` }, `Download ${kind}`);
-    save.addEventListener("click", () => download(`/v1/tools/${toolId}/tcp?format=${name}`, "text/plain", `${name}.txt`));
-    return h("div", { class: "card", "data-format": name }, h("h3", {}, name), h("pre", {}, wrapAfterCommas(text)), h("div", { class: "actions" }, copy, save));
+    const [save, why] = downloadButton(tool, name, files[name] || "file", numbered[name]);
+    return h("div", { class: "card", "data-format": name }, h("h3", {}, name), h("pre", {}, wrapAfterCommas(text)), h("div", { class: "actions" }, copy, save), why);
   }));
   box.replaceChildren(...cards);
 }
@@ -673,22 +760,30 @@ function timeRange(isoDates) {
   return [new Date(first - pad).toISOString(), new Date(last + pad).toISOString()];
 }
 
+// One step per version, in order, labelled v1, v2, ...: on a time axis versions made minutes
+// apart piled up into one point (the page's plot read as a single version). When each was
+// made is in the hover; the versions table and the drift line below carry the times.
+const MAX_VERSION_TICKS = 24;
 function plotTcp(versions, sigmaOf) {
+  const steps = versions.map((_, i) => i + 1);
+  const every = Math.ceil(versions.length / MAX_VERSION_TICKS);
+  const ticks = steps.filter((step) => (step - 1) % every === 0 || step === versions.length);
   const axes = ["x", "y", "z"];
   const traces = axes.map((axis, i) => ({
     type: "scatter",
     mode: "lines+markers",
     name: `${axis} mm`,
-    x: versions.map((v) => v.created_at),
+    x: steps,
     y: versions.map((v) => v.tcp.position_mm[i]),
-    text: versions.map((v) => `version ${v.version}`),
+    customdata: versions.map((v) => [`v${v.version}`, when(v.created_at)]),
+    hovertemplate: `%{customdata[0]} · %{customdata[1]}<br>${axis} %{y:.3f} mm<extra></extra>`,
     error_y: { type: "data", array: versions.map((v) => sigmaOf.get(v.version)?.[i] ?? 0), visible: true },
     xaxis: "x",
     yaxis: `y${i === 0 ? "" : i + 1}`,
   }));
   Plotly.newPlot("plot-tcp", traces, {
     grid: { rows: 3, columns: 1, shared_xaxes: true },
-    xaxis: { type: "date", range: timeRange(versions.map((v) => v.created_at)) },
+    xaxis: { type: "linear", range: [0.5, versions.length + 0.5], tickmode: "array", tickvals: ticks, ticktext: ticks.map((step) => `v${versions[step - 1].version}`), zeroline: false },
     height: 480,
     margin: { t: 10, r: 10, b: 40, l: 70 },
     yaxis: { title: { text: "x mm" }, tickformat: ".3f" },

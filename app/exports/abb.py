@@ -86,10 +86,12 @@ def tooldata_value(tool: ToolData) -> str:
 def _checked_load(tool: ToolData) -> tuple[float, FloatArray]:
     mass = tool.mass_kg
     if mass is None or not np.isfinite(mass) or mass <= 0:
+        # In words: the console's ABB card read "has None" (and "has nan" for a NaN).
+        has = "none" if mass is None or not np.isfinite(mass) else f"{mass:g} kg"
         raise InvalidInput(
             "missing-load",
             f"an ABB tooldata needs the tool's mass (kg, > 0); tool {tool.name!r} has "
-            f"{mass!r}. ABB controllers refuse a held tool with mass 0: set the tool's "
+            f"{has}. ABB controllers refuse a held tool with mass 0: set the tool's "
             "load (mass_kg, cog_mm) first",
             loc=("load", "mass_kg"),
         )

@@ -47,10 +47,12 @@ _PATTERN = re.compile(
 def export_kuka(tool: ToolData) -> ControllerExport:
     """``$TOOL_DATA[slot]={X,Y,Z (mm),A,B,C (deg)}``; InvalidInput if the slot is missing."""
     if tool.slot is None or not FIRST_SLOT <= tool.slot <= MAX_SLOT:
+        # Said in words: "got None" reached the console's KUKA card and the API's 422.
+        has = "it has none" if tool.slot is None else f"its slot {tool.slot} is not one"
         raise InvalidInput(
             "invalid-options",
             f"a KUKA tool needs its tool number (slot {FIRST_SLOT}..{MAX_SLOT}) for $TOOL_DATA[n]; "
-            f"got {tool.slot!r}",
+            f"{has}: set the tool's slot",
             loc=("slot",),
         )
     position, quaternion = checked_tcp(tool)

@@ -29,3 +29,9 @@ class FormatList(BaseModel):
         description="what each controller format's file is (GET /v1/tools/{id}/tcp?format= "
         'with Accept: text/plain), e.g. {"abb": "RAPID module"}',
     )
+    tool_numbers: dict[str, tuple[int, int]] = Field(
+        default_factory=dict,
+        description="the controller formats whose file addresses a tool by its number (the "
+        'tool\'s slot), and the first and last number, e.g. {"fanuc": [1, 10]}: a tool '
+        "without a slot has no such file",
+    )

@@ -86,7 +86,9 @@ def test_deploy_asks_first_then_shows_the_outcome_state_and_history(page: Page, 
         page.click("#deploy-yes")
         expect(page.locator("#deploy-outcome [role=alert]")).to_contain_text("502", timeout=10_000)
         expect(page.locator("#deployments tbody tr")).to_have_count(2)
-        expect(page.locator("#deployments tbody tr").first).to_contain_text("not_written")
+        last = page.locator("#deployments tbody tr").first
+        expect(last).to_have_attribute("data-status", "not_written")
+        expect(last).to_contain_text("nothing was written: the controller still holds what it held")
     finally:
         cell.rig.sim.stalled = False
 

@@ -249,6 +249,8 @@ def test_abb_refuses_missing_or_zero_mass(mass: float | None) -> None:
         export_tool("abb", tool(mass=mass))
     assert info.value.kind == "missing-load"
     assert info.value.loc == ("load", "mass_kg")
+    has = "none" if mass is None or math.isnan(mass) else f"{mass:g} kg"
+    assert f"tool 'gripper' has {has}. ABB controllers refuse" in info.value.detail
 
 
 def test_abb_refuses_missing_cog() -> None:
@@ -270,6 +272,38 @@ def test_kuka_refuses_missing_slot() -> None:
         export_tool("kuka", tool(slot=None))
     assert info.value.kind == "invalid-options"
     assert info.value.loc == ("slot",)
+    # The sentence reaches the console's KUKA card and the API's 422: in words, not "got None".
+    assert info.value.detail.endswith(
+        "(slot 1..16) for $TOOL_DATA[n]; it has none: set the tool's slot"
+    )
+    with pytest.raises(InvalidInput) as info:
+        export_tool("kuka", tool(slot=17))
+    assert info.value.detail.endswith("its slot 17 is not one: set the tool's slot")
+
+
+def _refusal(fmt: str, data: ToolData) -> str | None:
+    """What exporting `data` as `fmt` is refused with, or None when it is not."""
+    try:
+        export_tool(fmt, data)
+    except InvalidInput as exc:
+        return exc.detail
+    return None
+
+
+def test_a_refusal_never_prints_none() -> None:
+    """A tool without slot, load or centre of gravity: whatever a format refuses, it says so in
+    words (the console's KUKA card read "got None", the ABB one "has None")."""
+    bare = ToolData(
+        slot=None,
+        name="bare",
+        position_mm=np.zeros(3),
+        quaternion_wxyz=np.array([1.0, 0, 0, 0]),
+        mass_kg=None,
+    )
+    refusals = {fmt: _refusal(fmt, bare) for fmt in CONTROLLER_FORMATS}
+    said = {fmt: detail for fmt, detail in refusals.items() if detail is not None}
+    assert set(said) == {"kuka", "abb"}, refusals
+    assert [detail for detail in said.values() if "None" in detail] == []
 
 
 def test_refuses_unknown_controller_format() -> None:

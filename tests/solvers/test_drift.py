@@ -2,15 +2,22 @@
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from scipy.stats import binom
 
 from app.errors import InvalidInput
 from app.solvers.drift import MONTH_DAYS, Trend, crossing, fit_trend
 
 FloatArray = np.ndarray
 N_SERIES = 1000
+#: Steady series simulated for the false `drifting` rate (about 2 ms of CPU each).
+FALSE_SERIES = 2000
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "drift.md"
 #: "drifting": the projection crosses check_mm within this many days of the last point.
 WITHIN_DAYS = 30.0
 
@@ -55,19 +62,33 @@ def test_rate_interval_covers_the_true_rate_95_percent_of_the_time() -> None:
     assert 0.93 <= hits / N_SERIES <= 0.97, hits
 
 
-def test_no_drift_raises_drifting_at_most_5_percent_of_the_time() -> None:
+def _documented_false_drifting() -> float:
+    """The share of steady series at check_mm that raise `drifting`, as docs/drift.md states
+    it (the figure measured over 40 000 series)."""
+    text = DOCS.read_text()
+    match = re.search(r"stand exactly at `check_mm` \(the hardest case\), ([0-9.]+) %", text)
+    assert match is not None, "docs/drift.md no longer states the false `drifting` rate"
+    return float(match.group(1)) / 100.0
+
+
+def test_no_drift_raises_drifting_at_the_documented_rate() -> None:
     """Deviations that do not move, standing right at check_mm (the hardest case: 0.9 mm gives
-    no alarm at all): a false alarm is a lower bound above the truth, which a 95 % bound allows
-    at most 5 % of the time (3.9 % here)."""
+    no alarm at all): a false alarm is a lower bound above the truth somewhere in the 30
+    days. The count over FALSE_SERIES series must lie in the central 99.8 % of the binomial
+    distribution at the documented rate (5.3 %, above the bound's nominal 5 %: the 30 days
+    are 30 chances), [76, 138] of 2000: a detector at 7.5 % fails for 86 % of seeds, and one
+    at the documented rate passes for 998 seeds of 1000."""
+    rate = _documented_false_drifting()
+    low, high = binom.ppf([0.001, 0.999], FALSE_SERIES, rate)
     rng = np.random.default_rng(7)
     raised = 0
-    for _ in range(N_SERIES):
+    for _ in range(FALSE_SERIES):
         n = int(rng.integers(4, 25))
         direction = rng.normal(size=3)
         level = 1.0 * direction / np.linalg.norm(direction)
         t, y = _series(rng, n, rng.uniform(30.0, 300.0), level, np.zeros(3), 0.05)
         raised += _drifting(_fit(t, y), np.zeros(3), 1.0)
-    assert raised / N_SERIES <= 0.05, raised
+    assert low <= raised <= high, (raised, FALSE_SERIES, (low, high))
 
 
 def test_a_real_drift_towards_check_mm_is_raised_with_a_crossing_time() -> None:

@@ -9,7 +9,7 @@ MODULE tcpcal_tools
   ! from https://tcpcal.plant.example
   ! left out: xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx: an ABB tooldata needs
   ! the tool's mass (kg, > 0); tool
-  ! 'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx' has None.
+  ! 'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx' has none.
   ! ABB controllers refuse a held tool with mass 0: set the tool's load
   ! (mass_kg, cog_mm) first
   ! changes only the tooldata torch (declared here), tGripper
