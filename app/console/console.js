@@ -329,7 +329,8 @@ function versionOf(frame, versions) {
 // before from its records); a row whose detail does not say them (one recorded before v1.3, a
 // read-back mismatch) gets them here.
 const DEPLOYMENT_LABELS = { verified: "verified", not_written: "not written", unverified: "written, not confirmed", mismatch: "reads back otherwise" };
-const DEPLOYMENT_SAID = { not_written: "nothing was written", unverified: "written, not confirmed" };
+// (A detail recorded before v1.3 ends "; nothing was written" alone: the words follow it.)
+const DEPLOYMENT_SAID = { not_written: "nothing was written: the controller still holds what it held", unverified: "written, not confirmed" };
 function deploymentWords(d, versions) {
   if (d.status === "verified") return `the controller holds v${d.version} (read back within ${d.deviation_mm.toFixed(4)} mm, ${d.deviation_deg.toFixed(4)} deg)`;
   if (d.status === "not_written") return "nothing was written: the controller still holds what it held";

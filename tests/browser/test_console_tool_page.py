@@ -48,7 +48,7 @@ class Cell:
     loose: str  # no slot, no load: several formats cannot hold it
     quick: str  # three versions made seconds apart
     torch: str  # on a robot with a controller; a deployment of every status
-    deployments: dict[str, int]  # status -> the planted deployment's id
+    deployments: dict[str, int]  # status (or its variant) -> the planted deployment's id
 
 
 def _closed_port() -> int:
@@ -77,6 +77,13 @@ def _plant_deployments(url: str, tool_id: str, robot_id: str) -> dict[str, int]:
                        "controller_message": None}, "reason": "new nozzle",
                        "settled": {"at": "2026-11-27T08:00:00+00:00", "holds": "previous",
                                    "frame": V1}},
+        # a not_written row as worded before v1.3: the detail's "nothing was written" alone
+        "not_written_before": {"status": "not_written", "version": 2, "previous": None,
+                               "read_back": None, "deviation_mm": None, "deviation_deg": None,
+                               "error": {"type": "controller-unreachable",
+                               "detail": "the controller at 127.0.0.1:1 could not be reached "
+                               "within 1 s: connection refused; nothing was written",
+                               "controller_message": None}},
         "mismatch": {"version": 2, "previous": V1, "read_back": V2, "deviation_mm": 0.2501,
                      "deviation_deg": 0.0123, "error": {"type": "controller-mismatch",
                      "detail": "$TOOL_DATA[3] reads back 0.2501 mm and 0.0123 deg from what "
@@ -84,20 +91,20 @@ def _plant_deployments(url: str, tool_id: str, robot_id: str) -> dict[str, int]:
     }  # fmt: skip
     ids = {}
     with session_scope(write=True, engine=engine_for(url)) as session:
-        for minutes, (status, fields) in enumerate(rows.items()):
+        for minutes, (name, fields) in enumerate(rows.items()):
             row = Deployment(
                 tool_id=tool_id,
                 robot_id=robot_id,
                 protocol="kuka_kvp",
                 target="$TOOL_DATA[3]",
-                status=status,
+                status=fields.pop("status", name),
                 actor="alice",
                 created_at=now - timedelta(minutes=10 - minutes),
                 **fields,
             )
             session.add(row)
             session.flush()
-            ids[status] = row.id
+            ids[name] = row.id
     engine_for(url).dispose()
     return ids
 
@@ -264,8 +271,9 @@ def test_versions_minutes_apart_are_one_step_each(page: Page, cell: Cell) -> Non
 
 def test_each_deployment_status_is_said_in_words(page: Page, cell: Cell) -> None:
     sign_in_to(page, cell.server, f"/ui/tools/{cell.torch}")
-    for status, words in WORDS.items():
-        row = page.locator(f"#deployments tr[data-deployment='{cell.deployments[status]}']")
+    for name, deployment in cell.deployments.items():
+        words = WORDS[name.removesuffix("_before")]
+        row = page.locator(f"#deployments tr[data-deployment='{deployment}']")
         outcome = row.locator("td.outcome").inner_text()
         assert outcome.count(words) == 1, outcome  # said once: by the server, or by the page
     unverified = page.locator(
