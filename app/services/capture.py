@@ -135,8 +135,10 @@ def controller_failure(exc: ControllerError, settings: ControllerSettings) -> Do
     """A connector's failure as the 502 a client gets (as for deployments)."""
     where = f"{settings.host}:{settings.port}"
     if isinstance(exc, ControllerRefused):
+        # The connector's sentence says why and what to do (KUKA's external-TCP mode: move
+        # with the tool on the flange); the controller's own words alone do not.
         return ControllerRefusedError(
-            f"the controller refused: {exc.controller_message}; nothing was kept",
+            f"the controller refused ({exc.controller_message}): {exc}; nothing was kept",
             members={"controller_message": exc.controller_message},
         )
     if isinstance(exc, ControllerUnreachable):

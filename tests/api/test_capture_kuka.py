@@ -1,0 +1,151 @@
+"""KUKA touches captured over KUKAVARPROXY, end to end (issue 39), with what the generic
+capture tests cannot see: the KRC moves by an old guess of the tool ($ACT_TOOL 3, $TOOL =
+$TOOL_DATA[3]) in a $BASE shifted and turned three ways, so $POS_ACT is neither the flange
+nor in the robot's base frame. A TCP solved from touches of one point does not change when
+every flange is moved by one rigid transform (a $BASE left out), so each captured pose is
+held to the flange the simulator stands at, and each touch's readings to what the KRC
+printed at it, in the session and in the calibration it becomes."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from tests.api.controller_rigs import Rig, kuka_rotation, rig, rotation_of
+from tests.conftest import Api
+from tests.controllers.kuka_sim import KukaSimulator
+from tests.sim.touches import simulate_touches
+
+TRUE_TCP = np.array([12.5, -7.25, 182.0])
+POINT = np.array([850.0, -120.0, 240.0])
+#: The tool the KRC moves by while the touches are taken: an old guess, turned three ways.
+ACTIVE_TOOL = (4.0, -2.5, 170.0, 10.0, -5.0, 3.0)
+#: $BASE: a fixture's frame, shifted and turned three ways.
+BASE = (1200.0, -400.0, 50.0, 25.0, -3.0, 1.5)
+#: What a KUKA pose read prints (contract v1.3, "Touches straight from the controller").
+VARIABLES = ("$IPO_MODE", "$ACT_TOOL", "$TOOL", "$BASE", "$POS_ACT", "$AXIS_ACT")
+#: What 32-bit REALs printed with nine digits leave of a flange 1-2 m from $BASE's origin.
+FLOAT32_MM, FLOAT32_DEG = 1e-3, 1e-3
+
+
+@pytest.fixture
+def krc() -> Iterator[Rig]:
+    with rig("kuka_kvp") as r:
+        r.sim.set_tool(3, *ACTIVE_TOOL)
+        r.sim.select_tool(3)
+        r.sim.set_base(*BASE)
+        yield r
+
+
+def _tool(api: Api, r: Rig) -> dict[str, Any]:
+    robot = api.robot("kr16")
+    put = api.request(
+        "PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=r.controller_body()
+    )
+    assert put.status_code == 200, put.text
+    return api.tool(robot["id"], "torch", **r.tool_fields)
+
+
+def _session(api: Api, tool_id: str) -> str:
+    body = {"method": "xyz_npoint", "format": "kuka_abc"}
+    created = api.post(f"/v1/tools/{tool_id}/sessions", body, scope="calibrate")
+    assert created.status_code == 201, created.text
+    return str(created.json()["id"])
+
+
+def _finish(api: Api, sid: str) -> dict[str, Any]:
+    done = api.post(f"/v1/sessions/{sid}/finish", {"activate": "never"}, scope="calibrate")
+    assert done.status_code == 201, done.text
+    return dict(done.json())
+
+
+def _printed(sim: KukaSimulator) -> dict[str, str]:
+    shown = {name: sim.show_var(name) for name in VARIABLES}
+    return {name: text for name, text in shown.items() if text is not None}
+
+
+def test_captured_touches_are_the_flanges_the_krc_stood_at_and_keep_what_it_printed(
+    api: Api, krc: Rig
+) -> None:
+    tool = _tool(api, krc)
+    sid = _session(api, tool["id"])
+    touches = simulate_touches(8, seed=39, touch_noise_mm=0.0, tcp_mm=TRUE_TCP, pivot_mm=POINT)
+    printed = []
+    for rotation, flange in zip(touches.R, touches.f, strict=True):
+        krc.sim.set_flange(tuple(flange), rotation)
+        added = api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate")
+        assert added.status_code == 200, added.text
+        printed.append(_printed(krc.sim))
+    state = added.json()
+    for pose, rotation, flange, shown in zip(
+        state["poses"], touches.R, touches.f, printed, strict=True
+    ):
+        # kuka_abc: X, Y, Z, A, B, C of the flange, R = Rz(A) Ry(B) Rx(C)
+        assert np.max(np.abs(np.subtract(pose[:3], flange))) <= FLOAT32_MM, (pose, flange)
+        off = kuka_rotation(*pose[3:]).inv() * Rotation.from_matrix(rotation)
+        assert np.degrees(off.magnitude()) <= FLOAT32_DEG, pose
+        # $POS_ACT is the old tool's TCP in $BASE, far from the flange in the robot's base
+        pos_act = dict(m.split(" ") for m in shown["$POS_ACT"][1:-1].split(": ")[1].split(", "))
+        assert (
+            np.linalg.norm([float(pos_act[k]) - f for k, f in zip("XYZ", flange, strict=True)])
+            > 500
+        )
+    assert [t["source"] for t in state["touches"]] == ["controller"] * 8
+    assert [t["readings"] for t in state["touches"]] == printed
+
+    captured = _finish(api, sid)
+    assert np.linalg.norm(np.subtract(captured["tcp"]["position_mm"], TRUE_TCP)) <= 0.01
+    detail = api.get(f"/v1/calibrations/{captured['id']}").json()
+    assert [t["readings"] for t in detail["touches"]] == printed, "the calibration keeps them"
+    assert detail["request"]["poses"] == state["poses"]
+
+    typed = _session(api, tool["id"])
+    for pose in state["poses"]:
+        added = api.post(f"/v1/sessions/{typed}/poses", {"pose": pose}, scope="calibrate")
+        assert added.status_code == 200, added.text
+    assert [t["source"] for t in added.json()["touches"]] == ["typed"] * 8
+    np.testing.assert_allclose(
+        _finish(api, typed)["tcp"]["position_mm"], captured["tcp"]["position_mm"], atol=1e-9
+    )
+
+
+def test_the_pose_read_names_the_tool_the_krc_moves_by_and_its_joints(api: Api, krc: Rig) -> None:
+    tool = _tool(api, krc)
+    krc.sim.jog_flange(1104.25, -431.5, 622.75, -140.0, 62.0, 178.0)
+    krc.sim.set_joints(-35.5, -70.25, 101.0, 12.0, 48.5, -210.0)
+    read = api.get(
+        f"/v1/robots/{tool['robot_id']}/controller/pose?format=kuka_abc", scope="calibrate"
+    )
+    assert read.status_code == 200, read.text
+    body = read.json()
+    assert body["joints_deg"] == [-35.5, -70.25, 101.0, 12.0, 48.5, -210.0]
+    assert body["live_tool"]["number"] == 3
+    frame = body["live_tool"]["frame"]
+    assert np.max(np.abs(np.subtract(frame["position_mm"], ACTIVE_TOOL[:3]))) <= 1e-9
+    off = rotation_of(frame["quaternion"]).inv() * kuka_rotation(*ACTIVE_TOOL[3:])
+    assert np.degrees(off.magnitude()) <= 1e-6
+    assert body["readings"] == _printed(krc.sim)
+    assert np.max(np.abs(np.subtract(body["pose"][:3], (1104.25, -431.5, 622.75)))) <= FLOAT32_MM
+    off = kuka_rotation(*body["pose"][3:]).inv() * kuka_rotation(-140.0, 62.0, 178.0)
+    assert np.degrees(off.magnitude()) <= FLOAT32_DEG
+
+
+def test_external_tcp_mode_is_refused_saying_what_to_do_and_nothing_is_kept(
+    api: Api, krc: Rig
+) -> None:
+    tool = _tool(api, krc)
+    sid = _session(api, tool["id"])
+    before = api.get(f"/v1/sessions/{sid}").json()
+    krc.sim.ipo_mode = "#TCP"
+    refused = api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate")
+    assert refused.status_code == 502, refused.text
+    problem = refused.json()
+    assert problem["type"].endswith("/controller-refused")
+    assert problem["controller_message"] == "$IPO_MODE #TCP"
+    assert "External TCP off" in problem["detail"], "what to do"
+    assert "nothing was kept" in problem["detail"]
+    assert api.get(f"/v1/sessions/{sid}").json() == before
