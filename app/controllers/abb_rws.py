@@ -21,6 +21,15 @@ application/hal+json;v=2.0``, ``Content-Type: application/x-www-form-urlencoded;
 ``POST /rw/mastership/edit/request`` before, ``POST /rw/mastership/edit/release`` after,
 whatever the write's outcome.
 
+Where the robot stands (issue 39, ``read_pose``): "Get Robtarget" (rwsApi
+``ms_mechunit_robtarget_page``), ``GET /rw/motionsystem/mechunits/ROB_1/robtarget?tool=tool0
+&wobj=wobj0&coordinate=Base``, is the TCP of tool0 (the flange) in the robot's base frame,
+so the flange needs no composition; "Get Joint target" (``ms_mechunit_jointtarget_page``),
+``.../jointtarget``, gives rax_1..rax_6 in degrees. Each answer's one state item
+(``ms-robtargets``, ``ms-jointtarget``; RWS 1.0 ``_embedded._state``, 2.0 ``state``) holds
+every value as a string, and those strings are the reading's ``readings``. RWS names no tool
+a program moves by (a move instruction names its own tooldata), so the live tool is unknown.
+
 A write keeps the controller's ``robhold`` and, when tcpcal has no load for the tool, its
 whole ``tload``; with a load it writes mass and centre of gravity and keeps the axes of
 moment and the inertia. Both sessions end with ``GET /logout`` (RobotWare keeps a small
@@ -31,6 +40,7 @@ message.
 from __future__ import annotations
 
 import contextlib
+import math
 import ssl
 from dataclasses import replace
 
@@ -43,6 +53,9 @@ from app.controllers.base import (
     ControllerSettings,
     ControllerUnreachable,
     Deadline,
+    Frame,
+    LiveTool,
+    PoseReading,
     ToolData,
     ToolLoad,
     ToolTarget,
@@ -54,6 +67,7 @@ from app.controllers.base import (
 )
 from app.controllers.rapid import RapidSyntaxError, RapidTool, format_tooldata, parse_tooldata
 from app.jsontypes import JsonObject
+from app.kinematics.frames import flange_from_tcp
 
 #: ABB's factory user, used when the controller settings name none.
 DEFAULT_USER = "Default User"
@@ -62,6 +76,15 @@ V2_JSON = "application/hal+json;v=2.0"
 V2_FORM = "application/x-www-form-urlencoded;v=2.0"
 _LOGOUT_BUDGET_S = 1.0
 _WORDS_LIMIT = 300
+#: the mechanical unit of the motion task T_ROB1 (a single robot's controller)
+MECHUNIT = "ROB_1"
+#: tool0 in wobj0 in Base coordinates: the flange in the robot's base frame, whatever tool
+#: and work object the robot moves by
+ROBTARGET_QUERY = {"tool": "tool0", "wobj": "wobj0", "coordinate": "Base"}
+_ROBTARGET = ("x", "y", "z", "q1", "q2", "q3", "q4")
+_JOINTS = ("rax_1", "rax_2", "rax_3", "rax_4", "rax_5", "rax_6")
+#: how far from 1 the norm of a printed quaternion may be (RobotWare prints 7 digits)
+_UNIT_SLACK = 1e-3
 
 
 class AbbRwsConnector(ClosingSession):
@@ -156,6 +179,32 @@ class AbbRwsConnector(ClosingSession):
             finally:
                 self._release_mastership(deadline)
 
+    def read_pose(self) -> PoseReading:
+        """The flange in the robot's base frame (the robtarget of tool0 in wobj0, Base
+        coordinates), rax_1..rax_6 of the jointtarget, and every value both answers held, as
+        printed; both reads within one deadline. The live tool is unknown (RWS does not say)."""
+        deadline = Deadline(self._settings.timeout_s)
+        robtarget = self._motion_state("robtarget", "ms-robtargets", deadline)
+        jointtarget = self._motion_state("jointtarget", "ms-jointtarget", deadline)
+        x, y, z, q1, q2, q3, q4 = self._numbers(robtarget, _ROBTARGET, "robtarget")
+        norm = math.sqrt(q1 * q1 + q2 * q2 + q3 * q3 + q4 * q4)
+        if abs(norm - 1.0) > _UNIT_SLACK:
+            raise ControllerProtocolError(
+                f"{self._peer}: the robtarget's orientation q1..q4 = {q1}, {q2}, {q3}, {q4} is "
+                f"not a unit quaternion (norm {norm:.6f})"
+            )
+        # tool0 in Base coordinates is the flange in the base frame: no tool, no base to
+        # compose; flange_from_tcp only normalises the printed quaternion (scipy).
+        position, quaternion = flange_from_tcp(((x, y, z), (q1, q2, q3, q4)))
+        readings = {f"robtarget.{k}": v for k, v in robtarget.items()}
+        readings |= {f"jointtarget.{k}": v for k, v in jointtarget.items()}
+        return PoseReading(
+            flange=Frame(position, quaternion),
+            joints_deg=self._numbers(jointtarget, _JOINTS, "jointtarget"),
+            live_tool=LiveTool(None, None),
+            readings=readings,
+        )
+
     def close(self) -> None:
         """Log out (ends the controller's session) and close the connection; never raises."""
         if self._logged_in:
@@ -193,6 +242,45 @@ class AbbRwsConnector(ClosingSession):
                 f"{target.symbol} on the controller is not a tooldata: {err}",
                 controller_message=f"{target.symbol} = {value[:_WORDS_LIMIT]}",
             ) from err
+
+    def _motion_state(self, resource: str, kind: str, deadline: Deadline) -> dict[str, str]:
+        """The string values of the `kind` state item of mechunit ROB_1's `resource`."""
+        params = dict(ROBTARGET_QUERY) if resource == "robtarget" else {}
+        if not self._v2:
+            params["json"] = "1"
+        response = self._send(
+            "GET",
+            f"/rw/motionsystem/mechunits/{MECHUNIT}/{resource}",
+            deadline,
+            params=params,
+            what=f"read the {resource} of {MECHUNIT}",
+        )
+        item = _state_item(_json(response, self._peer), kind)
+        if item is None:
+            raise ControllerProtocolError(f"{self._peer}: no {kind} item in the {resource} answer")
+        return {
+            key: value
+            for key, value in item.items()
+            if isinstance(value, str) and key not in ("_type", "_title")
+        }
+
+    def _numbers(
+        self, values: dict[str, str], names: tuple[str, ...], resource: str
+    ) -> tuple[float, ...]:
+        """The values `names` as finite numbers; ControllerProtocolError quoting the text."""
+        numbers: list[float] = []
+        for name in names:
+            text = values.get(name)
+            try:
+                number = float(text) if text is not None else math.nan
+            except ValueError:
+                number = math.nan
+            if not math.isfinite(number):
+                raise ControllerProtocolError(
+                    f"{self._peer}: the {resource}'s {name} is {text!r}, not a number"
+                )
+            numbers.append(number)
+        return tuple(numbers)
 
     def _release_mastership(self, deadline: Deadline) -> None:
         # Released even when the write failed or the deadline is spent: a held mastership
@@ -278,18 +366,33 @@ def _json(response: httpx.Response, peer: str) -> JsonObject:
     return body
 
 
-def _state_value(body: JsonObject) -> str | None:
-    """The ``value`` of the first state resource: RWS 1.0 ``_embedded._state``, RWS 2.0
+def _state_lists(body: JsonObject) -> list[object]:
+    """Where an answer's state resources are: RWS 1.0 ``_embedded._state``, RWS 2.0
     ``state`` (or ``_embedded.resources``)."""
     embedded = body.get("_embedded")
     candidates = [body.get("state")]
     if isinstance(embedded, dict):
         candidates += [embedded.get("_state"), embedded.get("resources")]
-    for states in candidates:
+    return candidates
+
+
+def _state_value(body: JsonObject) -> str | None:
+    """The ``value`` of the first state resource."""
+    for states in _state_lists(body):
         if isinstance(states, list) and states and isinstance(states[0], dict):
             value = states[0].get("value")
             if isinstance(value, str):
                 return value
+    return None
+
+
+def _state_item(body: JsonObject, kind: str) -> JsonObject | None:
+    """The first state resource whose ``_type`` is `kind`."""
+    for states in _state_lists(body):
+        if isinstance(states, list):
+            for item in states:
+                if isinstance(item, dict) and item.get("_type") == kind:
+                    return item
     return None
 
 

@@ -30,10 +30,27 @@ minus allowed: nothing Python's ``float`` takes beyond that (``nan``, ``inf``, `
 The answer to a read (``rap-data`` with its ``value``) is the RWS manual's "Get symbol
 data" (rwsApi ``rapid_symbol_data_page``).
 
-Tool data are held as RobotWare holds ``num`` (32-bit float) unless `single_precision` is
-False. `set_tool` / `tool` are the operator at the FlexPendant (Jogging > Tool, or the
-Program Data window); `mastership_holder` set to "FlexPendant" is an operator holding
-write access there.
+Where the robot stands (issue 39): "Get Robtarget" (rwsApi ``ms_mechunit_robtarget_page``),
+``GET /rw/motionsystem/mechunits/{mechunit}/robtarget`` with ``tool``, ``wobj`` (each the
+mechunit's active one when left out) and ``coordinate`` (``Base | World | Tool | Wobj``,
+required), answering one ``ms-robtargets`` item titled by the mechunit with x, y, z (mm),
+q1..q4 (q1 the scalar part), cf1, cf4, cf6, cfx and eax_a..eax_f (unused: 8.999999e+009);
+"Get Joint target" (``ms_mechunit_jointtarget_page``), ``.../jointtarget``, one
+``ms-jointtarget`` item with rax_1..rax_6 (degrees) and eax_a..eax_f. The manual's examples
+are the XHTML form; JSON carries the same names and every value as a string: RWS 1.0
+(``json=1``) the item in ``_embedded._state`` (where abb-robot-client reads it), RWS 2.0
+(hal+json;v=2.0) in ``state``, as replies captured from a RobotWare 7.21 virtual controller
+in public RWS 2.0 clients' tests show. The simulator holds the flange (tool0) in the robot's
+base frame and the six joint angles, which a test sets (`set_pose`); it computes no
+kinematics: a robtarget of another tool is the flange composed with that tool's tframe, of
+coordinate Wobj the same seen from the work object's frame (``wobjs``, wobj0 the base), of
+World from ``base_frame`` (the base in the world; the identity by default); Tool is refused
+(400) as nothing here needs it.
+
+Tool data, the pose and the joints are held as RobotWare holds ``num`` (32-bit float) unless
+`single_precision` is False. `set_tool` / `tool` are the operator at the FlexPendant (Jogging
+> Tool, or the Program Data window); `mastership_holder` set to "FlexPendant" is an operator
+holding write access there.
 """
 
 from __future__ import annotations
@@ -55,6 +72,7 @@ from typing import Self
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from tests.controllers.simbase import Faults
 
@@ -62,6 +80,12 @@ REALM = "validusers@robapi.abb"
 V2 = ";v=2.0"
 _V1_PATH = re.compile(r"^/rw/rapid/symbol/data/RAPID/([^/]+)/([^/]+)/([^/?]+)$")
 _V2_PATH = re.compile(r"^/rw/rapid/symbol/RAPID/([^/]+)/([^/]+)/([^/]+)/data$")
+_MOTION_PATH = re.compile(r"^/rw/motionsystem/mechunits/([^/]+)/(robtarget|jointtarget)/?$")
+#: what RobotWare prints for an external axis that is not there (the manual's example)
+NO_AXIS = "8.999999e+009"
+#: a frame: position mm, quaternion q1..q4 (w, x, y, z)
+SimFrame = tuple[tuple[float, float, float], tuple[float, float, float, float]]
+IDENTITY: SimFrame = ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
 NOT_FOUND_CODE = -1073442816
 #: codes RobotWare 7 sends (captured replies in public RWS 2.0 clients' tests)
 RESOURCE_NOT_FOUND_CODE = -1073445859
@@ -83,11 +107,7 @@ class Symbol:
     inertia: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def text(self) -> str:
-        def num(v: float) -> str:
-            # RobotWare prints a num (a 32-bit float) in its shortest form
-            if float(np.float32(v)) == v:
-                return np.format_float_positional(np.float32(v), trim="-")
-            return np.format_float_positional(v, trim="-")
+        num = num_text
 
         def group(vs: tuple[float, ...]) -> str:
             return "[" + ",".join(num(v) for v in vs) + "]"
@@ -97,6 +117,33 @@ class Symbol:
             f"[{num(self.mass)},{group(self.cog)},{group(self.aom)},"
             f"{','.join(num(v) for v in self.inertia)}]]"
         )
+
+
+def num_text(v: float) -> str:
+    """A num as RobotWare prints it: a 32-bit float in its shortest form (a value held in
+    double precision, `single_precision` False, in full)."""
+    if float(np.float32(v)) == v:
+        return np.format_float_positional(np.float32(v), trim="-")
+    return np.format_float_positional(v, trim="-")
+
+
+def _rotation(q: tuple[float, ...]) -> Rotation:
+    return Rotation.from_quat([q[1], q[2], q[3], q[0]])
+
+
+def _compose(a: SimFrame, b: SimFrame) -> SimFrame:
+    """a @ b (this simulator's own, with scipy: it imports nothing from app/)."""
+    ra, rb = _rotation(a[1]), _rotation(b[1])
+    x, y, z = (float(v) for v in ra.apply(b[0]) + np.asarray(a[0]))
+    qx, qy, qz, qw = (float(v) for v in (ra * rb).as_quat())
+    return (x, y, z), (qw, qx, qy, qz)
+
+
+def _inverse(a: SimFrame) -> SimFrame:
+    r = _rotation(a[1]).inv()
+    x, y, z = (float(v) for v in -r.apply(a[0]))
+    qx, qy, qz, qw = (float(v) for v in r.as_quat())
+    return (x, y, z), (qw, qx, qy, qz)
 
 
 @dataclass
@@ -134,7 +181,22 @@ class AbbRwsSimulator(Faults):
         }
         #: non-tooldata symbols a client may name by mistake: symbol -> RAPID text
         self.other_symbols = {"T_ROB1/user/reg1": "0"}
+        #: the motion task's mechanical unit (T_ROB1 moves ROB_1)
+        self.mechunit = "ROB_1"
+        #: the flange (tool0) in the robot's base frame, and joints rax_1..rax_6 in degrees
+        self.flange: SimFrame = ((515.0, 0.0, 712.0), (0.7071068, 0.0, 0.7071068, 0.0))
+        self.joints: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 30.0, 0.0)
+        self.robconf: tuple[int, int, int, int] = (0, 0, 0, 0)
+        #: the tool and work object active for the mechunit (jogging / the program's last move)
+        self.active_tool = "tool0"
+        self.active_wobj = "wobj0"
+        #: work objects' frames in the robot's base frame (uframe * oframe)
+        self.wobjs: dict[str, SimFrame] = {"wobj0": IDENTITY}
+        #: the robot's base frame in the world
+        self.base_frame: SimFrame = IDENTITY
         self.requests: list[tuple[str, str, str]] = []  # method, path, authorization scheme
+        #: the query of each request, in order (what the client asked for)
+        self.queries: list[dict[str, str]] = []
         self.sessions: dict[str, _Session] = {}
         self._nonces: set[str] = set()
         self._lock = threading.Lock()
@@ -213,6 +275,18 @@ class AbbRwsSimulator(Faults):
         with self._lock:
             held = self.symbols[symbol]
             return Symbol(**held.__dict__)
+
+    def set_pose(
+        self,
+        position_mm: tuple[float, float, float],
+        quaternion: tuple[float, float, float, float],
+        joints_deg: tuple[float, ...] | None = None,
+    ) -> None:
+        """Where the robot stands: its flange in the base frame (and its joint angles)."""
+        with self._lock:
+            self.flange = (self._reals(position_mm), self._reals(quaternion))  # type: ignore[assignment]
+            if joints_deg is not None:
+                self.joints = self._reals(joints_deg)
 
     def _reals(self, values: tuple[float, ...]) -> tuple[float, ...]:
         if self.single_precision:
@@ -301,6 +375,63 @@ class AbbRwsSimulator(Faults):
             "_links": {"base": {"href": f"{self.base_url}/rw/rapid/"}},
             "_embedded": {"_state": state},
         }
+
+    def _state_body(self, path: str, item: dict[str, str]) -> dict[str, object]:
+        links = {"base": {"href": f"{self.base_url}{path}/"}, "self": {"href": ""}}
+        if self.version == 2:
+            return {"_links": links, "state": [item]}
+        return {"_links": links, "_embedded": {"_state": [item]}}
+
+    def _tool_frame(self, name: str) -> SimFrame | None:
+        if name == "tool0":
+            return IDENTITY
+        task = "T_ROB" + self.mechunit.rsplit("_", 1)[-1]
+        for symbol, held in self.symbols.items():
+            if symbol.startswith(f"{task}/") and symbol.rsplit("/", 1)[1] == name:
+                return held.trans, held.rot
+        return None
+
+    def robtarget(self, mechunit: str, query: dict[str, str]) -> tuple[int, dict[str, object]]:
+        """Get Robtarget: the TCP of `tool` in `coordinate` (the flange for tool0 in Base)."""
+        if mechunit != self.mechunit:
+            return 400, _error(NOT_FOUND_CODE, f"Mechanical unit not found: {mechunit}")
+        coordinate = query.get("coordinate")
+        if coordinate not in ("Base", "World", "Wobj"):
+            return 400, _error(PARAMETER_CODE, f"Invalid coordinate: {coordinate}")
+        with self._lock:
+            tool = self._tool_frame(query.get("tool") or self.active_tool)
+            wobj = self.wobjs.get(query.get("wobj") or self.active_wobj)
+            if tool is None or wobj is None:
+                return 400, _error(NOT_FOUND_CODE, "Tool or work object not found")
+            # tool0 is the flange itself, printed as held
+            tcp = self.flange if tool == IDENTITY else _compose(self.flange, tool)
+            if coordinate == "Wobj":
+                tcp = _compose(_inverse(wobj), tcp)
+            elif coordinate == "World":
+                tcp = _compose(self.base_frame, tcp)
+            robconf = self.robconf
+        # printed as the controller holds a num (32-bit unless single_precision is False)
+        x, y, z = self._reals(tcp[0])
+        q1, q2, q3, q4 = self._reals(tcp[1])
+        item = {"_type": "ms-robtargets", "_title": mechunit}
+        item |= {k: num_text(v) for k, v in zip("xyz", (x, y, z), strict=True)}
+        item |= {f"q{i}": num_text(v) for i, v in enumerate((q1, q2, q3, q4), 1)}
+        item |= {k: str(v) for k, v in zip(("cf1", "cf4", "cf6", "cfx"), robconf, strict=True)}
+        item |= {f"eax_{c}": NO_AXIS for c in "abcdef"}
+        path = f"/rw/motionsystem/mechunits/{mechunit}/robtarget"
+        return 200, self._state_body(path, item)
+
+    def jointtarget(self, mechunit: str) -> tuple[int, dict[str, object]]:
+        """Get Joint target: rax_1..rax_6 in degrees."""
+        if mechunit != self.mechunit:
+            return 400, _error(NOT_FOUND_CODE, f"Mechanical unit not found: {mechunit}")
+        with self._lock:
+            joints = self.joints
+        item = {"_type": "ms-jointtarget", "_title": mechunit}
+        item |= {f"rax_{i}": num_text(v) for i, v in enumerate(joints, 1)}
+        item |= {f"eax_{c}": "0" for c in "abcdef"}
+        path = f"/rw/motionsystem/mechunits/{mechunit}/jointtarget"
+        return 200, self._state_body(path, item)
 
     def write_symbol(
         self, symbol: str, value: str, session: _Session
@@ -516,6 +647,7 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
             scheme = headers.get("authorization", "").split(" ", 1)[0]
             url = urlsplit(self.path)
             sim.requests.append((method, url.path, scheme))
+            sim.queries.append({k: v[0] for k, v in parse_qs(url.query).items()})
             if sim.version == 2 and v2_media_problem(method, headers, self):
                 return
             session = sim.authenticate(method, headers)
@@ -594,6 +726,12 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
             )
         ):
             return sim.mastership(path.rsplit("/", 1)[1], session)
+        motion = _MOTION_PATH.match(path)
+        if motion is not None and method == "GET":
+            mechunit, resource = motion.groups()
+            if resource == "robtarget":
+                return sim.robtarget(mechunit, query)
+            return sim.jointtarget(mechunit)
         match = (_V2_PATH if sim.version == 2 else _V1_PATH).match(path)
         if match is None:
             return 404, _error(RESOURCE_NOT_FOUND_CODE, "Resource not found")

@@ -8,10 +8,12 @@ import time
 from collections.abc import Iterator
 
 import httpx
+import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
 from app.controllers import (
+    ControllerProtocolError,
     ControllerRefused,
     ControllerSettings,
     ControllerUnreachable,
@@ -20,10 +22,13 @@ from app.controllers import (
     ToolTarget,
     connect,
 )
+from app.controllers.abb_rws import AbbRwsConnector
+from app.controllers.base import LiveTool
 from app.controllers.rapid import RapidSyntaxError, format_tooldata, parse_tooldata
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fixtures import abb_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
+from tests.controllers.simbase import go_silent
 
 TORCH = ToolTarget(symbol="T_ROB1/user/tTorch")
 GRIPPER = ToolTarget(symbol="T_ROB1/user/tGripper")
@@ -324,3 +329,118 @@ def test_rwswrap_reads_and_writes_the_rws2_simulator(abb_rws2_sim: AbbRwsSimulat
     assert client.set_rapid_variable("tTorch", written, module="user").status_code == 204
     assert abb_rws2_sim.tool("T_ROB1/user/tTorch").trans == (4.0, 5.0, 6.0)
     assert abb_rws2_sim.mastership_holder is None, "rwswrap released the mastership it took"
+
+
+# --- where the robot stands (issue 39) ------------------------------------------------------
+
+ROBTARGET = "/rw/motionsystem/mechunits/ROB_1/robtarget"
+JOINTTARGET = "/rw/motionsystem/mechunits/ROB_1/jointtarget"
+
+
+def _general_pose(seed: int) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+    """A flange somewhere in a robot's reach, any orientation, six joint angles."""
+    tool = random_tool(seed, load=False)
+    rng = np.random.default_rng(seed)
+    position = tuple(float(v) for v in rng.uniform(-1500, 1500, 3))
+    joints = tuple(float(v) for v in rng.uniform(-170, 170, 6))
+    return position, tool.quaternion, joints
+
+
+@pytest.mark.parametrize("version", [1, 2])
+@pytest.mark.parametrize("seed", range(3))
+def test_read_pose_is_the_robtarget_of_tool0_in_base_and_the_jointtarget(
+    version: int, seed: int
+) -> None:
+    """The flange is read as tool0 in wobj0, Base coordinates: a non-zero active tool and an
+    active work object off the base (what a program last moved by) change nothing."""
+    position, quaternion, joints = _general_pose(seed)
+    with AbbRwsSimulator(version, single_precision=False) as sim:
+        sim.set_pose(position, quaternion, joints)  # type: ignore[arg-type]
+        sim.set_tool("T_ROB1/user/tGripper", (10.0, -20.0, 180.0), (0.5, 0.5, 0.5, 0.5))
+        sim.active_tool = "tGripper"
+        sim.wobjs["wobjTable"] = ((800.0, -300.0, 200.0), (0.0, 0.0, 0.0, 1.0))
+        sim.active_wobj = "wobjTable"
+        with connect(abb_settings(sim)) as abb:
+            assert isinstance(abb, AbbRwsConnector)
+            reading = abb.read_pose()
+        asked = [
+            q
+            for (_, path, _), q in zip(sim.requests, sim.queries, strict=True)
+            if path == ROBTARGET
+        ]
+    assert_allclose(reading.flange.position_mm, position, atol=1e-6)
+    assert angle_between_deg(reading.flange.quaternion, quaternion) < 1e-6
+    assert reading.joints_deg is not None
+    assert_allclose(reading.joints_deg, joints, atol=1e-6)
+    assert reading.live_tool == LiveTool(None, None)
+    json = {"json": "1"} if version == 1 else {}
+    expected = {"tool": "tool0", "wobj": "wobj0", "coordinate": "Base", **json}
+    assert asked, "the robtarget was read"
+    assert all(query == expected for query in asked), asked  # RWS 1.0: Digest asks twice
+    # the readings are the answers' values as the controller printed them
+    assert float(reading.readings["robtarget.x"]) == position[0]
+    assert reading.readings["robtarget.cf1"] == "0"
+    assert reading.readings["robtarget.eax_a"] == "8.999999e+009"
+    assert float(reading.readings["jointtarget.rax_6"]) == joints[5]
+    assert "robtarget._type" not in reading.readings
+
+
+def test_read_pose_keeps_the_printed_text_of_a_32_bit_controller(
+    abb_rws2_sim: AbbRwsSimulator,
+) -> None:
+    """A num held as a 32-bit float is printed in its shortest form ("-0.1"), and read as
+    that text says, not as the float32's exact value (-0.10000000149...)."""
+    abb_rws2_sim.set_pose((1234.5, -0.1, 9.0), (0.5, -0.5, 0.5, 0.5), (0.1, 0, 0, 0, 90, 0))
+    with connect(abb_settings(abb_rws2_sim)) as abb:
+        reading = abb.read_pose()  # type: ignore[attr-defined]
+    assert reading.readings["robtarget.y"] == "-0.1"
+    assert reading.readings["robtarget.q2"] == "-0.5"
+    assert reading.readings["jointtarget.rax_1"] == "0.1"
+    assert reading.flange.position_mm == (1234.5, -0.1, 9.0)
+    assert reading.joints_deg == (0.1, 0.0, 0.0, 0.0, 90.0, 0.0)
+    assert reading.flange.quaternion == (0.5, -0.5, 0.5, 0.5)
+
+
+def test_read_pose_refuses_what_is_not_a_pose(abb_rws1_sim: AbbRwsSimulator) -> None:
+    abb_rws1_sim.set_pose((1.0, 2.0, 3.0), (1.0, 0.0, 0.0, 0.0), (0, 0, 0, 0, float("nan"), 0))
+    with connect(abb_settings(abb_rws1_sim)) as abb:
+        with pytest.raises(ControllerProtocolError, match="jointtarget's rax_5 is 'nan'"):
+            abb.read_pose()  # type: ignore[attr-defined]
+        abb_rws1_sim.set_pose((1.0, 2.0, 3.0), (0.5, 0.0, 0.0, 0.0), (0, 0, 0, 0, 0, 0))
+        with pytest.raises(ControllerProtocolError, match="not a unit quaternion"):
+            abb.read_pose()  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("where", [ROBTARGET, JOINTTARGET])
+def test_a_pose_read_that_stalls_ends_within_the_timeout(sim: AbbRwsSimulator, where: str) -> None:
+    """Both reads keep to one deadline: a controller silent at the second (the jointtarget)
+    fails the read within timeout_s of its start, not timeout_s after the first answer."""
+    sim.fault = go_silent("before", f"GET {where}")
+    settings = abb_settings(sim, timeout_s=0.5)
+    started = time.monotonic()
+    with pytest.raises(ControllerUnreachable, match="did not answer"), connect(settings) as abb:
+        abb.read_pose()  # type: ignore[attr-defined]
+    elapsed = time.monotonic() - started
+    assert settings.timeout_s * 0.9 <= elapsed < settings.timeout_s + 1.0, elapsed
+
+
+def test_abb_robot_client_reads_the_rws1_simulators_pose(abb_rws1_sim: AbbRwsSimulator) -> None:
+    """abb-robot-client reads the jointtarget whole, and the robtarget's x, y, z, q1..q4 and
+    cf1..cfx; it then looks for the external axes as ``eaxa``..``eaxf``, where the RWS
+    manual's robtarget example (and its jointtarget, which the client reads) spells them
+    ``eax_a``..``eax_f``: the simulator keeps to the manual, so the client's get_robtarget
+    ends in a KeyError on ``eaxa`` after asking exactly what the connector asks."""
+    from abb_robot_client.rws import RWS
+
+    abb_rws1_sim.set_pose((600.0, 50.5, 432.25), (0.5, 0.5, -0.5, 0.5), (10, -20, 30, 0, 45, 90))
+    client = RWS(abb_rws1_sim.base_url, "Default User", "robotics")
+    joints = client.get_jointtarget()
+    assert list(joints.robax) == [10.0, -20.0, 30.0, 0.0, 45.0, 90.0]
+    with pytest.raises(KeyError, match="eaxa"):
+        client.get_robtarget()
+    assert abb_rws1_sim.queries[-1] == {
+        "tool": "tool0",
+        "wobj": "wobj0",
+        "coordinate": "Base",
+        "json": "1",
+    }
