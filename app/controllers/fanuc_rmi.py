@@ -12,6 +12,18 @@ sent is answered by one with the same ``Communication``/``Command`` name and an 
 (PyPI) reads the session port from ``Port``; the manual and captured replies say
 ``PortNumber``, which this module follows.
 
+Where the robot stands (issue 39, contract v1.3): FRC_ReadCartesianPosition (2.3.14, manual
+page 18) answers the TCP of the active UTOOL n in the active UFRAME m (``Position`` {X, Y, Z,
+W, P, R, Ext1..3}) with the two numbers in its ``Configuration`` (UToolNumber,
+UFrameNumber), so the numbers describe the same moment as the position; FRC_ReadUFrameData
+(2.3.8, page 15) and FRC_ReadUToolData (2.3.10, page 16) then give UFRAME[m] and UTOOL[n]
+(0 is the world frame, the faceplate: the identity, not read), and the flange in the
+robot's world frame is UFRAME[m] * Position * inverse(UTOOL[n]). FRC_ReadJointAngles (2.3.15,
+page 19) answers ``JointAngle`` {J1..J9}: J1..J6 are the arm's joints (J7..J9, extended
+axes, stay in the readings). All four are commands that need only a connection (2.3, pages
+8-9) and are sent one after the other, each answered before the next (2.3: "make sure the
+previously sent command packet is returned"), within one deadline.
+
 W, P, R are fixed-axis X-Y-Z angles: R = Rz(R) Ry(P) Rx(W) (``fanuc_wpr`` in
 app.kinematics.poses). RMI reads and writes only the frame of a UTOOL: the payload lives in
 PAYLOAD schedules that RMI cannot write, so a FANUC tool is read with ``load`` None and
@@ -38,6 +50,9 @@ from app.controllers.base import (
     ControllerSettings,
     ControllerUnreachable,
     Deadline,
+    Frame,
+    LiveTool,
+    PoseReading,
     ToolData,
     ToolTarget,
     check_target,
@@ -47,9 +62,14 @@ from app.controllers.base import (
 )
 from app.controllers.sockets import close_quietly, open_connection, recv_until, send_all
 from app.jsontypes import JsonObject
+from app.kinematics.frames import flange_from_tcp
 from app.kinematics.poses import fanuc_wpr_from_quaternion_wxyz, quaternion_wxyz_from_fanuc_wpr
 
 FRAME_KEYS = ("X", "Y", "Z", "W", "P", "R")
+#: The arm's joints in FRC_ReadJointAngles' JointAngle (J7..J9 are extended axes).
+JOINT_KEYS = ("J1", "J2", "J3", "J4", "J5", "J6")
+#: The faceplate, and the world frame: UTOOL 0 and UFRAME 0.
+_IDENTITY = Frame((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
 RMIT_BASE = 2556928
 #: B-84184EN Appendix A: the RMIT alarms an ErrorID stands for (ErrorID = 2556928 + n).
 RMIT_MESSAGES: dict[int, str] = {
@@ -155,26 +175,49 @@ class FanucRmiConnector(ClosingSession):
     def read_tool(self, target: ToolTarget) -> ToolData:
         """The frame of UTOOL[slot] (no load: RMI does not serve payloads)."""
         check_target(self.protocol, target)
-        reply = self._request(
-            {"Command": "FRC_ReadUToolData", "ToolNumber": target.slot, "Group": 1},
-            Deadline(self._settings.timeout_s),
+        assert target.slot is not None  # check_target: a slot-addressed protocol
+        frame, _line = self._read_frame(
+            "FRC_ReadUToolData", "ToolNumber", target.slot, Deadline(self._settings.timeout_s)
         )
-        frame = reply.get("Frame")
-        if not isinstance(frame, dict):
-            raise ControllerProtocolError(f"{self._peer}: FRC_ReadUToolData without a Frame")
-        values = []
-        for key in FRAME_KEYS:
-            value = frame.get(key)
-            if not isinstance(value, int | float) or isinstance(value, bool):
-                raise ControllerProtocolError(f"{self._peer}: Frame.{key} is {value!r}")
-            values.append(float(value))
-        if not all(np.isfinite(values)):
-            raise ControllerProtocolError(f"{self._peer}: a Frame value is not finite: {values}")
-        q = quaternion_wxyz_from_fanuc_wpr(values[3:])
-        return ToolData(
-            position_mm=(values[0], values[1], values[2]),
-            quaternion=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
-            load=None,
+        return ToolData(position_mm=frame.position_mm, quaternion=frame.quaternion, load=None)
+
+    def read_pose(self) -> PoseReading:
+        """Where the robot stands: the flange in the robot's world frame (UFRAME[m] *
+        Position * inverse(UTOOL[n]) for the active m and n), J1..J6, the tool it moves by
+        (UTOOL n and its frame; UTOOL 0, the faceplate, has no number) and each reply line as
+        the controller sent it, keyed by its command; all within one timeout."""
+        deadline = Deadline(self._settings.timeout_s)
+        readings: dict[str, str] = {}
+        cartesian, readings["FRC_ReadCartesianPosition"] = self._request_line(
+            {"Command": "FRC_ReadCartesianPosition", "Group": 1}, deadline
+        )
+        joints, readings["FRC_ReadJointAngles"] = self._request_line(
+            {"Command": "FRC_ReadJointAngles", "Group": 1}, deadline
+        )
+        configuration = self._member(cartesian, "Configuration", "FRC_ReadCartesianPosition")
+        uframe = self._frame_number(configuration, "UFrameNumber")
+        utool = self._frame_number(configuration, "UToolNumber")
+        position = self._numbers(cartesian, "Position", FRAME_KEYS, "FRC_ReadCartesianPosition")
+        base = tool = _IDENTITY
+        if uframe:
+            base, readings["FRC_ReadUFrameData"] = self._read_frame(
+                "FRC_ReadUFrameData", "FrameNumber", uframe, deadline
+            )
+        if utool:
+            tool, readings["FRC_ReadUToolData"] = self._read_frame(
+                "FRC_ReadUToolData", "ToolNumber", utool, deadline
+            )
+        tcp = _wpr_frame(position)
+        flange = flange_from_tcp(
+            (tcp.position_mm, tcp.quaternion),
+            tool=(tool.position_mm, tool.quaternion),
+            base=(base.position_mm, base.quaternion),
+        )
+        return PoseReading(
+            flange=Frame(*flange),
+            joints_deg=self._numbers(joints, "JointAngle", JOINT_KEYS, "FRC_ReadJointAngles"),
+            live_tool=LiveTool(number=utool or None, frame=tool),
+            readings=readings,
         )
 
     def write_tool(self, target: ToolTarget, data: ToolData) -> None:
@@ -215,12 +258,64 @@ class FanucRmiConnector(ClosingSession):
         close_quietly(self._sock)
         self._sock = None
 
+    # --- the replies -----------------------------------------------------------------------
+
+    def _read_frame(
+        self, command: str, number_key: str, number: int, deadline: Deadline
+    ) -> tuple[Frame, str]:
+        """UFRAME[number] or UTOOL[number] (FRC_ReadUFrameData, FRC_ReadUToolData) and the
+        reply line; ControllerProtocolError when the reply is about another number."""
+        reply, line = self._request_line(
+            {"Command": command, number_key: number, "Group": 1}, deadline
+        )
+        if reply.get(number_key) != number:
+            raise ControllerProtocolError(
+                f"{self._peer}: {command} for {number_key} {number} answered "
+                f"{number_key} {reply.get(number_key)!r}"
+            )
+        return _wpr_frame(self._numbers(reply, "Frame", FRAME_KEYS, command)), line
+
+    def _member(self, reply: JsonObject, key: str, command: str) -> JsonObject:
+        member = reply.get(key)
+        if not isinstance(member, dict):
+            raise ControllerProtocolError(f"{self._peer}: {command} without a {key}")
+        return member
+
+    def _numbers(
+        self, reply: JsonObject, key: str, names: tuple[str, ...], command: str
+    ) -> tuple[float, ...]:
+        """reply[key][name] for each name, finite numbers; ControllerProtocolError naming
+        the first that is not."""
+        member = self._member(reply, key, command)
+        values = []
+        for name in names:
+            value = member.get(name)
+            if not isinstance(value, int | float) or isinstance(value, bool):
+                raise ControllerProtocolError(f"{self._peer}: {command} {key}.{name} is {value!r}")
+            if not np.isfinite(value):
+                raise ControllerProtocolError(
+                    f"{self._peer}: {command} {key}.{name} is not finite: {value!r}"
+                )
+            values.append(float(value))
+        return tuple(values)
+
+    def _frame_number(self, configuration: JsonObject, key: str) -> int:
+        """Configuration.UFrameNumber / UToolNumber: 0 (the world, the faceplate) or more."""
+        number = configuration.get(key)
+        if not isinstance(number, int) or isinstance(number, bool) or number < 0:
+            raise ControllerProtocolError(
+                f"{self._peer}: FRC_ReadCartesianPosition Configuration.{key} is {number!r}"
+            )
+        return number
+
     # --- the packets -----------------------------------------------------------------------
 
     def _session_port(self, deadline: Deadline) -> int:
         sock = open_connection(self._settings.host, self._settings.port, deadline)
         try:
-            reply = self._exchange(sock, bytearray(), {"Communication": "FRC_Connect"}, deadline)
+            reply, _line = self._exchange(
+                sock, bytearray(), {"Communication": "FRC_Connect"}, deadline
+            )
         finally:
             close_quietly(sock)
         port = reply.get("PortNumber")
@@ -229,6 +324,11 @@ class FanucRmiConnector(ClosingSession):
         return port
 
     def _request(self, packet: JsonObject, deadline: Deadline) -> JsonObject:
+        reply, _line = self._request_line(packet, deadline)
+        return reply
+
+    def _request_line(self, packet: JsonObject, deadline: Deadline) -> tuple[JsonObject, str]:
+        """The reply to `packet` on the session, and its line as received."""
         if self._sock is None:
             raise ControllerUnreachable(f"{self._peer}: the session is closed")
         try:
@@ -239,12 +339,12 @@ class FanucRmiConnector(ClosingSession):
 
     def _exchange(
         self, sock: socket.socket, buffer: bytearray, packet: JsonObject, deadline: Deadline
-    ) -> JsonObject:
+    ) -> tuple[JsonObject, str]:
         kind = "Communication" if "Communication" in packet else "Command"
         name = packet[kind]
         send_all(sock, encode_packet(packet), deadline, peer=self._peer)
         while True:
-            reply = self._read_packet(sock, buffer, deadline)
+            reply, line = self._read_packet(sock, buffer, deadline)
             if reply.get("Communication") in ("FRC_Terminate", "FRC_SystemFault"):
                 raise ControllerUnreachable(
                     f"{self._peer} ended the session ({reply['Communication']})"
@@ -260,18 +360,28 @@ class FanucRmiConnector(ClosingSession):
             raise ControllerRefused(
                 f"the FANUC controller refused {name}: {words}", controller_message=words
             )
-        return reply
+        return reply, line
 
     def _read_packet(
         self, sock: socket.socket, buffer: bytearray, deadline: Deadline
-    ) -> JsonObject:
+    ) -> tuple[JsonObject, str]:
+        """The next packet and its line as received (without the CRLF)."""
         line = recv_until(sock, b"\r\n", buffer, deadline, peer=self._peer).strip()
         if not line:
-            return {}
+            return {}, ""
         try:
             packet = json.loads(line)
+            text = line.decode("utf-8")
         except (UnicodeDecodeError, json.JSONDecodeError) as err:
             raise ControllerProtocolError(f"{self._peer} sent {line[:80]!r}: not JSON") from err
         if not isinstance(packet, dict):
             raise ControllerProtocolError(f"{self._peer} sent {line[:80]!r}: not a JSON object")
-        return packet
+        return packet, text
+
+
+def _wpr_frame(values: tuple[float, ...]) -> Frame:
+    """X, Y, Z, W, P, R (mm, deg) as a Frame."""
+    q = quaternion_wxyz_from_fanuc_wpr(values[3:])
+    return Frame(
+        (values[0], values[1], values[2]), (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+    )

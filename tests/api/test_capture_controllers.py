@@ -35,9 +35,24 @@ def _kuka(r: Rig) -> Callable[[np.ndarray, np.ndarray], None]:
     return place
 
 
+def _fanuc(r: Rig) -> Callable[[np.ndarray, np.ndarray], None]:
+    """The controller moves by UTOOL[3] (an oriented TCP) in UFRAME[2], away from the world."""
+    r.sim.set_tool(SLOT, *TRUE_TCP, 20.0, -10.0, 5.0)
+    r.sim.set_uframe(2, 400.0, -250.0, 30.0, 35.0, 2.0, -1.5)
+    r.sim.select(uframe=2, utool=SLOT)
+
+    def place(rotation: np.ndarray, position: np.ndarray) -> None:
+        r.sim.set_flange(tuple(float(v) for v in position), rotation)
+
+    return place
+
+
 #: protocol -> sets the controller up (active tool, base frame) and returns how to jog it.
-#: Each protocol joins as its connector's read_pose lands (issue 39: FANUC, ABB to come).
-SETUPS: dict[str, Callable[[Rig], Callable[[np.ndarray, np.ndarray], None]]] = {"kuka_kvp": _kuka}
+#: Each protocol joins as its connector's read_pose lands (issue 39: ABB to come).
+SETUPS: dict[str, Callable[[Rig], Callable[[np.ndarray, np.ndarray], None]]] = {
+    "kuka_kvp": _kuka,
+    "fanuc_rmi": _fanuc,
+}
 
 
 @pytest.fixture(params=sorted(SETUPS))

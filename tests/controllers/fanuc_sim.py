@@ -16,6 +16,26 @@ the teach pendant enabled RMIT-008, FRC_Abort with RMI not running RMIT-009.
 
 Frame values are held as the controller's REALs (32-bit floats) unless `single_precision`
 is False. `set_tool` / `tool` are the operator at the pendant (SETUP > Frames).
+
+Where the robot stands (B-84184EN/03 2.3.14 "Packet To Read Current Robot Cartesian
+Position", manual page 18, and 2.3.15 "Packet To Read Current Robot Joint Angles", page 19;
+both need only a connection, 2.3 page 8-9): FRC_ReadCartesianPosition answers ``TimeTag``,
+``Configuration`` {UToolNumber, UFrameNumber, Front, Up, Left, Flip, Turn4, Turn5, Turn6}
+and ``Position`` {X, Y, Z, W, P, R, Ext1, Ext2, Ext3}: the TCP of the active UTOOL n in the
+active UFRAME m, so Position = inverse(UFRAME[m]) * flange * UTOOL[n] with the flange in
+the robot's world frame and UFRAME 0 / UTOOL 0 the identity (the world, the faceplate);
+W, P, R are fixed-axis angles, R = Rz(R) Ry(P) Rx(W). FRC_ReadJointAngles answers
+``TimeTag`` and ``JointAngle`` {J1 .. J9} (deg). FRC_ReadUFrameData (2.3.8, page 15)
+answers ``FrameNumber`` and ``Frame`` {X, Y, Z, W, P, R} of UFRAME[FrameNumber]. Each takes
+an optional ``Group`` (group 1 without it); another group answers RMIT-039 Invalid Group
+Number (this controller has one group). The manual gives no range for FrameNumber: this one
+has the 9 user frames FRC_GetStatus calls NumberUFrame (2.3.7), and another number answers
+RMIT-003 Invalid UFrame Number. This module computes Position with its own numpy and scipy
+from a flange the test jogs (`set_flange`, `jog_flange`), the user frames the operator
+enters (`set_uframe`) and the numbers selected (`select`); the Configuration bits are the
+test's to set (`configuration`), not computed from joints. `moving_per_read` makes the
+robot move: each pose read finds the flange that many mm further along world x and J1 that
+many degrees further.
 """
 
 from __future__ import annotations
@@ -23,21 +43,30 @@ from __future__ import annotations
 import json
 import socket
 import threading
+import time
 from collections.abc import Iterator
 
 import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from tests.controllers.simbase import TcpSimulator
 
 SLOTS = range(1, 11)
+UFRAMES = range(1, 10)
 FRAME_KEYS = ("X", "Y", "Z", "W", "P", "R")
+EXT_KEYS = ("Ext1", "Ext2", "Ext3")
+JOINT_KEYS = tuple(f"J{i}" for i in range(1, 10))
+CONFIGURATION_KEYS = ("Front", "Up", "Left", "Flip", "Turn4", "Turn5", "Turn6")
 RMIT = 2556928
 INVALID_UTOOL = RMIT + 2
+INVALID_UFRAME = RMIT + 3
 TP_ENABLED = RMIT + 8
 RMI_NOT_RUNNING = RMIT + 9
 INVALID_COMMAND = RMIT + 13
 INVALID_POSITION_DATA = RMIT + 23
 ALREADY_CONNECTED = RMIT + 26
+INVALID_GROUP = RMIT + 39
 
 
 class FanucSimulator(TcpSimulator):
@@ -56,6 +85,32 @@ class FanucSimulator(TcpSimulator):
         self.session_open = False
         self.rmi_running = False
         self._data_lock = threading.Lock()
+        # Where the robot stands: the flange in the world frame (4x4, mm), the joints, the
+        # user frames, the UFRAME and UTOOL numbers selected (0: the world, the faceplate).
+        self._flange: NDArray[np.float64] = np.eye(4)
+        self._flange[:3, 3] = (1000.0, 0.0, 1000.0)
+        self.joints: dict[str, float] = dict.fromkeys(JOINT_KEYS, 0.0)
+        self.uframes: dict[int, dict[str, float]] = {
+            m: dict.fromkeys(FRAME_KEYS, 0.0) for m in UFRAMES
+        }
+        self.active_uframe = 0
+        self.active_utool = 1
+        #: the arm's configuration as the pendant shows it (F/N, U/D, T/B, turns): not computed
+        self.configuration: dict[str, int] = {
+            "Front": 1,
+            "Up": 1,
+            "Left": 0,
+            "Flip": 0,
+            "Turn4": 0,
+            "Turn5": 0,
+            "Turn6": 0,
+        }
+        #: a moving robot: each pose read finds the flange this many mm further along world x
+        #: and J1 this many degrees further
+        self.moving_per_read = 0.0
+        #: seconds the controller takes over each command on the session (a slow one)
+        self.reply_delay_s = 0.0
+        self._started = time.monotonic()
 
     def start(self) -> FanucSimulator:
         super().start()
@@ -77,6 +132,69 @@ class FanucSimulator(TcpSimulator):
         """X, Y, Z, W, P, R of UTOOL[slot] as the controller holds them."""
         with self._data_lock:
             return tuple(self.tools[slot][k] for k in FRAME_KEYS)
+
+    def set_uframe(
+        self, number: int, x: float, y: float, z: float, w: float, p: float, r: float
+    ) -> None:
+        """SETUP > Frames > User Frame: UFRAME[number] in the world frame (mm, deg)."""
+        if number not in UFRAMES:
+            raise ValueError(f"user frame {number} is not one of 1-9")
+        with self._data_lock:
+            self.uframes[number] = {
+                k: self._real(v) for k, v in zip(FRAME_KEYS, (x, y, z, w, p, r), strict=True)
+            }
+
+    def select(self, *, uframe: int, utool: int) -> None:
+        """The program's UFRAME_NUM and UTOOL_NUM (0: the world frame, the faceplate)."""
+        if uframe != 0 and uframe not in UFRAMES:
+            raise ValueError(f"user frame {uframe} is not one of 0-9")
+        if utool != 0 and utool not in SLOTS:
+            raise ValueError(f"user tool {utool} is not one of 0-10")
+        with self._data_lock:
+            self.active_uframe, self.active_utool = uframe, utool
+
+    def set_flange(self, position_mm: tuple[float, ...], rotation: NDArray[np.float64]) -> None:
+        """The robot jogged: its flange at `position_mm` with the 3x3 `rotation`, both in the
+        world frame."""
+        matrix = np.eye(4)
+        matrix[:3, :3] = Rotation.from_matrix(rotation).as_matrix()
+        matrix[:3, 3] = position_mm
+        with self._data_lock:
+            self._flange = matrix
+
+    def jog_flange(self, x: float, y: float, z: float, w: float, p: float, r: float) -> None:
+        """The flange at X, Y, Z (mm) and W, P, R (deg) in the world frame."""
+        self.set_flange((x, y, z), _wpr_rotation((w, p, r)).as_matrix())
+
+    def flange(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The flange's position (mm) and 3x3 rotation in the world frame."""
+        with self._data_lock:
+            return self._flange[:3, 3].copy(), self._flange[:3, :3].copy()
+
+    def set_joints(self, *angles: float) -> None:
+        """J1, J2, ... (deg)."""
+        with self._data_lock:
+            self.joints.update(zip(JOINT_KEYS, (float(v) for v in angles), strict=False))
+
+    def position(self) -> dict[str, float]:
+        """X, Y, Z, W, P, R of the active UTOOL in the active UFRAME, from the flange."""
+        with self._data_lock:
+            return self._position()
+
+    def _position(self) -> dict[str, float]:
+        tcp = self._flange
+        if self.active_uframe:
+            tcp = np.linalg.inv(_matrix(self.uframes[self.active_uframe])) @ tcp
+        if self.active_utool:
+            tcp = tcp @ _matrix(self.tools[self.active_utool])
+        wpr = Rotation.from_matrix(tcp[:3, :3]).as_euler("xyz", degrees=True)
+        values = (*tcp[:3, 3], *wpr)
+        return {k: self._real(float(v)) for k, v in zip(FRAME_KEYS, values, strict=True)}
+
+    def _move(self) -> None:
+        if self.moving_per_read:
+            self._flange[0, 3] += self.moving_per_read
+            self.joints["J1"] += self.moving_per_read
 
     def _real(self, value: float) -> float:
         return float(np.float32(value)) if self.single_precision else float(value)
@@ -116,6 +234,7 @@ class FanucSimulator(TcpSimulator):
                 if stop == "before":
                     continue
                 reply = self._command(packet)
+                time.sleep(self.reply_delay_s)
                 if stop == "after":
                     self.stalled = True
                 if not self.stalled:  # stalled mid-session: reads on, answers nothing
@@ -136,7 +255,33 @@ class FanucSimulator(TcpSimulator):
             return {"Command": name, "ErrorID": 0 if was_running else RMI_NOT_RUNNING}
         if name in ("FRC_ReadUToolData", "FRC_WriteUToolData"):
             return self._utool(str(name), packet)
+        if name in ("FRC_ReadCartesianPosition", "FRC_ReadJointAngles", "FRC_ReadUFrameData"):
+            group = packet.get("Group", 1)
+            if group != 1:
+                return {"Command": name, "ErrorID": INVALID_GROUP, "Group": group}
+            with self._data_lock:
+                return {"Command": name, "ErrorID": 0, **self._pose_read(str(name), packet)}
         return {"Command": name, "ErrorID": INVALID_COMMAND}
+
+    def _pose_read(self, name: str, packet: dict[str, object]) -> dict[str, object]:
+        """What follows ErrorID in the answer to a pose read (2.3.14, 2.3.15, 2.3.8)."""
+        if name == "FRC_ReadUFrameData":
+            number = packet.get("FrameNumber")
+            if not isinstance(number, int) or isinstance(number, bool) or number not in UFRAMES:
+                return {"ErrorID": INVALID_UFRAME, "FrameNumber": number, "Group": 1}
+            return {"FrameNumber": number, "Frame": dict(self.uframes[number]), "Group": 1}
+        self._move()
+        time_tag = int((time.monotonic() - self._started) * 1000)
+        if name == "FRC_ReadJointAngles":
+            joints = {k: self._real(v) for k, v in self.joints.items()}
+            return {"TimeTag": time_tag, "JointAngle": joints, "Group": 1}
+        configuration = {"UToolNumber": self.active_utool, "UFrameNumber": self.active_uframe}
+        return {
+            "TimeTag": time_tag,
+            "Configuration": configuration | self.configuration,
+            "Position": self._position() | dict.fromkeys(EXT_KEYS, 0.0),
+            "Group": 1,
+        }
 
     def _utool(self, name: str, packet: dict[str, object]) -> dict[str, object]:
         number = packet.get("ToolNumber")
@@ -160,6 +305,19 @@ class FanucSimulator(TcpSimulator):
             return {"Command": name, "ErrorID": INVALID_POSITION_DATA, "Group": group}
         self.set_tool(number, *(float(frame_in[k]) for k in FRAME_KEYS))
         return {"Command": name, "ErrorID": 0, "Group": group}
+
+
+def _wpr_rotation(wpr: tuple[float, ...]) -> Rotation:
+    """FANUC's W, P, R (deg): R = Rz(R) Ry(P) Rx(W), scipy's fixed-axis "xyz"."""
+    return Rotation.from_euler("xyz", wpr, degrees=True)
+
+
+def _matrix(frame: dict[str, float]) -> NDArray[np.float64]:
+    """A frame {X, Y, Z, W, P, R} as a 4x4 matrix."""
+    matrix = np.eye(4)
+    matrix[:3, :3] = _wpr_rotation(tuple(frame[k] for k in ("W", "P", "R"))).as_matrix()
+    matrix[:3, 3] = [frame[k] for k in ("X", "Y", "Z")]
+    return matrix
 
 
 def _packets(conn: socket.socket) -> Iterator[dict[str, object]]:

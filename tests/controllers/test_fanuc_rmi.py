@@ -22,11 +22,12 @@ from app.controllers import (
     ToolTarget,
     connect,
 )
-from app.controllers.base import Deadline
+from app.controllers.base import Deadline, Frame
 from app.controllers.fanuc_rmi import FanucRmiConnector, encode_packet, error_text
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import fanuc_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
+from tests.controllers.simbase import go_silent
 
 
 def fanuc_wpr(quaternion_wxyz: tuple[float, ...]) -> np.ndarray:
@@ -305,3 +306,191 @@ def test_packets_carry_plain_decimals_never_an_exponent() -> None:
         b'"Y": 0.000000, "Z": 150.000000, "W": 100000000000000000000.000000}}\r\n'
     )
     assert b"e" not in packet.split(b"Frame")[1]
+
+
+# --- where the robot stands (issue 39): B-84184EN/03 2.3.14, 2.3.15, 2.3.8, 2.3.10 ---------
+
+#: A tool and a user frame each turned by three unequal angles (X Y Z mm, W P R deg).
+UTOOL_3 = (12.0, -6.5, 171.25, 20.0, -10.0, 5.0)
+UFRAME_2 = (400.0, -250.0, 30.0, 35.0, 2.0, -1.5)
+FLANGE = (850.0, 120.0, 640.0, 170.0, -25.0, 60.0)
+JOINTS = (12.5, -33.25, 48.0, -170.5, 65.75, 271.0)
+
+
+def wpr_rotation(w: float, p: float, r: float) -> Rotation:
+    """B-84184EN's W, P, R: R = Rz(R) Ry(P) Rx(W), composed axis by axis."""
+    return (
+        Rotation.from_euler("z", r, degrees=True)
+        * Rotation.from_euler("y", p, degrees=True)
+        * Rotation.from_euler("x", w, degrees=True)
+    )
+
+
+def posed(sim: FanucSimulator) -> FanucSimulator:
+    """UTOOL 3 and UFRAME 2 active, the flange and joints at a general pose."""
+    sim.set_tool(3, *UTOOL_3)
+    sim.set_uframe(2, *UFRAME_2)
+    sim.select(uframe=2, utool=3)
+    sim.jog_flange(*FLANGE)
+    sim.set_joints(*JOINTS)
+    return sim
+
+
+def assert_flange(reading_flange: object, sim: FanucSimulator, *, mm: float, deg: float) -> None:
+    position, rotation = sim.flange()
+    assert isinstance(reading_flange, Frame)
+    assert_allclose(reading_flange.position_mm, position, atol=mm)
+    w, x, y, z = reading_flange.quaternion
+    off = Rotation.from_quat([x, y, z, w]).inv() * Rotation.from_matrix(rotation)
+    assert np.degrees(off.magnitude()) < deg, np.degrees(off.magnitude())
+
+
+def test_the_simulator_answers_a_position_worked_out_by_hand() -> None:
+    """UFRAME 1 at (100, 200, 0) turned 90 deg about z, UTOOL 2 100 mm along the flange's z,
+    the flange at (500, 0, 800) in the world turned 180 deg about x (the tool pointing down):
+    the TCP stands at (500, 0, 700) in the world, which in UFRAME 1 is
+    Rz(-90) (400, -200, 700) = (-200, -400, 700), turned Rz(-90) Rx(180): W 180, P 0, R -90."""
+    with FanucSimulator(single_precision=False) as sim:
+        sim.set_uframe(1, 100.0, 200.0, 0.0, 0.0, 0.0, 90.0)
+        sim.set_tool(2, 0.0, 0.0, 100.0, 0.0, 0.0, 0.0)
+        sim.select(uframe=1, utool=2)
+        sim.jog_flange(500.0, 0.0, 800.0, 180.0, 0.0, 0.0)
+        held = sim.position()
+    assert_allclose([held[k] for k in "XYZ"], [-200.0, -400.0, 700.0], atol=1e-9)
+    assert_allclose([abs(held["W"]), held["P"], held["R"]], [180.0, 0.0, -90.0], atol=1e-9)
+
+
+def test_read_pose_gives_the_flange_of_a_general_pose_to_1e6(fanuc_sim: FanucSimulator) -> None:
+    with (
+        FanucSimulator(single_precision=False) as sim,
+        FanucRmiConnector(fanuc_settings(posed(sim))) as fanuc,
+    ):
+        reading = fanuc.read_pose()
+    assert_flange(reading.flange, sim, mm=1e-6, deg=1e-6)
+    assert reading.joints_deg == JOINTS
+    assert reading.live_tool.number == 3
+    assert reading.live_tool.frame is not None
+    assert_allclose(reading.live_tool.frame.position_mm, UTOOL_3[:3], atol=1e-9)
+    w, x, y, z = reading.live_tool.frame.quaternion
+    off = Rotation.from_quat([x, y, z, w]).inv() * wpr_rotation(*UTOOL_3[3:])
+    assert np.degrees(off.magnitude()) < 1e-9
+    # every reply line as the controller sent it, keyed by its command
+    assert list(reading.readings) == [
+        "FRC_ReadCartesianPosition",
+        "FRC_ReadJointAngles",
+        "FRC_ReadUFrameData",
+        "FRC_ReadUToolData",
+    ]
+    for command, line in reading.readings.items():
+        assert json.loads(line)["Command"] == command
+    cartesian = json.loads(reading.readings["FRC_ReadCartesianPosition"])
+    assert cartesian["Configuration"]["UToolNumber"] == 3
+    assert cartesian["Configuration"]["UFrameNumber"] == 2
+    assert cartesian["Position"] == sim.position() | {"Ext1": 0.0, "Ext2": 0.0, "Ext3": 0.0}
+    assert json.loads(reading.readings["FRC_ReadUFrameData"])["FrameNumber"] == 2
+    asked = [p for p in sim.packets if str(p.get("Command")).startswith("FRC_Read")]
+    assert asked == [
+        {"Command": "FRC_ReadCartesianPosition", "Group": 1},
+        {"Command": "FRC_ReadJointAngles", "Group": 1},
+        {"Command": "FRC_ReadUFrameData", "FrameNumber": 2, "Group": 1},
+        {"Command": "FRC_ReadUToolData", "ToolNumber": 3, "Group": 1},
+    ]
+
+
+def test_read_pose_from_a_controller_holding_32_bit_reals(fanuc_sim: FanucSimulator) -> None:
+    with FanucRmiConnector(fanuc_settings(posed(fanuc_sim))) as fanuc:
+        reading = fanuc.read_pose()
+    assert_flange(reading.flange, fanuc_sim, mm=1e-3, deg=1e-4)
+
+
+def test_read_pose_in_the_world_frame_with_the_faceplate(fanuc_sim: FanucSimulator) -> None:
+    """UFRAME 0 and UTOOL 0: Position is the flange in the world; nothing else is read."""
+    posed(fanuc_sim).select(uframe=0, utool=0)
+    with FanucRmiConnector(fanuc_settings(fanuc_sim)) as fanuc:
+        reading = fanuc.read_pose()
+    assert_flange(reading.flange, fanuc_sim, mm=1e-3, deg=1e-4)
+    assert list(reading.readings) == ["FRC_ReadCartesianPosition", "FRC_ReadJointAngles"]
+    assert reading.live_tool.number is None, "UTOOL 0, the faceplate, is no tool number"
+    assert reading.live_tool.frame == Frame((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("silent_at", ["FRC_ReadCartesianPosition", "FRC_ReadUToolData"])
+def test_a_pose_read_that_stalls_fails_within_the_timeout(
+    fanuc_sim: FanucSimulator, silent_at: str
+) -> None:
+    settings = fanuc_settings(posed(fanuc_sim), timeout_s=0.5)
+    with FanucRmiConnector(settings) as fanuc:
+        fanuc_sim.fault = go_silent("before", silent_at)
+        started = time.monotonic()
+        with pytest.raises(ControllerUnreachable, match=r"did not answer within 0\.5 s"):
+            fanuc.read_pose()
+        elapsed = time.monotonic() - started
+    assert settings.timeout_s * 0.9 <= elapsed < settings.timeout_s + 1.0, elapsed
+
+
+def test_the_four_reads_of_a_pose_keep_to_one_timeout(fanuc_sim: FanucSimulator) -> None:
+    """Each reply 0.2 s late: each read is within 0.5 s, all four are not."""
+    settings = fanuc_settings(posed(fanuc_sim), timeout_s=0.5)
+    with FanucRmiConnector(settings) as fanuc:
+        fanuc_sim.reply_delay_s = 0.2
+        started = time.monotonic()
+        with pytest.raises(ControllerUnreachable, match=r"did not answer within 0\.5 s"):
+            fanuc.read_pose()
+        elapsed = time.monotonic() - started
+    assert elapsed < settings.timeout_s + 0.2, elapsed
+
+
+def test_a_pose_reply_without_its_numbers_is_not_the_protocol(fanuc_sim: FanucSimulator) -> None:
+    class NoTool(FanucSimulator):
+        def _pose_read(self, name: str, packet: dict[str, object]) -> dict[str, object]:
+            reply = super()._pose_read(name, packet)
+            if name == "FRC_ReadCartesianPosition":
+                reply["Configuration"] = {"UFrameNumber": 0, "UToolNumber": "3"}
+            return reply
+
+    with (
+        NoTool() as sim,
+        FanucRmiConnector(fanuc_settings(sim)) as fanuc,
+        pytest.raises(ControllerProtocolError, match=r"Configuration\.UToolNumber is '3'"),
+    ):
+        fanuc.read_pose()
+
+
+def test_fanuc_rmi_client_reads_the_pose_the_connector_reads(
+    fanuc_sim: FanucSimulator, tmp_path: object
+) -> None:
+    """fanuc-rmi (PyPI) reads FRC_ReadCartesianPosition, FRC_ReadJointAngles and
+    FRC_ReadUFrameData from the simulator (without the optional Group key): the same
+    Position, JointAngle and Frame the connector composes the flange from."""
+    from pathlib import Path
+
+    from fanuc_rmi import RobotClient
+
+    posed(fanuc_sim)
+    client = RobotClient(  # told the session port: it reads "Port" (above)
+        host=fanuc_sim.host,
+        startup_port=fanuc_sim.port,
+        main_port=fanuc_sim.session_port,
+        attempts=1,
+        startup_pause=0.0,
+        socket_timeout=2.0,
+        reader_timeout=2.0,
+    )
+    out = Path(str(tmp_path))
+    with contextlib.redirect_stdout(io.StringIO()):  # the client prints every packet
+        client.connect()
+        try:
+            cartesian = client.read_cartesian_coordinates(output_path=str(out / "c.jsonl"))
+            joints = client.read_joint_coordinates(output_path=str(out / "j.jsonl"))
+            uframe = client.read_uframe_data(2)
+        finally:
+            client.close()
+    with FanucRmiConnector(fanuc_settings(fanuc_sim)) as fanuc:
+        reading = fanuc.read_pose()
+    assert cartesian["ErrorID"] == 0
+    assert cartesian == json.loads(reading.readings["FRC_ReadCartesianPosition"]) | {
+        "TimeTag": cartesian["TimeTag"]
+    }
+    assert cartesian["Configuration"]["UFrameNumber"] == 2
+    assert [joints["JointAngle"][f"J{i}"] for i in range(1, 7)] == list(JOINTS)
+    assert uframe == dict(zip(("X", "Y", "Z", "W", "P", "R"), UFRAME_2, strict=True))
