@@ -82,6 +82,8 @@ class FanucSimulator(TcpSimulator):
         self.teach_pendant_enabled = False
         self.tools: dict[int, dict[str, float]] = {s: dict.fromkeys(FRAME_KEYS, 0.0) for s in SLOTS}
         self.packets: list[dict[str, object]] = []
+        #: every command's answer on the session, as the line sent (without the CRLF)
+        self.replies: list[str] = []
         self.session_open = False
         self.rmi_running = False
         self._data_lock = threading.Lock()
@@ -238,7 +240,7 @@ class FanucSimulator(TcpSimulator):
                 if stop == "after":
                     self.stalled = True
                 if not self.stalled:  # stalled mid-session: reads on, answers nothing
-                    _send(conn, reply)
+                    self.replies.append(_send(conn, reply))
         finally:
             self.session_open = False
             self.rmi_running = False
@@ -343,5 +345,8 @@ def _packets(conn: socket.socket) -> Iterator[dict[str, object]]:
                 _send(conn, {"ErrorID": INVALID_COMMAND})
 
 
-def _send(conn: socket.socket, packet: dict[str, object]) -> None:
-    conn.sendall(json.dumps(packet).encode("ascii") + b"\r\n")
+def _send(conn: socket.socket, packet: dict[str, object]) -> str:
+    """Send one packet; the line sent, without its CRLF."""
+    line = json.dumps(packet)
+    conn.sendall(line.encode("ascii") + b"\r\n")
+    return line
