@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tests.api.controller_rigs import SLOT, TIMEOUT_S, Rig, rig
+from tests.api.controller_rigs import SLOT, SYMBOL, TIMEOUT_S, Rig, rig
 from tests.api.touches import row_counts
 from tests.conftest import Api
 from tests.sim.touches import simulate_touches
@@ -23,42 +23,93 @@ TRUE_TCP = np.array([12.0, -6.5, 171.25])
 TOUCHES = simulate_touches(8, seed=7, touch_noise_mm=0.0, tcp_mm=TRUE_TCP)
 
 
-def _kuka(r: Rig) -> Callable[[np.ndarray, np.ndarray], None]:
+class Cell:
+    """A simulated controller set up with a non-zero active tool and base/user frame: how a
+    test jogs its robot and sets it moving."""
+
+    def __init__(self, r: Rig) -> None:
+        self.rig = r
+
+    def place(self, rotation: np.ndarray, position: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def set_moving(self, mm_per_read: float) -> None:
+        raise NotImplementedError
+
+
+class KukaCell(Cell):
     """The KRC moves by $TOOL_DATA[3] (an oriented TCP) in a $BASE away from the robot's."""
-    r.sim.set_tool(SLOT, *TRUE_TCP, 20.0, -10.0, 5.0)
-    r.sim.select_tool(SLOT)
-    r.sim.set_base(400.0, -250.0, 30.0, 35.0, 2.0, -1.5)
 
-    def place(rotation: np.ndarray, position: np.ndarray) -> None:
-        r.sim.set_flange(tuple(float(v) for v in position), rotation)
+    def __init__(self, r: Rig) -> None:
+        super().__init__(r)
+        r.sim.set_tool(SLOT, *TRUE_TCP, 20.0, -10.0, 5.0)
+        r.sim.select_tool(SLOT)
+        r.sim.set_base(400.0, -250.0, 30.0, 35.0, 2.0, -1.5)
 
-    return place
+    def place(self, rotation: np.ndarray, position: np.ndarray) -> None:
+        self.rig.sim.set_flange(tuple(float(v) for v in position), rotation)
+
+    def set_moving(self, mm_per_read: float) -> None:
+        self.rig.sim.moving_per_read = mm_per_read
 
 
-def _fanuc(r: Rig) -> Callable[[np.ndarray, np.ndarray], None]:
+class FanucCell(Cell):
     """The controller moves by UTOOL[3] (an oriented TCP) in UFRAME[2], away from the world."""
-    r.sim.set_tool(SLOT, *TRUE_TCP, 20.0, -10.0, 5.0)
-    r.sim.set_uframe(2, 400.0, -250.0, 30.0, 35.0, 2.0, -1.5)
-    r.sim.select(uframe=2, utool=SLOT)
 
-    def place(rotation: np.ndarray, position: np.ndarray) -> None:
-        r.sim.set_flange(tuple(float(v) for v in position), rotation)
+    def __init__(self, r: Rig) -> None:
+        super().__init__(r)
+        r.sim.set_tool(SLOT, *TRUE_TCP, 20.0, -10.0, 5.0)
+        r.sim.set_uframe(2, 400.0, -250.0, 30.0, 35.0, 2.0, -1.5)
+        r.sim.select(uframe=2, utool=SLOT)
 
-    return place
+    def place(self, rotation: np.ndarray, position: np.ndarray) -> None:
+        self.rig.sim.set_flange(tuple(float(v) for v in position), rotation)
+
+    def set_moving(self, mm_per_read: float) -> None:
+        self.rig.sim.moving_per_read = mm_per_read
 
 
-#: protocol -> sets the controller up (active tool, base frame) and returns how to jog it.
-#: Each protocol joins as its connector's read_pose lands (issue 39: ABB to come).
-SETUPS: dict[str, Callable[[Rig], Callable[[np.ndarray, np.ndarray], None]]] = {
-    "kuka_kvp": _kuka,
-    "fanuc_rmi": _fanuc,
+class AbbCell(Cell):
+    """The program last moved by tTorch in a work object away from the base (RWS reads the
+    flange as tool0 in wobj0, Base coordinates, whatever those are)."""
+
+    def __init__(self, r: Rig) -> None:
+        super().__init__(r)
+        turned = Rotation.from_euler("ZYX", [35.0, 2.0, -1.5], degrees=True).as_quat()
+        x, y, z, w = (float(v) for v in turned)
+        r.sim.set_tool(SYMBOL, tuple(TRUE_TCP), (w, x, y, z))
+        r.sim.active_tool = SYMBOL.rsplit("/", 1)[1]
+        r.sim.wobjs["wTable"] = ((400.0, -250.0, 30.0), (w, x, y, z))
+        r.sim.active_wobj = "wTable"
+
+    def place(self, rotation: np.ndarray, position: np.ndarray) -> None:
+        x, y, z, w = (float(v) for v in Rotation.from_matrix(rotation).as_quat())
+        self.rig.sim.set_pose(tuple(float(v) for v in position), (w, x, y, z))
+
+    def set_moving(self, mm_per_read: float) -> None:
+        sim, read = self.rig.sim, self.rig.sim.robtarget
+
+        def moving(mechunit: str, query: dict[str, str]) -> Any:
+            (x, y, z), quaternion = sim.flange
+            sim.set_pose((x + mm_per_read, y, z), quaternion)
+            return read(mechunit, query)
+
+        sim.robtarget = moving
+
+
+#: protocol -> its cell: every protocol whose connector reads the pose (issue 39).
+SETUPS: dict[str, Callable[[Rig], Cell]] = {
+    "kuka_kvp": KukaCell,
+    "fanuc_rmi": FanucCell,
+    "abb_rws1": AbbCell,
+    "abb_rws2": AbbCell,
 }
 
 
 @pytest.fixture(params=sorted(SETUPS))
-def cell(request: pytest.FixtureRequest) -> Iterator[tuple[Rig, Callable[..., None]]]:
+def cell(request: pytest.FixtureRequest) -> Iterator[Cell]:
     with rig(request.param) as r:
-        yield r, SETUPS[request.param](r)
+        yield SETUPS[request.param](r)
 
 
 @pytest.fixture(autouse=True)
@@ -94,9 +145,9 @@ def _finish(api: Api, sid: str) -> np.ndarray:
 
 
 def test_eight_captured_touches_calibrate_the_tool_and_equal_the_same_poses_typed(
-    api: Api, cell: tuple[Rig, Callable[..., None]]
+    api: Api, cell: Cell
 ) -> None:
-    r, place = cell
+    r, place = cell.rig, cell.place
     tool = _tool(api, r)
     captured = _session(api, tool["id"])
     for rotation, position in zip(TOUCHES.R, TOUCHES.f, strict=True):
@@ -114,10 +165,8 @@ def test_eight_captured_touches_calibrate_the_tool_and_equal_the_same_poses_type
     assert np.linalg.norm(_finish(api, typed) - tcp_captured) < 1e-9
 
 
-def test_the_pose_read_is_the_flange_in_the_robots_base_frame(
-    api: Api, cell: tuple[Rig, Callable[..., None]]
-) -> None:
-    r, place = cell
+def test_the_pose_read_is_the_flange_in_the_robots_base_frame(api: Api, cell: Cell) -> None:
+    r, place = cell.rig, cell.place
     tool = _tool(api, r)
     place(TOUCHES.R[3], TOUCHES.f[3])
     read = api.get(f"/v1/robots/{tool['robot_id']}/controller/pose", scope="calibrate")
@@ -130,17 +179,15 @@ def test_the_pose_read_is_the_flange_in_the_robots_base_frame(
     assert read.json()["readings"]
 
 
-def test_a_moving_robot_is_refused_and_the_session_is_unchanged(
-    api: Api, cell: tuple[Rig, Callable[..., None]]
-) -> None:
-    r, place = cell
+def test_a_moving_robot_is_refused_and_the_session_is_unchanged(api: Api, cell: Cell) -> None:
+    r, place = cell.rig, cell.place
     tool = _tool(api, r)
     sid = _session(api, tool["id"])
     place(TOUCHES.R[0], TOUCHES.f[0])
     assert api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate").is_success
     before = api.get(f"/v1/sessions/{sid}").json()
     counts = row_counts(("audit_events", "guided_sessions", "calibrations"))
-    r.sim.moving_per_read = 0.5
+    cell.set_moving(0.5)
     moving = api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate")
     assert moving.status_code == 409, moving.text
     assert moving.json()["type"].endswith("/robot-moving")
@@ -151,9 +198,9 @@ def test_a_moving_robot_is_refused_and_the_session_is_unchanged(
 
 @pytest.mark.parametrize("fault", ["stopped", "stalled"])
 def test_an_unreachable_controller_is_502_within_its_timeout(
-    api: Api, cell: tuple[Rig, Callable[..., None]], fault: str
+    api: Api, cell: Cell, fault: str
 ) -> None:
-    r, _ = cell
+    r = cell.rig
     tool = _tool(api, r)
     sid = _session(api, tool["id"])
     before = api.get(f"/v1/sessions/{sid}").json()
