@@ -168,7 +168,8 @@ class ControllerProtocolError(ControllerError):
 
 
 class Connector(Protocol):
-    """One controller session: read and write tool frames. Use it as a context manager."""
+    """One controller session: read and write tool frames, read the robot's pose. Use it as
+    a context manager."""
 
     protocol: str
 
@@ -182,6 +183,11 @@ class Connector(Protocol):
 
     def write_tool(self, target: ToolTarget, data: ToolData) -> None:
         """Write the tool frame (and the load when `data.load` is set) into the controller."""
+        ...
+
+    def read_pose(self) -> PoseReading:
+        """Where the robot stands: its flange in the robot's base frame, its joints, the tool
+        it moves by and every value read as the controller printed it (contract v1.3)."""
         ...
 
     def close(self) -> None:

@@ -18,7 +18,6 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Protocol, cast
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -58,12 +57,6 @@ STILL_GAP_S = 0.1
 #: A robot whose flange moved more than these between the two reads is moving.
 STILL_MM = 0.01
 STILL_DEG = 0.01
-
-
-class _PoseReader(Protocol):
-    # The connectors gain read_pose one protocol at a time (issue 39); it joins the
-    # Connector Protocol in app.controllers.base once every connector has it.
-    def read_pose(self) -> PoseReading: ...
 
 
 @dataclass(frozen=True)
@@ -108,10 +101,9 @@ def read_still(settings: ControllerSettings, *, robot_id: str) -> Capture:
     reads differ, 502 when the controller cannot be reached or refuses (no database here)."""
     try:
         with connect(settings) as conn:
-            reader = cast(_PoseReader, conn)
-            first = reader.read_pose()
+            first = conn.read_pose()
             time.sleep(STILL_GAP_S)  # from the first read's answer to the second's request
-            second = reader.read_pose()
+            second = conn.read_pose()
     except ControllerError as exc:
         raise controller_failure(exc, settings) from None
     _still(first.flange, second.flange)

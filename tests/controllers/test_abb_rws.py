@@ -392,7 +392,7 @@ def test_read_pose_keeps_the_printed_text_of_a_32_bit_controller(
     that text says, not as the float32's exact value (-0.10000000149...)."""
     abb_rws2_sim.set_pose((1234.5, -0.1, 9.0), (0.5, -0.5, 0.5, 0.5), (0.1, 0, 0, 0, 90, 0))
     with connect(abb_settings(abb_rws2_sim)) as abb:
-        reading = abb.read_pose()  # type: ignore[attr-defined]
+        reading = abb.read_pose()
     assert reading.readings["robtarget.y"] == "-0.1"
     assert reading.readings["robtarget.q2"] == "-0.5"
     assert reading.readings["jointtarget.rax_1"] == "0.1"
@@ -405,10 +405,10 @@ def test_read_pose_refuses_what_is_not_a_pose(abb_rws1_sim: AbbRwsSimulator) -> 
     abb_rws1_sim.set_pose((1.0, 2.0, 3.0), (1.0, 0.0, 0.0, 0.0), (0, 0, 0, 0, float("nan"), 0))
     with connect(abb_settings(abb_rws1_sim)) as abb:
         with pytest.raises(ControllerProtocolError, match="jointtarget's rax_5 is 'nan'"):
-            abb.read_pose()  # type: ignore[attr-defined]
+            abb.read_pose()
         abb_rws1_sim.set_pose((1.0, 2.0, 3.0), (0.5, 0.0, 0.0, 0.0), (0, 0, 0, 0, 0, 0))
         with pytest.raises(ControllerProtocolError, match="not a unit quaternion"):
-            abb.read_pose()  # type: ignore[attr-defined]
+            abb.read_pose()
 
 
 @pytest.mark.parametrize("where", [ROBTARGET, JOINTTARGET])
@@ -419,7 +419,7 @@ def test_a_pose_read_that_stalls_ends_within_the_timeout(sim: AbbRwsSimulator, w
     settings = abb_settings(sim, timeout_s=0.5)
     started = time.monotonic()
     with pytest.raises(ControllerUnreachable, match="did not answer"), connect(settings) as abb:
-        abb.read_pose()  # type: ignore[attr-defined]
+        abb.read_pose()
     elapsed = time.monotonic() - started
     assert settings.timeout_s * 0.9 <= elapsed < settings.timeout_s + 1.0, elapsed
 
