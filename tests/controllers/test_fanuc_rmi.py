@@ -494,3 +494,24 @@ def test_fanuc_rmi_client_reads_the_pose_the_connector_reads(
     assert cartesian["Configuration"]["UFrameNumber"] == 2
     assert [joints["JointAngle"][f"J{i}"] for i in range(1, 7)] == list(JOINTS)
     assert uframe == dict(zip(("X", "Y", "Z", "W", "P", "R"), UFRAME_2, strict=True))
+
+
+def test_a_pose_read_the_controller_refuses_is_a_refusal_in_its_words() -> None:
+    """A controller answering FRC_ReadUFrameData with an ErrorID (here RMIT-003, Appendix A):
+    the whole pose read is refused with the alarm's words, no flange made without UFRAME[m]."""
+
+    class NoUFrames(FanucSimulator):
+        def _pose_read(self, name: str, packet: dict[str, object]) -> dict[str, object]:
+            reply = super()._pose_read(name, packet)
+            if name == "FRC_ReadUFrameData":
+                reply["ErrorID"] = 2556931
+            return reply
+
+    with (
+        NoUFrames() as sim,
+        FanucRmiConnector(fanuc_settings(posed(sim))) as fanuc,
+        pytest.raises(ControllerRefused) as refused,
+    ):
+        fanuc.read_pose()
+    assert refused.value.controller_message == "RMIT-003 Invalid UFrame Number (ErrorID 2556931)"
+    assert "FRC_ReadUFrameData" in str(refused.value)
