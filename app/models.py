@@ -437,6 +437,35 @@ class ToolControllerState(Base):
     error: Mapped[str | None] = mapped_column(Text)
 
 
+class RobotLiveTool(Base):
+    """The tool frame a robot moved by when the last reconcile round read it (contract
+    v1.3 LiveTool), and since when it moves by that one. `read` is False when the controller
+    did not say (ABB RWS names no tooldata a program moves by), its connector cannot read a
+    pose yet, or the read failed (`error`)."""
+
+    __tablename__ = "robot_live_tools"
+
+    robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"), primary_key=True)
+    read: Mapped[bool] = mapped_column(Boolean)
+    number: Mapped[int | None] = mapped_column(Integer)
+    frame: Mapped[JsonObject | None] = mapped_column(JSON)
+    since: Mapped[datetime] = mapped_column()
+    checked_at: Mapped[datetime] = mapped_column()
+    error: Mapped[str | None] = mapped_column(Text)
+
+
+class RobotLiveMatch(Base):
+    """A version of one of the robot's tools equal to the frame it moved by at the last read
+    (LiveTool.matches; the active flag is the tool's own, read when shown). A table, not a
+    JSON list, so that the fleet's attention rules are index seeks in SQL."""
+
+    __tablename__ = "robot_live_matches"
+
+    robot_id: Mapped[str] = mapped_column(ForeignKey("robot_live_tools.robot_id"), primary_key=True)
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"), primary_key=True)
+    version: Mapped[int] = mapped_column(Integer, primary_key=True)
+
+
 class OutboxMessage(Base):
     """A change a consumer of the plant must see (MQTT, OPC UA), written in the transaction
     of the change by app.services.outbox and read by `tcpcal publish` (app.publish).

@@ -24,7 +24,12 @@ AttentionCode = Literal[
     "controller_drifted",
     "controller_unreachable",
     "drifting",
+    "moving_by_stale_version",
+    "moving_by_unknown_tcp",
 ]
+
+#: What a fleet row's robot moves by, about the row's tool (contract v1.3).
+LiveState = Literal["active", "stale_version", "other_tool", "unknown", "unread"]
 
 
 class LastCalibration(BaseModel):
@@ -53,6 +58,29 @@ class FleetController(BaseModel):
     )
 
 
+class FleetLive(BaseModel):
+    """Which TCP the row's robot moves by, as the last reconcile round read it."""
+
+    state: LiveState = Field(
+        description="active (this tool's active version), stale_version (an older version "
+        "of this tool), other_tool (another tool's version), unknown (a frame no version "
+        "has), unread (the controller does not say, as ABB, or could not be read)"
+    )
+    version: int | None = Field(
+        description="the version the robot moves by (of `tool_id`); null when unknown or unread"
+    )
+    tool_id: str | None = Field(
+        description="the tool whose version it is: this row's, or another's for other_tool"
+    )
+    checked_at: Timestamp | None = Field(
+        description="when a reconcile round last read it; null when never"
+    )
+
+
+def _never_read() -> FleetLive:
+    return FleetLive(state="unread", version=None, tool_id=None, checked_at=None)
+
+
 class FleetTool(BaseModel):
     id: str
     name: str
@@ -78,7 +106,10 @@ class FleetTool(BaseModel):
         "no_active_version, stale (no calibration or check for TCPCAL_STALE_DAYS days), "
         "controller_drifted (the robot's controller holds another TCP than the active one), "
         "controller_unreachable (it could not be read at the last look), "
-        "drifting (the drift trend leaves check_mm within 30 days at 95 % confidence)",
+        "drifting (the drift trend leaves check_mm within 30 days at 95 % confidence), "
+        "moving_by_stale_version (the robot moves by an older version of this tool), "
+        "moving_by_unknown_tcp (it moves by a frame no version has, in this tool's slot or, "
+        "where that is not known, by one of its robot's tools)",
     )
     controller: FleetController | None = Field(
         default=None,
@@ -88,6 +119,10 @@ class FleetTool(BaseModel):
     drift: FleetDrift | None = Field(
         default=None,
         description="the TCP's drift trend (docs/drift.md); null until three points over a day",
+    )
+    live: FleetLive = Field(
+        default_factory=_never_read,
+        description="which TCP the tool's robot moves by right now",
     )
 
 
@@ -139,4 +174,7 @@ CSV_COLUMNS = (
     "drift_rate_mm_per_month",
     "drift_sigma_mm_per_month",
     "drift_crosses_check_at",
+    "live_state",
+    "live_version",
+    "live_checked_at",
 )

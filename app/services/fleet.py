@@ -34,16 +34,25 @@ from app.schemas.fleet import (
     AttentionCode,
     CheckRecord,
     FleetController,
+    FleetLive,
     FleetTool,
     LastCalibration,
     LastCheck,
 )
 from app.services.drift import DRIFTING_WITHIN, crosses_by, fleet_drift
+from app.services.fleet_live import (
+    LIVE_CHECKED_AT,
+    LIVE_STATE,
+    LIVE_TOOL_ID,
+    LIVE_VERSION,
+    UNKNOWN_TCP_HERE,
+)
 from app.services.live import in_scope
 from app.services.tools import get_tool
 from app.statuses import ToolState
 
 CHECK_ACTION = "tool.check"
+
 T = TypeVar("T")
 
 
@@ -112,6 +121,9 @@ def _rules(
         "controller_unreachable": _controller_state() == "unreachable",
         # The trend stored when a version or check was written projects out of check_mm.
         "drifting": crosses_by(drifting_until),
+        # What the last reconcile round read of the TCP the robot moves by.
+        "moving_by_stale_version": LIVE_STATE == "stale_version",
+        "moving_by_unknown_tcp": and_(LIVE_STATE == "unknown", UNKNOWN_TCP_HERE),
     }
 
 
@@ -236,7 +248,7 @@ def list_fleet(
     ids = {"ids": [t.id for t in tools]}
     last_cal = {c.tool_id: c for c in session.execute(_NEWEST_CALIBRATIONS, ids)}
     last_check = {e.tool_id: e for e in session.execute(_NEWEST_CHECKS, ids)}
-    codes, in_controller = _attention_of(session, ids["ids"], moments)
+    codes, in_controller, live = _attention_of(session, ids["ids"], moments)
     rows = [
         FleetTool(
             id=t.id,
@@ -253,6 +265,7 @@ def list_fleet(
             attention=codes.get(t.id, []),
             controller=in_controller.get(t.id),
             drift=fleet_drift(t.drift),
+            live=live[t.id],
         )
         for t in tools
     ]
@@ -273,6 +286,10 @@ _ATTENTION = (
         _STATE.checked_at,
         _STATE.deviation_mm,
         _STATE.deviation_deg,
+        LIVE_STATE.label("live_state"),
+        LIVE_VERSION.label("live_version"),
+        LIVE_TOOL_ID.label("live_tool_id"),
+        LIVE_CHECKED_AT.label("live_checked_at"),
         *(RULES[code].label(f"rule_{i}") for i, code in enumerate(_ORDER)),
     )
     .outerjoin(
@@ -286,16 +303,24 @@ _ATTENTION = (
 
 def _attention_of(
     session: Session, ids: list[str], moments: dict[str, datetime]
-) -> tuple[dict[str, list[AttentionCode]], dict[str, FleetController]]:
-    """The attention codes of the page's tools, and the controller state of each that has
-    one, in one statement."""
+) -> tuple[dict[str, list[AttentionCode]], dict[str, FleetController], dict[str, FleetLive]]:
+    """The attention codes of the page's tools, the controller state of each that has
+    one and what its robot moves by, in one statement."""
     if not ids:
-        return {}, {}
+        return {}, {}, {}
     codes: dict[str, list[AttentionCode]] = {}
     states: dict[str, FleetController] = {}
+    live: dict[str, FleetLive] = {}
     for row in session.execute(_ATTENTION, {"ids": ids, **moments}):
-        tool_id, state, checked_at, deviation_mm, deviation_deg, *hits = row
+        tool_id, state, checked_at, deviation_mm, deviation_deg, *rest = row
+        live_state, live_version, live_tool_id, live_checked_at, *hits = rest
         codes[tool_id] = [code for code, hit in zip(_ORDER, hits, strict=True) if hit]
+        live[tool_id] = FleetLive(
+            state=live_state,
+            version=live_version,
+            tool_id=live_tool_id,
+            checked_at=live_checked_at,
+        )
         if state is not None:
             states[tool_id] = FleetController(
                 state=state,
@@ -303,7 +328,7 @@ def _attention_of(
                 deviation_mm=deviation_mm,
                 deviation_deg=deviation_deg,
             )
-    return codes, states
+    return codes, states, live
 
 
 # The newest calibration and the newest check of each tool of a page, found through the
@@ -376,6 +401,7 @@ def _csv_row(r: FleetTool) -> list[object]:
         *_numbers(r.quaternion, 4, 9),
         *_controller_cells(r.controller),
         *_drift_cells(r),
+        *_live_cells(r.live),
     ]
 
 
@@ -414,6 +440,11 @@ def _drift_cells(row: FleetTool) -> list[str]:
         f"{drift.sigma_mm_per_month:.4f}",
         "" if at is None else at.isoformat(),
     ]
+
+
+def _live_cells(live: FleetLive) -> list[str]:
+    at = live.checked_at
+    return [live.state, str(_blank_or(live.version)), "" if at is None else at.isoformat()]
 
 
 def _numbers(values: Sequence[float] | None, n: int, decimals: int) -> list[str]:

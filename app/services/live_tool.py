@@ -9,13 +9,30 @@ version when a reconcile would call them the same.
 
 from __future__ import annotations
 
-from sqlalchemy import select
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+
+from sqlalchemy import delete, insert, select
 from sqlalchemy.orm import Session
 
-from app.controllers.base import Frame
+from app.auth import Principal
+from app.controllers.base import (
+    Connector,
+    ControllerError,
+    ControllerRefused,
+    Frame,
+    LiveTool,
+    PoseReading,
+)
 from app.helpers.frames import SYNC_TOLERANCE_DEG, SYNC_TOLERANCE_MM, frame_deviation, within
-from app.models import TcpVersion, Tool
+from app.jsontypes import JsonObject
+from app.models import Robot, RobotLiveMatch, RobotLiveTool, TcpVersion, Tool
 from app.schemas.controllers import LiveToolMatch
+from app.services import audit
+
+#: The audit action of a change of the tool a robot moves by.
+LIVE_TOOL_ACTION = "robot.live_tool"
 
 
 def live_tool_matches(session: Session, robot_id: str, frame: Frame | None) -> list[LiveToolMatch]:
@@ -45,3 +62,109 @@ def live_tool_matches(session: Session, robot_id: str, frame: Frame | None) -> l
             deg=SYNC_TOLERANCE_DEG,
         )
     ]
+
+
+@dataclass(frozen=True)
+class LiveRead:
+    """What a reconcile round read of the tool the robot moves by: the controller's LiveTool,
+    or None and why not."""
+
+    tool: LiveTool | None
+    error: str | None
+
+
+def read_live(conn: Connector) -> LiveRead:
+    """The live tool through the connector's read_pose, in the round's session. A connector
+    without read_pose (the protocols gain it one at a time) or a failed read leaves it
+    unread, saying why; it never fails the round's tool states."""
+    read_pose: Callable[[], PoseReading] | None = getattr(conn, "read_pose", None)
+    if read_pose is None:
+        return LiveRead(None, f"the {conn.protocol} connector does not read the robot's pose")
+    try:
+        return LiveRead(read_pose().live_tool, None)
+    except ControllerRefused as exc:
+        return LiveRead(None, f"refused: {exc.controller_message}")
+    except ControllerError as exc:
+        return LiveRead(None, str(exc))
+
+
+def _frame_json(frame: Frame | None) -> JsonObject | None:
+    if frame is None:
+        return None
+    return {"position_mm": list(frame.position_mm), "quaternion": list(frame.quaternion)}
+
+
+def _same_frame(a: JsonObject | None, b: JsonObject | None) -> bool:
+    if a is None or b is None:
+        return a is b
+    deviation = frame_deviation(
+        a["position_mm"], a["quaternion"], b["position_mm"], b["quaternion"]
+    )
+    return within(deviation, mm=SYNC_TOLERANCE_MM, deg=SYNC_TOLERANCE_DEG)
+
+
+def record_live(
+    session: Session, *, robot_id: str, live: LiveRead, at: datetime, actor: Principal
+) -> bool:
+    """Store what the round read of the robot's live tool and its matches; whether it
+    changed (then an audit event `robot.live_tool`, once). The robot's row is locked first,
+    so two rounds meeting record one change."""
+    session.execute(select(Robot.id).where(Robot.id == robot_id).with_for_update())
+    frame = None if live.tool is None else live.tool.frame
+    number = None if live.tool is None else live.tool.number
+    matches = live_tool_matches(session, robot_id, frame)
+    found = {(m.tool_id, m.version) for m in matches}
+    row = session.get(RobotLiveTool, robot_id)
+    stored = select(RobotLiveMatch.tool_id, RobotLiveMatch.version).where(
+        RobotLiveMatch.robot_id == robot_id
+    )
+    before = {(tool_id, version) for tool_id, version in session.execute(stored)}
+    frame_json = _frame_json(frame)
+    changed = row is None or (
+        (row.read, row.number, before) != (frame is not None, number, found)
+        or not _same_frame(row.frame, frame_json)
+    )
+    previous = None if row is None else _live_details(row.read, row.number, row.frame, before)
+    if row is None:
+        row = RobotLiveTool(robot_id=robot_id)
+        session.add(row)
+    if changed:
+        row.since = at
+    row.read, row.number, row.frame = frame is not None, number, frame_json
+    row.checked_at, row.error = at, live.error
+    session.flush()
+    if before != found:
+        session.execute(delete(RobotLiveMatch).where(RobotLiveMatch.robot_id == robot_id))
+        if found:
+            session.execute(
+                insert(RobotLiveMatch),
+                [{"robot_id": robot_id, "tool_id": t, "version": v} for t, v in sorted(found)],
+            )
+    if changed:
+        details = _live_details(frame is not None, number, frame_json, found)
+        audit.record(
+            session,
+            actor=actor,
+            action=LIVE_TOOL_ACTION,
+            resource_type="robot",
+            resource_id=robot_id,
+            robot_id=robot_id,
+            details={
+                **details,
+                "matches": [m.model_dump() for m in matches],
+                "error": live.error,
+                "previous": previous,
+            },
+        )
+    return changed
+
+
+def _live_details(
+    read: bool, number: int | None, frame: JsonObject | None, matches: set[tuple[str, int]]
+) -> JsonObject:
+    return {
+        "read": read,
+        "number": number,
+        "frame": frame,
+        "matches": [{"tool_id": t, "version": v} for t, v in sorted(matches)],
+    }

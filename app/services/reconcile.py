@@ -33,6 +33,7 @@ from app.schemas.controllers import Reconciliation
 from app.services import controller_states, settling
 from app.services.controller_states import SEVERITY, Observation
 from app.services.controllers import get_controller, settings_of
+from app.services.live_tool import LiveRead, read_live, record_live
 from app.services.robots import get_robot
 from app.statuses import ROBOT_STATES, ToolState
 
@@ -86,12 +87,16 @@ def _tools_to_check(session: Session, robot_id: str, protocol: str) -> list[Tool
     return tools
 
 
-def read_controller(settings: ControllerSettings, tools: list[ToolToCheck]) -> dict[str, Reading]:
-    """Each addressable tool's frame as the controller holds it (one session; no database).
-    A tool the controller refuses to read is unreachable with its words; a connection that
-    fails makes every tool not yet read unreachable."""
+def read_controller(
+    settings: ControllerSettings, tools: list[ToolToCheck]
+) -> tuple[dict[str, Reading], LiveRead]:
+    """Each addressable tool's frame as the controller holds it, then the tool the robot
+    moves by (one session; no database). A tool the controller refuses to read is
+    unreachable with its words; a connection that fails makes every tool not yet read
+    unreachable and the live tool unread."""
     readings: dict[str, Reading] = {}
     todo = [t for t in tools if t.target is not None]
+    live = LiveRead(None, None)
     try:
         with connect(settings) as conn:
             for tool in todo:
@@ -100,12 +105,14 @@ def read_controller(settings: ControllerSettings, tools: list[ToolToCheck]) -> d
                     readings[tool.tool_id] = Reading(conn.read_tool(tool.target), None)
                 except ControllerRefused as exc:
                     readings[tool.tool_id] = Reading(None, f"refused: {exc.controller_message}")
+            live = read_live(conn)
     except (ControllerUnreachable, ControllerRefused, ControllerError) as exc:
         words = exc.controller_message if isinstance(exc, ControllerRefused) else str(exc)
         where = f"{settings.host}:{settings.port}"
         for tool in todo:
             readings.setdefault(tool.tool_id, Reading(None, f"{where}: {words}"))
-    return readings
+        live = LiveRead(None, f"{where}: {words}")
+    return readings, live
 
 
 def _observation(robot_id: str, tool: ToolToCheck, reading: Reading) -> Observation:
@@ -153,7 +160,7 @@ def reconcile_robot(
         settings = settings_of(controller)
         tools = _tools_to_check(session, robot_id, controller.protocol)
     read_from = utcnow()
-    readings = read_controller(settings, tools)
+    readings, live = read_controller(settings, tools)
     if cancelled():
         return None
     checked_at = utcnow()
@@ -163,6 +170,9 @@ def reconcile_robot(
     skipped: list[dict[str, object]] = []
     with session_scope(write=True) as session:
         act_for(session, actor)  # only the robots the key's cells hold
+        # first: it locks the robot's row before the tools' (the order every writer keeps),
+        # and the round's tool states and live tool commit together
+        record_live(session, robot_id=robot_id, live=live, at=checked_at, actor=actor)
         for tool in tools:
             if tool.target is None:
                 skipped.append({"tool_id": tool.tool_id, "reason": tool.problem})

@@ -233,6 +233,7 @@ EVENTS: dict[tuple[str, str], tuple[tuple[str, str, str], ...]] = {
         ("controller.in_sync", "tool", "{tool_id}"),  # read back: the controller holds it
     ),
     ("POST", "/v1/robots/{robot_id}/reconcile"): (
+        ("robot.live_tool", "robot", "robot_id"),  # the first read of what it moves by
         ("controller.drifted", "tool", "tools.0.tool_id"),  # the simulator holds another
     ),
     ("POST", "/v1/robots/{robot_id}/reference-points"): (

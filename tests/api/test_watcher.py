@@ -10,7 +10,7 @@ import pytest
 from sqlalchemy import text
 
 from app.db import get_engine
-from tests.api.controller_rigs import TIMEOUT_S, rig
+from tests.api.controller_rigs import SLOT, TIMEOUT_S, rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, WRITE_REQUEST, _setup
 from tests.conftest import Api, Database
 from tests.controllers.simbase import go_silent
@@ -51,6 +51,7 @@ def test_the_watcher_finds_drift_within_two_intervals_and_records_it_once(
         ids = _setup(api, r)
         tool_id, robot_id = ids["tool"]["id"], ids["robot"]["id"]
         r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)  # the controller holds the active TCP
+        r.sim.select_tool(SLOT)  # and the robot moves by it
         _wait_for(api, robot_id, "in_sync", 2 * watching)
         ready = api.client.get("/ready").json()["watcher"]
         assert ready["enabled"] is True
@@ -63,7 +64,8 @@ def test_the_watcher_finds_drift_within_two_intervals_and_records_it_once(
         started = time.monotonic()
         row = _wait_for(api, robot_id, "drifted", 2 * watching)
         assert time.monotonic() - started <= 2 * watching
-        assert row["attention"] == ["controller_drifted"]
+        # the robot moves by the edited tool: a frame no version has (issue 39)
+        assert row["attention"] == ["controller_drifted", "moving_by_unknown_tcp"]
         time.sleep(3 * watching)  # three more rounds find it drifted still
         assert _count(tool_id, "controller.drifted") == 1
         assert _count(tool_id, "controller.in_sync") == 1

@@ -1,0 +1,190 @@
+"""Which TCP each robot moves by (contract v1.3 fleet `live`): the reconcile rounds read the
+live tool from the controller (KUKA $ACT_TOOL and $TOOL on the simulator), and the fleet
+rows say whether it is the tool's active version, an older one, another tool's or a frame no
+version has, with the attention codes moving_by_stale_version and moving_by_unknown_tcp.
+A controller that does not say (ABB) leaves every row `unread`."""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+from typing import Any
+
+import pytest
+from sqlalchemy import text
+
+from app.db import get_engine
+from tests.api.controller_rigs import SLOT, Rig, rig
+from tests.api.test_deployments import (
+    ACTIVE_POSITION,
+    ACTIVE_Q,
+    PREVIOUS_POSITION,
+    PREVIOUS_Q,
+    _setup,
+    secret_key,  # noqa: F401 (a fixture: ABB's password is stored under it)
+)
+from tests.conftest import Api
+from tests.polling import wait_for
+
+INTERVAL_S = 0.5
+#: A frame no version of the tools below has.
+ELSEWHERE = ([40.0, 40.0, 300.0], [1.0, 0.0, 0.0, 0.0])
+
+
+def _calibrate(api: Api, tool_id: str, position: list[float], quaternion: list[float]) -> None:
+    tcp = {"position_mm": position, "quaternion": quaternion}
+    body = {"method": "manual", "tcp": tcp, "activate": "always"}
+    done = api.post(f"/v1/tools/{tool_id}/calibrations", body, scope="calibrate")
+    assert done.status_code == 201, done.text
+
+
+def _torch_v1_v2(api: Api, r: Rig) -> dict[str, Any]:
+    """A robot on the rig's controller with a tool in SLOT: v1 PREVIOUS, v2 ACTIVE (active)."""
+    ids = _setup(api, r, calibrated=False)
+    _calibrate(api, ids["tool"]["id"], PREVIOUS_POSITION, PREVIOUS_Q)
+    _calibrate(api, ids["tool"]["id"], ACTIVE_POSITION, ACTIVE_Q)
+    return ids
+
+
+def _rows(api: Api, robot_id: str, **params: str) -> dict[str, dict[str, Any]]:
+    got = api.get("/v1/tools", params={"robot_id": robot_id, **params})
+    assert got.status_code == 200, got.text
+    return {row["name"]: row for row in got.json()["items"]}
+
+
+def _reconcile(api: Api, robot_id: str) -> None:
+    done = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
+    assert done.status_code == 200, done.text
+
+
+def _live_events(robot_id: str) -> list[dict[str, Any]]:
+    with get_engine().connect() as conn:
+        rows = conn.execute(
+            text(
+                "SELECT details FROM audit_events WHERE robot_id = :r "
+                "AND action = 'robot.live_tool' ORDER BY id"
+            ),
+            {"r": robot_id},
+        )
+        return [r.details if isinstance(r.details, dict) else _json(r.details) for r in rows]
+
+
+def _json(value: str) -> dict[str, Any]:
+    import json
+
+    return dict(json.loads(value))
+
+
+@pytest.fixture
+def watching(monkeypatch: pytest.MonkeyPatch) -> float:
+    monkeypatch.setenv("TCPCAL_RECONCILE_INTERVAL_S", str(INTERVAL_S))
+    return INTERVAL_S
+
+
+def test_a_robot_set_to_an_older_version_shows_on_the_fleet_within_one_interval(
+    watching: float, api: Api
+) -> None:
+    with rig("kuka_kvp") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id, tool_id = ids["robot"]["id"], ids["tool"]["id"]
+        r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)  # $TOOL_DATA[SLOT] holds v2
+        r.sim.select_tool(SLOT)
+
+        def live_is(state: str) -> bool:
+            return bool(_rows(api, robot_id)["t1"]["live"]["state"] == state)
+
+        wait_for(lambda: live_is("active"), 2 * watching + 1.0, "moving by the active v2")
+        row = _rows(api, robot_id)["t1"]
+        assert row["live"]["version"] == 2
+        assert row["live"]["tool_id"] == tool_id
+        assert row["attention"] == []
+        # A program sets $TOOL to v1's values: the tool table still holds v2 (in sync), but
+        # the robot moves by v1.
+        r.sim.set_tool_frame(*r.native_of(PREVIOUS_POSITION, PREVIOUS_Q))
+        started = time.monotonic()
+        wait_for(lambda: live_is("stale_version"), watching + 1.0, "moving by v1")
+        took = time.monotonic() - started
+        assert took <= watching + 0.5, took  # the next round, plus its read
+        row = _rows(api, robot_id)["t1"]
+        assert row["live"]["version"] == 1
+        assert row["attention"] == ["moving_by_stale_version"]
+        assert row["controller"]["state"] == "in_sync"
+        flagged = _rows(api, robot_id, attention="true")
+        assert list(flagged) == ["t1"]
+        time.sleep(3 * watching)  # more rounds find the same: no more events
+        events = _live_events(robot_id)
+        assert [e["matches"] for e in events] == [
+            [{"tool_id": tool_id, "version": 2, "active": True}],
+            [{"tool_id": tool_id, "version": 1, "active": False}],
+        ]
+        assert events[1]["number"] is None  # $ACT_TOOL -1: $TOOL set without a tool number
+        assert events[1]["previous"]["number"] == SLOT
+
+
+def test_an_unknown_frame_is_blamed_on_the_tool_in_the_live_slot(api: Api) -> None:
+    with rig("kuka_kvp") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id = ids["robot"]["id"]
+        other = api.tool(robot_id, "gripper", slot=SLOT + 1)["id"]
+        _calibrate(api, other, *ELSEWHERE)  # the gripper's v1 is the frame below, shifted
+        r.sim.set_tool(SLOT, *r.native_of([0.0, 0.0, 99.0], [1.0, 0.0, 0.0, 0.0]))
+        r.sim.select_tool(SLOT)
+        _reconcile(api, robot_id)
+        rows = _rows(api, robot_id)
+        assert rows["t1"]["live"]["state"] == "unknown"
+        assert rows["gripper"]["live"]["state"] == "unknown"
+        assert "moving_by_unknown_tcp" in rows["t1"]["attention"]
+        assert "moving_by_unknown_tcp" not in rows["gripper"]["attention"]
+        # no tool number ($TOOL set by a program): any of the robot's tools may be it
+        r.sim.set_tool_frame(*r.native_of([0.0, 0.0, 99.0], [1.0, 0.0, 0.0, 0.0]))
+        _reconcile(api, robot_id)
+        rows = _rows(api, robot_id)
+        assert "moving_by_unknown_tcp" in rows["t1"]["attention"]
+        assert "moving_by_unknown_tcp" in rows["gripper"]["attention"]
+        # the gripper's own frame in the torch's slot: other_tool for the torch
+        r.sim.set_tool(SLOT, *r.native_of(*ELSEWHERE))
+        r.sim.select_tool(SLOT)
+        _reconcile(api, robot_id)
+        rows = _rows(api, robot_id)
+        assert rows["t1"]["live"] | {"checked_at": None} == {
+            "state": "other_tool",
+            "version": 1,
+            "tool_id": other,
+            "checked_at": None,
+        }
+        assert rows["gripper"]["live"]["state"] == "active"
+        assert "moving_by_unknown_tcp" not in rows["t1"]["attention"]
+        assert "moving_by_stale_version" not in rows["t1"]["attention"]
+
+
+@pytest.mark.parametrize("protocol", ["abb_rws1", "abb_rws2"])
+def test_abb_is_unread(api: Api, protocol: str) -> None:
+    with rig(protocol) as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id = ids["robot"]["id"]
+        never = _rows(api, robot_id)["t1"]["live"]
+        assert never == {"state": "unread", "version": None, "tool_id": None, "checked_at": None}
+        r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)  # the controller holds v1
+        _reconcile(api, robot_id)
+        row = _rows(api, robot_id)["t1"]
+        assert row["live"]["state"] == "unread"
+        assert row["live"]["checked_at"] is not None
+        assert not {"moving_by_stale_version", "moving_by_unknown_tcp"} & set(row["attention"])
+        [event] = _live_events(robot_id)
+        assert event["read"] is False
+        assert event["matches"] == []
+
+
+def test_the_csv_carries_the_live_state(api: Api) -> None:
+    with rig("kuka_kvp") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id = ids["robot"]["id"]
+        r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)
+        r.sim.select_tool(SLOT)
+        _reconcile(api, robot_id)
+        got = api.get("/v1/tools", params={"robot_id": robot_id}, headers={"Accept": "text/csv"})
+        [line] = list(csv.DictReader(io.StringIO(got.text)))
+        assert (line["live_state"], line["live_version"]) == ("stale_version", "1")
+        assert line["live_checked_at"].startswith("20")
+        assert "moving_by_stale_version" in line["attention"].split(";")
