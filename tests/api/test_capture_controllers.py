@@ -87,14 +87,7 @@ class AbbCell(Cell):
         self.rig.sim.set_pose(tuple(float(v) for v in position), (w, x, y, z))
 
     def set_moving(self, mm_per_read: float) -> None:
-        sim, read = self.rig.sim, self.rig.sim.robtarget
-
-        def moving(mechunit: str, query: dict[str, str]) -> Any:
-            (x, y, z), quaternion = sim.flange
-            sim.set_pose((x + mm_per_read, y, z), quaternion)
-            return read(mechunit, query)
-
-        sim.robtarget = moving
+        self.rig.sim.moving_per_read = mm_per_read
 
 
 #: protocol -> its cell: every protocol whose connector reads the pose (issue 39).

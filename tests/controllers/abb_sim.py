@@ -194,6 +194,9 @@ class AbbRwsSimulator(Faults):
         self.wobjs: dict[str, SimFrame] = {"wobj0": IDENTITY}
         #: the robot's base frame in the world
         self.base_frame: SimFrame = IDENTITY
+        #: a moving robot: each robtarget or jointtarget read finds the flange this many mm
+        #: further along the base's x axis and rax_1 this many degrees further
+        self.moving_per_read = 0.0
         self.requests: list[tuple[str, str, str]] = []  # method, path, authorization scheme
         #: the query of each request, in order (what the client asked for)
         self.queries: list[dict[str, str]] = []
@@ -287,6 +290,13 @@ class AbbRwsSimulator(Faults):
             self.flange = (self._reals(position_mm), self._reals(quaternion))  # type: ignore[assignment]
             if joints_deg is not None:
                 self.joints = self._reals(joints_deg)
+
+    def _move(self) -> None:
+        # under self._lock
+        if self.moving_per_read:
+            (x, y, z), rot = self.flange
+            self.flange = ((x + self.moving_per_read, y, z), rot)
+            self.joints = (self.joints[0] + self.moving_per_read, *self.joints[1:])
 
     def _reals(self, values: tuple[float, ...]) -> tuple[float, ...]:
         if self.single_precision:
@@ -403,6 +413,7 @@ class AbbRwsSimulator(Faults):
             wobj = self.wobjs.get(query.get("wobj") or self.active_wobj)
             if tool is None or wobj is None:
                 return 400, _error(NOT_FOUND_CODE, "Tool or work object not found")
+            self._move()
             # tool0 is the flange itself, printed as held
             tcp = self.flange if tool == IDENTITY else _compose(self.flange, tool)
             if coordinate == "Wobj":
@@ -426,6 +437,7 @@ class AbbRwsSimulator(Faults):
         if mechunit != self.mechunit:
             return 400, _error(NOT_FOUND_CODE, f"Mechanical unit not found: {mechunit}")
         with self._lock:
+            self._move()
             joints = self.joints
         item = {"_type": "ms-jointtarget", "_title": mechunit}
         item |= {f"rax_{i}": num_text(v) for i, v in enumerate(joints, 1)}
