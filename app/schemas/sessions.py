@@ -152,6 +152,17 @@ class Estimate(BaseModel):
     rms_mm: float
 
 
+class NextTouch(BaseModel):
+    """The suggested touch in words: how its orientation differs from the first touch's."""
+
+    tilt_deg: float = Field(description="tilt of the tool axis (flange z) from the first touch's")
+    lean_deg: float = Field(
+        description="the direction the tool axis leans toward, in the first touch's flange x-y "
+        "plane: 0 = +x, 90 = +y (0 when there is no tilt)"
+    )
+    spin_deg: float = Field(description="rotation about the tool axis, right-handed, -180..180")
+
+
 class Session(BaseModel):
     id: str
     tool_id: str
@@ -170,6 +181,14 @@ class Session(BaseModel):
     next_pose: list[FiniteFloat] | list[list[FiniteFloat]] | None = Field(
         description="the touch that shrinks the largest remaining uncertainty most, in the "
         "session's format; null before the first touch, when done or finished"
+    )
+    next_touch: NextTouch | None = Field(
+        description="next_pose against the first touch, in words a person moves the robot by; "
+        "null when next_pose is"
+    )
+    residuals_mm: list[float] | None = Field(
+        description="each touch's distance (mm) from where the estimate puts the point, in "
+        "order (a calibration's quality.residuals_mm); null without an estimate"
     )
     done: bool
     target_sigma_mm: float

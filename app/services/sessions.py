@@ -40,6 +40,7 @@ from app.schemas.results import Calibration
 from app.schemas.sessions import (
     DEFAULT_PLAN_TOUCHES,
     Estimate,
+    NextTouch,
     PlannedTouch,
     PlanRequest,
     SessionCreate,
@@ -57,7 +58,7 @@ from app.services.robots import get_robot
 from app.services.tools import get_tool
 from app.solvers.npoint import NOISE_CONTRADICTED
 from app.solvers.numbering import number
-from app.solvers.planning import Cone, next_touch, plan_touches, smallest_plan
+from app.solvers.planning import Cone, next_touch, plan_touches, smallest_plan, tilt_lean_spin
 
 #: The TCP assumed when neither the request nor the tool gives one (mm, flange frame).
 DEFAULT_TCP_MM = (0.0, 0.0, 150.0)
@@ -425,6 +426,7 @@ def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> S
     next_pose = None
     if row.status == "open" and poses and not done:
         next_pose = _next_pose(ctx, row, poses, outliers, estimate, reading.point, messages)
+    next_words = None if next_pose is None else _in_words(ctx, row, poses[0], next_pose)
     return SessionOut(
         id=row.id,
         tool_id=row.tool_id,
@@ -438,6 +440,8 @@ def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> S
         estimate=estimate,
         outliers=outliers,
         next_pose=next_pose,
+        next_touch=next_words,
+        residuals_mm=reading.residuals_mm,
         done=done,
         target_sigma_mm=target,
         messages=messages,
@@ -454,6 +458,7 @@ class _Reading:
     estimate: Estimate | None = None
     outliers: list[int] = field(default_factory=list)
     point: list[float] | None = None  # the touched point, as estimated with the TCP
+    residuals_mm: list[float] | None = None  # each touch's, with the estimate
     trusted: bool = False  # accepted, and the touch noise not contradicted
     messages: list[str] = field(default_factory=list)
 
@@ -479,6 +484,7 @@ def _read(row: GuidedSession, poses: Sequence[Pose], ctx: DbContext) -> _Reading
             tcp_mm=result.tcp.position_mm, tcp_sigma_mm=quality.tcp_sigma_mm, rms_mm=quality.rms_mm
         )
     reading.point = result.reference_point_mm
+    reading.residuals_mm = list(quality.residuals_mm) if reading.estimate else None
     if len(poses) >= OUTLIER_MIN_TOUCHES:
         reading.outliers = list(quality.outliers)
         reading.messages += [
@@ -557,6 +563,13 @@ def _next_pose(
     except InvalidInput as refusal:  # joints: a pose cannot be written as joint angles
         messages.append(f"no suggested pose: {refusal.detail}")
         return None
+
+
+def _in_words(ctx: DbContext, row: GuidedSession, first: Pose, suggested: Pose) -> NextTouch:
+    """The suggested pose against the first touch, both read as the session reads its poses."""
+    rotations, _ = ctx.parse_poses(row.format, [first, suggested], _units(row), loc=("poses",))
+    tilt, lean, spin = tilt_lean_spin(rotations[0], rotations[1])
+    return NextTouch(tilt_deg=tilt, lean_deg=lean, spin_deg=spin)
 
 
 def _units(row: GuidedSession) -> Units | None:

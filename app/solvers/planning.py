@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from app.arrays import FloatArray
 
@@ -198,3 +199,21 @@ def next_touch(done: FloatArray, cone: Cone) -> tuple[float, float, float]:
     worst = 1.0 / np.linalg.eigvalsh(information)[:, 0]
     k = int(np.argmin(worst))
     return float(grid[0, k]), float(grid[1, k]), float(grid[2, k])
+
+
+def tilt_lean_spin(first: FloatArray, other: FloatArray) -> tuple[float, float, float]:
+    """How the orientation `other` (3x3) differs from `first`, in the words a person at the
+    robot moves by (degrees): the tilt of the tool axis (flange z) from first's, the direction
+    it leans toward in first's flange x-y plane (0 = +x, 90 = +y), and the spin about the tool
+    axis (right-handed, -180..180).
+
+    The spin is the twist of a swing-twist split of first^T other about z: the same split as
+    `relative_rotations`' T = Rot(a, tilt) Rz(spin), whose swing axis a lies in the x-y plane."""
+    relative = Rotation.from_matrix(first.T @ other)
+    axis = relative.apply([0.0, 0.0, 1.0])
+    tilt = float(np.degrees(np.arccos(np.clip(axis[2], -1.0, 1.0))))
+    lean = float(np.mod(np.degrees(np.arctan2(axis[1], axis[0])), 360.0)) if tilt > 1e-9 else 0.0
+    _, _, z, w = relative.as_quat()
+    spin = float(np.degrees(2.0 * np.arctan2(z, w)))
+    spin = (spin + 180.0) % 360.0 - 180.0
+    return tilt, lean, spin

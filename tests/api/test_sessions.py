@@ -246,3 +246,48 @@ def test_plan_poses_touch_the_point_and_beat_random_sets(api: Api) -> None:
     assert both.status_code == 422
     flat = api.post("/v1/plan", json={**body, "max_tilt_deg": 0, "max_spin_deg": 0})
     assert flat.status_code == 422
+
+
+def test_each_read_gives_the_residuals_and_the_next_touch_in_words(
+    api: Api, tool: dict[str, Any]
+) -> None:
+    """The console shows each touch's residual and says the suggested touch in words: the
+    tilt of the tool axis from the first touch's, where it leans, and the spin about it."""
+    body = {"method": "xyz_npoint", "format": "kuka_abc", "target_sigma_mm": 0.01}
+    sid = api.post(f"/v1/tools/{tool['id']}/sessions", json=body).json()["id"]
+    operator = Operator(seed=5, noise_mm=0.02, misses={})
+    state = api.post(
+        f"/v1/sessions/{sid}/poses", json={"pose": operator.touch(TOOL_DOWN.as_matrix())}
+    ).json()
+    assert state["residuals_mm"] is None  # no estimate from one touch
+    for _ in range(5):
+        first, suggested = _rotation(state["poses"][0]), _rotation(state["next_pose"])
+        words = state["next_touch"]
+        # independently: the tool axes' angle, the lean in the first flange's x-y, and the
+        # rotation rebuilt as a tilt about an axis in that plane followed by the spin
+        axis = suggested[:, 2]
+        tilt = np.degrees(np.arccos(np.clip(first[:, 2] @ axis, -1.0, 1.0)))
+        assert words["tilt_deg"] == pytest.approx(tilt, abs=1e-6)
+        assert words["tilt_deg"] > 1.0  # a suggestion is another orientation
+        lean = np.degrees(np.arctan2(first[:, 1] @ axis, first[:, 0] @ axis)) % 360.0
+        assert words["lean_deg"] == pytest.approx(lean, abs=1e-6)
+        swing_axis = np.radians(words["lean_deg"] + 90.0)
+        rebuilt = Rotation.from_rotvec(
+            np.radians(words["tilt_deg"]) * np.array([np.cos(swing_axis), np.sin(swing_axis), 0])
+        ) * Rotation.from_euler("z", words["spin_deg"], degrees=True)
+        off = rebuilt.inv() * Rotation.from_matrix(first.T @ suggested)
+        assert np.degrees(off.magnitude()) < 1e-6, words
+        assert -180.0 <= words["spin_deg"] <= 180.0
+        state = api.post(
+            f"/v1/sessions/{sid}/poses", json={"pose": operator.touch(suggested)}
+        ).json()
+    assert state["n_poses"] == 6
+    residuals = state["residuals_mm"]
+    assert residuals is not None
+    assert len(residuals) == 6
+    cal = api.post(f"/v1/sessions/{sid}/finish", json={"activate": "never"}).json()
+    np.testing.assert_allclose(residuals, cal["quality"]["residuals_mm"], atol=1e-12)
+    assert max(residuals) == pytest.approx(cal["quality"]["max_mm"], abs=1e-12)
+    after = api.get(f"/v1/sessions/{sid}").json()
+    assert after["next_pose"] is None
+    assert after["next_touch"] is None

@@ -4,6 +4,7 @@ simulated operator achieves, it is deterministic, and it picks the fewest touche
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from app.kinematics.touchsets import cone_rotations, flange_positions, random_cone_rotations
@@ -15,6 +16,7 @@ from app.solvers.planning import (
     plan_touches,
     relative_rotations,
     smallest_plan,
+    tilt_lean_spin,
     unit_covariance,
 )
 
@@ -88,3 +90,14 @@ def test_next_touch_opens_the_weakest_direction() -> None:
     after_info = np.linalg.eigvalsh(4 * (np.eye(3) - after.mean(0).T @ after.mean(0)))[0]
     assert after_info > before_info + 0.1
     assert 0.0 < tilt <= 40.0
+
+
+def test_tilt_lean_spin_reads_back_the_planners_tilt_azimuth_and_spin() -> None:
+    """A touch T = Rot(a, tilt) Rz(spin), a at `azimuth` in the x-y plane, leans its tool axis
+    toward azimuth - 90 deg; its tilt and spin come back as given, from any first pose."""
+    first = Rotation.from_euler("xyz", [170.0, 12.0, -40.0], degrees=True).as_matrix()
+    for tilt, azimuth, spin in [(30.0, 0.0, 45.0), (12.5, 135.0, -90.0), (40.0, 290.0, 170.0)]:
+        relative = relative_rotations(np.array([tilt]), np.array([azimuth]), np.array([spin]))[0]
+        got = tilt_lean_spin(first, first @ relative)
+        assert got == pytest.approx((tilt, (azimuth - 90.0) % 360.0, spin), abs=1e-9)
+    assert tilt_lean_spin(first, first) == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
