@@ -18,7 +18,6 @@ from __future__ import annotations
 import csv
 import json
 import re
-from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -36,12 +35,12 @@ from app.client_bodies import (
     FleetTool,
     Page,
     Plan,
-    Pose,
     Robot,
-    Session,
     Tool,
     VersionList,
+    flat_pose,
 )
+from app.client_guided import guided_session
 from app.client_http import (
     EXIT_BAD_USE,
     EXIT_NOT_FOUND,
@@ -242,16 +241,25 @@ def calibrate(
     ] = False,
     target: Annotated[float | None, typer.Option(help="--guided: done at this sigma, mm")] = None,
     session: Annotated[str | None, typer.Option(help="--guided: continue this session")] = None,
+    capture: Annotated[
+        bool,
+        typer.Option(
+            help="--guided: Enter reads each touch from the robot's controller (a typed line "
+            "is still a typed pose)"
+        ),
+    ] = False,
 ) -> None:
     """Calibrate a tool from a pendant's pose export, or --guided touch by touch (the server
-    says which orientation to touch next and when the TCP is known well enough); prints the
-    verdict sentence."""
+    says which orientation to touch next and when the TCP is known well enough), typed or
+    with --capture read from the robot's controller; prints the verdict sentence."""
     units = _units(length, angle)
     if not fmt:
         fail(EXIT_BAD_USE, "give --format, the pendant's pose format (e.g. kuka_abc)")
+    if capture and not guided:
+        fail(EXIT_BAD_USE, "--capture reads touches one at a time: give --guided too")
     ref, tool_id = tool_id, resolve_tool(tool_id)
     if guided:
-        cal = guided_session(tool_id, fmt, units, target, session, activate, note)
+        cal = guided_session(tool_id, fmt, units, target, session, activate, note, capture=capture)
         _print_calibration(cal, ref)
         return
     if poses_file is None:
@@ -301,98 +309,6 @@ def _print_calibration(cal: Calibration, ref: str) -> None:
         raise typer.Exit(EXIT_OUT_OF_TOLERANCE)
 
 
-def guided_session(
-    tool_id: str,
-    fmt: str,
-    units: dict[str, str],
-    target: float | None,
-    session_id: str | None,
-    activate: str,
-    note: str | None,
-) -> Calibration:
-    """Touch by touch: each line on stdin is one pose as the pendant shows it; `d N` deletes
-    touch N (from 1), `f` finishes, `q` leaves the session open to continue later."""
-    if session_id is None:
-        body: JsonObject = {"method": "xyz_npoint", "format": fmt}
-        if units:
-            body["units"] = units
-        if target is not None:
-            body["target_sigma_mm"] = target
-        state: Session = send("POST", f"/v1/tools/{tool_id}/sessions", json=body).json()
-    else:
-        state = send("GET", f"/v1/sessions/{session_id}").json()
-    sid = state["id"]
-    err.print(
-        f"session {sid}: type each touch's pose ({fmt}) as shown on the pendant, one line of "
-        "numbers; 'd N' deletes touch N, 'f' finishes, 'q' leaves it open "
-        f"(continue with --session {sid})",
-        highlight=False,
-    )
-    _print_session(state)
-    for line in _input_lines():
-        command = line.strip().lower()
-        if not command or command.startswith("#"):
-            continue
-        if command == "q":
-            err.print(f"left open: tcpcal calibrate {tool_id} --guided --session {sid}")
-            raise typer.Exit(0)
-        if command == "f":
-            break
-        if command.startswith("d "):
-            index = int(command.split()[1]) - 1
-            state = send("DELETE", f"/v1/sessions/{sid}/poses/{index}").json()
-        else:
-            pose = [float(v) for v in line.replace(",", " ").split()]
-            state = _send_touch(sid, pose, state)
-        _print_session(state)
-        if state["done"]:
-            err.print("[green]done[/]: type 'f' to store it (or touch more)")
-    finish: JsonObject = {"activate": activate}
-    if note:
-        finish["note"] = note
-    result: Calibration = send("POST", f"/v1/sessions/{sid}/finish", json=finish).json()
-    return result
-
-
-def _input_lines() -> Iterator[str]:
-    import sys
-
-    yield from sys.stdin
-
-
-def _send_touch(sid: str, pose: list[float], state: Session) -> Session:
-    """Post one touch; a refused touch is explained and the session goes on as it was."""
-    response = request("POST", f"/v1/sessions/{sid}/poses", json={"pose": pose})
-    if response.status_code == 422:
-        err.print(f"[red]touch refused[/]: {problem(response).get('detail')}", highlight=False)
-        return state
-    if response.status_code >= 400:
-        refused(response)
-    new_state: Session = response.json()
-    return new_state
-
-
-def _print_session(state: Session) -> None:
-    estimate = state["estimate"]
-    if estimate:
-        x, y, z = estimate["tcp_mm"]
-        sigma = max(estimate["tcp_sigma_mm"])
-        out.print(
-            f"{state['n_poses']} touches: TCP {x:.3f} {y:.3f} {z:.3f} mm, 1-sigma {sigma:.3f} mm "
-            f"(target {state['target_sigma_mm']:g}), rms {estimate['rms_mm']:.3f} mm",
-            highlight=False,
-        )
-    for message in state["messages"]:
-        out.print(f"  {message}", highlight=False)
-    if state["next_pose"] is not None:
-        numbers = " ".join(f"{v:.3f}" for v in _flatten(state["next_pose"]))
-        out.print(f"next: {numbers}", highlight=False)
-
-
-def _flatten(pose: Pose) -> list[float]:
-    return [float(v) for row in pose for v in (row if isinstance(row, list) else [row])]
-
-
 def plan(
     start: Annotated[str, typer.Option(help="the start pose touching the point, as numbers")],
     fmt: Annotated[str, typer.Option("--format", help="pose format, e.g. kuka_abc")],
@@ -429,7 +345,7 @@ def plan(
     result: Plan = send("POST", "/v1/plan", json=body).json()
     names = format_components(fmt)  # the server accepted the format: it is a known one
     table = Table("touch", *names)
-    rows = [_flatten(p) for p in result["poses"]]
+    rows = [flat_pose(p) for p in result["poses"]]
     for i, row in enumerate(rows, start=1):
         table.add_row(str(i), *[f"{v:.3f}" for v in row])
     out.print(table)

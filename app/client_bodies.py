@@ -17,6 +17,11 @@ Item = TypeVar("Item")
 Pose = list[float | list[float]]
 
 
+def flat_pose(pose: Pose) -> list[float]:
+    """A pose's numbers in one row (a matrix row after row), as a table or a line shows it."""
+    return [float(v) for row in pose for v in (row if isinstance(row, list) else [row])]
+
+
 class Page(TypedDict, Generic[Item]):
     items: list[Item]
     next_cursor: str | None
@@ -73,13 +78,30 @@ class Estimate(TypedDict):
     rms_mm: float
 
 
+class TouchSource(TypedDict):
+    index: int
+    source: str
+    read_at: str | None
+
+
+class NextTouch(TypedDict):
+    tilt_deg: float
+    lean_deg: float
+    spin_deg: float
+
+
 class Session(TypedDict):
     id: str
     estimate: Estimate | None
     n_poses: int
+    poses: list[Pose]
+    touches: list[TouchSource]
+    outliers: list[int]
     target_sigma_mm: float
     messages: list[str]
     next_pose: Pose | None
+    next_touch: NextTouch | None
+    residuals_mm: list[float] | None
     done: bool
 
 
