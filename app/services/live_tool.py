@@ -9,7 +9,6 @@ version when a reconcile would call them the same.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
 
@@ -23,7 +22,6 @@ from app.controllers.base import (
     ControllerRefused,
     Frame,
     LiveTool,
-    PoseReading,
 )
 from app.helpers.frames import SYNC_TOLERANCE_DEG, SYNC_TOLERANCE_MM, frame_deviation, within
 from app.jsontypes import JsonObject
@@ -74,14 +72,11 @@ class LiveRead:
 
 
 def read_live(conn: Connector) -> LiveRead:
-    """The live tool through the connector's read_pose, in the round's session. A connector
-    without read_pose (the protocols gain it one at a time) or a failed read leaves it
-    unread, saying why; it never fails the round's tool states."""
-    read_pose: Callable[[], PoseReading] | None = getattr(conn, "read_pose", None)
-    if read_pose is None:
-        return LiveRead(None, f"the {conn.protocol} connector does not read the robot's pose")
+    """The live tool through the connector's read_pose, in the round's session. A failed
+    read (a KUKA in external-TCP mode refuses it) leaves it unread, saying why; it never
+    fails the round's tool states."""
     try:
-        return LiveRead(read_pose().live_tool, None)
+        return LiveRead(conn.read_pose().live_tool, None)
     except ControllerRefused as exc:
         return LiveRead(None, f"refused: {exc.controller_message}")
     except ControllerError as exc:

@@ -188,3 +188,52 @@ def test_the_csv_carries_the_live_state(api: Api) -> None:
         assert (line["live_state"], line["live_version"]) == ("stale_version", "1")
         assert line["live_checked_at"].startswith("20")
         assert "moving_by_stale_version" in line["attention"].split(";")
+
+
+def test_fanuc_moves_by_its_active_utool(api: Api) -> None:
+    with rig("fanuc_rmi") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id, tool_id = ids["robot"]["id"], ids["tool"]["id"]
+        r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)  # UTOOL[SLOT] holds v1
+        r.sim.select(uframe=0, utool=SLOT)
+        _reconcile(api, robot_id)
+        row = _rows(api, robot_id)["t1"]
+        assert (row["live"]["state"], row["live"]["version"]) == ("stale_version", 1)
+        assert row["attention"] == ["controller_drifted", "moving_by_stale_version"]
+        r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)
+        _reconcile(api, robot_id)
+        row = _rows(api, robot_id)["t1"]
+        assert row["live"] | {"checked_at": None} == {
+            "state": "active",
+            "version": 2,
+            "tool_id": tool_id,
+            "checked_at": None,
+        }
+        assert row["attention"] == []
+        # UTOOL 1, which no tool of tcpcal's holds, and whose frame no version has
+        r.sim.select(uframe=0, utool=1)
+        _reconcile(api, robot_id)
+        row = _rows(api, robot_id)["t1"]
+        assert row["live"]["state"] == "unknown"
+        assert row["attention"] == ["moving_by_unknown_tcp"]
+        assert [e["number"] for e in _live_events(robot_id)] == [SLOT, SLOT, 1]
+
+
+def test_a_refused_pose_read_leaves_the_live_tool_unread_and_the_tools_judged(api: Api) -> None:
+    with rig("kuka_kvp") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id = ids["robot"]["id"]
+        r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)
+        r.sim.select_tool(SLOT)
+        _reconcile(api, robot_id)
+        assert _rows(api, robot_id)["t1"]["live"]["state"] == "active"
+        r.sim.ipo_mode = "#TCP"  # external TCP: the KRC's $POS_ACT is not a tool on the flange
+        done = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read").json()
+        assert done["tools"][0]["state"] == "in_sync"
+        row = _rows(api, robot_id)["t1"]
+        assert row["live"]["state"] == "unread"
+        assert row["attention"] == []
+        event = _live_events(robot_id)[-1]
+        assert event["read"] is False
+        assert "$IPO_MODE" in event["error"], event
+        assert event["previous"]["matches"] == [{"tool_id": ids["tool"]["id"], "version": 2}]
