@@ -99,6 +99,12 @@ class RobotMoving(Conflict):
     kind, title = "robot-moving", "Robot moving"
 
 
+class NoControllerSet(NotFound):
+    """GET of a robot's controller connection when none is set (404, contract v1.3)."""
+
+    kind, title = "no-controller", "Robot has no controller"
+
+
 class SecretUnreadable(Conflict):
     kind, title = "secret-unavailable", "Stored secret unreadable"
 

@@ -9,6 +9,7 @@ from starlette.concurrency import run_in_threadpool
 
 from app.api.params import PathId
 from app.deps import AdminKey, HeldCalibrateKey, HeldReadKey, ReadKey, SessionDep
+from app.errors import NoControllerSet
 from app.kinematics.poses import PoseFormat
 from app.schemas.controllers import Controller, ControllerIn, ControllerPose, Reconciliation
 from app.services import capture, controllers, reconcile
@@ -47,10 +48,10 @@ def put_controller(
 
 @router.get("/v1/robots/{robot_id}/controller", response_model=Controller)
 def get_controller(robot_id: PathId, session: SessionDep, key: ReadKey) -> Controller:
-    """How tcpcal reaches the robot's controller (409 `/no-controller` when it has none)."""
+    """How tcpcal reaches the robot's controller (404 `/no-controller` when it has none)."""
+    controller = controllers.get_controller(session, robot_id, missing=NoControllerSet)
     return Controller.model_validate(
-        controllers.controller_document(controllers.get_controller(session, robot_id)),
-        from_attributes=True,
+        controllers.controller_document(controller), from_attributes=True
     )
 
 

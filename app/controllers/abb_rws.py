@@ -30,6 +30,15 @@ so the flange needs no composition; "Get Joint target" (``ms_mechunit_jointtarge
 every value as a string, and those strings are the reading's ``readings``. RWS names no tool
 a program moves by (a move instruction names its own tooldata), so the live tool is unknown.
 
+One deadline covers the whole session (``timeout_s`` from `connect`: login, mastership,
+every read and write). Whatever the session leaves is then given back within `CLEANUP_S`
+more: edit mastership (requested, so perhaps granted even when the answer never came) is
+released and the session logged out on every path. RobotWare keeps mastership with the
+session that took it until that session releases it or ends, so when the controller does not
+answer even that, the session's cookies are kept (`_ORPHANS`, in this process) and the next
+session with the same controller releases and logs it out before anything else; otherwise
+the next write would meet "Mastership is held by another client" from tcpcal's own session.
+
 A write keeps the controller's ``robhold`` and, when tcpcal has no load for the tool, its
 whole ``tload``; with a load it writes mass and centre of gravity and keeps the axes of
 moment and the inertia. Both sessions end with ``GET /logout`` (RobotWare keeps a small
@@ -41,13 +50,17 @@ from __future__ import annotations
 
 import contextlib
 import math
+import socket
 import ssl
+import threading
 from dataclasses import replace
 
 import httpx
 
 from app.controllers.base import (
+    CLEANUP_S,
     ClosingSession,
+    ControllerCredentialsRefused,
     ControllerProtocolError,
     ControllerRefused,
     ControllerSettings,
@@ -74,7 +87,6 @@ DEFAULT_USER = "Default User"
 DEFAULT_PASSWORD = "robotics"
 V2_JSON = "application/hal+json;v=2.0"
 V2_FORM = "application/x-www-form-urlencoded;v=2.0"
-_LOGOUT_BUDGET_S = 1.0
 _WORDS_LIMIT = 300
 #: the mechanical unit of the motion task T_ROB1 (a single robot's controller)
 MECHUNIT = "ROB_1"
@@ -85,6 +97,13 @@ _ROBTARGET = ("x", "y", "z", "q1", "q2", "q3", "q4")
 _JOINTS = ("rax_1", "rax_2", "rax_3", "rax_4", "rax_5", "rax_6")
 #: how far from 1 the norm of a printed quaternion may be (RobotWare prints 7 digits)
 _UNIT_SLACK = 1e-3
+_MASTERSHIP_REQUEST = "/rw/mastership/edit/request"
+_MASTERSHIP_RELEASE = "/rw/mastership/edit/release"
+
+#: Sessions a failure left on a controller that did not answer their release and logout:
+#: base URL -> the cookies of each. The next session with that controller ends them first.
+_ORPHANS: dict[str, list[dict[str, str]]] = {}
+_ORPHANS_LOCK = threading.Lock()
 
 
 class AbbRwsConnector(ClosingSession):
@@ -120,9 +139,14 @@ class AbbRwsConnector(ClosingSession):
             follow_redirects=False,
             trust_env=False,
         )
+        self._base_url = f"{scheme}://{host}:{settings.port}"
+        #: the whole session's time budget, from here: login, mastership, reads, writes
+        self._deadline = Deadline(settings.timeout_s)
         self._logged_in = False
-        #: set once the controller stopped answering: no logout then (it would only wait)
-        self._dead = False
+        #: edit mastership was asked for and not yet given back (it may have been granted
+        #: even when the answer never came)
+        self._mastership_asked = False
+        self._orphans_ended = False
 
     # --- the Connector interface -----------------------------------------------------------
 
@@ -133,13 +157,13 @@ class AbbRwsConnector(ClosingSession):
     def read_tool(self, target: ToolTarget) -> ToolData:
         """The tooldata the controller holds in the PERS symbol `target.symbol`."""
         check_target(self.protocol, target)
-        return _tool_data(self._read(target, Deadline(self._settings.timeout_s)))
+        return _tool_data(self._read(target, self._deadline))
 
     def write_tool(self, target: ToolTarget, data: ToolData) -> None:
         """Write tframe (and the load when `data.load` is set), keeping robhold and the rest."""
         check_target(self.protocol, target)
         finite_tool_data(data)
-        deadline = Deadline(self._settings.timeout_s)
+        deadline = self._deadline
         held = self._read(target, deadline)
         tool = replace(held, position_mm=data.position_mm, quaternion=data.quaternion)
         if data.load is not None:
@@ -159,7 +183,7 @@ class AbbRwsConnector(ClosingSession):
             return
         self._send(
             "POST",
-            "/rw/mastership/edit/request",
+            _MASTERSHIP_REQUEST,
             deadline,
             form=True,
             what="request edit mastership",
@@ -183,7 +207,7 @@ class AbbRwsConnector(ClosingSession):
         """The flange in the robot's base frame (the robtarget of tool0 in wobj0, Base
         coordinates), rax_1..rax_6 of the jointtarget, and every value both answers held, as
         printed; both reads within one deadline. The live tool is unknown (RWS does not say)."""
-        deadline = Deadline(self._settings.timeout_s)
+        deadline = self._deadline
         robtarget = self._motion_state("robtarget", "ms-robtargets", deadline)
         jointtarget = self._motion_state("jointtarget", "ms-jointtarget", deadline)
         x, y, z, q1, q2, q3, q4 = self._numbers(robtarget, _ROBTARGET, "robtarget")
@@ -206,11 +230,22 @@ class AbbRwsConnector(ClosingSession):
         )
 
     def close(self) -> None:
-        """Log out (ends the controller's session) and close the connection; never raises."""
-        if self._logged_in:
+        """Release edit mastership if it may be held, log out (ends the controller's
+        session), close the connection; never raises. Within `CLEANUP_S` past the session's
+        deadline; what the controller did not confirm is ended by the next session."""
+        if self._mastership_asked:
+            self._release_mastership(self._deadline)
+        budget = self._deadline.extended(CLEANUP_S).left()
+        if self._logged_in and budget > 0:
             with contextlib.suppress(httpx.HTTPError):
-                self._client.get("/logout", timeout=min(self._settings.timeout_s, _LOGOUT_BUDGET_S))
-            self._logged_in = False
+                self._client.get("/logout", timeout=budget)
+                self._logged_in = False  # answered (a 401 too: the session is gone)
+        if self._logged_in or self._mastership_asked:
+            cookies = dict(self._client.cookies.items())
+            if cookies:
+                with _ORPHANS_LOCK:
+                    _ORPHANS.setdefault(self._base_url, []).append(cookies)
+        self._logged_in = self._mastership_asked = False
         self._client.close()
 
     # --- requests --------------------------------------------------------------------------
@@ -283,20 +318,49 @@ class AbbRwsConnector(ClosingSession):
         return tuple(numbers)
 
     def _release_mastership(self, deadline: Deadline) -> None:
-        # Released even when the write failed or the deadline is spent: a held mastership
-        # locks the pendant and other clients out until the controller times it out.
-        if self._dead:
+        # Released even when the write failed, timed out or `deadline` is spent (then within
+        # CLEANUP_S more): a held mastership locks the pendant and every other client out,
+        # tcpcal's next session included, until the session holding it ends.
+        budget = deadline.extended(CLEANUP_S).left()
+        if budget <= 0:
             return
-        try:
-            budget = deadline.remaining()
-        except ControllerUnreachable:
-            budget = _LOGOUT_BUDGET_S
         with contextlib.suppress(httpx.HTTPError):
-            self._client.post(
-                "/rw/mastership/edit/release",
-                headers={"Content-Type": V2_FORM},
-                timeout=budget,
+            response = self._client.post(
+                _MASTERSHIP_RELEASE, headers={"Content-Type": V2_FORM}, timeout=budget
             )
+            if response.status_code < 500:
+                self._mastership_asked = False
+
+    def _end_orphans(self) -> None:
+        """Release and log out the sessions an earlier failure left on this controller,
+        before this session needs the mastership they may hold (within this session's
+        deadline; those the controller still does not answer are kept for the next one)."""
+        self._orphans_ended = True
+        with _ORPHANS_LOCK:
+            orphans = _ORPHANS.pop(self._base_url, [])
+        for index, cookies in enumerate(orphans):
+            # Their own cookies and no credentials: a 401 says that session has ended.
+            headers = {
+                "Cookie": "; ".join(f"{k}={v}" for k, v in cookies.items()),
+                "Content-Type": V2_FORM,
+            }
+            try:
+                if self._v2:
+                    self._client.request(
+                        "POST",
+                        _MASTERSHIP_RELEASE,
+                        headers=headers,
+                        auth=None,
+                        timeout=self._deadline.remaining(),
+                    )
+                self._client.get(
+                    "/logout", headers=headers, auth=None, timeout=self._deadline.remaining()
+                )
+            except (httpx.HTTPError, ControllerUnreachable):
+                with _ORPHANS_LOCK:
+                    _ORPHANS.setdefault(self._base_url, []).extend(orphans[index:])
+                break
+        self._client.cookies.clear()  # their answers set their cookies; this session has its own
 
     def _send(
         self,
@@ -310,6 +374,10 @@ class AbbRwsConnector(ClosingSession):
         form: bool = False,
     ) -> httpx.Response:
         headers = {"Content-Type": V2_FORM} if form else None
+        if not self._orphans_ended:
+            self._end_orphans()
+        if path == _MASTERSHIP_REQUEST:
+            self._mastership_asked = True  # granted perhaps, even if no answer comes
         try:
             response = self._client.request(
                 method,
@@ -320,12 +388,11 @@ class AbbRwsConnector(ClosingSession):
                 timeout=httpx.Timeout(deadline.remaining()),
             )
         except httpx.TimeoutException as err:
-            self._dead = True
             raise ControllerUnreachable(
                 f"{self._peer} did not answer within {deadline.timeout_s:g} s ({what})"
             ) from err
         except httpx.ConnectError as err:
-            raise ControllerUnreachable(_connect_failure(self._peer, err)) from err
+            raise ControllerUnreachable(self._connect_failure(err)) from err
         except httpx.TransportError as err:
             raise ControllerUnreachable(
                 f"{self._peer}: the connection failed ({what}): {err}"
@@ -338,14 +405,35 @@ class AbbRwsConnector(ClosingSession):
     def _refusal(self, response: httpx.Response, what: str) -> ControllerRefused:
         words = _controller_words(response)
         if response.status_code == 401:
-            return ControllerRefused(
+            return ControllerCredentialsRefused(
                 f"the controller refused the credentials of user {self._user!r} "
                 f"(check the RWS user name and password): {words}",
                 controller_message=words,
+                user=self._user,
             )
         return ControllerRefused(
             f"the controller refused to {what}: {words}", controller_message=words
         )
+
+    def _connect_failure(self, err: httpx.ConnectError) -> str:
+        peer = self._peer
+        reason = str(err) or type(err).__name__
+        if "CERTIFICATE" in reason.upper():
+            return (
+                f"{peer}: the TLS handshake failed ({reason}); the controller's certificate is "
+                "not trusted here: install it in the system's trust store (or point "
+                "SSL_CERT_FILE at it; its name must match the host), or set tls_verify false"
+            )
+        if "SSL" in reason.upper() or "TLS" in reason.upper():
+            settings = self._settings
+            if self._v2 and _speaks_plain_http(settings.host, settings.port, self._deadline):
+                return (
+                    f"{peer}: the port answers plain HTTP, not TLS ({reason}): RWS 2.0 "
+                    "(RobotWare 7) is served over HTTPS; a controller answering plain HTTP is "
+                    "RobotWare 6: set the controller's protocol to abb_rws1 (port 80)"
+                )
+            return f"{peer}: the TLS handshake failed ({reason})"
+        return f"cannot connect to {peer}: {reason}"
 
 
 def _tool_data(tool: RapidTool) -> ToolData:
@@ -419,12 +507,15 @@ def _controller_words(response: httpx.Response) -> str:
     return status_line
 
 
-def _connect_failure(peer: str, err: httpx.ConnectError) -> str:
-    reason = str(err) or type(err).__name__
-    if "CERTIFICATE" in reason.upper() or "SSL" in reason.upper():
-        return (
-            f"{peer}: the TLS handshake failed ({reason}); the controller's certificate is not "
-            "trusted here: install it in the system's trust store (or point SSL_CERT_FILE at "
-            "it; its name must match the host), or set tls_verify false"
-        )
-    return f"cannot connect to {peer}: {reason}"
+def _speaks_plain_http(host: str, port: int, deadline: Deadline) -> bool:
+    """Whether host:port answers a plain HTTP request with an HTTP status line: what makes
+    a TLS handshake fail with "wrong version number" (the server answered in clear)."""
+    budget = min(deadline.left(), CLEANUP_S)
+    if budget <= 0:
+        return False
+    try:
+        with socket.create_connection((host, port), timeout=budget) as sock:
+            sock.sendall(b"HEAD / HTTP/1.0\r\n\r\n")
+            return sock.recv(5) == b"HTTP/"
+    except OSError:
+        return False

@@ -7,9 +7,12 @@ reconciles runs a connector in a worker thread and owns everything else.
 
 Every connector converts through `app.kinematics.poses` (scipy Rotation), so the values a
 controller holds in its own convention (KUKA A B C, FANUC W P R, ABB quaternion) and the
-quaternion tcpcal holds are one rotation. Every connect and every read has a timeout, and
-each operation keeps to one deadline (`Deadline`): a controller that stalls fails the
-operation within ``timeout_s`` (plus scheduling slack), never a worker forever.
+quaternion tcpcal holds are one rotation. A session keeps to one deadline (`Deadline`),
+started when it is opened (`connect(settings)`) and shared by every wait after it: connect,
+login, mastership, each read and write, the read-back. A controller that stalls anywhere
+fails the whole attempt within ``timeout_s``; ending the session (releasing what it holds)
+then has at most `CLEANUP_S` more, so a caller hears back within ``timeout_s + CLEANUP_S``
+(plus scheduling slack), never a worker forever.
 """
 
 from __future__ import annotations
@@ -156,11 +159,21 @@ class ControllerUnreachable(ControllerError):
 
 
 class ControllerRefused(ControllerError):
-    """The controller answered and said no; `controller_message` is its own words."""
+    """The controller answered and said no; `controller_message` is its own words, `remedy`
+    what a person can do about it when the connector knows."""
 
-    def __init__(self, message: str, *, controller_message: str) -> None:
-        super().__init__(message)
+    def __init__(self, message: str, *, controller_message: str, remedy: str | None = None) -> None:
+        super().__init__(message if remedy is None else f"{message}; {remedy}")
         self.controller_message = controller_message
+        self.remedy = remedy
+
+
+class ControllerCredentialsRefused(ControllerRefused):
+    """The controller refused the user name and password it was given (`user`)."""
+
+    def __init__(self, message: str, *, controller_message: str, user: str) -> None:
+        super().__init__(message, controller_message=controller_message)
+        self.user = user
 
 
 class ControllerProtocolError(ControllerError):
@@ -294,12 +307,27 @@ def write_sent() -> Iterator[None]:
         raise
 
 
+#: What ending a session may take past its deadline: releasing ABB edit mastership, the RWS
+#: logout, FANUC's FRC_Disconnect. Short, because the caller is waiting for the answer.
+CLEANUP_S = 0.5
+
+
 class Deadline:
-    """One time budget for a whole operation: each wait gets what is left of it."""
+    """One time budget for a whole session: each wait gets what is left of it."""
 
     def __init__(self, timeout_s: float) -> None:
         self.timeout_s = timeout_s
         self._end = time.monotonic() + timeout_s
+
+    def extended(self, seconds: float) -> Deadline:
+        """A deadline `seconds` after this one (what ending the session may use)."""
+        later = Deadline(self.timeout_s + seconds)
+        later._end = self._end + seconds
+        return later
+
+    def left(self) -> float:
+        """Seconds left, 0 once spent (never raises)."""
+        return max(0.0, self._end - time.monotonic())
 
     def remaining(self) -> float:
         """Seconds left; raises ControllerUnreachable once the budget is spent."""

@@ -4,7 +4,7 @@ Followed: FANUC *Remote Motion Interface Operator's Manual* B-84184EN (a copy in
 vertec-io/Fanuc_RMI_API ``docs/``, whose RMI_COMMANDS_REFERENCE.md and tests give the
 packets as real controllers send them): the communication packets (FRC_Connect on TCP
 16001 answers ``PortNumber``, the port of the session; FRC_Disconnect), the command packets
-(FRC_Initialize, FRC_Abort, FRC_ReadUToolData, FRC_WriteUToolData with ``ToolNumber`` 1-10
+(FRC_ReadUToolData, FRC_WriteUToolData with ``ToolNumber`` 1-10
 and ``Frame`` {X, Y, Z mm, W, P, R deg}), and the ErrorID table of Appendix A.1 (RMIT-nnn
 alarms are 2556928 + nnn). Every packet is one JSON object ended by ``\r\n``; every packet
 sent is answered by one with the same ``Communication``/``Command`` name and an ``ErrorID``
@@ -29,22 +29,41 @@ app.kinematics.poses). RMI reads and writes only the frame of a UTOOL: the paylo
 PAYLOAD schedules that RMI cannot write, so a FANUC tool is read with ``load`` None and
 its load is not written.
 
-A session runs FRC_Connect -> (session port) FRC_Initialize -> reads/writes -> FRC_Abort ->
-FRC_Disconnect. The controller serves one RMI client at a time, and a session that dies
-without FRC_Disconnect holds the controller until its own timeout (vertec-io notes), so
-`close` sends FRC_Abort and FRC_Disconnect (within 1 s) whatever happened before, unless
-the controller has stopped answering (then waiting for it again would only stall).
+A session runs FRC_Connect -> (session port) reads/writes -> FRC_Disconnect, under one
+deadline of ``timeout_s`` from `connect` (FRC_Connect, the session's connection, each read
+and write), and `close` sends FRC_Disconnect within `CLEANUP_S` more whatever happened
+before, unless the controller has stopped answering (then waiting again would only stall;
+closing the connection ends the session on the controller's side).
+
+No FRC_Initialize, and so no FRC_Abort: B-84184EN/03 section 2.3 (p. 8-9) lists
+FRC_ReadUToolData and FRC_WriteUToolData among the commands the controller answers "once the
+FRC_Connect packet is accepted"; FRC_Initialize is for motion: it creates the RMI_MOVE TP
+program and runs it (2.3.1, p. 9). A session that initialized and then died without
+FRC_Abort or FRC_Disconnect leaves RMI_MOVE holding program control (2.3.1, p. 10: "even if
+you manually abort the RMI_MOVE TP program through the teach pendant, the RMI still has
+program control"; the NOTE on p. 11: "always end your RMI session with either an FRC_Abort or
+FRC_Disconnect packet"), and every later FRC_Initialize answers ErrorID 7015 MEMO-015
+Program already exists (the NOTE on p. 9). The manual suggests FRC_Abort and re-initializing;
+replies captured from an R-30iB (vertec-io/Fanuc_RMI_API probe/FINDINGS-7015.md) show that
+from a new session FRC_Abort answers RMIT-014 and FRC_Initialize 7015 again, whatever is
+sent: only the pendant clears it. We follow the captured replies: a session that never
+initializes leaves nothing behind when it dies and is not stopped by what another left, so
+the next deploy after a dropped session succeeds. The refusals that need someone at the
+pendant say what to do there (`REMEDIES`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 
 import numpy as np
 
 from app.controllers.base import (
+    CLEANUP_S,
     ClosingSession,
+    ControllerError,
     ControllerProtocolError,
     ControllerRefused,
     ControllerSettings,
@@ -111,7 +130,26 @@ MEMO_MESSAGES: dict[int, str] = {
     7004: "MEMO-004 Specific program is in use",
     7015: "MEMO-015 Program already exists",
 }
-_CLOSE_BUDGET_S = 1.0
+#: What to do about an ErrorID that needs someone at the controller (B-84184EN/03 and
+#: the captured replies cited in the module's docstring).
+REMEDIES: dict[int, str] = {
+    7015: (
+        "an RMI_MOVE program holds the controller (left by an RMI session that ended without "
+        "FRC_Abort or FRC_Disconnect, or selected on the pendant): on the teach pendant press "
+        "SELECT, choose a program other than RMI_MOVE and press ENTER (B-84184EN section "
+        "2.3.1); if that does not clear it, delete the RMI_MOVE program on the pendant"
+    ),
+    7004: (
+        "the RMI_MOVE program is in use: on the teach pendant press SELECT, choose a program "
+        "other than RMI_MOVE and press ENTER (B-84184EN section 2.3.1)"
+    ),
+    RMIT_BASE + 26: (
+        "RMI serves one client at a time (B-84184EN section 2.1) and another one holds it: "
+        "end that client's session; a session whose connection was lost is ended by the "
+        "controller after $RMI_CFG.$DISCNT_TIM minutes without a packet (default 60, "
+        "section 2.2.3)"
+    ),
+}
 _NAME_KEYS = {"Communication", "Command", "Instruction"}
 
 
@@ -156,15 +194,11 @@ class FanucRmiConnector(ClosingSession):
         #: would only wait again) and the controller frees the session on its own
         self._dead = False
         self._peer = f"FANUC RMI at {settings.host}:{settings.port}"
-        deadline = Deadline(settings.timeout_s)
-        session_port = self._session_port(deadline)
+        #: the whole session's time budget, from here: FRC_Connect, each read and write
+        self._deadline = Deadline(settings.timeout_s)
+        session_port = self._session_port(self._deadline)
         self._peer = f"FANUC RMI session at {settings.host}:{session_port}"
-        self._sock = open_connection(settings.host, session_port, deadline)
-        try:
-            self._request({"Command": "FRC_Initialize", "GroupMask": 1}, deadline)
-        except BaseException:
-            self.close()
-            raise
+        self._sock = open_connection(settings.host, session_port, self._deadline)
 
     # --- the Connector interface -----------------------------------------------------------
 
@@ -177,7 +211,7 @@ class FanucRmiConnector(ClosingSession):
         check_target(self.protocol, target)
         assert target.slot is not None  # check_target: a slot-addressed protocol
         frame, _line = self._read_frame(
-            "FRC_ReadUToolData", "ToolNumber", target.slot, Deadline(self._settings.timeout_s)
+            "FRC_ReadUToolData", "ToolNumber", target.slot, self._deadline
         )
         return ToolData(position_mm=frame.position_mm, quaternion=frame.quaternion, load=None)
 
@@ -186,7 +220,7 @@ class FanucRmiConnector(ClosingSession):
         Position * inverse(UTOOL[n]) for the active m and n), J1..J6, the tool it moves by
         (UTOOL n and its frame; UTOOL 0, the faceplate, has no number) and each reply line as
         the controller sent it, keyed by its command; all within one timeout."""
-        deadline = Deadline(self._settings.timeout_s)
+        deadline = self._deadline
         readings: dict[str, str] = {}
         cartesian, readings["FRC_ReadCartesianPosition"] = self._request_line(
             {"Command": "FRC_ReadCartesianPosition", "Group": 1}, deadline
@@ -233,28 +267,22 @@ class FanucRmiConnector(ClosingSession):
             "Frame": frame,
             "Group": 1,
         }
-        deadline = Deadline(self._settings.timeout_s)
+        deadline = self._deadline
         # Once the packet is handed to the socket the controller may have set the frame,
         # whether or not its answer arrives.
         with write_sent():
             self._request(packet, deadline)
 
     def close(self) -> None:
-        """FRC_Abort and FRC_Disconnect (errors ignored), then close; never raises."""
+        """FRC_Disconnect (errors ignored, within CLEANUP_S past the session's deadline),
+        then close; never raises."""
         if self._sock is None:
             return
-        if self._dead:
-            close_quietly(self._sock)
-            self._sock = None
-            return
-        budget = Deadline(min(self._settings.timeout_s, _CLOSE_BUDGET_S))
-        for packet in ({"Command": "FRC_Abort"}, {"Communication": "FRC_Disconnect"}):
-            try:
-                self._request(packet, budget)
-            except ControllerRefused:
-                continue  # FRC_Abort with no RMI_MOVE running: nothing to abort
-            except Exception:
-                break
+        if not self._dead:
+            with contextlib.suppress(ControllerError):
+                self._request(
+                    {"Communication": "FRC_Disconnect"}, self._deadline.extended(CLEANUP_S)
+                )
         close_quietly(self._sock)
         self._sock = None
 
@@ -358,7 +386,9 @@ class FanucRmiConnector(ClosingSession):
         if error_id != 0:
             words = error_text(error_id)
             raise ControllerRefused(
-                f"the FANUC controller refused {name}: {words}", controller_message=words
+                f"the FANUC controller refused {name}: {words}",
+                controller_message=words,
+                remedy=REMEDIES.get(error_id),
             )
         return reply, line
 

@@ -85,8 +85,10 @@ class KukaKvpConnector(ClosingSession):
         self._peer = f"KUKAVARPROXY at {settings.host}:{settings.port}"
         self._buffer = bytearray()
         self._msg_id = 0
+        #: the whole session's time budget: connect, every read and write, the read-back
+        self._deadline = Deadline(settings.timeout_s)
         self._sock: socket.socket | None = open_connection(
-            settings.host, settings.port, Deadline(settings.timeout_s)
+            settings.host, settings.port, self._deadline
         )
 
     # --- the Connector interface -----------------------------------------------------------
@@ -98,7 +100,7 @@ class KukaKvpConnector(ClosingSession):
     def read_tool(self, target: ToolTarget) -> ToolData:
         """The tool frame and load the KRC holds for tool `target.slot`."""
         check_target(self.protocol, target)
-        deadline = Deadline(self._settings.timeout_s)
+        deadline = self._deadline
         frame = self._read_struct(f"$TOOL_DATA[{target.slot}]", deadline)
         x, y, z, a, b, c = numbers(frame, ("X", "Y", "Z", "A", "B", "C"), what="$TOOL_DATA")
         quaternion = quaternion_wxyz_from_kuka_abc([a, b, c])
@@ -119,7 +121,7 @@ class KukaKvpConnector(ClosingSession):
         position into ``$LOAD_DATA[n]``."""
         check_target(self.protocol, target)
         finite_tool_data(data)
-        deadline = Deadline(self._settings.timeout_s)
+        deadline = self._deadline
         a, b, c = (float(v) for v in kuka_abc_from_quaternion_wxyz(np.asarray(data.quaternion)))
         x, y, z = data.position_mm
         frame = format_struct({"X": x, "Y": y, "Z": z, "A": a, "B": b, "C": c})
@@ -143,7 +145,7 @@ class KukaKvpConnector(ClosingSession):
         (``$BASE * $POS_ACT * inverse($TOOL)``), A1..A6 of ``$AXIS_ACT``, the tool it moves by
         (``$ACT_TOOL``, ``$TOOL``) and the six values as the KRC printed them. ControllerRefused
         in external-TCP mode (``$IPO_MODE #TCP``)."""
-        readings = self.read_variables(POSE_VARIABLES, Deadline(self._settings.timeout_s))
+        readings = self.read_variables(POSE_VARIABLES, self._deadline)
         ipo_mode = readings["$IPO_MODE"].upper()
         if ipo_mode == "#TCP":
             raise ControllerRefused(
@@ -203,7 +205,7 @@ class KukaKvpConnector(ClosingSession):
 
     def read_variable(self, name: str, deadline: Deadline | None = None) -> str:
         """The KRC's text of variable `name`; ControllerRefused when it has none."""
-        deadline = deadline or Deadline(self._settings.timeout_s)
+        deadline = deadline or self._deadline
         value, ok = self._exchange(MODE_READ, name, None, deadline)
         if not ok or not value:
             raise _no_value(name, ok)
@@ -218,12 +220,12 @@ class KukaKvpConnector(ClosingSession):
 
     def write_variable(self, name: str, value: str, deadline: Deadline | None = None) -> None:
         """Set variable `name` to the KRL text `value`; ControllerRefused when the KRC says no."""
-        deadline = deadline or Deadline(self._settings.timeout_s)
+        deadline = deadline or self._deadline
         _echo, ok = self._exchange(MODE_WRITE, name, value, deadline)
         if not ok:
             raise ControllerRefused(
-                f"the KRC refused to set {name} (KUKAVARPROXY write status 0: unknown "
-                "variable, index out of range, or a value the variable cannot hold)",
+                f"the KRC refused to set {name} (KUKAVARPROXY write status 0: the KRC has no "
+                "variable of that name, or it cannot hold the value)",
                 controller_message=f"{name}: write status 0",
             )
 
@@ -273,10 +275,9 @@ class KukaKvpConnector(ClosingSession):
 
 def _no_value(name: str, ok: bool) -> ControllerRefused:
     return ControllerRefused(
-        f"the KRC has no value for {name}: KUKAVARPROXY answered "
-        f"{'an empty value' if ok else 'a failed read'} (unknown variable or index "
-        "out of range)",
+        f"KUKAVARPROXY answered {'an empty value' if ok else 'a failed read'} for {name}",
         controller_message=f"{name}: empty value, status {int(ok)}",
+        remedy=_missing_remedy(name),
     )
 
 
@@ -285,6 +286,18 @@ def _kuka_frame(values: tuple[float, ...]) -> tuple[tuple[float, float, float], 
     x, y, z, a, b, c = values
     w, qx, qy, qz = (float(v) for v in quaternion_wxyz_from_kuka_abc([a, b, c]))
     return (x, y, z), (w, qx, qy, qz)
+
+
+def _missing_remedy(name: str) -> str:
+    """What to check when the KRC shows no value for `name` (KUKAVARPROXY answers an empty
+    value for a name the KRC does not resolve: not declared, or an index past its array)."""
+    missing = f"the KRC has no variable {name}"
+    if name.upper().startswith(("$TOOL_DATA[", "$LOAD_DATA[")):
+        return (
+            f"{missing}: check the tool's slot (a tool number the KRC declares, 1-16 on "
+            f"KSS 8) and that {name.split('[', 1)[0]} is declared in the KRC's $config.dat"
+        )
+    return f"{missing}: check the name and that the KRC declares it"
 
 
 def encode_request(msg_id: int, mode: int, name: str, value: str | None) -> bytes:

@@ -10,23 +10,45 @@ from sqlalchemy.orm import Session
 
 from app import secretbox
 from app.auth import Principal
-from app.controllers.base import DEFAULT_PORTS, SLOT_RANGES, ControllerSettings
-from app.errors import InvalidInput, NoController, SecretUnreadable
+from app.controllers.base import (
+    DEFAULT_PORTS,
+    SLOT_RANGES,
+    ControllerCredentialsRefused,
+    ControllerRefused,
+    ControllerSettings,
+)
+from app.errors import InvalidInput, NoController, NoControllerSet, SecretUnreadable
 from app.models import RobotController, Tool, ToolControllerState, utcnow
 from app.schemas.controllers import ControllerIn
 from app.services import audit
 from app.services.robots import get_robot
 
 
-def get_controller(session: Session, robot_id: str) -> RobotController:
-    """The controller connection of a live robot; 404 for the robot, 409 when it has none."""
+def get_controller(
+    session: Session, robot_id: str, *, missing: type[NoController | NoControllerSet] = NoController
+) -> RobotController:
+    """The controller connection of a live robot; 404 for the robot; `missing` when it has
+    none: 409 /no-controller for what needs one (deploy, reconcile), 404 /no-controller for
+    reading the connection itself (contract v1.3)."""
     get_robot(session, robot_id)
     controller = session.get(RobotController, robot_id)
     if controller is None:
-        raise NoController(
+        raise missing(
             f"robot {robot_id} has no controller: PUT /v1/robots/{robot_id}/controller first"
         )
     return controller
+
+
+def refusal_words(exc: ControllerRefused, robot_id: str) -> str:
+    """The controller's own words and, when known, what to do about them."""
+    remedy = exc.remedy
+    if isinstance(exc, ControllerCredentialsRefused):
+        remedy = (
+            f"it refused user {exc.user!r} with the password tcpcal holds: set the user and "
+            f"password it accepts as `username` and `password` with PUT "
+            f"/v1/robots/{robot_id}/controller"
+        )
+    return exc.controller_message if remedy is None else f"{exc.controller_message}; {remedy}"
 
 
 _LABEL = re.compile(r"^(?!-)[A-Za-z0-9-]{1,63}(?<!-)$")

@@ -48,7 +48,7 @@ from app.metrics import DEPLOYMENTS
 from app.models import Deployment, TcpVersion, ToolControllerState, utcnow
 from app.schemas.controllers import Deployment as DeploymentOut
 from app.services import audit, controller_states, idempotency
-from app.services.controllers import get_controller, settings_of
+from app.services.controllers import get_controller, refusal_words, settings_of
 from app.services.tools import get_tool
 from app.statuses import DeploymentStatus, FailedDeploymentStatus
 
@@ -242,7 +242,8 @@ def _failure(plan: Plan, attempt: _Attempt, exc: ControllerError) -> Outcome:
         message = exc.controller_message
         members["controller_message"] = message
         error = ControllerRefusedError(
-            f"the controller refused: {message}; {words}", members=members
+            f"the controller refused: {refusal_words(exc, plan.robot_id)}; {words}",
+            members=members,
         )
     elif isinstance(exc, ControllerUnreachable):
         happened = (

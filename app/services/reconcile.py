@@ -32,7 +32,7 @@ from app.models import Robot, RobotController, TcpVersion, Tool, utcnow
 from app.schemas.controllers import Reconciliation
 from app.services import controller_states, settling
 from app.services.controller_states import SEVERITY, Observation
-from app.services.controllers import get_controller, settings_of
+from app.services.controllers import get_controller, refusal_words, settings_of
 from app.services.live_tool import LiveRead, read_live, record_live
 from app.services.robots import get_robot
 from app.statuses import ROBOT_STATES, ToolState
@@ -88,7 +88,7 @@ def _tools_to_check(session: Session, robot_id: str, protocol: str) -> list[Tool
 
 
 def read_controller(
-    settings: ControllerSettings, tools: list[ToolToCheck]
+    settings: ControllerSettings, tools: list[ToolToCheck], *, robot_id: str
 ) -> tuple[dict[str, Reading], LiveRead]:
     """Each addressable tool's frame as the controller holds it, then the tool the robot
     moves by (one session; no database). A tool the controller refuses to read is
@@ -104,10 +104,11 @@ def read_controller(
                 try:
                     readings[tool.tool_id] = Reading(conn.read_tool(tool.target), None)
                 except ControllerRefused as exc:
-                    readings[tool.tool_id] = Reading(None, f"refused: {exc.controller_message}")
+                    words = refusal_words(exc, robot_id)
+                    readings[tool.tool_id] = Reading(None, f"refused: {words}")
             live = read_live(conn)
     except (ControllerUnreachable, ControllerRefused, ControllerError) as exc:
-        words = exc.controller_message if isinstance(exc, ControllerRefused) else str(exc)
+        words = refusal_words(exc, robot_id) if isinstance(exc, ControllerRefused) else str(exc)
         where = f"{settings.host}:{settings.port}"
         for tool in todo:
             readings.setdefault(tool.tool_id, Reading(None, f"{where}: {words}"))
@@ -160,7 +161,7 @@ def reconcile_robot(
         settings = settings_of(controller)
         tools = _tools_to_check(session, robot_id, controller.protocol)
     read_from = utcnow()
-    readings, live = read_controller(settings, tools)
+    readings, live = read_controller(settings, tools, robot_id=robot_id)
     if cancelled():
         return None
     checked_at = utcnow()

@@ -60,7 +60,7 @@ def test_put_fills_the_protocols_default_port_and_get_and_delete(api: Api) -> No
     assert _put(api, robot["id"], "read", protocol="kuka_kvp", host="a").status_code == 403
     assert api.delete(f"/v1/robots/{robot['id']}/controller").status_code == 204
     gone = api.get(f"/v1/robots/{robot['id']}/controller")
-    assert gone.status_code == 409
+    assert gone.status_code == 404  # contract v1.3: 404 /no-controller
     assert gone.json()["type"].endswith("/no-controller")
     actions = [e["action"] for e in _audit(robot["id"])]
     assert actions.count("controller.set") == 4

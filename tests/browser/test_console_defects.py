@@ -197,10 +197,10 @@ def test_controller_lines_wrap_between_numbers_never_inside_one(
     assert wrapped, f"no card wraps at {width} px: the test looks at no wrapped line"
 
 
-def test_a_tool_page_of_a_robot_without_a_controller_logs_only_the_controllers_409(
+def test_a_tool_page_of_a_robot_without_a_controller_logs_only_the_controllers_404(
     page: Page, cell: Cell
 ) -> None:
-    """The page asks GET /v1/robots/{id}/controller and Chromium logs its 409 /no-controller
+    """The page asks GET /v1/robots/{id}/controller and Chromium logs its 404 /no-controller
     (a fixed contract) as a console error. Nothing the console holds says beforehand whether
     the robot has a connection: the robot document has no such field, and a fleet row's
     `controller` is null also for a connection never looked at (reconcile or deploy). So that
@@ -220,7 +220,7 @@ def test_a_tool_page_of_a_robot_without_a_controller_logs_only_the_controllers_4
         if errors:
             break
         page.wait_for_timeout(100)
-    assert failed == [f"409 /v1/robots/{cell.robot}/controller"]
+    assert failed == [f"404 /v1/robots/{cell.robot}/controller"]
     assert errors == [
-        "Failed to load resource: the server responded with a status of 409 (Conflict)"
+        "Failed to load resource: the server responded with a status of 404 (Not Found)"
     ]

@@ -51,6 +51,16 @@ Tool data, the pose and the joints are held as RobotWare holds ``num`` (32-bit f
 `single_precision` is False. `set_tool` / `tool` are the operator at the FlexPendant (Jogging
 > Tool, or the Program Data window); `mastership_holder` set to "FlexPendant" is an operator
 holding write access there.
+
+Edit mastership belongs to the session that requested it (its cookie) until that session
+releases it or logs out; another session's request is refused with "Mastership is held by
+another client". A session that stops talking keeps it: that is why a client must release it
+and log out whatever failed.
+
+`stalled` makes the controller accept requests and answer none (until it is cleared or the
+simulator stops; the requests it did not answer are dropped). The fault hook (`Faults`) names
+a request "login" while it has no live session cookie (the Digest challenge and answer, or
+Basic credentials), else "METHOD /path"; `reply_delay_s` delays every answer.
 """
 
 from __future__ import annotations
@@ -305,15 +315,23 @@ class AbbRwsSimulator(Faults):
 
     # --- what the controller does -------------------------------------------------------
 
-    def authenticate(self, method: str, headers: dict[str, str]) -> _Session | None:
-        """The session of a valid cookie or Authorization header; None: challenge."""
+    def hang(self) -> None:
+        """Answer nothing until `stalled` is cleared or the simulator stops."""
+        while self.stalled and not self._release.wait(0.02):
+            pass
+
+    def _cookie_session(self, headers: dict[str, str]) -> _Session | None:
         cookies = dict(
             part.strip().split("=", 1)
             for part in headers.get("cookie", "").split(";")
             if "=" in part
         )
         with self._lock:
-            session = self.sessions.get(cookies.get("-http-session-", ""))
+            return self.sessions.get(cookies.get("-http-session-", ""))
+
+    def authenticate(self, method: str, headers: dict[str, str]) -> _Session | None:
+        """The session of a valid cookie or Authorization header; None: challenge."""
+        session = self._cookie_session(headers)
         if session is not None:
             return session
         authorization = headers.get("authorization", "")
@@ -651,13 +669,16 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
         def _handle(self, method: str) -> None:
             length = int(self.headers.get("Content-Length") or 0)
             body = self.rfile.read(length) if length else b""
+            headers = {k.lower(): v for k, v in self.headers.items()}
+            url = urlsplit(self.path)
+            if sim._cookie_session(headers) is None:
+                sim.fault_at("login")  # "before" or "after": no answer either way
             if sim.stalled:
-                sim._release.wait()  # accepts, reads, never answers
+                sim.hang()  # accepts, reads, answers nothing
                 self.close_connection = True
                 return
-            headers = {k.lower(): v for k, v in self.headers.items()}
+            sim.slow()
             scheme = headers.get("authorization", "").split(" ", 1)[0]
-            url = urlsplit(self.path)
             sim.requests.append((method, url.path, scheme))
             sim.queries.append({k: v[0] for k, v in parse_qs(url.query).items()})
             if sim.version == 2 and v2_media_problem(method, headers, self):
@@ -673,7 +694,7 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
                 status, payload = route(method, url.path, query, form, session)
             if stop is not None:  # silent from here, as when stalled
                 sim.stalled = True
-                sim._release.wait()
+                sim.hang()
                 self.close_connection = True
                 return
             self._reply(status, payload, cookie=session)

@@ -12,7 +12,21 @@ port FRC_Initialize, FRC_Abort, FRC_ReadUToolData / FRC_WriteUToolData (``ToolNu
 while a session is open answers RMIT-026 Robot is Already Connected; a session ends with
 FRC_Disconnect or when its connection closes. A tool number outside 1-10 answers RMIT-002
 Invalid UTool Number, an unknown command RMIT-013 Invalid RMI Command, FRC_Initialize with
-the teach pendant enabled RMIT-008, FRC_Abort with RMI not running RMIT-009.
+the teach pendant enabled RMIT-008.
+
+The RMI_MOVE TP program (B-84184EN/03 section 2.3.1, p. 9-10): FRC_Initialize creates it and
+runs it, and it holds program control until the session that made it sends FRC_Abort or
+FRC_Disconnect (the NOTE on p. 11). A session whose connection closes without either leaves
+it holding control: every later FRC_Initialize answers ErrorID 7015 MEMO-015 Program
+already exists (the NOTE on p. 9), and FRC_Abort from another session answers RMIT-014 RMI
+Command Fail, as an R-30iB answered (vertec-io/Fanuc_RMI_API probe/FINDINGS-7015.md, replies
+captured from the controller; the manual suggests aborting, the controller did not let it).
+Only the pendant clears it (`delete_rmi_move`). FRC_ReadUToolData / FRC_WriteUToolData need
+no FRC_Initialize (section 2.3, p. 8-9: answered once FRC_Connect is accepted).
+
+The fault hook (`Faults`) names requests by their packet: "FRC_Connect" on the connect port,
+the command's name on the session port; `drop_at` names one at which the controller closes
+the session's connection without an answer.
 
 Frame values are held as the controller's REALs (32-bit floats) unless `single_precision`
 is False. `set_tool` / `tool` are the operator at the pendant (SETUP > Frames).
@@ -62,11 +76,12 @@ RMIT = 2556928
 INVALID_UTOOL = RMIT + 2
 INVALID_UFRAME = RMIT + 3
 TP_ENABLED = RMIT + 8
-RMI_NOT_RUNNING = RMIT + 9
 INVALID_COMMAND = RMIT + 13
+COMMAND_FAIL = RMIT + 14
 INVALID_POSITION_DATA = RMIT + 23
 ALREADY_CONNECTED = RMIT + 26
 INVALID_GROUP = RMIT + 39
+PROGRAM_EXISTS = 7015
 
 
 class FanucSimulator(TcpSimulator):
@@ -85,7 +100,10 @@ class FanucSimulator(TcpSimulator):
         #: every command's answer on the session, as the line sent (without the CRLF)
         self.replies: list[str] = []
         self.session_open = False
-        self.rmi_running = False
+        #: RMI_MOVE exists and holds program control (made by an FRC_Initialize)
+        self.rmi_move_held = False
+        #: the packet name at which the session's connection is closed without an answer
+        self.drop_at: str | None = None
         self._data_lock = threading.Lock()
         # Where the robot stands: the flange in the world frame (4x4, mm), the joints, the
         # user frames, the UFRAME and UTOOL numbers selected (0: the world, the faceplate).
@@ -198,6 +216,11 @@ class FanucSimulator(TcpSimulator):
             self._flange[0, 3] += self.moving_per_read
             self.joints["J1"] += self.moving_per_read
 
+    def delete_rmi_move(self) -> None:
+        """The operator deletes the RMI_MOVE program on the pendant (what clears a program a
+        dead session left holding control, per the captured replies)."""
+        self.rmi_move_held = False
+
     def _real(self, value: float) -> float:
         return float(np.float32(value)) if self.single_precision else float(value)
 
@@ -207,6 +230,10 @@ class FanucSimulator(TcpSimulator):
         """The connect port: FRC_Connect -> PortNumber."""
         for packet in _packets(conn):
             name = packet.get("Communication")
+            self.fault_at(str(name))  # "before" or "after": no answer either way
+            if self.stalled:
+                continue
+            self.slow()
             if name != "FRC_Connect":
                 _send(conn, {"Communication": name, "ErrorID": INVALID_COMMAND})
             elif self.session_open:
@@ -226,35 +253,48 @@ class FanucSimulator(TcpSimulator):
     def serve_session(self, conn: socket.socket) -> None:
         """The session port: commands until FRC_Disconnect or the connection closes."""
         self.session_open = True
+        #: this session's FRC_Initialize made RMI_MOVE (its to abort)
+        session = {"initialized": False}
         try:
             for packet in _packets(conn):
                 self.packets.append(packet)
-                if packet.get("Communication") == "FRC_Disconnect":
-                    _send(conn, {"Communication": "FRC_Disconnect", "ErrorID": 0})
+                name = str(packet.get("Communication") or packet.get("Command"))
+                if name == self.drop_at:
+                    return  # the connection closes: the session dies without a goodbye
+                if name == "FRC_Disconnect":
+                    if session["initialized"]:
+                        self.rmi_move_held = False  # p. 11: Abort or Disconnect ends it
+                    if not self.stalled:
+                        _send(conn, {"Communication": "FRC_Disconnect", "ErrorID": 0})
                     return
-                stop = self.fault_at(str(packet.get("Command")))
+                stop = self.fault_at(name)
                 if stop == "before":
                     continue
-                reply = self._command(packet)
-                time.sleep(self.reply_delay_s)
+                reply = self._command(packet, session)
+                self.slow()
                 if stop == "after":
                     self.stalled = True
                 if not self.stalled:  # stalled mid-session: reads on, answers nothing
                     self.replies.append(_send(conn, reply))
         finally:
+            # RMI_MOVE stays as it is: a session that ends without FRC_Abort or
+            # FRC_Disconnect leaves it holding program control.
             self.session_open = False
-            self.rmi_running = False
 
-    def _command(self, packet: dict[str, object]) -> dict[str, object]:
+    def _command(self, packet: dict[str, object], session: dict[str, bool]) -> dict[str, object]:
         name = packet.get("Command")
         if name == "FRC_Initialize":
             if self.teach_pendant_enabled:
                 return {"Command": name, "ErrorID": TP_ENABLED, "GroupMask": 1}
-            self.rmi_running = True
+            if self.rmi_move_held:
+                return {"Command": name, "ErrorID": PROGRAM_EXISTS, "GroupMask": 1}
+            self.rmi_move_held = session["initialized"] = True
             return {"Command": name, "ErrorID": 0, "GroupMask": 1}
         if name == "FRC_Abort":
-            was_running, self.rmi_running = self.rmi_running, False
-            return {"Command": name, "ErrorID": 0 if was_running else RMI_NOT_RUNNING}
+            if not session["initialized"]:  # nothing of this session's to abort
+                return {"Command": name, "ErrorID": COMMAND_FAIL}
+            self.rmi_move_held = session["initialized"] = False
+            return {"Command": name, "ErrorID": 0}
         if name in ("FRC_ReadUToolData", "FRC_WriteUToolData"):
             return self._utool(str(name), packet)
         if name in ("FRC_ReadCartesianPosition", "FRC_ReadJointAngles", "FRC_ReadUFrameData"):

@@ -127,6 +127,9 @@ class KukaSimulator(TcpSimulator):
         #: a moving robot: each read of $POS_ACT or $AXIS_ACT finds the flange this many mm
         #: further along the base's x axis and A1 this many degrees further
         self.moving_per_read = 0.0
+        #: variables this KRC does not declare (upper case, e.g. "$LOAD_DATA[3]"): read as an
+        #: empty value, a write refused, as for any name the KRC does not resolve
+        self.undeclared: set[str] = set()
 
     # --- the pendant --------------------------------------------------------------------
 
@@ -234,6 +237,8 @@ class KukaSimulator(TcpSimulator):
 
     def show_var(self, name: str) -> str | None:
         """The KRC's text of a variable, None when it has none."""
+        if name.strip().upper() in self.undeclared:
+            return None
         if name.strip().upper() == "$ROBNAME[]":
             return f'"{self.robot_name}"'
         pose_text = self._show_pose_variable(name.strip().upper())
@@ -279,6 +284,8 @@ class KukaSimulator(TcpSimulator):
 
     def set_var(self, name: str, value: str) -> bool:
         """Assign a KRL aggregate; False for what the KRC would refuse."""
+        if name.strip().upper() in self.undeclared:
+            return False
         match = _VARIABLE.match(name.strip())
         if match is None or int(match.group(2)) not in SLOTS:
             return False
@@ -311,6 +318,7 @@ class KukaSimulator(TcpSimulator):
                 answer = self._answer(msg_id, body)
                 if self.stalled:  # stalled mid-session: reads on, answers nothing
                     continue
+                self.slow()
                 if not self.split_replies:
                     conn.sendall(answer)
                     continue

@@ -1,12 +1,13 @@
 """What every socket simulator shares: a loopback listener on a free port, one thread per
 connection, start/stop, and a stalled mode that accepts connections and never answers; and
-what every simulator shares, a test's fault hook (`Faults`)."""
+what every simulator shares, a test's fault hook and slow answers (`Faults`)."""
 
 from __future__ import annotations
 
 import contextlib
 import socket
 import threading
+import time
 from collections.abc import Callable
 from typing import Literal, Self
 
@@ -24,6 +25,13 @@ class Faults:
 
     stalled: bool
     fault: Callable[[str], Stop | None] | None = None
+    #: seconds each answer waits before it is sent (a slow controller)
+    reply_delay_s: float = 0.0
+
+    def slow(self) -> None:
+        """Wait `reply_delay_s` before an answer."""
+        if self.reply_delay_s:
+            time.sleep(self.reply_delay_s)
 
     def fault_at(self, request: str) -> Stop | None:
         """Where the fault stops the controller at `request`; "before" sets `stalled` (the

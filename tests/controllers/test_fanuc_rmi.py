@@ -23,7 +23,7 @@ from app.controllers import (
     connect,
 )
 from app.controllers.base import Deadline, Frame
-from app.controllers.fanuc_rmi import FanucRmiConnector, encode_packet, error_text
+from app.controllers.fanuc_rmi import REMEDIES, FanucRmiConnector, encode_packet, error_text
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import fanuc_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
@@ -69,14 +69,17 @@ def test_a_controller_holding_32_bit_reals_reads_back_within_its_resolution(
 def test_the_session_follows_the_manual_and_ends_cleanly(fanuc_sim: FanucSimulator) -> None:
     fanuc_sim.set_tool(1, 0.0, 0.0, 150.0, 90.0, 0.0, 0.0)
     with connect(fanuc_settings(fanuc_sim)) as fanuc:
-        assert fanuc_sim.session_open
         tool = fanuc.read_tool(ToolTarget(slot=1))
+        assert fanuc_sim.session_open
     assert tool.position_mm == (0.0, 0.0, 150.0)
     # W = 90 about x: the tool's y axis is the flange's z.
     w, x, y, z = tool.quaternion
     assert_allclose(Rotation.from_quat([x, y, z, w]).apply([0, 1, 0]), [0, 0, 1], atol=1e-9)
     names = [p.get("Command", p.get("Communication")) for p in fanuc_sim.packets]
-    assert names == ["FRC_Initialize", "FRC_ReadUToolData", "FRC_Abort", "FRC_Disconnect"]
+    # No FRC_Initialize: tool data needs only FRC_Connect (B-84184EN/03 section 2.3), and a
+    # session that never makes RMI_MOVE cannot leave it holding the controller.
+    assert names == ["FRC_ReadUToolData", "FRC_Disconnect"]
+    assert not fanuc_sim.rmi_move_held
     deadline = time.monotonic() + 2
     while fanuc_sim.session_open and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -98,20 +101,79 @@ def test_the_controllers_errors_are_refusals_in_its_words(fanuc_sim: FanucSimula
                 {"Command": "FRC_ReadNoSuchThing"},
                 Deadline(2.0),
             )
-        # A second client while this session is open: the controller serves one.
-        with pytest.raises(ControllerRefused, match="RMIT-026 Robot is Already Connected"):
+        # A second client while this session is open: the controller serves one, and the
+        # refusal says what to do about it.
+        with pytest.raises(ControllerRefused, match="RMIT-026 Robot is Already Connected") as busy:
             connect(fanuc_settings(fanuc_sim))
+        assert busy.value.remedy is not None
+        assert "one client at a time" in busy.value.remedy
+        assert "$RMI_CFG.$DISCNT_TIM" in str(busy.value)
         assert fanuc.read_tool(ToolTarget(slot=1)).position_mm == (0.0, 0.0, 0.0)
 
 
-def test_initialize_refused_with_the_pendant_enabled(fanuc_sim: FanucSimulator) -> None:
-    fanuc_sim.teach_pendant_enabled = True
-    with pytest.raises(ControllerRefused, match="RMIT-008 Teach Pendant is Enabled"):
-        connect(fanuc_settings(fanuc_sim))
+def _raw_session(sim: FanucSimulator) -> socket.socket:
+    """Another RMI client's session (FRC_Connect, then the session port), as a socket."""
+    with socket.create_connection((sim.host, sim.port), timeout=2) as first:
+        first.sendall(b'{"Communication": "FRC_Connect"}\r\n')
+        port = json.loads(first.makefile("rb").readline())["PortNumber"]
+    return socket.create_connection((sim.host, port), timeout=2)
+
+
+def _ask(sock: socket.socket, packet: dict[str, object]) -> dict[str, object]:
+    sock.sendall(json.dumps(packet).encode() + b"\r\n")
+    line = b""
+    while not line.endswith(b"\r\n"):
+        line += sock.recv(1)
+    answer: dict[str, object] = json.loads(line)
+    return answer
+
+
+def _wait_closed(sim: FanucSimulator) -> None:
     deadline = time.monotonic() + 2
-    while fanuc_sim.session_open and time.monotonic() < deadline:
+    while sim.session_open and time.monotonic() < deadline:
         time.sleep(0.01)
-    assert not fanuc_sim.session_open, "the refused session was disconnected, not left open"
+    assert not sim.session_open
+
+
+def test_a_session_that_died_holding_rmi_move_stops_no_tool_write(
+    fanuc_sim: FanucSimulator,
+) -> None:
+    """B-84184EN/03 section 2.3.1: a session that initialized and died without FRC_Abort or
+    FRC_Disconnect leaves RMI_MOVE holding program control; FRC_Initialize then answers 7015
+    and (captured from an R-30iB) FRC_Abort from a new session RMIT-014. Tool data needs no
+    FRC_Initialize (section 2.3), so the next tcpcal session writes all the same. Before,
+    the connector initialized every session and failed here with MEMO-015."""
+    with _raw_session(fanuc_sim) as other:
+        assert _ask(other, {"Command": "FRC_Initialize", "GroupMask": 1})["ErrorID"] == 0
+    _wait_closed(fanuc_sim)  # died without a goodbye
+    assert fanuc_sim.rmi_move_held
+    with _raw_session(fanuc_sim) as again:
+        assert _ask(again, {"Command": "FRC_Initialize", "GroupMask": 1})["ErrorID"] == 7015
+        assert _ask(again, {"Command": "FRC_Abort"})["ErrorID"] == 2556928 + 14
+        assert _ask(again, {"Communication": "FRC_Disconnect"})["ErrorID"] == 0
+    _wait_closed(fanuc_sim)
+    assert fanuc_sim.rmi_move_held, "no RMI command clears it"
+
+    fanuc_sim.packets.clear()
+    with connect(fanuc_settings(fanuc_sim)) as fanuc:
+        fanuc.write_tool(ToolTarget(slot=2), ToolData((1.0, 2.0, 3.0), (1.0, 0.0, 0.0, 0.0)))
+        assert fanuc.read_tool(ToolTarget(slot=2)).position_mm == (1.0, 2.0, 3.0)
+    assert "FRC_Initialize" not in [p.get("Command") for p in fanuc_sim.packets]
+
+    fanuc_sim.delete_rmi_move()  # the pendant clears it for the motion clients
+    with _raw_session(fanuc_sim) as motion:
+        assert _ask(motion, {"Command": "FRC_Initialize", "GroupMask": 1})["ErrorID"] == 0
+        assert _ask(motion, {"Command": "FRC_Abort"})["ErrorID"] == 0
+    assert not fanuc_sim.rmi_move_held
+
+
+def test_7015_says_what_to_do_on_the_pendant() -> None:
+    refusal = ControllerRefused(
+        "refused", controller_message=error_text(7015), remedy=REMEDIES[7015]
+    )
+    assert "MEMO-015 Program already exists" in refusal.controller_message
+    assert "SELECT" in str(refusal)
+    assert "delete the RMI_MOVE program on the pendant" in str(refusal)
 
 
 def test_a_slot_outside_1_10_never_reaches_the_wire(fanuc_sim: FanucSimulator) -> None:
@@ -142,13 +204,13 @@ def test_a_controller_that_never_answers_fails_within_the_timeout(
     assert settings.timeout_s * 0.9 <= elapsed < settings.timeout_s + 1.0, elapsed
 
 
-def test_a_session_that_stalls_after_connecting_fails_each_call_within_the_timeout(
+def test_a_session_that_stalls_after_connecting_fails_within_the_timeout(
     fanuc_sim: FanucSimulator,
 ) -> None:
     settings = fanuc_settings(fanuc_sim, timeout_s=0.5)
+    started = time.monotonic()
     fanuc = connect(settings)
     fanuc_sim.stalled = True  # the open session goes on reading and stops answering
-    started = time.monotonic()
     with pytest.raises(ControllerUnreachable, match="did not answer"):
         fanuc.read_tool(ToolTarget(slot=1))
     assert settings.timeout_s * 0.9 <= time.monotonic() - started < settings.timeout_s + 1.0

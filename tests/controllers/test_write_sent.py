@@ -5,6 +5,7 @@ the write leaves the mark off. The simulators go silent where a test's fault say
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -25,7 +26,7 @@ REQUESTS = {
     # KUKA reads $LOAD_DATA once to keep its other members before writing; the frame is
     # written first, the load after it
     "kuka_kvp": ("write $TOOL_DATA[3]", ("read $LOAD_DATA[3]", 1)),
-    "fanuc_rmi": ("FRC_WriteUToolData", ("FRC_Initialize", 1)),
+    "fanuc_rmi": ("FRC_WriteUToolData", ("FRC_Connect", 1)),
     "abb_rws1": (
         "POST /rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch",
         ("GET /rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch", 1),
@@ -63,6 +64,14 @@ def _target(protocol: str) -> ToolTarget:
     return ToolTarget(symbol=SYMBOL) if protocol.startswith("abb") else ToolTarget(slot=3)
 
 
+def _settle(sim: Any) -> None:
+    """Until the simulator has seen the failed session's connection close (FANUC serves
+    one RMI session at a time and frees it when the connection closes)."""
+    deadline = time.monotonic() + 2
+    while getattr(sim, "session_open", False) and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
 def _write(settings: ControllerSettings, protocol: str) -> ControllerUnreachable:
     with pytest.raises(ControllerUnreachable) as caught, connect(settings) as conn:
         conn.write_tool(_target(protocol), random_tool(7))
@@ -77,6 +86,7 @@ def test_a_controller_silent_after_the_write_marks_the_failure_write_sent(
     assert _write(settings, protocol).write_sent is True
     # and so when the write left but was never applied: the connector cannot tell
     sim.stalled = False
+    _settle(sim)
     if protocol == "abb_rws2":
         sim.mastership_holder = None  # the silent session's, which this test is not about
     sim.fault = go_silent("before", REQUESTS[protocol][0])

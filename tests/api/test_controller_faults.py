@@ -1,0 +1,174 @@
+"""Controller faults through the API (issue 37): a deployment that stalls anywhere answers
+within timeout_s + 1 s and leaves nothing the next deployment meets; refusals say what to do;
+GET of a controller that is not set is 404 /no-controller."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from tests.api.controller_rigs import Rig, rig
+from tests.conftest import Api
+from tests.controllers.simbase import go_silent
+
+TIMEOUT_S = 0.5
+#: Where each simulator goes silent in a deployment, in its own names (simbase.Faults).
+STAGES = [
+    ("kuka_kvp", "read $TOOL_DATA[3]"),
+    ("kuka_kvp", "write $TOOL_DATA[3]"),
+    ("fanuc_rmi", "FRC_Connect"),
+    ("fanuc_rmi", "FRC_WriteUToolData"),
+    ("abb_rws1", "login"),
+    ("abb_rws1", "POST /rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch"),
+    ("abb_rws2", "login"),
+    ("abb_rws2", "POST /rw/mastership/edit/request"),
+    ("abb_rws2", "POST /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data"),
+]
+
+
+@pytest.fixture(autouse=True)
+def secret_key(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    """ABB controllers take a password, stored encrypted under this key."""
+    from app.config import get_settings
+
+    monkeypatch.setenv("TCPCAL_SECRET_KEY", "controller-faults-secret-key-0123456789")
+    get_settings.cache_clear()
+    yield
+    get_settings.cache_clear()
+
+
+def _setup(api: Api, r: Rig, **controller: Any) -> tuple[str, str]:
+    """A robot with the rig's controller and a calibrated tool in it: (robot id, tool id)."""
+    robot = api.robot()
+    body = r.controller_body(timeout_s=TIMEOUT_S, **controller)
+    put = api.request("PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=body)
+    assert put.status_code == 200, put.text
+    tool = api.tool(robot["id"], **r.tool_fields)
+    api.manual(tool["id"], [10.0, -5.0, 180.0])
+    return robot["id"], tool["id"]
+
+
+def _deploy(api: Api, tool_id: str) -> Any:
+    return api.post(f"/v1/tools/{tool_id}/deployments", {}, scope="calibrate")
+
+
+def _settled(r: Rig) -> None:
+    """The simulator has seen the failed session's connection close (FANUC serves one RMI
+    session at a time and frees it when the connection closes)."""
+    deadline = time.monotonic() + 2
+    while getattr(r.sim, "session_open", False) and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
+@pytest.mark.parametrize(("protocol", "stage"), STAGES)
+def test_a_deploy_that_stalls_answers_within_the_timeout_and_the_next_one_succeeds(
+    api: Api, protocol: str, stage: str
+) -> None:
+    with rig(protocol) as r:
+        _, tool_id = _setup(api, r)
+        r.sim.fault = go_silent("before", stage)
+        started = time.monotonic()
+        failed = _deploy(api, tool_id)
+        elapsed = time.monotonic() - started
+        assert failed.status_code == 502, failed.text
+        assert r.sim.stalled, f"the simulator never reached {stage}"
+        assert elapsed < TIMEOUT_S + 1, elapsed
+        r.sim.stalled = False  # the controller answers again
+        _settled(r)
+        done = _deploy(api, tool_id)
+        assert done.status_code == 201, done.text
+        assert done.json()["status"] == "verified"
+        r.assert_holds([10.0, -5.0, 180.0], [1.0, 0.0, 0.0, 0.0])
+        if protocol.startswith("abb"):
+            assert r.sim.mastership_holder is None
+
+
+def test_a_fanuc_session_dropped_mid_deploy_leaves_nothing_the_next_deploy_meets(
+    api: Api,
+) -> None:
+    """The controller closes the session's connection when the write arrives (a dropped
+    session). Before, every session ran FRC_Initialize, and the dropped one left RMI_MOVE
+    holding program control: the next deploy got 'MEMO-015 Program already exists'."""
+    with rig("fanuc_rmi") as r:
+        _, tool_id = _setup(api, r)
+        r.sim.drop_at = "FRC_WriteUToolData"
+        dropped = _deploy(api, tool_id)
+        assert dropped.status_code == 502, dropped.text
+        assert dropped.json()["type"].endswith("/controller-unreachable")
+        r.sim.drop_at = None
+        _settled(r)
+        done = _deploy(api, tool_id)
+        assert done.status_code == 201, done.text
+        assert not r.sim.rmi_move_held
+
+
+def test_a_fanuc_controller_another_client_holds_says_what_to_do(api: Api) -> None:
+    with rig("fanuc_rmi") as r:
+        robot_id, tool_id = _setup(api, r)
+        r.sim.session_open = True  # another RMI client's session
+        refused = _deploy(api, tool_id)
+        assert refused.status_code == 502, refused.text
+        problem = refused.json()
+        assert "RMIT-026 Robot is Already Connected" in problem["controller_message"]
+        assert "one client at a time" in problem["detail"]
+        recon = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read").json()
+        assert "one client at a time" in recon["tools"][0]["error"]
+
+
+@pytest.mark.parametrize("protocol", ["abb_rws1", "abb_rws2"])
+def test_a_401_names_the_user_and_where_to_set_user_and_password(api: Api, protocol: str) -> None:
+    with rig(protocol) as r:
+        robot_id, tool_id = _setup(api, r, username="Operator", password="wrong-password-x1")
+        refused = _deploy(api, tool_id)
+        assert refused.status_code == 502, refused.text
+        problem = refused.json()
+        assert problem["type"].endswith("/controller-refused")
+        assert "401" in problem["controller_message"]
+        detail = problem["detail"]
+        assert problem["controller_message"] in detail
+        assert "'Operator'" in detail
+        assert f"PUT /v1/robots/{robot_id}/controller" in detail
+        assert "`username`" in detail
+        assert "`password`" in detail
+        assert "wrong-password-x1" not in refused.text
+        recon = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read").json()
+        assert f"PUT /v1/robots/{robot_id}/controller" in recon["tools"][0]["error"]
+
+
+def test_abb_rws2_on_a_port_that_answers_plain_http_says_it_is_not_tls(api: Api) -> None:
+    with rig("abb_rws1") as r:  # RobotWare 6: plain HTTP
+        _, tool_id = _setup(api, r, protocol="abb_rws2")
+        failed = _deploy(api, tool_id)
+        assert failed.status_code == 502, failed.text
+        detail = failed.json()["detail"]
+        assert "plain HTTP, not TLS" in detail
+        assert "abb_rws1" in detail
+        assert "certificate" not in detail  # not the advice for an untrusted certificate
+
+
+def test_a_kuka_variable_the_krc_does_not_have_is_named_as_such(api: Api) -> None:
+    with rig("kuka_kvp") as r:
+        _, tool_id = _setup(api, r)
+        r.sim.undeclared.add("$TOOL_DATA[3]")
+        refused = _deploy(api, tool_id)
+        assert refused.status_code == 502, refused.text
+        detail = refused.json()["detail"]
+        assert "the KRC has no variable $TOOL_DATA[3]" in detail
+        assert "slot" in detail
+
+
+def test_get_of_a_controller_not_set_is_404_no_controller(api: Api) -> None:
+    robot = api.robot()
+    got = api.get(f"/v1/robots/{robot['id']}/controller")
+    assert got.status_code == 404, got.text
+    assert got.json()["type"].endswith("/no-controller")
+    assert f"PUT /v1/robots/{robot['id']}/controller" in got.json()["detail"]
+    # What needs a controller still answers 409 /no-controller (a conflict with the state).
+    tool = api.tool(robot["id"], slot=1)
+    api.manual(tool["id"], [0, 0, 100])
+    deploy = _deploy(api, tool["id"])
+    assert deploy.status_code == 409
+    assert deploy.json()["type"].endswith("/no-controller")

@@ -1,0 +1,126 @@
+"""One deadline for a whole controller session, and nothing a failed session leaves behind
+that the next attempt would meet (issue 37): for each protocol, a controller that stalls at
+any step of a deployment (read, write, read back), or answers every step slowly, fails the
+attempt within ``timeout_s`` (+ what ending the session may take), and the next session,
+once the controller answers again, goes through."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import pytest
+
+from app.controllers import ControllerSettings, ControllerUnreachable, ToolData, ToolTarget, connect
+from tests.controllers.abb_sim import AbbRwsSimulator
+from tests.controllers.fanuc_sim import FanucSimulator
+from tests.controllers.fixtures import abb_settings, fanuc_settings, kuka_settings
+from tests.controllers.helpers import random_tool
+from tests.controllers.kuka_sim import KukaSimulator
+from tests.controllers.simbase import go_silent
+
+TIMEOUT_S = 0.5
+V1_PATH = "/rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch"
+V2_PATH = "/rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data"
+#: Where each protocol's simulator goes silent (before the request), in its own names
+#: (tests/controllers/simbase.Faults): connect/login, a read, the mastership an RWS 2.0
+#: write takes, the write itself. RWS 1.0's read is the second GET: the first is the login
+#: (Digest), and a session the controller opens without its answer reaching the client
+#: cannot be logged out by the client (RobotWare ends it after its idle time).
+STAGES = [
+    ("kuka_kvp", "read $TOOL_DATA[3]"),
+    ("kuka_kvp", "write $TOOL_DATA[3]"),
+    ("fanuc_rmi", "FRC_Connect"),
+    ("fanuc_rmi", "FRC_ReadUToolData"),
+    ("fanuc_rmi", "FRC_WriteUToolData"),
+    ("abb_rws1", "login"),
+    ("abb_rws1", f"GET {V1_PATH} #2"),
+    ("abb_rws1", f"POST {V1_PATH}"),
+    ("abb_rws2", "login"),
+    ("abb_rws2", "POST /rw/mastership/edit/request"),
+    ("abb_rws2", f"POST {V2_PATH}"),
+]
+
+
+@contextmanager
+def simulator(protocol: str, timeout_s: float) -> Iterator[tuple[Any, ControllerSettings]]:
+    """The protocol's simulator and the settings that reach it."""
+    sim: Any
+    if protocol == "kuka_kvp":
+        with KukaSimulator() as sim:
+            yield sim, kuka_settings(sim, timeout_s=timeout_s)
+    elif protocol == "fanuc_rmi":
+        with FanucSimulator() as sim:
+            yield sim, fanuc_settings(sim, timeout_s=timeout_s)
+    else:
+        with AbbRwsSimulator(1 if protocol == "abb_rws1" else 2) as sim:
+            yield sim, abb_settings(sim, timeout_s=timeout_s)
+
+
+def target_of(protocol: str) -> ToolTarget:
+    return ToolTarget(symbol="T_ROB1/user/tTorch") if protocol.startswith("abb") else ToolTarget(3)
+
+
+def deploy(settings: ControllerSettings, target: ToolTarget, data: ToolData) -> ToolData:
+    """What a deployment does in one session: read, write, read back."""
+    with connect(settings) as conn:
+        conn.read_tool(target)
+        conn.write_tool(target, data)
+        return conn.read_tool(target)
+
+
+def settle(sim: Any) -> None:
+    """Wait until the simulator has seen the failed session's connection close (FANUC
+    serves one RMI session at a time and frees it when the connection closes)."""
+    deadline = time.monotonic() + 2
+    while getattr(sim, "session_open", False) and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
+@pytest.mark.parametrize(("protocol", "stage"), STAGES)
+def test_a_stall_anywhere_fails_the_whole_attempt_within_the_timeout_and_leaves_nothing(
+    protocol: str, stage: str
+) -> None:
+    target, data = target_of(protocol), random_tool(37)
+    with simulator(protocol, TIMEOUT_S) as (sim, settings):
+        request, _, nth = stage.partition(" #")
+        sim.fault = go_silent("before", request, nth=int(nth or 1))
+        started = time.monotonic()
+        with pytest.raises(ControllerUnreachable, match="did not answer"):
+            deploy(settings, target, data)
+        elapsed = time.monotonic() - started
+        assert sim.stalled, f"the simulator never reached {stage}: the test tests nothing"
+        # timeout_s, then at most CLEANUP_S to release what the session holds; the rest of
+        # the second the contract allows is this loaded machine's scheduling
+        assert TIMEOUT_S * 0.9 <= elapsed < TIMEOUT_S + 1, elapsed
+
+        # The controller answers again: the next attempt meets nothing the failed one left
+        # (ABB: edit mastership and the RWS session; FANUC: the RMI session).
+        sim.stalled = False
+        settle(sim)
+        back = deploy(settings, target, data)
+        assert back.position_mm == pytest.approx(data.position_mm, abs=1e-3)
+        if protocol.startswith("abb"):
+            assert sim.mastership_holder is None
+            assert sim.sessions == {}, "the failed session was logged out, and the next one"
+
+
+@pytest.mark.parametrize(
+    ("protocol", "delay_s"),
+    [("kuka_kvp", 0.12), ("fanuc_rmi", 0.2), ("abb_rws1", 0.15), ("abb_rws2", 0.11)],
+)
+def test_a_slow_controller_fails_the_attempt_at_its_timeout_not_each_steps(
+    protocol: str, delay_s: float
+) -> None:
+    """Every answer comes `delay_s` late: each step alone would end within 0.6 s, the whole
+    deployment not. Before, each step had its own deadline and the attempt went on for as
+    many timeouts as it had steps (ABB: 11.4 s with timeout_s 5)."""
+    timeout_s = 0.6
+    with simulator(protocol, timeout_s) as (sim, settings):
+        sim.reply_delay_s = delay_s
+        started = time.monotonic()
+        with pytest.raises(ControllerUnreachable, match="did not answer"):
+            deploy(settings, target_of(protocol), random_tool(7))
+        assert time.monotonic() - started < timeout_s + 1
