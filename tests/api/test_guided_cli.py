@@ -192,3 +192,23 @@ def test_what_is_not_a_touch_is_explained_and_the_session_goes_on(
     assert (
         np.linalg.norm(np.subtract(calibration["tcp"]["position_mm"], TRUE_TCP)) <= 1e-4
     )  # six decimals typed
+
+
+def test_a_moving_robot_is_explained_and_the_same_touch_asked_for_again(
+    api: Api, runner: CliRunner, krc: Rig
+) -> None:
+    """Through stdin, as at a terminal: each Enter meets a robot still moving; each refusal
+    is explained, the prompt asks for touch 1 again, and `q` leaves the session open, empty."""
+    tool = _tool(api, krc)
+    krc.sim.moving_per_read = 0.5
+    left = runner.invoke(
+        cli,
+        ["calibrate", tool["id"], "--guided", "--capture", "--format", "kuka_abc"],
+        input="\n\nq\n",
+    )
+    assert left.exit_code == 0, left.output
+    assert left.output.count("touch 1 (Enter captures)> ") == 3, left.output
+    assert left.output.count("the robot is moving: the robot moved 1.0000 mm") == 2
+    sessions = api.get(f"/v1/tools/{tool['id']}/sessions").json()["items"]
+    assert [(s["status"], s["n_poses"]) for s in sessions] == [("open", 0)]
+    assert f"--guided --session {sessions[0]['id']}" in " ".join(left.output.split())

@@ -9,7 +9,9 @@ puts (KUKAVARPROXY at 127.0.0.1:7000) is pointed at the simulator's port, and th
 call, which the README says to repeat at each touch, is sent once per simulated touch with
 the simulator's flange moved there first: touches of one fixed point by a torch whose true
 TCP is `TRUE_TCP`, while the KRC moves by the data sheet's guess ($TOOL_DATA[3], selected)
-in a fixture's $BASE, so the TCP the README shows comes out only if the captures are right.
+in a fixture's $BASE: the TCP the README shows comes out only if each capture takes $TOOL
+off $POS_ACT (a $BASE left out moves every flange by one rigid transform, which no TCP from
+touches of one point can see; tests/api/test_capture_kuka.py holds each flange for that).
 """
 
 from __future__ import annotations
