@@ -218,3 +218,22 @@ def test_a_kuka_in_external_tcp_mode_is_refused_naming_it(api: Api) -> None:
     assert refused.status_code == 502, refused.text
     assert refused.json()["type"].endswith("/controller-refused")
     assert refused.json()["controller_message"] == "$IPO_MODE #TCP"
+
+
+def test_the_whole_capture_keeps_to_the_controllers_timeout(api: Api) -> None:
+    """Each read alone answers within timeout_s (4 replies 0.15 s late: 0.6 s of 1 s), the
+    two reads and the 100 ms between them do not: the capture fails at timeout_s, not at
+    twice it, and keeps nothing."""
+    with rig("fanuc_rmi") as r:
+        cell = FanucCell(r)
+        tool = _tool(api, r)
+        sid = _session(api, tool["id"])
+        cell.place(TOUCHES.R[0], TOUCHES.f[0])
+        r.sim.reply_delay_s = 0.15
+        started = time.monotonic()
+        slow = api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate")
+        elapsed = time.monotonic() - started
+    assert slow.status_code == 502, slow.text
+    assert slow.json()["type"].endswith("/controller-unreachable")
+    assert elapsed < TIMEOUT_S + 0.5, elapsed
+    assert api.get(f"/v1/sessions/{sid}").json()["n_poses"] == 0
