@@ -21,8 +21,9 @@ router = APIRouter(tags=["controllers"])
 CONTROLLER_FAILURES: dict[int | str, dict[str, object]] = {
     409: {
         "description": "`/robot-moving`: two reads 100 ms apart differ by more than 0.01 mm "
-        "or 0.01 deg (nothing kept); `/no-controller`"
+        "or 0.01 deg (nothing kept); `/no-controller` (a touch of a robot without one)"
     },
+    404: {"description": "`/no-controller`: a pose read of a robot without one"},
     502: {
         "description": "`/controller-unreachable` within the controller's timeout_s, or "
         "`/controller-refused` with the controller's own words in `controller_message`"

@@ -26,6 +26,7 @@ from sqlalchemy.orm import Session
 from app.auth import Principal, act_for
 from app.controllers import connect
 from app.controllers.base import (
+    ControllerCredentialsRefused,
     ControllerError,
     ControllerRefused,
     ControllerSettings,
@@ -39,6 +40,8 @@ from app.errors import (
     ControllerUnreachableError,
     DomainError,
     InvalidInput,
+    NoController,
+    NoControllerSet,
     RobotMoving,
 )
 from app.helpers.frames import frame_deviation, within
@@ -49,7 +52,7 @@ from app.schemas.common import Pose, Units
 from app.schemas.controllers import ControllerPose, LiveToolOut
 from app.schemas.controllers import Frame as FrameOut
 from app.schemas.results import TouchSource
-from app.services.controllers import get_controller, settings_of
+from app.services.controllers import get_controller, refusal_words, settings_of
 from app.services.live_tool import live_tool_matches
 
 #: The two reads of one capture are at least this far apart (s).
@@ -91,9 +94,15 @@ def touch_sources(records: Sequence[Mapping[str, object]]) -> list[TouchSource]:
     ]
 
 
-def settings_for_robot(session: Session, robot_id: str) -> ControllerSettings:
-    """How to reach the robot's controller (409 /no-controller without one)."""
-    return settings_of(get_controller(session, robot_id))
+def settings_for_robot(
+    session: Session,
+    robot_id: str,
+    *,
+    missing: type[NoController | NoControllerSet] = NoController,
+) -> ControllerSettings:
+    """How to reach the robot's controller; without one `missing`: 409 /no-controller for a
+    touch that needs it, 404 for a read of the controller itself (contract v1.3)."""
+    return settings_of(get_controller(session, robot_id, missing=missing))
 
 
 def read_still(settings: ControllerSettings, *, robot_id: str) -> Capture:
@@ -105,7 +114,7 @@ def read_still(settings: ControllerSettings, *, robot_id: str) -> Capture:
             time.sleep(STILL_GAP_S)  # from the first read's answer to the second's request
             second = conn.read_pose()
     except ControllerError as exc:
-        raise controller_failure(exc, settings) from None
+        raise controller_failure(exc, settings, robot_id=robot_id) from None
     _still(first.flange, second.flange)
     return Capture(robot_id=robot_id, protocol=settings.protocol, reading=second, read_at=utcnow())
 
@@ -123,14 +132,20 @@ def _still(first: Frame, second: Frame) -> None:
         )
 
 
-def controller_failure(exc: ControllerError, settings: ControllerSettings) -> DomainError:
+def controller_failure(
+    exc: ControllerError, settings: ControllerSettings, *, robot_id: str
+) -> DomainError:
     """A connector's failure as the 502 a client gets (as for deployments)."""
     where = f"{settings.host}:{settings.port}"
     if isinstance(exc, ControllerRefused):
         # The connector's sentence says why and what to do (KUKA's external-TCP mode: move
-        # with the tool on the flange); the controller's own words alone do not.
+        # with the tool on the flange); the controller's own words alone do not. Refused
+        # credentials: which user, and the request that sets the password (as deployments).
+        why = str(exc)
+        if isinstance(exc, ControllerCredentialsRefused):
+            why = refusal_words(exc, robot_id)
         return ControllerRefusedError(
-            f"the controller refused ({exc.controller_message}): {exc}; nothing was kept",
+            f"the controller refused ({exc.controller_message}): {why}; nothing was kept",
             members={"controller_message": exc.controller_message},
         )
     if isinstance(exc, ControllerUnreachable):
@@ -145,11 +160,11 @@ def controller_failure(exc: ControllerError, settings: ControllerSettings) -> Do
 
 
 def capture(*, robot_id: str, actor: Principal) -> Capture:
-    """A still reading of the robot's pose: how to reach it read in a transaction of its
-    own, then the controller's I/O with none open."""
+    """A still reading of the robot's pose (404 /no-controller without one): how to reach
+    it read in a transaction of its own, then the controller's I/O with none open."""
     with session_scope(write=False) as session:
         act_for(session, actor)  # only the robots the key's cells hold
-        settings = settings_for_robot(session, robot_id)
+        settings = settings_for_robot(session, robot_id, missing=NoControllerSet)
     return read_still(settings, robot_id=robot_id)
 
 

@@ -182,8 +182,11 @@ def test_without_a_controller_nothing_is_read(api: Api, controller: FakeControll
     robot = api.robot("bare")
     tool = api.tool(robot["id"], "t")
     read = api.get(f"/v1/robots/{robot['id']}/controller/pose", scope="calibrate")
-    assert read.json()["type"].endswith("/no-controller"), read.text
-    assert _capture(api, _session(api, tool["id"])).json()["type"].endswith("/no-controller")
+    assert read.status_code == 404, read.text  # a read of the controller itself (v1.3)
+    assert read.json()["type"].endswith("/no-controller")
+    touch = _capture(api, _session(api, tool["id"]))
+    assert touch.status_code == 409, touch.text  # a touch that needs one, as a deployment
+    assert touch.json()["type"].endswith("/no-controller")
     assert controller.sessions == 0
 
 

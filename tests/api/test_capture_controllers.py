@@ -237,3 +237,17 @@ def test_the_whole_capture_keeps_to_the_controllers_timeout(api: Api) -> None:
     assert slow.json()["type"].endswith("/controller-unreachable")
     assert elapsed < TIMEOUT_S + 0.5, elapsed
     assert api.get(f"/v1/sessions/{sid}").json()["n_poses"] == 0
+
+
+def test_a_refused_password_says_which_user_and_where_to_set_it(api: Api) -> None:
+    """As a deployment's 502 does: the user the controller refused and the request that
+    sets the password it accepts, not only the controller's HTTP 401."""
+    with rig("abb_rws1") as r:
+        tool = _tool(api, r, password="not-the-password")
+        refused = api.get(f"/v1/robots/{tool['robot_id']}/controller/pose", scope="calibrate")
+    assert refused.status_code == 502, refused.text
+    assert refused.json()["type"].endswith("/controller-refused")
+    detail = refused.json()["detail"]
+    assert f"PUT /v1/robots/{tool['robot_id']}/controller" in detail, detail
+    assert "'Default User'" in detail, detail
+    assert "nothing was kept" in detail
