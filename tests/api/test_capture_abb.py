@@ -10,6 +10,7 @@ answers held, in the session and in the calibration it becomes."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -17,9 +18,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from tests.api.controller_rigs import SYMBOL, Rig, rig, rotation_of
+from tests.api.controller_rigs import SYMBOL, TIMEOUT_S, Rig, rig, rotation_of
 from tests.conftest import Api
 from tests.controllers.abb_sim import AbbRwsSimulator
+from tests.controllers.simbase import go_silent
 from tests.sim.touches import simulate_touches
 
 TRUE_TCP = np.array([12.5, -7.25, 182.0])
@@ -168,3 +170,24 @@ def test_the_pose_read_gives_the_joints_and_no_live_tool(api: Api, controller: R
     assert np.max(np.abs(np.subtract(body["pose"][:3], flange))) <= FLOAT32_MM
     off = rotation_of(body["pose"][3:]).inv() * turned
     assert np.degrees(off.magnitude()) <= FLOAT32_DEG
+
+
+def test_a_controller_silent_at_the_second_read_is_502_within_its_timeout(
+    api: Api, controller: Rig
+) -> None:
+    """The capture's first read is answered, the second is not: the 502 comes within
+    timeout_s + 1 s, the logout the connector then tries included, and the session keeps
+    nothing."""
+    tool = _tool(api, controller)
+    sid = _session(api, tool["id"])
+    before = api.get(f"/v1/sessions/{sid}").json()
+    controller.sim.fault = go_silent(
+        "before", "GET /rw/motionsystem/mechunits/ROB_1/robtarget", nth=2
+    )
+    started = time.monotonic()
+    failed = api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate")
+    elapsed = time.monotonic() - started
+    assert failed.status_code == 502, failed.text
+    assert failed.json()["type"].endswith("/controller-unreachable")
+    assert elapsed < TIMEOUT_S + 1, elapsed
+    assert api.get(f"/v1/sessions/{sid}").json() == before
