@@ -57,6 +57,7 @@ from __future__ import annotations
 import contextlib
 import json
 import socket
+import time
 
 import numpy as np
 
@@ -130,6 +131,8 @@ MEMO_MESSAGES: dict[int, str] = {
     7004: "MEMO-004 Specific program is in use",
     7015: "MEMO-015 Program already exists",
 }
+#: RMIT-026 Robot is Already Connected: another client's session holds RMI
+ALREADY_CONNECTED = RMIT_BASE + 26
 #: What to do about an ErrorID that needs someone at the controller (B-84184EN/03 and
 #: the captured replies cited in the module's docstring).
 REMEDIES: dict[int, str] = {
@@ -143,13 +146,16 @@ REMEDIES: dict[int, str] = {
         "the RMI_MOVE program is in use: on the teach pendant press SELECT, choose a program "
         "other than RMI_MOVE and press ENTER (B-84184EN section 2.3.1)"
     ),
-    RMIT_BASE + 26: (
+    ALREADY_CONNECTED: (
         "RMI serves one client at a time (B-84184EN section 2.1) and another one holds it: "
         "end that client's session; a session whose connection was lost is ended by the "
         "controller after $RMI_CFG.$DISCNT_TIM minutes without a packet (default 60, "
         "section 2.2.3)"
     ),
 }
+#: how long, and how often, FRC_Connect is asked again while RMIT-026 is the answer
+_BUSY_GRACE_S = 1.0
+_BUSY_RETRY_S = 0.1
 _NAME_KEYS = {"Communication", "Command", "Instruction"}
 
 
@@ -339,6 +345,22 @@ class FanucRmiConnector(ClosingSession):
     # --- the packets -----------------------------------------------------------------------
 
     def _session_port(self, deadline: Deadline) -> int:
+        """FRC_Connect; asked again for up to `_BUSY_GRACE_S` while the controller answers
+        RMIT-026: RMI serves one client and frees a session when it sees its connection
+        close, which for a session that just failed (tcpcal's own, a moment ago) may not have
+        happened yet."""
+        grace = Deadline(min(_BUSY_GRACE_S, deadline.left()))
+        while True:
+            try:
+                return self._connect_once(deadline)
+            except ControllerRefused as err:
+                if err.controller_message != error_text(ALREADY_CONNECTED):
+                    raise
+                if grace.left() < _BUSY_RETRY_S:
+                    raise
+                time.sleep(_BUSY_RETRY_S)
+
+    def _connect_once(self, deadline: Deadline) -> int:
         sock = open_connection(self._settings.host, self._settings.port, deadline)
         try:
             reply, _line = self._exchange(

@@ -6,6 +6,7 @@ once the controller answers again, goes through."""
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -13,7 +14,14 @@ from typing import Any
 
 import pytest
 
-from app.controllers import ControllerSettings, ControllerUnreachable, ToolData, ToolTarget, connect
+from app.controllers import (
+    ControllerRefused,
+    ControllerSettings,
+    ControllerUnreachable,
+    ToolData,
+    ToolTarget,
+    connect,
+)
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import abb_settings, fanuc_settings, kuka_settings
@@ -124,3 +132,22 @@ def test_a_slow_controller_fails_the_attempt_at_its_timeout_not_each_steps(
         with pytest.raises(ControllerUnreachable, match="did not answer"):
             deploy(settings, target_of(protocol), random_tool(7))
         assert time.monotonic() - started < timeout_s + 1
+
+
+def test_fanuc_asks_again_while_the_session_that_just_failed_is_being_freed() -> None:
+    """RMI serves one client and frees a session when it sees its connection close: right
+    after a failed attempt the controller may still answer RMIT-026 for a moment. Before,
+    the next attempt failed at once with 'Robot is Already Connected'."""
+    with FanucSimulator() as sim:
+        sim.session_open = True  # the failed session, not yet seen closing
+        threading.Timer(0.3, setattr, (sim, "session_open", False)).start()
+        started = time.monotonic()
+        with connect(fanuc_settings(sim, timeout_s=2.0)) as fanuc:
+            assert fanuc.read_tool(ToolTarget(3)).position_mm == (0.0, 0.0, 0.0)
+        assert 0.3 <= time.monotonic() - started < 1.5
+        # Another client that keeps its session: refused after the grace, saying what to do.
+        sim.session_open = True
+        started = time.monotonic()
+        with pytest.raises(ControllerRefused, match="one client at a time"):
+            connect(fanuc_settings(sim, timeout_s=2.0))
+        assert time.monotonic() - started < 1.5
