@@ -311,3 +311,21 @@ def test_a_tools_sessions_are_listed_newest_first_page_by_page(
             break
     assert seen == ids[::-1]
     assert api.get("/v1/tools/nope/sessions").status_code == 404
+
+
+def test_a_captured_touch_is_refused_as_the_same_pose_typed(
+    api: Api, tool: dict[str, Any], controller: FakeController
+) -> None:
+    """A joints session on a robot without a model: the controller's joint angles are
+    refused exactly as the same angles typed, and neither is kept."""
+    sid = _session(api, tool["id"], fmt="joints")
+    typed = api.post(
+        f"/v1/sessions/{sid}/poses",
+        {"pose": [10.0, -80.0, 95.0, 0.5, 30.0, -45.0]},
+        scope="calibrate",
+    )
+    captured = _capture(api, sid)
+    assert typed.status_code == 422, typed.text
+    assert captured.status_code == typed.status_code
+    assert captured.json() == typed.json()
+    assert api.get(f"/v1/sessions/{sid}").json()["n_poses"] == 0

@@ -251,3 +251,21 @@ def test_a_refused_password_says_which_user_and_where_to_set_it(api: Api) -> Non
     assert f"PUT /v1/robots/{tool['robot_id']}/controller" in detail, detail
     assert "'Default User'" in detail, detail
     assert "nothing was kept" in detail
+
+
+def test_a_captured_check_touches_the_point_the_flange_stands_at(api: Api, cell: Cell) -> None:
+    r = cell.rig
+    tool = _tool(api, r)
+    api.manual(tool["id"], [float(v) for v in TRUE_TCP])
+    moved_mm = 0.4
+    point = api.post(
+        f"/v1/robots/{tool['robot_id']}/reference-points",
+        {"name": "pin", "position_mm": [float(v) for v in np.add(TOUCHES.p, [0, moved_mm, 0])]},
+        scope="calibrate",
+    )
+    assert point.status_code == 201, point.text
+    cell.place(TOUCHES.R[2], TOUCHES.f[2])
+    body = {"capture": True, "reference_point_id": point.json()["id"]}
+    check = api.post(f"/v1/tools/{tool['id']}/checks", body, scope="calibrate")
+    assert check.status_code == 200, check.text
+    assert abs(check.json()["distance_mm"] - moved_mm) < 0.01, check.json()
