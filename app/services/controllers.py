@@ -20,7 +20,7 @@ from app.controllers.base import (
 from app.errors import InvalidInput, NoController, NoControllerSet, SecretUnreadable
 from app.models import RobotController, Tool, ToolControllerState, utcnow
 from app.schemas.controllers import ControllerIn
-from app.services import audit
+from app.services import audit, live_tool
 from app.services.robots import get_robot
 
 
@@ -179,6 +179,7 @@ def delete_controller(session: Session, *, robot_id: str, actor: Principal) -> N
     session.delete(controller)
     # Without a controller nothing is known of what it holds: the fleet stops saying so.
     session.execute(delete(ToolControllerState).where(ToolControllerState.robot_id == robot_id))
+    live_tool.forget_live(session, robot_id)
     audit.record(
         session,
         actor=actor,

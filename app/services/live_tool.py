@@ -163,3 +163,10 @@ def _live_details(
         "frame": frame,
         "matches": [{"tool_id": t, "version": v} for t, v in sorted(matches)],
     }
+
+
+def forget_live(session: Session, robot_id: str) -> None:
+    """Drop what the rounds read of the robot's live tool (its controller is removed: the
+    fleet stops saying what it moves by, as it stops saying what its controller holds)."""
+    session.execute(delete(RobotLiveMatch).where(RobotLiveMatch.robot_id == robot_id))
+    session.execute(delete(RobotLiveTool).where(RobotLiveTool.robot_id == robot_id))

@@ -94,7 +94,13 @@ def test_a_robot_set_to_an_older_version_shows_on_the_fleet_within_one_interval(
         def live_is(state: str) -> bool:
             return bool(_rows(api, robot_id)["t1"]["live"]["state"] == state)
 
-        wait_for(lambda: live_is("active"), 2 * watching + 1.0, "moving by the active v2")
+        def settled() -> bool:
+            # a round may have read the tool table before the edit and the pose after it
+            row = _rows(api, robot_id)["t1"]
+            controller = row["controller"] or {}
+            return bool(row["live"]["state"] == "active" and controller.get("state") == "in_sync")
+
+        wait_for(settled, 2 * watching + 1.0, "moving by the active v2, in sync")
         row = _rows(api, robot_id)["t1"]
         assert row["live"]["version"] == 2
         assert row["live"]["tool_id"] == tool_id
@@ -103,9 +109,9 @@ def test_a_robot_set_to_an_older_version_shows_on_the_fleet_within_one_interval(
         # the robot moves by v1.
         r.sim.set_tool_frame(*r.native_of(PREVIOUS_POSITION, PREVIOUS_Q))
         started = time.monotonic()
-        wait_for(lambda: live_is("stale_version"), watching + 1.0, "moving by v1")
+        wait_for(lambda: live_is("stale_version"), watching + 2.0, "moving by v1")
         took = time.monotonic() - started
-        assert took <= watching + 0.5, took  # the next round, plus its read
+        assert took <= watching + 1.0, took  # the next round, plus its read (ms on a loaded box)
         row = _rows(api, robot_id)["t1"]
         assert row["live"]["version"] == 1
         assert row["attention"] == ["moving_by_stale_version"]
@@ -113,13 +119,15 @@ def test_a_robot_set_to_an_older_version_shows_on_the_fleet_within_one_interval(
         flagged = _rows(api, robot_id, attention="true")
         assert list(flagged) == ["t1"]
         time.sleep(3 * watching)  # more rounds find the same: no more events
+        # (a round before the pendant edit may have found the bare flange: events[:-2])
         events = _live_events(robot_id)
-        assert [e["matches"] for e in events] == [
+        assert [e["matches"] for e in events[-2:]] == [
             [{"tool_id": tool_id, "version": 2, "active": True}],
             [{"tool_id": tool_id, "version": 1, "active": False}],
         ]
-        assert events[1]["number"] is None  # $ACT_TOOL -1: $TOOL set without a tool number
-        assert events[1]["previous"]["number"] == SLOT
+        assert events[-1]["number"] is None  # $ACT_TOOL -1: $TOOL set without a tool number
+        assert events[-1]["previous"]["number"] == SLOT
+        assert all(e["matches"] == [] for e in events[:-2]), events
 
 
 def test_an_unknown_frame_is_blamed_on_the_tool_in_the_live_slot(api: Api) -> None:
@@ -237,3 +245,24 @@ def test_a_refused_pose_read_leaves_the_live_tool_unread_and_the_tools_judged(ap
         assert event["read"] is False
         assert "$IPO_MODE" in event["error"], event
         assert event["previous"]["matches"] == [{"tool_id": ids["tool"]["id"], "version": 2}]
+
+
+def test_a_robot_whose_controller_is_removed_is_unread_again(api: Api) -> None:
+    with rig("kuka_kvp") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id = ids["robot"]["id"]
+        r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)
+        r.sim.select_tool(SLOT)
+        _reconcile(api, robot_id)
+        assert _rows(api, robot_id)["t1"]["live"]["state"] == "stale_version"
+        gone = api.request("DELETE", f"/v1/robots/{robot_id}/controller", "admin")
+        assert gone.status_code == 204, gone.text
+        row = _rows(api, robot_id)["t1"]
+        # nothing is known of what it moves by: no stale claim, no attention
+        assert row["live"] == {
+            "state": "unread",
+            "version": None,
+            "tool_id": None,
+            "checked_at": None,
+        }
+        assert row["attention"] == []
