@@ -7,9 +7,11 @@ client 2.x, https://eclipse.dev/paho/files/paho.mqtt.python/html/client.html .
 
 Topics (API.md v1.2, prefix TCPCAL_MQTT_PREFIX, default `tcpcal`):
 - `{prefix}/tools/{tool_id}/tcp`, retained, QoS 1: the document GET /v1/tools/{tool_id}/tcp
-  serves, with its `etag`; an empty retained message (which clears the topic) when the tool
+  serves, with its `etag`, the active version's `status` and its `activation` (kind,
+  reason, at, by: API.md v1.3); an empty retained message (which clears the topic) when the tool
   is archived or has no active version;
-- `{prefix}/events`, QoS 1, not retained: one JSON object per outbox row;
+- `{prefix}/events`, QoS 1, not retained: one JSON object per outbox row (with `kind` and
+  `reason`: app.services.outbox.event_of);
 - `{prefix}/status`, retained: `online` once connected, `offline` as the last will and on a
   clean stop.
 

@@ -3,8 +3,12 @@
 Address space (API.md v1.2, "Publishing to the plant"), namespace URI `urn:tcpcal`:
 `Objects/Robots/<robot name>/Tools/<tool name>/` with the variables `ActiveVersion` (Int32,
 0: no active version), `PositionMm` (Double[3], mm), `Quaternion` (Double[4], w x y z),
-`KukaABC` (Double[3], deg), `ControllerState` (String) and `UpdatedAt` (DateTime); the arrays
-are empty while the tool has no active version. Node ids are stable strings made of the
+`KukaABC` (Double[3], deg), and (API.md v1.3) `Status`, `ActivationKind` and
+`ActivationReason` (String: the active version's status and how it went live),
+`ControllerState` (String) and `UpdatedAt` (DateTime); the arrays are empty and the strings
+of the activation empty while the tool has no active version. Every variable has a
+Description; those with a unit are BaseAnalogType with an EngineeringUnits property (Part 8,
+UNECE codes). Node ids are stable strings made of the
 robot's and tool's ids, so a client that stored one keeps reading the same tool when it is
 renamed (its browse name changes).
 
@@ -34,6 +38,7 @@ from asyncua.crypto.permission_rules import User, UserRole
 from asyncua.server.server import Server
 from asyncua.server.user_managers import UserManager
 from asyncua.ua.attribute_ids import AttributeIds
+from asyncua.ua.object_ids import ObjectIds
 
 from app.publish.endpoint import DEFAULT_PORT as DEFAULT_PORT
 from app.publish.endpoint import Endpoint as Endpoint
@@ -79,27 +84,125 @@ class ApiKeyUsers(UserManager):
         return User(role=UserRole.User, name=username)
 
 
-#: Variable name -> (variant type, array length or None for a scalar).
-VARIABLES: dict[str, tuple[ua.VariantType, int | None]] = {
-    "ActiveVersion": (ua.VariantType.Int32, None),
-    "PositionMm": (ua.VariantType.Double, 3),
-    "Quaternion": (ua.VariantType.Double, 4),
-    "KukaABC": (ua.VariantType.Double, 3),
-    "ControllerState": (ua.VariantType.String, None),
-    "UpdatedAt": (ua.VariantType.DateTime, None),
+#: OPC UA Part 8 (https://reference.opcfoundation.org/Core/Part8/v105/docs/5.6.3): units
+#: are EUInformation from UNECE Recommendation 20, in this namespace, with UnitId the common
+#: code's characters as one integer (each character's 8-bit code, most significant first).
+UNECE_NAMESPACE = "http://www.opcfoundation.org/UA/units/un/cefact"
+
+
+@dataclass(frozen=True)
+class Unit:
+    """A UNECE unit: common code, symbol, name."""
+
+    code: str
+    symbol: str
+    name: str
+
+    @property
+    def unit_id(self) -> int:
+        """Part 8 5.6.3: 'MMT' -> 0x4D4D54 = 5066068."""
+        return int.from_bytes(self.code.encode("ascii"), "big")
+
+    def eu_information(self) -> ua.EUInformation:
+        return ua.EUInformation(
+            NamespaceUri=UNECE_NAMESPACE,
+            UnitId=self.unit_id,
+            DisplayName=ua.LocalizedText(self.symbol, "en"),
+            Description=ua.LocalizedText(self.name, "en"),
+        )
+
+
+MILLIMETRE = Unit("MMT", "mm", "millimetre")
+DEGREE = Unit("DD", "°", "degree [unit of angle]")
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One variable of a tool: its type, array length (None: a scalar), what it says (its
+    Description attribute) and its unit (an EngineeringUnits property; the variable is then
+    a BaseAnalogType, Part 8 5.3.2)."""
+
+    vtype: ua.VariantType
+    length: int | None
+    description: str
+    unit: Unit | None = None
+
+
+VARIABLES: dict[str, Variable] = {
+    "ActiveVersion": Variable(
+        ua.VariantType.Int32,
+        None,
+        "The number of the tool's active TCP version; 0 while the tool has none.",
+    ),
+    "PositionMm": Variable(
+        ua.VariantType.Double,
+        3,
+        "The active TCP's position x, y, z in the flange frame, in millimetres (empty "
+        "without an active version).",
+        MILLIMETRE,
+    ),
+    "Quaternion": Variable(
+        ua.VariantType.Double,
+        4,
+        "The active TCP's orientation in the flange frame as a unit quaternion w, x, y, z "
+        "(empty without an active version).",
+    ),
+    "KukaABC": Variable(
+        ua.VariantType.Double,
+        3,
+        "The active TCP's orientation as KUKA's A, B, C (rotations about z, y', x''), in "
+        "degrees (empty without an active version).",
+        DEGREE,
+    ),
+    "Status": Variable(
+        ua.VariantType.String,
+        None,
+        "The active version's status: accepted, or out_of_tolerance (it was put live with "
+        "force; see ActivationKind and ActivationReason); empty without an active version.",
+    ),
+    "ActivationKind": Variable(
+        ua.VariantType.String,
+        None,
+        "How the active version went live: explicit, forced (out of tolerance, with a "
+        "reason), rollback, calibration:auto, calibration:always, ...; empty without one.",
+    ),
+    "ActivationReason": Variable(
+        ua.VariantType.String,
+        None,
+        "The reason the person gave for that activation or rollback; empty when none was given.",
+    ),
+    "ControllerState": Variable(
+        ua.VariantType.String,
+        None,
+        "What the last reconcile round found on the robot controller: in_sync, drifted, "
+        "unreachable, ...; none when it was never looked at.",
+    ),
+    "UpdatedAt": Variable(
+        ua.VariantType.DateTime, None, "When the tool last changed in tcpcal (UTC)."
+    ),
 }
 
 
 def variable_values(tool: PlantTool) -> dict[str, object]:
-    """The variables' values for a tool (0 and empty arrays without an active version)."""
+    """The variables' values for a tool (0, empty arrays and empty strings without an
+    active version)."""
+    activation = tool.activation
     return {
         "ActiveVersion": tool.active_version or 0,
         "PositionMm": list(tool.position_mm or ()),
         "Quaternion": list(tool.quaternion or ()),
         "KukaABC": list(tool.kuka_abc or ()),
+        "Status": tool.status or "",
+        "ActivationKind": "" if activation is None else activation.kind,
+        "ActivationReason": "" if activation is None else activation.reason or "",
         "ControllerState": tool.controller_state,
         "UpdatedAt": tool.updated_at.astimezone(UTC),
     }
+
+
+def _standard(identifier: int) -> ua.NodeId:
+    """A node of the standard namespace (0) by its numeric id."""
+    return ua.NodeId(ua.Int32(identifier))
 
 
 @dataclass
@@ -248,24 +351,58 @@ class PlantOpcUaServer:
             self._nid(base), ua.QualifiedName(tool.tool_name, self._ns)
         )
         variables: dict[str, Node] = {}
-        for name, (vtype, length) in VARIABLES.items():
-            node = await folder.add_variable(
-                self._nid(f"{base}/{name}"),
-                ua.QualifiedName(name, self._ns),
-                ua.Variant(values[name], vtype),
-                varianttype=vtype,
-            )
-            if length is not None:
-                await node.write_value_rank(ua.ValueRank.OneDimension)
-                await node.write_attribute(
-                    AttributeIds.ArrayDimensions,
-                    ua.DataValue(ua.Variant([length], ua.VariantType.UInt32)),
-                )
-            variables[name] = node
+        for name, spec in VARIABLES.items():
+            variables[name] = await self._add_variable(folder, f"{base}/{name}", name, spec, values)
         return _ToolNodes(name=tool.tool_name, folder=folder, variables=variables, values=values)
 
+    async def _add_variable(
+        self, folder: Node, nid: str, name: str, spec: Variable, values: dict[str, object]
+    ) -> Node:
+        """A read-only variable with its Description, its array's dimensions and, with a
+        unit, the type BaseAnalogType and an EngineeringUnits property (asyncua's
+        add_variable sets the browse name as the description and takes no type)."""
+        attrs = ua.VariableAttributes(
+            DisplayName=ua.LocalizedText(name),
+            Description=ua.LocalizedText(spec.description, "en"),
+            Value=ua.Variant(values[name], spec.vtype),
+            DataType=_standard(spec.vtype.value),
+            ValueRank=ua.ValueRank.Scalar,
+            AccessLevel=ua.AccessLevel.CurrentRead.mask,
+            UserAccessLevel=ua.AccessLevel.CurrentRead.mask,
+        )
+        if spec.length is not None:  # Part 3 5.6.2: a one-dimensional array of this length
+            attrs.ValueRank = ua.ValueRank.OneDimension
+            attrs.ArrayDimensions = [spec.length]
+        typedef = ObjectIds.BaseDataVariableType if spec.unit is None else ObjectIds.BaseAnalogType
+        item = ua.AddNodesItem(
+            ParentNodeId=folder.nodeid,
+            ReferenceTypeId=_standard(ObjectIds.HasComponent),
+            RequestedNewNodeId=self._nid(nid),
+            BrowseName=ua.QualifiedName(name, self._ns),
+            NodeClass=ua.NodeClass.Variable,
+            NodeAttributes=attrs,
+            TypeDefinition=_standard(typedef),
+        )
+        (added,) = await self._server.iserver.isession.add_nodes([item])
+        added.StatusCode.check()
+        node = self._server.get_node(added.AddedNodeId)
+        if spec.unit is not None:
+            units = await node.add_property(
+                self._nid(f"{nid}/EngineeringUnits"),
+                ua.QualifiedName("EngineeringUnits", 0),
+                ua.Variant(spec.unit.eu_information(), ua.VariantType.ExtensionObject),
+                datatype=_standard(ObjectIds.EUInformation),
+            )
+            await units.write_attribute(
+                AttributeIds.Description,
+                ua.DataValue(
+                    ua.Variant(ua.LocalizedText(f"{spec.unit.name} ({spec.unit.code})", "en"))
+                ),
+            )
+        return node
+
     async def _write(self, node: Node, name: str, value: object) -> None:
-        vtype = VARIABLES[name][0]
+        vtype = VARIABLES[name].vtype
         await self._server.write_attribute_value(
             node.nodeid,
             ua.DataValue(ua.Variant(value, vtype), SourceTimestamp=ua.DateTime.now(UTC)),

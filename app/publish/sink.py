@@ -54,8 +54,9 @@ class Message:
 @dataclass(frozen=True, slots=True)
 class ToolState:
     """A tool as the plant sees it now: `document` is what GET /v1/tools/{id}/tcp serves,
-    with its `etag` added; None when the tool is archived or has no active version (MQTT
-    clears the retained message)."""
+    with its `etag`, the active version's `status` and its `activation` added (source.py);
+    None when the tool is archived or has no active version (MQTT clears the retained
+    message)."""
 
     tool_id: str
     robot_id: str

@@ -2,7 +2,9 @@
 tools they concern, marking rows delivered and pruning them.
 
 A tool's state is the document GET /v1/tools/{tool_id}/tcp serves, built by the same service
-(`app.services.versions.served_tcp`), read when it is published, never a snapshot taken when
+(`app.services.versions.served_tcp`), with the active version's `status` (accepted or
+out_of_tolerance) and `activation` (how it went live: kind, reason, at, by; the plant's
+reading, app.services.plant) added, read when it is published, never a snapshot taken when
 the change was made: whatever the order in which redelivered rows arrive, the last state a
 sink receives of a tool is its current one.
 """
@@ -20,6 +22,7 @@ from app.errors import Archived, NoActiveVersion, NotFound
 from app.jsontypes import JsonObject
 from app.models import OutboxMessage, Robot, Tool, utcnow
 from app.publish.sink import Message, ToolState
+from app.services.plant import activations_of, active_statuses
 from app.services.versions import served_tcp
 
 
@@ -73,11 +76,18 @@ def states(session: Session, tool_ids: Iterable[str]) -> list[ToolState]:
             .where(Tool.id.in_(wanted))
         )
     }
+    statuses = active_statuses(session, wanted)
+    activations = activations_of(session, wanted)
     found = []
     for tool_id in wanted:
         row = names.get(tool_id)
         if row is None:
             continue
+        body = document(session, tool_id)
+        if body is not None:
+            activation = activations.get(tool_id)
+            body["status"] = statuses.get(tool_id)
+            body["activation"] = None if activation is None else activation.model_dump(mode="json")
         found.append(
             ToolState(
                 tool_id=row.id,
@@ -85,7 +95,7 @@ def states(session: Session, tool_ids: Iterable[str]) -> list[ToolState]:
                 tool_name=row.name,
                 robot_name=row.robot,
                 archived=row.archived_at is not None,
-                document=document(session, tool_id),
+                document=body,
             )
         )
     return found

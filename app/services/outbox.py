@@ -68,11 +68,15 @@ _INSERT = DriverWrite(insert(table_of(OutboxMessage)))
 
 
 def event_of(row: Mapping[str, object]) -> JsonObject:
-    """The event a consumer receives for an audit row (API.md v1.2: `{prefix}/events`)."""
+    """The event a consumer receives for an audit row (API.md v1.2: `{prefix}/events`; v1.3
+    adds `kind` and `reason`)."""
     details = row.get("details")
+    if not isinstance(details, Mapping):
+        details = {}
     version = row.get("version")
-    if version is None and isinstance(details, Mapping):
+    if version is None:
         version = details.get("version")
+    kind, reason = kind_and_reason(details)
     at = row["at"]
     assert isinstance(at, datetime)
     request_id = row.get("request_id", REQUEST_ID.get())
@@ -84,7 +88,22 @@ def event_of(row: Mapping[str, object]) -> JsonObject:
         "actor": str(row["actor"]),
         "at": at.astimezone(UTC).isoformat().replace("+00:00", "Z"),  # as the API writes it
         "request_id": _text_or_none(request_id),
+        "kind": kind,
+        "reason": reason,
     }
+
+
+def kind_and_reason(details: Mapping[str, object]) -> tuple[str | None, str | None]:
+    """(kind, reason) of an audit event's details: the kind of an activation (explicit,
+    forced, rollback, calibration:auto, ...), None for other changes; the words the person
+    gave with the change (an activation, a rollback, a deployment), None when none were.
+    (An activation's audit `reason` is the kind when no words were given:
+    app.services.versions.activate.)"""
+    kind = details.get("kind")
+    reason = details.get("reason")
+    kind = kind if isinstance(kind, str) else None
+    reason = reason if isinstance(reason, str) and reason != kind else None
+    return kind, reason
 
 
 def _text_or_none(value: object) -> str | None:

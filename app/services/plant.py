@@ -1,9 +1,11 @@
 """What the plant is shown of each live tool (the OPC UA address space's values): its robot
-and name, the active version's TCP (also as KUKA A, B, C), the controller's state, and when
-the tool last changed.
+and name, the active version's TCP (also as KUKA A, B, C), its status and how it went live
+(the activation's kind and reason), the controller's state, and when the tool last changed.
 
 Read through the fleet service (names, active version, controller state: one judge of
-those) and one query for the active versions' TCPs and the tools' change times.
+those), one query for the active versions' TCPs, statuses and the tools' change times, and
+one for the latest activations (`activations_of`, which the MQTT sink's retained message
+reads too).
 """
 
 from __future__ import annotations
@@ -12,11 +14,13 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import datetime
 
-from sqlalchemy import and_, select
+from pydantic import BaseModel, ConfigDict
+from sqlalchemy import and_, func, select
 from sqlalchemy.orm import Session
 
 from app.kinematics.poses import kuka_abc_from_matrix, matrix_from_quaternion_wxyz
-from app.models import Robot, TcpVersion, Tool
+from app.models import Activation, Robot, TcpVersion, Tool
+from app.schemas.common import Timestamp
 from app.schemas.fleet import FleetTool
 from app.services.fleet import list_fleet
 from app.services.fleet_gauges import PAGE, controller_state
@@ -24,9 +28,24 @@ from app.services.fleet_gauges import PAGE, controller_state
 Vector = tuple[float, ...]
 
 
+class LastActivation(BaseModel):
+    """How a tool's active version went live: the activation's kind (explicit, forced,
+    rollback, calibration:auto, ...: activations.reason), the words the person gave (None
+    when none were), when and by whom. As JSON (`model_dump(mode="json")`) it is the MQTT
+    retained message's `activation`."""
+
+    model_config = ConfigDict(frozen=True)
+
+    kind: str
+    reason: str | None
+    at: Timestamp
+    by: str
+
+
 @dataclass(frozen=True)
 class PlantTool:
-    """One live tool as the plant sees it; the TCP fields are None with no active version."""
+    """One live tool as the plant sees it; the TCP fields are None with no active version,
+    `status` (the active version's: accepted or out_of_tolerance) and `activation` too."""
 
     tool_id: str
     robot_id: str
@@ -38,6 +57,8 @@ class PlantTool:
     kuka_abc: Vector | None
     controller_state: str
     updated_at: datetime
+    status: str | None = None
+    activation: LastActivation | None = None
 
 
 @dataclass(frozen=True)
@@ -67,9 +88,44 @@ def plant_tools(session: Session, *, robot_id: str | None = None) -> list[PlantT
     unknown), oldest first."""
     tools: list[PlantTool] = []
     for page in _pages(session, robot_id):
-        active = _active_tcps(session, [row.id for row in page])
-        tools.extend(_plant_tool(row, *active[row.id]) for row in page if row.id in active)
+        ids = [row.id for row in page]
+        active = _active_tcps(session, ids)
+        statuses = active_statuses(session, ids)
+        last = activations_of(session, ids)
+        tools.extend(
+            _plant_tool(row, *active[row.id], statuses.get(row.id), last.get(row.id))
+            for row in page
+            if row.id in active
+        )
     return tools
+
+
+def activations_of(session: Session, tool_ids: list[str]) -> dict[str, LastActivation]:
+    """Each tool's latest activation (the one that made its active version active: every
+    activation, rollback and auto-activation writes one), for the tools that have one."""
+    if not tool_ids:
+        return {}
+    latest = (
+        select(func.max(Activation.id).label("id"))
+        .where(Activation.tool_id.in_(tool_ids))
+        .group_by(Activation.tool_id)
+        .subquery()
+    )
+    rows = session.execute(
+        select(
+            Activation.tool_id,
+            Activation.reason,
+            Activation.reason_text,
+            Activation.activated_at,
+            Activation.activated_by,
+        ).join(latest, Activation.id == latest.c.id)
+    )
+    return {
+        r.tool_id: LastActivation(
+            kind=r.reason, reason=r.reason_text, at=r.activated_at, by=r.activated_by
+        )
+        for r in rows
+    }
 
 
 def _pages(session: Session, robot_id: str | None) -> Iterator[list[FleetTool]]:
@@ -81,6 +137,20 @@ def _pages(session: Session, robot_id: str | None) -> Iterator[list[FleetTool]]:
         yield rows
         if cursor is None:
             return
+
+
+def active_statuses(session: Session, tool_ids: list[str]) -> dict[str, str]:
+    """The status of each tool's active version (accepted, out_of_tolerance), for the tools
+    that have one."""
+    stmt = (
+        select(Tool.id, TcpVersion.status)
+        .join(
+            TcpVersion,
+            and_(TcpVersion.tool_id == Tool.id, TcpVersion.version == Tool.active_version),
+        )
+        .where(Tool.id.in_(tool_ids))
+    )
+    return {r.id: r.status for r in session.execute(stmt)}
 
 
 _ActiveRow = tuple[datetime, list[float] | None, list[float] | None]
@@ -110,6 +180,8 @@ def _plant_tool(
     updated_at: datetime,
     position: list[float] | None,
     quaternion: list[float] | None,
+    status: str | None,
+    activation: LastActivation | None,
 ) -> PlantTool:
     tcp = None
     if row.active_version is not None and position is not None and quaternion is not None:
@@ -126,4 +198,6 @@ def _plant_tool(
         kuka_abc=None if tcp is None else tcp[2],
         controller_state=controller_state(row),
         updated_at=updated_at,
+        status=None if tcp is None else status,
+        activation=None if tcp is None else activation,
     )

@@ -22,11 +22,14 @@ from app.models import AuditEvent, OutboxMessage
 from tests.conftest import Api, one_backend
 from tests.polling import wait_for
 from tests.publish.mqtt_harness import Broker, Publisher, Subscriber, needs_mosquitto
+from tests.publish.plant_changes import force, out_of_tolerance_version, rollback
 
 pytestmark = [needs_mosquitto, pytest.mark.live]
 
 
-EVENT_FIELDS = ("action", "tool_id", "robot_id", "version", "actor", "at", "request_id")
+EVENT_FIELDS = (
+    "action", "tool_id", "robot_id", "version", "actor", "at", "request_id", "kind", "reason",
+)  # fmt: skip
 
 
 @pytest.fixture
@@ -78,10 +81,29 @@ def _activate(api: Api, tool_id: str, version: int) -> float:
 
 
 def _served(api: Api, tool_id: str) -> dict[str, Any] | None:
+    """The retained message a tool must have, read from the API: GET /tcp's document and
+    ETag, the active version's status (GET /versions) and its latest activation (the
+    versions' activation history), as API.md v1.3 adds them."""
     response = api.get(f"/v1/tools/{tool_id}/tcp")
     if response.status_code != 200:
         return None
-    return {**response.json(), "etag": response.headers["ETag"]}
+    history = api.get(f"/v1/tools/{tool_id}/versions").json()
+    version = response.json()["version"]
+    (status,) = [v["status"] for v in history["items"] if v["version"] == version]
+    last = history["activations"][-1]
+    assert last["version"] == version
+    activation = {
+        "kind": last["reason"],  # the API's activation `reason` is the kind
+        "reason": last["reason_text"],
+        "at": last["activated_at"],
+        "by": last["activated_by"],
+    }
+    return {
+        **response.json(),
+        "etag": response.headers["ETag"],
+        "status": status,
+        "activation": activation,
+    }
 
 
 def _retained_now(broker: Broker, prefix: str, tool_id: str) -> bytes | None:
@@ -156,8 +178,15 @@ def test_activation_is_retained_within_a_second_and_equals_get_tcp(
         "actor",
         "at",
         "request_id",
+        "kind",
+        "reason",
     }
     assert events[0]["request_id"]
+    assert (events[0]["kind"], events[0]["reason"]) == ("explicit", None)  # no words given
+    assert (message.json()["status"], message.json()["activation"]["kind"]) == (
+        "accepted",
+        "explicit",
+    )
 
     assert api.delete(f"/v1/tools/{tool['id']}").status_code == 204
     wait_for(lambda: sub.on(topic)[-1].payload == b"", 1.0, "the archive's empty message")
@@ -338,3 +367,62 @@ def test_sigterm_stops_within_a_second_and_says_offline(
     assert [m.payload for m in late.on("status") if m.retain] == [b"offline"]
     late.close()
     sub.close()
+
+
+@one_backend
+def test_a_forced_out_of_tolerance_activation_says_so_retained_and_in_its_event(
+    api: Api, broker: Broker, prefix: str, tmp_path: Path, publishers: list[Publisher]
+) -> None:
+    """Issue 37: a subscribing cell must tell that it runs an out-of-tolerance TCP, and why;
+    and that a rollback took it back to an accepted one."""
+    robot = api.robot("r-forced")
+    tool = api.tool(robot["id"], "torch")
+    api.manual(tool["id"], [0.0, 0.0, 150.0])
+    bad = out_of_tolerance_version(api, tool["id"])
+    sub = Subscriber(broker, prefix)
+    _publisher(publishers, tmp_path, api, broker, prefix)
+    wait_for(lambda: _online(sub), 30, "the publisher's status online")
+    topic = f"tools/{tool['id']}/tcp"
+    why = "probe bent, interim TCP until the new one is calibrated"
+
+    force(api, tool["id"], bad, why)
+    wait_for(lambda: _version(sub, topic) == bad, 1.0, "the forced version")
+    retained = sub.on(topic)[-1].json()
+    assert retained["status"] == "out_of_tolerance"
+    assert (retained["activation"]["kind"], retained["activation"]["reason"]) == ("forced", why)
+    assert retained["activation"]["by"] == "test-calibrate"
+    assert retained == _served(api, tool["id"])
+    late = _retained_now(broker, prefix, tool["id"])
+    assert late is not None
+    assert json.loads(late)["status"] == "out_of_tolerance"  # a cell subscribing later too
+    wait_for(lambda: _actions(sub, tool["id"])[-1:] == ["version.activate"], 2, "the event")
+    event = [e for e in sub.events() if e["tool_id"] == tool["id"]][-1]
+    assert (event["version"], event["kind"], event["reason"]) == (bad, "forced", why)
+
+    rollback(api, tool["id"])
+    wait_for(lambda: _version(sub, topic) == 1, 1.0, "the rollback")
+    retained = sub.on(topic)[-1].json()
+    assert retained["status"] == "accepted"
+    assert (retained["activation"]["kind"], retained["activation"]["reason"]) == (
+        "rollback",
+        None,
+    )
+    assert retained == _served(api, tool["id"])
+    wait_for(lambda: _actions(sub, tool["id"])[-1:] == ["version.rollback"], 2, "the event")
+    event = [e for e in sub.events() if e["tool_id"] == tool["id"]][-1]
+    assert (event["version"], event["kind"], event["reason"]) == (1, "rollback", None)
+    created = [e for e in sub.events() if e["action"] == "robot.create"]
+    assert [(e["kind"], e["reason"]) for e in created] == [(None, None)]  # not an activation
+    sub.close()
+
+
+def _version(sub: Subscriber, topic: str) -> int | None:
+    """The version of the last message on a tool's topic (None before any, or cleared)."""
+    received = sub.on(topic)
+    if not received or not received[-1].payload:
+        return None
+    return int(received[-1].json()["version"])
+
+
+def _actions(sub: Subscriber, tool_id: str) -> list[str]:
+    return [e["action"] for e in sub.events() if e["tool_id"] == tool_id]

@@ -1,15 +1,15 @@
 """The publisher's OPC UA server, as plant clients see it.
 
 `tcpcal publish` runs as its own process with TCPCAL_OPCUA_ENDPOINT on a free loopback port;
-the changes are made through the API (in-process) on the same database. The main test's
-client is node-opcua (another implementation than the server's asyncua), run by Node from
-tests/opcua_client (`npm ci` there; `make test` does it); the quicker checks of the address
-space's life use asyncua's client.
+the changes are made through the API (in-process) on the same database. Every value these
+tests check is read by node-opcua (another implementation than the server's asyncua: issue
+42), run by Node from tests/opcua_client (`npm ci` there; `make test` does it): one client
+process per session, answering the commands the test writes to it (tests/opcua_client/
+client.js says which).
 """
 
 from __future__ import annotations
 
-import asyncio
 import json
 import math
 import os
@@ -21,25 +21,21 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 import pytest
-from asyncua import ua
-from asyncua.client.client import Client
-from asyncua.sync import Client as SyncClient
-from asyncua.ua.uaerrors import UaError, UaStatusCodeError
 from prometheus_client.parser import text_string_to_metric_families
 
 from tests.conftest import Api, Database, one_backend
+from tests.publish.plant_changes import force, out_of_tolerance_version, rollback
 
 REPO = Path(__file__).resolve().parents[2]
 NODE_CLIENT = REPO / "tests" / "opcua_client"
 TCPCAL = Path(sys.executable).parent / "tcpcal"
-NS = "urn:tcpcal"
 
 # Every test here runs `tcpcal publish` as a process of its own.
 pytestmark = pytest.mark.live
@@ -59,11 +55,18 @@ def _env(db: Database, **extra: str) -> dict[str, str]:
     return env
 
 
+class Served(str):
+    """The endpoint, and how long the publisher took to exit after SIGTERM (once it did)."""
+
+    stopped_in: float | None = None
+
+
 @contextmanager
-def publisher(db: Database, **extra: str) -> Iterator[str]:
-    """`tcpcal publish` serving OPC UA on a free port; yields the endpoint once it listens."""
+def publisher(db: Database, **extra: str) -> Iterator[Served]:
+    """`tcpcal publish` serving OPC UA on a free port; yields the endpoint once it listens,
+    and records on it how long SIGTERM took to stop the publisher."""
     port = _free_port()
-    endpoint = f"opc.tcp://127.0.0.1:{port}/tcpcal/"
+    endpoint = Served(f"opc.tcp://127.0.0.1:{port}/tcpcal/")
     env = _env(db, TCPCAL_OPCUA_ENDPOINT=endpoint, **extra)
     output = tempfile.TemporaryFile()  # noqa: SIM115 (closed below)
     proc = subprocess.Popen(
@@ -89,8 +92,10 @@ def publisher(db: Database, **extra: str) -> Iterator[str]:
         yield endpoint
     finally:
         proc.terminate()
+        signalled = time.monotonic()
         try:
             proc.wait(timeout=10)
+            endpoint.stopped_in = time.monotonic() - signalled
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
@@ -107,17 +112,24 @@ def _node() -> str:
     pytest.skip("node-opcua not installed (cd tests/opcua_client && npm ci)")
 
 
-class NodeClient:
-    """The node-opcua script, its JSON lines read as they come with the time each came."""
+Line = dict[str, Any]
 
-    def __init__(self, *args: str) -> None:
+
+class NodeClient:
+    """The node-opcua client (tests/opcua_client/client.js) in a process of its own: commands
+    written to its stdin, its JSON lines read as they come with the time each came."""
+
+    def __init__(self, endpoint: str, user: str | None = None, password: str | None = None,
+                 *flags: str) -> None:  # fmt: skip
+        sign_in = [] if user is None else ["--user", user, "--password", password or ""]
         self.proc = subprocess.Popen(
-            [_node(), str(NODE_CLIENT / "client.js"), *args],
+            [_node(), str(NODE_CLIENT / "client.js"), "--endpoint", endpoint, *sign_in, *flags],
             cwd=NODE_CLIENT,
+            stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
         )
-        self.lines: queue.Queue[tuple[float, dict[str, Any]]] = queue.Queue()
+        self.lines: queue.Queue[tuple[float, Line]] = queue.Queue()
         threading.Thread(target=self._read, daemon=True).start()
 
     def _read(self) -> None:
@@ -126,8 +138,13 @@ class NodeClient:
             if raw.startswith(b"{"):  # node-opcua's own notices are plain text
                 self.lines.put((time.monotonic(), json.loads(raw)))
 
-    def next(self, event: str, timeout: float = 30.0) -> tuple[float, dict[str, Any]]:
-        """The next line of that event (an error line fails the test)."""
+    def send(self, op: str, **fields: Any) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(json.dumps({"op": op, **fields}).encode() + b"\n")
+        self.proc.stdin.flush()
+
+    def answer(self, *events: str, timeout: float = 30.0) -> tuple[float, Line]:
+        """The next line of one of these events, or an error line."""
         deadline = time.monotonic() + timeout
         while True:
             try:
@@ -135,13 +152,46 @@ class NodeClient:
             except queue.Empty:
                 self.proc.kill()
                 err = self.proc.stderr.read().decode() if self.proc.stderr else ""
-                raise AssertionError(f"no {event!r} from the node client:\n{err[-2000:]}") from None
-            if line["event"] == event:
+                raise AssertionError(f"no {events} from the node client:\n{err[-2000:]}") from None
+            if line["event"] in (*events, "error"):
                 return at, line
-            assert line["event"] != "error", line
 
-    def wait(self) -> int:
+    def next(self, event: str, timeout: float = 30.0) -> tuple[float, Line]:
+        """The next line of that event (an error line fails the test)."""
+        at, line = self.answer(event, timeout=timeout)
+        assert line["event"] == event, line
+        return at, line
+
+    def tree(self, *, details: bool = False) -> Line:
+        """Robots -> tools -> variable values as node-opcua reads them now (with `details`,
+        also each variable's attributes and engineering units under "variables")."""
+        self.send("tree", details=details)
+        return self.next("tree")[1]
+
+    def values(self) -> dict[str, dict[str, dict[str, Any]]] | None:
+        """The tree's values now; None when a node went away while it was read."""
+        self.send("tree")
+        _, line = self.answer("tree")
+        return line["robots"] if line["event"] == "tree" else None
+
+    def close(self) -> int:
+        """Close stdin (the client ends its session and exits); its exit code."""
+        assert self.proc.stdin is not None
+        self.proc.stdin.close()
         return self.proc.wait(timeout=60)
+
+
+@contextmanager
+def node_client(endpoint: str, user: str | None = None, password: str | None = None
+                ) -> Iterator[NodeClient]:  # fmt: skip
+    """A signed-in node-opcua client (anonymous without a user)."""
+    client = NodeClient(endpoint, user, password)
+    try:
+        client.next("session")
+        yield client
+    finally:
+        if client.proc.poll() is None:
+            assert client.close() == 0
 
 
 def _rotated_tool(api: Api) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -168,25 +218,25 @@ def test_node_opcua_client_browses_reads_and_sees_an_activation_within_1s(
     api: Api, db: Database
 ) -> None:
     robot, tool = _rotated_tool(api)
-    with publisher(db) as endpoint:
-        client = NodeClient(
-            "--endpoint", endpoint, "--user", "test-read", "--password", api.keys["read"],
-            "--watch", "cell12-kr16/torch", "--until", "2", "--timeout-ms", "10000",
-        )  # fmt: skip
-        _, tree = client.next("tree")
+    with publisher(db) as endpoint, node_client(endpoint, "test-read", api.keys["read"]) as client:
+        tree = client.tree()
         values = tree["robots"]["cell12-kr16"]["torch"]
         assert values["ActiveVersion"] == 1
         assert values["PositionMm"] == pytest.approx([1.5, -2.0, 150.0], abs=1e-9)
         assert values["Quaternion"] == pytest.approx([math.sqrt(0.5), 0, 0, math.sqrt(0.5)])
         assert values["KukaABC"] == pytest.approx([90.0, 0.0, 0.0], abs=1e-9)
         assert values["ControllerState"] == "none"
+        assert (values["Status"], values["ActivationKind"]) == ("accepted", "explicit")
+        assert values["ActivationReason"] == ""
         served = api.get(f"/v1/tools/{tool['id']}").json()
         assert _instant(values["UpdatedAt"]) == pytest.approx(
             _instant(served["updated_at"]), abs=0.002
         )  # JavaScript dates hold milliseconds
+        client.send("write", path="cell12-kr16/torch/ActiveVersion", value=99)
         _, write = client.next("write")
         assert write["status"] in ("BadUserAccessDenied", "BadNotWritable")  # read-only
 
+        client.send("watch", path="cell12-kr16/torch/ActiveVersion", until=2, timeout_ms=10000)
         _, subscribed = client.next("subscribed")
         assert subscribed["value"] == 1
         activated = api.post(f"/v1/tools/{tool['id']}/versions/2/activate", scope="calibrate")
@@ -195,7 +245,6 @@ def test_node_opcua_client_browses_reads_and_sees_an_activation_within_1s(
         seen, changed = client.next("changed", timeout=10)
         assert changed["value"] == 2
         assert seen - committed < 1.0, f"the activation took {seen - committed:.3f} s to arrive"
-        assert client.wait() == 0
     assert robot["name"] in tree["robots"]
 
 
@@ -203,119 +252,173 @@ def _instant(text: str) -> float:
     return datetime.fromisoformat(text.replace("Z", "+00:00")).timestamp()
 
 
+#: OPC UA Part 8 5.6.3 and the UNECE codes (Recommendation 20): millimetre MMT, degree DD;
+#: UnitId is the code's characters as one integer ("MMT": 0x4D 0x4D 0x54).
+UNECE = "http://www.opcfoundation.org/UA/units/un/cefact"
+MMT, DD = 5066068, 17476
+BASE_ANALOG_TYPE = "ns=0;i=15318"
+
+
+@one_backend
+def test_a_forced_out_of_tolerance_version_shows_its_status_kind_and_reason(
+    api: Api, db: Database
+) -> None:
+    """Issue 37: a cell reading the node must tell it runs an out-of-tolerance TCP, why, and
+    when it is back on an accepted one."""
+    robot = api.robot("cell7-kr16", vendor="KUKA")
+    tool = api.tool(robot["id"], "torch", slot=1)
+    api.manual(tool["id"], [0.0, 0.0, 150.0])
+    bad = out_of_tolerance_version(api, tool["id"])
+    with publisher(db) as endpoint, node_client(endpoint, "test-read", api.keys["read"]) as client:
+        values = client.tree()["robots"]["cell7-kr16"]["torch"]
+        assert (values["ActiveVersion"], values["Status"]) == (1, "accepted")
+        assert (values["ActivationKind"], values["ActivationReason"]) == ("calibration:auto", "")
+
+        force(api, tool["id"], bad, "probe bent, interim TCP until the new one is calibrated")
+        _until(lambda: _torch(client, "cell7-kr16")["ActiveVersion"] == bad, 1.0)
+        values = _torch(client, "cell7-kr16")
+        assert values["Status"] == "out_of_tolerance"
+        assert values["ActivationKind"] == "forced"
+        assert values["ActivationReason"] == (
+            "probe bent, interim TCP until the new one is calibrated"
+        )
+
+        rollback(api, tool["id"])
+        _until(lambda: _torch(client, "cell7-kr16")["ActiveVersion"] == 1, 1.0)
+        values = _torch(client, "cell7-kr16")
+        assert (values["Status"], values["ActivationKind"]) == ("accepted", "rollback")
+        assert values["ActivationReason"] == ""
+
+
+def _torch(client: NodeClient, robot: str) -> dict[str, Any]:
+    tree = client.values()
+    return {} if tree is None else tree[robot].get("torch", {})
+
+
+@one_backend
+def test_every_variable_has_a_description_and_lengths_and_angles_their_units(
+    api: Api, db: Database
+) -> None:
+    robot = api.robot("r1")
+    tool = api.tool(robot["id"], "t1", slot=1)
+    api.manual(tool["id"], [0.0, 0.0, 10.0])
+    with publisher(db) as endpoint, node_client(endpoint, "test-read", api.keys["read"]) as client:
+        variables = client.tree(details=True)["variables"]
+    names = {path.rsplit("/", 1)[1] for path in variables}
+    assert names == {
+        "ActiveVersion", "PositionMm", "Quaternion", "KukaABC", "Status", "ActivationKind",
+        "ActivationReason", "ControllerState", "UpdatedAt",
+    }  # fmt: skip
+    for path, attrs in variables.items():
+        name = path.rsplit("/", 1)[1]
+        description = attrs["description"]["text"]
+        assert description != name, (path, description)  # a real one, not the browse name
+        assert len(description.split()) >= 5, (path, description)
+        assert attrs["userAccessLevel"] & 0b10 == 0, path  # CurrentWrite not granted
+    position = variables["r1/t1/PositionMm"]
+    assert position["engineeringUnits"] == {
+        "namespaceUri": UNECE,
+        "unitId": MMT,
+        "displayName": {"text": "mm", "locale": "en"},
+        "description": {"text": "millimetre", "locale": "en"},
+        "propertyNamespace": 0,  # Part 8's EngineeringUnits, a standard browse name
+    }
+    assert (position["valueRank"], position["arrayDimensions"]) == (1, [3])
+    assert position["typeDefinition"] == BASE_ANALOG_TYPE
+    abc = variables["r1/t1/KukaABC"]
+    assert (abc["engineeringUnits"]["namespaceUri"], abc["engineeringUnits"]["unitId"]) == (
+        UNECE,
+        DD,
+    )
+    assert abc["engineeringUnits"]["description"]["text"].startswith("degree")
+    assert abc["typeDefinition"] == BASE_ANALOG_TYPE
+    assert "degree" in abc["engineeringUnitsDescription"]["text"]
+    for unitless in ("ActiveVersion", "Quaternion", "Status", "ControllerState", "UpdatedAt"):
+        assert variables[f"r1/t1/{unitless}"]["engineeringUnits"] is None, unitless
+
+
 @one_backend
 def test_a_wrong_password_and_anonymous_are_refused(api: Api, db: Database) -> None:
     api.robot("r1")
     with publisher(db) as endpoint:
-        wrong = NodeClient("--endpoint", endpoint, "--user", "test-read", "--password", "nope")
-        _, error = wrong.next("error")
-        assert error["status"] == "BadUserAccessDenied"
-        assert wrong.wait() == 3
+        assert _sign_in(endpoint, "test-read", "nope") == "BadUserAccessDenied"
         # the right key under another key's name, and no credentials at all: refused too
-        assert asyncio.run(_sign_in(endpoint, "test-admin", api.keys["read"])) == "refused"
-        assert asyncio.run(_sign_in(endpoint, None, None)) == "refused"
-        assert asyncio.run(_sign_in(endpoint, "test-calibrate", api.keys["calibrate"])) == "in"
+        assert _sign_in(endpoint, "test-admin", api.keys["read"]) == "BadUserAccessDenied"
+        assert _sign_in(endpoint, None, None) != "in"  # (node-opcua finds no anonymous policy)
+        assert _sign_in(endpoint, "test-calibrate", api.keys["calibrate"]) == "in"
         # the password is never sent in clear: the None endpoint asks for it encrypted
-        policies = asyncio.run(_user_name_policies(endpoint))
+        policies = _user_name_policies(endpoint)
         assert policies["None"].endswith("#Basic256Sha256"), policies
         assert policies["SignAndEncrypt"].endswith("#None")  # the channel encrypts it
 
 
-async def _user_name_policies(endpoint: str) -> dict[str, str]:
+def _sign_in(endpoint: str, user: str | None, password: str | None) -> str:
+    """ "in", or the status a refused sign-in got (the client then exits 3)."""
+    client = NodeClient(endpoint, user, password)
+    _, line = client.answer("session")
+    if line["event"] == "session":
+        assert client.close() == 0
+        return "in"
+    assert line["op"] == "sign-in", line
+    assert client.proc.wait(timeout=30) == 3
+    return str(line["status"])
+
+
+def _user_name_policies(endpoint: str) -> dict[str, str]:
     """Security mode -> the SecurityPolicyUri the server sets for user name tokens."""
+    client = NodeClient(endpoint, None, None, "--endpoints")
+    _, line = client.next("endpoints")
+    assert client.proc.wait(timeout=30) == 0
     found = {}
-    for point in await Client(endpoint, timeout=10).connect_and_get_server_endpoints():
-        for token in point.UserIdentityTokens:
-            if token.TokenType == ua.UserTokenType.UserName:
-                found[point.SecurityMode.name.rstrip("_")] = token.SecurityPolicyUri
+    for point in line["points"]:
+        for token in point["tokens"]:
+            if token["type"] == "UserName":
+                found[point["mode"]] = token["policy"]
     return found
 
 
-async def _sign_in(endpoint: str, user: str | None, password: str | None) -> str:
-    client = Client(endpoint, timeout=10)
-    if user is not None and password is not None:
-        client.set_user(user)
-        client.set_password(password)
-    try:
-        await client.connect()
-    except (UaStatusCodeError, UaError):
-        return "refused"
-    await client.disconnect()
-    return "in"
-
-
-@contextmanager
-def opcua_client(
-    endpoint: str, user: str | None = None, password: str | None = None
-) -> Iterator[SyncClient]:
-    """asyncua's client, connected (signed in with the key when given)."""
-    client = SyncClient(endpoint, timeout=10)
-    if user and password:
-        client.set_user(user)
-        client.set_password(password)
-    client.connect()
-    try:
-        yield client
-    finally:
-        client.disconnect()
-
-
-def _tree(client: SyncClient) -> dict[str, dict[str, dict[str, Any]]]:
-    """Robots -> tools -> variable values, browsed now."""
-    ns = client.get_namespace_index(NS)
-    robots = client.nodes.objects.get_child(f"{ns}:Robots")
-    tree: dict[str, dict[str, dict[str, Any]]] = {}
-    for robot in robots.get_children():
-        tools = robot.get_child(f"{ns}:Tools")
-        tree[robot.read_browse_name().Name] = tool_values = {}
-        for tool in tools.get_children():
-            values: dict[str, Any] = {}
-            for var in tool.get_children():
-                values[var.read_browse_name().Name] = var.read_value()
-            tool_values[tool.read_browse_name().Name] = values
-    return tree
-
-
-def _until(check: Any, timeout: float = 1.0) -> float:
+def _until(check: Callable[[], bool], timeout: float = 1.0) -> float:
     """Seconds until check() is true (fails after `timeout`)."""
     start = time.monotonic()
-    while True:
-        try:
-            if check():
-                return time.monotonic() - start
-        except UaStatusCodeError:  # a node went away while being browsed: look again
-            pass
+    while not check():
         assert time.monotonic() - start < timeout, "not within the time allowed"
         time.sleep(0.05)
+    return time.monotonic() - start
 
 
 def test_robots_and_tools_appear_and_disappear_with_the_database(api: Api, db: Database) -> None:
     first = api.robot("r-first")
     with (
         publisher(db, TCPCAL_OPCUA_ANONYMOUS="true") as endpoint,
-        opcua_client(endpoint) as client,  # anonymous allowed here
+        node_client(endpoint) as client,  # anonymous allowed here
     ):
-        assert _tree(client) == {"r-first": {}}
+        tree = client.values
+
+        assert tree() == {"r-first": {}}
 
         second = api.robot("r-second")
         tool = api.tool(second["id"], "gripper", slot=1)
-        _until(lambda: "gripper" in _tree(client).get("r-second", {}))
-        values = _tree(client)["r-second"]["gripper"]
-        assert values["ActiveVersion"] == 0  # no active version: 0 and empty arrays
+        _until(lambda: "gripper" in (tree() or {}).get("r-second", {}))
+        values = (tree() or {})["r-second"]["gripper"]
+        assert values["ActiveVersion"] == 0  # no active version: 0, empty arrays and strings
         assert values["PositionMm"] == []
+        assert (values["Status"], values["ActivationKind"]) == ("", "")
 
         api.manual(tool["id"], [0.0, 0.0, 99.5])
-        _until(lambda: _tree(client)["r-second"]["gripper"]["ActiveVersion"] == 1)
-        assert _tree(client)["r-second"]["gripper"]["PositionMm"] == [0, 0, 99.5]
+        _until(lambda: (tree() or {})["r-second"]["gripper"]["ActiveVersion"] == 1)
+        assert (tree() or {})["r-second"]["gripper"]["PositionMm"] == [0, 0, 99.5]
 
+        # A rename or an archive rebuilds or drops a subtree: docs/publishing.md promises the
+        # values within a second, and the nodes as they change; 2 s here (a rename took
+        # 0.2-0.3 s on an idle machine and once 1.1 s with eight suites running beside it).
         renamed = api.patch(f"/v1/robots/{second['id']}", {"name": "r-second-b"})
         assert renamed.status_code == 200, renamed.text
-        _until(lambda: set(_tree(client)) == {"r-first", "r-second-b"})
+        _until(lambda: set(tree() or {}) == {"r-first", "r-second-b"}, 2.0)
 
         assert api.delete(f"/v1/tools/{tool['id']}").status_code == 204
-        _until(lambda: _tree(client)["r-second-b"] == {})
+        _until(lambda: (tree() or {}).get("r-second-b") == {}, 2.0)
         assert api.delete(f"/v1/robots/{first['id']}").status_code == 204
-        _until(lambda: set(_tree(client)) == {"r-second-b"})
+        _until(lambda: set(tree() or {}) == {"r-second-b"}, 2.0)
 
 
 @one_backend
@@ -324,35 +427,24 @@ def test_clients_cannot_change_the_address_space(api: Api, db: Database) -> None
     tool = api.tool(robot["id"], "t1", slot=1)
     api.manual(tool["id"], [0.0, 0.0, 10.0])
     with publisher(db) as endpoint:
-        assert asyncio.run(_try_changes(endpoint, api.keys["admin"])) == [
-            "BadUserAccessDenied", "BadUserAccessDenied", "BadUserAccessDenied",
-        ]  # fmt: skip
-        with opcua_client(endpoint, "test-read", api.keys["read"]) as client:
-            assert _tree(client)["r1"]["t1"]["ActiveVersion"] == 1
-
-
-async def _try_changes(endpoint: str, key: str) -> list[str]:
-    """Write a value, add a node, delete a node, as an admin key: each refusal's name."""
-    refused = []
-    client = Client(endpoint, timeout=10)
-    client.set_user("test-admin")
-    client.set_password(key)
-    async with client:
-        ns = await client.get_namespace_index(NS)
-        robots = await client.nodes.objects.get_child(f"{ns}:Robots")
-        tool = await (await robots.get_child(f"{ns}:r1")).get_child(f"{ns}:Tools")
-        version = await tool.get_child([f"{ns}:t1", f"{ns}:ActiveVersion"])
-        for attempt in (
-            version.write_value(ua.Variant(5, ua.VariantType.Int32)),
-            robots.add_folder(ns, "Intruder"),
-            client.delete_nodes([version]),
-        ):
-            try:
-                await attempt
-                refused.append("accepted")
-            except UaStatusCodeError as exc:
-                refused.append(type(exc).__name__)
-    return refused
+        with node_client(endpoint, "test-admin", api.keys["admin"]) as admin:
+            for op, fields in (
+                ("write", {"path": "r1/t1/ActiveVersion", "value": 5}),
+                ("add", {}),
+                ("delete", {"path": "r1/t1/ActiveVersion"}),
+            ):
+                admin.send(op, **fields)
+                assert admin.next(op)[1]["status"] == "BadUserAccessDenied", op
+        with node_client(endpoint, "test-read", api.keys["read"]) as client:
+            assert set(client.tree()["robots"]) == {"r1"}  # nothing added
+            values = client.tree()["robots"]["r1"]["t1"]
+            assert values["ActiveVersion"] == 1  # nothing written, nothing deleted
+            assert values["PositionMm"] == [0, 0, 10]
+            watching = NodeClient(endpoint, "test-read", api.keys["read"])
+            watching.next("session")  # still signed in when the publisher stops
+    assert endpoint.stopped_in is not None
+    assert endpoint.stopped_in < 1.0, f"SIGTERM took {endpoint.stopped_in:.2f} s"
+    watching.proc.kill()
 
 
 def _run_publish(db: Database, **extra: str) -> subprocess.CompletedProcess[str]:

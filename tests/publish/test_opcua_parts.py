@@ -12,11 +12,18 @@ from pathlib import Path
 import pytest
 import yaml
 
-from app.publish.opcua import OpcUaStartError, parse_endpoint, variable_values
+from app.publish.opcua import (
+    DEGREE,
+    MILLIMETRE,
+    VARIABLES,
+    OpcUaStartError,
+    parse_endpoint,
+    variable_values,
+)
 from app.publish.opcua_certs import server_certificate
 from app.publish.opcua_sink import robots_concerned
 from app.publish.sink import SinkError
-from app.services.plant import PlantTool
+from app.services.plant import LastActivation, PlantTool
 
 
 @pytest.mark.parametrize(
@@ -74,10 +81,54 @@ def test_variable_values_of_a_tool_and_of_one_without_an_active_version() -> Non
     assert values["PositionMm"] == [1.0, 2.0, 3.0]
     assert values["KukaABC"] == [90.0, 0.0, 0.0]
     assert values["ControllerState"] == "in_sync"
+    assert (values["Status"], values["ActivationKind"], values["ActivationReason"]) == ("", "", "")
     none = variable_values(_tool(active_version=None, position_mm=None, quaternion=None,
                                  kuka_abc=None))  # fmt: skip
     assert none["ActiveVersion"] == 0
     assert none["PositionMm"] == none["Quaternion"] == none["KukaABC"] == []
+    assert set(values) == set(none) == set(VARIABLES)  # every variable has its value
+
+
+def test_a_forced_version_shows_its_status_kind_and_reason() -> None:
+    at = datetime(2026, 11, 24, 5, 0, tzinfo=UTC)
+    forced = LastActivation(kind="forced", reason="probe bent", at=at, by="line-3")
+    values = variable_values(_tool(status="out_of_tolerance", activation=forced))
+    assert (values["Status"], values["ActivationKind"]) == ("out_of_tolerance", "forced")
+    assert values["ActivationReason"] == "probe bent"
+    rolled = LastActivation(kind="rollback", reason=None, at=at, by="line-3")
+    values = variable_values(_tool(status="accepted", activation=rolled))
+    assert (values["Status"], values["ActivationKind"], values["ActivationReason"]) == (
+        "accepted",
+        "rollback",
+        "",
+    )
+
+
+def test_unece_unit_ids_are_the_codes_as_integers() -> None:
+    """OPC UA Part 8 5.6.3's rule, against the figures the OPC Foundation's UNECE table
+    (UNECE_to_OPCUA.csv) lists for them."""
+    assert (MILLIMETRE.code, MILLIMETRE.unit_id) == ("MMT", 5066068)
+    assert (DEGREE.code, DEGREE.unit_id) == ("DD", 17476)
+    assert VARIABLES["PositionMm"].unit is MILLIMETRE
+    assert VARIABLES["KukaABC"].unit is DEGREE
+    unitless = [name for name, spec in VARIABLES.items() if spec.unit is None]
+    assert unitless == [
+        "ActiveVersion", "Quaternion", "Status", "ActivationKind", "ActivationReason",
+        "ControllerState", "UpdatedAt",
+    ]  # fmt: skip
+
+
+def test_no_test_reads_the_server_with_its_own_library() -> None:
+    """Issue 42: OPC UA values are checked through node-opcua, never through asyncua's
+    client (the server's own library: a mistake shared by both would pass)."""
+    tests = Path(__file__).resolve().parents[1]
+    clients = ("asyncua.client", "asyncua.sync", "from asyncua import Client")
+    users = [
+        str(path.relative_to(tests))
+        for path in tests.rglob("*.py")
+        if path != Path(__file__).resolve() and any(c in path.read_text() for c in clients)
+    ]
+    assert users == []
 
 
 @dataclass

@@ -58,9 +58,13 @@ def test_each_change_writes_one_row_with_the_event(api: Api) -> None:
     assert activation.tool_id == tool["id"]
     assert activation.robot_id == robot["id"]
     assert set(activation.payload) == {
-        "action", "tool_id", "robot_id", "version", "actor", "at", "request_id",
+        "action", "tool_id", "robot_id", "version", "actor", "at", "request_id", "kind",
+        "reason",
     }  # fmt: skip
     assert activation.payload["version"] == 1
+    assert (activation.payload["kind"], activation.payload["reason"]) == ("explicit", None)
+    archive = [r for r in rows if r.action == "tool.archive"][-1]
+    assert (archive.payload["kind"], archive.payload["reason"]) == (None, None)
     assert activation.payload["request_id"] == "req-activate-1"
     assert activation.payload["actor"] == "test-calibrate"
     assert all(r.delivered_at is None for r in rows)
