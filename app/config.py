@@ -63,6 +63,12 @@ class Settings(BaseSettings):
         description="a tool with no calibration and no check for this many days is flagged "
         "`stale` in the fleet list",
     )
+    corrections_alert: int = Field(
+        default=3,
+        ge=0,
+        description="a tool corrected by re-checks more than this many times in 30 days is "
+        "flagged `frequent_corrections` in the fleet list (a tool that keeps getting hit)",
+    )
     problem_type_base: str = Field(
         default="/problems", description="Prefix of the `type` URI of problem documents."
     )

@@ -196,6 +196,7 @@ const ATTENTION = {
   controller_drifted: "the robot's controller holds another TCP than the active one (deploy, or find out who changed it)",
   controller_unreachable: "the robot's controller could not be read at the last look",
   drifting: "the drift trend leaves check_mm within 30 days at 95 % confidence",
+  frequent_corrections: "re-checks corrected the TCP more than TCPCAL_CORRECTIONS_ALERT times in 30 days: the tool keeps getting hit",
 };
 
 // A drift rate as "0.274 ± 0.012 mm/month" (docs/drift.md).

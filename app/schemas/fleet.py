@@ -26,6 +26,7 @@ AttentionCode = Literal[
     "drifting",
     "moving_by_stale_version",
     "moving_by_unknown_tcp",
+    "frequent_corrections",
 ]
 
 #: What a fleet row's robot moves by, about the row's tool (contract v1.3).
@@ -102,14 +103,17 @@ class FleetTool(BaseModel):
         default_factory=list,
         description="why the tool needs attention, empty when all is well: "
         "active_out_of_tolerance (the version served was stored out of tolerance), "
-        "last_calibration_out_of_tolerance, check_failed (the newest check), "
+        "last_calibration_out_of_tolerance, check_failed (the newest check found the TCP out "
+        "of tolerance and did not correct it), "
         "no_active_version, stale (no calibration or check for TCPCAL_STALE_DAYS days), "
         "controller_drifted (the robot's controller holds another TCP than the active one), "
         "controller_unreachable (it could not be read at the last look), "
         "drifting (the drift trend leaves check_mm within 30 days at 95 % confidence), "
         "moving_by_stale_version (the robot moves by an older version of this tool), "
         "moving_by_unknown_tcp (it moves by a frame no version has, in this tool's slot or, "
-        "where that is not known, by one of its robot's tools)",
+        "where that is not known, by one of its robot's tools), "
+        "frequent_corrections (corrected by re-checks more than TCPCAL_CORRECTIONS_ALERT "
+        "times, default 3, in 30 days: a tool that keeps getting hit)",
     )
     controller: FleetController | None = Field(
         default=None,

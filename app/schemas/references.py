@@ -15,6 +15,7 @@ from app.schemas.common import (
     Pose,
     Poses,
     PositiveFloat,
+    Reason,
     ResourceId,
     StrictModel,
     Timestamp,
@@ -22,6 +23,7 @@ from app.schemas.common import (
     Vec3,
     one_of,
 )
+from app.schemas.controllers import Deployment
 
 Matrix3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
 
@@ -95,10 +97,34 @@ class CheckCreate(StrictModel):
         description="true: touch the point once and read the pose from the controller (two "
         "reads 100 ms apart that must agree) in place of `format` and `poses`",
     )
+    correct: Literal["never", "within_limits"] = Field(
+        default="never",
+        description='"within_limits" (with `capture`): a deviation beyond check_mm and within '
+        "the tool's max_correction_mm is corrected: a new version by xyz_reference from the "
+        "one touch (orientation kept), activated with kind check_correction, then deployed",
+    )
+    deploy: bool | None = Field(
+        default=None,
+        description="deploy the correction to the robot's controller and read it back "
+        "(default: true when correcting)",
+    )
+    reason: Reason | None = Field(
+        default=None, description="why (e.g. the collision), kept with the correction's activation"
+    )
 
     @model_validator(mode="after")
     def _typed_or_captured(self) -> CheckCreate:
         typed = self.format is not None and self.poses is not None
+        if self.capture is None and self.correct != "never":
+            raise ValueError(
+                '"correct": "within_limits" corrects from one touch read from the controller: '
+                'send "capture": true in place of format and poses'
+            )
+        if self.deploy is not None and self.correct == "never":
+            raise ValueError(
+                '"deploy" applies to a correction: send "correct": "within_limits" with it, '
+                "or leave deploy out"
+            )
         if self.capture is not None:
             if self.format is not None or self.poses is not None or self.units is not None:
                 raise ValueError(
@@ -119,6 +145,26 @@ class CheckTouch(BaseModel):
     distance_mm: float
 
 
+#: What came of a check: in tolerance; out of it and not corrected (correct: never); corrected
+#: (and deployed, or not asked to); corrected but the deployment failed; beyond
+#: max_correction_mm, so nothing changed and the tool needs recalibrating.
+CheckVerdict = Literal[
+    "within_tolerance", "out_of_tolerance", "corrected", "deployment_failed", "recalibrate"
+]
+
+
+class Correction(BaseModel):
+    version: int = Field(description="the new version, active (kind check_correction)")
+    previous_version: int = Field(description="the version the check measured")
+    delta_mm: list[float] = Field(
+        description="new TCP minus the checked one, flange frame, mm (dx, dy, dz)"
+    )
+    deployment: Deployment | None = Field(
+        description="the deployment of the new version (its status: verified, not_written, "
+        "unverified, mismatch); null when not deployed"
+    )
+
+
 class CheckResult(BaseModel):
     tool_id: str
     version: int
@@ -136,7 +182,17 @@ class CheckResult(BaseModel):
     check_mm: float
     within_tolerance: bool
     touches: list[CheckTouch]
-    summary: str = Field(description="the verdict and which way the tool moved, one sentence")
+    summary: str = Field(
+        description="the verdict, which way the tool moved and what was done about it"
+    )
+    verdict: CheckVerdict = Field(
+        description="within_tolerance | out_of_tolerance (not corrected) | corrected | "
+        "deployment_failed (corrected, active, not on the controller) | recalibrate (beyond "
+        "max_correction_mm: nothing changed)",
+    )
+    correction: Correction | None = Field(
+        default=None, description="the correction made; null when none was"
+    )
     checked_at: Timestamp
     checked_by: str
 

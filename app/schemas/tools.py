@@ -47,6 +47,13 @@ class Tolerance(StrictModel):
         description="a result whose TCP lies further than this from the active one is stored "
         'but not activated by "auto"',
     )
+    max_correction_mm: PositiveFloat = Field(
+        default=2.0,
+        description='a re-check (POST /v1/tools/{tool_id}/checks with "correct": '
+        '"within_limits") corrects the TCP from its one touch when the deviation exceeds '
+        "check_mm and stays within this; beyond it nothing changes and the tool needs "
+        "recalibrating",
+    )
 
 
 class ToolCreate(StrictModel):

@@ -21,9 +21,11 @@ from app.services.tools import check_if_match, get_tool
 from app.services.versions import activate, get_version, lock_tool
 
 OUT_OF_TOLERANCE = "out_of_tolerance"
-#: Kinds of activation (activations.reason) written here; calibrations write
-#: "calibration:<activate>".
+#: Kinds of activation (activations.reason) written here and by re-checks; calibrations
+#: write "calibration:<activate>".
 EXPLICIT, FORCED, ROLLBACK = "explicit", "forced", "rollback"
+#: The kind of a version a re-check corrected the TCP to (app.services.recheck).
+CHECK_CORRECTION = "check_correction"
 
 
 def activate_version(

@@ -17,7 +17,8 @@ from app.db import session_scope
 from app.errors import located_in
 from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonArray, JsonObject
-from app.models import Tool, utcnow
+from app.methods.base import ActiveFrame
+from app.models import ReferencePoint, Tool, utcnow
 from app.schemas.common import Pose, Units
 from app.schemas.references import CheckCreate, CheckResult, CheckTouch
 from app.services import audit, capture
@@ -32,24 +33,35 @@ from app.services.versions import active_version_row, lock_tool
 from app.solvers.reference import TcpDeviation, check_tcp
 
 
-def run_check_request(*, tool_id: str, data: CheckCreate, actor: Principal) -> CheckResult:
-    """POST /v1/tools/{id}/checks: typed touches, or (`capture`) one read from the tool's
-    robot's controller with no transaction open meanwhile, then checked as a typed one."""
-    captured = None
-    if data.capture:
-        with session_scope(write=False) as session:
-            act_for(session, actor)  # only the robots the key's cells hold
-            tool = get_tool(session, tool_id)
-            # Refused before the controller is read: no active version, no such point.
-            active_version_row(session, tool)
-            get_reference_point(session, robot_id=tool.robot_id, point_id=data.reference_point_id)
-            settings = capture.settings_for_robot(session, tool.robot_id)
-        captured = capture.read_still(settings, robot_id=tool.robot_id)
-        pose = capture.pose_in_format(captured, CAPTURE_FORMAT, None, loc=("body", "capture"))
-        data = data.model_copy(update={"capture": None, "format": CAPTURE_FORMAT, "poses": [pose]})
-    with session_scope(write=True) as session:
-        act_for(session, actor)
-        return run_check(session, tool_id=tool_id, data=data, actor=actor, captured=captured)
+@dataclass(frozen=True)
+class Captured:
+    """A check's one touch as read from the controller: the reading (audited) and the
+    pose it was converted to."""
+
+    capture: capture.Capture
+    pose: Pose
+
+
+def capture_touch(tool_id: str, data: CheckCreate, actor: Principal) -> Captured:
+    """The one touch of a captured check: what is refused before the controller is read is
+    refused first (no active version, no such point), then one still read with no
+    transaction open."""
+    with session_scope(write=False) as session:
+        act_for(session, actor)  # only the robots the key's cells hold
+        tool = get_tool(session, tool_id)
+        active_version_row(session, tool)
+        get_reference_point(session, robot_id=tool.robot_id, point_id=data.reference_point_id)
+        settings = capture.settings_for_robot(session, tool.robot_id)
+    captured = capture.read_still(settings, robot_id=tool.robot_id)
+    pose = capture.pose_in_format(captured, CAPTURE_FORMAT, None, loc=("body", "capture"))
+    return Captured(captured, pose)
+
+
+def as_typed(data: CheckCreate, captured: Captured) -> CheckCreate:
+    """The captured check as the typed one it is checked as."""
+    return data.model_copy(
+        update={"capture": None, "format": CAPTURE_FORMAT, "poses": [captured.pose]}
+    )
 
 
 #: The format a captured check touch is converted to (any would do: it is read back at once).
@@ -64,8 +76,26 @@ def run_check(
     actor: Principal,
     captured: capture.Capture | None = None,
 ) -> CheckResult:
-    """Deviation of the active TCP at a reference point, against the tool's check_mm.
-    `captured`: the controller's reading the one pose was converted from (audited)."""
+    """Deviation of the active TCP at a reference point, against the tool's check_mm,
+    recorded. `captured`: the controller's reading the one pose was converted from (audited)."""
+    measured = measure(session, tool_id=tool_id, data=data, actor=actor)
+    record(session, measured, actor, captured)
+    return measured.result
+
+
+@dataclass(frozen=True)
+class Measured:
+    """A check measured, not yet recorded: the tool, the version and point it was measured
+    with, and the result."""
+
+    tool: Tool
+    frame: ActiveFrame
+    point: ReferencePoint
+    result: CheckResult
+
+
+def measure(session: Session, *, tool_id: str, data: CheckCreate, actor: Principal) -> Measured:
+    """The check's result, with nothing written (typed touches: `format` and `poses`)."""
     tool = get_tool(session, tool_id)
     robot = get_robot(session, tool.robot_id)
     frame = frame_of(session, active_version_row(session, tool))  # 404 /no-active-version
@@ -86,9 +116,15 @@ def run_check(
     result = _check_result(
         tool.id, version=frame.version, point_id=point.id, touches=touches, limit=limit, actor=actor
     )
-    _record(session, tool, result, actor, captured)
-    _refresh_trend(session, tool.id, result)
-    return result
+    return Measured(tool, frame, point, result)
+
+
+def record(
+    session: Session, measured: Measured, actor: Principal, captured: capture.Capture | None
+) -> None:
+    """The check in the audit trail, and the drift trend it is the newest point of."""
+    _record(session, measured.tool, measured.result, actor, captured)
+    _refresh_trend(session, measured.tool.id, measured.result)
 
 
 @dataclass(frozen=True)
@@ -165,6 +201,7 @@ def _check_result(
         mean_deviation_mm=_floats(mean_base),
         check_mm=limit,
         within_tolerance=float(worst.distance_mm) <= limit,
+        verdict="within_tolerance" if float(worst.distance_mm) <= limit else "out_of_tolerance",
         summary=check_summary(
             distance_mm=float(worst.distance_mm),
             deviation_flange_mm=_floats(worst.deviation_flange_mm),
@@ -195,6 +232,8 @@ _AUDITED = {
     "within_tolerance",
     "deviation_flange_mm",
     "summary",
+    "verdict",
+    "correction",
 }
 
 

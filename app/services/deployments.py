@@ -11,7 +11,7 @@ connectors are blocking I/O with a deadline.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from sqlalchemy import select
@@ -280,21 +280,17 @@ def deploy(
     """Deploy the tool's active version: (the Deployment, whether it is a replay). A failed
     or mismatched attempt is recorded and then raised as its 502 with `deployment_id`."""
     fingerprint = idempotency.request_fingerprint(f"deploy:{tool_id}", raw_body)
-    with session_scope(write=False) as session:
-        act_for(session, actor)  # only the robots the key's cells hold
-        if idempotency_key is not None:
+    if idempotency_key is not None:
+        with session_scope(write=False) as session:
+            act_for(session, actor)  # only the robots the key's cells hold
             replayed = idempotency.replay(
                 session, actor=actor, key=idempotency_key, fingerprint=fingerprint, purge=False
             )
-            if replayed is not None:
-                return replayed, True
-        plan = plan_deployment(session, tool_id)
-    outcome = write_and_read_back(plan)
-    with session_scope(write=True) as session:
-        act_for(session, actor)  # only the robots the key's cells hold
-        row = _record(session, plan, outcome, actor, reason)
-        document = deployment_document(row).model_dump(mode="json")
-        if idempotency_key is not None and outcome.status == "verified":
+        if replayed is not None:
+            return replayed, True
+
+    def keep(session: Session, document: JsonObject) -> None:
+        if idempotency_key is not None:
             idempotency.remember(
                 session,
                 actor=actor,
@@ -302,11 +298,47 @@ def deploy(
                 fingerprint=fingerprint,
                 response=document,
             )
+
+    done = attempt(tool_id=tool_id, actor=actor, reason=reason, keep=keep)
+    if done.error is not None:
+        raise done.error
+    return done.document.model_dump(mode="json"), False
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """A recorded deployment as served, and its failure (None when verified) as the 502 a
+    client gets, `deployment_id` and `deployment_status` among its members."""
+
+    document: DeploymentOut
+    error: DomainError | None
+
+
+def attempt(
+    *,
+    tool_id: str,
+    actor: Principal,
+    reason: str | None,
+    keep: Callable[[Session, JsonObject], None] | None = None,
+) -> Attempt:
+    """Deploy the tool's active version and record the attempt whatever became of it;
+    refusals before any I/O (no active version, controller or address) are raised.
+    `keep`: called with the verified deployment's document in the transaction recording it
+    (an Idempotency-Key's answer)."""
+    with session_scope(write=False) as session:
+        act_for(session, actor)  # only the robots the key's cells hold
+        plan = plan_deployment(session, tool_id)
+    outcome = write_and_read_back(plan)
+    with session_scope(write=True) as session:
+        act_for(session, actor)  # only the robots the key's cells hold
+        row = _record(session, plan, outcome, actor, reason)
+        document = deployment_document(row)
+        if keep is not None and outcome.status == "verified":
+            keep(session, document.model_dump(mode="json"))
     DEPLOYMENTS.labels(plan.settings.protocol, outcome.status).inc()
     if outcome.error is not None:
         outcome.error.members["deployment_id"] = str(row.id)
-        raise outcome.error
-    return document, False
+    return Attempt(document, outcome.error)
 
 
 def _record(

@@ -28,7 +28,16 @@ from sqlalchemy.orm import InstrumentedAttribute, Session, aliased
 from app.config import get_settings
 from app.helpers.pagination import paginate_newest_first, paginate_rows
 from app.jsontypes import JsonArray, JsonObject
-from app.models import AuditEvent, Calibration, Robot, TcpVersion, Tool, ToolControllerState, utcnow
+from app.models import (
+    Activation,
+    AuditEvent,
+    Calibration,
+    Robot,
+    TcpVersion,
+    Tool,
+    ToolControllerState,
+    utcnow,
+)
 from app.schemas.fleet import (
     CSV_COLUMNS,
     AttentionCode,
@@ -39,6 +48,7 @@ from app.schemas.fleet import (
     LastCalibration,
     LastCheck,
 )
+from app.services.activation import CHECK_CORRECTION
 from app.services.drift import DRIFTING_WITHIN, crosses_by, fleet_drift
 from app.services.fleet_live import (
     LIVE_CHECKED_AT,
@@ -87,16 +97,27 @@ _ACTIVE = aliased(TcpVersion, name="active_tcp")
 OUT_OF_TOLERANCE = "out_of_tolerance"
 
 
-def rule_moments(now: datetime) -> dict[str, datetime]:
-    """The moments the rules compare with at `now`: the parameters of `RULES`."""
+#: A tool corrected by re-checks more than TCPCAL_CORRECTIONS_ALERT times in this long keeps
+#: getting hit (`frequent_corrections`).
+CORRECTIONS_WITHIN = timedelta(days=30)
+
+
+def rule_moments(now: datetime) -> dict[str, datetime | int]:
+    """The moments (and limits) the rules compare with at `now`: the parameters of `RULES`."""
+    settings = get_settings()
     return {
-        "stale_before": now - timedelta(days=get_settings().stale_days),
+        "stale_before": now - timedelta(days=settings.stale_days),
         "drifting_until": now + DRIFTING_WITHIN,
+        "corrections_since": now - CORRECTIONS_WITHIN,
+        "corrections_alert": settings.corrections_alert,
     }
 
 
 def _rules(
-    cutoff: ColumnElement[datetime], drifting_until: ColumnElement[datetime]
+    cutoff: ColumnElement[datetime],
+    drifting_until: ColumnElement[datetime],
+    corrections_since: ColumnElement[datetime],
+    corrections_alert: ColumnElement[int],
 ) -> dict[AttentionCode, ColumnElement[bool]]:
     """The rule of each attention code, as a condition on a fleet row (Tool, its robot and
     its active version joined): the codes a row shows and `?attention=` are both these.
@@ -106,8 +127,13 @@ def _rules(
         "last_calibration_out_of_tolerance": (
             _newest_calibration(Calibration.status) == OUT_OF_TOLERANCE
         ),
-        "check_failed": (
-            _newest_check(AuditEvent.details["within_tolerance"].as_boolean()) == false()
+        # The newest check found the TCP out of tolerance and did not correct it (a re-check
+        # that did is a new active version, judged by the other rules).
+        "check_failed": and_(
+            _newest_check(AuditEvent.details["within_tolerance"].as_boolean()) == false(),
+            func.coalesce(_newest_check(AuditEvent.details["verdict"].as_string()), "").not_in(
+                CORRECTED
+            ),
         ),
         "no_active_version": Tool.active_version.is_(None),
         # Nothing done to the tool for stale_days: neither calibrated nor checked (a tool
@@ -124,7 +150,28 @@ def _rules(
         # What the last reconcile round read of the TCP the robot moves by.
         "moving_by_stale_version": LIVE_STATE == "stale_version",
         "moving_by_unknown_tcp": and_(LIVE_STATE == "unknown", UNKNOWN_TCP_HERE),
+        # Corrected by re-checks more often than TCPCAL_CORRECTIONS_ALERT in 30 days.
+        "frequent_corrections": _corrections_since(corrections_since) > corrections_alert,
     }
+
+
+#: The verdicts of a check that corrected the TCP (app.services.recheck).
+CORRECTED = ("corrected", "deployment_failed")
+
+
+def _corrections_since(since: ColumnElement[datetime]) -> ScalarSelect[int]:
+    """How many activations of kind check_correction the tool has had since `since`,
+    correlated to Tool: a seek in the (tool_id, id) index of its activations."""
+    return (
+        select(func.count(Activation.id))
+        .where(
+            Activation.tool_id == Tool.id,
+            Activation.reason == CHECK_CORRECTION,
+            Activation.activated_at >= since,
+        )
+        .correlate(Tool)
+        .scalar_subquery()
+    )
 
 
 def _controller_state() -> ScalarSelect[ToolState]:
@@ -139,7 +186,12 @@ def _controller_state() -> ScalarSelect[ToolState]:
 
 #: Every rule, built once: a fleet page's statements are executed with `rule_moments(now)`
 #: as their parameters (building the rules' eight subqueries cost a page 2 ms of Python).
-RULES = _rules(bindparam("stale_before"), bindparam("drifting_until"))
+RULES = _rules(
+    bindparam("stale_before"),
+    bindparam("drifting_until"),
+    bindparam("corrections_since"),
+    bindparam("corrections_alert"),
+)
 
 
 def _any(rules: dict[AttentionCode, ColumnElement[bool]]) -> ColumnElement[bool]:
@@ -302,7 +354,7 @@ _ATTENTION = (
 
 
 def _attention_of(
-    session: Session, ids: list[str], moments: dict[str, datetime]
+    session: Session, ids: list[str], moments: dict[str, datetime | int]
 ) -> tuple[dict[str, list[AttentionCode]], dict[str, FleetController], dict[str, FleetLive]]:
     """The attention codes of the page's tools, the controller state of each that has
     one and what its robot moves by, in one statement."""

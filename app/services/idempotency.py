@@ -6,7 +6,7 @@ import hashlib
 import json
 from datetime import UTC, datetime, timedelta
 
-from sqlalchemy import delete, insert, select
+from sqlalchemy import delete, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
@@ -70,6 +70,16 @@ def remember(
 
 
 _INSERT = insert(table_of(IdempotencyRecord))
+
+
+def replace(session: Session, *, actor: Principal, key: str, response: JsonObject) -> None:
+    """The kept answer to (actor, key) becomes `response`: an answer kept before the
+    controller's I/O that followed it (a re-check's deployment), completed after."""
+    session.execute(
+        update(IdempotencyRecord)
+        .where(IdempotencyRecord.api_key_id == actor.key_id, IdempotencyRecord.key == key)
+        .values(response=response)
+    )
 
 
 def _aware(moment: datetime) -> datetime:

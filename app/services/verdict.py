@@ -6,8 +6,10 @@ are numbered from 1 in every sentence (arrays stay 0-based).
 
 from __future__ import annotations
 
+from app.errors import DomainError
 from app.methods import ENTERED_BY_HAND
 from app.methods.base import ActiveFrame
+from app.schemas.references import CheckResult
 from app.schemas.results import CalibrationResult, QualityOut
 from app.schemas.tools import Tolerance
 from app.solvers.numbering import numbered
@@ -117,8 +119,10 @@ def check_summary(
     version: int,
     n_touches: int,
     check_mm: float,
+    advice: bool = True,
 ) -> str:
-    """A check's verdict: how far and which way (flange frame, new minus old) the tip moved."""
+    """A check's verdict: how far and which way (flange frame, new minus old) the tip moved;
+    out of tolerance, with what to do (unless `advice` is false: a re-check says its own)."""
     within = distance_mm <= check_mm
     worst = f"worst of {_touches(n_touches)}, " if n_touches > 1 else ""
     sentence = (
@@ -126,4 +130,52 @@ def check_summary(
         f"{distance_mm:.2f} mm from where version {version} puts it, "
         f"{_flange_direction(deviation_flange_mm, distance_mm)} ({worst}limit {check_mm:g} mm)"
     )
-    return sentence if within else sentence + "; recalibrate the tool or look for a bend"
+    if within or not advice:
+        return sentence
+    return sentence + "; recalibrate the tool or look for a bend"
+
+
+def recheck_summary(
+    result: CheckResult, *, max_correction_mm: float, failure: DomainError | None = None
+) -> str:
+    """A re-check's sentence: the check's verdict and what was done about it."""
+    if result.verdict in ("within_tolerance", "out_of_tolerance"):
+        return result.summary
+    head = check_summary(
+        distance_mm=result.distance_mm,
+        deviation_flange_mm=result.deviation_flange_mm,
+        version=result.version,
+        n_touches=len(result.touches),
+        check_mm=result.check_mm,
+        advice=False,
+    )
+    correction = result.correction
+    if result.verdict == "recalibrate" or correction is None:
+        if result.distance_mm > max_correction_mm:
+            why = (
+                f"{result.distance_mm:.2f} mm is beyond the tool's max_correction_mm "
+                f"({max_correction_mm:g} mm)"
+            )
+        else:
+            why = "the TCP this touch gives is not within the tool's tolerance"
+        return (
+            f"{head}; {why}, so nothing was changed: recalibrate the tool (several touches, "
+            "e.g. xyz_npoint) and look for a bend or a loose part"
+        )
+    dx, dy, dz = correction.delta_mm
+    done = (
+        f"{head}; corrected: version {correction.version} (version "
+        f"{correction.previous_version} moved by {dx:+.3f}, {dy:+.3f}, {dz:+.3f} mm in the "
+        "flange frame) is active"
+    )
+    deployment = correction.deployment
+    if deployment is None:
+        return f"{done}, not deployed: deploy it before the robot runs with it"
+    if failure is None and deployment.status == "verified":
+        return f"{done}, deployed to {deployment.target} and read back as written"
+    detail = failure.detail if failure is not None else deployment.status
+    return (
+        f"{done} in tcpcal, but its deployment to {deployment.target} failed ({detail}); "
+        f"the controller is flagged: deploy version {correction.version} again "
+        f"(POST /v1/tools/{result.tool_id}/deployments) once it answers"
+    )

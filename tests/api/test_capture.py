@@ -280,7 +280,7 @@ def test_a_captured_check_measures_the_touch_the_controller_reads(
     controller.at(5)
     body = {"capture": True, "reference_point_id": point.json()["id"]}
     check = api.post(f"/v1/tools/{tool['id']}/checks", body, scope="calibrate")
-    assert check.status_code == 200, check.text
+    assert check.status_code == 201, check.text
     assert check.json()["distance_mm"] == pytest.approx(0.3, abs=1e-6)
     assert len(check.json()["touches"]) == 1
     events = api.get("/v1/audit", "admin", params={"action": "tool.check"}).json()["items"]

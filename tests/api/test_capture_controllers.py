@@ -267,5 +267,5 @@ def test_a_captured_check_touches_the_point_the_flange_stands_at(api: Api, cell:
     cell.place(TOUCHES.R[2], TOUCHES.f[2])
     body = {"capture": True, "reference_point_id": point.json()["id"]}
     check = api.post(f"/v1/tools/{tool['id']}/checks", body, scope="calibrate")
-    assert check.status_code == 200, check.text
+    assert check.status_code == 201, check.text  # a captured check: 201 (v1.3 re-check)
     assert abs(check.json()["distance_mm"] - moved_mm) < 0.01, check.json()
