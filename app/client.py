@@ -10,7 +10,9 @@ Exit codes say what happened, for scripts on the cell PC:
 0 done (a calibration accepted, a check within tolerance); 3 done but out of tolerance
 (stored, not activated); 4 refused by the server (422/409/412: bad input, a unit or
 convention mix-up, a conflict); 5 not found or not allowed (401/403/404); 6 the server could
-not be reached or failed; 2 bad use or a pose file that does not read.
+not be reached or failed; 2 bad use or a pose file that does not read. `check --capture`
+(the re-check after a collision, app.client_recheck) says its verdict instead: 0 in tolerance,
+1 corrected, 2 needs recalibration, 3 controller failure.
 """
 
 from __future__ import annotations
@@ -55,6 +57,7 @@ from app.client_http import (
     request,
     send,
 )
+from app.client_recheck import CHECK_EXITS, recheck
 from app.jsontypes import JsonArray, JsonObject
 
 if TYPE_CHECKING:
@@ -64,7 +67,8 @@ if TYPE_CHECKING:
 def register(cli: typer.Typer) -> None:
     """Add the client's commands to the `tcpcal` command."""
     for command in (tools, plan, calibrate, history, activate, rollback, check, export, audit):
-        cli.command(rich_help_panel="Client (talks to a server)")(command)
+        epilog = CHECK_EXITS if command is check else None
+        cli.command(rich_help_panel="Client (talks to a server)", epilog=epilog)(command)
 
 
 # ---- which tool ---------------------------------------------------------------------------
@@ -459,17 +463,82 @@ def rollback(
 
 def check(
     tool_id: ToolArg,
-    reference_point_id: Annotated[str, typer.Argument(help="the reference point touched")],
-    poses_file: Annotated[Path, typer.Argument(help="CSV or JSON file of flange poses")],
-    fmt: Annotated[str, typer.Option("--format", help="pose format, e.g. kuka_abc")],
+    reference_point_id: Annotated[
+        str | None,
+        typer.Argument(help="the reference point touched (typed poses; or --reference)"),
+    ] = None,
+    poses_file: Annotated[
+        Path | None, typer.Argument(help="CSV or JSON file of flange poses (not with --capture)")
+    ] = None,
+    fmt: Annotated[
+        str | None, typer.Option("--format", help="pose format of the file, e.g. kuka_abc")
+    ] = None,
     length: Annotated[str | None, typer.Option(help="mm | m")] = None,
     angle: Annotated[str | None, typer.Option(help="deg | rad")] = None,
+    capture: Annotated[
+        bool,
+        typer.Option(
+            "--capture",
+            help="read the one touch from the robot's controller: the robot stands with the "
+            "TCP at the reference point",
+        ),
+    ] = False,
+    reference: Annotated[
+        str | None,
+        typer.Option(help="the reference point by name or id (of the tool's robot)"),
+    ] = None,
+    correct: Annotated[
+        bool,
+        typer.Option(
+            "--correct",
+            help="with --capture: out of tolerance and within the tool's max_correction_mm, "
+            "store the TCP this touch gives as a new version, activate and deploy it",
+        ),
+    ] = False,
+    deploy: Annotated[
+        bool, typer.Option(help="deploy the correction to the controller and read it back")
+    ] = True,
+    reason: Annotated[
+        str | None, typer.Option(help="why (e.g. the collision), kept with the correction")
+    ] = None,
+    idempotency_key: Annotated[
+        str | None, typer.Option(help="retry-safe: the same key replays the first answer")
+    ] = None,
 ) -> None:
-    """Touch a reference point with the active TCP: how far and which way the tool moved."""
-    units = _units(length, angle)
-    tool_id = resolve_tool(tool_id)
+    """Touch a reference point with the active TCP: how far and which way the tool moved.
+    After a collision: --capture --reference NAME --correct reads the touch from the robot,
+    and corrects, activates and deploys the TCP when it moved within max_correction_mm."""
+    if reference and reference_point_id:
+        fail(EXIT_BAD_USE, "name the reference point once: as an argument or with --reference")
+    point = reference or reference_point_id
+    if point is None:
+        fail(EXIT_BAD_USE, "name the reference point: --reference NAME (or its id as argument)")
+    if capture:
+        if poses_file is not None or fmt is not None or length or angle:
+            fail(EXIT_BAD_USE, "--capture reads the touch from the robot: leave out the poses")
+        recheck(
+            resolve_tool(tool_id),
+            point,
+            correct=correct,
+            deploy=deploy,
+            reason=reason,
+            idempotency_key=idempotency_key,
+        )
+    if poses_file is None or fmt is None or correct or reason or idempotency_key:
+        fail(
+            EXIT_BAD_USE,
+            "typed: REFERENCE_POINT POSES_FILE --format FORMAT; --correct, --reason and "
+            "--idempotency-key go with --capture",
+        )
+    _typed_check(resolve_tool(tool_id), point, poses_file, fmt, _units(length, angle))
+
+
+def _typed_check(
+    tool_id: str, point_id: str, poses_file: Path, fmt: str, units: dict[str, str]
+) -> None:
+    """The check of poses typed on the pendant and exported: exit 3 when out of tolerance."""
     body: JsonObject = {
-        "reference_point_id": reference_point_id,
+        "reference_point_id": point_id,
         "format": fmt,
         "poses": read_poses(poses_file, fmt, units),
     }

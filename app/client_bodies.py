@@ -142,9 +142,28 @@ class Tool(TypedDict):
     active_version: int | None
 
 
+class DeploymentError(TypedDict):
+    type: str
+    detail: str
+
+
+class Correction(TypedDict):
+    version: int
+    previous_version: int
+    delta_mm: list[float]
+    deployment: Deployment | None
+
+
 class CheckResult(TypedDict):
     summary: str
     within_tolerance: bool
+    verdict: str
+    correction: Correction | None
+
+
+class ReferencePoint(TypedDict):
+    id: str
+    name: str
 
 
 class Robot(TypedDict):
@@ -172,6 +191,7 @@ class Deployment(TypedDict):
     deviation_mm: float | None
     deviation_deg: float | None
     reason: NotRequired[str | None]
+    error: NotRequired[DeploymentError | None]
 
 
 class ActiveFrame(Frame):
