@@ -22,8 +22,8 @@ from app.auth import Principal
 from app.jsontypes import JsonObject
 from app.kinematics.poses import pose_to_format
 from app.kinematics.touchsets import flange_positions, random_cone_rotations
+from app.methods.requests import CALIBRATION_REQUESTS
 from app.models import Robot, clock_at
-from app.schemas.calibrations import CALIBRATION_REQUESTS
 from app.schemas.references import CheckCreate, ReferencePointCreate
 from app.schemas.robots import RobotCreate
 from app.schemas.tools import Load, ToolCreate

@@ -33,7 +33,7 @@ from pydantic import TypeAdapter
 from app.errors import InvalidInput
 from app.kinematics.poses import PoseUnits, pose_to_format
 from app.kinematics.readings import Reading
-from app.schemas.calibrations import SolveRequest
+from app.methods.requests import SolveRequest
 from app.services.calibrate import solve
 from app.services.contexts import StatelessContext
 from tests.sim.touches import Touches, simulate_touches

@@ -12,8 +12,8 @@ from app.exports import CONTROLLER_FORMATS, ControllerFormat
 from app.kinematics.poses import POSE_FORMATS, PoseFormat
 from app.methods import METHOD_NAMES, METHODS
 from app.methods.npoint import NPointOptions
+from app.methods.requests import SOLVE_MODELS, CalibrationRequest
 from app.models import Deployment, GuidedSession, ToolControllerState
-from app.schemas.calibrations import SOLVE_MODELS, CalibrationRequest
 from app.schemas.controllers import Deployment as DeploymentOut
 from app.schemas.controllers import ReconciledTool, Reconciliation
 from app.schemas.fleet import FleetController

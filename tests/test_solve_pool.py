@@ -14,7 +14,7 @@ import pytest
 from app import solve_pool
 from app.config import get_settings
 from app.errors import InvalidInput, NotFound
-from app.schemas.calibrations import SOLVE_MODELS
+from app.methods.requests import SOLVE_MODELS
 from app.services.calibrate import solve_detached
 from tests.api.touches import as_poses
 from tests.sim.touches import simulate_touches

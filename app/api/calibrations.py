@@ -11,7 +11,7 @@ from app.deps import HeldCalibrateKey, ReadKey, SessionDep
 from app.errors import InvalidInput
 from app.jsontypes import JsonObject
 from app.methods import openapi_examples
-from app.schemas.calibrations import CalibrationRequest
+from app.methods.requests import CalibrationRequest
 from app.schemas.common import Page
 from app.schemas.results import Calibration, CalibrationDetail
 from app.services import calibrate, submissions

@@ -11,10 +11,11 @@ from app.api.calibrations import IdempotencyKey
 from app.api.controllers import CONTROLLER_FAILURES
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep
+from app.methods.guided import SessionCreate
 from app.metrics import CALIBRATIONS
 from app.schemas.common import Page
 from app.schemas.results import Calibration
-from app.schemas.sessions import Plan, PlanRequest, Session, SessionCreate, SessionFinish, TouchAdd
+from app.schemas.sessions import Plan, PlanRequest, Session, SessionFinish, TouchAdd
 from app.services import sessions
 
 router = APIRouter(tags=["guided"])

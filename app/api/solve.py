@@ -8,7 +8,7 @@ from fastapi import APIRouter, Body, Response
 
 from app.deps import HeldReadKey
 from app.methods import openapi_examples
-from app.schemas.calibrations import SolveRequest
+from app.methods.requests import SolveRequest
 from app.schemas.results import SolveResult
 from app.services import stateless
 

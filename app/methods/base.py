@@ -13,7 +13,7 @@ from __future__ import annotations
 import typing
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Annotated, Generic, Literal, Protocol, TypeVar
+from typing import Annotated, Generic, Protocol, TypeVar
 
 from pydantic import BaseModel, GetCoreSchemaHandler, GetJsonSchemaHandler
 from pydantic.json_schema import JsonSchemaValue
@@ -25,6 +25,7 @@ from app.jsontypes import JsonObject
 from app.kinematics.poses import PoseFormat
 from app.schemas.common import (
     MAX_POSES,
+    Activate,
     LongText,
     Pose,
     StrictModel,
@@ -33,8 +34,6 @@ from app.schemas.common import (
 from app.schemas.results import QualityOut, ResultExtras
 from app.schemas.tools import Tolerance
 from app.solvers.orientation import angle_between_deg
-
-Activate = Literal["auto", "always", "never"]
 
 
 # ---- the request ----------------------------------------------------------------------------

@@ -24,6 +24,7 @@ from app.schemas.common import (
     Vec3,
     one_of,
 )
+from app.schemas.references import SweepIn
 from app.schemas.results import LaserDetails, LaserSigma, QualityOut, ResultExtras
 from app.solvers.laser import LaserDevice, LaserResult, Sweep, solve_laser
 
@@ -49,12 +50,6 @@ class LaserGeometry(StrictModel):
         if self.device_id is None and any(n is None for n in numbers):
             raise ValueError("give device_id, or all of beam_a_y_mm, beam_b_x_mm, plane_z_mm")
         return self
-
-
-class SweepIn(StrictModel):
-    beam: Literal["a", "b"]
-    break_mm: Vec3
-    restore_mm: Vec3
 
 
 class LaserOptions(StrictModel):

@@ -17,6 +17,9 @@ from pydantic import (
 from app.jsontypes import JsonObject
 from app.solvers.noise_limits import MAX_TOUCH_NOISE_MM, MIN_TOUCH_NOISE_MM
 
+#: Whether a calibration (or a guided session's finish) activates its TCP.
+Activate = Literal["auto", "always", "never"]
+
 #: A number that refuses NaN and +-Infinity at the door (422 /non-finite), and is strict: a
 #: boolean or a string is refused, not read as 0/1 or parsed (the spec says "number").
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False, strict=True)]

@@ -8,7 +8,6 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.jsontypes import JsonObject
 from app.kinematics.poses import PoseFormat
-from app.methods.laser import SweepIn
 from app.schemas.common import (
     FiniteFloat,
     Name,
@@ -24,6 +23,14 @@ from app.schemas.common import (
     one_of,
 )
 from app.schemas.controllers import Deployment
+
+
+#: One sweep through a laser beam (the laser_beam method's input and a laser check's).
+class SweepIn(StrictModel):
+    beam: Literal["a", "b"]
+    break_mm: Vec3
+    restore_mm: Vec3
+
 
 Matrix3 = Annotated[list[Vec3], Field(min_length=3, max_length=3)]
 

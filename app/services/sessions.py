@@ -32,9 +32,10 @@ from app.jsontypes import JsonObject
 from app.kinematics.poses import one_pose, pose_to_format
 from app.kinematics.touchsets import cone_rotations, flange_positions
 from app.methods.base import MethodRequest
+from app.methods.guided import SessionCreate
+from app.methods.requests import CALIBRATION_REQUESTS
 from app.models import Calibration as CalibrationRow
 from app.models import GuidedSession, Tool, utcnow
-from app.schemas.calibrations import CALIBRATION_REQUESTS
 from app.schemas.common import MAX_POSES, Pose, Units
 from app.schemas.results import Calibration
 from app.schemas.sessions import (
@@ -43,7 +44,6 @@ from app.schemas.sessions import (
     NextTouch,
     PlannedTouch,
     PlanRequest,
-    SessionCreate,
     SessionFinish,
     TouchAdd,
 )

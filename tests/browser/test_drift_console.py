@@ -18,9 +18,9 @@ from playwright.sync_api import Page, expect
 
 from app.auth import Principal
 from app.db import engine_for, session_scope
+from app.methods.requests import CALIBRATION_REQUESTS
 from app.migrate import upgrade
 from app.models import clock_at
-from app.schemas.calibrations import CALIBRATION_REQUESTS
 from app.schemas.references import CheckCreate, ReferencePointCreate
 from app.schemas.robots import RobotCreate
 from app.schemas.tools import ToolCreate

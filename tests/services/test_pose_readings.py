@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from app.schemas.calibrations import CALIBRATION_REQUESTS
+from app.methods.requests import CALIBRATION_REQUESTS
 from app.services import calibrate, contexts, frames
 from app.services.contexts import StatelessContext
 from tests.api.touches import as_poses

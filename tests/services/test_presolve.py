@@ -12,7 +12,7 @@ import pytest
 from app.auth import Principal
 from app.db import get_engine, session_scope
 from app.errors import Archived, NotFound
-from app.schemas.calibrations import CALIBRATION_REQUESTS
+from app.methods.requests import CALIBRATION_REQUESTS
 from app.services import calibrate
 from app.services.calibrate import Presolved
 from tests.api.touches import as_poses

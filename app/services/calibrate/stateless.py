@@ -6,7 +6,7 @@ from sqlalchemy.orm import Session
 
 from app.jsontypes import JsonObject
 from app.methods.base import MethodRequest
-from app.schemas.calibrations import StatelessFields
+from app.methods.requests import StatelessFields
 from app.schemas.results import (
     SolveResult,
 )

@@ -11,9 +11,9 @@ from sqlalchemy.orm import Session
 
 from app.errors import InvalidInput, NotFound
 from app.helpers.pagination import paginate
+from app.methods.requests import CALIBRATION_REQUESTS
 from app.models import Calibration as CalibrationRow
 from app.models import Tool
-from app.schemas.calibrations import CALIBRATION_REQUESTS
 from app.schemas.results import (
     Calibration,
     CalibrationDetail,
