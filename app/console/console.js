@@ -392,9 +392,10 @@ async function controllerSection(tool, versions, onChange) {
     // /no-controller: 409 up to v1.2, 404 from contract v1.3 on.
     if (!(error instanceof Problem) || !String(error.doc.type || "").endsWith("/no-controller")) throw error;
   }
-  const [rows, deployments] = await Promise.all([
+  const [rows, deployments, points] = await Promise.all([
     everyPage(`/v1/tools?robot_id=${tool.robot_id}`),
     everyPage(`/v1/tools/${tool.id}/deployments`),
+    connection && mayCalibrate() ? everyPage(`/v1/robots/${tool.robot_id}/reference-points`) : [],
   ]);
   const state = rows.find((r) => r.id === tool.id)?.controller ?? null;
   if (!connection) {
@@ -407,6 +408,7 @@ async function controllerSection(tool, versions, onChange) {
         state ? ` · checked ${when(state.checked_at)}` : ""),
     );
     section.append(deployControls(tool, connection, onChange));
+    if (points.length && tool.active_version !== null) section.append(recheckControls(tool, points, versions));
   }
   section.append(
     h("h3", {}, "Deployments"),
@@ -464,6 +466,80 @@ function deployControls(tool, connection, onChange) {
     await onChange(outcome);
   });
   box.append(ask, confirmBox, outcome);
+  return box;
+}
+
+// ---- re-check after a collision (issue 41) ---------------------------------------------------
+// The robot stands with the TCP at a reference point: one touch read from the controller checks
+// the active TCP and, within the tool's max_correction_mm, corrects it (a new version, active,
+// deployed and read back). The server does all of it (POST /v1/tools/{id}/checks, the service
+// the CLI and the MQTT command use); the page asks first, with a reason, and says the answer.
+// A correction changes the versions, so the page is drawn again and the answer kept above it.
+let recheckAnswer = null; // { toolId, node } drawn into the next tool page of that tool
+
+const VERDICT_LABELS = { within_tolerance: "In tolerance", out_of_tolerance: "Out of tolerance, not corrected", corrected: "Corrected", deployment_failed: "Corrected, deployment failed", recalibrate: "Recalibrate: nothing changed" };
+
+function recheckAnswerNode(check, versions) {
+  const c = check.correction;
+  const lines = [];
+  if (c) {
+    const length = Math.hypot(...c.delta_mm);
+    lines.push(
+      h("dt", {}, "Version"), h("dd", { id: "recheck-version" }, `v${c.version} (was v${c.previous_version}), active`),
+      h("dt", {}, "Moved by"), h("dd", { id: "recheck-delta" }, `${c.delta_mm.map((v) => `${v >= 0 ? "+" : ""}${v.toFixed(3)}`).join(", ")} mm (${length.toFixed(3)} mm, flange frame)`),
+      h("dt", {}, "Deployment"), h("dd", { id: "recheck-deployment" }, c.deployment
+        ? [deploymentBadge(c.deployment.status), " ", deploymentWords(c.deployment, versions), c.deployment.error ? ` (${c.deployment.error.detail})` : ""]
+        : "not deployed: deploy it before the robot runs with it"),
+    );
+  }
+  const good = check.verdict === "within_tolerance" || check.verdict === "corrected";
+  return h("div", { class: "recheck-answer", "data-verdict": check.verdict, role: "status" },
+    h("strong", {}, VERDICT_LABELS[check.verdict] ?? check.verdict),
+    h("p", { class: `summary anywhere${good ? "" : " out_of_tolerance"}` }, check.summary),
+    lines.length ? h("dl", { class: "correction" }, lines) : null);
+}
+
+function recheckControls(tool, points, versions) {
+  const box = h("div", { id: "recheck" }, h("h3", {}, "Re-check after a collision"));
+  const outcome = h("div", { id: "recheck-outcome" });
+  if (recheckAnswer && recheckAnswer.toolId === tool.id) outcome.append(recheckAnswer.node);
+  recheckAnswer = null;
+  const select = h("select", { id: "recheck-point", name: "reference_point" },
+    points.map((p) => h("option", { value: p.id }, `${p.name} (${vec(p.position_mm)} mm)`)));
+  const correct = h("input", { type: "checkbox", id: "recheck-correct", name: "correct", checked: true });
+  const limit = tool.tolerance.max_correction_mm ?? 2;
+  const ask = h("button", { type: "button", id: "recheck-button" }, "Re-check");
+  ask.addEventListener("click", () => {
+    const point = points.find((p) => p.id === select.value);
+    confirmDialog({
+      title: `Re-check ${tool.name} at ${point.name}?`,
+      lines: [
+        `The robot must stand still with the TCP at ${point.name}: its flange pose is read from the controller as the one touch.`,
+        correct.checked
+          ? `Off by more than check ${mm(tool.tolerance.check_mm)} mm and at most ${mm(limit)} mm, the TCP that touch gives becomes a new active version (orientation kept) and is deployed and read back. Further off, nothing changes.`
+          : "Only measured: nothing changes whatever it finds.",
+      ],
+      confirm: "Re-check now",
+      onConfirm: async (reason) => {
+        ask.disabled = true;
+        outcome.replaceChildren(h("p", { class: "muted" }, "Reading the robot…"));
+        const body = { capture: true, reference_point_id: point.id, correct: correct.checked ? "within_limits" : "never", reason };
+        try {
+          const check = await json(`/v1/tools/${tool.id}/checks`, { method: "POST", body });
+          recheckAnswer = { toolId: tool.id, node: recheckAnswerNode(check, versions) };
+          await route();
+        } catch (error) {
+          outcome.replaceChildren(problemBox(error));
+          ask.disabled = false;
+        }
+      },
+    });
+  });
+  box.append(
+    h("p", { class: "actions" },
+      h("label", { for: "recheck-point" }, "Reference point "), select, " ",
+      h("label", {}, correct, ` correct within ${mm(limit)} mm and deploy`), " ", ask),
+    outcome);
   return box;
 }
 
