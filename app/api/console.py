@@ -52,6 +52,12 @@ def tool_page(tool_id: str) -> FileResponse:
     return _shell()
 
 
+@router.get("/ui/tools/{tool_id}/calibrate")
+def calibrate_page(tool_id: str) -> FileResponse:
+    """A guided calibration at the cell: capture or type touches, finish, activate, deploy."""
+    return _shell()
+
+
 @router.get("/ui/calibrations/{calibration_id}")
 def report_page(calibration_id: str) -> FileResponse:
     """One calibration's report."""

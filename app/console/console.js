@@ -2,6 +2,8 @@
 // The API key is asked for once, kept in sessionStorage (this browser tab's session) and sent
 // as a Bearer header; it never appears in a URL. Every figure is in mm to 3 decimals.
 
+import { calibratePage } from "./calibrate.js";
+
 const KEY_STORE = "tcpcal.api_key";
 const SCOPES = ["read", "calibrate", "admin"];
 const main = document.getElementById("main");
@@ -225,7 +227,7 @@ async function fleetPage() {
   const table = h(
     "table",
     { id: "fleet" },
-    h("thead", {}, h("tr", {}, ["Tool", "Robot", "Cell", "Slot", "Active", "Last calibration", "rms mm", "Age", "Last check", "Controller", "Drift", "Attention"].map((c) => h("th", {}, c)))),
+    h("thead", {}, h("tr", {}, ["Tool", "Robot", "Cell", "Slot", "Active", "Last calibration", "rms mm", "Age", "Last check", "Controller", "Moving by", "Drift", "Attention"].map((c) => h("th", {}, c)))),
     body,
   );
   show(h("h1", {}, "Fleet"), filters, summary, table);
@@ -242,7 +244,7 @@ async function fleetPage() {
   const render = (tools) => {
     const flagged = tools.filter((t) => t.attention.length).length;
     summary.textContent = `${tools.length} ${tools.length === 1 ? "tool" : "tools"}, ${flagged} ${flagged === 1 ? "needs" : "need"} attention`;
-    body.replaceChildren(...tools.map((t) => fleetRow(t)));
+    body.replaceChildren(...tools.map((t) => fleetRow(t, all)));
   };
   let pending = 0;
   const refresh = async () => {
@@ -260,7 +262,7 @@ async function fleetPage() {
   render(all);
 }
 
-function fleetRow(tool) {
+function fleetRow(tool, fleet) {
   const last = tool.last_calibration;
   const check = tool.last_check;
   const codes = tool.attention;
@@ -277,12 +279,40 @@ function fleetRow(tool) {
     h("td", { class: "num", title: last ? when(last.created_at) : "" }, last ? age(last.created_at) : "—"),
     h("td", {}, check ? h("span", { class: `badge ${check.within_tolerance ? "accepted" : "out_of_tolerance"}` }, `${check.within_tolerance ? "pass" : "fail"} ${mm(check.distance_mm)}`) : "—"),
     h("td", { class: "controller-state" }, controllerBadge(tool.controller, { degrees: true })),
+    h("td", { class: "live-state", "data-state": tool.live?.state ?? null, title: liveTitle(tool.live) }, movingBy(tool, fleet) ?? "—"),
     h("td", { class: "num drift", title: tool.drift ? `from the ${tool.drift.basis}${tool.drift.crosses_check_at ? `; out of check_mm by ${when(tool.drift.crosses_check_at)}` : ""}` : "fewer than three points over a day" },
       tool.drift ? rate(tool.drift.rate_mm_per_month, tool.drift.sigma_mm_per_month) : "—"),
     h("td", { class: "reasons", title: codes.map((c) => ATTENTION[c] ?? c).join("; ") },
       codes.map((c) => h("span", { class: "code", "data-code": c }, c))),
   );
 }
+
+// Which TCP the row's robot moves by right now (contract v1.3 fleet rows' `live`, from the
+// reconcile rounds), in words: "moving by torch v7, active", "moving by torch v6: not the
+// active v7", "moving by a TCP no version has". `fleet` holds the rows another tool's name is
+// found in. Null for a server without `live`.
+function movingBy(row, fleet) {
+  const live = row.live;
+  if (!live) return null;
+  if (live.state === "active") return `moving by ${row.name} v${live.version}, active`;
+  if (live.state === "stale_version") {
+    return `moving by ${row.name} v${live.version}: not the active ${row.active_version === null ? "version (none is active)" : `v${row.active_version}`}`;
+  }
+  if (live.state === "other_tool") {
+    const other = fleet.find((t) => t.id === live.tool_id);
+    return `moving by ${other ? other.name : "another tool"} v${live.version}, not ${row.name}`;
+  }
+  if (live.state === "unknown") return "moving by a TCP no version has";
+  return live.checked_at ? "not known" : null;
+}
+const liveTitle = (live) => {
+  if (!live) return "";
+  if (!live.checked_at) return LIVE_NEVER;
+  return `${live.state === "unread" ? `${LIVE_UNREAD}; ` : ""}read ${when(live.checked_at)}`;
+};
+// Why a robot's live TCP is "not known", or not shown.
+const LIVE_UNREAD = "the controller does not say which TCP it moves by (ABB), or could not be read at the last look";
+const LIVE_NEVER = "no reconcile round has read this robot's controller yet";
 
 // ---- controllers ----------------------------------------------------------------------------
 const CONTROLLER_LABELS = {
@@ -407,6 +437,13 @@ async function controllerSection(tool, versions, onChange) {
         state ? controllerBadge(state) : "not looked at yet",
         state ? ` · checked ${when(state.checked_at)}` : ""),
     );
+    const row = rows.find((r) => r.id === tool.id);
+    const moving = row ? movingBy(row, rows) : null;
+    if (moving) {
+      section.append(h("p", { id: "live-tool", "data-state": row.live.state, class: ["stale_version", "unknown", "other_tool"].includes(row.live.state) ? "attention" : null },
+        h("strong", {}, "The robot is "), moving, row.live.state === "unread" ? `: ${LIVE_UNREAD}` : "",
+        h("span", { class: "muted" }, ` · read ${when(row.live.checked_at)}`)));
+    }
     section.append(deployControls(tool, connection, onChange));
     if (points.length && tool.active_version !== null) section.append(recheckControls(tool, points, versions));
   }
@@ -717,6 +754,7 @@ async function toolPage(toolId) {
   };
   show(
     h("h1", {}, `${tool.name} `, h("span", { class: "muted" }, `on ${robot.name}`)),
+    writes ? h("p", {}, h("a", { id: "calibrate-link", class: "button-link", href: `/ui/tools/${tool.id}/calibrate` }, "Calibrate at the cell")) : null,
     h("p", {}, `Cell ${robot.cell ?? "—"} · slot ${tool.slot ?? "—"} · active version ${tool.active_version ?? "none"} · tolerance rms ${mm(tool.tolerance.max_rms_mm)} mm, residual ${mm(tool.tolerance.max_residual_mm)} mm, check ${mm(tool.tolerance.check_mm)} mm`),
     controllerSlot,
     h("section", {}, h("h2", {}, "Active TCP for the controllers"), tool.active_version === null ? h("p", {}, "No active TCP: calibrate or activate a version.") : controllerBox),
@@ -991,6 +1029,9 @@ function plot3d(cal, geometry) {
   Plotly.newPlot("plot-3d", traces, { height: 520, margin: { t: 0, r: 0, b: 0, l: 0 }, scene: { aspectmode: "data" }, legend: { x: 0, y: 1 } }, { displaylogo: false, responsive: true });
 }
 
+// The helpers the calibrate page (calibrate.js) draws and talks to the API with.
+const pageHelpers = () => ({ h, show, api, json, everyPage, Problem, problemBox, confirmDialog, deployProblem, mm, vec, when, mayCalibrate });
+
 // ---- routing --------------------------------------------------------------------------------
 // main is aria-busy while a page is fetched and drawn: assistive technology waits for the
 // whole page, and so do the browser tests before they click (a plot drawn late moves buttons).
@@ -998,6 +1039,7 @@ async function route() {
   const path = window.location.pathname;
   const tool = path.match(/^\/ui\/tools\/([^/]+)$/);
   const report = path.match(/^\/ui\/calibrations\/([^/]+)$/);
+  const calibrate = path.match(/^\/ui\/tools\/([^/]+)\/calibrate$/);
   // A page that plots fetches Plotly at once (while its key is typed, beside its data); it
   // awaits it, and shows its error, where it plots.
   if (tool || report) plotly().catch(() => {});
@@ -1008,6 +1050,7 @@ async function route() {
     if (me === null) me = await json("/v1/keys/me");
     document.getElementById("who").textContent = `${me.name} (${me.scope})`;
     if (tool) await toolPage(decodeURIComponent(tool[1]));
+    else if (calibrate) await calibratePage(decodeURIComponent(calibrate[1]), pageHelpers());
     else if (report) await reportPage(decodeURIComponent(report[1]));
     else await fleetPage();
   } catch (error) {
