@@ -198,6 +198,8 @@ const ATTENTION = {
   controller_drifted: "the robot's controller holds another TCP than the active one (deploy, or find out who changed it)",
   controller_unreachable: "the robot's controller could not be read at the last look",
   drifting: "the drift trend leaves check_mm within 30 days at 95 % confidence",
+  moving_by_stale_version: "the robot moves by an older version of this tool, not the active one (deploy, or find which program sets $TOOL)",
+  moving_by_unknown_tcp: "the robot moves by a TCP no version of its tools has",
   frequent_corrections: "re-checks corrected the TCP more than TCPCAL_CORRECTIONS_ALERT times in 30 days: the tool keeps getting hit",
 };
 
