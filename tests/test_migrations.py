@@ -141,3 +141,51 @@ def test_old_failed_deployments_are_mapped_honestly(empty_url: str) -> None:
             assert list(statuses) == ["failed", "failed", "verified"]
     finally:
         engine.dispose()
+
+
+BEFORE_MAX_CORRECTION = "2026_11_27_live_tools"
+
+
+def _tolerances(url: str) -> dict[str, Any]:
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            rows = conn.execute(text("SELECT id, tolerance FROM tools ORDER BY id")).all()
+    finally:
+        engine.dispose()
+    return {i: t if not isinstance(t, str) else json.loads(t) for i, t in rows}
+
+
+def test_stored_tolerances_gain_max_correction_mm(empty_url: str) -> None:
+    """Issue 41: every stored tolerance gets the default 2.0 mm, what a re-check applies;
+    a downgrade takes it out again."""
+    upgrade(empty_url, BEFORE_MAX_CORRECTION)
+    engine = make_engine(empty_url)
+    now = datetime.now(UTC)
+    try:
+        with engine.begin() as conn:
+            conn.execute(
+                text(
+                    "INSERT INTO robots (id, name, created_at, updated_at) "
+                    "VALUES ('r', 'r', :t, :t)"
+                ),
+                {"t": now},
+            )
+            for tool_id, tolerance in (("a", {}), ("b", {"check_mm": 0.4})):
+                conn.execute(
+                    text(
+                        "INSERT INTO tools (id, robot_id, name, tolerance, last_version, "
+                        "revision, created_at, updated_at) VALUES (:i, 'r', :i, :tol, 0, 1, "
+                        ":t, :t)"
+                    ),
+                    {"i": tool_id, "tol": json.dumps(tolerance), "t": now},
+                )
+    finally:
+        engine.dispose()
+    upgrade(empty_url)
+    assert _tolerances(empty_url) == {
+        "a": {"max_correction_mm": 2.0},
+        "b": {"check_mm": 0.4, "max_correction_mm": 2.0},
+    }
+    downgrade(empty_url, BEFORE_MAX_CORRECTION)
+    assert _tolerances(empty_url) == {"a": {}, "b": {"check_mm": 0.4}}

@@ -24,8 +24,8 @@ from tests.api.test_recheck_controllers import (
     CRASHED,
     MOVED,
     TABLES,
-    _stand_at_reference,
-    _tool_at_reference,
+    stand_at_reference,
+    tool_at_reference,
 )
 from tests.api.touches import row_counts
 from tests.conftest import Api
@@ -37,8 +37,8 @@ KUKA = "kuka_kvp"
 def _ready(api: Api, cell: Cell, moved: np.ndarray) -> tuple[dict[str, Any], str]:
     """A tool deployed at version 1, its robot standing with the true TCP (active + moved)
     at the reference point "pin"."""
-    tool, point_id = _tool_at_reference(api, cell.rig)
-    _stand_at_reference(cell, np.asarray(ACTIVE_POSITION) + moved)
+    tool, point_id = tool_at_reference(api, cell.rig)
+    stand_at_reference(cell, np.asarray(ACTIVE_POSITION) + moved)
     return tool, point_id
 
 

@@ -35,7 +35,7 @@ def cell(request: pytest.FixtureRequest) -> Any:
         yield SETUPS[request.param](r)
 
 
-def _tool_at_reference(api: Api, r: Rig) -> tuple[dict[str, Any], str]:
+def tool_at_reference(api: Api, r: Rig) -> tuple[dict[str, Any], str]:
     """A tool with an active, deployed version on the rig's controller, and a reference
     point of its robot."""
     robot = api.robot()
@@ -59,24 +59,27 @@ def _tool_at_reference(api: Api, r: Rig) -> tuple[dict[str, Any], str]:
     return tool, str(point.json()["id"])
 
 
-def _stand_at_reference(cell: Cell, true_tcp: np.ndarray) -> None:
+def stand_at_reference(cell: Cell, true_tcp: np.ndarray) -> None:
     """The flange placed so that flange @ true_tcp is the reference point."""
     cell.place(STANDING, REFERENCE - STANDING @ true_tcp)
 
 
-def _recheck(api: Api, tool_id: str, point_id: str, **extra: Any) -> Any:
+def recheck(
+    api: Api, tool_id: str, point_id: str, headers: dict[str, str] | None = None, **extra: Any
+) -> Any:
+    """A re-check that corrects within limits; `extra`: more of the body."""
     body = {"capture": True, "reference_point_id": point_id, "correct": "within_limits", **extra}
-    return api.post(f"/v1/tools/{tool_id}/checks", body, scope="calibrate")
+    return api.post(f"/v1/tools/{tool_id}/checks", body, scope="calibrate", headers=headers or {})
 
 
 def test_a_moved_tcp_is_corrected_from_one_touch_deployed_and_read_back(
     api: Api, cell: Cell
 ) -> None:
     r = cell.rig
-    tool, point_id = _tool_at_reference(api, r)
+    tool, point_id = tool_at_reference(api, r)
     truth = np.asarray(ACTIVE_POSITION) + MOVED
-    _stand_at_reference(cell, truth)
-    done = _recheck(api, tool["id"], point_id, reason="torch hit the clamp")
+    stand_at_reference(cell, truth)
+    done = recheck(api, tool["id"], point_id, reason="torch hit the clamp")
     assert done.status_code == 201, done.text
     check = done.json()
     assert check["within_tolerance"] is False
@@ -108,11 +111,11 @@ def test_a_moved_tcp_is_corrected_from_one_touch_deployed_and_read_back(
 
 def test_a_tcp_moved_5_mm_is_refused_and_nothing_changes(api: Api, cell: Cell) -> None:
     r = cell.rig
-    tool, point_id = _tool_at_reference(api, r)
-    _stand_at_reference(cell, np.asarray(ACTIVE_POSITION) + CRASHED)
+    tool, point_id = tool_at_reference(api, r)
+    stand_at_reference(cell, np.asarray(ACTIVE_POSITION) + CRASHED)
     counts = row_counts(TABLES)
     before = r.native()
-    refused = _recheck(api, tool["id"], point_id)
+    refused = recheck(api, tool["id"], point_id)
     assert refused.status_code == 201, refused.text
     check = refused.json()
     assert check["verdict"] == "recalibrate"
