@@ -8,6 +8,7 @@ from fastapi import APIRouter, Depends, Query
 from pydantic import AwareDatetime
 
 from app.api.params import Cursor, Limit, known_query_only
+from app.api.shared import page
 from app.deps import AdminKey, SessionDep
 from app.helpers.pagination import DEFAULT_LIMIT
 from app.schemas.audit import AuditEvent
@@ -48,6 +49,4 @@ def list_audit(
         tool_id=tool_id, robot_id=robot_id, action=action, actor=actor, since=since, until=until
     )
     items, next_cursor = trail.list_events(session, query=query, limit=limit, cursor=cursor)
-    return Page[AuditEvent].model_validate(
-        {"items": items, "next_cursor": next_cursor}, from_attributes=True
-    )
+    return page(AuditEvent, items, next_cursor)

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Header, Request, Response
+from fastapi import APIRouter, Body, Request, Response
 
-from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
+from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
+from app.api.shared import page, raw_json_body
 from app.deps import HeldCalibrateKey, ReadKey, SessionDep
-from app.errors import InvalidInput
-from app.jsontypes import JsonObject
 from app.methods import openapi_examples
 from app.methods.requests import CalibrationRequest
 from app.schemas.common import Page
@@ -17,24 +16,6 @@ from app.schemas.results import Calibration, CalibrationDetail
 from app.services import calibrate, submissions
 
 router = APIRouter(tags=["calibrations"])
-
-IdempotencyKey = Annotated[
-    str | None,
-    Header(
-        min_length=1,
-        max_length=200,
-        description="retry-safe submissions: same key and body -> the first response",
-    ),
-]
-
-
-async def raw_json_body(request: Request) -> JsonObject:
-    """The body as received, before validation: the JSON FastAPI parsed to validate it, which
-    the request keeps (parsing the bytes again cost 30 us of the event loop per calibration)."""
-    parsed = await request.json()
-    if not isinstance(parsed, dict):
-        raise InvalidInput("validation", "the body must be a JSON object", loc=("body",))
-    return parsed
 
 
 @router.post("/v1/tools/{tool_id}/calibrations", status_code=201, response_model=Calibration)
@@ -81,9 +62,7 @@ def list_calibrations(
     items, next_cursor = calibrate.list_calibrations(
         session, tool_id=tool_id, limit=limit, cursor=cursor
     )
-    return Page[Calibration].model_validate(
-        {"items": items, "next_cursor": next_cursor}, from_attributes=True
-    )
+    return page(Calibration, items, next_cursor)
 
 
 @router.get("/v1/calibrations/{calibration_id}", response_model=CalibrationDetail)

@@ -8,6 +8,7 @@ from fastapi import APIRouter, Query, Response
 from starlette.concurrency import run_in_threadpool
 
 from app.api.params import PathId
+from app.api.shared import CONTROLLER_FAILURES
 from app.deps import AdminKey, HeldCalibrateKey, HeldReadKey, ReadKey, SessionDep
 from app.errors import NoControllerSet
 from app.kinematics.poses import PoseFormat
@@ -18,17 +19,6 @@ router = APIRouter(tags=["controllers"])
 
 #: What a read of the robot's pose may answer besides 200 (GET .../controller/pose, and the
 #: captured touches of sessions and checks).
-CONTROLLER_FAILURES: dict[int | str, dict[str, object]] = {
-    409: {
-        "description": "`/robot-moving`: two reads 100 ms apart differ by more than 0.01 mm "
-        "or 0.01 deg (nothing kept); `/no-controller` (a touch of a robot without one)"
-    },
-    404: {"description": "`/no-controller`: a pose read of a robot without one"},
-    502: {
-        "description": "`/controller-unreachable` within the controller's timeout_s, or "
-        "`/controller-refused` with the controller's own words in `controller_message`"
-    },
-}
 
 
 @router.put("/v1/robots/{robot_id}/controller", response_model=Controller)

@@ -7,8 +7,8 @@ from typing import Annotated
 from fastapi import APIRouter, Body, Request, Response
 from starlette.concurrency import run_in_threadpool
 
-from app.api.calibrations import IdempotencyKey, raw_json_body
-from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
+from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
+from app.api.shared import page, raw_json_body
 from app.deps import HeldCalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.controllers import Deployment, DeploymentIn
@@ -79,6 +79,4 @@ def list_deployments(
     items, next_cursor = deployments.list_deployments(
         session, tool_id=tool_id, limit=limit, cursor=cursor
     )
-    return Page[Deployment].model_validate(
-        {"items": items, "next_cursor": next_cursor}, from_attributes=True
-    )
+    return page(Deployment, items, next_cursor)

@@ -8,6 +8,7 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 
 from app.api.params import Cursor, Limit, PathId
+from app.api.shared import page
 from app.deps import ReadKey, SessionDep
 from app.helpers.pagination import DEFAULT_LIMIT, MAX_LIMIT
 from app.schemas.common import ID_PATTERN, Page
@@ -90,9 +91,7 @@ def list_checks(
 ) -> Page[CheckRecord]:
     """A tool's checks, newest first: the deviation, the verdict and who checked when."""
     items, next_cursor = fleet.list_checks(session, tool_id=tool_id, limit=limit, cursor=cursor)
-    return Page[CheckRecord].model_validate(
-        {"items": items, "next_cursor": next_cursor}, from_attributes=True
-    )
+    return page(CheckRecord, items, next_cursor)
 
 
 @router.get("/v1/tools/{tool_id}/drift", response_model=ToolDrift)

@@ -4,36 +4,13 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
+from app.api.shared import all_formats
 from app.deps import ReadKey
 from app.exports import FILE_KINDS
-from app.kinematics.poses import (
-    POSE_FORMATS,
-    ROTATION_CONVENTIONS,
-    default_units,
-    format_components,
-)
-from app.schemas.common import Units
-from app.schemas.formats import FormatInfo, FormatList
+from app.schemas.formats import FormatList
 from app.tool_numbers import TOOL_NUMBERS
 
 router = APIRouter(tags=["stateless"])
-
-
-def describe_format(fmt: str) -> FormatInfo:
-    """One format as clients read it, from the definitions in app.kinematics.poses."""
-    components = format_components(fmt)
-    units = default_units(fmt)
-    return FormatInfo(
-        name=fmt,
-        components=list(components),
-        arity=None if fmt == "joints" else len(components),
-        default_units=Units(length=units.length, angle=units.angle),
-        rotation=ROTATION_CONVENTIONS[fmt],
-    )
-
-
-def all_formats() -> list[FormatInfo]:
-    return [describe_format(fmt) for fmt in POSE_FORMATS]
 
 
 @router.get("/v1/formats", response_model=FormatList)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
+from app.api.shared import page
 from app.deps import AdminKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.keys import KeyCreate, KeyCreated, KeyMe, KeyOut
@@ -34,9 +35,7 @@ def list_keys(
 ) -> Page[KeyOut]:
     """Every API key with its name, scope, prefix and revocation time (never the key itself)."""
     items, next_cursor = keys.list_keys(session, limit=limit, cursor=cursor, actor=key)
-    return Page[KeyOut].model_validate(
-        {"items": items, "next_cursor": next_cursor}, from_attributes=True
-    )
+    return page(KeyOut, items, next_cursor)
 
 
 @router.get("/me", response_model=KeyMe)

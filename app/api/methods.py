@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter
 from pydantic import BaseModel
 
-from app.api.formats import all_formats
+from app.api.shared import all_formats
 from app.deps import ReadKey
 from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHODS

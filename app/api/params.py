@@ -6,10 +6,11 @@ import re
 from dataclasses import dataclass
 from typing import Annotated, Literal
 
-from fastapi import Path, Query, Request
+from fastapi import Header, Path, Query, Request
 from fastapi.dependencies.models import Dependant
 
 from app.errors import InvalidInput
+from app.helpers.etags import IF_MATCH_PATTERN
 from app.helpers.pagination import CURSOR_PATTERN, DEFAULT_LIMIT, MAX_LIMIT
 from app.schemas.common import ID_PATTERN
 
@@ -23,6 +24,18 @@ DEFAULT_PAGE = DEFAULT_LIMIT
 PathId = Annotated[str, Path(pattern=ID_PATTERN, description="resource id")]
 #: Version numbers start at 1 and fit every database's 32-bit integer.
 VersionNumber = Annotated[int, Path(ge=1, le=2**31 - 1, description="version number")]
+IdempotencyKey = Annotated[
+    str | None,
+    Header(
+        min_length=1,
+        max_length=200,
+        description="retry-safe submissions: same key and body -> the first response",
+    ),
+]
+IfMatch = Annotated[
+    str | None,
+    Header(pattern=IF_MATCH_PATTERN, description="the tool's ETag (or *); 412 when stale"),
+]
 
 
 def _query_names(dependant: Dependant) -> set[str]:

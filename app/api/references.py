@@ -5,9 +5,8 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 from starlette.concurrency import run_in_threadpool
 
-from app.api.calibrations import IdempotencyKey
-from app.api.controllers import CONTROLLER_FAILURES
-from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
+from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
+from app.api.shared import CONTROLLER_FAILURES, page
 from app.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.references import (
@@ -49,9 +48,7 @@ def list_reference_points(
     items, next_cursor = references.list_reference_points(
         session, robot_id=robot_id, limit=limit, cursor=cursor
     )
-    return Page[ReferencePoint].model_validate(
-        {"items": items, "next_cursor": next_cursor}, from_attributes=True
-    )
+    return page(ReferencePoint, items, next_cursor)
 
 
 @router.get("/v1/robots/{robot_id}/reference-points/{point_id}", response_model=ReferencePoint)
@@ -139,9 +136,7 @@ def list_laser_devices(
     items, next_cursor = laser_devices.list_laser_devices(
         session, robot_id=robot_id, limit=limit, cursor=cursor
     )
-    return Page[LaserDevice].model_validate(
-        {"items": items, "next_cursor": next_cursor}, from_attributes=True
-    )
+    return page(LaserDevice, items, next_cursor)
 
 
 @router.get(

@@ -7,6 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Response
 
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
+from app.api.shared import page
 from app.deps import AdminKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.robots import Robot, RobotCreate, RobotUpdate
@@ -37,9 +38,7 @@ def list_robots(
     items, next_cursor = robots.list_robots(
         session, cell=cell, name=name, limit=limit, cursor=cursor
     )
-    return Page[Robot].model_validate(
-        {"items": items, "next_cursor": next_cursor}, from_attributes=True
-    )
+    return page(Robot, items, next_cursor)
 
 
 @router.get("/{robot_id}", response_model=Robot)

@@ -7,9 +7,8 @@ from typing import Annotated
 from fastapi import APIRouter, Path, Response
 from starlette.concurrency import run_in_threadpool
 
-from app.api.calibrations import IdempotencyKey
-from app.api.controllers import CONTROLLER_FAILURES
-from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
+from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
+from app.api.shared import CONTROLLER_FAILURES, page
 from app.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep
 from app.methods.guided import SessionCreate
 from app.metrics import CALIBRATIONS
@@ -59,7 +58,7 @@ def list_sessions(
     items, next_cursor = sessions.list_sessions(
         session, tool_id=tool_id, limit=limit, cursor=cursor
     )
-    return Page[Session](items=items, next_cursor=next_cursor)
+    return page(Session, items, next_cursor)
 
 
 @router.post(

@@ -2,23 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from fastapi import APIRouter, Response
 
-from fastapi import APIRouter, Header, Response
-
-from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
+from app.api.params import DEFAULT_PAGE, Cursor, IfMatch, Limit, PathId
+from app.api.shared import page
 from app.deps import AdminKey, ReadKey, SessionDep
-from app.helpers.etags import IF_MATCH_PATTERN
 from app.schemas.common import Page
 from app.schemas.tools import Tool, ToolCreate, ToolUpdate
 from app.services import tools
 
 router = APIRouter(tags=["tools"])
-
-IfMatch = Annotated[
-    str | None,
-    Header(pattern=IF_MATCH_PATTERN, description="the tool's ETag (or *); 412 when stale"),
-]
 
 
 @router.post("/v1/robots/{robot_id}/tools", status_code=201, response_model=Tool)
@@ -42,9 +35,7 @@ def list_tools(
 ) -> Page[Tool]:
     """A robot's live tools, oldest first."""
     items, next_cursor = tools.list_tools(session, robot_id=robot_id, limit=limit, cursor=cursor)
-    return Page[Tool].model_validate(
-        {"items": items, "next_cursor": next_cursor}, from_attributes=True
-    )
+    return page(Tool, items, next_cursor)
 
 
 @router.get("/v1/tools/{tool_id}", response_model=Tool)

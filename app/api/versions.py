@@ -7,8 +7,7 @@ from typing import Annotated, cast
 from fastapi import APIRouter, Header, Query, Request, Response
 from fastapi.responses import PlainTextResponse
 
-from app.api.params import PathId, RawParam, VersionNumber
-from app.api.tools import IfMatch
+from app.api.params import IfMatch, PathId, RawParam, VersionNumber
 from app.deps import CalibrateKey, ReadKey, SessionDep, label_request
 from app.exports import CONTROLLER_FORMATS, ControllerFormat
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
