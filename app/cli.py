@@ -80,11 +80,11 @@ def _fresh_metrics_directory() -> None:
 
 @cli.command()
 def publish() -> None:
-    """Publish every committed change to the plant (MQTT: TCPCAL_MQTT_URL, TCPCAL_MQTT_PREFIX;
-    OPC UA: TCPCAL_OPCUA_ENDPOINT, TCPCAL_OPCUA_ANONYMOUS)
-    from the database's outbox: one publisher per fleet, a second one waits. Stops on
-    SIGTERM. Exits 2 with a message when the configuration is wrong or the broker cannot be
-    reached at start-up."""
+    """Publish every committed change to the plant (MQTT: TCPCAL_MQTT_URL, TCPCAL_MQTT_PREFIX,
+    TCPCAL_MQTT_COMMANDS=true to answer re-check commands; OPC UA: TCPCAL_OPCUA_ENDPOINT,
+    TCPCAL_OPCUA_ANONYMOUS) from the database's outbox: one publisher per fleet, a second one
+    waits. Stops on SIGTERM. Exits 2 with a message when the configuration is wrong or the
+    broker cannot be reached at start-up."""
     from app.logs import configure_logging
     from app.publish.cli import run_publisher
 

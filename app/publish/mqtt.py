@@ -13,7 +13,13 @@ Topics (API.md v1.2, prefix TCPCAL_MQTT_PREFIX, default `tcpcal`):
 - `{prefix}/events`, QoS 1, not retained: one JSON object per outbox row (with `kind` and
   `reason`: app.services.outbox.event_of);
 - `{prefix}/status`, retained: `online` once connected, `offline` as the last will and on a
-  clean stop.
+  clean stop;
+- with TCPCAL_MQTT_COMMANDS=true, it also subscribes to `{prefix}/commands/recheck` (QoS 1) and
+  answers on `{prefix}/replies/{request_id}` (app.publish.commands). The connection is then
+  MQTT 5 (its user properties carry the command's API key; MQTT 5.0, OASIS Standard,
+  https://docs.oasis-open.org/mqtt/mqtt/v5.0/mqtt-v5.0.html 3.3.2.3.7), otherwise 3.1.1, which
+  every broker speaks. The subscription is made on every (re)connection, the session being
+  clean.
 
 The client id is fixed per prefix (`tcpcal-publisher-{prefix}`): a restarted publisher takes
 over the session of one killed with SIGKILL at once (the broker drops the old connection and
@@ -33,17 +39,22 @@ import logging
 import threading
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 from urllib.parse import unquote, urlsplit
 
 import paho.mqtt.client as mqtt
 from paho.mqtt.client import ConnectFlags, DisconnectFlags
 from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode
+from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 from paho.mqtt.reasoncodes import ReasonCode
 
 from app.jsontypes import JsonObject
 from app.publish.settings import PublishSettings
 from app.publish.sink import Batch, SinkError
+
+if TYPE_CHECKING:
+    from app.publish.commands import Reply, Workers
 
 log = logging.getLogger(__name__)
 
@@ -114,6 +125,12 @@ def tool_topic(prefix: str, tool_id: str) -> str:
     return f"{prefix}/tools/{tool_id}/tcp"
 
 
+def authorization_of(properties: Properties | None) -> str | None:
+    """The `authorization` user property of an MQTT 5 message (None: absent)."""
+    pairs = getattr(properties, "UserProperty", None) or []
+    return next((str(v) for k, v in pairs if str(k).lower() == "authorization"), None)
+
+
 def payload_of(document: JsonObject | None) -> bytes:
     """A retained tool message: the document as compact JSON, or empty (clears the topic)."""
     return b"" if document is None else json.dumps(document, separators=(",", ":")).encode()
@@ -131,6 +148,7 @@ class MqttSink:
         *,
         ca_file: str | None = None,
         connect_timeout_s: float = 5.0,
+        commands: bool = False,
     ) -> None:
         self.broker = broker
         self.prefix = check_prefix(prefix)
@@ -143,6 +161,9 @@ class MqttSink:
         self._refused: str | None = None
         self._stopping = threading.Event()
         self._closing = False
+        self._commands = commands
+        #: the command workers, started by open() (imported then: the services are heavy)
+        self._workers: Workers | None = None
         self._client = self._make_client()
 
     @classmethod
@@ -154,14 +175,15 @@ class MqttSink:
             settings.mqtt_prefix,
             ca_file=settings.mqtt_ca_file,
             connect_timeout_s=settings.mqtt_connect_timeout_s,
+            commands=settings.mqtt_commands,
         )
 
     def _make_client(self) -> mqtt.Client:
-        client = mqtt.Client(
+        client = mqtt.Client(  # MQTT 5 has no clean_session: its session expires at once
             callback_api_version=CallbackAPIVersion.VERSION2,
             client_id=f"tcpcal-publisher-{self.prefix}",
-            clean_session=True,
-            protocol=mqtt.MQTTv311,
+            clean_session=None if self._commands else True,
+            protocol=mqtt.MQTTv5 if self._commands else mqtt.MQTTv311,
         )
         if self.broker.username is not None:
             client.username_pw_set(self.broker.username, self.broker.password)
@@ -173,6 +195,7 @@ class MqttSink:
         client.connect_timeout = self._connect_timeout_s
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
+        client.on_message = self._on_message
         return client
 
     # ---- paho's network thread -------------------------------------------------------
@@ -193,6 +216,10 @@ class MqttSink:
             client.disconnect()
             return
         client.publish(self.status_topic, b"online", qos=1, retain=True)
+        if self._commands:  # a clean session forgets it: made again at every connection
+            from app.publish.commands import recheck_topic
+
+            client.subscribe(recheck_topic(self.prefix), qos=1)
         self._connection += 1
         self._connected.set()
         log.info("connected to %s", self.broker.where)
@@ -209,11 +236,38 @@ class MqttSink:
         if not self._closing:
             log.warning("disconnected from %s (%s): reconnecting", self.broker.where, reason)
 
+    def _on_message(
+        self, _client: mqtt.Client, _userdata: object, message: mqtt.MQTTMessage
+    ) -> None:
+        """A command: handed to the workers (paho's thread must not wait for a controller).
+        A retained one is stale (it was sent before this connection, perhaps long ago):
+        ignored, so that a reconnection never repeats a re-check."""
+        if self._workers is None:
+            return
+        if message.retain:
+            log.warning("ignored a retained command on %s: send commands unretained", message.topic)
+            return
+        self._workers.submit(bytes(message.payload), authorization_of(message.properties))
+
+    def _reply(self, reply: Reply) -> None:
+        """Publish a command's answer (a worker thread; paho's publish is thread-safe)."""
+        properties = Properties(PacketTypes.PUBLISH)  # type: ignore[no-untyped-call]
+        properties.ContentType = reply.content_type
+        # the HTTP status, and whether this is the first answer again (Idempotent-Replayed)
+        said = [("status", str(reply.status))] + ([("replayed", "true")] if reply.replayed else [])
+        properties.UserProperty = said
+        self._client.publish(reply.topic, reply.payload, qos=1, properties=properties)
+
     # ---- the Sink protocol ---------------------------------------------------------------
     def open(self, stopping: threading.Event) -> None:
         """Connect, or SinkError: unreachable broker, refused credentials, TLS failure.
         Returns unconnected when `stopping` is set meanwhile (the runner then stops)."""
         self._stopping = stopping
+        if self._commands:
+            from app.publish.commands import Workers
+
+            self._workers = Workers(self.prefix, self._reply)
+            self._workers.start()
         failure = self._first_connect(stopping)
         if stopping.is_set():
             return
@@ -313,6 +367,8 @@ class MqttSink:
 
     def close(self) -> None:
         """Say `offline` (a clean DISCONNECT sends no will) and disconnect."""
+        if self._workers is not None:
+            self._workers.stop()
         if self._connected.is_set():
             info = self._client.publish(self.status_topic, b"offline", qos=1, retain=True)
             with contextlib.suppress(RuntimeError, ValueError):

@@ -20,6 +20,11 @@ class PublishSettings(BaseSettings):
         default=None, description="CA bundle for mqtts:// (default: the system's)"
     )
     mqtt_connect_timeout_s: float = Field(default=5.0, gt=0)
+    mqtt_commands: bool = Field(
+        default=False,
+        description="answer re-check commands on {prefix}/commands/recheck (MQTT 5; "
+        "docs/publishing.md)",
+    )
     opcua_endpoint: str | None = Field(
         default=None,
         description="opc.tcp://host:port/path the OPC UA server listens at, e.g. "

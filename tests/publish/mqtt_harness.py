@@ -25,6 +25,8 @@ from typing import Any
 import paho.mqtt.client as mqtt
 import pytest
 from paho.mqtt.enums import CallbackAPIVersion
+from paho.mqtt.packettypes import PacketTypes
+from paho.mqtt.properties import Properties
 
 from tests.polling import wait_for
 
@@ -309,3 +311,52 @@ def run_publisher_once(database_url: str, mqtt_url: str, timeout: float = 60) ->
         cwd=REPO,
     )
     return done.returncode, (done.stdout + done.stderr).decode(errors="replace")
+
+
+class Commander:
+    """A cell PLC as an MQTT 5 client (paho): sends re-check commands with the API key in the
+    user property `authorization`, and records every reply under `{prefix}/replies/#` with
+    its user properties (MQTT 5.0, 3.3.2.3.7)."""
+
+    def __init__(self, broker: Broker, prefix: str):
+        self.prefix = prefix
+        self.replies: list[tuple[str, bytes, dict[str, str]]] = []
+        self.lock = threading.Lock()
+        subscribed = threading.Event()
+        self.client = mqtt.Client(
+            callback_api_version=CallbackAPIVersion.VERSION2,
+            client_id=f"test-plc-{uuid.uuid4().hex[:8]}",
+            protocol=mqtt.MQTTv5,
+        )
+        self.client.on_message = self._on_message
+        self.client.on_subscribe = lambda *_: subscribed.set()
+        self.client.connect("127.0.0.1", broker.port, keepalive=10)
+        self.client.loop_start()
+        self.client.subscribe(f"{prefix}/replies/#", qos=1)
+        assert subscribed.wait(10), "the test PLC was not subscribed"
+
+    def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
+        said = dict(getattr(message.properties, "UserProperty", None) or [])
+        with self.lock:
+            self.replies.append((message.topic, bytes(message.payload), said))
+
+    def send(self, body: bytes | dict[str, Any], authorization: str | None) -> None:
+        """Publish a command (QoS 1), `authorization` in its user property when given."""
+        properties = Properties(PacketTypes.PUBLISH)  # type: ignore[no-untyped-call]
+        if authorization is not None:
+            properties.UserProperty = [("authorization", authorization)]
+        payload = body if isinstance(body, bytes) else json.dumps(body).encode()
+        info = self.client.publish(
+            f"{self.prefix}/commands/recheck", payload, qos=1, properties=properties
+        )
+        info.wait_for_publish(5)
+
+    def on(self, request_id: str) -> list[tuple[bytes, dict[str, str]]]:
+        """The replies on `{prefix}/replies/{request_id}`: (payload, user properties)."""
+        topic = f"{self.prefix}/replies/{request_id}"
+        with self.lock:
+            return [(payload, said) for t, payload, said in self.replies if t == topic]
+
+    def close(self) -> None:
+        self.client.disconnect()
+        self.client.loop_stop()
