@@ -172,6 +172,14 @@ class Reconciliation(BaseModel):
         default_factory=list,
         description="live tools left out: no slot or controller_symbol this protocol can use",
     )
+    live_tool: LiveToolOut | None = Field(
+        default=None,
+        description="the TCP the robot moves by, as this reconcile read it (number and frame "
+        "null where the controller does not say, as ABB); null when it could not be read",
+    )
+    live_tool_error: str | None = Field(
+        default=None, description="why the live tool could not be read"
+    )
 
 
 class LiveToolMatch(BaseModel):

@@ -49,11 +49,10 @@ from app.jsontypes import JsonObject
 from app.kinematics.poses import pose_to_format, resolve_units
 from app.models import utcnow
 from app.schemas.common import Pose, Units
-from app.schemas.controllers import ControllerPose, LiveToolOut
-from app.schemas.controllers import Frame as FrameOut
+from app.schemas.controllers import ControllerPose
 from app.schemas.results import TouchSource
 from app.services.controllers import get_controller, refusal_words, settings_of
-from app.services.live_tool import live_tool_matches
+from app.services.live_tool import live_tool_matches, live_tool_out
 
 #: The two reads of one capture are at least this far apart (s).
 STILL_GAP_S = 0.1
@@ -197,11 +196,6 @@ def controller_pose(*, robot_id: str, fmt: str, actor: Principal) -> ControllerP
     with session_scope(write=False) as session:
         act_for(session, actor)  # only the robots the key's cells hold
         matches = live_tool_matches(session, robot_id, live.frame)
-    frame = None
-    if live.frame is not None:
-        frame = FrameOut(
-            position_mm=list(live.frame.position_mm), quaternion=list(live.frame.quaternion)
-        )
     return ControllerPose(
         pose=pose_in_format(captured, fmt, None, loc=("query", "format")),
         format=fmt,
@@ -209,6 +203,6 @@ def controller_pose(*, robot_id: str, fmt: str, actor: Principal) -> ControllerP
         read_at=captured.read_at,
         protocol=captured.protocol,
         still=True,
-        live_tool=LiveToolOut(number=live.number, frame=frame, matches=matches),
+        live_tool=live_tool_out(live, matches),
         readings=dict(reading.readings),
     )

@@ -26,7 +26,8 @@ from app.controllers.base import (
 from app.helpers.frames import SYNC_TOLERANCE_DEG, SYNC_TOLERANCE_MM, frame_deviation, within
 from app.jsontypes import JsonObject
 from app.models import Robot, RobotLiveMatch, RobotLiveTool, TcpVersion, Tool
-from app.schemas.controllers import LiveToolMatch
+from app.schemas.controllers import Frame as FrameOut
+from app.schemas.controllers import LiveToolMatch, LiveToolOut
 from app.services import audit
 
 #: The audit action of a change of the tool a robot moves by.
@@ -60,6 +61,16 @@ def live_tool_matches(session: Session, robot_id: str, frame: Frame | None) -> l
             deg=SYNC_TOLERANCE_DEG,
         )
     ]
+
+
+def live_tool_out(live: LiveTool, matches: list[LiveToolMatch]) -> LiveToolOut:
+    """A controller's LiveTool as served, with its matches (contract v1.3 LiveTool)."""
+    frame = None
+    if live.frame is not None:
+        frame = FrameOut(
+            position_mm=list(live.frame.position_mm), quaternion=list(live.frame.quaternion)
+        )
+    return LiveToolOut(number=live.number, frame=frame, matches=matches)
 
 
 @dataclass(frozen=True)
@@ -100,10 +111,10 @@ def _same_frame(a: JsonObject | None, b: JsonObject | None) -> bool:
 
 def record_live(
     session: Session, *, robot_id: str, live: LiveRead, at: datetime, actor: Principal
-) -> bool:
-    """Store what the round read of the robot's live tool and its matches; whether it
-    changed (then an audit event `robot.live_tool`, once). The robot's row is locked first,
-    so two rounds meeting record one change."""
+) -> list[LiveToolMatch]:
+    """Store what the round read of the robot's live tool and its matches (returned); a
+    change is an audit event `robot.live_tool`, once. The robot's row is locked first, so
+    two rounds meeting record one change."""
     session.execute(select(Robot.id).where(Robot.id == robot_id).with_for_update())
     frame = None if live.tool is None else live.tool.frame
     number = None if live.tool is None else live.tool.number
@@ -151,7 +162,7 @@ def record_live(
                 "previous": previous,
             },
         )
-    return changed
+    return matches
 
 
 def _live_details(

@@ -33,7 +33,7 @@ from app.schemas.controllers import Reconciliation
 from app.services import controller_states, settling
 from app.services.controller_states import SEVERITY, Observation
 from app.services.controllers import get_controller, refusal_words, settings_of
-from app.services.live_tool import LiveRead, read_live, record_live
+from app.services.live_tool import LiveRead, live_tool_out, read_live, record_live
 from app.services.robots import get_robot
 from app.statuses import ROBOT_STATES, ToolState
 
@@ -173,7 +173,7 @@ def reconcile_robot(
         act_for(session, actor)  # only the robots the key's cells hold
         # first: it locks the robot's row before the tools' (the order every writer keeps),
         # and the round's tool states and live tool commit together
-        record_live(session, robot_id=robot_id, live=live, at=checked_at, actor=actor)
+        matches = record_live(session, robot_id=robot_id, live=live, at=checked_at, actor=actor)
         for tool in tools:
             if tool.target is None:
                 skipped.append({"tool_id": tool.tool_id, "reason": tool.problem})
@@ -196,6 +196,8 @@ def reconcile_robot(
             "state": robot_state,
             "tools": answer_tools,
             "not_addressable": skipped,
+            "live_tool": None if live.tool is None else live_tool_out(live.tool, matches),
+            "live_tool_error": live.error,
         }
     )
 

@@ -53,9 +53,10 @@ def _rows(api: Api, robot_id: str, **params: str) -> dict[str, dict[str, Any]]:
     return {row["name"]: row for row in got.json()["items"]}
 
 
-def _reconcile(api: Api, robot_id: str) -> None:
+def _reconcile(api: Api, robot_id: str) -> dict[str, Any]:
     done = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
     assert done.status_code == 200, done.text
+    return dict(done.json())
 
 
 def _live_events(robot_id: str) -> list[dict[str, Any]]:
@@ -153,7 +154,10 @@ def test_an_unknown_frame_is_blamed_on_the_tool_in_the_live_slot(api: Api) -> No
         # the gripper's own frame in the torch's slot: other_tool for the torch
         r.sim.set_tool(SLOT, *r.native_of(*ELSEWHERE))
         r.sim.select_tool(SLOT)
-        _reconcile(api, robot_id)
+        live = _reconcile(api, robot_id)["live_tool"]
+        assert live["number"] == SLOT
+        assert live["frame"]["position_mm"] == ELSEWHERE[0]
+        assert live["matches"] == [{"tool_id": other, "version": 1, "active": True}]
         rows = _rows(api, robot_id)
         assert rows["t1"]["live"] | {"checked_at": None} == {
             "state": "other_tool",
@@ -174,7 +178,10 @@ def test_abb_is_unread(api: Api, protocol: str) -> None:
         never = _rows(api, robot_id)["t1"]["live"]
         assert never == {"state": "unread", "version": None, "tool_id": None, "checked_at": None}
         r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)  # the controller holds v1
-        _reconcile(api, robot_id)
+        done = _reconcile(api, robot_id)
+        # RWS answers the pose but names no tooldata: read, and nothing to match
+        assert done["live_tool"] == {"number": None, "frame": None, "matches": []}
+        assert done["live_tool_error"] is None
         row = _rows(api, robot_id)["t1"]
         assert row["live"]["state"] == "unread"
         assert row["live"]["checked_at"] is not None
@@ -236,8 +243,10 @@ def test_a_refused_pose_read_leaves_the_live_tool_unread_and_the_tools_judged(ap
         _reconcile(api, robot_id)
         assert _rows(api, robot_id)["t1"]["live"]["state"] == "active"
         r.sim.ipo_mode = "#TCP"  # external TCP: the KRC's $POS_ACT is not a tool on the flange
-        done = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read").json()
+        done = _reconcile(api, robot_id)
         assert done["tools"][0]["state"] == "in_sync"
+        assert done["live_tool"] is None
+        assert "$IPO_MODE" in done["live_tool_error"]
         row = _rows(api, robot_id)["t1"]
         assert row["live"]["state"] == "unread"
         assert row["attention"] == []
