@@ -145,6 +145,14 @@ class CheckRecord(BaseModel):
     summary: str | None = Field(
         default=None, description="the verdict in one sentence (checks recorded since v1.1)"
     )
+    verdict: str | None = Field(
+        default=None,
+        description="within_tolerance | out_of_tolerance | corrected | deployment_failed | "
+        "recalibrate (checks recorded since v1.3)",
+    )
+    correction_version: int | None = Field(
+        default=None, description="the version a re-check corrected the TCP to, if it did"
+    )
     checked_at: Timestamp
     checked_by: str
 

@@ -517,6 +517,12 @@ def list_checks(
     return [_check_record(e) for e in events], next_cursor
 
 
+def _correction_version(correction: object) -> int | None:
+    """The version a recorded re-check corrected the TCP to (its `correction`), if any."""
+    version = correction.get("version") if isinstance(correction, dict) else None
+    return version if isinstance(version, int) else None
+
+
 def _check_record(event: AuditEvent) -> CheckRecord:
     d = event.details or {}
     return CheckRecord(
@@ -530,6 +536,8 @@ def _check_record(event: AuditEvent) -> CheckRecord:
         check_mm=d.get("check_mm"),
         within_tolerance=bool(d.get("within_tolerance")),
         summary=d.get("summary"),
+        verdict=d.get("verdict"),
+        correction_version=_correction_version(d.get("correction")),
         checked_at=event.at,
         checked_by=event.actor,
     )

@@ -148,7 +148,9 @@ def _check_and_correct(
             delta_mm=[float(v) for v in new_tcp - measured.frame.position_mm],
             deployment=None,
         )
-    result.summary = recheck_summary(result, max_correction_mm=limits.max_correction_mm)
+    result.summary = recheck_summary(
+        result, max_correction_mm=limits.max_correction_mm, deploying=_deploys(data)
+    )
     checks.record(session, measured, actor, None if captured is None else captured.capture)
     if result.correction is not None and solved is not None and captured is not None:
         _store_correction(session, measured, solved, captured, data, actor)

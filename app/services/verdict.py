@@ -136,9 +136,14 @@ def check_summary(
 
 
 def recheck_summary(
-    result: CheckResult, *, max_correction_mm: float, failure: DomainError | None = None
+    result: CheckResult,
+    *,
+    max_correction_mm: float,
+    deploying: bool = False,
+    failure: DomainError | None = None,
 ) -> str:
-    """A re-check's sentence: the check's verdict and what was done about it."""
+    """A re-check's sentence: the check's verdict and what was done about it. `deploying`:
+    the correction's deployment is yet to come (the sentence the check is recorded with)."""
     if result.verdict in ("within_tolerance", "out_of_tolerance"):
         return result.summary
     head = check_summary(
@@ -169,6 +174,8 @@ def recheck_summary(
         "flange frame) is active"
     )
     deployment = correction.deployment
+    if deployment is None and deploying:
+        return f"{done}; its deployment to the controller follows"
     if deployment is None:
         return f"{done}, not deployed: deploy it before the robot runs with it"
     if failure is None and deployment.status == "verified":

@@ -26,6 +26,7 @@ from tests.api.test_recheck_controllers import (
 )
 from tests.api.touches import row_counts
 from tests.conftest import Api
+from tests.controllers.simbase import go_silent
 
 
 @pytest.fixture
@@ -118,6 +119,11 @@ def test_the_audit_shows_the_chain_check_version_activation_deployment(
     assert check["detail"]["verdict"] == "corrected"
     assert check["detail"]["correction"]["version"] == 2
     assert check["detail"]["sources"][0]["source"] == "controller"
+    # recorded before the deployment: the check says one follows, tool.deploy says how it went
+    follows = "is active; its deployment to the controller follows"
+    assert check["detail"]["summary"].endswith(follows)
+    [record] = api.get(f"/v1/tools/{tool['id']}/checks").json()["items"]
+    assert (record["verdict"], record["correction_version"]) == ("corrected", 2)
     assert (created["version"], created["detail"]["source"]) == (2, "xyz_reference")
     assert calibration["detail"]["method"] == "xyz_reference"
     assert activation["detail"]["kind"] == "check_correction"
@@ -283,3 +289,25 @@ def test_a_tcp_within_tolerance_is_left_alone(api: Api, kuka: Cell) -> None:
     assert done.json()["summary"].startswith("within tolerance")
     assert row_counts(TABLES) == counts
     assert _row(api, tool["id"])["attention"] == []
+
+
+def test_a_controller_silent_at_the_write_is_flagged_unreachable_and_said(
+    api: Api, kuka: Cell
+) -> None:
+    """The KRC stops answering as the correction is written: the deployment is unverified
+    (it may hold either frame), the new version stays active, the controller is flagged
+    unreachable and the answer says what to do."""
+    r = kuka.rig
+    tool, point_id = tool_at_reference(api, r)
+    stand_at_reference(kuka, np.asarray(ACTIVE_POSITION) + MOVED)
+    r.sim.fault = go_silent("before", "write $TOOL_DATA[3]")
+    done = recheck(api, tool["id"], point_id)
+    assert done.status_code == 201, done.text
+    check = done.json()
+    assert check["verdict"] == "deployment_failed"
+    assert check["correction"]["deployment"]["status"] == "unverified"
+    assert "the controller may hold v2 or v1" in check["summary"]
+    assert "the controller is flagged" in check["summary"]
+    assert api.get(f"/v1/tools/{tool['id']}/tcp").json()["version"] == 2
+    row = _row(api, tool["id"])
+    assert row["attention"] == ["controller_unreachable"]
