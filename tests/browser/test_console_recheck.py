@@ -18,6 +18,7 @@ from playwright.sync_api import Page, expect
 
 from tests.api.controller_rigs import Rig, rig
 from tests.api.test_capture_controllers import KukaCell
+from tests.api.test_deployments import WRITE_REQUEST
 from tests.api.test_recheck_controllers import (
     ACTIVE_POSITION,
     ACTIVE_Q,
@@ -27,6 +28,7 @@ from tests.api.test_recheck_controllers import (
     STANDING,
 )
 from tests.browser.conftest import confirm, sign_in_to
+from tests.controllers.simbase import go_silent
 from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
@@ -150,3 +152,28 @@ def test_no_recheck_without_a_reference_point_or_a_controller(page: Page, cell: 
     expect(page.locator("main")).to_have_attribute("aria-busy", "false")
     expect(page.locator("#controller-none")).to_be_visible()
     expect(page.locator("#recheck")).to_have_count(0)
+
+
+def test_a_deployment_that_fails_is_said_and_the_correction_stays_active(
+    page: Page, cell: Cell
+) -> None:
+    """The write is sent and never answered: the new version is active in tcpcal, the page
+    says the deployment's status in words and that the controller may hold either."""
+    with cell.server.client() as http:
+        served = http.get(f"/v1/tools/{cell.tool_id}/tcp").json()
+    before = int(served["version"])
+    truth = np.asarray(served["tcp"]["position_mm"]) + MOVED
+    # the active version is oriented as version 1 (a correction keeps the orientation)
+    KukaCell(cell.rig).place(STANDING, REFERENCE - STANDING @ truth)
+    cell.rig.sim.fault = go_silent("before", WRITE_REQUEST["kuka_kvp"])
+    sign_in_to(page, cell.server, f"/ui/tools/{cell.tool_id}")
+    _recheck(page, "clamp again")
+    answer = page.locator("#recheck-outcome .recheck-answer")
+    expect(answer).to_have_attribute("data-verdict", "deployment_failed")
+    expect(answer).to_contain_text("Corrected, deployment failed")
+    expect(answer).to_contain_text("the controller is flagged")
+    expect(page.locator("#recheck-version")).to_have_text(f"v{before + 1} (was v{before}), active")
+    deployment = page.locator("#recheck-deployment")
+    expect(deployment).to_contain_text("written, not confirmed")
+    expect(deployment).to_contain_text(f"may hold v{before + 1} or v{before}")
+    expect(page.locator("#versions tr.active")).to_have_attribute("data-version", str(before + 1))
