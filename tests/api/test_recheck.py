@@ -4,7 +4,9 @@ uncertainty, corrections in the drift trend and `frequent_corrections`, and bad 
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from datetime import timedelta
 from typing import Any
 
@@ -311,3 +313,26 @@ def test_a_controller_silent_at_the_write_is_flagged_unreachable_and_said(
     assert api.get(f"/v1/tools/{tool['id']}/tcp").json()["version"] == 2
     row = _row(api, tool["id"])
     assert row["attention"] == ["controller_unreachable"]
+
+
+def test_one_key_sent_four_times_at_once_corrects_once(api: Api, kuka: Cell) -> None:
+    """A PLC that repeats its command while the first is under way: the tool's lock orders
+    them, the first corrects and the others replay it (its answer as kept at the time)."""
+    tool, point_id = tool_at_reference(api, kuka.rig)
+    stand_at_reference(kuka, np.asarray(ACTIVE_POSITION) + MOVED)
+    counts = row_counts(TABLES)
+    barrier = threading.Barrier(4)
+
+    def send(_: int) -> Any:
+        barrier.wait()
+        return recheck(api, tool["id"], point_id, headers={"Idempotency-Key": "plc-7"})
+
+    with ThreadPoolExecutor(4) as pool:
+        answers = list(pool.map(send, range(4)))
+    assert [a.status_code for a in answers] == [201] * 4, [a.text for a in answers]
+    assert sorted("Idempotent-Replayed" in a.headers for a in answers) == [False, True, True, True]
+    assert {a.json()["correction"]["version"] for a in answers} == {2}
+    after = row_counts(TABLES)
+    assert after["tcp_versions"] == counts["tcp_versions"] + 1
+    assert after["activations"] == counts["activations"] + 1
+    assert after["deployments"] == counts["deployments"] + 1
