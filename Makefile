@@ -45,8 +45,8 @@ run: $(STAMP)
 	$(BIN)/tcpcal serve --host $(HOST) --port $(PORT)
 
 lint: $(STAMP)
-	$(BIN)/ruff check app tests bench scripts migrations
-	$(BIN)/ruff format --check app tests bench scripts migrations
+	$(BIN)/ruff check app testbed tests bench scripts migrations
+	$(BIN)/ruff format --check app testbed tests bench scripts migrations
 	$(BIN)/lint-imports
 
 typecheck: $(STAMP)

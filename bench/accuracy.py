@@ -27,7 +27,7 @@ import numpy as np
 from app.errors import InvalidInput
 from app.solvers.npoint import ALGORITHMS, solve_npoint
 from bench import frame_accuracy, plane_accuracy
-from tests.sim.touches import simulate_touches
+from testbed.sim.touches import simulate_touches
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

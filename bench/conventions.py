@@ -36,7 +36,7 @@ from app.kinematics.readings import Reading
 from app.methods.requests import SolveRequest
 from app.services.calibrate import solve
 from app.services.contexts import StatelessContext
-from tests.sim.touches import Touches, simulate_touches
+from testbed.sim.touches import Touches, simulate_touches
 
 RESULTS = Path(__file__).resolve().parent / "results"
 FORMATS = ("matrix", "xyz_wxyz", "xyz_xyzw", "kuka_abc", "fanuc_wpr", "ur_rotvec")

@@ -34,9 +34,9 @@ from app.solvers.orientation import (
     rotation_error_deg,
 )
 from app.solvers.reference import solve_reference
-from tests.sim.frames import random_rotation, tool_down, translation_directions, two_point_touches
-from tests.sim.laser import DEVICE, HEIGHTS_MM, TOOL_STATES, simulate, tool_down_rotation
-from tests.sim.touches import simulate_touches, touch_rotations
+from testbed.sim.frames import random_rotation, tool_down, translation_directions, two_point_touches
+from testbed.sim.laser import DEVICE, HEIGHTS_MM, TOOL_STATES, simulate, tool_down_rotation
+from testbed.sim.touches import simulate_touches, touch_rotations
 
 LASER_NOISE_MM = (0.005, 0.01, 0.02, 0.05)
 POSITION_NOISE_MM = (0.01, 0.02, 0.05, 0.1)

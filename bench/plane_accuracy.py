@@ -1,6 +1,6 @@
 """Monte Carlo accuracy of xyz_plane (METHODS 7) against its Cramer-Rao bound.
 
-For each scenario (seeded plane touches from tests/sim/planes.py): RMS TCP error over the
+For each scenario (seeded plane touches from testbed/sim/planes.py): RMS TCP error over the
 trials / sqrt(mean trace CRB_tt), the bound sigma^2 (J^T J)^-1 of the signed-distance model
 at the true TCP and planes (J as the solver's, in t, each normal's two tangent coordinates
 and its offset); coverage of the reported 95 % ellipsoid; and the share of axes whose error is
@@ -17,7 +17,7 @@ import numpy as np
 
 from app.errors import InvalidInput
 from app.solvers.plane import cramer_rao_tcp, solve_plane
-from tests.sim.planes import simulate_plane_touches
+from testbed.sim.planes import simulate_plane_touches
 
 TARGETS = {"ratio": 1.05, "coverage": (0.93, 0.97)}
 #: Sets whose TCP the bound itself puts beyond this 1-sigma (mm, largest direction) are the

@@ -59,7 +59,7 @@ from app.models import (
 from app.services import fleet, hot_read, versions
 from app.services.audit import row as audit_row
 from bench.wrk_load import PG_URL, _percentile, _pg_reachable, _wrk, touches_body
-from tests.live.server import LiveServer, fresh_database, live_server
+from testbed.live_server import LiveServer, fresh_database, live_server
 
 RESULTS = Path(__file__).resolve().parent / "results"
 VERSIONS_PER_TOOL = 100

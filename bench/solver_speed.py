@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from app.solvers.npoint import ALGORITHMS, solve_npoint
-from tests.sim.touches import simulate_touches
+from testbed.sim.touches import simulate_touches
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SIZES = (4, 8, 50, 1000)

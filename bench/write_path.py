@@ -43,7 +43,7 @@ from sqlalchemy import Engine, event
 
 import app.db as appdb
 from bench.wrk_load import PG_URL, _pg_reachable, touches_body
-from tests.databases import fresh_database
+from testbed.databases import fresh_database
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

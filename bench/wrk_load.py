@@ -41,11 +41,11 @@ from typing import Any
 
 import httpx
 
-import tests.live.server as live
+import testbed.live_server as live
 from app import solve_pool
 from app.kinematics.poses import pose_to_format
-from tests.live.server import fresh_database, live_server
-from tests.sim.touches import simulate_touches
+from testbed.live_server import fresh_database, live_server
+from testbed.sim.touches import simulate_touches
 
 RESULTS = Path(__file__).resolve().parent / "results"
 REPO = Path(__file__).resolve().parents[1]

@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Any, TypeVar, cast
 import httpx
 import pytest
 
-from tests.databases import TABLES as TABLES  # tests count rows of every table
-from tests.databases import Rows, delete_all, fresh_database, read_rows, write_rows
+from testbed.databases import TABLES as TABLES  # tests count rows of every table
+from testbed.databases import Rows, delete_all, fresh_database, read_rows, write_rows
 from tests.inprocess import InProcessTransport
 
 if TYPE_CHECKING:

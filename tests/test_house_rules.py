@@ -88,3 +88,23 @@ def test_every_router_is_in_the_routers_contract() -> None:
     ]
     assert len(routers) >= 17
     assert sorted(listed) == routers
+
+
+def test_bench_imports_nothing_of_tests() -> None:
+    """A benchmark's harness and ground truth are testbed/'s, which tests import too: a test's
+    helper changed for a test does not change what a benchmark measures."""
+    offenders = []
+    for path in sorted((APP.parent / "bench").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                names = [node.module or ""]
+            else:
+                continue
+            offenders += [
+                f"{path.name}:{node.lineno} {name}"
+                for name in names
+                if name == "tests" or name.startswith("tests.")
+            ]
+    assert offenders == []

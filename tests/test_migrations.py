@@ -16,8 +16,8 @@ from sqlalchemy import inspect, text
 from app.db import make_engine
 from app.migrate import downgrade, head_revision, upgrade
 from app.models import Base
+from testbed.databases import fresh_database
 from tests.conftest import BACKENDS, PG_URL
-from tests.databases import fresh_database
 
 
 @pytest.fixture(params=BACKENDS)

@@ -15,8 +15,8 @@ from typer.testing import CliRunner
 
 from app.cli import cli
 from app.migrate import upgrade
+from testbed.databases import fresh_database
 from tests.conftest import BACKENDS, PG_URL
-from tests.databases import fresh_database
 
 #: Another process with the database open as a server has it (the app's engine: SQLite in WAL).
 HOLD = """

@@ -16,8 +16,8 @@ from app.config import get_settings
 from app.errors import InvalidInput, NotFound
 from app.methods.requests import SOLVE_MODELS
 from app.services.calibrate import solve_detached
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
-from tests.sim.touches import simulate_touches
 
 T = TypeVar("T")
 

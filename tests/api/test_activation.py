@@ -9,9 +9,9 @@ import pytest
 from sqlalchemy import select
 
 from app.services.activation import rollback_stack
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses, row_counts
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 STATE = ("activations", "audit_events", "tcp_versions")
 

@@ -21,10 +21,10 @@ from fastapi.routing import iter_route_contexts
 from sqlalchemy import text
 
 from app.kinematics.poses import pose_to_format
+from testbed.sim.touches import simulate_touches
 from tests.api.controller_rigs import Rig, rig
 from tests.api.touches import as_poses
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 WRITE_METHODS = {"POST", "PUT", "PATCH", "DELETE"}
 TCP = [0.0, 0.0, 150.0]

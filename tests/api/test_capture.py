@@ -23,9 +23,9 @@ from app.controllers.base import (
     PoseReading,
 )
 from app.kinematics.poses import pose_from_format
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import row_counts
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 TOUCHES = simulate_touches(8, seed=39, touch_noise_mm=0.0, tcp_mm=np.array([4.0, -7.0, 165.0]))
 

@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from testbed.sim.touches import simulate_touches
 from tests.api.controller_rigs import SYMBOL, TIMEOUT_S, Rig, rig, rotation_of
 from tests.conftest import Api
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.simbase import go_silent
-from tests.sim.touches import simulate_touches
 
 TRUE_TCP = np.array([12.5, -7.25, 182.0])
 POINT = np.array([850.0, -120.0, 240.0])

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from testbed.sim.touches import simulate_touches
 from tests.api.controller_rigs import SLOT, SYMBOL, TIMEOUT_S, Rig, rig
 from tests.api.touches import row_counts
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 TRUE_TCP = np.array([12.0, -6.5, 171.25])
 TOUCHES = simulate_touches(8, seed=7, touch_noise_mm=0.0, tcp_mm=TRUE_TCP)

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from testbed.sim.touches import simulate_touches
 from tests.api.controller_rigs import Rig, kuka_rotation, rig, rotation_of
 from tests.conftest import Api
 from tests.controllers.kuka_sim import KukaSimulator
-from tests.sim.touches import simulate_touches
 
 TRUE_TCP = np.array([12.5, -7.25, 182.0])
 POINT = np.array([850.0, -120.0, 240.0])

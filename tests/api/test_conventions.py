@@ -14,9 +14,9 @@ import pytest
 
 from app.jsontypes import JsonObject
 from app.kinematics.poses import pose_to_format
+from testbed.sim.touches import Touches, simulate_touches
 from tests.api.touches import row_counts, within
 from tests.conftest import TABLES, Api
-from tests.sim.touches import Touches, simulate_touches
 
 MISMATCH = "application/problem+json"
 

@@ -11,9 +11,9 @@ import pytest
 
 from app.jsontypes import JsonObject
 from app.models import clock_at
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 
 @pytest.fixture

@@ -14,9 +14,9 @@ import pytest
 from app.models import clock_at
 from app.schemas.fleet import AttentionCode
 from app.services.fleet import RULES
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 
 def _out_of_tolerance(api: Api, tool_id: str) -> None:

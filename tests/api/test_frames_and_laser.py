@@ -11,12 +11,12 @@ from scipy.spatial.transform import Rotation
 
 from app.exports import parse_controller_text
 from app.kinematics.poses import pose_to_format
+from testbed.sim.frames import translation_directions, two_point_touches, world_aligned_rotation
+from testbed.sim.laser import DEVICE, TOOL_STATES, simulate, tool_down_rotation
+from testbed.sim.touches import simulate_touches
 from tests.conftest import Api
-from tests.sim.frames import translation_directions, two_point_touches, world_aligned_rotation
-from tests.sim.laser import DEVICE, TOOL_STATES, simulate, tool_down_rotation
-from tests.sim.touches import simulate_touches
 
-#: The paper's tool states as tests/sim/laser.py builds them: (offset dX, dY mm), (runout
+#: The paper's tool states as testbed/sim/laser.py builds them: (offset dX, dY mm), (runout
 #: tx, ty deg), length 150 mm from the flange plane to the tip.
 TRUTH = {
     "ideal": ((0.0, 0.0), (0.0, 0.0)),

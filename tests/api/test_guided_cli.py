@@ -20,10 +20,10 @@ from typer.testing import CliRunner
 
 from app import client_guided
 from app.cli import cli
+from testbed.sim.touches import simulate_touches
 from tests.api.controller_rigs import Rig, rig
 from tests.api.test_controller_cli import runner as runner  # the app in process, calibrate key
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 TRUE_TCP = np.array([12.5, -7.25, 182.0])
 POINT = np.array([850.0, -120.0, 240.0])

@@ -7,9 +7,9 @@ from __future__ import annotations
 from sqlalchemy import create_engine, text
 
 from app.db import HELD_CONNECTIONS
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api, Database
-from tests.sim.touches import simulate_touches
 
 
 def test_the_hot_read_sees_revocations_and_activations_at_once(api: Api) -> None:

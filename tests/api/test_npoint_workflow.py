@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from app.jsontypes import JsonObject
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses, row_counts, within
 from tests.conftest import TABLES, Api
-from tests.sim.touches import simulate_touches
 
 
 @pytest.fixture

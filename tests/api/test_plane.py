@@ -9,10 +9,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from app.kinematics.poses import pose_to_format
+from testbed.sim.planes import PlaneTouches, simulate_plane_touches
+from testbed.sim.touches import TOOL_DOWN
 from tests.api.touches import row_counts, within
 from tests.conftest import TABLES, Api
-from tests.sim.planes import PlaneTouches, simulate_plane_touches
-from tests.sim.touches import TOOL_DOWN
 
 FORMATS = ["matrix", "xyz_wxyz", "xyz_xyzw", "kuka_abc", "fanuc_wpr", "ur_rotvec"]
 

@@ -26,9 +26,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from testbed.sim.touches import simulate_touches
 from tests.api.controller_rigs import Rig, rig
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 #: The torch's true TCP (mm, flange frame) and the fixed point its tip touches (robot base).

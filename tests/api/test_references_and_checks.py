@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses, row_counts
 from tests.conftest import TABLES, Api
-from tests.sim.touches import simulate_touches
 
 NOISE = 0.05
 

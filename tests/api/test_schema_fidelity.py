@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 
 @pytest.mark.parametrize(

@@ -8,9 +8,9 @@ import pytest
 from app.jsontypes import JsonObject
 from app.kinematics.dh import flange_poses
 from app.kinematics.presets import PRESETS
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses, row_counts
 from tests.conftest import TABLES, Api
-from tests.sim.touches import simulate_touches
 
 FORMATS = [
     "matrix",

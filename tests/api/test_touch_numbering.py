@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from app.solvers.npoint import solve_npoint
 from app.solvers.numbering import numbered
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 
 def _fifth_missed(n: int = 8) -> list[list[float]]:

@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 
 from app.jsontypes import JsonObject
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 
 def _tool(api: Api) -> str:

@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from app.kinematics.poses import pose_to_format
-from tests.sim.touches import Touches
+from testbed.sim.touches import Touches
 
 
 def as_poses(touches: Touches, fmt: str = "xyz_wxyz") -> list[Any]:

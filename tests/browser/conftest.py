@@ -24,7 +24,7 @@ from playwright.sync_api import (
     sync_playwright,
 )
 
-from tests.live.server import LiveServer
+from testbed.live_server import LiveServer
 
 CHROMIUM = os.environ.get("TCPCAL_CHROMIUM", "/usr/bin/chromium")
 #: Headless Chromium draws WebGL (Plotly's 3-D view) with its software renderer (SwiftShader),

@@ -21,9 +21,9 @@ import pytest
 from playwright.sync_api import Page, expect
 
 from app.kinematics.poses import pose_to_format
+from testbed.live_server import LiveServer, fresh_database, live_server
+from testbed.sim.touches import simulate_touches
 from tests.browser.conftest import confirm, sign_in_to
-from tests.live.server import LiveServer, fresh_database, live_server
-from tests.sim.touches import simulate_touches
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import pytest
 from playwright.sync_api import Page, expect
 
+from testbed.live_server import LiveServer, fresh_database, http_client, live_server
 from tests.browser.conftest import sign_in_to
-from tests.live.server import LiveServer, fresh_database, http_client, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 

@@ -22,10 +22,10 @@ from playwright.sync_api import Page, expect
 from scipy.spatial.transform import Rotation
 
 from app.kinematics.poses import pose_from_format, pose_to_format
+from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.api.controller_rigs import SLOT, Rig, rig
 from tests.browser.conftest import sign_in_to
 from tests.browser.test_console_tool_page import CUT_OFF
-from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 

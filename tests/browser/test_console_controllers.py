@@ -11,10 +11,10 @@ from dataclasses import dataclass
 import pytest
 from playwright.sync_api import Page, expect
 
+from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.api.controller_rigs import Rig, rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q
 from tests.browser.conftest import sign_in_to
-from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 

@@ -15,8 +15,8 @@ from urllib.parse import urlsplit
 import pytest
 from playwright.sync_api import Page, expect
 
+from testbed.live_server import LiveServer, fresh_database, http_client, live_server
 from tests.browser.conftest import confirm, sign_in_to
-from tests.live.server import LiveServer, fresh_database, http_client, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 

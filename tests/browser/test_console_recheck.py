@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import Page, expect
 
+from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.api.controller_rigs import Rig, rig
 from tests.api.test_capture_controllers import KukaCell
 from tests.api.test_deployments import WRITE_REQUEST
@@ -29,7 +30,6 @@ from tests.api.test_recheck_controllers import (
 )
 from tests.browser.conftest import confirm, sign_in_to
 from tests.controllers.simbase import go_silent
-from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 

@@ -18,8 +18,8 @@ from playwright.sync_api import Page, Route, expect
 
 from app.db import engine_for, session_scope
 from app.models import Deployment, utcnow
+from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.browser.conftest import sign_in_to
-from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 

@@ -25,8 +25,8 @@ from app.schemas.references import CheckCreate, ReferencePointCreate
 from app.schemas.robots import RobotCreate
 from app.schemas.tools import ToolCreate
 from app.services import calibrate, checks, references, robots, tools
+from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.browser.conftest import sign_in_to
-from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 

@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 from sqlalchemy import create_engine, text
 
+from testbed.live_server import fresh_database, live_server
 from tests.conftest import BACKENDS, PG_URL
-from tests.live.server import fresh_database, live_server
 from tests.polling import wait_for
 
 pytestmark = pytest.mark.live

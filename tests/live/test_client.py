@@ -14,8 +14,8 @@ from typer.testing import CliRunner
 from app.cli import cli
 from app.exports import parse_controller_file
 from app.kinematics.poses import pose_to_format
-from tests.live.server import LiveServer, fresh_database, live_server
-from tests.sim.touches import Touches, simulate_touches
+from testbed.live_server import LiveServer, fresh_database, live_server
+from testbed.sim.touches import Touches, simulate_touches
 
 pytestmark = pytest.mark.live
 

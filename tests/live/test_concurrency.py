@@ -12,8 +12,8 @@ from typing import TypeVar
 
 import pytest
 
+from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.conftest import BACKENDS, PG_URL
-from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = pytest.mark.live
 N = 20

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from testbed.live_server import fresh_database, live_server
 from tests.conftest import ONE_BACKEND, PG_URL
-from tests.live.server import fresh_database, live_server
 
 pytestmark = pytest.mark.live
 REPO = Path(__file__).resolve().parents[2]

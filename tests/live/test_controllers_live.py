@@ -13,10 +13,10 @@ import httpx
 import pytest
 from sqlalchemy import create_engine, text
 
+from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.api.controller_rigs import rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q
 from tests.conftest import PG_URL
-from tests.live.server import LiveServer, fresh_database, live_server
 from tests.polling import wait_for
 
 pytestmark = pytest.mark.live

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
+from testbed.live_server import fresh_database, http_client, live_server
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
-from tests.live.server import fresh_database, http_client, live_server
-from tests.sim.touches import simulate_touches
 
 pytestmark = pytest.mark.live
 

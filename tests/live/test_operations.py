@@ -12,8 +12,8 @@ from pathlib import Path
 import httpx
 import pytest
 
+from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.conftest import ONE_BACKEND, PG_URL
-from tests.live.server import LiveServer, fresh_database, live_server
 
 pytestmark = pytest.mark.live
 
@@ -103,8 +103,8 @@ def test_one_json_log_line_per_request_carries_the_clients_request_id(served: Se
     """Also the audit events of a calibration, which a solver process writes and logs."""
     import json
 
+    from testbed.sim.touches import simulate_touches
     from tests.api.touches import as_poses
-    from tests.sim.touches import simulate_touches
 
     srv = served.server
     with srv.client() as http:

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from testbed.live_server import fresh_database, live_server
 from tests.api.test_sessions import TOOL_DOWN, Operator, _rotation
-from tests.live.server import fresh_database, live_server
 
 pytestmark = pytest.mark.live
 

@@ -12,8 +12,8 @@ from typing import IO
 
 import pytest
 
-from tests.databases import fresh_database
-from tests.live.server import live_server
+from testbed.databases import fresh_database
+from testbed.live_server import live_server
 
 pytestmark = pytest.mark.live
 

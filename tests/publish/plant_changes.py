@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 
 def out_of_tolerance_version(api: Api, tool_id: str) -> int:

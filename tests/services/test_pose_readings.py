@@ -11,8 +11,8 @@ import pytest
 from app.methods.requests import CALIBRATION_REQUESTS
 from app.services import calibrate, contexts, frames
 from app.services.contexts import StatelessContext
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
-from tests.sim.touches import simulate_touches
 
 
 def _counting(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str | None]]:

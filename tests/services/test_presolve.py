@@ -15,9 +15,9 @@ from app.errors import Archived, NotFound
 from app.methods.requests import CALIBRATION_REQUESTS
 from app.services import calibrate
 from app.services.calibrate import Presolved
+from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api
-from tests.sim.touches import simulate_touches
 
 ACTOR = Principal(key_id="test", name="test", scope="admin")
 

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
 from app.solvers.laser import LaserDevice, LaserResult, Sweep, solve_laser, teach_device
-from tests.sim.laser import (
+from testbed.sim.laser import (
     DEVICE,
     TOOL_STATES,
     CylinderTool,

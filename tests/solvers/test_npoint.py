@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from app.errors import InvalidInput
 from app.solvers.npoint import ALGORITHMS, solve_npoint
 from app.solvers.quality import Quality, ellipsoid95_scale, orientation_spread_deg
-from tests.sim.touches import TOOL_DOWN, coaxial_rotations, simulate_touches
+from testbed.sim.touches import TOOL_DOWN, coaxial_rotations, simulate_touches
 
 
 class Scenario(TypedDict, total=False):

@@ -22,7 +22,7 @@ from app.solvers.orientation import (
     quaternion_wxyz_from_matrix,
     rotation_error_deg,
 )
-from tests.sim.frames import (
+from testbed.sim.frames import (
     random_rotation,
     tool_down,
     translation_directions,

@@ -9,8 +9,8 @@ from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
 from app.solvers.plane import solve_plane
-from tests.sim.planes import simulate_plane_touches
-from tests.sim.touches import TOOL_DOWN
+from testbed.sim.planes import simulate_plane_touches
+from testbed.sim.touches import TOOL_DOWN
 
 
 @pytest.mark.parametrize(("planes", "n"), [(1, 7), (1, 12), (2, 12), (3, 18)])

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from app.errors import InvalidInput
 from app.solvers.npoint import solve_npoint
 from app.solvers.reference import check_tcp, reference_point_from_touch, solve_reference
-from tests.sim.touches import simulate_touches, touch_rotations
+from testbed.sim.touches import simulate_touches, touch_rotations
 
 TOOL_A = np.array([12.0, -4.0, 180.0])
 TOOL_B = np.array([-30.0, 8.0, 95.0])

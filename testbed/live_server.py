@@ -20,11 +20,11 @@ import httpx
 from app.db import make_engine, session_scope
 from app.migrate import upgrade
 from app.services.keys import create_key
-from tests.databases import fresh_database
+from testbed.databases import fresh_database
 
 __all__ = ["LiveServer", "fresh_database", "http_client", "live_server"]
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[1]
 
 #: httpx builds a TLS context and loads the CA bundle for every Client it is not given one,
 #: even for http:// on loopback: 30-50 ms of CPU per client, and the live tests make hundreds

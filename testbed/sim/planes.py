@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from app.arrays import FloatArray
-from tests.sim.touches import random_tcp, touch_rotations
+from testbed.sim.touches import random_tcp, touch_rotations
 
 #: Centres of the planes a, b, c (mm, base frame) and the base axis each faces.
 CENTRES = (
