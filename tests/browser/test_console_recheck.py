@@ -177,3 +177,34 @@ def test_a_deployment_that_fails_is_said_and_the_correction_stays_active(
     expect(deployment).to_contain_text("written, not confirmed")
     expect(deployment).to_contain_text(f"may hold v{before + 1} or v{before}")
     expect(page.locator("#versions tr.active")).to_have_attribute("data-version", str(before + 1))
+    cell.rig.sim.stalled = False  # the controller answers again, for the next test
+
+
+def test_measure_only_changes_nothing_and_a_read_key_sees_no_recheck(
+    page: Page, cell: Cell
+) -> None:
+    """With "correct" unticked the re-check only measures: out of tolerance, not corrected,
+    no version and no controller value changed. A read key gets no Re-check."""
+    with cell.server.client() as http:
+        served = http.get(f"/v1/tools/{cell.tool_id}/tcp").json()
+        read_key = http.post("/v1/keys", json={"name": "viewer", "scope": "read"}).json()["key"]
+    versions = int(served["version"])
+    truth = np.asarray(served["tcp"]["position_mm"]) + MOVED
+    KukaCell(cell.rig).place(STANDING, REFERENCE - STANDING @ truth)
+    held = cell.rig.native()
+    sign_in_to(page, cell.server, f"/ui/tools/{cell.tool_id}")
+    page.uncheck("#recheck-correct")
+    page.click("#recheck-button")
+    expect(page.locator("dialog#confirm")).to_contain_text("Only measured: nothing changes")
+    confirm(page, "after the clamp was moved")
+    answer = page.locator("#recheck-outcome .recheck-answer")
+    expect(answer).to_have_attribute("data-verdict", "out_of_tolerance")
+    expect(answer).to_contain_text("Out of tolerance, not corrected")
+    expect(page.locator("#recheck-version")).to_have_count(0)
+    expect(page.locator("#versions tr.active")).to_have_attribute("data-version", str(versions))
+    assert cell.rig.native() == held
+
+    page.evaluate("sessionStorage.clear()")
+    sign_in_to(page, cell.server, f"/ui/tools/{cell.tool_id}", key=read_key)
+    expect(page.locator("#controller-state")).to_be_visible()
+    expect(page.locator("#recheck")).to_have_count(0)
