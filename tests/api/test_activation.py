@@ -9,9 +9,9 @@ import pytest
 from sqlalchemy import select
 
 from app.services.activation import rollback_stack
-from testbed.sim.touches import simulate_touches
-from tests.api.touches import as_poses, row_counts
+from tests.api.touches import row_counts
 from tests.conftest import Api
+from tests.publish.plant_changes import out_of_tolerance_version
 
 STATE = ("activations", "audit_events", "tcp_versions")
 
@@ -21,25 +21,12 @@ def _tool(api: Api) -> str:
     return str(api.tool(robot["id"], "torch", slot=3)["id"])
 
 
-def _out_of_tolerance(api: Api, tool_id: str) -> dict[str, Any]:
-    bad = simulate_touches(8, seed=2, touch_noise_mm=1.5)
-    response = api.post(
-        f"/v1/tools/{tool_id}/calibrations",
-        {"method": "xyz_npoint", "format": "xyz_wxyz", "poses": as_poses(bad)},
-        scope="calibrate",
-    )
-    assert response.status_code == 201, response.text
-    body: dict[str, Any] = response.json()
-    assert (body["status"], body["active"]) == ("out_of_tolerance", False)
-    return body
-
-
 def _issue_case(api: Api) -> str:
     """v2 accepted, v3 out_of_tolerance, v4 active (issue 24)."""
     tool_id = _tool(api)
     api.manual(tool_id, [0, 0, 150])
     api.manual(tool_id, [0, 0, 150.5])
-    assert _out_of_tolerance(api, tool_id)["version"] == 3
+    assert out_of_tolerance_version(api, tool_id) == 3
     assert api.manual(tool_id, [0, 0, 151])["active"] is True
     return tool_id
 

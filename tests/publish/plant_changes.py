@@ -1,5 +1,6 @@
 """Changes the plant must hear of, made through the API for the publisher tests (MQTT and
-OPC UA): a version stored out of tolerance and forced live with a reason."""
+OPC UA) and the activation tests: a version stored out of tolerance and forced live with a
+reason."""
 
 from __future__ import annotations
 
