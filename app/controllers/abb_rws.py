@@ -114,6 +114,9 @@ class AbbRwsConnector(ClosingSession):
             raise ValueError(
                 f"AbbRwsConnector speaks abb_rws1 and abb_rws2, not {settings.protocol}"
             )
+        #: the whole session's time budget, from here: TLS set-up, login, mastership, reads,
+        #: writes
+        self._deadline = Deadline(settings.timeout_s)
         self.protocol: str = settings.protocol
         self._settings = settings
         self._v2 = settings.protocol == "abb_rws2"
@@ -133,15 +136,14 @@ class AbbRwsConnector(ClosingSession):
             auth=auth,
             # The system's trust store (and SSL_CERT_FILE / SSL_CERT_DIR), where a plant puts
             # its controllers' certificates; not a bundle of public CAs.
-            verify=ssl.create_default_context() if settings.tls_verify else False,
+            # RWS 1.0 is plain HTTP: loading the trust store for it cost 0.08 s a session.
+            verify=ssl.create_default_context() if self._v2 and settings.tls_verify else False,
             timeout=settings.timeout_s,
             headers={"Accept": V2_JSON} if self._v2 else {},
             follow_redirects=False,
             trust_env=False,
         )
         self._base_url = f"{scheme}://{host}:{settings.port}"
-        #: the whole session's time budget, from here: login, mastership, reads, writes
-        self._deadline = Deadline(settings.timeout_s)
         self._logged_in = False
         #: edit mastership was asked for and not yet given back (it may have been granted
         #: even when the answer never came)

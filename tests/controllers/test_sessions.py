@@ -12,6 +12,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+import httpx
 import pytest
 
 from app.controllers import (
@@ -20,7 +21,10 @@ from app.controllers import (
     ControllerUnreachable,
     ToolData,
     ToolTarget,
+    abb_rws,
     connect,
+    fanuc_rmi,
+    kuka_kvp,
 )
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
@@ -28,6 +32,13 @@ from tests.controllers.fixtures import abb_settings, fanuc_settings, kuka_settin
 from tests.controllers.helpers import random_tool
 from tests.controllers.kuka_sim import KukaSimulator
 from tests.controllers.simbase import go_silent
+
+# Each connector's module is loaded here, as a server loads it once: its first import
+# (for ABB httpx, and httpcore and cryptography at its first client: 0.5 s here idle, over
+# 2 s with two suites beside) is the process's start-up, not an attempt's, and landed inside
+# the first ABB test's timing (2.7-2.8 s for a 0.5 s timeout).
+CONNECTORS = (kuka_kvp, fanuc_rmi, abb_rws)
+httpx.Client().close()
 
 TIMEOUT_S = 0.5
 V1_PATH = "/rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch"
@@ -151,3 +162,31 @@ def test_fanuc_asks_again_while_the_session_that_just_failed_is_being_freed() ->
         with pytest.raises(ControllerRefused, match="one client at a time"):
             connect(fanuc_settings(sim, timeout_s=2.0))
         assert time.monotonic() - started < 1.5
+
+
+@pytest.mark.parametrize("protocol", ["abb_rws1", "abb_rws2"])
+def test_setting_up_an_abb_session_is_inside_its_deadline(
+    protocol: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The deadline starts when the session is asked for, not after its HTTP client (and
+    for RWS 2.0 its TLS context, the trust store read) is built: a slow set-up (1.2 s
+    here) leaves less time for the controller, never more time in all."""
+    made = httpx.Client
+    set_up: list[float] = []
+
+    def slow_client(*args: Any, **kwargs: Any) -> Any:
+        started = time.monotonic()
+        time.sleep(1.2)
+        client = made(*args, **kwargs)
+        set_up.append(time.monotonic() - started)
+        return client
+
+    monkeypatch.setattr(httpx, "Client", slow_client)
+    with simulator(protocol, TIMEOUT_S) as (sim, settings):
+        sim.fault = go_silent("before", "login")
+        started = time.monotonic()
+        with pytest.raises(ControllerUnreachable, match=r"did not answer within 0\.5 s"):
+            deploy(settings, target_of(protocol), random_tool(5))
+        elapsed = time.monotonic() - started
+        # the deadline was spent in the set-up: the session ends at once, not timeout_s later
+        assert elapsed - set_up[0] < 0.3, (elapsed, set_up)
