@@ -240,6 +240,7 @@ def test_patch_of_one_tolerance_field_keeps_the_others(api: Api) -> None:
         "touch_noise_mm": None,
         "check_mm": 0.2,
         "max_change_mm": 5.0,  # the v1.1 default
+        "max_correction_mm": 2.0,  # the v1.3 default
     }
     assert patched["load"] == {"mass_kg": 2.5, "cog_mm": [0, 0, 50]}
 
