@@ -200,11 +200,12 @@ def _compact(document: JsonObject) -> bytes:
 
 @dataclass
 class Workers:
-    """Commands run in daemon threads, off paho's network thread (which must keep reading
-    the socket: a command waits for a controller for up to its timeout_s). Daemon threads,
-    so that a command under way never holds up the publisher's exit on SIGTERM: its answer
-    is then not sent, and the PLC, having no reply, sends the same request_id again to the
-    next publisher (the first answer, if it was kept, or the command run once)."""
+    """Commands run in worker threads, off paho's network thread (which must keep reading
+    the socket: a command waits for a controller for up to its timeout_s). Stopping does not
+    wait for a command under way, so that SIGTERM still ends the publisher within a second
+    (daemon threads; `tcpcal publish` leaves with os._exit): its answer is then not sent, and
+    the PLC, having no reply, sends the same request_id again to the next publisher (the
+    first answer, if it was kept, or the command run once)."""
 
     prefix: str
     send: Callable[[Reply], None]

@@ -329,11 +329,15 @@ class Commander:
             protocol=mqtt.MQTTv5,
         )
         self.client.on_message = self._on_message
+        self.client.on_connect = self._on_connect  # subscribed again after a broker restart
         self.client.on_subscribe = lambda *_: subscribed.set()
+        self.client.reconnect_delay_set(1, 1)
         self.client.connect("127.0.0.1", broker.port, keepalive=10)
         self.client.loop_start()
-        self.client.subscribe(f"{prefix}/replies/#", qos=1)
         assert subscribed.wait(10), "the test PLC was not subscribed"
+
+    def _on_connect(self, client: mqtt.Client, *_: Any) -> None:
+        client.subscribe(f"{self.prefix}/replies/#", qos=1)
 
     def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
         said = dict(getattr(message.properties, "UserProperty", None) or [])
