@@ -12,6 +12,7 @@ it prints is neither the flange nor in the robot's base frame (as tests/api/test
 from __future__ import annotations
 
 import itertools
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -23,7 +24,7 @@ from scipy.spatial.transform import Rotation
 
 from app.kinematics.poses import pose_from_format, pose_to_format
 from testbed.live_server import LiveServer, fresh_database, live_server
-from tests.api.controller_rigs import SLOT, Rig, rig
+from tests.api.controller_rigs import SLOT, TIMEOUT_S, Rig, rig
 from tests.browser.conftest import sign_in_to
 from tests.browser.test_console_tool_page import CUT_OFF
 
@@ -393,3 +394,40 @@ def test_the_fleet_and_tool_pages_say_which_tcp_the_robot_moves_by(
         body = {"method": "manual", "format": "kuka_abc", "poses": [list(gripper)]}
         http.post(f"/v1/tools/{other['id']}/calibrations", json=body).raise_for_status()
     seen(gripper, "moving by gripper v1, not torch", "gripper v1, not torch", "other_tool")
+
+
+def test_a_controller_that_does_not_answer_is_said_and_nothing_kept(
+    page: Page, cell: Cell, krc: Rig
+) -> None:
+    """Capture on a stalled KRC: the 502 with the server's words (what was tried, that nothing
+    was kept), within the connection's timeout_s + 1 s, and the session unchanged."""
+    tool = _torch(cell)
+    sign_in_to(page, cell.server, f"/ui/tools/{tool['id']}/calibrate")
+    page.click("#start")
+    krc.sim.stalled = True
+    try:
+        started = time.monotonic()
+        page.click("#capture")
+        problem = page.locator("#touch-problem")
+        expect(problem).to_contain_text("502")
+        took = time.monotonic() - started
+        expect(problem).to_contain_text("could not be reached within 1 s")
+        expect(problem).to_contain_text("nothing was kept")
+    finally:
+        krc.sim.stalled = False
+    assert took <= TIMEOUT_S + 1.0, took
+    expect(_touches(page)).to_have_count(0)
+    assert _session(cell, tool["id"])["n_poses"] == 0
+    expect(page.locator("#capture")).to_be_focused()  # press again once it answers
+
+
+def test_a_read_key_is_told_calibrating_needs_calibrate_scope(page: Page, cell: Cell) -> None:
+    tool = _torch(cell, controller=False)
+    with cell.server.client() as http:
+        made = http.post("/v1/keys", json={"name": f"reader-{next(_names)}", "scope": "read"})
+        made.raise_for_status()
+    sign_in_to(page, cell.server, f"/ui/tools/{tool['id']}", key=made.json()["key"])
+    expect(page.locator("#calibrate-link")).to_have_count(0)
+    page.goto(f"{cell.server.url}/ui/tools/{tool['id']}/calibrate")
+    expect(page.locator("#needs-calibrate")).to_contain_text("a key of calibrate scope")
+    expect(page.locator("#start")).to_have_count(0)
