@@ -138,8 +138,9 @@ def _check_and_correct(
     due = data.correct == "within_limits" and captured is not None and not result.within_tolerance
     if due and result.distance_mm > limits.max_correction_mm:
         result.verdict = "recalibrate"
+        due = False  # beyond the limit: nothing is solved, nothing changes
     solved = _solve_correction(session, measured, captured) if due else None
-    if solved is not None and result.verdict != "recalibrate":
+    if solved is not None:
         new_tcp = np.asarray(solved.result.tcp.position_mm, dtype=float)
         result.verdict = "corrected"
         result.correction = Correction(
