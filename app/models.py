@@ -235,7 +235,8 @@ class Activation(Base):
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
     version: Mapped[int] = mapped_column(Integer)
     previous_version: Mapped[int | None] = mapped_column(Integer)
-    #: the kind: "explicit", "forced", "rollback", "calibration:auto" | "calibration:always"
+    #: the kind: "explicit", "forced", "rollback", "calibration:auto" | "calibration:always",
+    #: "check_correction" (a re-check's correction)
     reason: Mapped[str] = mapped_column(String(40))
     #: the person's own words (activation or rollback body `reason`), when given
     reason_text: Mapped[str | None] = mapped_column(String(500))

@@ -150,7 +150,8 @@ class ActivationOut(BaseModel):
     previous_version: int | None
     reason: str = Field(
         description="the kind of activation: explicit, forced (an out-of-tolerance version, "
-        "with force), rollback, calibration:auto or calibration:always"
+        "with force), rollback, calibration:auto, calibration:always or check_correction (a "
+        "re-check corrected the TCP from one touch)"
     )
     reason_text: str | None = Field(
         default=None, description="the reason the person gave (the request's `reason`), if any"
