@@ -42,12 +42,14 @@ def _reading(rotation: np.ndarray, position: np.ndarray, **printed: str) -> Pose
 
 class FakeController:
     """Stands for a controller: each session reads `pose` (or fails with `error`); `drift`
-    moves the flange along x by that many mm between one read and the next."""
+    moves the flange along x by that many mm between one read and the next, `turn_deg`
+    turns it that many degrees about its own z, its origin staying put."""
 
     def __init__(self) -> None:
         self.pose = _reading(TOUCHES.R[0], TOUCHES.f[0])
         self.error: Exception | None = None
         self.drift_mm = 0.0
+        self.turn_deg = 0.0
         self.read_times: list[float] = []
         self.sessions = 0
 
@@ -73,6 +75,14 @@ class Connection(ClosingSession):
             x, y, z = c.pose.flange.position_mm
             moved = Frame((x + c.drift_mm, y, z), c.pose.flange.quaternion)
             c.pose = PoseReading(moved, c.pose.joints_deg, c.pose.live_tool, c.pose.readings)
+        if c.turn_deg:
+            w, x, y, z = c.pose.flange.quaternion
+            turned = Rotation.from_quat([x, y, z, w]) * Rotation.from_euler(
+                "z", c.turn_deg, degrees=True
+            )
+            tx, ty, tz, tw = (float(v) for v in turned.as_quat())
+            frame = Frame(c.pose.flange.position_mm, (tw, tx, ty, tz))
+            c.pose = PoseReading(frame, c.pose.joints_deg, c.pose.live_tool, c.pose.readings)
         return reading
 
     def close(self) -> None:
@@ -156,6 +166,27 @@ def test_a_moving_robot_is_409_saying_by_how_much_and_the_session_keeps_nothing(
     pose = api.get(f"/v1/robots/{tool['robot_id']}/controller/pose", scope="calibrate")
     assert pose.status_code == 409
     controller.drift_mm = 0.009  # within 0.01 mm: still
+    assert _capture(api, sid).status_code == 200
+
+
+def test_a_flange_turning_in_place_is_moving_too(
+    api: Api, tool: dict[str, Any], controller: FakeController
+) -> None:
+    """The flange's origin stays put while it turns (a wrist still rotating about the flange
+    axis): 0.02 deg moves a TCP 165 mm out by 0.06 mm, so the angle alone refuses it."""
+    sid = _session(api, tool["id"])
+    counts = row_counts(("audit_events", "guided_sessions"))
+    controller.turn_deg = 0.02
+    turning = _capture(api, sid)
+    assert turning.status_code == 409, turning.text
+    problem = turning.json()
+    assert problem["type"].endswith("/robot-moving")
+    assert problem["moved_mm"] == pytest.approx(0.0, abs=1e-9)
+    assert problem["moved_deg"] == pytest.approx(0.02, abs=1e-9)
+    assert "0.0200 deg" in problem["detail"]
+    assert api.get(f"/v1/sessions/{sid}").json()["n_poses"] == 0
+    assert row_counts(("audit_events", "guided_sessions")) == counts
+    controller.turn_deg = 0.009  # within 0.01 deg: still
     assert _capture(api, sid).status_code == 200
 
 
