@@ -188,6 +188,43 @@ def test_corrections_are_versions_of_the_drift_trend_and_frequent_ones_are_flagg
     np.testing.assert_allclose(rate, MOVED * 30.44, rtol=0.01)
 
 
+def test_only_corrections_of_the_last_30_days_count_toward_frequent_corrections(
+    api: Api, kuka: Cell
+) -> None:
+    """Four corrections, the first activated 31 days ago: three in 30 days is not more than
+    TCPCAL_CORRECTIONS_ALERT (3), so the tool is not flagged; the first moved back to 29
+    days ago makes four, and it is."""
+    from sqlalchemy import update
+
+    from app.db import get_engine
+    from app.models import Activation
+
+    tool, point_id = tool_at_reference(api, kuka.rig)
+    for hit in range(1, 5):
+        stand_at_reference(kuka, np.asarray(ACTIVE_POSITION) + hit * MOVED)
+        done = recheck(api, tool["id"], point_id, deploy=False)
+        assert done.json()["verdict"] == "corrected", done.text
+    assert "frequent_corrections" in _row(api, tool["id"])["attention"]
+
+    def first_correction_activated(days_ago: int) -> None:
+        with get_engine().begin() as conn:
+            moved = conn.execute(
+                update(Activation)
+                .where(
+                    Activation.tool_id == tool["id"],
+                    Activation.reason == "check_correction",
+                    Activation.version == 2,
+                )
+                .values(activated_at=utcnow() - timedelta(days=days_ago))
+            )
+            assert moved.rowcount == 1
+
+    first_correction_activated(31)
+    assert "frequent_corrections" not in _row(api, tool["id"])["attention"]
+    first_correction_activated(29)
+    assert "frequent_corrections" in _row(api, tool["id"])["attention"]
+
+
 def test_alert_threshold_is_read_from_the_environment(
     api: Api, kuka: Cell, monkeypatch: pytest.MonkeyPatch
 ) -> None:
