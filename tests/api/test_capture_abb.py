@@ -19,6 +19,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from testbed.sim.touches import simulate_touches
+from tests.api.capture_steps import finish, guided_session, tool_on
 from tests.api.controller_rigs import SYMBOL, TIMEOUT_S, Rig, rig, rotation_of
 from tests.conftest import Api
 from tests.controllers.abb_sim import AbbRwsSimulator
@@ -64,28 +65,6 @@ def controller(request: pytest.FixtureRequest) -> Iterator[Rig]:
         yield r
 
 
-def _tool(api: Api, r: Rig) -> dict[str, Any]:
-    robot = api.robot("irb2600")
-    put = api.request(
-        "PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=r.controller_body()
-    )
-    assert put.status_code == 200, put.text
-    return api.tool(robot["id"], "torch", **r.tool_fields)
-
-
-def _session(api: Api, tool_id: str) -> str:
-    body = {"method": "xyz_npoint", "format": "xyz_wxyz"}
-    created = api.post(f"/v1/tools/{tool_id}/sessions", body, scope="calibrate")
-    assert created.status_code == 201, created.text
-    return str(created.json()["id"])
-
-
-def _finish(api: Api, sid: str) -> dict[str, Any]:
-    done = api.post(f"/v1/sessions/{sid}/finish", {"activate": "never"}, scope="calibrate")
-    assert done.status_code == 201, done.text
-    return dict(done.json())
-
-
 def _item(body: dict[str, Any]) -> dict[str, str]:
     """The one state item of an answer (RWS 1.0 ``_embedded._state``, 2.0 ``state``)."""
     states = body["state"] if "state" in body else body["_embedded"]["_state"]
@@ -111,8 +90,8 @@ def _place(sim: AbbRwsSimulator, rotation: np.ndarray, position: np.ndarray) -> 
 def test_captured_touches_are_the_flanges_the_robot_stood_at_and_keep_what_rws_answered(
     api: Api, controller: Rig
 ) -> None:
-    tool = _tool(api, controller)
-    sid = _session(api, tool["id"])
+    tool = tool_on(api, controller, "irb2600")
+    sid = guided_session(api, tool["id"], "xyz_wxyz")
     touches = simulate_touches(8, seed=39, touch_noise_mm=0.0, tcp_mm=TRUE_TCP, pivot_mm=POINT)
     printed = []
     for rotation, flange in zip(touches.R, touches.f, strict=True):
@@ -134,26 +113,26 @@ def test_captured_touches_are_the_flanges_the_robot_stood_at_and_keep_what_rws_a
     assert [t["source"] for t in state["touches"]] == ["controller"] * 8
     assert [t["readings"] for t in state["touches"]] == printed
 
-    captured = _finish(api, sid)
+    captured = finish(api, sid)
     assert np.linalg.norm(np.subtract(captured["tcp"]["position_mm"], TRUE_TCP)) <= 0.01
     detail = api.get(f"/v1/calibrations/{captured['id']}").json()
     assert [t["readings"] for t in detail["touches"]] == printed, "the calibration keeps them"
     assert detail["request"]["poses"] == state["poses"]
 
-    typed = _session(api, tool["id"])
+    typed = guided_session(api, tool["id"], "xyz_wxyz")
     for pose in state["poses"]:
         added = api.post(f"/v1/sessions/{typed}/poses", {"pose": pose}, scope="calibrate")
         assert added.status_code == 200, added.text
     assert [t["source"] for t in added.json()["touches"]] == ["typed"] * 8
     np.testing.assert_allclose(
-        _finish(api, typed)["tcp"]["position_mm"], captured["tcp"]["position_mm"], atol=1e-9
+        finish(api, typed)["tcp"]["position_mm"], captured["tcp"]["position_mm"], atol=1e-9
     )
 
 
 def test_the_pose_read_gives_the_joints_and_no_live_tool(api: Api, controller: Rig) -> None:
     """RWS says where the flange is and the joint angles, not which tooldata a program
     moves by: the live tool is null, with no matches."""
-    tool = _tool(api, controller)
+    tool = tool_on(api, controller, "irb2600")
     flange = (1104.25, -431.5, 622.75)
     turned = Rotation.from_euler("ZYX", [-140.0, 62.0, 178.0], degrees=True)
     _place(controller.sim, turned.as_matrix(), np.asarray(flange))
@@ -178,8 +157,8 @@ def test_a_controller_silent_at_the_second_read_is_502_within_its_timeout(
     """The capture's first read is answered, the second is not: the 502 comes within
     timeout_s + 1 s, the logout the connector then tries included, and the session keeps
     nothing."""
-    tool = _tool(api, controller)
-    sid = _session(api, tool["id"])
+    tool = tool_on(api, controller, "irb2600")
+    sid = guided_session(api, tool["id"], "xyz_wxyz")
     before = api.get(f"/v1/sessions/{sid}").json()
     controller.sim.fault = go_silent(
         "before", "GET /rw/motionsystem/mechunits/ROB_1/robtarget", nth=2

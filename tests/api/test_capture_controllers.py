@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
-from typing import Any
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from testbed.sim.touches import simulate_touches
+from tests.api.capture_steps import finish, guided_session, tool_on
 from tests.api.controller_rigs import SLOT, SYMBOL, TIMEOUT_S, Rig, rig
 from tests.api.touches import row_counts
 from tests.conftest import Api
@@ -116,33 +116,12 @@ def secret_key(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     get_settings.cache_clear()
 
 
-def _tool(api: Api, r: Rig, **controller: Any) -> dict[str, Any]:
-    robot = api.robot()
-    body = r.controller_body(**controller)
-    put = api.request("PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=body)
-    assert put.status_code == 200, put.text
-    return api.tool(robot["id"], **r.tool_fields)
-
-
-def _session(api: Api, tool_id: str) -> str:
-    body = {"method": "xyz_npoint", "format": "kuka_abc", "options": {"touch_noise_mm": 0.01}}
-    created = api.post(f"/v1/tools/{tool_id}/sessions", body, scope="calibrate")
-    assert created.status_code == 201, created.text
-    return str(created.json()["id"])
-
-
-def _finish(api: Api, sid: str) -> np.ndarray:
-    done = api.post(f"/v1/sessions/{sid}/finish", {"activate": "never"}, scope="calibrate")
-    assert done.status_code == 201, done.text
-    return np.asarray(done.json()["tcp"]["position_mm"])
-
-
 def test_eight_captured_touches_calibrate_the_tool_and_equal_the_same_poses_typed(
     api: Api, cell: Cell
 ) -> None:
     r, place = cell.rig, cell.place
-    tool = _tool(api, r)
-    captured = _session(api, tool["id"])
+    tool = tool_on(api, r)
+    captured = guided_session(api, tool["id"], "kuka_abc", touch_noise_mm=0.01)
     for rotation, position in zip(TOUCHES.R, TOUCHES.f, strict=True):
         place(rotation, position)
         added = api.post(f"/v1/sessions/{captured}/poses", {"capture": True}, scope="calibrate")
@@ -150,17 +129,18 @@ def test_eight_captured_touches_calibrate_the_tool_and_equal_the_same_poses_type
     state = api.get(f"/v1/sessions/{captured}").json()
     assert [t["source"] for t in state["touches"]] == ["controller"] * 8
     assert all(t["readings"] for t in state["touches"])
-    tcp_captured = _finish(api, captured)
+    tcp_captured = np.asarray(finish(api, captured)["tcp"]["position_mm"])
     assert np.linalg.norm(tcp_captured - TRUE_TCP) < 0.01, tcp_captured
-    typed = _session(api, tool["id"])
+    typed = guided_session(api, tool["id"], "kuka_abc", touch_noise_mm=0.01)
     for pose in state["poses"]:
-        api.post(f"/v1/sessions/{typed}/poses", {"pose": pose}, scope="calibrate")
-    assert np.linalg.norm(_finish(api, typed) - tcp_captured) < 1e-9
+        added = api.post(f"/v1/sessions/{typed}/poses", {"pose": pose}, scope="calibrate")
+        assert added.status_code == 200, added.text
+    assert np.linalg.norm(finish(api, typed)["tcp"]["position_mm"] - tcp_captured) < 1e-9
 
 
 def test_the_pose_read_is_the_flange_in_the_robots_base_frame(api: Api, cell: Cell) -> None:
     r, place = cell.rig, cell.place
-    tool = _tool(api, r)
+    tool = tool_on(api, r)
     place(TOUCHES.R[3], TOUCHES.f[3])
     read = api.get(f"/v1/robots/{tool['robot_id']}/controller/pose", scope="calibrate")
     assert read.status_code == 200, read.text
@@ -174,8 +154,8 @@ def test_the_pose_read_is_the_flange_in_the_robots_base_frame(api: Api, cell: Ce
 
 def test_a_moving_robot_is_refused_and_the_session_is_unchanged(api: Api, cell: Cell) -> None:
     r, place = cell.rig, cell.place
-    tool = _tool(api, r)
-    sid = _session(api, tool["id"])
+    tool = tool_on(api, r)
+    sid = guided_session(api, tool["id"], "kuka_abc", touch_noise_mm=0.01)
     place(TOUCHES.R[0], TOUCHES.f[0])
     assert api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate").is_success
     before = api.get(f"/v1/sessions/{sid}").json()
@@ -194,8 +174,8 @@ def test_an_unreachable_controller_is_502_within_its_timeout(
     api: Api, cell: Cell, fault: str
 ) -> None:
     r = cell.rig
-    tool = _tool(api, r)
-    sid = _session(api, tool["id"])
+    tool = tool_on(api, r)
+    sid = guided_session(api, tool["id"], "kuka_abc", touch_noise_mm=0.01)
     before = api.get(f"/v1/sessions/{sid}").json()
     if fault == "stopped":
         r.sim.stop()
@@ -212,7 +192,7 @@ def test_an_unreachable_controller_is_502_within_its_timeout(
 
 def test_a_kuka_in_external_tcp_mode_is_refused_naming_it(api: Api) -> None:
     with rig("kuka_kvp") as r:
-        tool = _tool(api, r)
+        tool = tool_on(api, r)
         r.sim.ipo_mode = "#TCP"
         refused = api.get(f"/v1/robots/{tool['robot_id']}/controller/pose", scope="calibrate")
     assert refused.status_code == 502, refused.text
@@ -226,8 +206,8 @@ def test_the_whole_capture_keeps_to_the_controllers_timeout(api: Api) -> None:
     twice it, and keeps nothing."""
     with rig("fanuc_rmi") as r:
         cell = FanucCell(r)
-        tool = _tool(api, r)
-        sid = _session(api, tool["id"])
+        tool = tool_on(api, r)
+        sid = guided_session(api, tool["id"], "kuka_abc", touch_noise_mm=0.01)
         cell.place(TOUCHES.R[0], TOUCHES.f[0])
         r.sim.reply_delay_s = 0.15
         started = time.monotonic()
@@ -243,7 +223,7 @@ def test_a_refused_password_says_which_user_and_where_to_set_it(api: Api) -> Non
     """As a deployment's 502 does: the user the controller refused and the request that
     sets the password it accepts, not only the controller's HTTP 401."""
     with rig("abb_rws1") as r:
-        tool = _tool(api, r, password="not-the-password")
+        tool = tool_on(api, r, password="not-the-password")
         refused = api.get(f"/v1/robots/{tool['robot_id']}/controller/pose", scope="calibrate")
     assert refused.status_code == 502, refused.text
     assert refused.json()["type"].endswith("/controller-refused")
@@ -255,7 +235,7 @@ def test_a_refused_password_says_which_user_and_where_to_set_it(api: Api) -> Non
 
 def test_a_captured_check_touches_the_point_the_flange_stands_at(api: Api, cell: Cell) -> None:
     r = cell.rig
-    tool = _tool(api, r)
+    tool = tool_on(api, r)
     api.manual(tool["id"], [float(v) for v in TRUE_TCP])
     moved_mm = 0.4
     point = api.post(

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from typing import Any
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from testbed.sim.touches import simulate_touches
+from tests.api.capture_steps import finish, guided_session, tool_on
 from tests.api.controller_rigs import Rig, fanuc_rotation, rig, rotation_of
 from tests.conftest import Api
 from tests.controllers.fanuc_sim import FanucSimulator
@@ -48,28 +48,6 @@ def controller() -> Iterator[Rig]:
         yield r
 
 
-def _tool(api: Api, r: Rig) -> dict[str, Any]:
-    robot = api.robot("m20")
-    put = api.request(
-        "PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=r.controller_body()
-    )
-    assert put.status_code == 200, put.text
-    return api.tool(robot["id"], "torch", **r.tool_fields)
-
-
-def _session(api: Api, tool_id: str) -> str:
-    body = {"method": "xyz_npoint", "format": "fanuc_wpr"}
-    created = api.post(f"/v1/tools/{tool_id}/sessions", body, scope="calibrate")
-    assert created.status_code == 201, created.text
-    return str(created.json()["id"])
-
-
-def _finish(api: Api, sid: str) -> dict[str, Any]:
-    done = api.post(f"/v1/sessions/{sid}/finish", {"activate": "never"}, scope="calibrate")
-    assert done.status_code == 201, done.text
-    return dict(done.json())
-
-
 def _printed(sim: FanucSimulator) -> dict[str, str]:
     """The last reply line the controller sent to each pose read."""
     last: dict[str, str] = {}
@@ -83,8 +61,8 @@ def _printed(sim: FanucSimulator) -> dict[str, str]:
 def test_captured_touches_are_the_flanges_the_robot_stood_at_and_keep_what_it_sent(
     api: Api, controller: Rig
 ) -> None:
-    tool = _tool(api, controller)
-    sid = _session(api, tool["id"])
+    tool = tool_on(api, controller, "m20")
+    sid = guided_session(api, tool["id"], "fanuc_wpr")
     touches = simulate_touches(8, seed=39, touch_noise_mm=0.0, tcp_mm=TRUE_TCP, pivot_mm=POINT)
     printed = []
     for rotation, flange in zip(touches.R, touches.f, strict=True):
@@ -106,26 +84,26 @@ def test_captured_touches_are_the_flanges_the_robot_stood_at_and_keep_what_it_se
     assert [t["source"] for t in state["touches"]] == ["controller"] * 8
     assert [t["readings"] for t in state["touches"]] == printed
 
-    captured = _finish(api, sid)
+    captured = finish(api, sid)
     assert np.linalg.norm(np.subtract(captured["tcp"]["position_mm"], TRUE_TCP)) <= 0.01
     detail = api.get(f"/v1/calibrations/{captured['id']}").json()
     assert [t["readings"] for t in detail["touches"]] == printed, "the calibration keeps them"
     assert detail["request"]["poses"] == state["poses"]
 
-    typed = _session(api, tool["id"])
+    typed = guided_session(api, tool["id"], "fanuc_wpr")
     for pose in state["poses"]:
         added = api.post(f"/v1/sessions/{typed}/poses", {"pose": pose}, scope="calibrate")
         assert added.status_code == 200, added.text
     assert [t["source"] for t in added.json()["touches"]] == ["typed"] * 8
     np.testing.assert_allclose(
-        _finish(api, typed)["tcp"]["position_mm"], captured["tcp"]["position_mm"], atol=1e-9
+        finish(api, typed)["tcp"]["position_mm"], captured["tcp"]["position_mm"], atol=1e-9
     )
 
 
 def test_the_pose_read_names_the_utool_the_robot_moves_by_and_its_joints(
     api: Api, controller: Rig
 ) -> None:
-    tool = _tool(api, controller)
+    tool = tool_on(api, controller, "m20")
     controller.sim.jog_flange(1104.25, -431.5, 622.75, -140.0, 62.0, 178.0)
     controller.sim.set_joints(-35.5, -70.25, 101.0, 12.0, 48.5, -210.0)
     read = api.get(

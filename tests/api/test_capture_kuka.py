@@ -9,13 +9,13 @@ printed at it, in the session and in the calibration it becomes."""
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Any
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from testbed.sim.touches import simulate_touches
+from tests.api.capture_steps import finish, guided_session, tool_on
 from tests.api.controller_rigs import Rig, kuka_rotation, rig, rotation_of
 from tests.conftest import Api
 from tests.controllers.kuka_sim import KukaSimulator
@@ -41,28 +41,6 @@ def krc() -> Iterator[Rig]:
         yield r
 
 
-def _tool(api: Api, r: Rig) -> dict[str, Any]:
-    robot = api.robot("kr16")
-    put = api.request(
-        "PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=r.controller_body()
-    )
-    assert put.status_code == 200, put.text
-    return api.tool(robot["id"], "torch", **r.tool_fields)
-
-
-def _session(api: Api, tool_id: str) -> str:
-    body = {"method": "xyz_npoint", "format": "kuka_abc"}
-    created = api.post(f"/v1/tools/{tool_id}/sessions", body, scope="calibrate")
-    assert created.status_code == 201, created.text
-    return str(created.json()["id"])
-
-
-def _finish(api: Api, sid: str) -> dict[str, Any]:
-    done = api.post(f"/v1/sessions/{sid}/finish", {"activate": "never"}, scope="calibrate")
-    assert done.status_code == 201, done.text
-    return dict(done.json())
-
-
 def _printed(sim: KukaSimulator) -> dict[str, str]:
     shown = {name: sim.show_var(name) for name in VARIABLES}
     return {name: text for name, text in shown.items() if text is not None}
@@ -71,8 +49,8 @@ def _printed(sim: KukaSimulator) -> dict[str, str]:
 def test_captured_touches_are_the_flanges_the_krc_stood_at_and_keep_what_it_printed(
     api: Api, krc: Rig
 ) -> None:
-    tool = _tool(api, krc)
-    sid = _session(api, tool["id"])
+    tool = tool_on(api, krc, "kr16")
+    sid = guided_session(api, tool["id"], "kuka_abc")
     touches = simulate_touches(8, seed=39, touch_noise_mm=0.0, tcp_mm=TRUE_TCP, pivot_mm=POINT)
     printed = []
     for rotation, flange in zip(touches.R, touches.f, strict=True):
@@ -97,24 +75,24 @@ def test_captured_touches_are_the_flanges_the_krc_stood_at_and_keep_what_it_prin
     assert [t["source"] for t in state["touches"]] == ["controller"] * 8
     assert [t["readings"] for t in state["touches"]] == printed
 
-    captured = _finish(api, sid)
+    captured = finish(api, sid)
     assert np.linalg.norm(np.subtract(captured["tcp"]["position_mm"], TRUE_TCP)) <= 0.01
     detail = api.get(f"/v1/calibrations/{captured['id']}").json()
     assert [t["readings"] for t in detail["touches"]] == printed, "the calibration keeps them"
     assert detail["request"]["poses"] == state["poses"]
 
-    typed = _session(api, tool["id"])
+    typed = guided_session(api, tool["id"], "kuka_abc")
     for pose in state["poses"]:
         added = api.post(f"/v1/sessions/{typed}/poses", {"pose": pose}, scope="calibrate")
         assert added.status_code == 200, added.text
     assert [t["source"] for t in added.json()["touches"]] == ["typed"] * 8
     np.testing.assert_allclose(
-        _finish(api, typed)["tcp"]["position_mm"], captured["tcp"]["position_mm"], atol=1e-9
+        finish(api, typed)["tcp"]["position_mm"], captured["tcp"]["position_mm"], atol=1e-9
     )
 
 
 def test_the_pose_read_names_the_tool_the_krc_moves_by_and_its_joints(api: Api, krc: Rig) -> None:
-    tool = _tool(api, krc)
+    tool = tool_on(api, krc, "kr16")
     krc.sim.jog_flange(1104.25, -431.5, 622.75, -140.0, 62.0, 178.0)
     krc.sim.set_joints(-35.5, -70.25, 101.0, 12.0, 48.5, -210.0)
     read = api.get(
@@ -137,8 +115,8 @@ def test_the_pose_read_names_the_tool_the_krc_moves_by_and_its_joints(api: Api, 
 def test_external_tcp_mode_is_refused_saying_what_to_do_and_nothing_is_kept(
     api: Api, krc: Rig
 ) -> None:
-    tool = _tool(api, krc)
-    sid = _session(api, tool["id"])
+    tool = tool_on(api, krc, "kr16")
+    sid = guided_session(api, tool["id"], "kuka_abc")
     before = api.get(f"/v1/sessions/{sid}").json()
     krc.sim.ipo_mode = "#TCP"
     refused = api.post(f"/v1/sessions/{sid}/poses", {"capture": True}, scope="calibrate")
