@@ -170,6 +170,30 @@ def test_an_unknown_frame_is_blamed_on_the_tool_in_the_live_slot(api: Api) -> No
         assert "moving_by_stale_version" not in rows["t1"]["attention"]
 
 
+def test_every_version_equal_to_the_live_frame_is_named(api: Api) -> None:
+    """v3 is v1's frame again (a rollback calibrated anew): the robot moving by it moves by
+    both, and LiveTool.matches names both, v1 inactive and v3 active; the fleet row is
+    `active` at v3, not `stale_version` at v1."""
+    with rig("kuka_kvp") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id, tool_id = ids["robot"]["id"], ids["tool"]["id"]
+        _calibrate(api, tool_id, PREVIOUS_POSITION, PREVIOUS_Q)  # v3 = v1, active
+        r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)
+        r.sim.select_tool(SLOT)
+        live = _reconcile(api, robot_id)["live_tool"]
+        assert live["matches"] == [
+            {"tool_id": tool_id, "version": 1, "active": False},
+            {"tool_id": tool_id, "version": 3, "active": True},
+        ]
+        pose = api.get(f"/v1/robots/{robot_id}/controller/pose", scope="calibrate")
+        assert pose.status_code == 200, pose.text
+        assert pose.json()["live_tool"]["matches"] == live["matches"]
+        row = _rows(api, robot_id)["t1"]
+        assert (row["live"]["state"], row["live"]["version"]) == ("active", 3)
+        assert row["attention"] == []
+        assert _live_events(robot_id)[-1]["matches"] == live["matches"]
+
+
 @pytest.mark.parametrize("protocol", ["abb_rws1", "abb_rws2"])
 def test_abb_is_unread(api: Api, protocol: str) -> None:
     with rig(protocol) as r:
