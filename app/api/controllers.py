@@ -17,9 +17,6 @@ from app.services import capture, controllers, reconcile
 
 router = APIRouter(tags=["controllers"])
 
-#: What a read of the robot's pose may answer besides 200 (GET .../controller/pose, and the
-#: captured touches of sessions and checks).
-
 
 @router.put("/v1/robots/{robot_id}/controller", response_model=Controller)
 def put_controller(
