@@ -47,19 +47,6 @@ TABLES = (
 
 
 @pytest.fixture
-def prefix() -> str:
-    return f"t{uuid.uuid4().hex[:8]}"
-
-
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Broker]:
-    b = Broker(tmp_path)
-    b.start()
-    yield b
-    b.stop()
-
-
-@pytest.fixture
 def kuka() -> Iterator[Cell]:
     with rig("kuka_kvp") as r:
         yield SETUPS["kuka_kvp"](r)
