@@ -408,17 +408,18 @@ def test_robots_and_tools_appear_and_disappear_with_the_database(api: Api, db: D
         _until(lambda: (tree() or {})["r-second"]["gripper"]["ActiveVersion"] == 1)
         assert (tree() or {})["r-second"]["gripper"]["PositionMm"] == [0, 0, 99.5]
 
-        # A rename or an archive rebuilds or drops a subtree: docs/publishing.md promises the
-        # values within a second, and the nodes as they change; 2 s here (a rename took
-        # 0.2-0.3 s on an idle machine and once 1.1 s with eight suites running beside it).
+        # A rename or an archive rebuilds or drops a subtree, seen within the second
+        # docs/publishing.md promises for the values (the server's side alone is held by
+        # test_opcua_parts.py: 2.3 s for a robot of ten tools before deletes stopped scanning
+        # the whole address space; 2 s here hid it).
         renamed = api.patch(f"/v1/robots/{second['id']}", {"name": "r-second-b"})
         assert renamed.status_code == 200, renamed.text
-        _until(lambda: set(tree() or {}) == {"r-first", "r-second-b"}, 2.0)
+        _until(lambda: set(tree() or {}) == {"r-first", "r-second-b"})
 
         assert api.delete(f"/v1/tools/{tool['id']}").status_code == 204
-        _until(lambda: (tree() or {}).get("r-second-b") == {}, 2.0)
+        _until(lambda: (tree() or {}).get("r-second-b") == {})
         assert api.delete(f"/v1/robots/{first['id']}").status_code == 204
-        _until(lambda: set(tree() or {}) == {"r-second-b"}, 2.0)
+        _until(lambda: set(tree() or {}) == {"r-second-b"})
 
 
 @one_backend
