@@ -122,16 +122,6 @@ class CheckCreate(StrictModel):
     @model_validator(mode="after")
     def _typed_or_captured(self) -> CheckCreate:
         typed = self.format is not None and self.poses is not None
-        if self.capture is None and self.correct != "never":
-            raise ValueError(
-                '"correct": "within_limits" corrects from one touch read from the controller: '
-                'send "capture": true in place of format and poses'
-            )
-        if self.deploy is not None and self.correct == "never":
-            raise ValueError(
-                '"deploy" applies to a correction: send "correct": "within_limits" with it, '
-                "or leave deploy out"
-            )
         if self.capture is not None:
             if self.format is not None or self.poses is not None or self.units is not None:
                 raise ValueError(

@@ -29,7 +29,7 @@ from sqlalchemy.orm import Session
 
 from app.auth import Principal, act_for
 from app.db import session_scope
-from app.errors import ControllerUnreachableError
+from app.errors import ControllerUnreachableError, InvalidInput
 from app.helpers.tolerance import effective_tolerance
 from app.methods.reference import XyzReferenceCalibration
 from app.schemas.references import CheckCreate, CheckResult, Correction
@@ -57,6 +57,7 @@ def recheck(
 ) -> Rechecked:
     """POST /v1/tools/{tool_id}/checks (and the MQTT command, and the CLI): check, and
     correct and deploy when asked; the first answer again for a repeated Idempotency-Key."""
+    _check_options(data)
     fingerprint = idempotency.request_fingerprint(
         f"check:{tool_id}", data.model_dump(mode="json", exclude_unset=True)
     )
@@ -83,6 +84,27 @@ def recheck(
     if result.correction is not None and _deploys(data):
         result = _deploy(result, actor=actor, reason=data.reason, keyed=keyed)
     return Rechecked(result, replayed=False)
+
+
+def _check_options(data: CheckCreate) -> None:
+    """422 /invalid-options for `correct` without a captured touch, or `deploy` without a
+    correction. Checked here, not by the request model: the OpenAPI schema states which of
+    typed and captured a check is (oneOf), not these pairings, and a schema-valid request is
+    refused for its meaning, by a domain problem, not as a malformed one (/validation)."""
+    if data.capture is None and data.correct != "never":
+        raise InvalidInput(
+            "invalid-options",
+            '"correct": "within_limits" corrects from one touch read from the controller: '
+            'send "capture": true in place of format and poses',
+            loc=("body", "correct"),
+        )
+    if data.deploy is not None and data.correct == "never":
+        raise InvalidInput(
+            "invalid-options",
+            '"deploy" applies to a correction: send "correct": "within_limits" with it, '
+            "or leave deploy out",
+            loc=("body", "deploy"),
+        )
 
 
 def _deploys(data: CheckCreate) -> bool:

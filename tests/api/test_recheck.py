@@ -273,6 +273,9 @@ def test_a_correction_beyond_the_limit_keeps_check_failed(api: Api, kuka: Cell) 
 def test_a_correction_asked_of_typed_touches_or_malformed_is_422(
     api: Api, kuka: Cell, extra: dict[str, Any], words: str
 ) -> None:
+    # A pairing the schema allows (typed touches with correct or deploy) is refused for its
+    # meaning, /invalid-options naming the field; a value the schema refuses is /validation
+    # (the contract test holds that a schema-valid request never meets /validation).
     tool, point_id = tool_at_reference(api, kuka.rig)
     body = {
         "reference_point_id": point_id,
@@ -283,7 +286,13 @@ def test_a_correction_asked_of_typed_touches_or_malformed_is_422(
     counts = row_counts(TABLES)
     refused = api.post(f"/v1/tools/{tool['id']}/checks", body, scope="calibrate")
     assert refused.status_code == 422, refused.text
-    assert words in refused.json()["detail"]
+    problem = refused.json()
+    assert words in problem["detail"]
+    pairing = set(extra) <= {"correct", "deploy"} and extra.get("correct") != "always"
+    expected = "/invalid-options" if pairing else "/validation"
+    assert problem["type"].endswith(expected), problem
+    if pairing:
+        assert problem["errors"][0]["loc"] == ["body", next(iter(extra))], problem
     assert row_counts(TABLES) == counts
 
 
