@@ -12,7 +12,7 @@ from app.api.shared import page
 from app.deps import AdminKey, SessionDep
 from app.helpers.pagination import DEFAULT_LIMIT
 from app.schemas.audit import AuditEvent
-from app.schemas.common import ID_PATTERN, Page
+from app.schemas.common import ID_PATTERN, NO_CONTROL_PATTERN, Page
 from app.services import trail
 
 router = APIRouter(tags=["audit"])
@@ -30,10 +30,17 @@ def list_audit(
     tool_id: Annotated[str | None, Query(pattern=ID_PATTERN)] = None,
     robot_id: Annotated[str | None, Query(pattern=ID_PATTERN)] = None,
     action: Annotated[
-        str | None, Query(min_length=1, max_length=60, description="e.g. version.activate")
+        str | None,
+        Query(
+            min_length=1,
+            max_length=60,
+            pattern=NO_CONTROL_PATTERN,
+            description="e.g. version.activate",
+        ),
     ] = None,
     actor: Annotated[
-        str | None, Query(min_length=1, max_length=200, description="key name")
+        str | None,
+        Query(min_length=1, max_length=200, pattern=NO_CONTROL_PATTERN, description="key name"),
     ] = None,
     since: Annotated[Moment, Query(description="events at or after this time")] = None,
     until: Annotated[Moment, Query(description="events before this time")] = None,

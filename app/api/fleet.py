@@ -11,7 +11,7 @@ from app.api.params import Cursor, Limit, PathId
 from app.api.shared import page
 from app.deps import ReadKey, SessionDep
 from app.helpers.pagination import DEFAULT_LIMIT, MAX_LIMIT
-from app.schemas.common import ID_PATTERN, Page
+from app.schemas.common import ID_PATTERN, NO_CONTROL_PATTERN, Page
 from app.schemas.drift import ToolDrift
 from app.schemas.fleet import CalibrationStatus, CheckRecord, FleetTool
 from app.services import drift, fleet
@@ -38,10 +38,18 @@ def list_fleet(
     request: Request,
     session: SessionDep,
     key: ReadKey,
-    cell: Annotated[str | None, Query(max_length=200, description="the robots' cell")] = None,
+    cell: Annotated[
+        str | None,
+        Query(max_length=200, pattern=NO_CONTROL_PATTERN, description="the robots' cell"),
+    ] = None,
     robot_id: Annotated[str | None, Query(pattern=ID_PATTERN)] = None,
     q: Annotated[
-        str | None, Query(max_length=200, description="prefix of the tool's or robot's name")
+        str | None,
+        Query(
+            max_length=200,
+            pattern=NO_CONTROL_PATTERN,
+            description="prefix of the tool's or robot's name",
+        ),
     ] = None,
     status: Annotated[
         CalibrationStatus | None, Query(description="status of the last calibration")

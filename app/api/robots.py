@@ -9,7 +9,7 @@ from fastapi import APIRouter, Query, Response
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.api.shared import page
 from app.deps import AdminKey, ReadKey, SessionDep
-from app.schemas.common import Page
+from app.schemas.common import NO_CONTROL_PATTERN, Page
 from app.schemas.robots import Robot, RobotCreate, RobotUpdate
 from app.services import robots
 
@@ -29,8 +29,8 @@ def create_robot(body: RobotCreate, session: SessionDep, key: AdminKey) -> Robot
 def list_robots(
     session: SessionDep,
     key: ReadKey,
-    cell: Annotated[str | None, Query(max_length=200)] = None,
-    name: Annotated[str | None, Query(max_length=200)] = None,
+    cell: Annotated[str | None, Query(max_length=200, pattern=NO_CONTROL_PATTERN)] = None,
+    name: Annotated[str | None, Query(max_length=200, pattern=NO_CONTROL_PATTERN)] = None,
     limit: Limit = DEFAULT_PAGE,
     cursor: Cursor = None,
 ) -> Page[Robot]:

@@ -55,7 +55,10 @@ Name = Annotated[
         pattern=r"^[^\x00-\x20\x7f-\x9f]([^\x00-\x1f\x7f-\x9f]*[^\x00-\x20\x7f-\x9f])?$",
     ),
 ]
-ShortText = Annotated[str, Field(max_length=200, pattern=r"^[^\x00-\x1f\x7f]*$")]
+#: Text without control characters: a short stored word, and every text filter of a list
+#: (PostgreSQL refuses NUL in a text parameter, and no stored name holds a control character).
+NO_CONTROL_PATTERN = r"^[^\x00-\x1f\x7f]*$"
+ShortText = Annotated[str, Field(max_length=200, pattern=NO_CONTROL_PATTERN)]
 LongText = Annotated[str, Field(max_length=4000, pattern=r"^[^\x00-\x08\x0b\x0c\x0e-\x1f\x7f]*$")]
 #: A person's reason for an activation, a rollback or a deployment: 1-500 characters once
 #: trimmed, no control characters but tab and line breaks.

@@ -290,3 +290,26 @@ def test_extension_members_never_replace_the_problems_own() -> None:
         "why and how",
     )
     assert body["version_status"] == "out_of_tolerance"
+
+
+@pytest.mark.parametrize(
+    ("path", "name"),
+    [
+        ("/v1/robots", "cell"),
+        ("/v1/robots", "name"),
+        ("/v1/tools", "cell"),
+        ("/v1/tools", "q"),
+        ("/v1/audit", "action"),
+        ("/v1/audit", "actor"),
+    ],
+)
+def test_a_control_character_in_a_text_filter_is_422_naming_it(
+    api: Api, path: str, name: str
+) -> None:
+    # PostgreSQL refuses NUL in a text parameter: the filter reached it and answered 500
+    # (found by the contract test's fuzzing of GET /v1/audit?actor=...%00).
+    for value in ("weld\x00", "cell\n12"):
+        refused = api.get(path, scope="admin", params={name: value})
+        assert refused.status_code == 422, refused.text
+        assert refused.json()["errors"][0]["loc"] == ["query", name], refused.text
+    assert api.get(path, scope="admin", params={name: "cell 12 / weld-3"}).status_code == 200
