@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from tests.controllers.abb_sim import AbbRwsSimulator
@@ -36,6 +37,19 @@ SLOT = 3
 SYMBOL = "T_ROB1/user/tTorch"
 #: The simulated ABB controllers' user (tests/controllers/abb_sim.py).
 ABB_USER, ABB_PASSWORD = "Default User", "robotics"
+
+
+@pytest.fixture(autouse=True)
+def secret_key(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    """ABB controllers take a password, stored encrypted under this key. Autouse in each
+    test module that imports it (``from tests.api.controller_rigs import secret_key as
+    secret_key``)."""
+    from app.config import get_settings
+
+    monkeypatch.setenv("TCPCAL_SECRET_KEY", "controller-rigs-secret-key-0123456789")
+    get_settings.cache_clear()
+    yield
+    get_settings.cache_clear()
 
 
 def rotation_of(quaternion_wxyz: list[float] | tuple[float, ...]) -> Rotation:

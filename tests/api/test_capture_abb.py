@@ -21,6 +21,7 @@ from scipy.spatial.transform import Rotation
 from testbed.sim.touches import simulate_touches
 from tests.api.capture_steps import finish, guided_session, tool_on
 from tests.api.controller_rigs import SYMBOL, TIMEOUT_S, Rig, rig, rotation_of
+from tests.api.controller_rigs import secret_key as secret_key  # autouse: ABB passwords
 from tests.conftest import Api
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.simbase import go_silent
@@ -41,17 +42,6 @@ BASE_FRAME = ((0.0, 0.0, 500.0), (0.0, 0.0, 0.0, 1.0))
 FLANGE_QUERY = {"tool": "tool0", "wobj": "wobj0", "coordinate": "Base"}
 #: RobotWare's nums are 32-bit floats: what they leave of a flange a metre or two out.
 FLOAT32_MM, FLOAT32_DEG = 1e-3, 1e-3
-
-
-@pytest.fixture(autouse=True)
-def secret_key(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
-    """ABB controllers take a password, stored encrypted under this key."""
-    from app.config import get_settings
-
-    monkeypatch.setenv("TCPCAL_SECRET_KEY", "capture-abb-tests-secret-key-0123456789")
-    get_settings.cache_clear()
-    yield
-    get_settings.cache_clear()
 
 
 @pytest.fixture(params=["abb_rws1", "abb_rws2"])

@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 from testbed.sim.touches import simulate_touches
 from tests.api.capture_steps import finish, guided_session, tool_on
 from tests.api.controller_rigs import SLOT, SYMBOL, TIMEOUT_S, Rig, rig
+from tests.api.controller_rigs import secret_key as secret_key  # autouse: ABB passwords
 from tests.api.touches import row_counts
 from tests.conftest import Api
 
@@ -103,17 +104,6 @@ SETUPS: dict[str, Callable[[Rig], Cell]] = {
 def cell(request: pytest.FixtureRequest) -> Iterator[Cell]:
     with rig(request.param) as r:
         yield SETUPS[request.param](r)
-
-
-@pytest.fixture(autouse=True)
-def secret_key(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
-    """ABB controllers take a password, stored encrypted under this key."""
-    from app.config import get_settings
-
-    monkeypatch.setenv("TCPCAL_SECRET_KEY", "capture-tests-secret-key-0123456789")
-    get_settings.cache_clear()
-    yield
-    get_settings.cache_clear()
 
 
 def test_eight_captured_touches_calibrate_the_tool_and_equal_the_same_poses_typed(

@@ -5,12 +5,12 @@ GET of a controller that is not set is 404 /no-controller."""
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
 
 from tests.api.controller_rigs import Rig, rig
+from tests.api.controller_rigs import secret_key as secret_key  # autouse: ABB passwords
 from tests.conftest import Api
 from tests.controllers.simbase import go_silent
 
@@ -27,17 +27,6 @@ STAGES = [
     ("abb_rws2", "POST /rw/mastership/edit/request"),
     ("abb_rws2", "POST /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data"),
 ]
-
-
-@pytest.fixture(autouse=True)
-def secret_key(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
-    """ABB controllers take a password, stored encrypted under this key."""
-    from app.config import get_settings
-
-    monkeypatch.setenv("TCPCAL_SECRET_KEY", "controller-faults-secret-key-0123456789")
-    get_settings.cache_clear()
-    yield
-    get_settings.cache_clear()
 
 
 def _setup(api: Api, r: Rig, **controller: Any) -> tuple[str, str]:

@@ -13,6 +13,7 @@ from sqlalchemy import text
 
 from app.db import get_engine
 from tests.api.controller_rigs import PROTOCOLS, SLOT, TIMEOUT_S, Rig, rig
+from tests.api.controller_rigs import secret_key as secret_key  # autouse: ABB passwords
 from tests.conftest import Api
 from tests.controllers.helpers import angle_between_deg
 from tests.controllers.simbase import go_silent
@@ -25,17 +26,6 @@ PREVIOUS_POSITION = [1.0, 2.0, 150.0]
 PREVIOUS_Q = [
     float(v) for v in np.roll(Rotation.from_euler("ZYX", [5, 0, 0], degrees=True).as_quat(), 1)
 ]
-
-
-@pytest.fixture(autouse=True)
-def secret_key(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
-    """ABB controllers take a password, stored encrypted under this key."""
-    from app.config import get_settings
-
-    monkeypatch.setenv("TCPCAL_SECRET_KEY", "deployment-tests-secret-key-0123456789")
-    get_settings.cache_clear()
-    yield
-    get_settings.cache_clear()
 
 
 @pytest.fixture(params=PROTOCOLS)
