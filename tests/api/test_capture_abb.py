@@ -19,15 +19,19 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from testbed.sim.touches import simulate_touches
-from tests.api.capture_steps import finish, guided_session, tool_on
+from tests.api.capture_steps import (
+    POINT,
+    TRUE_TCP,
+    finish_and_type_again,
+    guided_session,
+    tool_on,
+)
 from tests.api.controller_rigs import SYMBOL, TIMEOUT_S, Rig, rig, rotation_of
 from tests.api.controller_rigs import secret_key as secret_key  # autouse: ABB passwords
 from tests.conftest import Api
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.simbase import go_silent
 
-TRUE_TCP = np.array([12.5, -7.25, 182.0])
-POINT = np.array([850.0, -120.0, 240.0])
 #: The tooldata the program last moved by: an old guess, turned (q1..q4).
 ACTIVE_TOOL = ((4.0, -2.5, 170.0), (0.9659258, 0.0, 0.258819, 0.0))
 #: The work object it moved in: a fixture, shifted and turned three ways.
@@ -103,20 +107,7 @@ def test_captured_touches_are_the_flanges_the_robot_stood_at_and_keep_what_rws_a
     assert [t["source"] for t in state["touches"]] == ["controller"] * 8
     assert [t["readings"] for t in state["touches"]] == printed
 
-    captured = finish(api, sid)
-    assert np.linalg.norm(np.subtract(captured["tcp"]["position_mm"], TRUE_TCP)) <= 0.01
-    detail = api.get(f"/v1/calibrations/{captured['id']}").json()
-    assert [t["readings"] for t in detail["touches"]] == printed, "the calibration keeps them"
-    assert detail["request"]["poses"] == state["poses"]
-
-    typed = guided_session(api, tool["id"], "xyz_wxyz")
-    for pose in state["poses"]:
-        added = api.post(f"/v1/sessions/{typed}/poses", {"pose": pose}, scope="calibrate")
-        assert added.status_code == 200, added.text
-    assert [t["source"] for t in added.json()["touches"]] == ["typed"] * 8
-    np.testing.assert_allclose(
-        finish(api, typed)["tcp"]["position_mm"], captured["tcp"]["position_mm"], atol=1e-9
-    )
+    finish_and_type_again(api, tool["id"], sid, "xyz_wxyz", state, printed)
 
 
 def test_the_pose_read_gives_the_joints_and_no_live_tool(api: Api, controller: Rig) -> None:

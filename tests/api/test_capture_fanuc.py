@@ -16,15 +16,18 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from testbed.sim.touches import simulate_touches
-from tests.api.capture_steps import finish, guided_session, tool_on
+from tests.api.capture_steps import (
+    OLD_GUESS,
+    POINT,
+    TRUE_TCP,
+    finish_and_type_again,
+    guided_session,
+    tool_on,
+)
 from tests.api.controller_rigs import Rig, fanuc_rotation, rig, rotation_of
 from tests.conftest import Api
 from tests.controllers.fanuc_sim import FanucSimulator
 
-TRUE_TCP = np.array([12.5, -7.25, 182.0])
-POINT = np.array([850.0, -120.0, 240.0])
-#: The tool the controller moves by while the touches are taken: an old guess, turned.
-ACTIVE_TOOL = (4.0, -2.5, 170.0, 10.0, -5.0, 3.0)
 #: UFRAME[2]: a fixture's frame, shifted and turned three ways.
 UFRAME = (1200.0, -400.0, 50.0, 25.0, -3.0, 1.5)
 #: The replies a FANUC pose read keeps, in the order it asks (B-84184EN 2.3.14, 2.3.15,
@@ -42,7 +45,7 @@ FLOAT32_MM, FLOAT32_DEG = 1e-3, 1e-3
 @pytest.fixture
 def controller() -> Iterator[Rig]:
     with rig("fanuc_rmi") as r:
-        r.sim.set_tool(3, *ACTIVE_TOOL)
+        r.sim.set_tool(3, *OLD_GUESS)
         r.sim.set_uframe(2, *UFRAME)
         r.sim.select(uframe=2, utool=3)
         yield r
@@ -84,20 +87,7 @@ def test_captured_touches_are_the_flanges_the_robot_stood_at_and_keep_what_it_se
     assert [t["source"] for t in state["touches"]] == ["controller"] * 8
     assert [t["readings"] for t in state["touches"]] == printed
 
-    captured = finish(api, sid)
-    assert np.linalg.norm(np.subtract(captured["tcp"]["position_mm"], TRUE_TCP)) <= 0.01
-    detail = api.get(f"/v1/calibrations/{captured['id']}").json()
-    assert [t["readings"] for t in detail["touches"]] == printed, "the calibration keeps them"
-    assert detail["request"]["poses"] == state["poses"]
-
-    typed = guided_session(api, tool["id"], "fanuc_wpr")
-    for pose in state["poses"]:
-        added = api.post(f"/v1/sessions/{typed}/poses", {"pose": pose}, scope="calibrate")
-        assert added.status_code == 200, added.text
-    assert [t["source"] for t in added.json()["touches"]] == ["typed"] * 8
-    np.testing.assert_allclose(
-        finish(api, typed)["tcp"]["position_mm"], captured["tcp"]["position_mm"], atol=1e-9
-    )
+    finish_and_type_again(api, tool["id"], sid, "fanuc_wpr", state, printed)
 
 
 def test_the_pose_read_names_the_utool_the_robot_moves_by_and_its_joints(
@@ -114,8 +104,8 @@ def test_the_pose_read_names_the_utool_the_robot_moves_by_and_its_joints(
     assert body["joints_deg"] == [-35.5, -70.25, 101.0, 12.0, 48.5, -210.0]
     assert body["live_tool"]["number"] == 3
     frame = body["live_tool"]["frame"]
-    assert np.max(np.abs(np.subtract(frame["position_mm"], ACTIVE_TOOL[:3]))) <= 1e-9
-    off = rotation_of(frame["quaternion"]).inv() * fanuc_rotation(*ACTIVE_TOOL[3:])
+    assert np.max(np.abs(np.subtract(frame["position_mm"], OLD_GUESS[:3]))) <= 1e-9
+    off = rotation_of(frame["quaternion"]).inv() * fanuc_rotation(*OLD_GUESS[3:])
     assert np.degrees(off.magnitude()) <= 1e-5  # UTOOL's W P R held as 32-bit REALs
     assert body["readings"] == _printed(controller.sim)
     assert np.max(np.abs(np.subtract(body["pose"][:3], (1104.25, -431.5, 622.75)))) <= FLOAT32_MM

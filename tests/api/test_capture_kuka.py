@@ -8,37 +8,27 @@ printed at it, in the session and in the calibration it becomes."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
-import pytest
 from scipy.spatial.transform import Rotation
 
 from testbed.sim.touches import simulate_touches
-from tests.api.capture_steps import finish, guided_session, tool_on
-from tests.api.controller_rigs import Rig, kuka_rotation, rig, rotation_of
+from tests.api.capture_steps import (
+    OLD_GUESS,
+    POINT,
+    TRUE_TCP,
+    finish_and_type_again,
+    guided_session,
+    tool_on,
+)
+from tests.api.capture_steps import krc as krc
+from tests.api.controller_rigs import Rig, kuka_rotation, rotation_of
 from tests.conftest import Api
 from tests.controllers.kuka_sim import KukaSimulator
 
-TRUE_TCP = np.array([12.5, -7.25, 182.0])
-POINT = np.array([850.0, -120.0, 240.0])
-#: The tool the KRC moves by while the touches are taken: an old guess, turned three ways.
-ACTIVE_TOOL = (4.0, -2.5, 170.0, 10.0, -5.0, 3.0)
-#: $BASE: a fixture's frame, shifted and turned three ways.
-BASE = (1200.0, -400.0, 50.0, 25.0, -3.0, 1.5)
 #: What a KUKA pose read prints (contract v1.3, "Touches straight from the controller").
 VARIABLES = ("$IPO_MODE", "$ACT_TOOL", "$TOOL", "$BASE", "$POS_ACT", "$AXIS_ACT")
 #: What 32-bit REALs printed with nine digits leave of a flange 1-2 m from $BASE's origin.
 FLOAT32_MM, FLOAT32_DEG = 1e-3, 1e-3
-
-
-@pytest.fixture
-def krc() -> Iterator[Rig]:
-    with rig("kuka_kvp") as r:
-        r.sim.set_tool(3, *ACTIVE_TOOL)
-        r.sim.select_tool(3)
-        r.sim.set_base(*BASE)
-        yield r
 
 
 def _printed(sim: KukaSimulator) -> dict[str, str]:
@@ -75,20 +65,7 @@ def test_captured_touches_are_the_flanges_the_krc_stood_at_and_keep_what_it_prin
     assert [t["source"] for t in state["touches"]] == ["controller"] * 8
     assert [t["readings"] for t in state["touches"]] == printed
 
-    captured = finish(api, sid)
-    assert np.linalg.norm(np.subtract(captured["tcp"]["position_mm"], TRUE_TCP)) <= 0.01
-    detail = api.get(f"/v1/calibrations/{captured['id']}").json()
-    assert [t["readings"] for t in detail["touches"]] == printed, "the calibration keeps them"
-    assert detail["request"]["poses"] == state["poses"]
-
-    typed = guided_session(api, tool["id"], "kuka_abc")
-    for pose in state["poses"]:
-        added = api.post(f"/v1/sessions/{typed}/poses", {"pose": pose}, scope="calibrate")
-        assert added.status_code == 200, added.text
-    assert [t["source"] for t in added.json()["touches"]] == ["typed"] * 8
-    np.testing.assert_allclose(
-        finish(api, typed)["tcp"]["position_mm"], captured["tcp"]["position_mm"], atol=1e-9
-    )
+    finish_and_type_again(api, tool["id"], sid, "kuka_abc", state, printed)
 
 
 def test_the_pose_read_names_the_tool_the_krc_moves_by_and_its_joints(api: Api, krc: Rig) -> None:
@@ -103,8 +80,8 @@ def test_the_pose_read_names_the_tool_the_krc_moves_by_and_its_joints(api: Api, 
     assert body["joints_deg"] == [-35.5, -70.25, 101.0, 12.0, 48.5, -210.0]
     assert body["live_tool"]["number"] == 3
     frame = body["live_tool"]["frame"]
-    assert np.max(np.abs(np.subtract(frame["position_mm"], ACTIVE_TOOL[:3]))) <= 1e-9
-    off = rotation_of(frame["quaternion"]).inv() * kuka_rotation(*ACTIVE_TOOL[3:])
+    assert np.max(np.abs(np.subtract(frame["position_mm"], OLD_GUESS[:3]))) <= 1e-9
+    off = rotation_of(frame["quaternion"]).inv() * kuka_rotation(*OLD_GUESS[3:])
     assert np.degrees(off.magnitude()) <= 1e-6
     assert body["readings"] == _printed(krc.sim)
     assert np.max(np.abs(np.subtract(body["pose"][:3], (1104.25, -431.5, 622.75)))) <= FLOAT32_MM

@@ -9,7 +9,7 @@ captured touch is right only if the service composed $BASE * $POS_ACT * inverse(
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,25 +21,14 @@ from typer.testing import CliRunner
 from app import client_guided
 from app.cli import cli
 from testbed.sim.touches import simulate_touches
-from tests.api.controller_rigs import Rig, rig
+from tests.api.capture_steps import POINT, TRUE_TCP
+from tests.api.capture_steps import krc as krc
+from tests.api.controller_rigs import Rig
 from tests.api.test_controller_cli import runner as runner  # the app in process, calibrate key
 from tests.conftest import Api
 
-TRUE_TCP = np.array([12.5, -7.25, 182.0])
-POINT = np.array([850.0, -120.0, 240.0])
-ACTIVE_TOOL = (4.0, -2.5, 170.0, 10.0, -5.0, 3.0)
-BASE = (1200.0, -400.0, 50.0, 25.0, -3.0, 1.5)
 #: A touch line: number, source, the controller's time of reading (none when typed), numbers.
 TOUCH_LINE = re.compile(r"^ +(\d+)  (controller|typed) +(\d\d:\d\d:\d\d)? +-?\d", re.MULTILINE)
-
-
-@pytest.fixture
-def krc() -> Iterator[Rig]:
-    with rig("kuka_kvp") as r:
-        r.sim.set_tool(3, *ACTIVE_TOOL)
-        r.sim.select_tool(3)
-        r.sim.set_base(*BASE)
-        yield r
 
 
 def _tool(api: Api, r: Rig | None) -> dict[str, Any]:
