@@ -22,6 +22,7 @@ Beyond max_correction_mm nothing changes but the check's record (attention `chec
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,22 +66,23 @@ def recheck(
     with session_scope(write=False) as session:
         act_for(session, actor)
         first = _replay(session, actor, keyed, purge=False)
-        if first is not None:
-            return Rechecked(first, replayed=True)
-        if data.correct == "within_limits" and _deploys(data):
+        if first is None and data.correct == "within_limits" and _deploys(data):
             _refuse_undeployable(session, tool_id)
+    if first is not None:
+        return Rechecked(_as_it_ends(first, data, actor, keyed), replayed=True)
     captured = checks.capture_touch(tool_id, data, actor) if data.capture else None
     typed = data if captured is None else checks.as_typed(data, captured)
     with session_scope(write=True) as session:
         act_for(session, actor)
         lock_tool(session, tool_id)  # a repeated key waits here for the first, then replays
         first = _replay(session, actor, keyed, purge=True)
-        if first is not None:
-            return Rechecked(first, replayed=True)
-        result = _check_and_correct(
-            session, tool_id=tool_id, data=typed, actor=actor, captured=captured
-        )
-        _remember(session, actor, keyed, result)
+        if first is None:
+            result = _check_and_correct(
+                session, tool_id=tool_id, data=typed, actor=actor, captured=captured
+            )
+            _remember(session, actor, keyed, result)
+    if first is not None:  # (its deployment may still be under way: waited for unlocked)
+        return Rechecked(_as_it_ends(first, data, actor, keyed), replayed=True)
     if result.correction is not None and _deploys(data):
         result = _deploy(result, actor=actor, reason=data.reason, keyed=keyed)
     return Rechecked(result, replayed=False)
@@ -105,6 +107,34 @@ def _check_options(data: CheckCreate) -> None:
             "or leave deploy out",
             loc=("body", "deploy"),
         )
+
+
+#: How long a repeated key waits for the first request's deployment to end: a deployment
+#: ends within its controller's timeout_s (at most 60 s, app.schemas.controllers) and the
+#: session's clean-up. Past it (the first request's process ended mid-deployment) the answer
+#: kept before the deployment is replayed, and the reconcile rounds settle the controller.
+DEPLOYMENT_WAIT_S = 65.0
+
+
+def _as_it_ends(
+    first: CheckResult, data: CheckCreate, actor: Principal, keyed: tuple[str, str] | None
+) -> CheckResult:
+    """The first answer as the first request ends it. Its answer is kept before its
+    deployment (so that a repeat waiting at the tool's lock replays it, not corrects again)
+    and replaced after; a repeat arriving in between waits for the final one, so a PLC
+    repeating its command gets what the first got, deployment included."""
+    deadline = time.monotonic() + DEPLOYMENT_WAIT_S
+    while _deploying(first, data) and time.monotonic() < deadline:
+        time.sleep(0.1)
+        with session_scope(write=False) as session:
+            act_for(session, actor)
+            first = _replay(session, actor, keyed, purge=False) or first
+    return first
+
+
+def _deploying(answer: CheckResult, data: CheckCreate) -> bool:
+    """A correction the first request is still deploying (its deployment not yet kept)."""
+    return answer.correction is not None and answer.correction.deployment is None and _deploys(data)
 
 
 def _deploys(data: CheckCreate) -> bool:

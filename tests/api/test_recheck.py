@@ -363,7 +363,8 @@ def test_a_controller_silent_at_the_write_is_flagged_unreachable_and_said(
 
 def test_one_key_sent_four_times_at_once_corrects_once(api: Api, kuka: Cell) -> None:
     """A PLC that repeats its command while the first is under way: the tool's lock orders
-    them, the first corrects and the others replay it (its answer as kept at the time)."""
+    them, the first corrects and the others replay its answer as it ends, the deployment
+    included (not the answer kept before the deployment, which said one follows)."""
     tool, point_id = tool_at_reference(api, kuka.rig)
     stand_at_reference(kuka, np.asarray(ACTIVE_POSITION) + MOVED)
     counts = row_counts(TABLES)
@@ -378,6 +379,9 @@ def test_one_key_sent_four_times_at_once_corrects_once(api: Api, kuka: Cell) -> 
     assert [a.status_code for a in answers] == [201] * 4, [a.text for a in answers]
     assert sorted("Idempotent-Replayed" in a.headers for a in answers) == [False, True, True, True]
     assert {a.json()["correction"]["version"] for a in answers} == {2}
+    deployments = [(a.json()["correction"]["deployment"] or {}).get("status") for a in answers]
+    assert deployments == ["verified"] * 4
+    assert all(a.json() == answers[0].json() for a in answers)
     after = row_counts(TABLES)
     assert after["tcp_versions"] == counts["tcp_versions"] + 1
     assert after["activations"] == counts["activations"] + 1
