@@ -280,6 +280,30 @@ def test_a_refused_pose_read_leaves_the_live_tool_unread_and_the_tools_judged(ap
         assert event["previous"]["matches"] == [{"tool_id": ids["tool"]["id"], "version": 2}]
 
 
+def test_an_unreachable_controller_leaves_the_live_tool_unread_saying_where(api: Api) -> None:
+    """What the robot moved by before the controller went silent is not claimed after it:
+    the row is unread, the stale claim and its attention code go, the reconcile and the
+    audit event say which address did not answer."""
+    with rig("kuka_kvp") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id = ids["robot"]["id"]
+        r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)
+        r.sim.select_tool(SLOT)
+        _reconcile(api, robot_id)
+        assert _rows(api, robot_id)["t1"]["live"]["state"] == "stale_version"
+        r.sim.stop()
+        done = _reconcile(api, robot_id)
+        assert done["live_tool"] is None
+        assert done["live_tool_error"].startswith(f"127.0.0.1:{r.sim.port}: "), done
+        row = _rows(api, robot_id)["t1"]
+        assert row["live"]["state"] == "unread"
+        assert row["live"]["checked_at"] is not None
+        assert "moving_by_stale_version" not in row["attention"]
+        event = _live_events(robot_id)[-1]
+        assert event["read"] is False
+        assert event["error"] == done["live_tool_error"]
+
+
 def test_a_robot_whose_controller_is_removed_is_unread_again(api: Api) -> None:
     with rig("kuka_kvp") as r:
         ids = _torch_v1_v2(api, r)
