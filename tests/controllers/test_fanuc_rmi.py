@@ -8,6 +8,7 @@ import io
 import json
 import socket
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
@@ -28,6 +29,9 @@ from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import fanuc_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
 from tests.controllers.simbase import go_silent
+
+if TYPE_CHECKING:
+    from fanuc_rmi import RobotClient
 
 
 def fanuc_wpr(quaternion_wxyz: tuple[float, ...]) -> np.ndarray:
@@ -284,24 +288,28 @@ def test_the_connector_finds_the_session_by_the_manuals_port_number(
         assert other.packets == [], "no session was opened on a guessed port"
 
 
+def rmi_client(sim: FanucSimulator, main_port: int) -> RobotClient:
+    """fanuc-rmi's client (PyPI, written apart from tcpcal and the simulator) for `sim`,
+    told `main_port` for the session: it reads the session port from "Port" (above)."""
+    from fanuc_rmi import RobotClient
+
+    return RobotClient(
+        host=sim.host,
+        startup_port=sim.port,
+        main_port=main_port,
+        attempts=1,
+        startup_pause=0.0,
+        socket_timeout=2.0,
+        reader_timeout=2.0,
+    )
+
+
 def test_fanuc_rmi_reads_port_where_the_manual_says_port_number(
     fanuc_sim: FanucSimulator,
 ) -> None:
     """fanuc-rmi against the simulator as the manual has it: it does not find the session
     port in PortNumber and connects to the main_port it was given (a closed one here); against
     a controller answering "Port" it finds the session."""
-    from fanuc_rmi import RobotClient
-
-    def client(sim: FanucSimulator, main_port: int) -> RobotClient:
-        return RobotClient(
-            host=sim.host,
-            startup_port=sim.port,
-            main_port=main_port,
-            attempts=1,
-            startup_pause=0.0,
-            socket_timeout=2.0,
-            reader_timeout=2.0,
-        )
 
     closed = socket.socket()  # bound, never listening: a connect to it is refused
     closed.bind(("127.0.0.1", 0))
@@ -309,9 +317,9 @@ def test_fanuc_rmi_reads_port_where_the_manual_says_port_number(
         closed_port = closed.getsockname()[1]
         with contextlib.redirect_stdout(io.StringIO()):  # the client prints every packet
             with pytest.raises(RuntimeError, match=f"Unable to connect to 127.0.0.1:{closed_port}"):
-                client(fanuc_sim, closed_port).connect()
+                rmi_client(fanuc_sim, closed_port).connect()
             with PortSpellingSimulator() as other:
-                spelled = client(other, closed_port)
+                spelled = rmi_client(other, closed_port)
                 spelled.connect()
                 assert spelled.main_port == other.session_port
                 spelled.close()
@@ -321,20 +329,10 @@ def test_fanuc_rmi_reads_port_where_the_manual_says_port_number(
 
 
 def test_fanuc_rmi_client_reads_and_writes_the_simulator(fanuc_sim: FanucSimulator) -> None:
-    from fanuc_rmi import RobotClient
-
     fanuc_sim.set_tool(2, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
     # fanuc-rmi reads the session port from "Port" where B-84184EN says "PortNumber" (the
     # test above): it is told the port, to check the packets it sends on the session.
-    client = RobotClient(
-        host=fanuc_sim.host,
-        startup_port=fanuc_sim.port,
-        main_port=fanuc_sim.session_port,
-        attempts=1,
-        startup_pause=0.0,
-        socket_timeout=2.0,
-        reader_timeout=2.0,
-    )
+    client = rmi_client(fanuc_sim, fanuc_sim.session_port)  # told it: it reads "Port"
     with contextlib.redirect_stdout(io.StringIO()):  # the client prints every packet
         client.connect()
         try:
@@ -526,18 +524,8 @@ def test_fanuc_rmi_client_reads_the_pose_the_connector_reads(
     Position, JointAngle and Frame the connector composes the flange from."""
     from pathlib import Path
 
-    from fanuc_rmi import RobotClient
-
     posed(fanuc_sim)
-    client = RobotClient(  # told the session port: it reads "Port" (above)
-        host=fanuc_sim.host,
-        startup_port=fanuc_sim.port,
-        main_port=fanuc_sim.session_port,
-        attempts=1,
-        startup_pause=0.0,
-        socket_timeout=2.0,
-        reader_timeout=2.0,
-    )
+    client = rmi_client(fanuc_sim, fanuc_sim.session_port)  # told it: it reads "Port"
     out = Path(str(tmp_path))
     with contextlib.redirect_stdout(io.StringIO()):  # the client prints every packet
         client.connect()
