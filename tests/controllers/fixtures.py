@@ -1,9 +1,9 @@
 """Controller simulators as fixtures: each started on a free loopback port, stopped after.
 
-`kuka_sim`, `fanuc_sim`, `abb_rws1_sim`, `abb_rws2_sim` are the running simulators (change
-their tool data as an operator would: `set_tool`, `tool`, ...; `stalled = True` makes one
-stop answering; `stop()` switches it off); `kuka_settings(sim)` etc. the
-`ControllerSettings` that reach them (timeout 2 s). tests/controllers/conftest.py imports
+`kuka_sim`, `fanuc_sim`, `abb_rws1_sim`, `abb_rws2_sim`, `yaskawa_sim` are the running
+simulators (change their tool data as an operator would: `set_tool`, `tool`, ...;
+`stalled = True` makes one stop answering; `stop()` switches it off); `kuka_settings(sim)`
+etc. the `ControllerSettings` that reach them (timeout 2 s). tests/controllers/conftest.py imports
 them; another test package does the same in its conftest
 (`from tests.controllers.fixtures import kuka_sim, ...`).
 """
@@ -18,6 +18,7 @@ from app.controllers import ControllerSettings
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator
+from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 SIM_TIMEOUT_S = 2.0
 
@@ -92,3 +93,11 @@ def abb_settings(
         timeout_s=timeout_s,
         tls_verify=False,
     )
+
+
+@pytest.fixture
+def yaskawa_sim() -> Iterator[YaskawaSimulator]:
+    """A YRC1000's High Speed Ethernet Server: robot control and file control (TOOL.CND, tools
+    0-63) on two UDP ports; a transfer left behind times out after 0.5 s."""
+    with YaskawaSimulator(transfer_timeout_s=0.5) as sim:
+        yield sim
