@@ -101,18 +101,6 @@ UR_DEFAULT_KINEMATICS: dict[str, dict[str, tuple[float, ...]]] = {
 # rpy (pi/2, 0, pi/2). tool0 is the controller's tool flange frame (all-zero TCP).
 UR_TOOL0: list[Origin] = [((0, 0, 0), (0, -HALF_PI, -HALF_PI)), ((0, 0, 0), (HALF_PI, 0, HALF_PI))]
 
-# TechmanRobotInc/tmr_ros1 tm_description/xacro/macro.tm5-900-nominal.urdf.xacro joint
-# origins. The file rounds pi/2 to 1.570796 (3e-7 rad: 0.3 um at the flange); we use pi/2,
-# which is what the rounded number stands for, so the 1e-6 mm comparison is meaningful.
-TM5_900_URDF: list[Origin] = [
-    ((0, 0, 0.1452), (0, 0, 0)),
-    ((0, 0, 0), (-HALF_PI, -HALF_PI, 0)),
-    ((0.429, 0, 0), (0, 0, 0)),
-    ((0.4115, 0, -0.1223), (0, 0, HALF_PI)),
-    ((0, -0.106, 0), (HALF_PI, 0, 0)),
-    ((0, -0.11315, 0), (HALF_PI, 0, 0)),
-]
-
 
 def _random_joints(seed: int, n: int = 50) -> np.ndarray:
     return np.random.default_rng(seed).uniform(-180.0, 180.0, size=(n, 6))
@@ -131,14 +119,7 @@ def test_ur_presets_match_urdf_chain(model: str) -> None:
         assert_allclose(rotations[i], t[:3, :3], atol=1e-9)
 
 
-def test_tm5_900_preset_matches_urdf_chain() -> None:
-    """TM5-900 preset equals Techman's nominal URDF chain (flange = link_6), within 1e-6 mm."""
-    q = _random_joints(2)
-    rotations, positions = flange_poses(PRESETS["tm5_900"], q)
-    for i in range(len(q)):
-        t = _urdf_chain(TM5_900_URDF, [], np.radians(q[i]))
-        assert_allclose(positions[i], t[:3, 3], atol=1e-6)
-        assert_allclose(rotations[i], t[:3, :3], atol=1e-9)
+# tm5_900 and yaskawa_gp12 against their makers' URDF files: tests/kinematics/test_presets_urdf.py.
 
 
 # UR's DH article (universal-robots.com, "DH parameters for calculations of kinematics and
@@ -296,7 +277,7 @@ def test_refuses_non_finite_joints() -> None:
 
 
 def test_presets_named_as_in_api() -> None:
-    assert {"ur3e", "ur5e", "ur10e", "ur16e", "tm5_900"} <= set(PRESETS)
+    assert {"ur3e", "ur5e", "ur10e", "ur16e", "tm5_900", "yaskawa_gp12"} <= set(PRESETS)
     for name, k in PRESETS.items():
         assert k.name == name
         assert k.n_joints == 6
