@@ -109,6 +109,13 @@ class SecretUnreadable(Conflict):
     kind, title = "secret-unavailable", "Stored secret unreadable"
 
 
+class ConnectorMissing(DomainError):
+    """A stored controller whose protocol this tcpcal has no connector for (contract v1.3
+    names protocols whose connectors land one by one): nothing is sent to it."""
+
+    status, kind, title = 501, "no-connector", "No connector for the protocol"
+
+
 class ControllerUnreachableError(DomainError):
     status, kind, title = 502, "controller-unreachable", "Controller unreachable"
 

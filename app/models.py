@@ -384,7 +384,10 @@ class RobotController(Base):
     robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"), primary_key=True)
     protocol: Mapped[str] = mapped_column(String(20))
     host: Mapped[str] = mapped_column(String(253))
-    port: Mapped[int] = mapped_column(Integer)
+    #: a single-service protocol's port; null for one of several services (`ports`)
+    port: Mapped[int | None] = mapped_column(Integer)
+    #: a protocol of several services: {service: port}, defaults filled in; else null
+    ports: Mapped[dict[str, int] | None] = mapped_column(JSON)
     username: Mapped[str | None] = mapped_column(String(200))
     password_encrypted: Mapped[str | None] = mapped_column(Text)
     timeout_s: Mapped[float] = mapped_column(Float)

@@ -326,6 +326,13 @@ const CONTROLLER_LABELS = {
 
 // A drifted badge gives the distance; with `degrees` (the fleet's cell) the angle too when the
 // controller's TCP turned: an orientation-only pendant edit read "drifted 0.000 mm".
+// Where the controller is reached: host:port, or for a protocol of several services
+// (techman, yaskawa_hses, ur_rtde) each service's port, as the API answers them.
+function controllerAddress(connection) {
+  if (!connection.ports) return `${connection.host}:${connection.port}`;
+  return `${connection.host} (${Object.entries(connection.ports).map(([name, port]) => `${name} ${port}`).join(", ")})`;
+}
+
 function controllerBadge(controller, { degrees = false } = {}) {
   if (!controller) return "—";
   const label = CONTROLLER_LABELS[controller.state] ?? controller.state;
@@ -435,7 +442,7 @@ async function controllerSection(tool, versions, onChange) {
   } else {
     section.append(
       h("p", { id: "controller-state" },
-        `${connection.protocol} at ${connection.host}:${connection.port} · `,
+        `${connection.protocol} at ${controllerAddress(connection)} · `,
         state ? controllerBadge(state) : "not looked at yet",
         state ? ` · checked ${when(state.checked_at)}` : ""),
     );
@@ -479,7 +486,7 @@ function deployControls(tool, connection, onChange) {
   }
   const ask = h("button", { type: "button", id: "deploy-button" }, `Deploy version ${tool.active_version}`);
   const confirmBox = h("div", { id: "deploy-confirm", class: "card", hidden: true },
-    h("p", {}, `Write version ${tool.active_version} of ${tool.name} into the controller at ${connection.host}:${connection.port} (${connection.protocol}) and read it back? The robot moves by this TCP from then on.`));
+    h("p", {}, `Write version ${tool.active_version} of ${tool.name} into the controller at ${controllerAddress(connection)} (${connection.protocol}) and read it back? The robot moves by this TCP from then on.`));
   const yes = h("button", { type: "button", id: "deploy-yes" }, "Deploy now");
   const no = h("button", { type: "button", id: "deploy-no" }, "Cancel");
   confirmBox.append(h("div", { class: "actions" }, yes, no));

@@ -22,6 +22,7 @@ from __future__ import annotations
 from app.controllers.base import (
     DEFAULT_PORTS,
     PROTOCOLS,
+    SERVICE_PORTS,
     SLOT_RANGES,
     TARGET_FIELD,
     Connector,
@@ -42,8 +43,10 @@ from app.controllers.base import (
 )
 
 __all__ = [
+    "CONNECTED_PROTOCOLS",
     "DEFAULT_PORTS",
     "PROTOCOLS",
+    "SERVICE_PORTS",
     "SLOT_RANGES",
     "TARGET_FIELD",
     "Connector",
@@ -60,17 +63,29 @@ __all__ = [
     "check_target",
     "connect",
     "describe_target",
+    "has_connector",
     "split_abb_symbol",
     "target_problem",
 ]
+
+
+#: The protocols `connect` has a connector for (a protocol's connector adds it here). A
+#: controller of another protocol in PROTOCOLS is stored, and nothing is sent to it
+#: (app.services.controllers.settings_of answers 501 /no-connector).
+CONNECTED_PROTOCOLS: frozenset[str] = frozenset({"kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2"})
+
+
+def has_connector(protocol: str) -> bool:
+    """Whether `connect` can open a session under `protocol`."""
+    return protocol in CONNECTED_PROTOCOLS
 
 
 def connect(settings: ControllerSettings) -> Connector:
     """Open a session with the controller `settings` describes, by its protocol.
 
     Raises ControllerUnreachable when it cannot be reached within ``settings.timeout_s``,
-    ControllerRefused when it refuses the session (credentials), ValueError for an unknown
-    protocol.
+    ControllerRefused when it refuses the session (credentials), ValueError for a protocol
+    it has no connector for (`has_connector`), naming it.
     """
     # Imported here so that importing the package (the data, the errors) loads no client.
     if settings.protocol == "kuka_kvp":
@@ -85,4 +100,9 @@ def connect(settings: ControllerSettings) -> Connector:
         from app.controllers.abb_rws import AbbRwsConnector
 
         return AbbRwsConnector(settings)
+    if settings.protocol in PROTOCOLS:
+        raise ValueError(
+            f"no connector for controller protocol {settings.protocol!r} in this tcpcal yet; "
+            f"connected: {', '.join(sorted(CONNECTED_PROTOCOLS))}"
+        )
     raise ValueError(f"unknown controller protocol {settings.protocol!r}; known: {PROTOCOLS}")

@@ -20,18 +20,26 @@ from __future__ import annotations
 import math
 import re
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Literal, Protocol, Self, get_args
 
 from app.tool_numbers import TOOL_NUMBERS
 
-ProtocolName = Literal["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2"]
+ProtocolName = Literal[
+    "kuka_kvp",
+    "fanuc_rmi",
+    "abb_rws1",
+    "abb_rws2",
+    "techman",
+    "yaskawa_hses",
+    "ur_rtde",
+]
 PROTOCOLS: tuple[str, ...] = get_args(ProtocolName)
 
-#: The port each protocol listens on unless the plant changed it.
+#: The port each single-service protocol listens on unless the plant changed it (`port`).
 DEFAULT_PORTS: dict[str, int] = {
     "kuka_kvp": 7000,  # KUKAVARPROXY
     "fanuc_rmi": 16001,  # Remote Motion Interface, FRC_Connect
@@ -39,23 +47,47 @@ DEFAULT_PORTS: dict[str, int] = {
     "abb_rws2": 443,  # RobotWare 7 Robot Web Services 2.0, HTTPS + Basic
 }
 
+#: The services of each protocol that talks over several ports, each with the port it
+#: listens on unless the plant changed it (`ports`, contract v1.3), the first the main one.
+SERVICE_PORTS: dict[str, dict[str, int]] = {
+    # TMflow: Listen Node (TCP, ChangeTCP) and Ethernet Slave (TCP, the data table)
+    "techman": {"listen_node": 5890, "ethernet_slave": 5891},
+    # High Speed Ethernet Server: robot control (UDP) and file control (UDP)
+    "yaskawa_hses": {"robot": 10040, "file": 10041},
+    # RTDE (TCP) and the secondary client interface (TCP, URScript)
+    "ur_rtde": {"rtde": 30004, "secondary": 30002},
+}
+
 #: Tool numbers each slot-addressed protocol accepts, inclusive (the exports' ranges).
 SLOT_RANGES: dict[str, tuple[int, int]] = {
     "kuka_kvp": TOOL_NUMBERS["kuka"],  # $TOOL_DATA[1..16] in $config.dat
     "fanuc_rmi": TOOL_NUMBERS["fanuc"],  # UTOOL[1..10]
+    "yaskawa_hses": TOOL_NUMBERS["yaskawa"],  # TOOL.CND tools 0..63 (YRC1000, DX200)
 }
 
 #: How each slot-addressed protocol names tool number n.
-SLOT_NAMES: dict[str, str] = {"kuka_kvp": "$TOOL_DATA[{}]", "fanuc_rmi": "UTOOL[{}]"}
+SLOT_NAMES: dict[str, str] = {
+    "kuka_kvp": "$TOOL_DATA[{}]",
+    "fanuc_rmi": "UTOOL[{}]",
+    "yaskawa_hses": "TOOL.CND tool {}",
+}
 
 #: Which field of a tool names its place in the controller, per protocol: "slot" (a tool
-#: number) or "symbol" (ABB "TASK/MODULE/SYMBOL"; the tool's `controller_symbol`).
-TARGET_FIELD: dict[str, Literal["slot", "symbol"]] = {
+#: number), "symbol" (ABB "TASK/MODULE/SYMBOL"; the tool's `controller_symbol`) or "live"
+#: (the robot's one live TCP, written by value: Techman ChangeTCP, UR set_tcp; contract
+#: v1.3 "a Techman or UR tool is named on the controller by values (no slot)").
+TARGET_FIELD: dict[str, Literal["slot", "symbol", "live"]] = {
     "kuka_kvp": "slot",
     "fanuc_rmi": "slot",
     "abb_rws1": "symbol",
     "abb_rws2": "symbol",
+    "techman": "live",
+    "yaskawa_hses": "slot",
+    "ur_rtde": "live",
 }
+
+#: How a live-TCP protocol names the one TCP every tool of the robot is written to.
+LIVE_TARGETS: dict[str, str] = {"techman": "current TCP", "ur_rtde": "tcp_offset"}
 
 # RAPID identifiers: a letter, then letters, digits or underscores, at most 32 characters
 # (ABB Technical reference manual - RAPID overview, "Identifiers").
@@ -124,7 +156,12 @@ class ToolTarget:
 
 @dataclass(frozen=True)
 class ControllerSettings:
-    """How to reach one robot's controller (the password only ever in memory, in clear)."""
+    """How to reach one robot's controller (the password only ever in memory, in clear).
+
+    `port` is the port of a single-service protocol; a protocol of several services
+    (SERVICE_PORTS) is reached on `port_of(service)`: `ports` where it names the service,
+    else the service's default, and its `port` is its main service's port (what `where`
+    names)."""
 
     protocol: ProtocolName
     host: str
@@ -133,14 +170,35 @@ class ControllerSettings:
     password: str | None
     timeout_s: float = 5.0
     tls_verify: bool = True
+    ports: Mapping[str, int] = field(default_factory=dict, hash=False)
+
+    def port_of(self, service: str) -> int:
+        """The port of one of the protocol's services; ValueError naming the services."""
+        services = SERVICE_PORTS.get(self.protocol, {})
+        if service not in services:
+            known = ", ".join(services) or "none: it has one port, `port`"
+            raise ValueError(f"{self.protocol} has no service {service!r}; its services: {known}")
+        return self.ports.get(service, services[service])
+
+    def ports_in_use(self) -> dict[str, int]:
+        """Every service's port (empty for a single-service protocol)."""
+        return {name: self.port_of(name) for name in SERVICE_PORTS.get(self.protocol, {})}
+
+    def where(self) -> str:
+        """The controller's address as a message names it: "10.0.0.7:7000", or for a
+        protocol of several services "10.0.0.7 (listen_node 5890, ethernet_slave 5891)"."""
+        ports = self.ports_in_use()
+        if not ports:
+            return f"{self.host}:{self.port}"
+        return f"{self.host} ({', '.join(f'{name} {port}' for name, port in ports.items())})"
 
     def __repr__(self) -> str:
         # The password never reaches a log line or a traceback through a repr.
         secret = "set" if self.password else "none"
         return (
             f"ControllerSettings(protocol={self.protocol!r}, host={self.host!r}, "
-            f"port={self.port}, username={self.username!r}, password=<{secret}>, "
-            f"timeout_s={self.timeout_s}, tls_verify={self.tls_verify})"
+            f"port={self.port}, ports={dict(self.ports)!r}, username={self.username!r}, "
+            f"password=<{secret}>, timeout_s={self.timeout_s}, tls_verify={self.tls_verify})"
         )
 
     __str__ = __repr__
@@ -253,6 +311,8 @@ def target_problem(protocol: str, target: ToolTarget) -> str | None:
                 f"the tool numbers of a {protocol} controller"
             )
         return None
+    if field == "live":
+        return None  # any tool: written by its values into the robot's one live TCP
     if target.symbol is None:
         return (
             f"an {protocol} controller addresses tools by RAPID symbol: set the tool's "
@@ -267,6 +327,8 @@ def describe_target(protocol: str, target: ToolTarget) -> str:
     check_target(protocol, target)
     if TARGET_FIELD[protocol] == "slot":
         return SLOT_NAMES[protocol].format(target.slot)
+    if TARGET_FIELD[protocol] == "live":
+        return LIVE_TARGETS[protocol]
     return str(target.symbol)
 
 

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Literal, get_args
 
 from pydantic import BaseModel, BeforeValidator, Field, SecretStr
 
-from app.controllers.base import ABB_SYMBOL_PATTERN, DEFAULT_PORTS, ProtocolName
+from app.controllers.base import ABB_SYMBOL_PATTERN, DEFAULT_PORTS, SERVICE_PORTS, ProtocolName
 from app.schemas.common import Reason, ShortText, StrictModel, Timestamp, json_integer
 from app.statuses import DeploymentStatus, RobotState, ToolState
 
@@ -33,8 +33,30 @@ ControllerSymbol = Annotated[
         examples=["T_ROB1/user/tTorch"],
     ),
 ]
+ServiceName = Annotated[
+    str,
+    Field(
+        min_length=1,
+        max_length=40,
+        description="a service of the protocol: techman listen_node | ethernet_slave; "
+        "yaskawa_hses robot | file; ur_rtde rtde | secondary",
+    ),
+]
 PROTOCOL_DESCRIPTION = "; ".join(
-    f"{name}: default port {port}" for name, port in DEFAULT_PORTS.items()
+    [
+        *(f"{name}: default port {port}" for name, port in DEFAULT_PORTS.items()),
+        *(
+            f"{name}: default ports "
+            + ", ".join(f"{service} {port}" for service, port in services.items())
+            for name, services in SERVICE_PORTS.items()
+        ),
+    ]
+)
+PORTS_DESCRIPTION = (
+    "a protocol of several services (techman, yaskawa_hses, ur_rtde), in place of `port`: "
+    "the port of each service, each defaulting to the real one (techman listen_node 5890, "
+    "ethernet_slave 5891; yaskawa_hses robot 10040, file 10041 (UDP); ur_rtde rtde 30004, "
+    "secondary 30002)"
 )
 
 
@@ -44,7 +66,14 @@ class ControllerIn(StrictModel):
 
     protocol: ProtocolName = Field(description=PROTOCOL_DESCRIPTION)
     host: Host = Field(description="the controller's host name or IP address")
-    port: Port | None = Field(default=None, description="TCP port; default: the protocol's")
+    port: Port | None = Field(
+        default=None,
+        description="a single-service protocol's TCP port; default: the protocol's. A "
+        "protocol of several services takes `ports` instead",
+    )
+    ports: Annotated[dict[ServiceName, Port], Field(max_length=8)] | None = Field(
+        default=None, description=PORTS_DESCRIPTION
+    )
     username: ShortText | None = Field(
         default=None, description="ABB: the RWS user (default: ABB's factory user)"
     )
@@ -68,9 +97,17 @@ class ControllerIn(StrictModel):
 
 class Controller(BaseModel):
     robot_id: str
-    protocol: str = Field(description="kuka_kvp | fanuc_rmi | abb_rws1 | abb_rws2")
+    protocol: str = Field(description=" | ".join(get_args(ProtocolName)))
     host: str = Field(description="the controller's host name or IP address")
-    port: int = Field(description="TCP port")
+    port: int | None = Field(
+        description="the port of a single-service protocol; null for a protocol of several "
+        "services (see `ports`)"
+    )
+    ports: dict[str, int] | None = Field(
+        default=None,
+        description="a protocol of several services: the port each service is reached on, "
+        "defaults filled in; null for a single-service protocol",
+    )
     username: str | None = Field(description="ABB: the RWS user")
     has_password: bool = Field(description="whether a password is stored (never served)")
     timeout_s: float = Field(description="deadline of each connect and read, s")

@@ -135,7 +135,7 @@ def controller_failure(
     exc: ControllerError, settings: ControllerSettings, *, robot_id: str
 ) -> DomainError:
     """A connector's failure as the 502 a client gets (as for deployments)."""
-    where = f"{settings.host}:{settings.port}"
+    where = settings.where()
     if isinstance(exc, ControllerRefused):
         # The connector's sentence says why and what to do (KUKA's external-TCP mode: move
         # with the tool on the flange); the controller's own words alone do not. Refused

@@ -10,14 +10,22 @@ from sqlalchemy.orm import Session
 
 from app import secretbox
 from app.auth import Principal
+from app.controllers import has_connector
 from app.controllers.base import (
     DEFAULT_PORTS,
+    SERVICE_PORTS,
     SLOT_RANGES,
     ControllerCredentialsRefused,
     ControllerRefused,
     ControllerSettings,
 )
-from app.errors import InvalidInput, NoController, NoControllerSet, SecretUnreadable
+from app.errors import (
+    ConnectorMissing,
+    InvalidInput,
+    NoController,
+    NoControllerSet,
+    SecretUnreadable,
+)
 from app.models import RobotController, Tool, ToolControllerState, utcnow
 from app.schemas.controllers import ControllerIn
 from app.services import audit, live_tool
@@ -74,6 +82,45 @@ def check_host(host: str) -> None:
         )
 
 
+def _services_text(protocol: str) -> str:
+    return ", ".join(f"{name} (default {port})" for name, port in SERVICE_PORTS[protocol].items())
+
+
+def ports_in_use(data: ControllerIn) -> tuple[int | None, dict[str, int] | None]:
+    """(`port`, `ports`) as stored: a single-service protocol's port, or every service's
+    port of a protocol of several, defaults filled in; 422 naming the field for `port` sent
+    to a protocol of several services, `ports` to one of one, or a service it does not have
+    (contract v1.3: such a protocol takes `ports` in place of `port`)."""
+    protocol = data.protocol
+    if protocol not in SERVICE_PORTS:
+        if data.ports is not None:
+            raise InvalidInput(
+                "validation",
+                f"{protocol} is reached on one port: give it as `port` (default "
+                f"{DEFAULT_PORTS[protocol]}), not `ports`, which only a protocol of several "
+                f"services takes ({', '.join(SERVICE_PORTS)})",
+                loc=("body", "ports"),
+            )
+        return (data.port if data.port is not None else DEFAULT_PORTS[protocol]), None
+    if data.port is not None:
+        raise InvalidInput(
+            "validation",
+            f"{protocol} is reached on several ports, one a service: give them as `ports` "
+            f"(services {_services_text(protocol)}; any left out keeps its default), not `port`",
+            loc=("body", "port"),
+        )
+    given = data.ports or {}
+    for service in given:
+        if service not in SERVICE_PORTS[protocol]:
+            raise InvalidInput(
+                "validation",
+                f"{protocol} has no service {service!r}: its services are "
+                f"{_services_text(protocol)}; name the port by one of them",
+                loc=("body", "ports", service),
+            )
+    return None, {name: given.get(name, port) for name, port in SERVICE_PORTS[protocol].items()}
+
+
 def put_controller(
     session: Session, *, robot_id: str, data: ControllerIn, fields_sent: set[str], actor: Principal
 ) -> RobotController:
@@ -81,6 +128,7 @@ def put_controller(
     null removes it. Its live tools must be addressable under the protocol (422 otherwise)."""
     get_robot(session, robot_id, for_update=True)
     check_host(data.host)
+    port, ports = ports_in_use(data)
     _tools_addressable(session, robot_id, data.protocol)
     controller = session.get(RobotController, robot_id)
     created = controller is None
@@ -91,7 +139,8 @@ def put_controller(
         controller.password_encrypted = _encrypted(data)
     controller.protocol = data.protocol
     controller.host = data.host
-    controller.port = data.port if data.port is not None else DEFAULT_PORTS[data.protocol]
+    controller.port = port
+    controller.ports = ports
     controller.username = data.username
     controller.timeout_s = data.timeout_s
     controller.tls_verify = data.tls_verify
@@ -109,6 +158,7 @@ def put_controller(
             "protocol": controller.protocol,
             "host": controller.host,
             "port": controller.port,
+            "ports": controller.ports,
             "password_changed": "password" in fields_sent,  # never the password itself
         },
     )
@@ -197,6 +247,7 @@ def controller_document(controller: RobotController) -> dict[str, object]:
         "protocol": controller.protocol,
         "host": controller.host,
         "port": controller.port,
+        "ports": controller.ports,
         "username": controller.username,
         "has_password": controller.password_encrypted is not None,
         "timeout_s": controller.timeout_s,
@@ -208,19 +259,32 @@ def controller_document(controller: RobotController) -> dict[str, object]:
 
 def settings_of(controller: RobotController) -> ControllerSettings:
     """What a connector needs, the password decrypted (in memory only); 409 when the
-    secret key cannot open it."""
+    secret key cannot open it, 501 when this tcpcal has no connector for its protocol."""
+    if not has_connector(controller.protocol):
+        raise ConnectorMissing(
+            f"this tcpcal has no {controller.protocol} connector yet: the connection to "
+            f"robot {controller.robot_id}'s controller is stored, and deploying, reconciling "
+            "and capturing work once a tcpcal with the connector serves it; nothing was "
+            "sent to the controller"
+        )
     password = None
     if controller.password_encrypted is not None:
         try:
             password = secretbox.decrypt(controller.password_encrypted)
         except secretbox.SecretUnavailable as exc:
             raise SecretUnreadable(str(exc)) from None
+    ports = dict(controller.ports or {})
+    port = controller.port
+    if port is None:  # a protocol of several services: its main (first) service's port
+        main, default = next(iter(SERVICE_PORTS[controller.protocol].items()))
+        port = ports.get(main, default)
     return ControllerSettings(
         protocol=controller.protocol,  # type: ignore[arg-type]  # checked when stored
         host=controller.host,
-        port=controller.port,
+        port=port,
         username=controller.username,
         password=password,
         timeout_s=controller.timeout_s,
         tls_verify=controller.tls_verify,
+        ports=ports,
     )

@@ -233,7 +233,7 @@ def status_words(status: FailedDeploymentStatus, version: int, held_version: int
 
 def _failure(plan: Plan, attempt: _Attempt, exc: ControllerError) -> Outcome:
     status = _failure_status(plan, attempt)
-    where = f"{plan.settings.host}:{plan.settings.port}"
+    where = plan.settings.where()
     words = status_words(status, plan.version, plan.held_version)
     members: dict[str, object] = {"deployment_status": status}
     message = None

@@ -109,7 +109,7 @@ def read_controller(
             live = read_live(conn)
     except (ControllerUnreachable, ControllerRefused, ControllerError) as exc:
         words = refusal_words(exc, robot_id) if isinstance(exc, ControllerRefused) else str(exc)
-        where = f"{settings.host}:{settings.port}"
+        where = settings.where()
         for tool in todo:
             readings.setdefault(tool.tool_id, Reading(None, f"{where}: {words}"))
         live = LiveRead(None, f"{where}: {words}")

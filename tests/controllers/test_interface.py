@@ -10,6 +10,7 @@ import pytest
 from app.controllers import (
     DEFAULT_PORTS,
     PROTOCOLS,
+    SERVICE_PORTS,
     SLOT_RANGES,
     TARGET_FIELD,
     ControllerSettings,
@@ -17,6 +18,8 @@ from app.controllers import (
     abb_symbol_problem,
     check_target,
     connect,
+    describe_target,
+    has_connector,
     split_abb_symbol,
     target_problem,
 )
@@ -30,10 +33,26 @@ from tests.controllers.kuka_sim import KukaSimulator
 
 
 def test_every_protocol_has_a_port_and_a_target_field() -> None:
-    assert PROTOCOLS == ("kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2")
+    assert PROTOCOLS == (
+        "kuka_kvp",
+        "fanuc_rmi",
+        "abb_rws1",
+        "abb_rws2",
+        "techman",
+        "yaskawa_hses",
+        "ur_rtde",
+    )
     assert DEFAULT_PORTS == {"kuka_kvp": 7000, "fanuc_rmi": 16001, "abb_rws1": 80, "abb_rws2": 443}
+    # contract v1.3: a protocol of several services, each on its real port by default
+    assert SERVICE_PORTS == {
+        "techman": {"listen_node": 5890, "ethernet_slave": 5891},
+        "yaskawa_hses": {"robot": 10040, "file": 10041},
+        "ur_rtde": {"rtde": 30004, "secondary": 30002},
+    }
+    assert set(DEFAULT_PORTS) | set(SERVICE_PORTS) == set(PROTOCOLS)
+    assert not set(DEFAULT_PORTS) & set(SERVICE_PORTS)
     assert set(TARGET_FIELD) == set(PROTOCOLS)
-    assert SLOT_RANGES == {"kuka_kvp": (1, 16), "fanuc_rmi": (1, 10)}
+    assert SLOT_RANGES == {"kuka_kvp": (1, 16), "fanuc_rmi": (1, 10), "yaskawa_hses": (0, 63)}
 
 
 @pytest.mark.parametrize(
@@ -50,7 +69,14 @@ def test_every_protocol_has_a_port_and_a_target_field() -> None:
         ("abb_rws2", ToolTarget(symbol="T_ROB1/tTorch"), 'is not "TASK/MODULE/SYMBOL"'),
         ("abb_rws1", ToolTarget(symbol="T_ROB1/user/1torch"), 'is not "TASK/MODULE/SYMBOL"'),
         ("abb_rws1", ToolTarget(symbol="T_ROB1/user/" + "t" * 33), "at most 32"),
-        ("ur_rtde", ToolTarget(slot=1), "unknown controller protocol 'ur_rtde'"),
+        ("yaskawa_hses", ToolTarget(slot=0), None),
+        ("yaskawa_hses", ToolTarget(slot=63), None),
+        ("yaskawa_hses", ToolTarget(slot=64), "slot 64 is outside 0-63"),
+        ("yaskawa_hses", ToolTarget(), "set the tool's slot (0-63)"),
+        # named on the controller by values: any tool, with or without a slot
+        ("ur_rtde", ToolTarget(slot=1), None),
+        ("techman", ToolTarget(), None),
+        ("kuka_rsi", ToolTarget(slot=1), "unknown controller protocol 'kuka_rsi'"),
     ],
 )
 def test_target_problem_names_what_to_set(
@@ -94,7 +120,24 @@ def test_connect_picks_the_connector_of_the_protocol() -> None:
             assert isinstance(connector, AbbRwsConnector)
             assert connector.protocol == f"abb_rws{version}"
     with pytest.raises(ValueError, match="unknown controller protocol"):
-        connect(ControllerSettings("ur_rtde", "127.0.0.1", 30004, None, None))  # type: ignore[arg-type]
+        connect(ControllerSettings("kuka_rsi", "127.0.0.1", 49152, None, None))  # type: ignore[arg-type]
+
+
+def test_targets_of_the_new_protocols_are_named_as_their_controllers_name_them() -> None:
+    assert describe_target("yaskawa_hses", ToolTarget(slot=5)) == "TOOL.CND tool 5"
+    assert describe_target("ur_rtde", ToolTarget()) == "tcp_offset"
+    assert describe_target("techman", ToolTarget(slot=2)) == "current TCP"
+
+
+def test_connect_without_a_connector_for_a_known_protocol_says_so() -> None:
+    """Until a protocol's connector is registered, connecting is a ValueError naming it
+    (the service answers 501 /no-connector before it gets here)."""
+    for protocol in PROTOCOLS:
+        if has_connector(protocol):
+            continue
+        settings = ControllerSettings(protocol, "127.0.0.1", 1, None, None)  # type: ignore[arg-type]
+        with pytest.raises(ValueError, match=f"no connector for controller protocol '{protocol}'"):
+            connect(settings)
 
 
 def test_a_simulator_switched_back_on_serves_on_its_port_again() -> None:
