@@ -1,7 +1,7 @@
 """Controller simulators as fixtures: each started on a free loopback port, stopped after.
 
-`kuka_sim`, `fanuc_sim`, `abb_rws1_sim`, `abb_rws2_sim`, `yaskawa_sim` are the running
-simulators (change their tool data as an operator would: `set_tool`, `tool`, ...;
+`kuka_sim`, `fanuc_sim`, `abb_rws1_sim`, `abb_rws2_sim`, `yaskawa_sim`, `techman_sim` are the
+running simulators (change their tool data as an operator would: `set_tool`, `tool`, ...;
 `stalled = True` makes one stop answering; `stop()` switches it off); `kuka_settings(sim)`
 etc. the `ControllerSettings` that reach them (timeout 2 s). tests/controllers/conftest.py imports
 them; another test package does the same in its conftest
@@ -18,6 +18,7 @@ from app.controllers import ControllerSettings
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator
+from tests.controllers.techman_sim import TechmanSimulator
 from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 SIM_TIMEOUT_S = 2.0
@@ -59,6 +60,13 @@ def fanuc_settings(sim: FanucSimulator, *, timeout_s: float = SIM_TIMEOUT_S) -> 
         password=None,
         timeout_s=timeout_s,
     )
+
+
+@pytest.fixture
+def techman_sim() -> Iterator[TechmanSimulator]:
+    """A TM robot whose project waits in a Listen node (Listen Node and Ethernet Slave)."""
+    with TechmanSimulator() as sim:
+        yield sim
 
 
 @pytest.fixture
