@@ -192,6 +192,7 @@ class Deployment(TypedDict):
     deviation_deg: float | None
     reason: NotRequired[str | None]
     error: NotRequired[DeploymentError | None]
+    scope: NotRequired[str]
 
 
 class ActiveFrame(Frame):
@@ -220,3 +221,4 @@ class Reconciliation(TypedDict):
     state: str
     tools: list[ReconciledTool]
     not_addressable: list[NotAddressable]
+    scope: NotRequired[str]

@@ -29,6 +29,12 @@ from app.client_http import (
 if TYPE_CHECKING:
     import httpx
 
+#: What a `live` scope deployment means, for the person at the cell (contract v1.3).
+LIVE_SCOPE = (
+    "live: the robot holds this TCP only for the running program; the next program start "
+    "sets its own TCP, and the reconcile rounds then show what the robot moves by"
+)
+
 EXIT_DRIFTED = 2
 EXIT_CONTROLLER_UNREACHABLE = 3
 _EXITS = """Exit codes: 0 verified / in sync; 2 mismatch / drifted; 3 controller unreachable;
@@ -125,6 +131,8 @@ def deploy(
         highlight=False,
         soft_wrap=True,
     )
+    if dep.get("scope") == "live":
+        out.print(LIVE_SCOPE, highlight=False, soft_wrap=True)
 
 
 def reconcile(robot_ref: RobotArg) -> None:
@@ -159,8 +167,10 @@ def reconcile(robot_ref: RobotArg) -> None:
             t["target"] or "-",
         )
     out.print(table)
+    if result.get("scope") == "live":
+        out.print(_live_words(result, names), highlight=False, soft_wrap=True)
     for t in result["tools"]:
-        if t["state"] != "in_sync":
+        if t["state"] not in ("in_sync", "not_live"):
             _explain(names.get(t["tool_id"], t["tool_id"]), t)
     for left in skipped:
         name = names.get(left["tool_id"], left["tool_id"])
@@ -168,6 +178,19 @@ def reconcile(robot_ref: RobotArg) -> None:
     out.print(f"robot {robot_ref}: {result['state']}", highlight=False, soft_wrap=True)
     exits = {"in_sync": 0, "drifted": EXIT_DRIFTED, "unreachable": EXIT_CONTROLLER_UNREACHABLE}
     raise typer.Exit(exits[result["state"]])
+
+
+def _live_words(result: Reconciliation, names: dict[str, str]) -> str:
+    """Which tool a robot with one live TCP was judged by, and what live means."""
+    judged = [t for t in result["tools"] if t["state"] != "not_live"]
+    if judged:
+        which = f"{names.get(judged[0]['tool_id'], judged[0]['tool_id'])}, deployed to it last"
+    else:
+        which = "none: no tool was deployed to it from tcpcal yet"
+    return (
+        f"one live TCP: judged by {which}; its other tools are not_live (deploy one to make "
+        f"it the live one). {LIVE_SCOPE[0].upper()}{LIVE_SCOPE[1:]}"
+    )
 
 
 def _explain(name: str, tool: ReconciledTool) -> None:

@@ -33,7 +33,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.types import TypeDecorator
 
 from app.jsontypes import JsonArray, JsonObject
-from app.statuses import DeploymentStatus, SessionStatus, Status, ToolState
+from app.statuses import DeploymentScope, DeploymentStatus, SessionStatus, Status, ToolState
 
 NAMING_CONVENTION = {
     "ix": "ix_%(column_0_label)s",
@@ -400,7 +400,11 @@ class Deployment(Base):
     """One attempt to write a tool's active version into its controller, verified or not."""
 
     __tablename__ = "deployments"
-    __table_args__ = (Index("ix_deployments_tool_seq", "tool_id", "id"),)
+    __table_args__ = (
+        Index("ix_deployments_tool_seq", "tool_id", "id"),
+        # a live-TCP robot's last deployment (app.services.reconcile.live_scope)
+        Index("ix_deployments_robot_seq", "robot_id", "id"),
+    )
 
     id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
@@ -409,6 +413,8 @@ class Deployment(Base):
     protocol: Mapped[str] = mapped_column(String(20))
     target: Mapped[str] = mapped_column(String(300))
     status: Mapped[DeploymentStatus] = mapped_column(String(20))
+    #: stored (the controller keeps it) | live (only for the running program), by protocol
+    scope: Mapped[DeploymentScope] = mapped_column(String(10))
     previous: Mapped[JsonObject | None] = mapped_column(JSON)
     read_back: Mapped[JsonObject | None] = mapped_column(JSON)
     deviation_mm: Mapped[float | None] = mapped_column(Float)

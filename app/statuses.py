@@ -23,8 +23,15 @@ FailedDeploymentStatus = Literal["not_written", "unverified"]
 #: read back otherwise than written (`mismatch`).
 DeploymentStatus = Literal["verified", FailedDeploymentStatus, "mismatch"]
 
-#: What the controller holds for a tool, against the tool's active version.
-ToolState = Literal["in_sync", "drifted", "no_active_version", "unreachable"]
+#: Where a deployment holds (contract v1.3): `stored` where the controller keeps it (KUKA,
+#: FANUC, ABB, Yaskawa), `live` where it holds only for the running program (UR, Techman:
+#: the next program start sets its own TCP).
+DeploymentScope = Literal["stored", "live"]
+
+#: What the controller holds for a tool, against the tool's active version; `not_live`: the
+#: robot has one live TCP (a `live` scope protocol) and it is another tool's, the one
+#: deployed to it last.
+ToolState = Literal["in_sync", "drifted", "no_active_version", "unreachable", "not_live"]
 
 #: A robot's state: the worst of its tools' states, least bad first.
 RobotState = Literal["in_sync", "drifted", "unreachable"]

@@ -189,3 +189,113 @@ def test_stored_tolerances_gain_max_correction_mm(empty_url: str) -> None:
     }
     downgrade(empty_url, BEFORE_MAX_CORRECTION)
     assert _tolerances(empty_url) == {"a": {}, "b": {"check_mm": 0.4}}
+
+
+BEFORE_DEPLOYMENT_SCOPE = "2026_11_28_controller_ports"
+
+
+def test_stored_deployments_gain_their_protocols_scope(empty_url: str) -> None:
+    """Contract v1.3: each deployment says where it holds, set for the existing rows by
+    their protocol (UR and Techman live, the others stored); a downgrade drops it."""
+    upgrade(empty_url, BEFORE_DEPLOYMENT_SCOPE)
+    engine = make_engine(empty_url)
+    now = datetime.now(UTC)
+    protocols = ["kuka_kvp", "fanuc_rmi", "abb_rws2", "yaskawa_hses", "techman", "ur_rtde"]
+    try:
+        with engine.begin() as conn:
+            conn.execute(
+                text(
+                    "INSERT INTO robots (id, name, created_at, updated_at) "
+                    "VALUES ('r', 'r', :t, :t)"
+                ),
+                {"t": now},
+            )
+            conn.execute(
+                text(
+                    "INSERT INTO tools (id, robot_id, name, tolerance, last_version, revision, "
+                    "created_at, updated_at) VALUES ('t', 'r', 't', '{}', 1, 1, :t, :t)"
+                ),
+                {"t": now},
+            )
+            for protocol in protocols:
+                conn.execute(
+                    text(
+                        "INSERT INTO deployments (tool_id, robot_id, version, protocol, target, "
+                        "status, actor, created_at) VALUES ('t', 'r', 1, :p, 'x', 'verified', "
+                        "'a', :t)"
+                    ),
+                    {"p": protocol, "t": now},
+                )
+    finally:
+        engine.dispose()
+    upgrade(empty_url)
+    engine = make_engine(empty_url)
+    try:
+        with engine.connect() as conn:
+            rows = conn.execute(text("SELECT protocol, scope FROM deployments ORDER BY id")).all()
+    finally:
+        engine.dispose()
+    assert [tuple(r) for r in rows] == [
+        ("kuka_kvp", "stored"),
+        ("fanuc_rmi", "stored"),
+        ("abb_rws2", "stored"),
+        ("yaskawa_hses", "stored"),
+        ("techman", "live"),
+        ("ur_rtde", "live"),
+    ]
+    downgrade(empty_url, BEFORE_DEPLOYMENT_SCOPE)
+    engine = make_engine(empty_url)
+    try:
+        columns = {c["name"] for c in inspect(engine).get_columns("deployments")}
+    finally:
+        engine.dispose()
+    assert "scope" not in columns
+
+
+def test_a_controller_of_several_services_keeps_its_main_port_on_downgrade(
+    empty_url: str,
+) -> None:
+    """Downgraded below `ports`, such a controller's `port` is its main service's (the
+    older code, which knows no such protocol, then refuses it as it would any other)."""
+    upgrade(empty_url)
+    engine = make_engine(empty_url)
+    now = datetime.now(UTC)
+    try:
+        with engine.begin() as conn:
+            for robot_id, protocol, port, ports in (
+                ("a", "kuka_kvp", 7000, None),
+                ("b", "techman", None, {"listen_node": 6890, "ethernet_slave": 6891}),
+            ):
+                conn.execute(
+                    text(
+                        "INSERT INTO robots (id, name, created_at, updated_at) "
+                        "VALUES (:r, :r, :t, :t)"
+                    ),
+                    {"r": robot_id, "t": now},
+                )
+                conn.execute(
+                    text(
+                        "INSERT INTO robot_controllers (robot_id, protocol, host, port, ports, "
+                        "timeout_s, tls_verify, created_at, updated_at) VALUES (:r, :p, 'h', "
+                        ":port, :ports, 5, true, :t, :t)"
+                    ),
+                    {
+                        "r": robot_id,
+                        "p": protocol,
+                        "port": port,
+                        "ports": None if ports is None else json.dumps(ports),
+                        "t": now,
+                    },
+                )
+    finally:
+        engine.dispose()
+    downgrade(empty_url, "2026_11_27_max_correction")
+    engine = make_engine(empty_url)
+    try:
+        with engine.connect() as conn:
+            rows = conn.execute(
+                text("SELECT robot_id, port FROM robot_controllers ORDER BY robot_id")
+            ).all()
+    finally:
+        engine.dispose()
+    assert [tuple(r) for r in rows] == [("a", 7000), ("b", 6890)]

@@ -317,15 +317,6 @@ const LIVE_UNREAD = "the controller does not say which TCP it moves by (ABB), or
 const LIVE_NEVER = "no reconcile round has read this robot's controller yet";
 
 // ---- controllers ----------------------------------------------------------------------------
-const CONTROLLER_LABELS = {
-  in_sync: "in sync",
-  drifted: "drifted",
-  unreachable: "unreachable",
-  no_active_version: "no active TCP",
-};
-
-// A drifted badge gives the distance; with `degrees` (the fleet's cell) the angle too when the
-// controller's TCP turned: an orientation-only pendant edit read "drifted 0.000 mm".
 // Where the controller is reached: host:port, or for a protocol of several services
 // (techman, yaskawa_hses, ur_rtde) each service's port, as the API answers them.
 function controllerAddress(connection) {
@@ -333,12 +324,28 @@ function controllerAddress(connection) {
   return `${connection.host} (${Object.entries(connection.ports).map(([name, port]) => `${name} ${port}`).join(", ")})`;
 }
 
+const CONTROLLER_LABELS = {
+  in_sync: "in sync",
+  drifted: "drifted",
+  unreachable: "unreachable",
+  no_active_version: "no active TCP",
+  not_live: "not live",
+};
+
+// What a `live` scope deployment means (UR, Techman: contract v1.3), for the person at the cell.
+const LIVE_SCOPE = "The robot holds this TCP only for the running program: the next program start sets its own TCP, and the reconcile rounds then show what the robot moves by.";
+// Why a tool of a robot with one live TCP is not judged.
+const NOT_LIVE = "the robot has one live TCP, and another tool was deployed to it last: deploy this one to make it the live one";
+
+// A drifted badge gives the distance; with `degrees` (the fleet's cell) the angle too when the
+// controller's TCP turned: an orientation-only pendant edit read "drifted 0.000 mm".
 function controllerBadge(controller, { degrees = false } = {}) {
   if (!controller) return "—";
   const label = CONTROLLER_LABELS[controller.state] ?? controller.state;
   const turned = degrees ? turnedBy(controller.deviation_deg) : "";
   const deviation = controller.state === "drifted" ? ` ${mm(controller.deviation_mm)} mm${turned}` : "";
-  return h("span", { class: `badge controller ${controller.state}`, title: `checked ${when(controller.checked_at)}` }, label + deviation);
+  const title = `checked ${when(controller.checked_at)}${controller.state === "not_live" ? `: ${NOT_LIVE}` : ""}`;
+  return h("span", { class: `badge controller ${controller.state}`, title }, label + deviation);
 }
 
 // ", 0.500 deg", or nothing when the angle is none at the figures shown (3 decimals).
@@ -409,7 +416,7 @@ function deploymentRow(d, versions) {
   return h("tr", { "data-deployment": d.id, "data-status": d.status, class: d.status === "verified" ? null : "failed" },
     h("td", {}, when(d.created_at)),
     h("td", { class: "num" }, d.version),
-    h("td", { class: "target anywhere" }, d.target),
+    h("td", { class: "target anywhere" }, d.target, d.scope === "live" ? h("span", { class: "scope muted", title: LIVE_SCOPE }, " (live)") : null),
     h("td", { class: "outcome" },
       deploymentBadge(d.status),
       saysStatus(detail, d.status) ? null : h("p", { class: "words" }, deploymentWords(d, versions)),
@@ -486,7 +493,7 @@ function deployControls(tool, connection, onChange) {
   }
   const ask = h("button", { type: "button", id: "deploy-button" }, `Deploy version ${tool.active_version}`);
   const confirmBox = h("div", { id: "deploy-confirm", class: "card", hidden: true },
-    h("p", {}, `Write version ${tool.active_version} of ${tool.name} into the controller at ${controllerAddress(connection)} (${connection.protocol}) and read it back? The robot moves by this TCP from then on.`));
+    h("p", {}, `Write version ${tool.active_version} of ${tool.name} into the controller at ${controllerAddress(connection)} (${connection.protocol}) and read it back? ${connection.scope === "live" ? LIVE_SCOPE : "The robot moves by this TCP from then on."}`));
   const yes = h("button", { type: "button", id: "deploy-yes" }, "Deploy now");
   const no = h("button", { type: "button", id: "deploy-no" }, "Cancel");
   confirmBox.append(h("div", { class: "actions" }, yes, no));
@@ -504,7 +511,8 @@ function deployControls(tool, connection, onChange) {
     outcome.replaceChildren(h("p", { class: "muted" }, "Deploying…"));
     try {
       const d = await json(`/v1/tools/${tool.id}/deployments`, { method: "POST", body: {} });
-      outcome.replaceChildren(h("p", { class: "summary accepted", role: "status" }, `Verified: ${d.target} holds version ${d.version} (read back within ${d.deviation_mm.toFixed(4)} mm, ${d.deviation_deg.toFixed(4)} deg).`));
+      outcome.replaceChildren(h("p", { class: "summary accepted", role: "status" }, `Verified: ${d.target} holds version ${d.version} (read back within ${d.deviation_mm.toFixed(4)} mm, ${d.deviation_deg.toFixed(4)} deg).`),
+        ...(d.scope === "live" ? [h("p", { id: "deploy-live", class: "muted" }, LIVE_SCOPE)] : []));
     } catch (error) {
       outcome.replaceChildren(deployProblem(error));
     }

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Literal, Protocol, Self, get_args
 
+from app.statuses import DeploymentScope
 from app.tool_numbers import TOOL_NUMBERS
 
 ProtocolName = Literal[
@@ -88,6 +89,25 @@ TARGET_FIELD: dict[str, Literal["slot", "symbol", "live"]] = {
 
 #: How a live-TCP protocol names the one TCP every tool of the robot is written to.
 LIVE_TARGETS: dict[str, str] = {"techman": "current TCP", "ur_rtde": "tcp_offset"}
+
+#: Where a deployment under each protocol holds (contract v1.3 Deployment `scope`):
+#: "stored" where the controller keeps it, "live" where it holds only for the running
+#: program (the next program start sets its own TCP).
+SCOPES: dict[str, DeploymentScope] = {
+    "kuka_kvp": "stored",  # $TOOL_DATA in $config.dat
+    "fanuc_rmi": "stored",  # UTOOL, a system variable
+    "abb_rws1": "stored",  # a PERS tooldata
+    "abb_rws2": "stored",
+    "techman": "live",  # ChangeTCP: the running project's current TCP
+    "yaskawa_hses": "stored",  # TOOL.CND
+    "ur_rtde": "live",  # set_tcp: the running program's TCP
+}
+
+
+def scope_of(protocol: str) -> DeploymentScope:
+    """Where a deployment under `protocol` holds; "stored" for a protocol not known here."""
+    return SCOPES.get(protocol, "stored")
+
 
 # RAPID identifiers: a letter, then letters, digits or underscores, at most 32 characters
 # (ABB Technical reference manual - RAPID overview, "Identifiers").

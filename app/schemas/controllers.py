@@ -8,7 +8,7 @@ from pydantic import BaseModel, BeforeValidator, Field, SecretStr
 
 from app.controllers.base import ABB_SYMBOL_PATTERN, DEFAULT_PORTS, SERVICE_PORTS, ProtocolName
 from app.schemas.common import Reason, ShortText, StrictModel, Timestamp, json_integer
-from app.statuses import DeploymentStatus, RobotState, ToolState
+from app.statuses import DeploymentScope, DeploymentStatus, RobotState, ToolState
 
 Host = Annotated[
     str,
@@ -109,6 +109,11 @@ class Controller(BaseModel):
         "defaults filled in; null for a single-service protocol",
     )
     username: str | None = Field(description="ABB: the RWS user")
+    scope: DeploymentScope = Field(
+        default="stored",
+        description="where a deployment to it holds: stored (the controller keeps it) or live "
+        "(UR, Techman: only for the running program; the next program start sets its own TCP)",
+    )
     has_password: bool = Field(description="whether a password is stored (never served)")
     timeout_s: float = Field(description="deadline of each connect and read, s")
     tls_verify: bool = Field(description="abb_rws2: whether the certificate is checked")
@@ -149,6 +154,11 @@ class Deployment(BaseModel):
     version: int = Field(description="the version written (the active one at the time)")
     protocol: str = Field(description="the controller's protocol")
     target: str = Field(description='where it was written: "$TOOL_DATA[3]", "UTOOL[3]", a symbol')
+    scope: DeploymentScope = Field(
+        description="stored: the controller keeps it (KUKA, FANUC, ABB, Yaskawa); live: it "
+        "holds only for the running program (UR, Techman): the next program start sets its "
+        "own TCP, and the reconcile rounds then show what the robot moves by"
+    )
     status: DeploymentStatus = Field(
         description="verified (read back as written) | not_written (failed before the write "
         "was sent: the controller holds what it held) | unverified (failed after the write was "
@@ -186,7 +196,11 @@ class ActiveFrame(Frame):
 class ReconciledTool(BaseModel):
     tool_id: str
     target: str | None = Field(description="where the tool lives in the controller")
-    state: ToolState = Field(description="in_sync | drifted | no_active_version | unreachable")
+    state: ToolState = Field(
+        description="in_sync | drifted | no_active_version | unreachable | not_live (a robot "
+        "with one live TCP, UR or Techman: another tool was deployed to it last, and only "
+        "that one is judged)"
+    )
     controller: Frame | None = Field(description="what the controller holds; null if unread")
     active: ActiveFrame | None = Field(description="the active version; null without one")
     deviation_mm: float | None = Field(description="controller vs active: distance, mm")
@@ -203,7 +217,16 @@ class NotAddressable(BaseModel):
 class Reconciliation(BaseModel):
     robot_id: str
     checked_at: Timestamp
-    state: RobotState = Field(description="the worst of its tools' states")
+    state: RobotState = Field(
+        description="the worst of its tools' states; unreachable when the controller could "
+        "not be reached"
+    )
+    scope: DeploymentScope = Field(
+        default="stored",
+        description="stored: every tool is judged against what the controller keeps for it; "
+        "live (UR, Techman): the robot has one live TCP, the tool deployed to it last is "
+        "judged and its other tools are not_live",
+    )
     tools: list[ReconciledTool] = Field(description="every live tool the controller addresses")
     not_addressable: list[NotAddressable] = Field(
         default_factory=list,

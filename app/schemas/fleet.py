@@ -50,7 +50,10 @@ class LastCheck(BaseModel):
 class FleetController(BaseModel):
     """What the last look at the robot's controller found for the tool."""
 
-    state: ToolState = Field(description="in_sync | drifted | no_active_version | unreachable")
+    state: ToolState = Field(
+        description="in_sync | drifted | no_active_version | unreachable | not_live (its "
+        "robot has one live TCP, UR or Techman, and another tool was deployed to it last)"
+    )
     checked_at: Timestamp
     deviation_mm: float | None = Field(description="controller vs active TCP: distance, mm")
     deviation_deg: float | None = Field(

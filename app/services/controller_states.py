@@ -1,5 +1,5 @@
-"""Each tool's controller state (in sync, drifted, unreachable, no active version) as the
-last reconcile or deployment saw it; a change of state is an audit event, once."""
+"""Each tool's controller state (in sync, drifted, unreachable, no active version, not live)
+as the last reconcile or deployment saw it; a change of state is an audit event, once."""
 
 from __future__ import annotations
 
@@ -23,6 +23,7 @@ EVENT_STATES: tuple[ToolState, ...] = ("in_sync", "drifted", "unreachable")
 SEVERITY: dict[ToolState, int] = {
     "in_sync": 0,
     "no_active_version": 0,
+    "not_live": 0,
     "drifted": 1,
     "unreachable": 2,
 }
@@ -95,3 +96,39 @@ def observe(
         )
     session.flush()
     return row, changed and seen.state in EVENT_STATES
+
+
+def not_live(tool_id: str, robot_id: str, target: str | None, version: int | None) -> Observation:
+    """A tool of a robot with one live TCP (a `live` scope protocol, UR and Techman) that is
+    not the one deployed to it last: not judged against what the controller holds."""
+    return Observation(
+        tool_id=tool_id,
+        robot_id=robot_id,
+        state="not_live",
+        target=target,
+        controller=None,
+        active_version=version,
+        deviation_mm=None,
+        deviation_deg=None,
+        error=None,
+    )
+
+
+def others_not_live(
+    session: Session,
+    *,
+    robot_id: str,
+    live_tool_id: str,
+    target: str,
+    at: datetime,
+    actor: Principal,
+) -> None:
+    """A `live` scope deployment made `live_tool_id` the robot's one live TCP: its other live
+    tools are `not_live` from then on (the reconcile rounds judge the tool deployed last)."""
+    others = session.execute(
+        select(Tool.id, Tool.active_version)
+        .where(Tool.robot_id == robot_id, Tool.archived_at.is_(None), Tool.id != live_tool_id)
+        .order_by(Tool.id)
+    ).all()
+    for tool_id, version in others:
+        observe(session, not_live(tool_id, robot_id, target, version), at=at, actor=actor)

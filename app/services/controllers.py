@@ -18,6 +18,7 @@ from app.controllers.base import (
     ControllerCredentialsRefused,
     ControllerRefused,
     ControllerSettings,
+    scope_of,
 )
 from app.errors import (
     ConnectorMissing,
@@ -249,6 +250,7 @@ def controller_document(controller: RobotController) -> dict[str, object]:
         "port": controller.port,
         "ports": controller.ports,
         "username": controller.username,
+        "scope": scope_of(controller.protocol),
         "has_password": controller.password_encrypted is not None,
         "timeout_s": controller.timeout_s,
         "tls_verify": controller.tls_verify,

@@ -30,6 +30,7 @@ from app.controllers.base import (
     ToolLoad,
     ToolTarget,
     describe_target,
+    scope_of,
     target_problem,
 )
 from app.db import session_scope
@@ -45,7 +46,7 @@ from app.helpers.frames import DEPLOY_TOLERANCE_DEG, DEPLOY_TOLERANCE_MM, frame_
 from app.helpers.pagination import paginate_newest_first
 from app.jsontypes import JsonObject
 from app.metrics import DEPLOYMENTS
-from app.models import Deployment, TcpVersion, ToolControllerState, utcnow
+from app.models import Deployment, Robot, TcpVersion, ToolControllerState, utcnow
 from app.schemas.controllers import Deployment as DeploymentOut
 from app.services import audit, controller_states, idempotency
 from app.services.controllers import get_controller, refusal_words, settings_of
@@ -360,6 +361,7 @@ def _record(
         protocol=plan.settings.protocol,
         target=plan.target_name,
         status=outcome.status,
+        scope=scope_of(plan.settings.protocol),
         previous=controller_states.frame_json(outcome.previous),
         read_back=controller_states.frame_json(outcome.read_back),
         deviation_mm=dev_mm,
@@ -382,11 +384,15 @@ def _record(
             "version": plan.version,
             "protocol": plan.settings.protocol,
             "target": plan.target_name,
+            "scope": row.scope,
             "previous": row.previous,
             "error": error,
             "reason": reason,
         },
     )
+    if row.scope == "live":
+        # the robot's one live TCP: its row first, as every writer of its tools' states
+        session.execute(select(Robot.id).where(Robot.id == plan.robot_id).with_for_update())
     if outcome.status == "verified":
         controller_states.observe(
             session,
@@ -404,6 +410,15 @@ def _record(
             at=row.created_at,
             actor=actor,
         )
+        if row.scope == "live":
+            controller_states.others_not_live(
+                session,
+                robot_id=plan.robot_id,
+                live_tool_id=plan.tool_id,
+                target=plan.target_name,
+                at=row.created_at,
+                actor=actor,
+            )
     return row
 
 
@@ -417,6 +432,7 @@ def deployment_document(row: Deployment) -> DeploymentOut:
             "version": row.version,
             "protocol": row.protocol,
             "target": row.target,
+            "scope": row.scope,
             "status": row.status,
             "previous": row.previous,
             "read_back": row.read_back,

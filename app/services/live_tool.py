@@ -80,6 +80,8 @@ class LiveRead:
 
     tool: LiveTool | None
     error: str | None
+    #: False when the round could not open a session with the controller (or lost it)
+    reached: bool = True
 
 
 def read_live(conn: Connector) -> LiveRead:

@@ -1,6 +1,10 @@
 """Reconcile a robot: read every live tool's frame from its controller and compare it with
 the tool's active version (in sync within 0.01 mm and 0.01 deg).
 
+A robot whose protocol writes its one live TCP (a `live` scope, UR and Techman: contract
+v1.3) holds one tool at a time: the round judges the tool deployed to it last (in sync or
+drifted against that tool's active version) and reports its other tools `not_live`.
+
 As for deployments, the controller is read with no database transaction open; the states
 found are then stored in one write transaction, each change of a tool's state an audit event.
 """
@@ -9,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import datetime
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -23,19 +28,24 @@ from app.controllers.base import (
     ToolData,
     ToolTarget,
     describe_target,
+    scope_of,
     target_problem,
 )
 from app.db import session_scope
 from app.helpers.frames import SYNC_TOLERANCE_DEG, SYNC_TOLERANCE_MM, frame_deviation, within
 from app.metrics import CONTROLLER_STATE_CHANGES, RECONCILES
-from app.models import Robot, RobotController, TcpVersion, Tool, utcnow
+from app.models import Deployment, Robot, RobotController, TcpVersion, Tool, utcnow
 from app.schemas.controllers import Reconciliation
 from app.services import controller_states, settling
 from app.services.controller_states import SEVERITY, Observation
 from app.services.controllers import get_controller, refusal_words, settings_of
 from app.services.live_tool import LiveRead, live_tool_out, read_live, record_live
 from app.services.robots import get_robot
-from app.statuses import ROBOT_STATES, ToolState
+from app.statuses import ROBOT_STATES, DeploymentScope, RobotState, ToolState
+
+#: Rounds a reconcile reads at most when a deployment to a robot with one live TCP keeps
+#: changing which tool it judges while it reads (the last one stores what it read).
+_ROUNDS = 3
 
 
 @dataclass(frozen=True)
@@ -112,8 +122,42 @@ def read_controller(
         where = settings.where()
         for tool in todo:
             readings.setdefault(tool.tool_id, Reading(None, f"{where}: {words}"))
-        live = LiveRead(None, f"{where}: {words}")
+        live = LiveRead(None, f"{where}: {words}", reached=False)
     return readings, live
+
+
+@dataclass(frozen=True)
+class LiveScope:
+    """Which tool a round judges on a robot with one live TCP: the tool of the last
+    deployment whose write may have reached it (None: none yet), and that deployment."""
+
+    judged: str | None
+    deployment_id: int | None
+
+    def judges(self, tool_id: str) -> bool:
+        return tool_id == self.judged
+
+
+def live_scope(session: Session, robot_id: str, scope: DeploymentScope) -> LiveScope | None:
+    """None for a robot whose controller stores each tool (every tool judged); else the
+    tool deployed to it last (a `not_written` attempt left the live TCP as it was)."""
+    if scope != "live":
+        return None
+    row = session.execute(
+        select(Deployment.id, Deployment.tool_id)
+        .where(
+            Deployment.robot_id == robot_id,
+            Deployment.scope == "live",
+            Deployment.status != "not_written",
+        )
+        .order_by(Deployment.id.desc())
+        .limit(1)
+    ).first()
+    return LiveScope(None, None) if row is None else LiveScope(row.tool_id, row.id)
+
+
+class _DeployedMeanwhile(Exception):
+    """A deployment changed the tool a live-TCP robot's round judges while it read."""
 
 
 def _observation(robot_id: str, tool: ToolToCheck, reading: Reading) -> Observation:
@@ -144,6 +188,19 @@ def _observation(robot_id: str, tool: ToolToCheck, reading: Reading) -> Observat
     )
 
 
+@dataclass(frozen=True)
+class _Round:
+    """What one round read of a robot's controller, before it is stored."""
+
+    robot_id: str
+    scope: DeploymentScope
+    live_scope: LiveScope | None
+    tools: list[ToolToCheck]
+    readings: dict[str, Reading]
+    live: LiveRead
+    read_from: datetime
+
+
 def reconcile_robot(
     *,
     robot_id: str,
@@ -154,16 +211,38 @@ def reconcile_robot(
     """Read the robot's controller, compare with every live tool's active version, store
     the states; 404 for the robot, 409 when it has no controller. None when `cancelled()`
     turned true while the controller was read (a stopping watcher stores nothing)."""
+    for attempt in range(_ROUNDS):
+        read = _read_round(robot_id, actor)
+        if cancelled():
+            return None
+        try:
+            return _store_round(read, actor, trigger, final=attempt == _ROUNDS - 1)
+        except _DeployedMeanwhile:
+            continue  # read again: the live TCP is another tool's now
+    raise AssertionError("unreachable: the final round stores what it read")
+
+
+def _read_round(robot_id: str, actor: Principal) -> _Round:
+    """What to judge (read transaction), then the controller's values (no database)."""
     with session_scope(write=False) as session:
         act_for(session, actor)  # only the robots the key's cells hold
         get_robot(session, robot_id)
         controller = get_controller(session, robot_id)
         settings = settings_of(controller)
         tools = _tools_to_check(session, robot_id, controller.protocol)
+        scope = scope_of(controller.protocol)
+        judging = live_scope(session, robot_id, scope)
     read_from = utcnow()
-    readings, live = read_controller(settings, tools, robot_id=robot_id)
-    if cancelled():
-        return None
+    judged = [t for t in tools if judging is None or judging.judges(t.tool_id)]
+    readings, live = read_controller(settings, judged, robot_id=robot_id)
+    return _Round(robot_id, scope, judging, tools, readings, live, read_from)
+
+
+def _store_round(read: _Round, actor: Principal, trigger: str, *, final: bool) -> Reconciliation:
+    """Store the round's tool states and live tool in one write transaction; the answer.
+    _DeployedMeanwhile (nothing stored) when a deployment made another tool a live-TCP
+    robot's live one while the round read, unless `final`."""
+    robot_id = read.robot_id
     checked_at = utcnow()
     entered: list[ToolState] = []
     found: list[ToolState] = []
@@ -173,33 +252,53 @@ def reconcile_robot(
         act_for(session, actor)  # only the robots the key's cells hold
         # first: it locks the robot's row before the tools' (the order every writer keeps),
         # and the round's tool states and live tool commit together
+        live = read.live
         matches = record_live(session, robot_id=robot_id, live=live, at=checked_at, actor=actor)
-        for tool in tools:
+        if not final and read.live_scope != live_scope(session, robot_id, read.scope):
+            raise _DeployedMeanwhile  # rolls the round back
+        for tool in read.tools:
             if tool.target is None:
                 skipped.append({"tool_id": tool.tool_id, "reason": tool.problem})
                 continue
-            seen = _observation(robot_id, tool, readings[tool.tool_id])
+            seen = _seen(robot_id, tool, read)
             row, changed = controller_states.observe(session, seen, at=checked_at, actor=actor)
-            settling.settle(session, seen, read_from=read_from, at=checked_at, actor=actor)
+            settling.settle(session, seen, read_from=read.read_from, at=checked_at, actor=actor)
             found.append(seen.state)
             if changed:
                 entered.append(seen.state)
             answer_tools.append(_tool_answer(tool, seen, row.since))
     for state in entered:
         CONTROLLER_STATE_CHANGES.labels(state).inc()
-    robot_state = ROBOT_STATES[max((SEVERITY[state] for state in found), default=0)]
+    robot_state = _robot_state(found, reached=live.reached)
     RECONCILES.labels(trigger, robot_state).inc()
     return Reconciliation.model_validate(
         {
             "robot_id": robot_id,
             "checked_at": checked_at,
             "state": robot_state,
+            "scope": read.scope,
             "tools": answer_tools,
             "not_addressable": skipped,
             "live_tool": None if live.tool is None else live_tool_out(live.tool, matches),
             "live_tool_error": live.error,
         }
     )
+
+
+def _seen(robot_id: str, tool: ToolToCheck, read: _Round) -> Observation:
+    """The tool's state this round: judged from what the controller held, or `not_live`."""
+    if read.live_scope is not None and not read.live_scope.judges(tool.tool_id):
+        return controller_states.not_live(tool.tool_id, robot_id, tool.target_name, tool.version)
+    return _observation(robot_id, tool, read.readings[tool.tool_id])
+
+
+def _robot_state(found: list[ToolState], *, reached: bool) -> RobotState:
+    """The worst of the tools' states; unreachable when the controller was not reached
+    (also when no tool was judged: a live-TCP robot nothing was deployed to yet)."""
+    worst = max((SEVERITY[state] for state in found), default=0)
+    if not reached:
+        worst = max(worst, SEVERITY["unreachable"])
+    return ROBOT_STATES[worst]
 
 
 def _tool_answer(tool: ToolToCheck, seen: Observation, since: object) -> dict[str, object]:

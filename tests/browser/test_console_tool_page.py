@@ -98,6 +98,7 @@ def _plant_deployments(url: str, tool_id: str, robot_id: str) -> dict[str, int]:
                 protocol="kuka_kvp",
                 target="$TOOL_DATA[3]",
                 status=fields.pop("status", name),
+                scope="stored",
                 actor="alice",
                 created_at=now - timedelta(minutes=10 - minutes),
                 **fields,
