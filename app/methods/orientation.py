@@ -26,16 +26,18 @@ from app.methods.npoint import NPointOptions, Touches, solve_touches, solved_fro
 from app.schemas.common import Pose, StrictModel, TouchNoise, Vec3
 from app.schemas.results import QualityOut
 from app.solvers.orientation import (
+    AxisDirection,
     Direction,
     OrientationResult,
+    WorkingAxis,
     orientation_from_touches,
     orientation_from_translations,
     orientation_from_world,
 )
 
-WorkingAxis = Literal["x", "z"]
-Axis = Literal["+z", "-z", "+x", "-x"]
-AxisName = Literal["x", "y", "z"]
+#: A tool axis an alignment names (the keys of `align`).
+ToolAxis = Literal["x", "y", "z"]
+#: A base axis with its sign, which a tool axis is aligned with (the values of `align`).
 SignedAxis = Literal["+x", "-x", "+y", "-y", "+z", "-z"]
 
 
@@ -43,7 +45,7 @@ SignedAxis = Literal["+x", "-x", "+y", "-y", "+z", "-z"]
 class DirectionIn(StrictModel):
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
 
-    axis: Axis
+    axis: AxisDirection
     from_: Pose = Field(alias="from")
     to: Pose
 
@@ -71,7 +73,7 @@ class Abc2PointCalibration(PosesRequired):
 
 
 class AbcWorldOptions(StrictModel):
-    align: dict[AxisName, SignedAxis] = Field(
+    align: dict[ToolAxis, SignedAxis] = Field(
         description='tool axis -> base axis, e.g. {"x": "-z"} (5D) or {"x": "-z", "y": "+y"}',
         min_length=1,
         max_length=2,

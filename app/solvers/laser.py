@@ -49,7 +49,7 @@ from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.solvers.distributions import norm_ppf, t_ppf
 from app.solvers.orientation import (
-    SigmaSource,
+    SigmaEstimate,
     linear_sigma,
     quaternion_wxyz_from_matrix,
     rotation_error_deg,
@@ -103,7 +103,7 @@ class LaserSigma:
     offset_mm: tuple[float, float]
     tool_length_mm: float
     rotation_deg: tuple[float, float, float]  # small rotations about tool x, y, z
-    source: SigmaSource
+    source: SigmaEstimate
     trigger_noise_mm: float  # the figure propagated (0 when source is "none")
 
 
@@ -132,7 +132,7 @@ class DeviceFit:
 
     residuals_mm: tuple[float, ...]
     sigma_mm: tuple[float, float, float]  # beam_a_y, beam_b_x, plane_z
-    sigma_source: SigmaSource
+    sigma_source: SigmaEstimate
     axis_direction_flange: FloatArray
     widths_mm: tuple[float, ...]
     warnings: tuple[str, ...]
@@ -441,7 +441,7 @@ def _runout_deg(u: FloatArray) -> FloatArray:
 
 def _noise(
     p: _Parsed, line: _Line, trigger_noise_mm: float | None, warnings: list[str]
-) -> tuple[float, SigmaSource, float]:
+) -> tuple[float, SigmaEstimate, float]:
     """The trigger noise to propagate, where it came from, and the factor that widens the
     propagated 1-sigma so that +-1.96 sigma stays a 95 % interval (1 for a given figure).
 
@@ -608,7 +608,7 @@ def _laser_sigma(
     tool: _Tool,
     noise: float,
     widen: float,
-    source: SigmaSource,
+    source: SigmaEstimate,
 ) -> LaserSigma:
     """1-sigma of every output, the trigger noise propagated through the whole solve."""
 
@@ -769,7 +769,7 @@ def _device_noise(
     *,
     given_axis: bool,
     warnings: list[str],
-) -> tuple[float, SigmaSource, float]:
+) -> tuple[float, SigmaEstimate, float]:
     """The trigger noise behind the device's sigma, its source and the Student's t widening:
     configured, else from the heights' scatter when they have degrees of freedom to spare."""
     K = res_vec.shape[0]

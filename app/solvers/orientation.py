@@ -30,11 +30,16 @@ from scipy.spatial.transform import Rotation
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
+from app.solvers.quality import SigmaSource
 from app.solvers.validation import check_finite, check_positions_mm, check_rotation_matrices
 
-AxisName = Literal["+z", "-z", "+x", "-x"]
+#: A tool axis and the sign the TCP moved along it (a pure translation's `axis`).
+AxisDirection = Literal["+z", "-z", "+x", "-x"]
+#: The tool axis the 2-point and world methods take as the working axis.
 WorkingAxis = Literal["x", "z"]
-SigmaSource = Literal["configured", "residuals", "none"]
+#: Where an orientation's (or a laser result's) sigma came from (app.solvers.quality's
+#: SigmaSource), or "none": no noise was given, so no sigma was estimated.
+SigmaEstimate = Literal[SigmaSource, "none"]
 
 #: Largest rotation allowed between the two poses of a pure translation, deg.
 MAX_ORIENTATION_CHANGE_DEG = 0.5
@@ -62,7 +67,7 @@ class Direction:
     (3, 3) flange -> base, positions (3,) in mm (base frame).
     """
 
-    axis: AxisName
+    axis: AxisDirection
     rotation_from: FloatArray
     position_from_mm: FloatArray
     rotation_to: FloatArray
@@ -84,7 +89,7 @@ class OrientationResult:
     sigma_deg: tuple[float, float, float]
     residuals: tuple[float, ...]
     warnings: tuple[str, ...]
-    sigma_source: SigmaSource = "none"
+    sigma_source: SigmaEstimate = "none"
 
 
 # --------------------------------------------------------------------------------------
@@ -199,7 +204,7 @@ def _result(
     sigma: FloatArray | None,
     residuals: Sequence[float],
     warnings: list[str],
-    source: SigmaSource,
+    source: SigmaEstimate,
 ) -> OrientationResult:
     if sigma is None:
         sigma = np.zeros(3)

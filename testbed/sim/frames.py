@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from app.solvers.orientation import AxisName, Direction
+from app.solvers.orientation import AxisDirection, Direction
 
 _UNIT = {"x": 0, "y": 1, "z": 2}
 
@@ -50,7 +50,7 @@ def translation_directions(
     R: NDArray[np.float64],
     *,
     start_mm: Sequence[float] = (500.0, 100.0, 300.0),
-    axes: Sequence[AxisName] = ("+z", "+x"),
+    axes: Sequence[AxisDirection] = ("+z", "+x"),
     length_mm: float = 50.0,
     noise_mm: float = 0.0,
     rng: np.random.Generator | None = None,

@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
 from app.solvers.orientation import (
-    AxisName,
+    AxisDirection,
     Direction,
     OrientationResult,
     WorkingAxis,
@@ -50,7 +50,7 @@ def _angle_deg(Q1: np.ndarray, Q2: np.ndarray) -> float:
 @pytest.mark.parametrize(
     "axes", [("+z", "+x"), ("-z", "-x"), ("+z", "-z", "+x"), ("+x", "-z", "-x")]
 )
-def test_translations_recover_the_frame(seed: int, axes: tuple[AxisName, ...]) -> None:
+def test_translations_recover_the_frame(seed: int, axes: tuple[AxisDirection, ...]) -> None:
     Q, R = _case(seed)
     result = orientation_from_translations(translation_directions(Q, R, axes=axes))
     assert _angle_deg(result.rotation, Q) < 1e-9
