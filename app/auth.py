@@ -17,7 +17,7 @@ from app.db import HeldRead
 from app.errors import Forbidden, Unauthorized
 from app.jsontypes import JsonArray
 from app.models import ApiKey
-from app.scopes import SCOPES
+from app.scopes import SCOPES, Scope
 
 KEY_PREFIX = "tcpcal_"
 BOOTSTRAP_NAME = "bootstrap-admin"
@@ -30,10 +30,10 @@ class Principal:
 
     key_id: str
     name: str
-    scope: str
+    scope: Scope
     cells: tuple[str, ...] | None = None
 
-    def allows(self, required: str) -> bool:
+    def allows(self, required: Scope) -> bool:
         """True when this key's scope includes `required`."""
         return SCOPES.index(self.scope) >= SCOPES.index(required)
 
@@ -84,7 +84,7 @@ def _bearer(header: str | None) -> str:
     return token.strip()
 
 
-def authenticate(session: Session, header: str | None, *, required: str) -> Principal:
+def authenticate(session: Session, header: str | None, *, required: Scope) -> Principal:
     """The caller behind an Authorization header, checked against the required scope."""
     digest = digest_of(header)
     row = session.scalars(select(ApiKey).where(ApiKey.key_hash == digest)).one_or_none()
@@ -98,7 +98,7 @@ class KeyColumns(NamedTuple):
 
     id: str
     name: str
-    scope: str
+    scope: Scope
     key_hash: str
     revoked_at: datetime | None
     cells: JsonArray | None
@@ -115,7 +115,7 @@ KEY_READ = HeldRead(
 )
 
 
-def authenticate_held(engine: Engine, header: str | None, *, required: str) -> Principal:
+def authenticate_held(engine: Engine, header: str | None, *, required: Scope) -> Principal:
     """`authenticate` without a session: the key read on the thread's held connection."""
     digest = digest_of(header)
     return admit(KEY_READ.one_or_none(engine, digest=digest), digest, required=required)
@@ -134,7 +134,7 @@ class KeyRow(Protocol):
     @property
     def name(self) -> str: ...
     @property
-    def scope(self) -> str: ...
+    def scope(self) -> Scope: ...
     @property
     def key_hash(self) -> str: ...
     @property
@@ -143,7 +143,7 @@ class KeyRow(Protocol):
     def cells(self) -> JsonArray | None: ...
 
 
-def admit(row: KeyRow | None, digest: str, *, required: str) -> Principal:
+def admit(row: KeyRow | None, digest: str, *, required: Scope) -> Principal:
     """The caller a looked-up key row stands for: 401 unknown or revoked, 403 scope too small."""
     if row is None or row.revoked_at is not None or not hmac.compare_digest(row.key_hash, digest):
         raise Unauthorized(
@@ -177,7 +177,7 @@ def ensure_bootstrap_key(session: Session, key: str) -> None:
         session.rollback()  # another worker inserted it first
 
 
-def authenticate_key(session: Session, key: str, *, required: str) -> Principal:
+def authenticate_key(session: Session, key: str, *, required: Scope) -> Principal:
     """The caller behind a bare API key (no Authorization header: an OPC UA password, say),
     checked against the required scope: 401 unknown or revoked, 403 scope too small."""
     digest = hash_key(key)

@@ -180,7 +180,7 @@ def keys_create(
         raise typer.Exit(2)
     names = None if not cells else [c.strip() for arg in cells for c in arg.split(",")]
     try:  # the checks POST /v1/keys makes: names of cells, non-empty
-        KeyCreate.model_validate({"name": name, "scope": scope, "cells": names})
+        checked = KeyCreate.model_validate({"name": name, "scope": scope, "cells": names})
     except ValidationError as exc:
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first["loc"])
@@ -189,7 +189,7 @@ def keys_create(
     _database_or_exit()
     with session_scope(write=True) as session:
         row, secret = create_key(
-            session, name=name, scope=scope, cells=names, actor=_cli_principal()
+            session, name=name, scope=checked.scope, cells=names, actor=_cli_principal()
         )
         key_id = row.id
     limited = f"\ncells: {', '.join(names)}" if names else ""

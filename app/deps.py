@@ -16,6 +16,7 @@ from sqlalchemy.orm import Session
 from app.auth import Principal, authenticate, authenticate_held
 from app.db import loop_engine, session_scope
 from app.logs import KEY_NAME
+from app.scopes import Scope
 
 READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 
@@ -39,7 +40,7 @@ def label_request(request: Request, principal: Principal) -> Principal:
     return principal
 
 
-def _principal(scope: str) -> object:
+def _principal(scope: Scope) -> object:
     """The caller, authenticated with the request's session, which is then limited to the
     caller's cells (app.auth.act_for)."""
 
@@ -51,7 +52,7 @@ def _principal(scope: str) -> object:
     return Depends(dependency)
 
 
-def _held_principal(scope: str) -> object:
+def _held_principal(scope: Scope) -> object:
     """The caller of a route that opens no session for it (a solve, a deployment, a
     reconcile): the key read on the event loop's held connection (app.db.loop_engine).
     A missing, unknown or too narrow key is refused (401, 403) before the body is read, as

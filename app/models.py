@@ -32,8 +32,23 @@ from sqlalchemy.engine import Dialect
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.types import TypeDecorator
 
+from app.controllers.base import ProtocolName
 from app.jsontypes import JsonArray, JsonObject
-from app.statuses import DeploymentScope, DeploymentStatus, SessionStatus, Status, ToolState
+from app.scopes import Scope
+from app.words import (
+    ActivationKind,
+    Algorithm,
+    AuditAction,
+    DeploymentScope,
+    DeploymentStatus,
+    LaserDeviceSource,
+    MethodName,
+    PoseFormat,
+    ResourceType,
+    SessionStatus,
+    Status,
+    ToolState,
+)
 
 NAMING_CONVENTION = {
     "ix": "ix_%(column_0_label)s",
@@ -192,8 +207,8 @@ class Calibration(Base):
 
     id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
-    method: Mapped[str] = mapped_column(String(40))
-    algorithm: Mapped[str | None] = mapped_column(String(40))
+    method: Mapped[MethodName] = mapped_column(String(40))
+    algorithm: Mapped[Algorithm | None] = mapped_column(String(40))
     status: Mapped[Status] = mapped_column(String(40))
     request: Mapped[JsonObject] = mapped_column(JSON)
     result: Mapped[JsonObject] = mapped_column(JSON)
@@ -217,7 +232,8 @@ class TcpVersion(Base):
     version: Mapped[int] = mapped_column(Integer)
     position_mm: Mapped[JsonArray] = mapped_column(JSON)
     quaternion: Mapped[JsonArray] = mapped_column(JSON)
-    source: Mapped[str] = mapped_column(String(40))
+    #: the method that made the version (`manual` for a TCP entered by hand)
+    source: Mapped[MethodName] = mapped_column(String(40))
     status: Mapped[Status] = mapped_column(String(40))
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
     note: Mapped[str | None] = mapped_column(Text)
@@ -235,9 +251,8 @@ class Activation(Base):
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
     version: Mapped[int] = mapped_column(Integer)
     previous_version: Mapped[int | None] = mapped_column(Integer)
-    #: the kind: "explicit", "forced", "rollback", "calibration:auto" | "calibration:always",
-    #: "check_correction" (a re-check's correction)
-    reason: Mapped[str] = mapped_column(String(40))
+    #: the kind (app.words.ActivationKind)
+    reason: Mapped[ActivationKind] = mapped_column(String(40))
     #: the person's own words (activation or rollback body `reason`), when given
     reason_text: Mapped[str | None] = mapped_column(String(500))
     activated_at: Mapped[datetime] = mapped_column(default=utcnow)
@@ -256,6 +271,8 @@ class ReferencePoint(Base):
     name: Mapped[str] = mapped_column(String(200))
     position_mm: Mapped[JsonArray] = mapped_column(JSON)
     covariance_mm2: Mapped[JsonArray | None] = mapped_column(JSON)
+    #: "numeric", the calibration's method, or "touch:<tool id>:v<version>": a description
+    #: naming a tool, not a closed list of words (so `str`, not a Literal)
     source: Mapped[str] = mapped_column(String(100))
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
@@ -275,7 +292,7 @@ class LaserDevice(Base):
     beam_a_y_mm: Mapped[float] = mapped_column(Float)
     beam_b_x_mm: Mapped[float] = mapped_column(Float)
     plane_z_mm: Mapped[float] = mapped_column(Float)
-    source: Mapped[str] = mapped_column(String(40))
+    source: Mapped[LaserDeviceSource] = mapped_column(String(40))
     details: Mapped[JsonObject | None] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str] = mapped_column(String(200))
@@ -288,7 +305,7 @@ class ApiKey(Base):
 
     id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
     name: Mapped[str] = mapped_column(String(200))
-    scope: Mapped[str] = mapped_column(String(20))
+    scope: Mapped[Scope] = mapped_column(String(20))
     key_hash: Mapped[str] = mapped_column(String(64), unique=True)
     prefix: Mapped[str] = mapped_column(String(20))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
@@ -335,8 +352,8 @@ class AuditEvent(Base):
     at: Mapped[datetime] = mapped_column(default=utcnow)
     actor: Mapped[str] = mapped_column(String(200))
     api_key_id: Mapped[str | None] = mapped_column(String(36))
-    action: Mapped[str] = mapped_column(String(60))
-    resource_type: Mapped[str] = mapped_column(String(40))
+    action: Mapped[AuditAction] = mapped_column(String(60))
+    resource_type: Mapped[ResourceType] = mapped_column(String(40))
     resource_id: Mapped[str] = mapped_column(String(36))
     robot_id: Mapped[str | None] = mapped_column(String(36))
     tool_id: Mapped[str | None] = mapped_column(String(36))
@@ -359,15 +376,15 @@ class GuidedSession(Base):
 
     id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
-    method: Mapped[str] = mapped_column(String(40))
-    format: Mapped[str] = mapped_column(String(40))
+    method: Mapped[MethodName] = mapped_column(String(40))
+    format: Mapped[PoseFormat] = mapped_column(String(40))
     units: Mapped[JsonObject | None] = mapped_column(JSON)
     target_sigma_mm: Mapped[float | None] = mapped_column(Float)
     max_tilt_deg: Mapped[float] = mapped_column(Float)
     max_spin_deg: Mapped[float] = mapped_column(Float)
     options: Mapped[JsonObject] = mapped_column(JSON)
     poses: Mapped[JsonArray] = mapped_column(JSON)
-    #: One entry per pose, in order: {"source": "typed" | "controller", "read_at", ...}.
+    #: One entry per pose, in order: {"source": app.words.TouchOrigin, "read_at", ...}.
     touches: Mapped[JsonArray] = mapped_column(JSON, default=list)
     status: Mapped[SessionStatus] = mapped_column(String(20), default="open")
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
@@ -382,7 +399,7 @@ class RobotController(Base):
     __tablename__ = "robot_controllers"
 
     robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"), primary_key=True)
-    protocol: Mapped[str] = mapped_column(String(20))
+    protocol: Mapped[ProtocolName] = mapped_column(String(20))
     host: Mapped[str] = mapped_column(String(253))
     #: a single-service protocol's port; null for one of several services (`ports`)
     port: Mapped[int | None] = mapped_column(Integer)
@@ -410,7 +427,7 @@ class Deployment(Base):
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
     robot_id: Mapped[str] = mapped_column(String(36))
     version: Mapped[int] = mapped_column(Integer)
-    protocol: Mapped[str] = mapped_column(String(20))
+    protocol: Mapped[ProtocolName] = mapped_column(String(20))
     target: Mapped[str] = mapped_column(String(300))
     status: Mapped[DeploymentStatus] = mapped_column(String(20))
     #: stored (the controller keeps it) | live (only for the running program), by protocol
@@ -423,7 +440,7 @@ class Deployment(Base):
     #: the person's own words for deploying (the request's `reason`), when given
     reason: Mapped[str | None] = mapped_column(String(500))
     #: an `unverified` one: what the next reconcile round found the controller holding
-    #: {"at", "holds": written | previous | other, "frame"}; null until then
+    #: {"at", "holds": app.words.SettledHolds, "frame"}; null until then
     settled: Mapped[JsonObject | None] = mapped_column(JSON)
     actor: Mapped[str] = mapped_column(String(200))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
@@ -499,7 +516,7 @@ class OutboxMessage(Base):
 
     id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
-    action: Mapped[str] = mapped_column(String(60))
+    action: Mapped[AuditAction] = mapped_column(String(60))
     robot_id: Mapped[str | None] = mapped_column(String(36))
     tool_id: Mapped[str | None] = mapped_column(String(36))
     #: The event as published: action, tool_id, robot_id, version, actor, at, request_id.

@@ -1,29 +1,53 @@
-"""Each list is written once: the schemas name the libraries' Literals, and every
-method-derived list equals the registry's."""
+"""Each list is written once: every Literal under one name with one meaning, the rows and
+the documents naming the same stored-word Literal, the schemas naming the libraries'
+Literals, and every method-derived list equal to the registry's."""
 
 from __future__ import annotations
 
-from typing import get_args
+import ast
+import importlib
+from pathlib import Path
+from types import UnionType
+from typing import Annotated, Literal, Union, get_args, get_origin, get_type_hints
 
 from pydantic import BaseModel
+from sqlalchemy.orm import Mapped
 
+from app import models
 from app.api.methods import describe
+from app.controllers.base import ProtocolName
 from app.exports import CONTROLLER_FORMATS, ControllerFormat
-from app.kinematics.poses import POSE_FORMATS, PoseFormat
+from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHOD_NAMES, METHODS
+from app.methods.base import MethodRequest
+from app.methods.guided import SessionCreate
 from app.methods.npoint import NPointOptions
 from app.methods.requests import SOLVE_MODELS, CalibrationRequest
-from app.models import Deployment, GuidedSession, ToolControllerState
-from app.schemas.controllers import Deployment as DeploymentOut
-from app.schemas.controllers import ReconciledTool, Reconciliation
-from app.schemas.fleet import FleetController
+from app.schemas import audit, controllers, fleet, keys, references, results, sessions, tools
 from app.schemas.formats import FormatList
-from app.schemas.references import TouchIn
-from app.schemas.sessions import PlanRequest
-from app.schemas.sessions import Session as SessionOut
-from app.services.controller_states import EVENT_STATES, SEVERITY
-from app.solvers.npoint import ALGORITHMS, Algorithm
-from app.statuses import ROBOT_STATES, DeploymentStatus, RobotState, SessionStatus, ToolState
+from app.scopes import Scope
+from app.services.controller_states import EVENT_ACTIONS, SEVERITY
+from app.solvers.npoint import ALGORITHMS
+from app.words import (
+    ROBOT_STATES,
+    ActivationKind,
+    Algorithm,
+    AuditAction,
+    DeploymentScope,
+    DeploymentStatus,
+    LaserDeviceSource,
+    MethodName,
+    PoseFormat,
+    ResourceType,
+    RobotState,
+    SessionStatus,
+    SettledHolds,
+    Status,
+    ToolState,
+    TouchOrigin,
+)
+
+APP = Path(__file__).resolve().parents[1] / "app"
 
 
 def _annotation(model: type[BaseModel], field: str) -> object:
@@ -31,11 +55,12 @@ def _annotation(model: type[BaseModel], field: str) -> object:
 
 
 def test_the_schemas_take_the_libraries_literals() -> None:
-    """Pose formats, controller formats and algorithms are each one Literal, in the library
-    that parses or solves them; the request and response models name that very object, and the
-    tuples the libraries check against are read off it."""
-    assert _annotation(PlanRequest, "format") is PoseFormat
-    assert _annotation(TouchIn, "format") is PoseFormat
+    """Pose formats, controller formats and algorithms are each one Literal (pose formats and
+    algorithms in app.words, so that the rows name them without importing numpy); the request
+    and response models name that very object, and the tuples the libraries check against
+    are read off it."""
+    assert _annotation(sessions.PlanRequest, "format") is PoseFormat
+    assert _annotation(references.TouchIn, "format") is PoseFormat
     assert get_args(PoseFormat) == POSE_FORMATS
     assert _annotation(FormatList, "controllers") == list[ControllerFormat]
     assert get_args(ControllerFormat) == CONTROLLER_FORMATS
@@ -49,25 +74,233 @@ def test_the_request_unions_are_the_registry() -> None:
     assert [m.__mro__[1] for m in SOLVE_MODELS] == [m.request for m in METHODS]
     assert [describe(m).name for m in METHODS] == list(METHOD_NAMES)
     assert len(set(METHOD_NAMES)) == len(METHODS) == 8
+    # The stored method names are the registry's, in its order (each request's own
+    # `Literal[name]` is checked by mypy against MethodRequest's MethodName).
+    assert get_args(MethodName) == METHOD_NAMES
 
 
-def test_the_status_documents_and_rows_share_one_literal() -> None:
-    documents = [
-        (SessionOut.model_fields["status"].annotation, SessionStatus),
-        (DeploymentOut.model_fields["status"].annotation, DeploymentStatus),
-        (ReconciledTool.model_fields["state"].annotation, ToolState),
-        (FleetController.model_fields["state"].annotation, ToolState),
-        (Reconciliation.model_fields["state"].annotation, RobotState),
-    ]
-    for annotation, literal in documents:
-        assert get_args(annotation) == get_args(literal)
-    # the rows name the same Literal (their annotations are strings: __future__ annotations)
-    assert GuidedSession.__annotations__["status"] == "Mapped[SessionStatus]"
-    assert Deployment.__annotations__["status"] == "Mapped[DeploymentStatus]"
-    assert ToolControllerState.__annotations__["state"] == "Mapped[ToolState]"
+def _literal_of(annotation: object) -> object:
+    """The Literal an annotation names, under Mapped[...], `| None` and Annotated[...] (the
+    documents' StoredWord)."""
+    if get_origin(annotation) is Mapped:
+        (annotation,) = get_args(annotation)
+    if get_origin(annotation) in (Union, UnionType):
+        (annotation,) = [a for a in get_args(annotation) if a is not type(None)]
+    if get_origin(annotation) is Annotated:
+        annotation = get_args(annotation)[0]
+    return annotation
+
+
+#: Every column that holds a closed list of words: its Literal, and the request and
+#: response fields that carry the same words.
+WORD_COLUMNS: dict[
+    tuple[type[models.Base], str], tuple[object, list[tuple[type[BaseModel], str]]]
+] = {
+    (models.Calibration, "method"): (
+        MethodName,
+        [(results.CalibrationResult, "method"), (MethodRequest, "method")],
+    ),
+    (models.Calibration, "algorithm"): (
+        Algorithm,
+        [(results.CalibrationResult, "algorithm"), (NPointOptions, "algorithm")],
+    ),
+    (models.Calibration, "status"): (
+        Status,
+        [(results.CalibrationResult, "status"), (fleet.LastCalibration, "status")],
+    ),
+    (models.TcpVersion, "source"): (
+        MethodName,
+        [(tools.Version, "source"), (tools.ActiveTcp, "method")],
+    ),
+    (models.TcpVersion, "status"): (Status, [(tools.Version, "status")]),
+    (models.Activation, "reason"): (ActivationKind, [(tools.ActivationOut, "reason")]),
+    (models.LaserDevice, "source"): (LaserDeviceSource, [(references.LaserDevice, "source")]),
+    (models.ApiKey, "scope"): (
+        Scope,
+        [(keys.KeyCreate, "scope"), (keys.KeyOut, "scope"), (keys.KeyMe, "scope")],
+    ),
+    (models.AuditEvent, "action"): (AuditAction, [(audit.AuditEvent, "action")]),
+    (models.AuditEvent, "resource_type"): (ResourceType, [(audit.AuditEvent, "resource_type")]),
+    (models.OutboxMessage, "action"): (AuditAction, []),
+    (models.GuidedSession, "method"): (MethodName, [(sessions.Session, "method")]),
+    (models.GuidedSession, "format"): (
+        PoseFormat,
+        [(sessions.Session, "format"), (SessionCreate, "format")],
+    ),
+    (models.GuidedSession, "status"): (SessionStatus, [(sessions.Session, "status")]),
+    (models.RobotController, "protocol"): (
+        ProtocolName,
+        [(controllers.Controller, "protocol"), (controllers.ControllerIn, "protocol")],
+    ),
+    (models.Deployment, "protocol"): (ProtocolName, [(controllers.Deployment, "protocol")]),
+    (models.Deployment, "status"): (DeploymentStatus, [(controllers.Deployment, "status")]),
+    (models.Deployment, "scope"): (
+        DeploymentScope,
+        [(controllers.Deployment, "scope"), (controllers.Controller, "scope")],
+    ),
+    (models.ToolControllerState, "state"): (
+        ToolState,
+        [(controllers.ReconciledTool, "state"), (fleet.FleetController, "state")],
+    ),
+}
+
+#: Words stored inside a JSON column, and the document field that serves them.
+WORDS_IN_JSON: list[tuple[str, object, tuple[type[BaseModel], str]]] = [
+    ("deployments.settled holds", SettledHolds, (controllers.DeploymentSettled, "holds")),
+    ("guided_sessions.touches source", TouchOrigin, (results.TouchSource, "source")),
+]
+
+
+def test_each_word_column_and_its_documents_name_one_literal() -> None:
+    """The row's `Mapped[...]` and every request and response field carrying the column's
+    words name the same Literal object (not an equal list written again)."""
+    for (model, column), (literal, documents) in WORD_COLUMNS.items():
+        row = _literal_of(get_type_hints(model)[column])
+        assert row is literal, (model.__name__, column, row)
+        for document, field in documents:
+            served = _literal_of(_annotation(document, field))
+            assert served is literal, (model.__name__, column, document.__name__, field)
+    for where, literal, (document, field) in WORDS_IN_JSON:
+        assert _literal_of(_annotation(document, field)) is literal, where
+    assert _literal_of(_annotation(controllers.Reconciliation, "state")) is RobotState
+
+
+#: The text columns that hold no closed list of words (ids, `*_id`, aside): names, people's
+#: words, addresses, secrets, errors. A new text column is either here or a Literal's.
+FREE_TEXT: dict[tuple[str, str], str] = {
+    **{
+        (table, "name"): "a name a person gives"
+        for table in ("robots", "tools", "reference_points", "laser_devices", "api_keys")
+    },
+    **dict.fromkeys(
+        (
+            ("calibrations", "created_by"),
+            ("tcp_versions", "created_by"),
+            ("reference_points", "created_by"),
+            ("laser_devices", "created_by"),
+            ("api_keys", "created_by"),
+            ("guided_sessions", "created_by"),
+            ("activations", "activated_by"),
+            ("audit_events", "actor"),
+            ("deployments", "actor"),
+        ),
+        "the name of the API key (or cli:<user>) that acted",
+    ),
+    **dict.fromkeys(
+        (
+            ("robots", "vendor"),
+            ("robots", "model"),
+            ("robots", "serial"),
+            ("robots", "cell"),
+            ("tools", "serial"),
+            ("tools", "description"),
+            ("tcp_versions", "note"),
+            ("activations", "reason_text"),
+            ("deployments", "reason"),
+        ),
+        "a person's own words",
+    ),
+    ("reference_points", "source"): '"numeric", a method, or "touch:<tool id>:v<version>"',
+    ("tools", "controller_symbol"): "an ABB PERS tooldata, TASK/MODULE/SYMBOL",
+    ("robot_controllers", "host"): "a host name or address",
+    ("robot_controllers", "username"): "a controller's user",
+    ("robot_controllers", "password_encrypted"): "a secret, encrypted",
+    ("api_keys", "key_hash"): "a digest",
+    ("api_keys", "prefix"): "the start of a key",
+    ("idempotency_records", "key"): "a client's Idempotency-Key",
+    ("idempotency_records", "request_hash"): "a digest",
+    ("deployments", "target"): "where in the controller: $TOOL_DATA[3], UTOOL[3], a symbol",
+    ("tool_controller_states", "target"): "where in the controller",
+    ("tool_controller_states", "error"): "what went wrong, in a sentence",
+    ("robot_live_tools", "error"): "what went wrong, in a sentence",
+}
+
+
+def test_every_text_column_is_a_literal_or_free_text() -> None:
+    """A `Mapped[str]` column that is not an id is in FREE_TEXT; any other text column holds
+    words and is typed as their Literal (so WORD_COLUMNS can name it)."""
+    untyped, words = [], []
+    for mapper in models.Base.registry.mappers:
+        model = mapper.class_
+        hints = get_type_hints(model)
+        for column in model.__table__.columns:
+            if column.key == "id" or column.key.endswith("_id"):
+                continue
+            key = (model.__tablename__, column.key)
+            annotation = _literal_of(hints[column.key])
+            if annotation is str and key not in FREE_TEXT:
+                untyped.append(key)
+            if get_origin(annotation) is Literal and (model, column.key) not in WORD_COLUMNS:
+                words.append(key)
+    assert untyped == [], f"text columns typed str: a Literal's words, or FREE_TEXT? {untyped}"
+    assert words == [], f"word columns missing from WORD_COLUMNS: {words}"
+    stale = [k for k in FREE_TEXT if k[1] not in models.Base.metadata.tables[k[0]].columns]
+    assert stale == [], stale
 
 
 def test_every_controller_state_has_a_severity_naming_a_robot_state() -> None:
     assert set(SEVERITY) == set(get_args(ToolState))
     assert all(ROBOT_STATES[SEVERITY[state]] == state for state in ROBOT_STATES)
-    assert set(EVENT_STATES) <= set(get_args(ToolState))
+    assert all(action == f"controller.{state}" for state, action in EVENT_ACTIONS.items())
+
+
+def _alias_value(node: ast.stmt) -> tuple[list[str], ast.expr | None]:
+    """The names a top-level statement assigns and the value it assigns them."""
+    if isinstance(node, ast.Assign):
+        return [t.id for t in node.targets if isinstance(t, ast.Name)], node.value
+    if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+        return [node.target.id], node.value
+    return [], None
+
+
+def _is_literal(node: ast.AST | None) -> bool:
+    return isinstance(node, ast.Subscript) and ast.unparse(node.value) == "Literal"
+
+
+def _literals_in_app() -> tuple[list[tuple[str, str]], list[tuple[str, int, frozenset[str]]]]:
+    """Every Literal of app/: (module, name) of each assigned to a name at the top of a
+    module, and (file, line, words) of each written in place (in an annotation, a mapping's
+    type) with two or more strings."""
+    aliases, in_place = [], []
+    for path in sorted(APP.rglob("*.py")):
+        module = ".".join(path.relative_to(APP.parent).with_suffix("").parts)
+        module = module.removesuffix(".__init__")
+        tree = ast.parse(path.read_text())
+        definitions = set()
+        for node in tree.body:
+            names, value = _alias_value(node)
+            if _is_literal(value):
+                aliases += [(module, name) for name in names]
+                definitions.add(id(value))
+        for found in ast.walk(tree):
+            if not isinstance(found, ast.Subscript) or not _is_literal(found):
+                continue
+            if id(found) in definitions:
+                continue
+            items = found.slice.elts if isinstance(found.slice, ast.Tuple) else [found.slice]
+            words = [i.value for i in items if isinstance(i, ast.Constant)]
+            strings = {w for w in words if isinstance(w, str)}
+            if len(words) >= 2 and len(strings) == len(words):
+                where = str(path.relative_to(APP.parent))
+                in_place.append((where, found.lineno, frozenset(strings)))
+    return aliases, in_place
+
+
+def test_no_literal_is_written_twice() -> None:
+    """One name, one meaning, one place: no Literal name is defined in two modules (a
+    SigmaSource of two words in one and of three in another), no two names list the same
+    words (WorkingAxis written in the solver and again in the method), and no list of words
+    a name holds is written out again in place (Literal["typed", "controller"] for
+    TouchOrigin)."""
+    aliases, in_place = _literals_in_app()
+    by_name: dict[str, list[str]] = {}
+    for module, name in aliases:
+        by_name.setdefault(name, []).append(module)
+    assert {n: m for n, m in by_name.items() if len(m) > 1} == {}, "one name, two Literals"
+    by_words: dict[frozenset[str], list[str]] = {}
+    for module, name in aliases:
+        words = frozenset(get_args(getattr(importlib.import_module(module), name)))
+        by_words.setdefault(words, []).append(f"{module}.{name}")
+    assert {w: n for w, n in by_words.items() if len(n) > 1} == {}, "one list, two names"
+    again = [(f"{f}:{line}", by_words[w]) for f, line, w in in_place if w in by_words]
+    assert again == [], "a named Literal's words written out again: use the name"

@@ -11,9 +11,9 @@ from app.api.params import PathId
 from app.api.shared import CONTROLLER_FAILURES
 from app.deps import AdminKey, HeldCalibrateKey, HeldReadKey, ReadKey, SessionDep
 from app.errors import NoControllerSet
-from app.kinematics.poses import PoseFormat
 from app.schemas.controllers import Controller, ControllerIn, ControllerPose, Reconciliation
 from app.services import capture, controllers, reconcile
+from app.words import PoseFormat
 
 router = APIRouter(tags=["controllers"])
 

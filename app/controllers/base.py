@@ -26,8 +26,8 @@ from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Literal, Protocol, Self, get_args
 
-from app.statuses import DeploymentScope
 from app.tool_numbers import TOOL_NUMBERS
+from app.words import DeploymentScope
 
 ProtocolName = Literal[
     "kuka_kvp",

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 from app.schemas.results import QualityOut
 from app.schemas.tools import Tolerance
-from app.statuses import Status
+from app.words import Status
 
 
 def effective_tolerance(stored: Mapping[str, object] | Tolerance | None) -> Tolerance:

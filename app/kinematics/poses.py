@@ -25,7 +25,7 @@ import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Literal, SupportsFloat, TypeGuard, cast, get_args
+from typing import SupportsFloat, TypeGuard, cast, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -41,20 +41,10 @@ from app.solvers.validation import (
     check_rotation_matrices,
     normalised_quaternions,
 )
+from app.words import Angle, Length, PoseFormat
 
-#: The pose formats the API takes (the `format` of touches and references); the tuple below
-#: is read off this Literal, so the schemas' enum and the parser cannot disagree.
-PoseFormat = Literal[
-    "matrix",
-    "xyz_wxyz",
-    "xyz_xyzw",
-    "kuka_abc",
-    "fanuc_wpr",
-    "yaskawa_rxyz",
-    "techman_rxyz",
-    "ur_rotvec",
-    "joints",
-]
+#: The pose formats the API takes (app.words.PoseFormat); the tuple is read off the Literal,
+#: so the schemas' enum and the parser cannot disagree.
 POSE_FORMATS: tuple[PoseFormat, ...] = get_args(PoseFormat)
 #: Formats that are X Y Z W P R with Rz(R) Ry(P) Rx(W) under another vendor's name.
 WPR_FORMATS: tuple[str, ...] = ("fanuc_wpr", "yaskawa_rxyz", "techman_rxyz")
@@ -64,8 +54,6 @@ MAX_ABS_ANGLE_DEG = 3600.0
 #: Tolerance on the last row of a 4x4 matrix being 0 0 0 1.
 BOTTOM_ROW_ATOL = 1e-6
 
-Length = Literal["mm", "m"]
-Angle = Literal["deg", "rad"]
 Loc = Sequence[str | int]
 
 _MM_PER: dict[str, float] = {"mm": 1.0, "m": 1000.0}

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from app.kinematics.poses import WPR_FORMATS, Angle, Length, PoseUnits, resolve_units
+from app.kinematics.poses import WPR_FORMATS, PoseUnits, resolve_units
+from app.words import Angle, Length
 
 #: Formats whose numbers may be confused with each other: same arity, same layout of x y z.
 _SAME_ARITY: dict[str, tuple[str, ...]] = {

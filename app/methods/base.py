@@ -22,7 +22,6 @@ from pydantic_core import PydanticCustomError, core_schema
 from app.arrays import FloatArray
 from app.errors import InputKind
 from app.jsontypes import JsonObject
-from app.kinematics.poses import PoseFormat
 from app.schemas.common import (
     MAX_POSES,
     Activate,
@@ -34,6 +33,7 @@ from app.schemas.common import (
 from app.schemas.results import QualityOut, ResultExtras
 from app.schemas.tools import Tolerance
 from app.solvers.orientation import angle_between_deg
+from app.words import Algorithm, MethodName, PoseFormat
 
 
 # ---- the request ----------------------------------------------------------------------------
@@ -94,7 +94,7 @@ class PoseCount:
 class MethodRequest(StrictModel):
     """The fields every calibration submission shares; each method adds its own."""
 
-    method: str
+    method: MethodName
     format: PoseFormat | None = None
     poses: list[Pose] | None = None
     units: Units | None = None
@@ -155,7 +155,7 @@ class Solved:
     position_mm: FloatArray
     quaternion: FloatArray | None  # None: a position-only method, the orientation is kept
     quality: QualityOut
-    algorithm: str | None = None
+    algorithm: Algorithm | None = None
     warnings: list[str] = field(default_factory=list)
     reference_point: StoredPoint | None = None  # the touched point, for xyz_npoint & co.
     graded: bool = True  # False for numbers entered by hand: no residuals to grade

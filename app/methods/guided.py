@@ -7,11 +7,11 @@ from __future__ import annotations
 
 from pydantic import Field, field_validator
 
-from app.kinematics.poses import PoseFormat
 from app.methods import METHOD_NAMES
 from app.methods.npoint import XYZ_NPOINT, NPointOptions, XyzNpoint
 from app.schemas.common import PositiveFloat, StrictModel, Units
 from app.schemas.sessions import SpinDeg, TiltDeg
+from app.words import PoseFormat
 
 
 class SessionCreate(StrictModel):

@@ -27,8 +27,9 @@ from app.schemas.common import (
     Units,
 )
 from app.schemas.results import QualityOut
-from app.solvers.npoint import MIN_POSES, Algorithm, NPointResult, solve_npoint
+from app.solvers.npoint import MIN_POSES, NPointResult, solve_npoint
 from app.solvers.quality import format_vector
+from app.words import Algorithm
 
 #: The `method` of an N-point calibration, and of the guided sessions that collect one.
 XyzNpoint = Literal["xyz_npoint"]

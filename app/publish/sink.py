@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from app.jsontypes import JsonObject
+from app.words import AuditAction
 
 
 class SinkError(Exception):
@@ -45,7 +46,7 @@ class Message:
     action, tool_id, robot_id, version, actor, at, request_id)."""
 
     id: int
-    action: str
+    action: AuditAction
     robot_id: str | None
     tool_id: str | None
     event: JsonObject

@@ -5,7 +5,8 @@ from __future__ import annotations
 from pydantic import BaseModel, Field
 
 from app.jsontypes import JsonObject
-from app.schemas.common import Timestamp
+from app.schemas.common import StoredWord, Timestamp
+from app.words import AuditAction, ResourceType
 
 
 class AuditEvent(BaseModel):
@@ -13,7 +14,7 @@ class AuditEvent(BaseModel):
 
     id: str = Field(description="the event's id; ids grow with time, newest first in a list")
     at: Timestamp = Field(description="when the change was made (RFC 3339, UTC)")
-    action: str = Field(
+    action: StoredWord[AuditAction] = Field(
         description="what was done, as resource.verb: robot.create, tool.update, "
         "calibration.create, version.activate, tool.check, key.revoke, session.touch_add, ..."
     )
@@ -22,7 +23,9 @@ class AuditEvent(BaseModel):
         description="the X-Request-ID of the request that made it (as in the access log); "
         "null for changes made from the command line"
     )
-    resource_type: str = Field(description="the kind of thing changed: robot, tool, api_key, ...")
+    resource_type: StoredWord[ResourceType] = Field(
+        description="the kind of thing changed: robot, tool, api_key, ..."
+    )
     resource_id: str = Field(description="the id of the thing changed")
     robot_id: str | None
     tool_id: str | None

@@ -11,14 +11,36 @@ from pydantic import (
     ConfigDict,
     Field,
     PlainSerializer,
+    PlainValidator,
     StringConstraints,
+    WithJsonSchema,
 )
 
 from app.jsontypes import JsonObject
 from app.solvers.noise_limits import MAX_TOUCH_NOISE_MM, MIN_TOUCH_NOISE_MM
+from app.words import Angle, Length
 
 #: Whether a calibration (or a guided session's finish) activates its TCP.
 Activate = Literal["auto", "always", "never"]
+
+
+def _served_as_stored(value: object) -> str:
+    if not isinstance(value, str):
+        raise ValueError("a stored word is a string")
+    return value
+
+
+_Word = TypeVar("_Word", bound=str)
+#: A stored word an answer serves, as `StoredWord[TheLiteral]` (a Literal of app.words, a
+#: protocol, a pose format): typed as its Literal, so that mypy holds a service to serving
+#: one of its words, and served and documented as the string the row holds, as it always
+#: was. Like the column (`Mapped[TheLiteral]`, not checked as it is read), it is not checked
+#: again on the way out: a history (the audit trail, the versions, the activations) stays
+#: readable whatever words an older or a newer version wrote, and these lists grow (a new
+#: maker's protocol, a new audit action) without a client generated from the spec refusing
+#: a word it does not know yet. A request takes the Literal itself (an enum: a word the
+#: server does not know is a 422).
+StoredWord = Annotated[_Word, PlainValidator(_served_as_stored), WithJsonSchema({"type": "string"})]
 
 #: A number that refuses NaN and +-Infinity at the door (422 /non-finite), and is strict: a
 #: boolean or a string is refused, not read as 0/1 or parsed (the spec says "number").
@@ -102,8 +124,8 @@ class Units(BaseModel):
     """Overrides of a pose format's default units."""
 
     model_config = ConfigDict(extra="forbid")
-    length: Literal["mm", "m"] | None = None
-    angle: Literal["deg", "rad"] | None = None
+    length: Length | None = None
+    angle: Angle | None = None
 
 
 class StrictModel(BaseModel):

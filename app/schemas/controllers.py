@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, get_args
+from typing import Annotated, get_args
 
 from pydantic import BaseModel, BeforeValidator, Field, SecretStr
 
 from app.controllers.base import ABB_SYMBOL_PATTERN, DEFAULT_PORTS, SERVICE_PORTS, ProtocolName
-from app.schemas.common import Reason, ShortText, StrictModel, Timestamp, json_integer
-from app.statuses import DeploymentScope, DeploymentStatus, RobotState, ToolState
+from app.schemas.common import Reason, ShortText, StoredWord, StrictModel, Timestamp, json_integer
+from app.words import (
+    DeploymentScope,
+    DeploymentStatus,
+    PoseFormat,
+    RobotState,
+    SettledHolds,
+    ToolState,
+)
 
 Host = Annotated[
     str,
@@ -97,7 +104,7 @@ class ControllerIn(StrictModel):
 
 class Controller(BaseModel):
     robot_id: str
-    protocol: str = Field(description=" | ".join(get_args(ProtocolName)))
+    protocol: StoredWord[ProtocolName] = Field(description=" | ".join(get_args(ProtocolName)))
     host: str = Field(description="the controller's host name or IP address")
     port: int | None = Field(
         description="the port of a single-service protocol; null for a protocol of several "
@@ -140,7 +147,7 @@ class DeploymentSettled(BaseModel):
     """What the reconcile round after an `unverified` deployment found the controller holding."""
 
     at: Timestamp = Field(description="when the round read the controller")
-    holds: Literal["written", "previous", "other"] = Field(
+    holds: SettledHolds = Field(
         description="written: the deployed version; previous: the frame it held before the "
         "deployment; other: neither"
     )
@@ -152,7 +159,7 @@ class Deployment(BaseModel):
     tool_id: str
     robot_id: str
     version: int = Field(description="the version written (the active one at the time)")
-    protocol: str = Field(description="the controller's protocol")
+    protocol: StoredWord[ProtocolName] = Field(description="the controller's protocol")
     target: str = Field(description='where it was written: "$TOOL_DATA[3]", "UTOOL[3]", a symbol')
     scope: DeploymentScope = Field(
         description="stored: the controller keeps it (KUKA, FANUC, ABB, Yaskawa); live: it "
@@ -271,10 +278,10 @@ class ControllerPose(BaseModel):
     pose: list[float] | list[list[float]] = Field(
         description="the flange in the robot's base frame, in `format`"
     )
-    format: str = Field(description="the pose format of `pose`")
+    format: StoredWord[PoseFormat] = Field(description="the pose format of `pose`")
     joints_deg: list[float] | None = Field(description="the joint angles, deg; null if unread")
     read_at: Timestamp = Field(description="when the second, confirming read ended")
-    protocol: str = Field(description="the controller's protocol")
+    protocol: StoredWord[ProtocolName] = Field(description="the controller's protocol")
     still: bool = Field(description="true: two reads 100 ms apart agreed (else 409)")
     live_tool: LiveToolOut = Field(description="the TCP the robot moves by right now")
     readings: dict[str, str] = Field(description="every value read, as the controller printed it")

@@ -6,9 +6,9 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
-from app.schemas.common import Timestamp
+from app.schemas.common import StoredWord, Timestamp
 from app.schemas.drift import FleetDrift
-from app.statuses import Status, ToolState
+from app.words import Status, ToolState
 
 #: The status a fleet row can be filtered by: its last calibration's.
 CalibrationStatus = Status
@@ -35,7 +35,7 @@ LiveState = Literal["active", "stale_version", "other_tool", "unknown", "unread"
 
 class LastCalibration(BaseModel):
     id: str
-    status: str
+    status: StoredWord[Status]
     created_at: Timestamp
     rms_mm: float | None
 

@@ -7,7 +7,6 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.jsontypes import JsonObject
-from app.kinematics.poses import PoseFormat
 from app.schemas.common import (
     FiniteFloat,
     Name,
@@ -16,6 +15,7 @@ from app.schemas.common import (
     PositiveFloat,
     Reason,
     ResourceId,
+    StoredWord,
     StrictModel,
     Timestamp,
     Units,
@@ -23,11 +23,13 @@ from app.schemas.common import (
     one_of,
 )
 from app.schemas.controllers import Deployment
+from app.solvers.laser import Beam
+from app.words import LaserDeviceSource, PoseFormat
 
 
 #: One sweep through a laser beam (the laser_beam method's input and a laser check's).
 class SweepIn(StrictModel):
-    beam: Literal["a", "b"]
+    beam: Beam
     break_mm: Vec3
     restore_mm: Vec3
 
@@ -237,7 +239,7 @@ class LaserDevice(BaseModel):
     beam_a_y_mm: float
     beam_b_x_mm: float
     plane_z_mm: float
-    source: str
+    source: StoredWord[LaserDeviceSource]
     details: JsonObject | None
     created_at: Timestamp
     created_by: str

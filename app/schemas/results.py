@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Literal
-
 from pydantic import BaseModel, Field
 
-from app.schemas.common import StrictModel, Timestamp
+from app.schemas.common import StoredWord, StrictModel, Timestamp
 from app.schemas.tools import Tcp
+from app.solvers.orientation import SigmaEstimate
 from app.solvers.quality import Quality, SigmaSource
-from app.statuses import Status
+from app.words import Algorithm, MethodName, Status, TouchOrigin
 
 
 class QualityOut(BaseModel):
@@ -67,7 +66,7 @@ class LaserSigma(BaseModel):
     runout_deg: list[float]
     offset_mm: list[float]
     tool_length_mm: float
-    source: str
+    source: StoredWord[SigmaEstimate]
 
 
 class LaserDetails(BaseModel):
@@ -126,8 +125,8 @@ class ResultExtras(BaseModel):
 class CalibrationResult(ResultExtras):
     """What a solve produced; a stored Calibration adds its storage fields."""
 
-    method: str
-    algorithm: str | None
+    method: StoredWord[MethodName]
+    algorithm: StoredWord[Algorithm] | None
     status: Status
     tcp: Tcp
     reference_point_mm: list[float] | None
@@ -171,7 +170,7 @@ class TouchGeometry(BaseModel):
 
 class TouchSource(BaseModel):
     index: int = Field(description="the touch's index in poses, from 0")
-    source: Literal["typed", "controller"] = Field(
+    source: TouchOrigin = Field(
         description="typed by a person, or read from the robot's controller"
     )
     read_at: Timestamp | None = Field(description="when the controller was read; null if typed")

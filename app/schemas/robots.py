@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 from pydantic import BaseModel, Field
 
 from app.kinematics.dh import MAX_LINK_DEG, MAX_LINK_MM
+from app.kinematics.dh_table import Convention
 from app.kinematics.presets import PRESETS
 from app.kinematics.urdf import MAX_URDF_CHARS
 from app.schemas.common import FiniteFloat, Name, ShortText, StrictModel, Timestamp
@@ -27,7 +28,7 @@ class PresetKinematics(StrictModel):
 
 
 class DHKinematics(StrictModel):
-    convention: Literal["dh", "mdh"]
+    convention: Convention
     links: Annotated[list[DHLinkIn], Field(min_length=1, max_length=12)]
 
 

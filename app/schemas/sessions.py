@@ -6,7 +6,6 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from app.kinematics.poses import PoseFormat
 from app.schemas.common import (
     Activate,
     FiniteFloat,
@@ -14,6 +13,7 @@ from app.schemas.common import (
     Pose,
     PositiveFloat,
     ResourceId,
+    StoredWord,
     StrictModel,
     Timestamp,
     TouchNoise,
@@ -25,7 +25,7 @@ from app.schemas.common import (
 )
 from app.schemas.results import TouchSource
 from app.solvers.planning import MAX_TOUCHES, MIN_TOUCHES
-from app.statuses import SessionStatus
+from app.words import MethodName, PoseFormat, SessionStatus
 
 TiltDeg = Annotated[
     float,
@@ -138,8 +138,8 @@ class Session(BaseModel):
     id: str
     tool_id: str
     status: SessionStatus
-    method: str
-    format: str
+    method: StoredWord[MethodName]
+    format: StoredWord[PoseFormat]
     units: Units | None
     n_poses: int
     poses: list[Pose] = Field(description="the touches kept so far, in order (index from 0)")

@@ -15,6 +15,7 @@ from app.schemas.common import (
     Quaternion,
     Reason,
     ShortText,
+    StoredWord,
     StrictModel,
     Timestamp,
     TouchNoise,
@@ -22,6 +23,7 @@ from app.schemas.common import (
     json_integer,
 )
 from app.schemas.controllers import ControllerSymbol
+from app.words import ActivationKind, MethodName, Status
 
 Slot = Annotated[
     int,
@@ -107,8 +109,8 @@ class Tcp(BaseModel):
 class Version(BaseModel):
     version: int
     tcp: Tcp
-    source: str
-    status: str
+    source: StoredWord[MethodName]
+    status: StoredWord[Status]
     calibration_id: str | None
     note: str | None
     created_at: Timestamp
@@ -148,7 +150,7 @@ class VersionList(BaseModel):
 class ActivationOut(BaseModel):
     version: int
     previous_version: int | None
-    reason: str = Field(
+    reason: StoredWord[ActivationKind] = Field(
         description="the kind of activation: explicit, forced (an out-of-tolerance version, "
         "with force), rollback, calibration:auto, calibration:always or check_correction (a "
         "re-check corrected the TCP from one touch)"
@@ -174,7 +176,7 @@ class ActiveTcp(BaseModel):
     version: int
     tcp: Tcp
     calibrated_at: Timestamp
-    method: str
+    method: StoredWord[MethodName]
     controller: ControllerText | None = None
     controller_error: dict[str, str] | None = Field(
         default=None, description="why this tool has no text in the requested format"

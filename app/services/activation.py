@@ -8,6 +8,7 @@ version that was active before the current one, read from the activation history
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Final
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -19,13 +20,15 @@ from app.models import Activation, Calibration, TcpVersion, Tool
 from app.schemas.tools import ActivationRequest, RollbackRequest
 from app.services.tools import check_if_match, get_tool
 from app.services.versions import activate, get_version, lock_tool
+from app.words import ActivationKind, Status
 
-OUT_OF_TOLERANCE = "out_of_tolerance"
-#: Kinds of activation (activations.reason) written here and by re-checks; calibrations
-#: write "calibration:<activate>".
-EXPLICIT, FORCED, ROLLBACK = "explicit", "forced", "rollback"
+OUT_OF_TOLERANCE: Final[Status] = "out_of_tolerance"
+#: Kinds of activation (activations.reason, app.words.ActivationKind) written here.
+EXPLICIT: Final[ActivationKind] = "explicit"
+FORCED: Final[ActivationKind] = "forced"
+ROLLBACK: Final[ActivationKind] = "rollback"
 #: The kind of a version a re-check corrected the TCP to (app.services.recheck).
-CHECK_CORRECTION = "check_correction"
+CHECK_CORRECTION: Final[ActivationKind] = "check_correction"
 
 
 def activate_version(

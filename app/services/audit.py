@@ -16,14 +16,15 @@ from app.jsontypes import JsonObject
 from app.logs import REQUEST_ID, events_logger
 from app.models import AuditEvent, table_of, utcnow
 from app.services import outbox
+from app.words import AuditAction, ResourceType
 
 
 def record(
     session: Session,
     *,
     actor: Principal,
-    action: str,
-    resource_type: str,
+    action: AuditAction,
+    resource_type: ResourceType,
     resource_id: str,
     robot_id: str | None = None,
     tool_id: str | None = None,
@@ -78,8 +79,8 @@ def add_created(
     new: Created,
     *,
     actor: Principal,
-    action: str,
-    resource_type: str,
+    action: AuditAction,
+    resource_type: ResourceType,
     robot_id: str | None = None,
     tool_id: str | None = None,
     details: JsonObject | None = None,
@@ -123,8 +124,8 @@ def row(
     at: datetime,
     actor: str,
     api_key_id: str | None,
-    action: str,
-    resource_type: str,
+    action: AuditAction,
+    resource_type: ResourceType,
     resource_id: str,
     robot_id: str | None,
     tool_id: str | None,

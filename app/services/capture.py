@@ -33,6 +33,7 @@ from app.controllers.base import (
     ControllerUnreachable,
     Frame,
     PoseReading,
+    ProtocolName,
 )
 from app.db import session_scope
 from app.errors import (
@@ -53,6 +54,7 @@ from app.schemas.controllers import ControllerPose
 from app.schemas.results import TouchSource
 from app.services.controllers import get_controller, refusal_words, settings_of
 from app.services.live_tool import live_tool_matches, live_tool_out
+from app.words import TouchOrigin
 
 #: The two reads of one capture are at least this far apart (s).
 STILL_GAP_S = 0.1
@@ -66,7 +68,7 @@ class Capture:
     """One still reading of the robot's pose, as a touch keeps it."""
 
     robot_id: str
-    protocol: str
+    protocol: ProtocolName
     reading: PoseReading
     read_at: datetime
 
@@ -77,12 +79,20 @@ class Capture:
 
     def touch_record(self) -> JsonObject:
         """The touch's source as a session stores it, with what the controller printed."""
+        source: TouchOrigin = "controller"
         return {
-            "source": "controller",
+            "source": source,
             "read_at": self.read_at.isoformat().replace("+00:00", "Z"),
             "protocol": self.protocol,
             "readings": dict(self.reading.readings),
         }
+
+
+def typed_touch() -> JsonObject:
+    """The source of a pose a person typed, as a session or a check stores it (a captured
+    one's: Capture.touch_record)."""
+    source: TouchOrigin = "typed"
+    return {"source": source, "read_at": None}
 
 
 def touch_sources(records: Sequence[Mapping[str, object]]) -> list[TouchSource]:

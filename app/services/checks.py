@@ -31,6 +31,7 @@ from app.services.tools import get_tool
 from app.services.verdict import check_summary
 from app.services.versions import active_version_row, lock_tool
 from app.solvers.reference import TcpDeviation, check_tcp
+from app.words import CHECK_ACTION
 
 
 @dataclass(frozen=True)
@@ -246,13 +247,13 @@ def _record(
 ) -> None:
     details = result.model_dump(mode="json", include=_AUDITED)
     # Where the touch came from, and what the controller printed for a captured one.
-    details["sources"] = [{"source": "typed", "read_at": None}] * len(result.touches)
+    details["sources"] = [capture.typed_touch()] * len(result.touches)
     if captured is not None:
         details["sources"] = [captured.touch_record()]
     audit.record(
         session,
         actor=actor,
-        action="tool.check",
+        action=CHECK_ACTION,  # read back by the drift trend and the fleet
         resource_type="tool",
         resource_id=tool.id,
         robot_id=tool.robot_id,

@@ -14,10 +14,15 @@ from app.controllers.base import ToolData
 from app.jsontypes import JsonObject
 from app.models import Tool, ToolControllerState
 from app.services import audit
-from app.statuses import ToolState
+from app.words import AuditAction, ToolState
 
-#: States whose start is an audit event `controller.<state>` (and counted in /metrics).
-EVENT_STATES: tuple[ToolState, ...] = ("in_sync", "drifted", "unreachable")
+#: States whose start is an audit event `controller.<state>` (and counted in /metrics), with
+#: that event's action.
+EVENT_ACTIONS: dict[ToolState, AuditAction] = {
+    "in_sync": "controller.in_sync",
+    "drifted": "controller.drifted",
+    "unreachable": "controller.unreachable",
+}
 #: How bad each state is, for a robot's state (the worst of its tools'): an index into
 #: ROBOT_STATES.
 SEVERITY: dict[ToolState, int] = {
@@ -74,11 +79,12 @@ def observe(
     row.deviation_mm = seen.deviation_mm
     row.deviation_deg = seen.deviation_deg
     row.error = seen.error
-    if changed and seen.state in EVENT_STATES:
+    action = EVENT_ACTIONS.get(seen.state) if changed else None
+    if action is not None:
         audit.record(
             session,
             actor=actor,
-            action=f"controller.{seen.state}",
+            action=action,
             resource_type="tool",
             resource_id=seen.tool_id,
             robot_id=seen.robot_id,
@@ -95,7 +101,7 @@ def observe(
             },
         )
     session.flush()
-    return row, changed and seen.state in EVENT_STATES
+    return row, action is not None
 
 
 def not_live(tool_id: str, robot_id: str, target: str | None, version: int | None) -> Observation:

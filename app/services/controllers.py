@@ -18,6 +18,7 @@ from app.controllers.base import (
     ControllerCredentialsRefused,
     ControllerRefused,
     ControllerSettings,
+    ProtocolName,
     scope_of,
 )
 from app.errors import (
@@ -83,7 +84,7 @@ def check_host(host: str) -> None:
         )
 
 
-def _services_text(protocol: str) -> str:
+def _services_text(protocol: ProtocolName) -> str:
     return ", ".join(f"{name} (default {port})" for name, port in SERVICE_PORTS[protocol].items())
 
 
@@ -180,7 +181,7 @@ def _encrypted(data: ControllerIn) -> str | None:
     return secretbox.encrypt(data.password.get_secret_value())
 
 
-def _tools_addressable(session: Session, robot_id: str, protocol: str) -> None:
+def _tools_addressable(session: Session, robot_id: str, protocol: ProtocolName) -> None:
     """422 naming the first live tool whose slot is outside the protocol's tool numbers (a
     tool without its slot or symbol is refused when it is deployed: it may be set later)."""
     if protocol not in SLOT_RANGES:
@@ -281,7 +282,7 @@ def settings_of(controller: RobotController) -> ControllerSettings:
         main, default = next(iter(SERVICE_PORTS[controller.protocol].items()))
         port = ports.get(main, default)
     return ControllerSettings(
-        protocol=controller.protocol,  # type: ignore[arg-type]  # checked when stored
+        protocol=controller.protocol,
         host=controller.host,
         port=port,
         username=controller.username,

@@ -26,6 +26,7 @@ from app.controllers.base import (
     ControllerRefused,
     ControllerSettings,
     ControllerUnreachable,
+    ProtocolName,
     ToolData,
     ToolLoad,
     ToolTarget,
@@ -51,7 +52,7 @@ from app.schemas.controllers import Deployment as DeploymentOut
 from app.services import audit, controller_states, idempotency
 from app.services.controllers import get_controller, refusal_words, settings_of
 from app.services.tools import get_tool
-from app.statuses import DeploymentStatus, FailedDeploymentStatus
+from app.words import DeploymentStatus, FailedDeploymentStatus
 
 
 @dataclass(frozen=True)
@@ -81,7 +82,7 @@ class Outcome:
     controller_message: str | None = None
 
 
-def tool_target(protocol: str, slot: int | None, symbol: str | None) -> ToolTarget:
+def tool_target(protocol: ProtocolName, slot: int | None, symbol: str | None) -> ToolTarget:
     """Where the tool lives in its controller; 422 naming the tool's field to set."""
     target = ToolTarget(slot=slot, symbol=symbol)
     problem = target_problem(protocol, target)

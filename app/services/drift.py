@@ -28,8 +28,8 @@ from app.models import AuditEvent, TcpVersion, Tool, table_of
 from app.schemas.drift import FleetDrift, SeriesTrend, ToolDrift
 from app.services.live import get_live
 from app.solvers.drift import Trend, crossing, fit_trend
+from app.words import CHECK_ACTION
 
-CHECK_ACTION = "tool.check"
 #: The newest points of each series that a trend is fitted to.
 MAX_POINTS = 60
 #: `drifting` when the projection leaves check_mm within this many days of now.

@@ -10,6 +10,7 @@ import numpy as np
 from app.exports import ToolData, export_tool
 from app.jsontypes import JsonArray, JsonObject
 from app.schemas.tools import ControllerText
+from app.words import MethodName
 
 
 class ServedTool(Protocol):
@@ -39,7 +40,7 @@ class ServedVersion(Protocol):
     @property
     def quaternion(self) -> JsonArray: ...
     @property
-    def source(self) -> str: ...
+    def source(self) -> MethodName: ...
     @property
     def created_at(self) -> datetime: ...
 

@@ -59,9 +59,7 @@ from app.services.fleet_live import (
 )
 from app.services.live import in_scope
 from app.services.tools import get_tool
-from app.statuses import ToolState
-
-CHECK_ACTION = "tool.check"
+from app.words import CHECK_ACTION, ToolState
 
 T = TypeVar("T")
 

@@ -19,6 +19,8 @@ from app.db import HeldRead
 from app.errors import Archived, NoActiveVersion, NotFound
 from app.jsontypes import JsonArray, JsonObject
 from app.models import ApiKey, Robot, TcpVersion, Tool, table_of
+from app.scopes import Scope
+from app.words import MethodName
 
 
 class HotRow(NamedTuple):
@@ -28,7 +30,7 @@ class HotRow(NamedTuple):
 
     id: str
     name: str
-    scope: str
+    scope: Scope
     key_hash: str
     revoked_at: datetime | None
     cells: JsonArray | None
@@ -43,7 +45,7 @@ class HotRow(NamedTuple):
     version: int | None
     position_mm: JsonArray | None
     quaternion: JsonArray | None
-    source: str | None
+    source: MethodName | None
     created_at: datetime | None
     created_by: str | None
 
@@ -106,7 +108,7 @@ class HotVersion:
     version: int
     position_mm: JsonArray
     quaternion: JsonArray
-    source: str
+    source: MethodName
     created_at: datetime
     created_by: str
 

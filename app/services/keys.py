@@ -12,6 +12,7 @@ from app.errors import Conflict, Forbidden, NotFound
 from app.helpers.pagination import paginate
 from app.jsontypes import JsonObject
 from app.models import ApiKey, new_id, utcnow
+from app.scopes import Scope
 from app.services import audit
 
 
@@ -19,7 +20,7 @@ def create_key(
     session: Session,
     *,
     name: str,
-    scope: str,
+    scope: Scope,
     actor: Principal | None,
     cells: Sequence[str] | None = None,
 ) -> tuple[ApiKey, str]:

@@ -30,9 +30,6 @@ from app.schemas.controllers import Frame as FrameOut
 from app.schemas.controllers import LiveToolMatch, LiveToolOut
 from app.services import audit
 
-#: The audit action of a change of the tool a robot moves by.
-LIVE_TOOL_ACTION = "robot.live_tool"
-
 
 def live_tool_matches(session: Session, robot_id: str, frame: Frame | None) -> list[LiveToolMatch]:
     """Every version of the robot's live tools whose frame equals `frame` (within 0.01 mm
@@ -153,7 +150,7 @@ def record_live(
         audit.record(
             session,
             actor=actor,
-            action=LIVE_TOOL_ACTION,
+            action="robot.live_tool",  # a change of the tool the robot moves by
             resource_type="robot",
             resource_id=robot_id,
             robot_id=robot_id,

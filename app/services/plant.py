@@ -24,6 +24,7 @@ from app.schemas.common import Timestamp
 from app.schemas.fleet import FleetTool
 from app.services.fleet import list_fleet
 from app.services.fleet_gauges import PAGE, controller_state
+from app.words import ActivationKind
 
 Vector = tuple[float, ...]
 
@@ -36,7 +37,7 @@ class LastActivation(BaseModel):
 
     model_config = ConfigDict(frozen=True)
 
-    kind: str
+    kind: ActivationKind
     reason: str | None
     at: Timestamp
     by: str

@@ -25,6 +25,7 @@ from app.controllers.base import (
     ControllerRefused,
     ControllerSettings,
     ControllerUnreachable,
+    ProtocolName,
     ToolData,
     ToolTarget,
     describe_target,
@@ -41,7 +42,7 @@ from app.services.controller_states import SEVERITY, Observation
 from app.services.controllers import get_controller, refusal_words, settings_of
 from app.services.live_tool import LiveRead, live_tool_out, read_live, record_live
 from app.services.robots import get_robot
-from app.statuses import ROBOT_STATES, DeploymentScope, RobotState, ToolState
+from app.words import ROBOT_STATES, DeploymentScope, RobotState, ToolState
 
 #: Rounds a reconcile reads at most when a deployment to a robot with one live TCP keeps
 #: changing which tool it judges while it reads (the last one stores what it read).
@@ -69,7 +70,7 @@ class Reading:
     error: str | None
 
 
-def _tools_to_check(session: Session, robot_id: str, protocol: str) -> list[ToolToCheck]:
+def _tools_to_check(session: Session, robot_id: str, protocol: ProtocolName) -> list[ToolToCheck]:
     rows = session.execute(
         select(Tool.id, Tool.slot, Tool.controller_symbol, TcpVersion)
         .outerjoin(

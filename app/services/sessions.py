@@ -59,6 +59,7 @@ from app.services.tools import get_tool
 from app.solvers.npoint import NOISE_CONTRADICTED
 from app.solvers.numbering import number
 from app.solvers.planning import Cone, next_touch, plan_touches, smallest_plan, tilt_lean_spin
+from app.words import AuditAction
 
 #: The TCP assumed when neither the request nor the tool gives one (mm, flange frame).
 DEFAULT_TCP_MM = (0.0, 0.0, 150.0)
@@ -240,7 +241,7 @@ def _open(session: Session, session_id: str, *, for_update: bool = True) -> Guid
 def _touch_event(
     session: Session,
     row: GuidedSession,
-    action: str,
+    action: AuditAction,
     actor: Principal,
     details: JsonObject,
     version: int | None = None,
@@ -318,16 +319,12 @@ def add_touch(
         except InvalidInput as refusal:
             if refusal.kind == "convention-mismatch":
                 raise
-    record = _TYPED if captured is None else captured.touch_record()
+    record = capture.typed_touch() if captured is None else captured.touch_record()
     row.poses, row.touches = poses, [*_touch_records(row), record]
     row.updated_at = utcnow()
     details: JsonObject = {"index": len(poses) - 1, "pose": pose, **record}
     _touch_event(session, row, "session.touch_add", actor, details)
     return view(session, row, tool=tool)
-
-
-#: The source of a pose a person typed.
-_TYPED: JsonObject = {"source": "typed", "read_at": None}
 
 
 def _touch_records(row: GuidedSession) -> list[JsonObject]:

@@ -27,6 +27,7 @@ from app.services.hot_read import active_of, read_for_key
 from app.services.live import live_or_404
 from app.services.robots import get_robot
 from app.services.tools import get_tool
+from app.words import ActivationKind, AuditAction, MethodName, Status
 
 IDENTITY_QUATERNION = [1.0, 0.0, 0.0, 0.0]
 
@@ -177,8 +178,8 @@ def add_version(
     tool: LockedTool,
     position_mm: Sequence[float],
     quaternion: Sequence[float],
-    source: str,
-    status: str,
+    source: MethodName,
+    status: Status,
     calibration_id: str | None,
     note: str | None,
     actor: Principal,
@@ -235,10 +236,10 @@ def activate(
     *,
     tool: LockedTool,
     version: int,
-    reason: str,
+    reason: ActivationKind,
     actor: Principal,
     reason_text: str | None = None,
-    action: str = "version.activate",
+    action: AuditAction = "version.activate",
     details: JsonObject | None = None,
     deferred: bool = False,
 ) -> None:

@@ -12,7 +12,7 @@ import json
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, get_args
 from uuid import uuid4
 
 import numpy as np
@@ -21,6 +21,7 @@ from fastapi.routing import iter_route_contexts
 from sqlalchemy import text
 
 from app.kinematics.poses import pose_to_format
+from app.words import AuditAction, ResourceType
 from testbed.sim.touches import simulate_touches
 from tests.api.controller_rigs import Rig, rig
 from tests.api.touches import as_poses
@@ -260,6 +261,28 @@ EVENTS: dict[tuple[str, str], tuple[tuple[str, str, str], ...]] = {
 }
 
 
+#: The actions no write route records, and the tests that show them recorded.
+RECORDED_BY_A_ROUND: dict[str, str] = {
+    "controller.unreachable": "a reconcile round that cannot reach the controller "
+    "(tests/api/test_watcher.py)",
+    "deployment.settled": "the reconcile round after an unverified deployment "
+    "(tests/api/test_deployments.py, tests/api/test_watcher.py)",
+}
+
+
+def test_the_routes_record_the_audit_actions_and_nothing_else() -> None:
+    """Every action and resource type a write route records (EVENTS, which the test below
+    holds to what the routes record) is a word of AuditAction and ResourceType, the Literals
+    the rows and the trail are typed with; and every word of those is recorded by a route or
+    by a reconcile round (RECORDED_BY_A_ROUND), so neither lists a word nothing writes."""
+    actions = {action for events in EVENTS.values() for action, _kind, _where in events}
+    kinds = {kind for events in EVENTS.values() for _action, kind, _where in events}
+    assert sorted(actions - set(get_args(AuditAction))) == []
+    assert sorted(kinds - set(get_args(ResourceType))) == []
+    assert set(get_args(AuditAction)) - actions == set(RECORDED_BY_A_ROUND)
+    assert set(get_args(ResourceType)) == kinds
+
+
 def write_routes() -> list[tuple[str, str]]:
     """Every (method, path) of the app that is not a read, under /v1."""
     from app.main import create_app
@@ -336,6 +359,7 @@ def _leaves_its_events(api: Api, route: tuple[str, str], call: Call) -> None:
         (action, kind, _resource_id(where, params, body)) for action, kind, where in EVENTS[route]
     ]
     assert [(e["action"], e["resource_type"], e["resource_id"]) for e in new] == expected
+    assert {e["action"] for e in new} <= set(get_args(AuditAction))
     for event in new:
         assert event["actor"] == f"test-{call.scope}", event
         assert event["request_id"] == request_id, event

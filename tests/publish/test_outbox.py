@@ -16,6 +16,7 @@ from app.db import make_engine, session_scope
 from app.models import Activation, OutboxMessage, utcnow
 from app.schemas.tools import ActivationRequest
 from app.services import activation, audit, outbox
+from app.words import AuditAction
 from tests.conftest import Api, Database
 
 ACTOR = Principal(key_id="k", name="tester", scope="admin")
@@ -110,7 +111,7 @@ def test_oldest_undelivered_age(api: Api) -> None:
         assert outbox.undelivered_count(session) >= 2
 
 
-def _audit_row(tool_id: str, action: str) -> dict[str, object]:
+def _audit_row(tool_id: str, action: AuditAction) -> dict[str, object]:
     return audit.row(
         at=utcnow(),
         actor="tester",

@@ -17,7 +17,10 @@ def test_nan_anywhere_in_the_result_is_a_422_kind() -> None:
         update={"rms_mm": 0.1, "max_mm": 0.2, "tcp_sigma_mm": [0.1, np.nan, 0.1]}
     )
     solved = Solved(
-        position_mm=np.array([0.0, 0.0, 100.0]), quaternion=None, algorithm="x", quality=quality
+        position_mm=np.array([0.0, 0.0, 100.0]),
+        quaternion=None,
+        algorithm="robust",
+        quality=quality,
     )
     with pytest.raises(InvalidInput) as err:
         graded_result("xyz_npoint", solved, StatelessContext(None, None))

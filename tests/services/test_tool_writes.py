@@ -39,7 +39,7 @@ def test_an_orm_copy_of_the_tool_reads_the_locked_writes_back(api: Api) -> None:
         etag_before, revision_before = tool_etag(orm_tool), orm_tool.revision
         locked = versions.lock_tool(session, tid)
         number = _add(locked, session)
-        versions.activate(session, tool=locked, version=number, reason="test", actor=ACTOR)
+        versions.activate(session, tool=locked, version=number, reason="explicit", actor=ACTOR)
         assert (orm_tool.active_version, orm_tool.last_version) == (number, number)
         assert orm_tool.revision == revision_before + 2
         assert tool_etag(orm_tool) != etag_before

@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
 from app.solvers.npoint import ALGORITHMS, NPointResult, solve_npoint
+from app.words import Algorithm
 from tests.realdata import NDI_PIVOT
 
 DATA = NDI_PIVOT
@@ -51,7 +52,7 @@ def ok_rows(name: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 @cache
-def solved(name: str, algorithm: str, stride: int) -> NPointResult:
+def solved(name: str, algorithm: Algorithm, stride: int) -> NPointResult:
     R, f = ok_rows(name)
     return solve_npoint(R[::stride], f[::stride], algorithm=algorithm)
 

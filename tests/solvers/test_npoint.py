@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 from app.errors import InvalidInput
 from app.solvers.npoint import ALGORITHMS, solve_npoint
 from app.solvers.quality import Quality, ellipsoid95_scale, orientation_spread_deg
+from app.words import Algorithm
 from testbed.sim.touches import TOOL_DOWN, coaxial_rotations, simulate_touches
 
 
@@ -42,7 +43,7 @@ def _mahalanobis(err: np.ndarray, quality: Quality) -> float:
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 @pytest.mark.parametrize("scenario", range(len(SCENARIOS)))
 @pytest.mark.parametrize("n", [4, 8, 50])
-def test_noise_free_touches_give_the_exact_tcp(algorithm: str, scenario: int, n: int) -> None:
+def test_noise_free_touches_give_the_exact_tcp(algorithm: Algorithm, scenario: int, n: int) -> None:
     sim = simulate_touches(n, seed=100 + scenario, touch_noise_mm=0.0, **SCENARIOS[scenario])
     result = solve_npoint(sim.R, sim.f, algorithm=algorithm)
     assert_allclose(result.tcp_mm, sim.t, rtol=0, atol=1e-9)
@@ -80,7 +81,7 @@ def test_noise_free_with_configured_noise_reports_the_predicted_uncertainty() ->
     ],
 )
 def test_reported_95_percent_ellipsoid_covers_the_truth(
-    algorithm: str, configured: bool, orientation_deg: float
+    algorithm: Algorithm, configured: bool, orientation_deg: float
 ) -> None:
     trials, hits, maha = 300, 0, []
     n = 8 if orientation_deg == 0 else 12
@@ -188,7 +189,7 @@ def test_residuals_are_distances_of_the_tcp_from_the_pivot() -> None:
 
 
 def test_gls_beats_stacked_under_orientation_noise() -> None:
-    err: dict[str, list[float]] = {"gls": [], "stacked": []}
+    err: dict[Algorithm, list[float]] = {"gls": [], "stacked": []}
     for seed in range(60):
         sim = simulate_touches(20, seed=seed, touch_noise_mm=0.02, orientation_noise_deg=0.1)
         for algorithm in err:

@@ -30,6 +30,7 @@ from app.services.verdict import change_warning, held_for_change, summarise
 from app.services.versions import (
     IDENTITY_QUATERNION,
 )
+from app.words import MethodName
 
 
 @dataclass(frozen=True)
@@ -69,7 +70,7 @@ def _solve_as_given(request: MethodRequest, ctx: MethodContext) -> Outcome:
         return Outcome(graded_result(request.method, solved, ctx), solved.reference_point)
 
 
-def graded_result(method: str, solved: Solved, ctx: MethodContext) -> CalibrationResult:
+def graded_result(method: MethodName, solved: Solved, ctx: MethodContext) -> CalibrationResult:
     """The result of a method's outcome: graded, orientation completed, compared with the
     active version, summed up in a sentence, every number finite."""
     tolerance = ctx.tolerance

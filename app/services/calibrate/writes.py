@@ -37,6 +37,7 @@ from app.services.versions import (
     lock_tool,
     save_deferred,
 )
+from app.words import MethodName, Status
 
 
 def replayed(
@@ -68,8 +69,8 @@ class Submitted:
 
     body: str  # the Calibration, as JSON
     replayed: bool
-    method: str
-    status: str
+    method: MethodName
+    status: Status
 
 
 def solve_and_submit(
@@ -187,7 +188,7 @@ def _save_touched_point(
     tool: LockedTool,
     name: str,
     point: StoredPoint,
-    method: str,
+    method: MethodName,
     calibration_id: str,
     actor: Principal,
 ) -> None:
@@ -280,7 +281,7 @@ def _activate_if_due(
             session,
             tool=tool,
             version=tool.last_version,
-            reason=f"calibration:{request.activate}",
+            reason="calibration:always" if request.activate == "always" else "calibration:auto",
             actor=actor,
             deferred=True,  # saved by submit with the version's
         )

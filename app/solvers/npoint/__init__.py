@@ -33,7 +33,6 @@ from app.solvers.npoint.checks import (
     MIN_POSES,
     REPEATED_POSE_DEG,
     WEAK_DIRECTION_RATIO,
-    Algorithm,
     Block,
     block_conditioning,
     check_degenerate,
@@ -65,6 +64,7 @@ from app.solvers.npoint.robust import (
 from app.solvers.numbering import numbered
 from app.solvers.quality import SIGMA_CONFIGURED, SIGMA_RESIDUALS, Quality, make_quality
 from app.solvers.validation import MAX_ABS_MM
+from app.words import Algorithm
 
 __all__ = [
     "ALGORITHMS",
@@ -85,7 +85,6 @@ __all__ = [
     "SERIAL_CORRELATION_WARN",
     "SERIAL_MIN_POSES",
     "WEAK_DIRECTION_RATIO",
-    "Algorithm",
     "BoolArray",
     "NPointResult",
     "solve_npoint",
@@ -96,7 +95,7 @@ __all__ = [
 class NPointResult:
     """TCP t (3,) mm in the flange frame, pivot p (3,) mm in the base frame, with quality."""
 
-    algorithm: str
+    algorithm: Algorithm
     tcp_mm: FloatArray
     pivot_mm: FloatArray
     pivot_covariance_mm2: FloatArray
@@ -107,7 +106,7 @@ def solve_npoint(
     rotations: ArrayLike,
     positions_mm: ArrayLike,
     *,
-    algorithm: str = "robust",
+    algorithm: Algorithm = "robust",
     touch_noise_mm: float | None = None,
     orientation_noise_deg: float | None = None,
     max_tcp_sigma_mm: float | None = None,
@@ -160,7 +159,7 @@ def solve_npoint(
 
 
 def _fit(
-    R: FloatArray, f: FloatArray, algorithm: str, noise: Noise, block: Block
+    R: FloatArray, f: FloatArray, algorithm: Algorithm, noise: Noise, block: Block
 ) -> tuple[Fit, BoolArray, Block, list[str]]:
     """Run the estimator: the fit, the touches it used, their conditioning and its warnings.
 

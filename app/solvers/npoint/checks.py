@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal, get_args
+from typing import get_args
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -20,9 +20,10 @@ from app.solvers.quality import (
     format_vector,
 )
 from app.solvers.validation import MAX_ABS_MM, check_positions_mm, check_rotation_matrices
+from app.words import Algorithm
 
-#: The N-point estimators (`options.algorithm`); the tuple is read off the Literal.
-Algorithm = Literal["robust", "stacked", "pairwise", "sphere", "gls"]
+#: The N-point estimators (`options.algorithm`: app.words.Algorithm); the tuple is read off
+#: the Literal.
 ALGORITHMS: tuple[Algorithm, ...] = get_args(Algorithm)
 #: Fewest touches the method accepts (the "XYZ 4-point" method of the pendants).
 MIN_POSES = 4
@@ -60,7 +61,7 @@ def checked_touches(rotations: ArrayLike, positions_mm: ArrayLike) -> tuple[Floa
     return R, f
 
 
-def geometry_warnings(block: Block, algorithm: str) -> list[str]:
+def geometry_warnings(block: Block, algorithm: Algorithm) -> list[str]:
     """Say when the touch geometry or the chosen estimator limits the result."""
     warnings = []
     if block.ratio < WEAK_DIRECTION_RATIO:

@@ -1,0 +1,159 @@
+"""The stored words: every closed list of words a column (or a stored JSON record) holds, one
+Literal each, written here once.
+
+What a calibration (and the TCP version it writes), a guided session and a deployment is,
+what state a tool's controller was found in, what an audit event says was done and to what,
+which method made a version, what kind an activation was, where a touch came from.
+
+Pure Python, so that the stored rows (app.models), the documents (app.schemas) and the
+services share the one list of each without importing each other. The words a library below
+them owns are its own and written there: pose formats (app.kinematics.poses.PoseFormat),
+controller protocols (app.controllers.base.ProtocolName), controller formats
+(app.exports.ControllerFormat), N-point algorithms (app.solvers.npoint.Algorithm) and key
+scopes (app.scopes.Scope). tests/test_one_definition.py holds that no Literal is written twice.
+"""
+
+from __future__ import annotations
+
+from typing import Final, Literal, get_args
+
+#: A calibration and its version: within the tool's tolerance or not (app.helpers.tolerance).
+Status = Literal["accepted", "out_of_tolerance"]
+
+#: A guided session: touches may still be added, or it ended in a calibration.
+SessionStatus = Literal["open", "finished"]
+
+#: A deployment that failed short of a read-back, decided by where it stopped: before the
+#: write was sent, so the controller holds what it held (`not_written`); after it, so the
+#: controller may hold either frame (`unverified`, settled by the next reconcile round).
+FailedDeploymentStatus = Literal["not_written", "unverified"]
+#: A deployment: read back as written (`verified`), failed short of a read-back (above), or
+#: read back otherwise than written (`mismatch`).
+DeploymentStatus = Literal["verified", FailedDeploymentStatus, "mismatch"]
+
+#: What the reconcile round after an `unverified` deployment found the controller holding:
+#: the deployed version, the frame it held before the deployment, or neither.
+SettledHolds = Literal["written", "previous", "other"]
+
+#: Where a deployment holds (contract v1.3): `stored` where the controller keeps it (KUKA,
+#: FANUC, ABB, Yaskawa), `live` where it holds only for the running program (UR, Techman:
+#: the next program start sets its own TCP).
+DeploymentScope = Literal["stored", "live"]
+
+#: What the controller holds for a tool, against the tool's active version; `not_live`: the
+#: robot has one live TCP (a `live` scope protocol) and it is another tool's, the one
+#: deployed to it last.
+ToolState = Literal["in_sync", "drifted", "no_active_version", "unreachable", "not_live"]
+
+#: A robot's state: the worst of its tools' states, least bad first.
+RobotState = Literal["in_sync", "drifted", "unreachable"]
+
+#: The robot states by how bad they are (the index is the severity).
+ROBOT_STATES: tuple[RobotState, ...] = get_args(RobotState)
+
+#: The pose formats the API takes (the `format` of touches, references and guided sessions);
+#: app.kinematics.poses parses them and reads POSE_FORMATS off this Literal. Written here, not
+#: there, so that the rows (app.models) name it without importing numpy and scipy.
+PoseFormat = Literal[
+    "matrix",
+    "xyz_wxyz",
+    "xyz_xyzw",
+    "kuka_abc",
+    "fanuc_wpr",
+    "yaskawa_rxyz",
+    "techman_rxyz",
+    "ur_rotvec",
+    "joints",
+]
+
+#: The units a pose's numbers are in (a format's defaults, a request's and a session's
+#: `units`); with the formats, so that app.schemas.common names them without the numeric
+#: core.
+Length = Literal["mm", "m"]
+Angle = Literal["deg", "rad"]
+
+#: The N-point estimators (`options.algorithm`, a calibration's `algorithm`); app.solvers.npoint
+#: runs them and reads ALGORITHMS off this Literal (written here for the same reason).
+Algorithm = Literal["robust", "stacked", "pairwise", "sphere", "gls"]
+
+#: A calibration method (a calibration's `method`, a version's `source`, a guided session's
+#: `method`): the registry's names, in its order (app.methods.METHOD_NAMES is read off the
+#: registry; tests/test_one_definition.py holds the two equal). Each method's request model
+#: names its own word (`method: Literal["xyz_plane"]`), which mypy checks is one of these.
+MethodName = Literal[
+    "xyz_npoint",
+    "xyz_plane",
+    "xyz_reference",
+    "tcp_z_x",
+    "abc_2point",
+    "abc_world",
+    "laser_beam",
+    "manual",
+]
+
+#: The kind of an activation (activations.reason): a version activated by name
+#: (`explicit`), by name out of tolerance with `force` (`forced`), by a rollback, by the
+#: calibration that made it (`calibration:<its activate option>`), or by a re-check's
+#: correction (`check_correction`).
+ActivationKind = Literal[
+    "explicit",
+    "forced",
+    "rollback",
+    "calibration:auto",
+    "calibration:always",
+    "check_correction",
+]
+
+#: Where a touch's pose came from: typed by a person, or read from the robot's controller.
+TouchOrigin = Literal["typed", "controller"]
+
+#: How a laser device's geometry was given: as numbers, or taught by sweeps.
+LaserDeviceSource = Literal["numeric", "taught"]
+
+#: What an audit event (and the outbox message and log line that carry it) says was done,
+#: as resource.verb. tests/api/test_audit_every_write.py holds that every write route
+#: records only these, and tests/test_one_definition.py that each is recorded somewhere.
+AuditAction = Literal[
+    "robot.create",
+    "robot.update",
+    "robot.archive",
+    "robot.live_tool",
+    "tool.create",
+    "tool.update",
+    "tool.archive",
+    "tool.check",
+    "tool.deploy",
+    "version.create",
+    "version.activate",
+    "version.rollback",
+    "calibration.create",
+    "controller.set",
+    "controller.delete",
+    "controller.in_sync",
+    "controller.drifted",
+    "controller.unreachable",
+    "deployment.settled",
+    "reference_point.create",
+    "laser_device.create",
+    "key.create",
+    "key.revoke",
+    "session.create",
+    "session.touch_add",
+    "session.touch_delete",
+    "session.finish",
+]
+
+#: The kind of thing an audit event changed (its `resource_id` names which one).
+ResourceType = Literal[
+    "robot",
+    "tool",
+    "calibration",
+    "deployment",
+    "reference_point",
+    "laser_device",
+    "api_key",
+    "session",
+]
+
+#: The action of a TCP check, which the drift trend and the fleet read back.
+CHECK_ACTION: Final[AuditAction] = "tool.check"
