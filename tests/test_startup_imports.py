@@ -13,7 +13,7 @@ import subprocess
 import sys
 
 #: Top-level packages and subpackages reported by the child process.
-_WATCHED = ("scipy", "alembic", "mako", "httpx", "httpcore")
+_WATCHED = ("scipy", "numpy", "alembic", "mako", "httpx", "httpcore")
 
 
 def _imported_by(code: str) -> set[str]:
@@ -57,3 +57,11 @@ def test_the_controller_schemas_and_connectors_import_no_numeric_core() -> None:
     touched a controller's schema or connector."""
     modules = _imported_by("import app.controllers.base, app.schemas.controllers, app.tool_numbers")
     assert "scipy" not in modules
+
+
+def test_the_rows_import_no_numeric_core() -> None:
+    """The words the rows are typed with are plain data (app.words: pose formats and
+    algorithms too), so `tcpcal db upgrade`, a backup and the key check read and write rows
+    without importing numpy and scipy."""
+    modules = _imported_by("import app.models, app.migrate, app.backup, app.auth")
+    assert {m.split(".")[0] for m in modules} & {"numpy", "scipy"} == set()
