@@ -20,6 +20,7 @@ from app.jsontypes import JsonObject
 from app.models import Deployment, TcpVersion
 from app.services import audit
 from app.services.controller_states import Observation
+from app.words import SettledHolds
 
 
 def settle(
@@ -46,7 +47,7 @@ def settle(
             TcpVersion.tool_id == row.tool_id, TcpVersion.version == row.version
         )
     ).one()
-    holds = "other"
+    holds: SettledHolds = "other"
     if _same(held, {"position_mm": written.position_mm, "quaternion": written.quaternion}):
         holds = "written"
     elif row.previous is not None and _same(held, row.previous):
