@@ -617,7 +617,7 @@ def export(
 def _merged_cnd(saved: Path, ours: str) -> str:
     """The controller's saved TOOL.CND with our blocks in place (exit 2 naming the problem)."""
     from app.errors import InvalidInput
-    from app.exports.cnd_file import merge
+    from app.vendors.yaskawa.file import merge
 
     try:
         return merge(saved.read_text(encoding="ascii", errors="replace"), ours)
@@ -658,8 +658,8 @@ def _robots() -> list[Robot]:
 
 def _export_all(directory: Path, fmt: str | None) -> None:
     """DIR/<robot>/: each format's file of the robot's tools, and the tool table as JSON."""
-    from app.exports import vendor_formats
-    from app.exports.names import file_stem
+    from app.vendors.names import file_stem
+    from app.vendors.registry import vendor_formats
 
     robots = _robots()
     used: set[str] = set()

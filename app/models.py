@@ -32,7 +32,6 @@ from sqlalchemy.engine import Dialect
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 from sqlalchemy.types import TypeDecorator
 
-from app.controllers.base import ProtocolName
 from app.jsontypes import JsonArray, JsonObject
 from app.scopes import Scope
 from app.words import (
@@ -44,6 +43,7 @@ from app.words import (
     LaserDeviceSource,
     MethodName,
     PoseFormat,
+    ProtocolName,
     ResourceType,
     SessionStatus,
     Status,

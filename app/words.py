@@ -6,11 +6,10 @@ what state a tool's controller was found in, what an audit event says was done a
 which method made a version, what kind an activation was, where a touch came from.
 
 Pure Python, so that the stored rows (app.models), the documents (app.schemas) and the
-services share the one list of each without importing each other. The words a library below
-them owns are its own and written there: pose formats (app.kinematics.poses.PoseFormat),
-controller protocols (app.controllers.base.ProtocolName), controller formats
-(app.exports.ControllerFormat), N-point algorithms (app.solvers.npoint.Algorithm) and key
-scopes (app.scopes.Scope). tests/test_one_definition.py holds that no Literal is written twice.
+services share the one list of each without importing each other. The controller makers'
+words are here too (`ControllerFormat`, `ProtocolName`): app.vendors.registry lists the makers
+that serve them, and tests/vendors/test_registry.py holds that both say the same words. Key
+scopes are app.scopes.Scope. tests/test_one_definition.py holds that no Literal is written twice.
 """
 
 from __future__ import annotations
@@ -71,6 +70,26 @@ PoseFormat = Literal[
 #: core.
 Length = Literal["mm", "m"]
 Angle = Literal["deg", "rad"]
+
+#: The controllers' text and file formats (``?format=``, ``controller.format``), one a maker
+#: (app/vendors/<maker>/), in the order the API lists them.
+ControllerFormat = Literal["kuka", "abb", "fanuc", "ur", "yaskawa", "techman"]
+CONTROLLER_FORMATS: tuple[ControllerFormat, ...] = get_args(ControllerFormat)
+#: "kuka, abb, fanuc, ur, yaskawa or techman": the formats as a sentence names them.
+FORMATS_IN_WORDS = f"{', '.join(CONTROLLER_FORMATS[:-1])} or {CONTROLLER_FORMATS[-1]}"
+
+#: The wire protocols a connector speaks (a robot's ``controller.protocol``), each its
+#: maker's (app/vendors/<maker>/__init__.py); those of one port first, as the API lists them.
+ProtocolName = Literal[
+    "kuka_kvp",
+    "fanuc_rmi",
+    "abb_rws1",
+    "abb_rws2",
+    "techman",
+    "yaskawa_hses",
+    "ur_rtde",
+]
+PROTOCOLS: tuple[ProtocolName, ...] = get_args(ProtocolName)
 
 #: The N-point estimators (`options.algorithm`, a calibration's `algorithm`); app.solvers.npoint
 #: runs them and reads ALGORITHMS off this Literal (written here for the same reason).

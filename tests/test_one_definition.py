@@ -15,8 +15,6 @@ from sqlalchemy.orm import Mapped
 
 from app import models
 from app.api.methods import describe
-from app.controllers.base import ProtocolName
-from app.exports import CONTROLLER_FORMATS, ControllerFormat
 from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHOD_NAMES, METHODS
 from app.methods.base import MethodRequest
@@ -29,15 +27,18 @@ from app.scopes import Scope
 from app.services.controller_states import EVENT_ACTIONS, SEVERITY
 from app.solvers.npoint import ALGORITHMS
 from app.words import (
+    CONTROLLER_FORMATS,
     ROBOT_STATES,
     ActivationKind,
     Algorithm,
     AuditAction,
+    ControllerFormat,
     DeploymentScope,
     DeploymentStatus,
     LaserDeviceSource,
     MethodName,
     PoseFormat,
+    ProtocolName,
     ResourceType,
     RobotState,
     SessionStatus,

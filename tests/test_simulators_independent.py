@@ -106,23 +106,23 @@ def test_the_check_sees_every_way_of_importing_app(tmp_path: Path) -> None:
     """The walker itself: each spelling of an app import, and one reached through a
     sibling helper, is found (a check that finds nothing would pass every simulator)."""
     tree = ast.parse(
-        "import app.controllers\n"
-        "from app.controllers.krl import parse_struct\n"
+        "import app.vendors\n"
+        "from app.vendors.kuka.text import parse_struct\n"
         "from app import kinematics\n"
         "def f():\n"
         "    import importlib\n"
-        "    importlib.import_module('app.controllers.rapid')\n"
+        "    importlib.import_module('app.vendors.abb.text')\n"
         "    __import__('app')\n"
         "from . import helpers\n"
         "from .simbase import TcpSimulator\n"
     )
     names = imported_names(tree, PACKAGE)
     assert {
-        "app.controllers",
-        "app.controllers.krl",
+        "app.vendors",
+        "app.vendors.kuka.text",
         "app",
         "app.kinematics",
-        "app.controllers.rapid",
+        "app.vendors.abb.text",
         "tests.controllers.helpers",
         "tests.controllers.simbase",
     } <= set(names)
@@ -133,10 +133,10 @@ def test_the_check_sees_every_way_of_importing_app(tmp_path: Path) -> None:
     (package / "__init__.py").write_text("")
     (package / "planted_sim.py").write_text("from .simbase import X\nfrom . import helpers\n")
     (package / "simbase.py").write_text("import socket\n")
-    (package / "helpers.py").write_text("import numpy\nfrom app.controllers import ToolData\n")
+    (package / "helpers.py").write_text("import numpy\nfrom app.vendors.tool import ToolData\n")
     assert app_imports(package / "planted_sim.py", tmp_path) == [
-        "tests/controllers/helpers.py imports app.controllers",
-        "tests/controllers/helpers.py imports app.controllers.ToolData",
+        "tests/controllers/helpers.py imports app.vendors.tool",
+        "tests/controllers/helpers.py imports app.vendors.tool.ToolData",
     ]
     (package / "helpers.py").write_text("import numpy\n")
     assert app_imports(package / "planted_sim.py", tmp_path) == []

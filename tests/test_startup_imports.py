@@ -52,11 +52,14 @@ def test_the_solver_preload_imports_what_the_fits_use() -> None:
 
 
 def test_the_controller_schemas_and_connectors_import_no_numeric_core() -> None:
-    """The tool numbers are plain data (app.tool_numbers): reaching them through the exports
-    package ran app/exports/__init__.py, and so every exporter and scipy.spatial, in whatever
-    touched a controller's schema or connector."""
-    modules = _imported_by("import app.controllers.base, app.schemas.controllers, app.tool_numbers")
+    """The makers' registry declares them and loads their modules on first use: importing
+    it (for the ports, the tool numbers, the stored words) ran no exporter and no scipy.spatial
+    in whatever touched a controller's schema or connector interface, and no protocol client."""
+    modules = _imported_by(
+        "import app.vendors.connector, app.schemas.controllers, app.vendors.registry"
+    )
     assert "scipy" not in modules
+    assert "httpx" not in modules
 
 
 def test_the_rows_import_no_numeric_core() -> None:

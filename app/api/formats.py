@@ -6,9 +6,8 @@ from fastapi import APIRouter
 
 from app.api.shared import all_formats
 from app.deps import ReadKey
-from app.exports import FILE_KINDS
 from app.schemas.formats import FormatList
-from app.tool_numbers import TOOL_NUMBERS
+from app.vendors.registry import FILE_KINDS, TOOL_NUMBERS
 
 router = APIRouter(tags=["stateless"])
 

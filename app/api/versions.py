@@ -9,7 +9,6 @@ from fastapi.responses import PlainTextResponse
 
 from app.api.params import IfMatch, PathId, RawParam, VersionNumber
 from app.deps import CalibrateKey, ReadKey, SessionDep, label_request
-from app.exports import CONTROLLER_FORMATS, ControllerFormat
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
 from app.schemas.common import ID_PATTERN
 from app.schemas.tools import (
@@ -22,6 +21,7 @@ from app.schemas.tools import (
     VersionList,
 )
 from app.services import activation, active_tcp, export_files, tools, versions
+from app.words import CONTROLLER_FORMATS, ControllerFormat
 
 router = APIRouter(tags=["versions"])
 

@@ -6,12 +6,14 @@ from typing import Annotated, get_args
 
 from pydantic import BaseModel, BeforeValidator, Field, SecretStr
 
-from app.controllers.base import ABB_SYMBOL_PATTERN, DEFAULT_PORTS, SERVICE_PORTS, ProtocolName
 from app.schemas.common import Reason, ShortText, StoredWord, StrictModel, Timestamp, json_integer
+from app.vendors.abb.symbol import SYMBOL_PATTERN
+from app.vendors.registry import DEFAULT_PORTS, SERVICE_PORTS, WIRE_PROTOCOLS
 from app.words import (
     DeploymentScope,
     DeploymentStatus,
     PoseFormat,
+    ProtocolName,
     RobotState,
     SettledHolds,
     ToolState,
@@ -35,7 +37,7 @@ ControllerSymbol = Annotated[
     str,
     Field(
         max_length=100,
-        pattern=ABB_SYMBOL_PATTERN.pattern,
+        pattern=SYMBOL_PATTERN.pattern,
         description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"',
         examples=["T_ROB1/user/tTorch"],
     ),
@@ -45,8 +47,8 @@ ServiceName = Annotated[
     Field(
         min_length=1,
         max_length=40,
-        description="a service of the protocol: techman listen_node | ethernet_slave; "
-        "yaskawa_hses robot | file; ur_rtde rtde | secondary",
+        description="a service of the protocol: "
+        + "; ".join(f"{name} {' | '.join(services)}" for name, services in SERVICE_PORTS.items()),
     ),
 ]
 PROTOCOL_DESCRIPTION = "; ".join(
@@ -60,10 +62,15 @@ PROTOCOL_DESCRIPTION = "; ".join(
     ]
 )
 PORTS_DESCRIPTION = (
-    "a protocol of several services (techman, yaskawa_hses, ur_rtde), in place of `port`: "
-    "the port of each service, each defaulting to the real one (techman listen_node 5890, "
-    "ethernet_slave 5891; yaskawa_hses robot 10040, file 10041 (UDP); ur_rtde rtde 30004, "
-    "secondary 30002)"
+    f"a protocol of several services ({', '.join(SERVICE_PORTS)}), in place of `port`: the "
+    "port of each service, each defaulting to the real one ("
+    + "; ".join(
+        f"{name} "
+        + ", ".join(f"{service} {port}" for service, port in services.items())
+        + (" (UDP)" if WIRE_PROTOCOLS[name].udp else "")
+        for name, services in SERVICE_PORTS.items()
+    )
+    + ")"
 )
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pydantic import BaseModel, Field
 
-from app.exports import CONTROLLER_FORMATS, ControllerFormat
 from app.schemas.common import Units
+from app.words import CONTROLLER_FORMATS, ControllerFormat
 
 
 class FormatInfo(BaseModel):

@@ -8,9 +8,9 @@ from typing import NamedTuple
 
 from app.auth import Principal
 from app.db import loop_engine
-from app.exports.files import ControllerFile
 from app.schemas.tools import ActiveTcp
 from app.services import export_files, versions
+from app.vendors.files import ControllerFile
 
 
 class ServedTcp(NamedTuple):

@@ -24,17 +24,6 @@ from scipy.spatial.transform import Rotation
 from sqlalchemy.orm import Session
 
 from app.auth import Principal, act_for
-from app.controllers import connect
-from app.controllers.base import (
-    ControllerCredentialsRefused,
-    ControllerError,
-    ControllerRefused,
-    ControllerSettings,
-    ControllerUnreachable,
-    Frame,
-    PoseReading,
-    ProtocolName,
-)
 from app.db import session_scope
 from app.errors import (
     ControllerRefusedError,
@@ -54,7 +43,18 @@ from app.schemas.controllers import ControllerPose
 from app.schemas.results import TouchSource
 from app.services.controllers import get_controller, refusal_words, settings_of
 from app.services.live_tool import live_tool_matches, live_tool_out
-from app.words import TouchOrigin
+from app.vendors.connector import (
+    ControllerCredentialsRefused,
+    ControllerError,
+    ControllerRefused,
+    ControllerSettings,
+    ControllerUnreachable,
+    Frame,
+    PoseReading,
+)
+from app.vendors.registry import connect
+from app.vendors.registry import where as controller_address
+from app.words import ProtocolName, TouchOrigin
 
 #: The two reads of one capture are at least this far apart (s).
 STILL_GAP_S = 0.1
@@ -145,7 +145,7 @@ def controller_failure(
     exc: ControllerError, settings: ControllerSettings, *, robot_id: str
 ) -> DomainError:
     """A connector's failure as the 502 a client gets (as for deployments)."""
-    where = settings.where()
+    where = controller_address(settings)
     if isinstance(exc, ControllerRefused):
         # The connector's sentence says why and what to do (KUKA's external-TCP mode: move
         # with the tool on the flange); the controller's own words alone do not. Refused

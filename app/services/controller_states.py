@@ -10,10 +10,10 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.controllers.base import ToolData
 from app.jsontypes import JsonObject
 from app.models import Tool, ToolControllerState
 from app.services import audit
+from app.vendors.tool import ToolData
 from app.words import AuditAction, ToolState
 
 #: States whose start is an audit event `controller.<state>` (and counted in /metrics), with

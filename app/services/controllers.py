@@ -10,17 +10,6 @@ from sqlalchemy.orm import Session
 
 from app import secretbox
 from app.auth import Principal
-from app.controllers import has_connector
-from app.controllers.base import (
-    DEFAULT_PORTS,
-    SERVICE_PORTS,
-    SLOT_RANGES,
-    ControllerCredentialsRefused,
-    ControllerRefused,
-    ControllerSettings,
-    ProtocolName,
-    scope_of,
-)
 from app.errors import (
     ConnectorMissing,
     InvalidInput,
@@ -32,6 +21,19 @@ from app.models import RobotController, Tool, ToolControllerState, utcnow
 from app.schemas.controllers import ControllerIn
 from app.services import audit, live_tool
 from app.services.robots import get_robot
+from app.vendors.connector import (
+    ControllerCredentialsRefused,
+    ControllerRefused,
+    ControllerSettings,
+)
+from app.vendors.registry import (
+    DEFAULT_PORTS,
+    SERVICE_PORTS,
+    SLOT_RANGES,
+    has_connector,
+    scope_of,
+)
+from app.words import ProtocolName
 
 
 def get_controller(

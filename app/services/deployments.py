@@ -18,22 +18,6 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal, act_for
-from app.controllers import connect
-from app.controllers.base import (
-    TARGET_FIELD,
-    Connector,
-    ControllerError,
-    ControllerRefused,
-    ControllerSettings,
-    ControllerUnreachable,
-    ProtocolName,
-    ToolData,
-    ToolLoad,
-    ToolTarget,
-    describe_target,
-    scope_of,
-    target_problem,
-)
 from app.db import session_scope
 from app.errors import (
     ControllerMismatch,
@@ -52,7 +36,24 @@ from app.schemas.controllers import Deployment as DeploymentOut
 from app.services import audit, controller_states, idempotency
 from app.services.controllers import get_controller, refusal_words, settings_of
 from app.services.tools import get_tool
-from app.words import DeploymentStatus, FailedDeploymentStatus
+from app.vendors.connector import (
+    Connector,
+    ControllerError,
+    ControllerRefused,
+    ControllerSettings,
+    ControllerUnreachable,
+    ToolTarget,
+)
+from app.vendors.registry import (
+    TARGET_FIELD,
+    connect,
+    describe_target,
+    scope_of,
+    target_problem,
+)
+from app.vendors.registry import where as controller_address
+from app.vendors.tool import ToolData, ToolLoad
+from app.words import DeploymentStatus, FailedDeploymentStatus, ProtocolName
 
 
 @dataclass(frozen=True)
@@ -235,7 +236,7 @@ def status_words(status: FailedDeploymentStatus, version: int, held_version: int
 
 def _failure(plan: Plan, attempt: _Attempt, exc: ControllerError) -> Outcome:
     status = _failure_status(plan, attempt)
-    where = plan.settings.where()
+    where = controller_address(plan.settings)
     words = status_words(status, plan.version, plan.held_version)
     members: dict[str, object] = {"deployment_status": status}
     message = None

@@ -1,5 +1,5 @@
 """Controller files: a tool's active TCP, or every tool of a robot, as the file its controller
-loads (app.exports), with the header saying which version, calibrated when and by whom.
+loads (app.vendors), with the header saying which version, calibrated when and by whom.
 
 A tool's file is served by the one-statement read of GET /v1/tools/{id}/tcp
 (app.services.hot_read), which also reads who made the version.
@@ -11,26 +11,19 @@ import hashlib
 import json
 from typing import Protocol
 
-import numpy as np
 from sqlalchemy import Engine, and_, select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
 from app.config import get_settings
 from app.errors import InvalidInput
-from app.exports import (
-    ControllerFile,
-    FileContext,
-    FileTool,
-    Provenance,
-    ToolData,
-    controller_file,
-)
 from app.helpers.etags import if_none_match_hit
 from app.models import TcpVersion, Tool
-from app.services.exports import ServedTool, ServedVersion
+from app.services.exports import ServedTool, ServedVersion, tool_data
 from app.services.hot_read import active_of, read_for_key
 from app.services.robots import get_robot
+from app.vendors.files import ControllerFile, FileContext, FileTool, Provenance
+from app.vendors.registry import controller_file
 
 
 def needs_format(fmt: str | None) -> str:
@@ -60,18 +53,6 @@ class FileVersion(ServedVersion, Protocol):
 def file_tool(tool: ServedTool, version: FileVersion, *, base_url: str) -> FileTool:
     """A tool's active version as a file holds it, with its provenance (a models.Tool and
     TcpVersion, or the hot read's HotTool and HotVersion)."""
-    load = tool.load or {}
-    cog = load.get("cog_mm")
-    mass = load.get("mass_kg")
-    data = ToolData(
-        slot=tool.slot,
-        name=tool.name,
-        position_mm=np.asarray(version.position_mm, dtype=float),
-        quaternion_wxyz=np.asarray(version.quaternion, dtype=float),
-        mass_kg=float(mass) if isinstance(mass, int | float) else None,
-        cog_mm=np.asarray(cog, dtype=float) if isinstance(cog, list) else None,
-        controller_symbol=tool.controller_symbol,
-    )
     origin = Provenance(
         version=version.version,
         calibrated_at=version.created_at,
@@ -79,7 +60,7 @@ def file_tool(tool: ServedTool, version: FileVersion, *, base_url: str) -> FileT
         method=version.source,
         url=f"{base_url}/ui/tools/{tool.id}",
     )
-    return FileTool(data, origin)
+    return FileTool(tool_data(tool, version), origin)
 
 
 def _etag(parts: list[object]) -> str:

@@ -5,11 +5,10 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Protocol
 
-import numpy as np
-
-from app.exports import ToolData, export_tool
 from app.jsontypes import JsonArray, JsonObject
 from app.schemas.tools import ControllerText
+from app.vendors.registry import export_tool
+from app.vendors.tool import ToolData, ToolLoad, vec3, vec4
 from app.words import MethodName
 
 
@@ -45,17 +44,26 @@ class ServedVersion(Protocol):
     def created_at(self) -> datetime: ...
 
 
-def controller_text(fmt: str, *, tool: ServedTool, version: ServedVersion) -> ControllerText:
-    """{format, text, values} of a tool's version in a controller's own syntax."""
+def tool_data(tool: ServedTool, version: ServedVersion) -> ToolData:
+    """A tool's version as its controller holds it: the TCP, the load where its mass is
+    stored (the centre of gravity where that is), the slot, name and ABB symbol."""
     load = tool.load or {}
-    data = ToolData(
+    mass, cog = load.get("mass_kg"), load.get("cog_mm")
+    return ToolData(
+        position_mm=vec3(version.position_mm),
+        quaternion=vec4(version.quaternion),
+        load=(
+            ToolLoad(float(mass), vec3(cog) if isinstance(cog, list) and cog else None)
+            if isinstance(mass, int | float)
+            else None
+        ),
         slot=tool.slot,
         name=tool.name,
-        position_mm=np.asarray(version.position_mm, dtype=float),
-        quaternion_wxyz=np.asarray(version.quaternion, dtype=float),
-        mass_kg=load.get("mass_kg"),
-        cog_mm=np.asarray(load["cog_mm"], dtype=float) if load.get("cog_mm") else None,
         controller_symbol=tool.controller_symbol,
     )
-    export = export_tool(fmt, data)
+
+
+def controller_text(fmt: str, *, tool: ServedTool, version: ServedVersion) -> ControllerText:
+    """{format, text, values} of a tool's version in a controller's own syntax."""
+    export = export_tool(fmt, tool_data(tool, version))
     return ControllerText(format=export.format, text=export.text, values=export.values)

@@ -16,19 +16,13 @@ from sqlalchemy import delete, insert, select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal
-from app.controllers.base import (
-    Connector,
-    ControllerError,
-    ControllerRefused,
-    Frame,
-    LiveTool,
-)
 from app.helpers.frames import SYNC_TOLERANCE_DEG, SYNC_TOLERANCE_MM, frame_deviation, within
 from app.jsontypes import JsonObject
 from app.models import Robot, RobotLiveMatch, RobotLiveTool, TcpVersion, Tool
 from app.schemas.controllers import Frame as FrameOut
 from app.schemas.controllers import LiveToolMatch, LiveToolOut
 from app.services import audit
+from app.vendors.connector import Connector, ControllerError, ControllerRefused, Frame, LiveTool
 
 
 def live_tool_matches(session: Session, robot_id: str, frame: Frame | None) -> list[LiveToolMatch]:

@@ -19,19 +19,6 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.auth import Principal, act_for
-from app.controllers import connect
-from app.controllers.base import (
-    ControllerError,
-    ControllerRefused,
-    ControllerSettings,
-    ControllerUnreachable,
-    ProtocolName,
-    ToolData,
-    ToolTarget,
-    describe_target,
-    scope_of,
-    target_problem,
-)
 from app.db import session_scope
 from app.helpers.frames import SYNC_TOLERANCE_DEG, SYNC_TOLERANCE_MM, frame_deviation, within
 from app.metrics import CONTROLLER_STATE_CHANGES, RECONCILES
@@ -42,7 +29,17 @@ from app.services.controller_states import SEVERITY, Observation
 from app.services.controllers import get_controller, refusal_words, settings_of
 from app.services.live_tool import LiveRead, live_tool_out, read_live, record_live
 from app.services.robots import get_robot
-from app.words import ROBOT_STATES, DeploymentScope, RobotState, ToolState
+from app.vendors.connector import (
+    ControllerError,
+    ControllerRefused,
+    ControllerSettings,
+    ControllerUnreachable,
+    ToolTarget,
+)
+from app.vendors.registry import connect, describe_target, scope_of, target_problem
+from app.vendors.registry import where as controller_address
+from app.vendors.tool import ToolData
+from app.words import ROBOT_STATES, DeploymentScope, ProtocolName, RobotState, ToolState
 
 #: Rounds a reconcile reads at most when a deployment to a robot with one live TCP keeps
 #: changing which tool it judges while it reads (the last one stores what it read).
@@ -120,7 +117,7 @@ def read_controller(
             live = read_live(conn)
     except (ControllerUnreachable, ControllerRefused, ControllerError) as exc:
         words = refusal_words(exc, robot_id) if isinstance(exc, ControllerRefused) else str(exc)
-        where = settings.where()
+        where = controller_address(settings)
         for tool in todo:
             readings.setdefault(tool.tool_id, Reading(None, f"{where}: {words}"))
         live = LiveRead(None, f"{where}: {words}", reached=False)

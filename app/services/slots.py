@@ -1,13 +1,13 @@
 """Which tool numbers (slots) a robot's controller has, by the robot's vendor.
 
-The ranges are the controllers' own, and the exports' (one definition: app.tool_numbers;
-app.exports.kuka and app.exports.wpr cite the vendor documents): KUKA `$TOOL_DATA[1..16]` (KSS
+The ranges are the controllers' own, and the exports' (one definition each: the `Maker` of
+app/vendors/<maker>/, citing the vendor documents): KUKA `$TOOL_DATA[1..16]` (KSS
 $config.dat), Fanuc `UTOOL[1..10]` (R-30iB default), Yaskawa tool files 0..63 (YRC1000 and
 DX200). ABB (a `tooldata` is a named RAPID variable) and Universal Robots (one TCP at a time,
 named in the installation) have no tool numbers: a slot on their tools is not checked and is
 kept as the tool's number in file names and tables, as before. The vendor is matched without
 regard to case, on its first word ("KUKA", "Kuka Roboter GmbH", "FANUC America",
-"Yaskawa Motoman"; "Motoman" alone counts as Yaskawa).
+"Yaskawa Motoman"; "Motoman" alone counts as Yaskawa): the makers' vendor words.
 """
 
 from __future__ import annotations
@@ -16,15 +16,13 @@ import re
 from collections.abc import Iterable
 
 from app.errors import InvalidInput
-from app.tool_numbers import TOOL_NUMBERS
+from app.vendors.registry import MAKERS
 
 #: The tool numbers of each vendor whose controller numbers its tools: (name, first, last).
 SLOT_RANGES: dict[str, tuple[str, int, int]] = {
-    "kuka": ("KUKA", *TOOL_NUMBERS["kuka"]),
-    "fanuc": ("Fanuc", *TOOL_NUMBERS["fanuc"]),
-    "yaskawa": ("Yaskawa", *TOOL_NUMBERS["yaskawa"]),
+    m.format: (m.name, *m.tool_numbers) for m in MAKERS if m.tool_numbers is not None
 }
-_ALIASES = {"kuka": "kuka", "fanuc": "fanuc", "yaskawa": "yaskawa", "motoman": "yaskawa"}
+_ALIASES = {word: m.format for m in MAKERS if m.format in SLOT_RANGES for word in m.vendor_words}
 
 
 def numbered_vendor(vendor: str | None) -> str | None:

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from app.controllers.base import (
+from app.kinematics.poses import pose_from_format
+from app.vendors.connector import (
     ClosingSession,
     ControllerRefused,
     ControllerSettings,
@@ -22,7 +23,6 @@ from app.controllers.base import (
     LiveTool,
     PoseReading,
 )
-from app.kinematics.poses import pose_from_format
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import row_counts
 from tests.conftest import Api

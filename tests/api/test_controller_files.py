@@ -10,7 +10,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from app.config import get_settings
-from app.exports import CONTROLLER_FORMATS, parse_controller_file
+from app.vendors.registry import parse_controller_file
+from app.words import CONTROLLER_FORMATS
 from tests.conftest import Api
 
 TEXT = {"Accept": "text/plain"}
@@ -38,7 +39,7 @@ def test_a_tools_file_parses_back_to_its_active_tcp(api: Api, fmt: str) -> None:
     (parsed,) = parse_controller_file(fmt, response.text)
     assert_allclose(parsed.position_mm, [1.5, -2.0, 150.0], atol=5e-4)
     assert_allclose(abs(parsed.quaternion_wxyz[0]), 1.0, atol=1e-9)
-    if fmt != "yaskawa":  # TOOL.CND has no comments: no header (app.exports.cnd_file)
+    if fmt != "yaskawa":  # TOOL.CND has no comments: no header (app.vendors.yaskawa.file)
         assert "version 1" in response.text
         assert "by test-calibrate" in response.text
         url = f"http://testserver/ui/tools/{ids['torch']}"

@@ -13,8 +13,9 @@ import pytest
 from sqlalchemy import create_engine, text
 
 from app.backup import backup, restore
-from app.controllers import ControllerSettings
 from app.migrate import upgrade
+from app.vendors.connector import ControllerSettings
+from app.vendors.registry import port_of, ports_in_use, where
 from testbed.databases import fresh_database
 from tests.conftest import PG_URL, Api, Database
 
@@ -70,7 +71,6 @@ def test_ports_given_are_used_and_those_left_out_keep_their_default(
 ) -> None:
     """A plant (or a test's simulator) on other ports: each service where it was told,
     the one not named on its real port; what a connector is given says the same."""
-    from app.controllers import PROTOCOLS
     from app.db import session_scope
     from app.services.controllers import get_controller, settings_of
 
@@ -83,16 +83,16 @@ def test_ports_given_are_used_and_those_left_out_keep_their_default(
     r = _put(api, robot["id"], protocol="techman", host="127.0.0.1", ports={"ethernet_slave": 6001})
     assert r.json()["ports"] == {"listen_node": 5890, "ethernet_slave": 6001}
     # What a connector is given, once its protocol has one.
-    monkeypatch.setattr("app.controllers.CONNECTED_PROTOCOLS", frozenset(PROTOCOLS))
+    monkeypatch.setattr("app.services.controllers.has_connector", lambda protocol: True)
     with session_scope(write=False) as session:
         settings = settings_of(get_controller(session, robot["id"]))
-    assert settings.port_of("listen_node") == 5890
-    assert settings.port_of("ethernet_slave") == 6001
-    assert settings.ports_in_use() == {"listen_node": 5890, "ethernet_slave": 6001}
+    assert port_of(settings, "listen_node") == 5890
+    assert port_of(settings, "ethernet_slave") == 6001
+    assert ports_in_use(settings) == {"listen_node": 5890, "ethernet_slave": 6001}
     assert settings.port == 5890  # the main service's
-    assert settings.where() == "127.0.0.1 (listen_node 5890, ethernet_slave 6001)"
+    assert where(settings) == "127.0.0.1 (listen_node 5890, ethernet_slave 6001)"
     with pytest.raises(ValueError, match="its services: listen_node, ethernet_slave"):
-        settings.port_of("rtde")
+        port_of(settings, "rtde")
     # Back to a single-service protocol: its port, and no ports.
     r = _put(api, robot["id"], protocol="kuka_kvp", host="127.0.0.1")
     assert (r.json()["port"], r.json()["ports"]) == (7000, None)
@@ -102,12 +102,12 @@ def test_ports_given_are_used_and_those_left_out_keep_their_default(
 def test_settings_of_a_protocol_of_several_services_default_each_port() -> None:
     """Built without `ports` (as a test may), each service is on its real one."""
     settings = ControllerSettings("yaskawa_hses", "127.0.0.1", 10040, None, None)
-    assert settings.ports_in_use() == REAL_PORTS["yaskawa_hses"]
+    assert ports_in_use(settings) == REAL_PORTS["yaskawa_hses"]
     single = ControllerSettings("kuka_kvp", "127.0.0.1", 7000, None, None)
-    assert single.ports_in_use() == {}
-    assert single.where() == "127.0.0.1:7000"
+    assert ports_in_use(single) == {}
+    assert where(single) == "127.0.0.1:7000"
     with pytest.raises(ValueError, match="it has one port, `port`"):
-        single.port_of("robot")
+        port_of(single, "robot")
     assert hash(settings) == hash(
         ControllerSettings("yaskawa_hses", "127.0.0.1", 10040, None, None)
     )
@@ -170,7 +170,7 @@ def test_a_protocol_without_its_connector_yet_is_501_and_nothing_is_sent_or_reco
     connection (a listening socket on its port accepts none) and records no deployment."""
     import socket
 
-    from app.controllers import has_connector
+    from app.vendors.registry import has_connector
 
     robot = api.robot()
     tool = api.tool(robot["id"], "torch")

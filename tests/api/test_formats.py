@@ -48,7 +48,8 @@ def test_methods_list_their_formats_and_every_format(api: Api) -> None:
 
 def test_the_formats_that_number_their_tools_are_listed_with_the_numbers(api: Api) -> None:
     """The console tells a tool without a slot why its .LS and TOOL.CND are not offered, with
-    the numbers the controller takes (the vendors' ranges, cited in app.tool_numbers)."""
+    the numbers the controller takes (the vendors' ranges, cited in each maker's package,
+    app/vendors/<maker>/__init__.py)."""
     body = api.get("/v1/formats").json()
     assert body["tool_numbers"] == {"kuka": [1, 16], "fanuc": [1, 10], "yaskawa": [0, 63]}
     assert set(body["tool_numbers"]) <= set(body["controller_files"])

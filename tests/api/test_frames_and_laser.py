@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from app.exports import parse_controller_text
 from app.kinematics.poses import pose_to_format
+from app.vendors.registry import parse_controller_text
 from testbed.sim.frames import translation_directions, two_point_touches, world_aligned_rotation
 from testbed.sim.laser import DEVICE, TOOL_STATES, simulate, tool_down_rotation
 from testbed.sim.touches import simulate_touches

@@ -18,8 +18,8 @@ import pytest
 from prometheus_client.parser import text_string_to_metric_families
 from sqlalchemy import text
 
-from app.controllers import PROTOCOLS
-from app.controllers.base import (
+from app.db import get_engine
+from app.vendors.connector import (
     ClosingSession,
     ControllerRefused,
     ControllerSettings,
@@ -27,10 +27,10 @@ from app.controllers.base import (
     Frame,
     LiveTool,
     PoseReading,
-    ToolData,
     ToolTarget,
 )
-from app.db import get_engine
+from app.vendors.registry import where
+from app.vendors.tool import ToolData
 from tests.conftest import Api
 from tests.controllers.kuka_sim import KukaSimulator
 
@@ -50,7 +50,7 @@ class LiveController:
 
     def connect(self, settings: ControllerSettings) -> LiveSession:
         if not self.reachable:
-            raise ControllerUnreachable(f"connection to {settings.where()} refused")
+            raise ControllerUnreachable(f"connection to {where(settings)} refused")
         return LiveSession(self)
 
     def program_start(self, position_mm: tuple[float, float, float]) -> None:
@@ -95,7 +95,7 @@ class LiveSession(ClosingSession):
 @pytest.fixture
 def live(monkeypatch: pytest.MonkeyPatch) -> LiveController:
     """The fake live-TCP controller behind the services' `connect` for ur_rtde."""
-    from app.controllers import connect as real_connect
+    from app.vendors.registry import connect as real_connect
 
     controller = LiveController()
 
@@ -104,7 +104,7 @@ def live(monkeypatch: pytest.MonkeyPatch) -> LiveController:
             return controller.connect(settings)
         return real_connect(settings)
 
-    monkeypatch.setattr("app.controllers.CONNECTED_PROTOCOLS", frozenset(PROTOCOLS))
+    monkeypatch.setattr("app.services.controllers.has_connector", lambda protocol: True)
     for module in ("reconcile", "deployments"):
         monkeypatch.setattr(f"app.services.{module}.connect", connect)
     return controller

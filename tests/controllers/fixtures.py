@@ -14,7 +14,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from app.controllers import ControllerSettings
+from app.vendors.connector import ControllerSettings
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator

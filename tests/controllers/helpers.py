@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from app.controllers import ToolData, ToolLoad
+from app.vendors.tool import ToolData, ToolLoad
 
 
 def random_tool(seed: int, *, load: bool = True) -> ToolData:

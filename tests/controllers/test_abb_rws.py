@@ -12,19 +12,18 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from app.controllers import (
+from app.vendors.abb.rws import AbbRwsConnector
+from app.vendors.abb.text import RapidSyntaxError, format_tooldata, parse_tooldata
+from app.vendors.connector import (
     ControllerProtocolError,
     ControllerRefused,
     ControllerSettings,
     ControllerUnreachable,
-    ToolData,
-    ToolLoad,
+    LiveTool,
     ToolTarget,
-    connect,
 )
-from app.controllers.abb_rws import AbbRwsConnector
-from app.controllers.base import LiveTool
-from app.controllers.rapid import RapidSyntaxError, format_tooldata, parse_tooldata
+from app.vendors.registry import connect
+from app.vendors.tool import ToolData, ToolLoad
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fixtures import abb_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
@@ -55,7 +54,7 @@ def test_written_tool_is_held_as_a_quaternion_and_reads_back_to_1e6(
     assert_allclose(held.trans, tool.position_mm, atol=1e-6)
     assert_allclose(held.rot, tool.quaternion, atol=1e-9)
     assert_allclose(held.mass, tool.load.mass_kg, atol=1e-6)
-    assert_allclose(held.cog, tool.load.cog_mm, atol=1e-6)
+    assert_allclose(held.cog, tool.load.cog_or_origin, atol=1e-6)
     assert held.robhold is False, "the controller's robhold was kept"
     assert held.aom == (1.0, 0.0, 0.0, 0.0)
     assert_allclose(back.position_mm, tool.position_mm, atol=1e-6)

@@ -15,16 +15,17 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from app.controllers import (
+from app.vendors.connector import (
     ControllerProtocolError,
     ControllerRefused,
     ControllerUnreachable,
-    ToolData,
+    Deadline,
+    Frame,
     ToolTarget,
-    connect,
 )
-from app.controllers.base import Deadline, Frame
-from app.controllers.fanuc_rmi import REMEDIES, FanucRmiConnector, encode_packet, error_text
+from app.vendors.fanuc.rmi import REMEDIES, FanucRmiConnector, encode_packet, error_text
+from app.vendors.registry import connect
+from app.vendors.tool import ToolData
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import fanuc_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool

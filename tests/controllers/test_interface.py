@@ -7,25 +7,23 @@ import re
 
 import pytest
 
-from app.controllers import (
+from app.vendors.abb.rws import AbbRwsConnector
+from app.vendors.abb.symbol import split_symbol, symbol_problem
+from app.vendors.connector import ControllerSettings, ToolTarget
+from app.vendors.fanuc.rmi import FanucRmiConnector
+from app.vendors.kuka.kvp import KukaKvpConnector
+from app.vendors.registry import (
     DEFAULT_PORTS,
-    PROTOCOLS,
     SERVICE_PORTS,
     SLOT_RANGES,
     TARGET_FIELD,
-    ControllerSettings,
-    ToolTarget,
-    abb_symbol_problem,
     check_target,
     connect,
     describe_target,
     has_connector,
-    split_abb_symbol,
     target_problem,
 )
-from app.controllers.abb_rws import AbbRwsConnector
-from app.controllers.fanuc_rmi import FanucRmiConnector
-from app.controllers.kuka_kvp import KukaKvpConnector
+from app.words import PROTOCOLS
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import abb_settings, fanuc_settings, kuka_settings
@@ -94,11 +92,11 @@ def test_target_problem_names_what_to_set(
 
 
 def test_abb_symbols_split_into_task_module_symbol() -> None:
-    assert split_abb_symbol("T_ROB1/user/tTorch") == ("T_ROB1", "user", "tTorch")
-    assert abb_symbol_problem("T_ROB1/user/tTorch") is None
+    assert split_symbol("T_ROB1/user/tTorch") == ("T_ROB1", "user", "tTorch")
+    assert symbol_problem("T_ROB1/user/tTorch") is None
     for bad in ("", "tTorch", "T_ROB1//tTorch", "T_ROB1/user/tTorch/x", "T ROB1/user/t"):
         with pytest.raises(ValueError, match="TASK/MODULE/SYMBOL"):
-            split_abb_symbol(bad)
+            split_symbol(bad)
 
 
 def test_settings_never_show_the_password() -> None:
@@ -135,7 +133,7 @@ def test_connect_without_a_connector_for_a_known_protocol_says_so() -> None:
     for protocol in PROTOCOLS:
         if has_connector(protocol):
             continue
-        settings = ControllerSettings(protocol, "127.0.0.1", 1, None, None)  # type: ignore[arg-type]
+        settings = ControllerSettings(protocol, "127.0.0.1", 1, None, None)
         with pytest.raises(ValueError, match=f"no connector for controller protocol '{protocol}'"):
             connect(settings)
 

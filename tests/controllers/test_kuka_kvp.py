@@ -12,17 +12,16 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from app.controllers import (
+from app.vendors.connector import (
     ControllerProtocolError,
     ControllerRefused,
     ControllerUnreachable,
-    ToolData,
-    ToolLoad,
     ToolTarget,
-    connect,
 )
-from app.controllers.krl import KrlSyntaxError, parse_struct
-from app.controllers.kuka_kvp import POSE_VARIABLES, KukaKvpConnector
+from app.vendors.kuka.kvp import POSE_VARIABLES, KukaKvpConnector
+from app.vendors.kuka.text import KrlSyntaxError, parse_struct
+from app.vendors.registry import connect
+from app.vendors.tool import ToolData, ToolLoad
 from tests.controllers.fixtures import kuka_settings
 from tests.controllers.helpers import angle_between_deg, float32_tolerance, random_tool
 from tests.controllers.kuka_sim import KukaSimulator
@@ -46,12 +45,14 @@ def test_written_tool_is_held_in_kuka_abc_and_reads_back_to_1e6(seed: int) -> No
         assert_allclose(held[3:], kuka_abc(tool.quaternion), atol=1e-6)
         load = sim.load(5)
         assert_allclose(load["M"], tool.load.mass_kg, atol=1e-6)
-        assert_allclose([load["CM.X"], load["CM.Y"], load["CM.Z"]], tool.load.cog_mm, atol=1e-6)
+        assert_allclose(
+            [load["CM.X"], load["CM.Y"], load["CM.Z"]], tool.load.cog_or_origin, atol=1e-6
+        )
         back = kuka.read_tool(ToolTarget(slot=5))
     assert_allclose(back.position_mm, tool.position_mm, atol=1e-6)
     assert angle_between_deg(back.quaternion, tool.quaternion) < 1e-6
     assert back.load is not None
-    assert_allclose(back.load.cog_mm, tool.load.cog_mm, atol=1e-6)
+    assert_allclose(back.load.cog_or_origin, tool.load.cog_or_origin, atol=1e-6)
     assert sim.tool(4) == (0.0,) * 6, "another slot changed"
 
 

@@ -15,17 +15,17 @@ from typing import Any
 import httpx
 import pytest
 
-from app.controllers import (
+from app.vendors.abb import rws as abb_rws
+from app.vendors.connector import (
     ControllerRefused,
     ControllerSettings,
     ControllerUnreachable,
-    ToolData,
     ToolTarget,
-    abb_rws,
-    connect,
-    fanuc_rmi,
-    kuka_kvp,
 )
+from app.vendors.fanuc import rmi as fanuc_rmi
+from app.vendors.kuka import kvp as kuka_kvp
+from app.vendors.registry import connect
+from app.vendors.tool import ToolData
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import abb_settings, fanuc_settings, kuka_settings

@@ -5,8 +5,8 @@ from __future__ import annotations
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from app.controllers.krl import format_struct, parse_struct
-from app.controllers.rapid import RapidTool, format_tooldata, parse_tooldata
+from app.vendors.abb.text import RapidTool, format_tooldata, parse_tooldata
+from app.vendors.kuka.text import format_struct, parse_struct
 
 FAST = settings(
     max_examples=200, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]

@@ -11,7 +11,8 @@ from typing import Any
 
 import pytest
 
-from app.controllers import ControllerSettings, ControllerUnreachable, ToolTarget, connect
+from app.vendors.connector import ControllerSettings, ControllerUnreachable, ToolTarget
+from app.vendors.registry import connect
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import abb_settings, fanuc_settings, kuka_settings

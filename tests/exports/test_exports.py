@@ -12,13 +12,11 @@ from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
-from app.exports import (
-    CONTROLLER_FORMATS,
-    ToolData,
-    export_tool,
-    parse_controller_text,
-    rapid_identifier,
-)
+from app.vendors.abb.text import rapid_identifier
+from app.vendors.registry import export_tool, parse_controller_text
+from app.vendors.tool import ToolData
+from app.words import CONTROLLER_FORMATS
+from tests.exports.tools import tool_data
 
 H = math.sqrt(0.5)
 
@@ -32,13 +30,13 @@ def tool(
     mass: float | None = 1.5,
     cog: list[float] | None = None,
 ) -> ToolData:
-    return ToolData(
-        slot=slot,
-        name=name,
-        position_mm=np.array(position if position is not None else [0.0, 0.0, 150.0]),
-        quaternion_wxyz=np.array(quaternion if quaternion is not None else [1.0, 0, 0, 0]),
-        mass_kg=mass,
-        cog_mm=np.array(cog if cog is not None else [0.0, 0.0, 60.0]),
+    return tool_data(
+        slot,
+        name,
+        position if position is not None else [0.0, 0.0, 150.0],
+        quaternion if quaternion is not None else [1.0, 0, 0, 0],
+        mass,
+        cog if cog is not None else [0.0, 0.0, 60.0],
     )
 
 
@@ -254,13 +252,7 @@ def test_abb_refuses_missing_or_zero_mass(mass: float | None) -> None:
 
 
 def test_abb_refuses_missing_cog() -> None:
-    t = ToolData(
-        slot=1,
-        name="g",
-        position_mm=np.zeros(3),
-        quaternion_wxyz=np.array([1.0, 0, 0, 0]),
-        mass_kg=2.0,
-    )
+    t = tool_data(1, "g", np.zeros(3), [1.0, 0, 0, 0], mass=2.0)
     with pytest.raises(InvalidInput) as info:
         export_tool("abb", t)
     assert info.value.kind == "missing-load"
@@ -293,13 +285,7 @@ def _refusal(fmt: str, data: ToolData) -> str | None:
 def test_a_refusal_never_prints_none() -> None:
     """A tool without slot, load or centre of gravity: whatever a format refuses, it says so in
     words (the console's KUKA card read "got None", the ABB one "has None")."""
-    bare = ToolData(
-        slot=None,
-        name="bare",
-        position_mm=np.zeros(3),
-        quaternion_wxyz=np.array([1.0, 0, 0, 0]),
-        mass_kg=None,
-    )
+    bare = tool_data(None, "bare", np.zeros(3), [1.0, 0, 0, 0])
     refusals = {fmt: _refusal(fmt, bare) for fmt in CONTROLLER_FORMATS}
     said = {fmt: detail for fmt, detail in refusals.items() if detail is not None}
     assert set(said) == {"kuka", "abb"}, refusals

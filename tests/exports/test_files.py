@@ -16,18 +16,12 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
-from app.exports import (
-    CONTROLLER_FORMATS,
-    FileContext,
-    FileTool,
-    ParsedTool,
-    Provenance,
-    ToolData,
-    controller_file,
-    parse_controller_file,
-    vendor_formats,
-)
+from app.vendors.files import FileContext, FileTool, ParsedTool, Provenance
+from app.vendors.registry import controller_file, parse_controller_file, vendor_formats
+from app.vendors.tool import ToolData
+from app.words import CONTROLLER_FORMATS
 from tests.exports.ls_grammar import check_ls
+from tests.exports.tools import tool_data
 
 GOLDEN = Path(__file__).parent / "golden"
 WHEN = datetime(2026, 11, 24, 5, 0, 12, tzinfo=UTC)
@@ -54,7 +48,7 @@ def item(
     version: int = 4,
     symbol: str | None = None,
 ) -> FileTool:
-    data = ToolData(slot, name, np.array(position), np.array(quaternion), mass,
+    data = tool_data(slot, name, np.array(position), np.array(quaternion), mass,
                     np.array(cog if cog is not None else [0.0, 0.0, 80.0]), symbol)  # fmt: skip
     origin = Provenance(version, WHEN, "alice", "xyz_npoint", f"{SERVER}/ui/tools/t{slot}")
     return FileTool(data, origin)
@@ -78,7 +72,7 @@ def golden_tools() -> list[FileTool]:
 
 
 def _fits(fmt: str, tool: FileTool) -> bool:
-    return not (fmt == "abb" and tool.data.mass_kg is None)
+    return not (fmt == "abb" and tool.data.load is None)
 
 
 @pytest.mark.parametrize("fmt", CONTROLLER_FORMATS)
@@ -148,14 +142,14 @@ def test_file_parse_round_trip(fmt: str, data: st.DataObject) -> None:
     for tool in (t.data for t in tools):
         back = _match(parsed, tool, fmt)
         assert np.abs(back.position_mm - tool.position_mm).max() <= mm
-        assert _angle_deg(tool.quaternion_wxyz, back.quaternion_wxyz) <= deg
+        assert _angle_deg(np.array(tool.quaternion), back.quaternion_wxyz) <= deg
         if kg is not None and fmt != "techman":
-            assert (back.mass_kg is None) == (tool.mass_kg is None)
-        if kg is not None and tool.mass_kg is not None:
+            assert (back.mass_kg is None) == (tool.load is None)
+        if kg is not None and tool.load is not None:
             assert back.mass_kg is not None
-            assert abs(back.mass_kg - tool.mass_kg) <= kg
-            if back.cog_mm is not None and tool.cog_mm is not None:
-                assert np.abs(back.cog_mm - tool.cog_mm).max() <= max(mm, 1e-6)
+            assert abs(back.mass_kg - tool.load.mass_kg) <= kg
+            if back.cog_mm is not None and tool.load.cog_mm is not None:
+                assert np.abs(back.cog_mm - tool.load.cog_mm).max() <= max(mm, 1e-6)
     if fmt == "fanuc":
         assert check_ls(text) == []
 

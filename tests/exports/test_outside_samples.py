@@ -33,14 +33,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from app.exports import (
-    FileContext,
-    FileTool,
-    ToolData,
-    controller_file,
-    parse_controller_file,
-    parse_controller_text,
-)
+from app.vendors.files import FileContext, FileTool
+from app.vendors.registry import controller_file, parse_controller_file, parse_controller_text
+from tests.exports.tools import tool_data
 
 DATA = Path(__file__).parents[1] / "data" / "controller-files"
 #: Three unequal, non-zero angles (deg): any two swapped, or another order, is another rotation.
@@ -68,7 +63,7 @@ def angle_deg(quaternion_wxyz: np.ndarray, rotation: Rotation) -> float:
 
 
 def tool_file(fmt: str, rotation: Rotation, slot: int | None = 3) -> str:
-    data = ToolData(slot, "probe", np.array(POSITION), wxyz(rotation), 2.5, np.array([0, 0, 80.0]))
+    data = tool_data(slot, "probe", np.array(POSITION), wxyz(rotation), 2.5, np.array([0, 0, 80.0]))
     return controller_file(fmt, [FileTool(data)], FileContext()).text
 
 
@@ -190,7 +185,7 @@ def test_fanuc_writes_and_reads_the_orientation_of_an_outside_ls_position() -> N
     assert sorted(position) == [1, 4]
     x, y, z, w, p, r = position[1]
     rotation = fixed_xyz(w, p, r)
-    data = ToolData(5, "p1", np.array([x, y, z]), wxyz(rotation))
+    data = tool_data(5, "p1", np.array([x, y, z]), wxyz(rotation))
     text = controller_file("fanuc", [FileTool(data)], FileContext()).text
     elements = dict(re.findall(r"PR\[100,(\d)\]=\(?(-?[\d.]+)\)? ;", text))
     assert [float(elements[str(i)]) for i in range(4, 7)] == [4.262, 13.559, 12.083]
@@ -214,7 +209,7 @@ def test_yaskawa_reads_a_yrc1000_tool_file_and_writes_its_block_alike() -> None:
     assert angle_deg(suction.quaternion_wxyz, fixed_xyz(0, -90, 0)) < 1e-6
     assert angle_deg(tools[4].quaternion_wxyz, fixed_xyz(-90, 0, 0)) < 1e-6
     assert suction.mass_kg == 3.586
-    data = ToolData(3, "SUCTION1", suction.position_mm, suction.quaternion_wxyz,
+    data = tool_data(3, "SUCTION1", suction.position_mm, suction.quaternion_wxyz,
                     suction.mass_kg, suction.cog_mm)  # fmt: skip
     ours = controller_file("yaskawa", [FileTool(data)], FileContext()).text.splitlines()
     theirs = text.splitlines()[10:14]

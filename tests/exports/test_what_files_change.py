@@ -16,7 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.exports import FileContext, FileTool, ToolData, controller_file, parse_controller_file
+from app.vendors.files import FileContext, FileTool
+from app.vendors.registry import controller_file, parse_controller_file
+from tests.exports.tools import tool_data
 
 DATA = Path(__file__).parents[1] / "data" / "controller-files"
 #: tcpcal manages tools 5 and 9 of this robot; the controller has others (1-3 in the backup).
@@ -29,7 +31,7 @@ def managed_tools(symbols: bool = False) -> list[FileTool]:
         symbol = f"T_ROB1/user/tTool{slot}" if symbols else None
         position = np.array([1.0 + n, -2.0, 150.0 + n])
         rotation, cog = np.array([1.0, 0.0, 0.0, 0.0]), np.array([0.0, 0.0, 80.0])
-        data = ToolData(slot, f"tcpcal tool {slot}", position, rotation, 2.5, cog)
+        data = tool_data(slot, f"tcpcal tool {slot}", position, rotation, 2.5, cog)
         if symbols:
             data = replace(data, controller_symbol=symbol)
         tools.append(FileTool(data))
@@ -80,7 +82,7 @@ def test_kuka_table_holds_only_the_managed_elements_and_merges_into_config_dat()
 
 
 def test_kuka_leaves_the_load_of_a_tool_whose_load_tcpcal_does_not_know() -> None:
-    bare = FileTool(ToolData(4, "bare", np.array([0.0, 0.0, 90.0]), np.array([1.0, 0, 0, 0])))
+    bare = FileTool(tool_data(4, "bare", np.array([0.0, 0.0, 90.0]), np.array([1.0, 0, 0, 0])))
     text = table("kuka", [bare])
     assert "LOAD_DATA[" not in text
     assert "; no load known for tool(s) 4: no LOAD_DATA line" in text
@@ -142,11 +144,11 @@ def test_techman_lines_say_they_change_the_running_projects_tcp_only() -> None:
 def test_yaskawa_blocks_merge_into_the_controllers_own_tool_file() -> None:
     """TOOL.CND has no comments and loads as a whole file: the blocks merge into the
     controller's saved TOOL.CND, every other block byte for byte as it was."""
-    from app.exports.cnd_file import merge  # here: the other tests run without it
+    from app.vendors.yaskawa.file import merge  # here: the other tests run without it
 
     saved = (DATA / "yaskawa_TOOL.CND").read_text()
     ours = controller_file(
-        "yaskawa", [FileTool(ToolData(3, "tcpcal torch", np.array([1.0, 2.0, 3.0]),
+        "yaskawa", [FileTool(tool_data(3, "tcpcal torch", np.array([1.0, 2.0, 3.0]),
                                       np.array([1.0, 0, 0, 0]), 2.5, np.array([0, 0, 80.0])))]
     ).text  # fmt: skip
     merged = merge(saved, ours)
@@ -165,10 +167,10 @@ def test_yaskawa_blocks_merge_into_the_controllers_own_tool_file() -> None:
 def test_yaskawa_merge_into_a_yrc1000_file_keeps_its_crc_lines() -> None:
     """A YRC1000 TOOL.CND has a ///CRC line in every block (the same value in each): the
     merged block keeps the controller's line, every other block stays as it was."""
-    from app.exports.cnd_file import merge
+    from app.vendors.yaskawa.file import merge
 
     saved = (DATA / "yaskawa_TOOL_yrc1000.CND").read_text()
-    tool = ToolData(3, "tcpcal suction", np.array([1.0, 2.0, 3.0]), np.array([1.0, 0, 0, 0]))
+    tool = tool_data(3, "tcpcal suction", np.array([1.0, 2.0, 3.0]), np.array([1.0, 0, 0, 0]))
     merged = merge(saved, controller_file("yaskawa", [FileTool(tool)]).text)
     block = merged[merged.index("//TOOL 3\n") : merged.index("//TOOL 4\n")]
     assert block.splitlines()[:3] == ["//TOOL 3", "///CRC 3243358777", "///NAME tcpcal suction"]

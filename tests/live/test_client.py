@@ -12,8 +12,8 @@ import pytest
 from typer.testing import CliRunner
 
 from app.cli import cli
-from app.exports import parse_controller_file
 from app.kinematics.poses import pose_to_format
+from app.vendors.registry import parse_controller_file
 from testbed.live_server import LiveServer, fresh_database, live_server
 from testbed.sim.touches import Touches, simulate_touches
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from app.controllers.base import Frame
 from app.db import session_scope
 from app.services.live_tool import live_tool_matches
+from app.vendors.connector import Frame
 from tests.conftest import Api
 
 Q_TURNED = (0.9238795325112867, 0.0, 0.3826834323650898, 0.0)  # 45 deg about y

@@ -1,0 +1,56 @@
+"""ABB (IRC5, OmniCore): one package.
+
+| module | what |
+|---|---|
+| text.py | RAPID ``tooldata`` values (read and written once) and ``PERS tooldata name:=[...];`` |
+| file.py | a RAPID module that assigns each tool's tooldata |
+| symbol.py | "TASK/MODULE/SYMBOL", where a tool's tooldata lives (its ``controller_symbol``) |
+| rws.py | the connector: Robot Web Services 1.0 (RobotWare 6) and 2.0 (RobotWare 7) |
+
+No tool numbers: a tooldata is a named RAPID variable.
+"""
+
+from __future__ import annotations
+
+from app.vendors.abb.symbol import symbol_problem
+from app.vendors.maker import BySymbol, FileModule, Maker, OpenSession, TextModule, WireProtocol
+
+
+def _text() -> TextModule:
+    from app.vendors.abb import text
+
+    return text
+
+
+def _file() -> FileModule:
+    from app.vendors.abb import file
+
+    return file
+
+
+def _rws() -> OpenSession:
+    from app.vendors.abb.rws import AbbRwsConnector
+
+    return AbbRwsConnector
+
+
+_BY_SYMBOL = BySymbol(
+    'RAPID symbol: set the tool\'s controller_symbol as "TASK/MODULE/SYMBOL", '
+    'e.g. "T_ROB1/user/tTorch"',
+    symbol_problem,
+)
+#: RobotWare 6 Robot Web Services, HTTP + Digest.
+RWS1 = WireProtocol("abb_rws1", _BY_SYMBOL, _rws, default_port=80)
+#: RobotWare 7 Robot Web Services 2.0, HTTPS + Basic.
+RWS2 = WireProtocol("abb_rws2", _BY_SYMBOL, _rws, default_port=443)
+
+MAKER = Maker(
+    format="abb",
+    name="ABB",
+    vendor_words=("abb",),
+    file_kind="RAPID module",
+    tool_numbers=None,
+    text=_text,
+    file=_file,
+    protocols=(RWS1, RWS2),
+)

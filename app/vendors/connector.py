@@ -1,0 +1,230 @@
+"""What every controller connector offers: the session, its deadline, its errors, what it reads.
+
+A connector reads and writes one tool's frame (the TCP: where the tool's working point is
+and how it is oriented in the flange frame) in a robot controller, over the controller's
+own wire protocol. No database and no HTTP framework here: the service that deploys or
+reconciles runs a connector in a worker thread and owns everything else.
+
+Every connector converts through `app.kinematics.poses` (scipy Rotation), so the values a
+controller holds in its own convention (KUKA A B C, FANUC W P R, ABB quaternion) and the
+quaternion tcpcal holds are one rotation. A session keeps to one deadline (`Deadline`),
+started when it is opened (`connect(settings)`) and shared by every wait after it: connect,
+login, mastership, each read and write, the read-back. A controller that stalls anywhere
+fails the whole attempt within ``timeout_s``; ending the session (releasing what it holds)
+then has at most `CLEANUP_S` more, so a caller hears back within ``timeout_s + CLEANUP_S``
+(plus scheduling slack), never a worker forever.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from types import TracebackType
+from typing import Protocol, Self
+
+from app.vendors.tool import ToolData
+from app.words import ProtocolName
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A frame: position in mm and rotation as a unit quaternion w, x, y, z."""
+
+    position_mm: tuple[float, float, float]
+    quaternion: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class LiveTool:
+    """The TCP the robot moves by right now, as its controller reports it (contract v1.3
+    LiveTool): the tool number where the controller has one (KUKA $ACT_TOOL, FANUC's active
+    UTOOL, Yaskawa's reported tool) and the frame (KUKA $TOOL, FANUC UTOOL[n], UR
+    tcp_offset, Techman's current TCP); both None where the controller does not say (ABB:
+    RWS does not say which tooldata a program moves by)."""
+
+    number: int | None
+    frame: Frame | None
+
+
+@dataclass(frozen=True)
+class PoseReading:
+    """One read of where the robot stands: its flange in the robot's base frame (converted
+    per protocol through app.kinematics.frames), its joints, the tool it moves by, and every
+    value read, as the controller printed it (kept with a captured touch, for the audit)."""
+
+    flange: Frame
+    joints_deg: tuple[float, ...] | None
+    live_tool: LiveTool
+    readings: dict[str, str]
+
+
+@dataclass(frozen=True)
+class ToolTarget:
+    """Where a tool lives in the controller: a tool number, or an ABB RAPID symbol."""
+
+    slot: int | None = None  # KUKA $TOOL_DATA[slot] 1-16, FANUC UTOOL[slot] 1-10
+    symbol: str | None = None  # ABB "TASK/MODULE/SYMBOL", e.g. "T_ROB1/user/tTorch"
+
+
+@dataclass(frozen=True)
+class ControllerSettings:
+    """How to reach one robot's controller (the password only ever in memory, in clear).
+
+    `port` is the port of a single-service protocol; a protocol of several services is
+    reached on each service's port: `ports` where it names the service, else the service's
+    default (the protocol's `WireProtocol.port_of`, app.vendors.maker), and its `port` is its
+    main service's port."""
+
+    protocol: ProtocolName
+    host: str
+    port: int
+    username: str | None
+    password: str | None
+    timeout_s: float = 5.0
+    tls_verify: bool = True
+    ports: Mapping[str, int] = field(default_factory=dict, hash=False)
+
+    def __repr__(self) -> str:
+        # The password never reaches a log line or a traceback through a repr.
+        secret = "set" if self.password else "none"
+        return (
+            f"ControllerSettings(protocol={self.protocol!r}, host={self.host!r}, "
+            f"port={self.port}, ports={dict(self.ports)!r}, username={self.username!r}, "
+            f"password=<{secret}>, timeout_s={self.timeout_s}, tls_verify={self.tls_verify})"
+        )
+
+    __str__ = __repr__
+
+
+class ControllerError(Exception):
+    """Whatever went wrong talking to a controller."""
+
+    #: True once a write's bytes may have left for the controller: it may then hold the
+    #: new frame or the old one, and only a later read can tell (set by `write_sent`).
+    write_sent: bool = False
+
+
+class ControllerUnreachable(ControllerError):
+    """The controller could not be reached or stopped answering: refused, reset, timed out."""
+
+
+class ControllerRefused(ControllerError):
+    """The controller answered and said no; `controller_message` is its own words, `remedy`
+    what a person can do about it when the connector knows."""
+
+    def __init__(self, message: str, *, controller_message: str, remedy: str | None = None) -> None:
+        super().__init__(message if remedy is None else f"{message}; {remedy}")
+        self.controller_message = controller_message
+        self.remedy = remedy
+
+
+class ControllerCredentialsRefused(ControllerRefused):
+    """The controller refused the user name and password it was given (`user`)."""
+
+    def __init__(self, message: str, *, controller_message: str, user: str) -> None:
+        super().__init__(message, controller_message=controller_message)
+        self.user = user
+
+
+class ControllerProtocolError(ControllerError):
+    """The controller answered something this connector cannot read (not the protocol)."""
+
+
+class Connector(Protocol):
+    """One controller session: read and write tool frames, read the robot's pose. Use it as
+    a context manager."""
+
+    protocol: str
+
+    def describe(self, target: ToolTarget) -> str:
+        """The target as the controller names it: "$TOOL_DATA[3]", "UTOOL[3]", "T_ROB1/user/t"."""
+        ...
+
+    def read_tool(self, target: ToolTarget) -> ToolData:
+        """The tool frame (and load, where the controller keeps one) the controller holds."""
+        ...
+
+    def write_tool(self, target: ToolTarget, data: ToolData) -> None:
+        """Write the tool frame (and the load when `data.load` is set) into the controller."""
+        ...
+
+    def read_pose(self) -> PoseReading:
+        """Where the robot stands: its flange in the robot's base frame, its joints, the tool
+        it moves by and every value read as the controller printed it (contract v1.3)."""
+        ...
+
+    def close(self) -> None:
+        """End the session; never raises."""
+        ...
+
+    def __enter__(self) -> Connector: ...
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None: ...
+
+
+class ClosingSession:
+    """The context-manager half of a Connector, written once: `with` closes the session."""
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+@contextmanager
+def write_sent() -> Iterator[None]:
+    """Wrap a write from the moment its bytes are handed to the socket: a ControllerError
+    raised inside says the controller may hold the new value (`write_sent`)."""
+    try:
+        yield
+    except ControllerError as exc:
+        exc.write_sent = True
+        raise
+
+
+#: What ending a session may take past its deadline: releasing ABB edit mastership, the RWS
+#: logout, FANUC's FRC_Disconnect. Short, because the caller is waiting for the answer.
+CLEANUP_S = 0.5
+
+
+class Deadline:
+    """One time budget for a whole session: each wait gets what is left of it."""
+
+    def __init__(self, timeout_s: float) -> None:
+        self.timeout_s = timeout_s
+        self._end = time.monotonic() + timeout_s
+
+    def extended(self, seconds: float) -> Deadline:
+        """A deadline `seconds` after this one (what ending the session may use)."""
+        later = Deadline(self.timeout_s + seconds)
+        later._end = self._end + seconds
+        return later
+
+    def left(self) -> float:
+        """Seconds left, 0 once spent (never raises)."""
+        return max(0.0, self._end - time.monotonic())
+
+    def remaining(self) -> float:
+        """Seconds left; raises ControllerUnreachable once the budget is spent."""
+        left = self._end - time.monotonic()
+        if left <= 0:
+            raise ControllerUnreachable(
+                f"the controller did not answer within {self.timeout_s:g} s"
+            )
+        return left

@@ -1,0 +1,51 @@
+"""FANUC (R-30iA, R-30iB): one package.
+
+| module | what |
+|---|---|
+| text.py | ``UTOOL[n]: X .. W .. P .. R ..`` and its reader (also a TP program's PR form) |
+| file.py | an ASCII TP program (.LS) that sets each tool frame when run |
+| rmi.py | the connector: Remote Motion Interface (B-84184EN), TCP 16001 |
+
+Tool numbers: ``UTOOL[1..10]`` (R-30iB default; the count is a system setting). X Y Z W P R
+are app.vendors.wpr's fixed-axis convention.
+"""
+
+from __future__ import annotations
+
+from app.vendors.maker import BySlot, FileModule, Maker, OpenSession, TextModule, WireProtocol
+
+#: (first, last) tool number: UTOOL[1..10].
+TOOL_NUMBERS = (1, 10)
+
+
+def _text() -> TextModule:
+    from app.vendors.fanuc import text
+
+    return text
+
+
+def _file() -> FileModule:
+    from app.vendors.fanuc import file
+
+    return file
+
+
+def _rmi() -> OpenSession:
+    from app.vendors.fanuc.rmi import FanucRmiConnector
+
+    return FanucRmiConnector
+
+
+#: Remote Motion Interface, FRC_Connect on 16001.
+RMI = WireProtocol("fanuc_rmi", BySlot(TOOL_NUMBERS, "UTOOL[{}]"), _rmi, default_port=16001)
+
+MAKER = Maker(
+    format="fanuc",
+    name="Fanuc",
+    vendor_words=("fanuc",),
+    file_kind="TP program (.LS)",
+    tool_numbers=TOOL_NUMBERS,
+    text=_text,
+    file=_file,
+    protocols=(RMI,),
+)

@@ -1,0 +1,49 @@
+"""KUKA (KRC, KSS 8.x): one package.
+
+| module | what |
+|---|---|
+| text.py | KRL structure values (read and written once) and ``$TOOL_DATA[n]={X,Y,Z,A,B,C}`` |
+| file.py | the tool's lines of ``$config.dat`` (TOOL_DATA, TOOL_NAME, LOAD_DATA) |
+| kvp.py | the connector: KUKAVARPROXY (OpenShowVar), TCP 7000 |
+
+Tool numbers: ``$TOOL_DATA[1..16]`` (KSS 8.x, $config.dat ``DECL FRAME TOOL_DATA[16]``).
+"""
+
+from __future__ import annotations
+
+from app.vendors.maker import BySlot, FileModule, Maker, OpenSession, TextModule, WireProtocol
+
+#: (first, last) tool number: $TOOL_DATA[1..16].
+TOOL_NUMBERS = (1, 16)
+
+
+def _text() -> TextModule:
+    from app.vendors.kuka import text
+
+    return text
+
+
+def _file() -> FileModule:
+    from app.vendors.kuka import file
+
+    return file
+
+
+def _kvp() -> OpenSession:
+    from app.vendors.kuka.kvp import KukaKvpConnector
+
+    return KukaKvpConnector
+
+
+KVP = WireProtocol("kuka_kvp", BySlot(TOOL_NUMBERS, "$TOOL_DATA[{}]"), _kvp, default_port=7000)
+
+MAKER = Maker(
+    format="kuka",
+    name="KUKA",
+    vendor_words=("kuka",),
+    file_kind="$config.dat lines",
+    tool_numbers=TOOL_NUMBERS,
+    text=_text,
+    file=_file,
+    protocols=(KVP,),
+)

@@ -1,0 +1,197 @@
+"""What a controller maker's package declares, as one `Maker` in its ``__init__``: the words
+it answers to, its text and its file, its tool numbers, and the wire protocols its
+controllers speak. app.vendors.registry lists the makers; tests/vendors/test_registry.py
+holds that each provides all of it.
+
+The text, the file and the connectors are reached through small loader functions, so that
+importing a maker's package (and so the registry, the API schemas) loads neither scipy nor a
+protocol's client: a module is imported the first time it is used.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal, Protocol
+
+from app.arrays import FloatArray
+from app.vendors.connector import Connector, ControllerSettings, ToolTarget
+from app.vendors.files import ControllerFile, FileContext, FileTool, ParsedTool
+from app.vendors.text import ControllerExport
+from app.vendors.tool import ToolData
+from app.words import DeploymentScope
+
+
+class TextModule(Protocol):
+    """A maker's ``text`` module: the tool's one line of controller text, and its reader."""
+
+    def export(self, tool: ToolData) -> ControllerExport:
+        """The tool's TCP (and load where the controller stores it) as the maker's text."""
+        ...
+
+    def parse(self, text: str) -> tuple[FloatArray, FloatArray]:
+        """The text -> (position (3,) mm, quaternion w, x, y, z (4,))."""
+        ...
+
+
+class FileModule(Protocol):
+    """A maker's ``file`` module: the file its controller loads, and its reader."""
+
+    def write(self, tools: list[FileTool], context: FileContext) -> ControllerFile:
+        """The file for one tool, or (context.table) for a robot's tools."""
+        ...
+
+    def read(self, text: str) -> list[ParsedTool]:
+        """Every tool of such a file (as `write` writes it, or the controller saves it)."""
+        ...
+
+
+#: A connector class: called with the settings, it opens a session.
+OpenSession = Callable[[ControllerSettings], Connector]
+
+
+@dataclass(frozen=True)
+class BySlot:
+    """Tools addressed by number: `numbers` (first, last, inclusive), and how the controller
+    names number n (`name`, e.g. "$TOOL_DATA[{}]")."""
+
+    numbers: tuple[int, int]
+    name: str
+
+
+@dataclass(frozen=True)
+class BySymbol:
+    """Tools addressed by a name the tool keeps as its ``controller_symbol``: `how` finishes
+    the sentence "a ... controller addresses tools by", `problem` says why a symbol is not one
+    (None when it is)."""
+
+    how: str
+    problem: Callable[[str], str | None]
+
+
+@dataclass(frozen=True)
+class LiveTcp:
+    """Every tool written by its values into the robot's one live TCP (Techman ChangeTCP, UR
+    set_tcp; contract v1.3 "a Techman or UR tool is named on the controller by values (no
+    slot)"): `name` is how the controller names that TCP ("tcp_offset")."""
+
+    name: str
+
+
+@dataclass(frozen=True)
+class WireProtocol:
+    """A protocol a maker's controllers speak: its name (``controller.protocol``), how it
+    addresses a tool, its connector (None until this tcpcal has one: the connection is
+    stored, and nothing is sent), and where it listens unless the plant changed it: one
+    `default_port`, or (`services`) each of its services' ports, the first the main one
+    (contract v1.3 ``ports``); `udp` when they are UDP ports, not TCP."""
+
+    name: str
+    address: BySlot | BySymbol | LiveTcp
+    connector: Callable[[], OpenSession] | None
+    default_port: int | None = None
+    services: tuple[tuple[str, int], ...] = ()
+    udp: bool = False
+
+    @property
+    def target_field(self) -> Literal["slot", "symbol", "live"]:
+        """Which field of a tool names its place: "slot" (a tool number), "symbol", or
+        "live" (none: the robot's one live TCP)."""
+        if isinstance(self.address, BySlot):
+            return "slot"
+        return "symbol" if isinstance(self.address, BySymbol) else "live"
+
+    @property
+    def scope(self) -> DeploymentScope:
+        """Where a deployment holds (contract v1.3 Deployment `scope`): "live" where it is
+        written into the robot's one live TCP, which holds only for the running program (the
+        next program start sets its own), "stored" where the controller keeps it."""
+        return "live" if isinstance(self.address, LiveTcp) else "stored"
+
+    @property
+    def service_ports(self) -> dict[str, int]:
+        """Each service's default port ({} for a protocol of one port)."""
+        return dict(self.services)
+
+    def port_of(self, settings: ControllerSettings, service: str) -> int:
+        """The port of one of the protocol's services; ValueError naming the services."""
+        defaults = self.service_ports
+        if service not in defaults:
+            known = ", ".join(defaults) or "none: it has one port, `port`"
+            raise ValueError(f"{self.name} has no service {service!r}; its services: {known}")
+        return settings.ports.get(service, defaults[service])
+
+    def ports_in_use(self, settings: ControllerSettings) -> dict[str, int]:
+        """Every service's port (empty for a single-service protocol)."""
+        return {name: self.port_of(settings, name) for name in self.service_ports}
+
+    def where(self, settings: ControllerSettings) -> str:
+        """The controller's address as a message names it: "10.0.0.7:7000", or for a
+        protocol of several services "10.0.0.7 (listen_node 5890, ethernet_slave 5891)"."""
+        ports = self.ports_in_use(settings)
+        if not ports:
+            return f"{settings.host}:{settings.port}"
+        named = ", ".join(f"{name} {port}" for name, port in ports.items())
+        return f"{settings.host} ({named})"
+
+    def target_problem(self, target: ToolTarget) -> str | None:
+        """Why `target` cannot address a tool here, in a sentence; None when it can."""
+        address = self.address
+        if isinstance(address, LiveTcp):
+            return None  # any tool: written by its values into the robot's one live TCP
+        if isinstance(address, BySymbol):
+            if target.symbol is None:
+                return f"an {self.name} controller addresses tools by {address.how}"
+            return address.problem(target.symbol)
+        low, high = address.numbers
+        if target.slot is None:
+            return (
+                f"a {self.name} controller addresses tools by number: "
+                f"set the tool's slot ({low}-{high})"
+            )
+        if not low <= target.slot <= high:
+            return (
+                f"slot {target.slot} is outside {low}-{high}, "
+                f"the tool numbers of a {self.name} controller"
+            )
+        return None
+
+    def check(self, target: ToolTarget) -> None:
+        """ValueError saying what to set when `target` cannot address a tool here."""
+        problem = self.target_problem(target)
+        if problem is not None:
+            raise ValueError(problem)
+
+    def describe(self, target: ToolTarget) -> str:
+        """The target as the controller names it: "$TOOL_DATA[3]", "UTOOL[3]",
+        "T_ROB1/user/t"; ValueError saying what to set when it cannot address a tool."""
+        self.check(target)
+        if isinstance(self.address, BySlot):
+            return self.address.name.format(target.slot)
+        if isinstance(self.address, LiveTcp):
+            return self.address.name
+        return str(target.symbol)
+
+
+@dataclass(frozen=True)
+class Maker:
+    """One controller maker, as its package declares it (``MAKER``).
+
+    - `format`: its controller format (``?format=``), a word of app.words.ControllerFormat;
+    - `name`: how a sentence names it ("KUKA");
+    - `vendor_words`: what a robot's vendor contains when it is this maker's ("motoman"), and
+      `vendor_initials`: whole words that name it alone ("ur", "tm");
+    - `file_kind`: what its file is, in a few words (the console's download buttons);
+    - `tool_numbers`: (first, last) when its controllers number their tools, else None;
+    - `text`, `file`: its text and file modules; `protocols`: what its connectors speak.
+    """
+
+    format: str
+    name: str
+    vendor_words: tuple[str, ...]
+    file_kind: str
+    tool_numbers: tuple[int, int] | None
+    text: Callable[[], TextModule]
+    file: Callable[[], FileModule]
+    protocols: tuple[WireProtocol, ...] = ()
+    vendor_initials: tuple[str, ...] = ()

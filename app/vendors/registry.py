@@ -1,0 +1,224 @@
+"""The controller makers tcpcal serves, and what the rest of tcpcal asks of them.
+
+Each maker is one package under app/vendors/ declaring its `Maker` (app.vendors.maker): its
+format and text, its file, its tool numbers, the protocols its connectors speak. This module
+lists them and answers by format (`export_tool`, `parse_controller_text`, `controller_file`,
+`parse_controller_file`), by robot vendor (`vendor_formats`) and by protocol (`connect`,
+`has_connector`, `target_problem`, `describe_target`, `where`, `DEFAULT_PORTS`,
+`SERVICE_PORTS`, `SLOT_RANGES`, `TARGET_FIELD`).
+
+| protocol | connector | vendor document followed |
+|---|---|---|
+| kuka_kvp | kuka/kvp.py | KUKAVARPROXY / OpenShowVar (ImtsSrl/KUKAVARPROXY README) |
+| fanuc_rmi | fanuc/rmi.py | FANUC B-84184EN Remote Motion Interface Operator's Manual |
+| abb_rws1 | abb/rws.py | ABB Robot Web Services 1.0 (RobotWare 6) |
+| abb_rws2 | abb/rws.py | ABB Robot Web Services 2.0 (RobotWare 7) |
+| techman | (not yet) | TMflow Listen Node and Ethernet Slave |
+| yaskawa_hses | (not yet) | Yaskawa High Speed Ethernet Server |
+| ur_rtde | (not yet) | UR RTDE and the secondary client interface |
+
+A controller of a protocol whose connector is not written yet is stored, and nothing is sent
+to it (app.services.controllers.settings_of answers 501 /no-connector).
+
+Adding a maker: its package, its line in `MAKERS`, and its words (format, protocols) in
+app.words; tests/vendors/test_registry.py holds that it provides all the registry
+asks. Importing this module imports the makers' declarations only: a text, a file or a
+connector module is loaded when first used (no scipy, no protocol client before). Each
+connector's read or write has its own deadline of ``timeout_s`` covering all its network
+waits; a session whose controller stopped answering closes without waiting again. The
+simulators the tests drive are in tests/controllers/.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable, Sequence
+from typing import Literal
+
+from app.arrays import FloatArray
+from app.errors import InvalidInput
+from app.vendors import abb, fanuc, kuka, techman, ur, yaskawa
+from app.vendors.connector import Connector, ControllerSettings, ToolTarget
+from app.vendors.files import ControllerFile, FileContext, FileTool, ParsedTool
+from app.vendors.maker import BySlot, Maker, WireProtocol
+from app.vendors.text import ControllerExport
+from app.vendors.tool import ToolData
+from app.words import CONTROLLER_FORMATS, PROTOCOLS, DeploymentScope
+
+#: Every maker, in the order the API lists their formats.
+MAKERS: tuple[Maker, ...] = (
+    kuka.MAKER,
+    abb.MAKER,
+    fanuc.MAKER,
+    ur.MAKER,
+    yaskawa.MAKER,
+    techman.MAKER,
+)
+
+
+def _in_order(names: Iterable[str], order: Sequence[str]) -> list[str]:
+    """`names` in the order of `order` (app.words' Literals), any other name last."""
+    return sorted(names, key=lambda name: order.index(name) if name in order else len(order))
+
+
+#: The makers by controller format.
+BY_FORMAT: dict[str, Maker] = {m.format: m for m in MAKERS}
+_WIRES = {wire.name: wire for m in MAKERS for wire in m.protocols}
+#: The wire protocols by name, in ProtocolName's order.
+WIRE_PROTOCOLS: dict[str, WireProtocol] = {n: _WIRES[n] for n in _in_order(_WIRES, PROTOCOLS)}
+
+#: The port each single-service protocol listens on unless the plant changed it (`port`).
+DEFAULT_PORTS: dict[str, int] = {
+    n: w.default_port for n, w in WIRE_PROTOCOLS.items() if w.default_port is not None
+}
+#: The services of each protocol that talks over several ports, each with the port it
+#: listens on unless the plant changed it (`ports`, contract v1.3), the first the main one.
+SERVICE_PORTS: dict[str, dict[str, int]] = {
+    n: w.service_ports for n, w in WIRE_PROTOCOLS.items() if w.services
+}
+#: Where a deployment under each protocol holds: "stored" where the controller keeps it,
+#: "live" where it holds only for the running program (contract v1.3 Deployment `scope`).
+SCOPES: dict[str, DeploymentScope] = {n: w.scope for n, w in WIRE_PROTOCOLS.items()}
+#: The protocols `connect` has a connector for.
+CONNECTED_PROTOCOLS: frozenset[str] = frozenset(
+    n for n, w in WIRE_PROTOCOLS.items() if w.connector is not None
+)
+#: Tool numbers each slot-addressed protocol accepts, inclusive (its maker's tool numbers).
+SLOT_RANGES: dict[str, tuple[int, int]] = {
+    n: w.address.numbers for n, w in WIRE_PROTOCOLS.items() if isinstance(w.address, BySlot)
+}
+#: Which field of a tool names its place in the controller, per protocol: "slot" (a tool
+#: number) or "symbol" (ABB "TASK/MODULE/SYMBOL"; the tool's `controller_symbol`).
+TARGET_FIELD: dict[str, Literal["slot", "symbol", "live"]] = {
+    n: w.target_field for n, w in WIRE_PROTOCOLS.items()
+}
+#: (first, last) tool number by controller format, for the makers that number their tools.
+TOOL_NUMBERS: dict[str, tuple[int, int]] = {
+    m.format: m.tool_numbers for m in MAKERS if m.tool_numbers is not None
+}
+#: What each format's file is, in a few words (the console's download buttons, the README).
+FILE_KINDS: dict[str, str] = {m.format: m.file_kind for m in MAKERS}
+
+
+def scope_of(protocol: str) -> DeploymentScope:
+    """Where a deployment under `protocol` holds; "stored" for a protocol not known here."""
+    return SCOPES.get(protocol, "stored")
+
+
+def has_connector(protocol: str) -> bool:
+    """Whether `connect` can open a session under `protocol`."""
+    return protocol in CONNECTED_PROTOCOLS
+
+
+def connect(settings: ControllerSettings) -> Connector:
+    """Open a session with the controller `settings` describes, by its protocol.
+
+    Raises ControllerUnreachable when it cannot be reached within ``settings.timeout_s``,
+    ControllerRefused when it refuses the session (credentials), ValueError for a protocol
+    it has no connector for (`has_connector`), naming it.
+    """
+    wire = _wire(settings.protocol)
+    if wire.connector is None:
+        raise ValueError(
+            f"no connector for controller protocol {settings.protocol!r} in this tcpcal yet; "
+            f"connected: {', '.join(sorted(CONNECTED_PROTOCOLS))}"
+        )
+    return wire.connector()(settings)
+
+
+def _wire(protocol: str) -> WireProtocol:
+    wire = WIRE_PROTOCOLS.get(protocol)
+    if wire is None:
+        raise ValueError(f"unknown controller protocol {protocol!r}; known: {PROTOCOLS}")
+    return wire
+
+
+def port_of(settings: ControllerSettings, service: str) -> int:
+    """The port of one of the protocol's services; ValueError naming the services."""
+    return _wire(settings.protocol).port_of(settings, service)
+
+
+def ports_in_use(settings: ControllerSettings) -> dict[str, int]:
+    """Every service's port (empty for a single-service protocol)."""
+    return _wire(settings.protocol).ports_in_use(settings)
+
+
+def where(settings: ControllerSettings) -> str:
+    """The controller's address as a message names it: "10.0.0.7:7000", or for a protocol of
+    several services "10.0.0.7 (listen_node 5890, ethernet_slave 5891)"."""
+    return _wire(settings.protocol).where(settings)
+
+
+def target_problem(protocol: str, target: ToolTarget) -> str | None:
+    """Why `target` cannot address a tool under `protocol`, in a sentence; None when it can."""
+    wire = WIRE_PROTOCOLS.get(protocol)
+    if wire is None:
+        return f"unknown controller protocol {protocol!r}; known: {', '.join(PROTOCOLS)}"
+    return wire.target_problem(target)
+
+
+def check_target(protocol: str, target: ToolTarget) -> None:
+    """ValueError saying what to set when `target` cannot address a tool under `protocol`."""
+    problem = target_problem(protocol, target)
+    if problem is not None:
+        raise ValueError(problem)
+
+
+def describe_target(protocol: str, target: ToolTarget) -> str:
+    """The target as the controller names it: "$TOOL_DATA[3]", "UTOOL[3]", "T_ROB1/user/t";
+    ValueError saying what to set when `target` cannot address a tool under `protocol`."""
+    check_target(protocol, target)
+    return WIRE_PROTOCOLS[protocol].describe(target)
+
+
+def _maker(fmt: str) -> Maker:
+    maker = BY_FORMAT.get(fmt)
+    if maker is None:
+        raise InvalidInput(
+            "unknown-format",
+            f"unknown controller format {fmt!r}; known: {', '.join(CONTROLLER_FORMATS)}",
+            loc=("format",),
+        )
+    return maker
+
+
+def export_tool(fmt: str, tool: ToolData) -> ControllerExport:
+    """The tool's TCP (and load where the controller stores it) as controller `fmt`'s text."""
+    return _maker(fmt).text().export(tool)
+
+
+def parse_controller_text(fmt: str, text: str) -> tuple[FloatArray, FloatArray]:
+    """Read controller `fmt`'s tool text -> (position (3,) mm, quaternion [w, x, y, z] (4,))."""
+    if not isinstance(text, str):
+        raise InvalidInput("invalid-pose", "controller text must be a string", loc=("text",))
+    return _maker(fmt).text().parse(text)
+
+
+def controller_file(
+    fmt: str, tools: Sequence[FileTool], context: FileContext | None = None
+) -> ControllerFile:
+    """The file controller `fmt` loads for one tool, or (context.table) for a robot's tools."""
+    return _maker(fmt).file().write(list(tools), context or FileContext())
+
+
+def parse_controller_file(fmt: str, text: str) -> list[ParsedTool]:
+    """Every tool of a controller `fmt` file, as `controller_file` writes it (or the
+    controller saves it)."""
+    if not isinstance(text, str):
+        raise InvalidInput("invalid-pose", "controller file must be text", loc=("text",))
+    return _maker(fmt).file().read(text)
+
+
+def vendor_formats(vendor: str | None) -> tuple[str, ...]:
+    """The controller formats a robot of `vendor` loads (every format when not known): the
+    first maker whose vendor word it contains ("Yaskawa Motoman"), else the first whose
+    initials stand as a word in it ("UR10e", "TM5")."""
+    key = (vendor or "").lower()
+    for maker in MAKERS:
+        if any(word in key for word in maker.vendor_words):
+            return (maker.format,)
+    words = set(re.findall(r"[a-z]+", key))
+    for maker in MAKERS:
+        if words & set(maker.vendor_initials):
+            return (maker.format,)
+    return CONTROLLER_FORMATS

@@ -1,0 +1,50 @@
+"""Techman (TM robots, TMflow): one package.
+
+| module | what |
+|---|---|
+| text.py | TMscript ``ChangeTCP({X,Y,Z,RX,RY,RZ},mass)`` and its reader |
+| file.py | TMscript lines, one ChangeTCP per tool, for a Script or SET node |
+
+No tool numbers (TCPs are named in TMflow's TCP list). X Y Z RX RY RZ are taken as
+app.vendors.wpr's fixed-axis convention.
+
+Protocol: ``techman`` (TMflow's Listen Node, ChangeTCP, and Ethernet Slave, the data table;
+TCP); its connector is not written yet.
+"""
+
+from __future__ import annotations
+
+from app.vendors.maker import FileModule, LiveTcp, Maker, TextModule, WireProtocol
+
+
+def _text() -> TextModule:
+    from app.vendors.techman import text
+
+    return text
+
+
+def _file() -> FileModule:
+    from app.vendors.techman import file
+
+    return file
+
+
+#: TMflow: Listen Node (TCP, ChangeTCP) and Ethernet Slave (TCP, the data table).
+TMFLOW = WireProtocol(
+    "techman",
+    LiveTcp("current TCP"),
+    None,
+    services=(("listen_node", 5890), ("ethernet_slave", 5891)),
+)
+
+MAKER = Maker(
+    format="techman",
+    name="Techman",
+    vendor_words=("techman",),
+    vendor_initials=("tm",),
+    file_kind="TMscript line",
+    tool_numbers=None,
+    text=_text,
+    file=_file,
+    protocols=(TMFLOW,),
+)

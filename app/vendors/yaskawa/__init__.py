@@ -1,0 +1,53 @@
+"""Yaskawa (Motoman YRC1000, DX200): one package.
+
+| module | what |
+|---|---|
+| text.py | ``TOOL[n]: X Y Z Rx Ry Rz W Xg Yg Zg`` and its reader |
+| file.py | TOOL.CND, the tool file as the controller saves and loads it, and `merge` |
+
+Tool numbers: tool files 0..63 (YRC1000 and DX200; NX100 had 0..23). X Y Z Rx Ry Rz are
+app.vendors.wpr's fixed-axis convention.
+
+Protocol: High Speed Ethernet Server (``yaskawa_hses``): robot control and file control
+(UDP); its connector is not written yet.
+"""
+
+from __future__ import annotations
+
+from app.vendors.maker import BySlot, FileModule, Maker, TextModule, WireProtocol
+
+#: (first, last) tool number: tool files 0..63.
+TOOL_NUMBERS = (0, 63)
+
+
+def _text() -> TextModule:
+    from app.vendors.yaskawa import text
+
+    return text
+
+
+def _file() -> FileModule:
+    from app.vendors.yaskawa import file
+
+    return file
+
+
+#: High Speed Ethernet Server: robot control (UDP) and file control (UDP), TOOL.CND's tools.
+HSES = WireProtocol(
+    "yaskawa_hses",
+    BySlot(TOOL_NUMBERS, "TOOL.CND tool {}"),
+    None,
+    services=(("robot", 10040), ("file", 10041)),
+    udp=True,
+)
+
+MAKER = Maker(
+    format="yaskawa",
+    name="Yaskawa",
+    vendor_words=("yaskawa", "motoman"),
+    file_kind="TOOL.CND",
+    tool_numbers=TOOL_NUMBERS,
+    text=_text,
+    file=_file,
+    protocols=(HSES,),
+)

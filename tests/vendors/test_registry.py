@@ -1,0 +1,233 @@
+"""Every registered controller maker provides what the registry asks of it, and the stored
+words (app/words.py's Literals) are the registry's: adding a maker is its package, its line in
+MAKERS and its words, and this module says what is missing.
+
+`missing(maker)` lists what a maker lacks; each registered maker lacks nothing, and a maker
+planted without one of its parts is told what it lacks (so the check can fail).
+"""
+
+from __future__ import annotations
+
+import inspect
+import tomllib
+from dataclasses import replace
+from pathlib import Path
+from types import SimpleNamespace
+from typing import cast, get_args
+
+import numpy as np
+import pytest
+
+from app.vendors.connector import ToolTarget
+from app.vendors.files import FileContext, FileTool
+from app.vendors.maker import (
+    BySlot,
+    BySymbol,
+    FileModule,
+    Maker,
+    OpenSession,
+    TextModule,
+    WireProtocol,
+)
+from app.vendors.registry import (
+    BY_FORMAT,
+    DEFAULT_PORTS,
+    MAKERS,
+    SERVICE_PORTS,
+    SLOT_RANGES,
+    TARGET_FIELD,
+    TOOL_NUMBERS,
+    WIRE_PROTOCOLS,
+    vendor_formats,
+)
+from app.vendors.tool import ToolData, ToolLoad
+from app.words import CONTROLLER_FORMATS, PROTOCOLS, ControllerFormat, ProtocolName
+
+ROOT = Path(__file__).resolve().parents[2]
+#: What a connector class offers (app.vendors.connector.Connector).
+CONNECTOR_METHODS = ("describe", "read_tool", "write_tool", "read_pose", "close")
+#: A tool every maker's text and file can hold, its numbers exact in each one's printing
+#: (a 120 deg turn about (1, 1, 1): KUKA A B C and W P R 90, 0, 90; UR's rotation vector to
+#: 1e-10 rad), so that a round trip gives it back within 1e-9.
+SAMPLE = ToolData(
+    position_mm=(12.5, -3.25, 150.0),
+    quaternion=(0.5, 0.5, 0.5, 0.5),
+    load=ToolLoad(2.5, (0.0, 0.0, 80.0)),
+    name="probe",
+    controller_symbol="T_ROB1/user/tProbe",
+)
+
+
+def _sample(maker: Maker) -> ToolData:
+    slot = maker.tool_numbers[0] if maker.tool_numbers is not None else 1
+    return replace(SAMPLE, slot=slot)
+
+
+def _same_tcp(position: object, quaternion: object, tool: ToolData) -> bool:
+    p, q = np.asarray(position, dtype=float), np.asarray(quaternion, dtype=float)
+    return bool(
+        np.abs(p - tool.position_mm).max() <= 1e-9
+        and min(np.abs(q - tool.quaternion).max(), np.abs(q + tool.quaternion).max()) <= 1e-9
+    )
+
+
+def _text_missing(maker: Maker) -> list[str]:
+    text = maker.text()
+    if not (callable(getattr(text, "export", None)) and callable(getattr(text, "parse", None))):
+        return [f"{maker.format}: its text module has no export or no parse"]
+    tool = _sample(maker)
+    export = text.export(tool)
+    if export.format != maker.format:
+        return [f"{maker.format}: its export says format {export.format!r}"]
+    if not _same_tcp(*text.parse(export.text), tool):
+        return [f"{maker.format}: parse(export(tool)) is not the tool within 1e-9"]
+    return []
+
+
+def _file_missing(maker: Maker) -> list[str]:
+    files = maker.file()
+    if not (callable(getattr(files, "write", None)) and callable(getattr(files, "read", None))):
+        return [f"{maker.format}: its file module has no write or no read"]
+    tool = _sample(maker)
+    written = files.write([FileTool(tool)], FileContext())
+    if written.format != maker.format or not written.name or not written.text.endswith("\n"):
+        return [f"{maker.format}: its file is not named, not its format or not ended"]
+    back = files.read(written.text)
+    if len(back) != 1 or not _same_tcp(back[0].position_mm, back[0].quaternion_wxyz, tool):
+        return [f"{maker.format}: read(write([tool])) is not the tool within 1e-9"]
+    return []
+
+
+def _protocol_missing(maker: Maker, wire: WireProtocol) -> list[str]:
+    found = []
+    if wire.name not in PROTOCOLS:
+        found.append(f"{wire.name}: not a word of ProtocolName (app/words.py)")
+    ports = [wire.default_port] if wire.default_port is not None else []
+    ports += [port for _, port in wire.services]
+    if bool(wire.default_port) == bool(wire.services) or not all(1 <= p <= 65535 for p in ports):
+        found.append(f"{wire.name}: neither one default port nor its services' ports")
+    if isinstance(wire.address, BySlot) and wire.address.numbers != maker.tool_numbers:
+        found.append(f"{wire.name}: its slots {wire.address.numbers} are not its maker's")
+    target = ToolTarget(slot=maker.tool_numbers[0]) if maker.tool_numbers else ToolTarget()
+    if isinstance(wire.address, BySymbol):
+        target = ToolTarget(symbol=SAMPLE.controller_symbol)
+    if wire.target_problem(target) is not None or not wire.describe(target):
+        found.append(f"{wire.name}: cannot address its maker's first tool")
+    if wire.connector is None:
+        return found  # not written yet: connect() says so (tests/controllers/test_interface)
+    connector = wire.connector()
+    methods = [m for m in CONNECTOR_METHODS if not callable(getattr(connector, m, None))]
+    if not inspect.isclass(connector) or methods:
+        found.append(f"{wire.name}: its connector is no class with {', '.join(methods)}")
+    elif list(inspect.signature(connector).parameters) != ["settings"]:
+        found.append(f"{wire.name}: its connector is not opened with the settings alone")
+    return found
+
+
+def missing(maker: Maker) -> list[str]:
+    """What `maker` lacks of what the registry asks, in sentences; [] when nothing."""
+    found = []
+    if maker.format not in CONTROLLER_FORMATS:
+        found.append(f"{maker.format}: not a word of ControllerFormat (app/words.py)")
+    if not (maker.name and maker.file_kind and maker.vendor_words):
+        found.append(f"{maker.format}: no name, file kind or vendor word")
+    if any(w != w.lower() for w in maker.vendor_words + maker.vendor_initials):
+        found.append(f"{maker.format}: vendor words are matched in lower case")
+    if maker.tool_numbers is not None:
+        low, high = maker.tool_numbers
+        if not 0 <= low <= high:
+            found.append(f"{maker.format}: tool numbers {maker.tool_numbers} are no range")
+    found += _text_missing(maker) + _file_missing(maker)
+    for wire in maker.protocols:
+        found += _protocol_missing(maker, wire)
+    return found
+
+
+@pytest.mark.parametrize("maker", MAKERS, ids=lambda m: m.format)
+def test_every_maker_provides_what_the_registry_asks(maker: Maker) -> None:
+    assert missing(maker) == []
+
+
+@pytest.mark.parametrize("maker", MAKERS, ids=lambda m: m.format)
+def test_every_vendor_word_names_its_maker(maker: Maker) -> None:
+    for word in maker.vendor_words:
+        assert vendor_formats(f"{word.title()} Robotics") == (maker.format,)
+    for initials in maker.vendor_initials:
+        assert vendor_formats(f"{initials.upper()} 10") == (maker.format,)
+
+
+def test_the_stored_words_are_the_registrys() -> None:
+    """ControllerFormat and ProtocolName (mypy's and pydantic's, so the OpenAPI enums) name
+    the registered makers and protocols, in the order the API lists them (the protocols of
+    one port first: the schema's description lists them so); no two makers claim a format or
+    a protocol."""
+    assert get_args(ControllerFormat) == tuple(BY_FORMAT) == CONTROLLER_FORMATS
+    assert len(BY_FORMAT) == len(MAKERS)
+    assert get_args(ProtocolName) == tuple(WIRE_PROTOCOLS) == PROTOCOLS
+    assert len(WIRE_PROTOCOLS) == sum(len(m.protocols) for m in MAKERS)
+    assert tuple(TARGET_FIELD) == PROTOCOLS
+    assert tuple(DEFAULT_PORTS) + tuple(SERVICE_PORTS) == PROTOCOLS
+    assert set(SLOT_RANGES) == {p for p, field in TARGET_FIELD.items() if field == "slot"}
+    assert {m.format: m.tool_numbers for m in MAKERS if m.tool_numbers} == TOOL_NUMBERS
+
+
+def test_the_independence_contract_names_every_maker() -> None:
+    """pyproject.toml's import contract keeps the makers from importing each other: it
+    names every registered maker's package (a maker left out could import another)."""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    contracts = config["tool"]["importlinter"]["contracts"]
+    (independent,) = [
+        c for c in contracts if c["type"] == "independence" and "app.vendors.kuka" in c["modules"]
+    ]
+    packages = {inspect.getmodule(m.text).__name__ for m in MAKERS}  # type: ignore[union-attr]
+    assert set(independent["modules"]) == packages
+
+
+def _module(**functions: object) -> SimpleNamespace:
+    return SimpleNamespace(**functions)
+
+
+def test_a_maker_lacking_a_part_is_told_what_it_lacks() -> None:
+    """The check can fail: a planted maker without each part in turn is reported."""
+    kuka = BY_FORMAT["kuka"]
+    text, files = kuka.text(), kuka.file()
+    no_parse = _module(export=text.export)
+    no_read = _module(write=files.write)
+    wire = kuka.protocols[0]
+
+    class HalfConnector:
+        def __init__(self, settings: object) -> None: ...
+
+        def describe(self, target: ToolTarget) -> str:
+            return ""
+
+    def mirrored_parse(value: str) -> tuple[object, object]:
+        position, quaternion = text.parse(value)
+        return position, quaternion * [1, -1, 1, 1]
+
+    planted = {
+        "text module has no export or no parse": replace(
+            kuka, text=lambda: cast(TextModule, no_parse)
+        ),
+        "parse(export(tool)) is not the tool": replace(
+            kuka, text=lambda: cast(TextModule, _module(export=text.export, parse=mirrored_parse))
+        ),
+        "file module has no write or no read": replace(
+            kuka, file=lambda: cast(FileModule, no_read)
+        ),
+        "not a word of ControllerFormat": replace(kuka, format="stäubli"),
+        "not a word of ProtocolName": replace(
+            kuka, protocols=(replace(wire, name="staubli_val3"),)
+        ),
+        "its slots (1, 10) are not its maker's": replace(
+            kuka, protocols=(replace(wire, address=BySlot((1, 10), "$TOOL_DATA[{}]")),)
+        ),
+        "neither one default port nor its services' ports": replace(
+            kuka, protocols=(replace(wire, services=(("main", 7000),)),)
+        ),
+        "no class with read_tool, write_tool, read_pose, close": replace(
+            kuka, protocols=(replace(wire, connector=lambda: cast(OpenSession, HalfConnector)),)
+        ),
+    }
+    for said, maker in planted.items():
+        assert any(said in sentence for sentence in missing(maker)), said
