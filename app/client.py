@@ -59,6 +59,7 @@ from app.client_http import (
 )
 from app.client_recheck import CHECK_EXITS, recheck
 from app.jsontypes import JsonArray, JsonObject
+from app.words import CONTROLLER_FORMATS
 
 if TYPE_CHECKING:
     import httpx
@@ -563,8 +564,8 @@ def export(
         str | None,
         typer.Option(
             "--format",
-            help="kuka | abb | fanuc | ur | yaskawa | techman (with --all: default the formats "
-            "of each robot's vendor, every format when it is not known)",
+            help=f"{' | '.join(CONTROLLER_FORMATS)} (with --all: default the formats of "
+            "each robot's vendor, every format when it is not known)",
         ),
     ] = None,
     output: Annotated[Path | None, typer.Option("-o", "--output", help="file or directory")] = None,

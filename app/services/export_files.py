@@ -24,6 +24,7 @@ from app.services.hot_read import active_of, read_for_key
 from app.services.robots import get_robot
 from app.vendors.files import ControllerFile, FileContext, FileTool, Provenance
 from app.vendors.registry import controller_file
+from app.words import FORMATS_IN_WORDS
 
 
 def needs_format(fmt: str | None) -> str:
@@ -31,8 +32,8 @@ def needs_format(fmt: str | None) -> str:
     if fmt is None:
         raise InvalidInput(
             "invalid-options",
-            "Accept: text/plain serves a controller's file: give ?format= (kuka, abb, fanuc, "
-            "ur, yaskawa or techman), or accept application/json",
+            "Accept: text/plain serves a controller's file: give ?format= "
+            f"({FORMATS_IN_WORDS}), or accept application/json",
             loc=("query", "format"),
         )
     return fmt

@@ -27,7 +27,7 @@ from app.services.hot_read import active_of, read_for_key
 from app.services.live import live_or_404
 from app.services.robots import get_robot
 from app.services.tools import get_tool
-from app.words import ActivationKind, AuditAction, MethodName, Status
+from app.words import FORMATS_IN_WORDS, ActivationKind, AuditAction, MethodName, Status
 
 IDENTITY_QUATERNION = [1.0, 0.0, 0.0, 0.0]
 
@@ -393,8 +393,8 @@ def _text_needs_format(as_text: bool, fmt: str | None) -> None:
     if as_text and fmt is None:
         raise InvalidInput(
             "invalid-options",
-            "Accept: text/plain serves a controller's text: give ?format= (kuka, abb, fanuc, "
-            "ur, yaskawa or techman), or accept application/json",
+            "Accept: text/plain serves a controller's text: give ?format= "
+            f"({FORMATS_IN_WORDS}), or accept application/json",
             loc=("query", "format"),
         )
 
