@@ -109,3 +109,18 @@ def yaskawa_sim() -> Iterator[YaskawaSimulator]:
     0-63) on two UDP ports; a transfer left behind times out after 0.5 s."""
     with YaskawaSimulator(transfer_timeout_s=0.5) as sim:
         yield sim
+
+
+def yaskawa_settings(
+    sim: YaskawaSimulator, *, timeout_s: float = SIM_TIMEOUT_S
+) -> ControllerSettings:
+    """How to reach `sim` as a yaskawa_hses controller (its robot and file ports)."""
+    return ControllerSettings(
+        protocol="yaskawa_hses",
+        host=sim.host,
+        port=sim.robot_port,
+        username=None,
+        password=None,
+        timeout_s=timeout_s,
+        ports={"robot": sim.robot_port, "file": sim.file_port},
+    )

@@ -23,11 +23,18 @@ from app.vendors.registry import (
     has_connector,
     target_problem,
 )
+from app.vendors.yaskawa.hses import YaskawaHsesConnector
 from app.words import PROTOCOLS
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
-from tests.controllers.fixtures import abb_settings, fanuc_settings, kuka_settings
+from tests.controllers.fixtures import (
+    abb_settings,
+    fanuc_settings,
+    kuka_settings,
+    yaskawa_settings,
+)
 from tests.controllers.kuka_sim import KukaSimulator
+from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 
 def test_every_protocol_has_a_port_and_a_target_field() -> None:
@@ -117,6 +124,9 @@ def test_connect_picks_the_connector_of_the_protocol() -> None:
         with AbbRwsSimulator(version) as abb, connect(abb_settings(abb)) as connector:
             assert isinstance(connector, AbbRwsConnector)
             assert connector.protocol == f"abb_rws{version}"
+    with YaskawaSimulator() as yaskawa, connect(yaskawa_settings(yaskawa)) as connector:
+        assert isinstance(connector, YaskawaHsesConnector)
+        assert connector.describe(ToolTarget(slot=3)) == "TOOL.CND tool 3"
     with pytest.raises(ValueError, match="unknown controller protocol"):
         connect(ControllerSettings("kuka_rsi", "127.0.0.1", 49152, None, None))  # type: ignore[arg-type]
 
@@ -160,3 +170,10 @@ def test_a_simulator_switched_back_on_serves_on_its_port_again() -> None:
         assert abb.port == port
         with connect(abb_settings(abb)) as connector:
             connector.read_tool(ToolTarget(symbol="T_ROB1/user/tTorch"))
+    with YaskawaSimulator() as yaskawa:
+        ports = (yaskawa.robot_port, yaskawa.file_port)
+        yaskawa.stop()
+        yaskawa.start()
+        assert (yaskawa.robot_port, yaskawa.file_port) == ports
+        with connect(yaskawa_settings(yaskawa)) as connector:
+            connector.read_tool(ToolTarget(slot=1))

@@ -28,10 +28,16 @@ from app.vendors.registry import connect
 from app.vendors.tool import ToolData
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
-from tests.controllers.fixtures import abb_settings, fanuc_settings, kuka_settings
+from tests.controllers.fixtures import (
+    abb_settings,
+    fanuc_settings,
+    kuka_settings,
+    yaskawa_settings,
+)
 from tests.controllers.helpers import random_tool
 from tests.controllers.kuka_sim import KukaSimulator
 from tests.controllers.simbase import go_silent
+from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 # Each connector's module is loaded here, as a server loads it once: its first import
 # (for ABB httpx, and httpcore and cryptography at its first client: 0.5 s here idle, over
@@ -60,6 +66,14 @@ STAGES = [
     ("abb_rws2", "login"),
     ("abb_rws2", "POST /rw/mastership/edit/request"),
     ("abb_rws2", f"POST {V2_PATH}"),
+    # Yaskawa: the status read that opens a session, the first save of TOOL.CND, a save's
+    # block mid-transfer (the controller keeps that transfer open until its receive timeout:
+    # the next attempt is answered busy and asks again), the load's request, its last block
+    ("yaskawa_hses", "status read"),
+    ("yaskawa_hses", "save TOOL.CND"),
+    ("yaskawa_hses", "save TOOL.CND block 9 #2"),
+    ("yaskawa_hses", "load TOOL.CND"),
+    ("yaskawa_hses", "load TOOL.CND last block"),
 ]
 
 
@@ -73,6 +87,10 @@ def simulator(protocol: str, timeout_s: float) -> Iterator[tuple[Any, Controller
     elif protocol == "fanuc_rmi":
         with FanucSimulator() as sim:
             yield sim, fanuc_settings(sim, timeout_s=timeout_s)
+    elif protocol == "yaskawa_hses":
+        # a transfer the failed attempt left open is dropped 0.3 s after its last packet
+        with YaskawaSimulator(transfer_timeout_s=0.3) as sim:
+            yield sim, yaskawa_settings(sim, timeout_s=timeout_s)
     else:
         with AbbRwsSimulator(1 if protocol == "abb_rws1" else 2) as sim:
             yield sim, abb_settings(sim, timeout_s=timeout_s)
@@ -128,7 +146,13 @@ def test_a_stall_anywhere_fails_the_whole_attempt_within_the_timeout_and_leaves_
 
 @pytest.mark.parametrize(
     ("protocol", "delay_s"),
-    [("kuka_kvp", 0.12), ("fanuc_rmi", 0.2), ("abb_rws1", 0.15), ("abb_rws2", 0.11)],
+    [
+        ("kuka_kvp", 0.12),
+        ("fanuc_rmi", 0.2),
+        ("abb_rws1", 0.15),
+        ("abb_rws2", 0.11),
+        ("yaskawa_hses", 0.01),
+    ],
 )
 def test_a_slow_controller_fails_the_attempt_at_its_timeout_not_each_steps(
     protocol: str, delay_s: float

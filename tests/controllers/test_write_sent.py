@@ -15,10 +15,16 @@ from app.vendors.connector import ControllerSettings, ControllerUnreachable, Too
 from app.vendors.registry import connect
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
-from tests.controllers.fixtures import abb_settings, fanuc_settings, kuka_settings
+from tests.controllers.fixtures import (
+    abb_settings,
+    fanuc_settings,
+    kuka_settings,
+    yaskawa_settings,
+)
 from tests.controllers.helpers import random_tool
 from tests.controllers.kuka_sim import KukaSimulator
 from tests.controllers.simbase import go_silent
+from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 TIMEOUT_S = 0.3
 SYMBOL = "T_ROB1/user/tTorch"
@@ -36,6 +42,9 @@ REQUESTS = {
         "POST /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data",
         ("POST /rw/mastership/edit/request", 1),
     ),
+    # Yaskawa applies a loaded TOOL.CND at its last block; the load's request (block 0)
+    # carries no data, so silence there is before the write
+    "yaskawa_hses": ("load TOOL.CND last block", ("load TOOL.CND", 1)),
 }
 
 
@@ -49,6 +58,8 @@ def sim_and_settings(
         sim = KukaSimulator()
     elif protocol == "fanuc_rmi":
         sim = FanucSimulator()
+    elif protocol == "yaskawa_hses":
+        sim = YaskawaSimulator(transfer_timeout_s=0.2)
     else:
         sim = AbbRwsSimulator(version=1 if protocol == "abb_rws1" else 2)
     with sim:
@@ -56,6 +67,8 @@ def sim_and_settings(
             settings = kuka_settings(sim, timeout_s=TIMEOUT_S)
         elif protocol == "fanuc_rmi":
             settings = fanuc_settings(sim, timeout_s=TIMEOUT_S)
+        elif protocol == "yaskawa_hses":
+            settings = yaskawa_settings(sim, timeout_s=TIMEOUT_S)
         else:
             settings = abb_settings(sim, timeout_s=TIMEOUT_S)
         yield protocol, sim, settings

@@ -4,17 +4,19 @@
 |---|---|
 | text.py | ``TOOL[n]: X Y Z Rx Ry Rz W Xg Yg Zg`` and its reader |
 | file.py | TOOL.CND, the tool file as the controller saves and loads it, and `merge` |
+| hses.py | the connector: High Speed Ethernet Server (HSES manual, FS100 160766-1CD), UDP |
+| hses_wire.py | HSES packets over UDP under one deadline, and the status codes in words |
 
 Tool numbers: tool files 0..63 (YRC1000 and DX200; NX100 had 0..23). X Y Z Rx Ry Rz are
 app.vendors.wpr's fixed-axis convention.
 
-Protocol: High Speed Ethernet Server (``yaskawa_hses``): robot control and file control
-(UDP); its connector is not written yet.
+Protocol: High Speed Ethernet Server (``yaskawa_hses``): robot control (UDP 10040: the
+position read) and file control (UDP 10041: TOOL.CND saved and loaded).
 """
 
 from __future__ import annotations
 
-from app.vendors.maker import BySlot, FileModule, Maker, TextModule, WireProtocol
+from app.vendors.maker import BySlot, FileModule, Maker, OpenSession, TextModule, WireProtocol
 
 #: (first, last) tool number: tool files 0..63.
 TOOL_NUMBERS = (0, 63)
@@ -32,11 +34,17 @@ def _file() -> FileModule:
     return file
 
 
+def _hses() -> OpenSession:
+    from app.vendors.yaskawa.hses import YaskawaHsesConnector
+
+    return YaskawaHsesConnector
+
+
 #: High Speed Ethernet Server: robot control (UDP) and file control (UDP), TOOL.CND's tools.
 HSES = WireProtocol(
     "yaskawa_hses",
     BySlot(TOOL_NUMBERS, "TOOL.CND tool {}"),
-    None,
+    _hses,
     services=(("robot", 10040), ("file", 10041)),
     udp=True,
 )
