@@ -12,6 +12,8 @@ judge with themselves):
   R = Rz(R) Ry(P) Rx(W).
 - ABB ``orient`` [q1, q2, q3, q4] (RAPID reference, orient): q1 the scalar part, so
   [w, x, y, z] as tcpcal's quaternions.
+- Yaskawa Rx, Ry, Rz of TOOL.CND (about the fixed X, Y, Z axes, as Yaskawa-Global/motoros2
+  composes them): R = Rz(Rz) Ry(Ry) Rx(Rx), the product FANUC's W P R make.
 Each product is composed from single-axis rotations as the documents write it; the angles
 of a rotation are scipy's Euler angles for that product, checked against it."""
 
@@ -29,9 +31,10 @@ from scipy.spatial.transform import Rotation
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator
+from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 #: Every protocol, each with its simulator.
-PROTOCOLS = ["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2"]
+PROTOCOLS = ["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2", "yaskawa_hses"]
 TIMEOUT_S = 1.0
 SLOT = 3
 SYMBOL = "T_ROB1/user/tTorch"
@@ -78,7 +81,11 @@ def fanuc_rotation(w: float, p: float, r: float) -> Rotation:
 
 #: protocol -> (the rotation of its three angles, scipy's name for the same product:
 #: upper case intrinsic, lower case about fixed axes)
-ANGLES = {"kuka_kvp": (kuka_rotation, "ZYX"), "fanuc_rmi": (fanuc_rotation, "xyz")}
+ANGLES = {
+    "kuka_kvp": (kuka_rotation, "ZYX"),
+    "fanuc_rmi": (fanuc_rotation, "xyz"),
+    "yaskawa_hses": (fanuc_rotation, "xyz"),
+}
 
 
 @dataclass
@@ -94,9 +101,12 @@ class Rig:
         body: dict[str, Any] = {
             "protocol": self.protocol,
             "host": self.sim.host,
-            "port": self.sim.port,
             "timeout_s": TIMEOUT_S,
         }
+        if self.protocol == "yaskawa_hses":
+            body["ports"] = {"robot": self.sim.robot_port, "file": self.sim.file_port}
+        else:
+            body["port"] = self.sim.port
         if self.protocol.startswith("abb"):
             # RWS 2.0's simulator has a self-signed certificate
             body |= {"username": ABB_USER, "password": ABB_PASSWORD, "tls_verify": False}
@@ -108,6 +118,9 @@ class Rig:
         if self.protocol.startswith("abb"):
             held = self.sim.tool(SYMBOL)
             return [*map(float, held.trans), *map(float, held.rot)]
+        if self.protocol == "yaskawa_hses":
+            position, angles = self.sim.tool(SLOT)
+            return [*position, *angles]
         return [float(v) for v in self.sim.tool(SLOT)]
 
     def native_of(self, position_mm: list[float], quaternion: list[float]) -> list[float]:
@@ -138,6 +151,8 @@ class Rig:
         native = self.native_of(position_mm, quaternion)
         if self.protocol.startswith("abb"):
             self.sim.set_tool(SYMBOL, tuple(native[:3]), tuple(native[3:]))
+        elif self.protocol == "yaskawa_hses":
+            self.sim.set_tool(SLOT, tuple(native[:3]), tuple(native[3:]))
         else:
             self.sim.set_tool(SLOT, *native)
 
@@ -161,6 +176,9 @@ def rig(protocol: str) -> Iterator[Rig]:
         sim, fields = KukaSimulator(), {"slot": SLOT}
     elif protocol == "fanuc_rmi":
         sim, fields = FanucSimulator(), {"slot": SLOT}
+    elif protocol == "yaskawa_hses":
+        # a transfer a failed attempt left open is dropped 0.3 s after its last packet
+        sim, fields = YaskawaSimulator(transfer_timeout_s=0.3), {"slot": SLOT}
     else:
         sim = AbbRwsSimulator(version=1 if protocol == "abb_rws1" else 2)
         fields = {"controller_symbol": SYMBOL}

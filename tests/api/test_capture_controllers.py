@@ -91,12 +91,32 @@ class AbbCell(Cell):
         self.rig.sim.moving_per_read = mm_per_read
 
 
+class YaskawaCell(Cell):
+    """The robot moves by tool 3 of TOOL.CND (an oriented TCP); the position read reports
+    its TCP in the base frame (HSES reads no user frame), with the tool number."""
+
+    def __init__(self, r: Rig) -> None:
+        super().__init__(r)
+        r.sim.set_tool(SLOT, tuple(TRUE_TCP), (20.0, -10.0, 5.0))
+        r.sim.select_tool(SLOT)
+
+    def place(self, rotation: np.ndarray, position: np.ndarray) -> None:
+        flange = np.eye(4)
+        flange[:3, :3] = rotation
+        flange[:3, 3] = position
+        self.rig.sim.set_flange(flange)
+
+    def set_moving(self, mm_per_read: float) -> None:
+        self.rig.sim.moving_per_read = mm_per_read
+
+
 #: protocol -> its cell: every protocol whose connector reads the pose (issue 39).
 SETUPS: dict[str, Callable[[Rig], Cell]] = {
     "kuka_kvp": KukaCell,
     "fanuc_rmi": FanucCell,
     "abb_rws1": AbbCell,
     "abb_rws2": AbbCell,
+    "yaskawa_hses": YaskawaCell,
 }
 
 

@@ -363,6 +363,8 @@ WRITE_REQUEST = {
     "fanuc_rmi": "FRC_WriteUToolData",
     "abb_rws1": "POST /rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch",
     "abb_rws2": "POST /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data",
+    # the controller applies a loaded TOOL.CND at its last block
+    "yaskawa_hses": "load TOOL.CND last block",
 }
 #: The last request before the write, and which time it comes in a deployment. KUKA reads
 #: $LOAD_DATA for `previous` and again for the load members it keeps; ABB reads the tooldata
@@ -373,6 +375,8 @@ BEFORE_WRITE = {
     "fanuc_rmi": ("FRC_ReadUToolData", 1),
     "abb_rws1": ("GET /rw/rapid/symbol/data/RAPID/T_ROB1/user/tTorch", 2),
     "abb_rws2": ("GET /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data", 2),
+    # the load's request: no data has left yet (the file goes in the blocks after it)
+    "yaskawa_hses": ("load TOOL.CND", 1),
 }
 NOT_CONFIRMED = (
     "written, not confirmed: the controller may hold v1 or what it held before; "

@@ -323,3 +323,35 @@ def test_a_robot_whose_controller_is_removed_is_unread_again(api: Api) -> None:
             "checked_at": None,
         }
         assert row["attention"] == []
+
+
+def test_yaskawa_moves_by_the_tool_number_its_position_read_reports(api: Api) -> None:
+    """The position read (0x75) says which tool the robot moves by; its frame is that tool's
+    block of TOOL.CND: the live tool is named, on the fleet and in the pose read."""
+    with rig("yaskawa_hses") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id, tool_id = ids["robot"]["id"], ids["tool"]["id"]
+        r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)  # tool 3 of TOOL.CND holds v1
+        r.sim.select_tool(SLOT)
+        _reconcile(api, robot_id)
+        row = _rows(api, robot_id)["t1"]
+        assert (row["live"]["state"], row["live"]["version"]) == ("stale_version", 1)
+        assert row["attention"] == ["controller_drifted", "moving_by_stale_version"]
+        r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)
+        _reconcile(api, robot_id)
+        row = _rows(api, robot_id)["t1"]
+        assert (row["live"]["state"], row["live"]["version"]) == ("active", 2)
+        assert row["attention"] == []
+        pose = api.get(f"/v1/robots/{robot_id}/controller/pose", scope="calibrate")
+        assert pose.status_code == 200, pose.text
+        live = pose.json()["live_tool"]
+        assert live["number"] == SLOT
+        assert live["matches"] == [{"tool_id": tool_id, "version": 2, "active": True}]
+        assert pose.json()["readings"][f"TOOL.CND //TOOL {SLOT}"].startswith("12.500,-3.250,")
+        # tool 1, which no tool of tcpcal's holds, and whose frame (the flange) no version has
+        r.sim.select_tool(1)
+        _reconcile(api, robot_id)
+        row = _rows(api, robot_id)["t1"]
+        assert row["live"]["state"] == "unknown"
+        assert row["attention"] == ["moving_by_unknown_tcp"]
+        assert [e["number"] for e in _live_events(robot_id)] == [SLOT, SLOT, 1]

@@ -44,10 +44,11 @@ def _row(api: Api, robot_id: str) -> dict[str, object]:
     return dict(api.get("/v1/tools", params={"robot_id": robot_id}).json()["items"][0])
 
 
+@pytest.mark.parametrize("protocol", ["kuka_kvp", "yaskawa_hses"])
 def test_the_watcher_finds_drift_within_two_intervals_and_records_it_once(
-    watching: float, api: Api
+    watching: float, api: Api, protocol: str
 ) -> None:
-    with rig("kuka_kvp") as r:
+    with rig(protocol) as r:
         ids = _setup(api, r)
         tool_id, robot_id = ids["tool"]["id"], ids["robot"]["id"]
         r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)  # the controller holds the active TCP
