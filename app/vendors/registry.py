@@ -15,7 +15,7 @@ lists them and answers by format (`export_tool`, `parse_controller_text`, `contr
 | abb_rws2 | abb/rws.py | ABB Robot Web Services 2.0 (RobotWare 7) |
 | techman | (not yet) | TMflow Listen Node and Ethernet Slave |
 | yaskawa_hses | (not yet) | Yaskawa High Speed Ethernet Server |
-| ur_rtde | (not yet) | UR RTDE and the secondary client interface |
+| ur_rtde | ur/rtde.py | UR RTDE Guide (30004) and the secondary client interface (30002) |
 
 A controller of a protocol whose connector is not written yet is stored, and nothing is sent
 to it (app.services.controllers.settings_of answers 501 /no-connector).

@@ -1,10 +1,10 @@
 """Controller simulators as fixtures: each started on a free loopback port, stopped after.
 
-`kuka_sim`, `fanuc_sim`, `abb_rws1_sim`, `abb_rws2_sim`, `yaskawa_sim`, `techman_sim` are the
-running simulators (change their tool data as an operator would: `set_tool`, `tool`, ...;
-`stalled = True` makes one stop answering; `stop()` switches it off); `kuka_settings(sim)`
-etc. the `ControllerSettings` that reach them (timeout 2 s). tests/controllers/conftest.py imports
-them; another test package does the same in its conftest
+`kuka_sim`, `fanuc_sim`, `abb_rws1_sim`, `abb_rws2_sim`, `yaskawa_sim`, `techman_sim`,
+`ur_sim` are the running simulators (change their tool data as an operator would:
+`set_tool`, `tool`, ...; `stalled = True` makes one stop answering; `stop()` switches it
+off); `kuka_settings(sim)` etc. the `ControllerSettings` that reach them (timeout 2 s).
+tests/controllers/conftest.py imports them; another test package does the same in its conftest
 (`from tests.controllers.fixtures import kuka_sim, ...`).
 """
 
@@ -19,6 +19,7 @@ from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator
 from tests.controllers.techman_sim import TechmanSimulator
+from tests.controllers.ur_sim import UrSimulator
 from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 SIM_TIMEOUT_S = 2.0
@@ -123,4 +124,24 @@ def yaskawa_settings(
         password=None,
         timeout_s=timeout_s,
         ports={"robot": sim.robot_port, "file": sim.file_port},
+    )
+
+
+@pytest.fixture
+def ur_sim() -> Iterator[UrSimulator]:
+    """A UR e-Series controller: RTDE and the secondary interface on two free ports."""
+    with UrSimulator() as sim:
+        yield sim
+
+
+def ur_settings(sim: UrSimulator, *, timeout_s: float = SIM_TIMEOUT_S) -> ControllerSettings:
+    """How to reach `sim` as a ur_rtde controller (its two ports)."""
+    return ControllerSettings(
+        protocol="ur_rtde",
+        host=sim.host,
+        port=sim.rtde_port,
+        username=None,
+        password=None,
+        timeout_s=timeout_s,
+        ports={"rtde": sim.rtde_port, "secondary": sim.secondary_port},
     )

@@ -23,6 +23,7 @@ from app.vendors.registry import (
     has_connector,
     target_problem,
 )
+from app.vendors.ur.rtde import UrRtdeConnector
 from app.vendors.yaskawa.hses import YaskawaHsesConnector
 from app.words import PROTOCOLS
 from tests.controllers.abb_sim import AbbRwsSimulator
@@ -31,9 +32,11 @@ from tests.controllers.fixtures import (
     abb_settings,
     fanuc_settings,
     kuka_settings,
+    ur_settings,
     yaskawa_settings,
 )
 from tests.controllers.kuka_sim import KukaSimulator
+from tests.controllers.ur_sim import UrSimulator
 from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 
@@ -127,6 +130,9 @@ def test_connect_picks_the_connector_of_the_protocol() -> None:
     with YaskawaSimulator() as yaskawa, connect(yaskawa_settings(yaskawa)) as connector:
         assert isinstance(connector, YaskawaHsesConnector)
         assert connector.describe(ToolTarget(slot=3)) == "TOOL.CND tool 3"
+    with UrSimulator() as ur, connect(ur_settings(ur)) as connector:
+        assert isinstance(connector, UrRtdeConnector)
+        assert connector.describe(ToolTarget()) == "tcp_offset"
     with pytest.raises(ValueError, match="unknown controller protocol"):
         connect(ControllerSettings("kuka_rsi", "127.0.0.1", 49152, None, None))  # type: ignore[arg-type]
 
@@ -177,3 +183,10 @@ def test_a_simulator_switched_back_on_serves_on_its_port_again() -> None:
         assert (yaskawa.robot_port, yaskawa.file_port) == ports
         with connect(yaskawa_settings(yaskawa)) as connector:
             connector.read_tool(ToolTarget(slot=1))
+    with UrSimulator() as ur:
+        ports = (ur.rtde_port, ur.secondary_port)
+        ur.stop()
+        ur.start()
+        assert (ur.rtde_port, ur.secondary_port) == ports
+        with connect(ur_settings(ur)) as connector:
+            connector.read_tool(ToolTarget())

@@ -32,11 +32,13 @@ from tests.controllers.fixtures import (
     abb_settings,
     fanuc_settings,
     kuka_settings,
+    ur_settings,
     yaskawa_settings,
 )
 from tests.controllers.helpers import random_tool
 from tests.controllers.kuka_sim import KukaSimulator
 from tests.controllers.simbase import go_silent
+from tests.controllers.ur_sim import UrSimulator
 from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 # Each connector's module is loaded here, as a server loads it once: its first import
@@ -74,6 +76,9 @@ STAGES = [
     ("yaskawa_hses", "save TOOL.CND block 9 #2"),
     ("yaskawa_hses", "load TOOL.CND"),
     ("yaskawa_hses", "load TOOL.CND last block"),
+    ("ur_rtde", "RTDE_REQUEST_PROTOCOL_VERSION"),
+    ("ur_rtde", "RTDE_CONTROL_PACKAGE_START"),
+    ("ur_rtde", "script"),
 ]
 
 
@@ -91,12 +96,17 @@ def simulator(protocol: str, timeout_s: float) -> Iterator[tuple[Any, Controller
         # a transfer the failed attempt left open is dropped 0.3 s after its last packet
         with YaskawaSimulator(transfer_timeout_s=0.3) as sim:
             yield sim, yaskawa_settings(sim, timeout_s=timeout_s)
+    elif protocol == "ur_rtde":
+        with UrSimulator() as sim:
+            yield sim, ur_settings(sim, timeout_s=timeout_s)
     else:
         with AbbRwsSimulator(1 if protocol == "abb_rws1" else 2) as sim:
             yield sim, abb_settings(sim, timeout_s=timeout_s)
 
 
 def target_of(protocol: str) -> ToolTarget:
+    if protocol == "ur_rtde":
+        return ToolTarget()  # the live TCP
     return ToolTarget(symbol="T_ROB1/user/tTorch") if protocol.startswith("abb") else ToolTarget(3)
 
 
@@ -152,6 +162,7 @@ def test_a_stall_anywhere_fails_the_whole_attempt_within_the_timeout_and_leaves_
         ("abb_rws1", 0.15),
         ("abb_rws2", 0.11),
         ("yaskawa_hses", 0.01),
+        ("ur_rtde", 0.2),
     ],
 )
 def test_a_slow_controller_fails_the_attempt_at_its_timeout_not_each_steps(

@@ -19,11 +19,13 @@ from tests.controllers.fixtures import (
     abb_settings,
     fanuc_settings,
     kuka_settings,
+    ur_settings,
     yaskawa_settings,
 )
 from tests.controllers.helpers import random_tool
 from tests.controllers.kuka_sim import KukaSimulator
 from tests.controllers.simbase import go_silent
+from tests.controllers.ur_sim import UrSimulator
 from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 TIMEOUT_S = 0.3
@@ -45,6 +47,8 @@ REQUESTS = {
     # Yaskawa applies a loaded TOOL.CND at its last block; the load's request (block 0)
     # carries no data, so silence there is before the write
     "yaskawa_hses": ("load TOOL.CND last block", ("load TOOL.CND", 1)),
+    # UR: the program on the secondary interface; RTDE starts its data before any write
+    "ur_rtde": ("script", ("RTDE_CONTROL_PACKAGE_START", 1)),
 }
 
 
@@ -60,6 +64,8 @@ def sim_and_settings(
         sim = FanucSimulator()
     elif protocol == "yaskawa_hses":
         sim = YaskawaSimulator(transfer_timeout_s=0.2)
+    elif protocol == "ur_rtde":
+        sim = UrSimulator()
     else:
         sim = AbbRwsSimulator(version=1 if protocol == "abb_rws1" else 2)
     with sim:
@@ -69,12 +75,16 @@ def sim_and_settings(
             settings = fanuc_settings(sim, timeout_s=TIMEOUT_S)
         elif protocol == "yaskawa_hses":
             settings = yaskawa_settings(sim, timeout_s=TIMEOUT_S)
+        elif protocol == "ur_rtde":
+            settings = ur_settings(sim, timeout_s=TIMEOUT_S)
         else:
             settings = abb_settings(sim, timeout_s=TIMEOUT_S)
         yield protocol, sim, settings
 
 
 def _target(protocol: str) -> ToolTarget:
+    if protocol == "ur_rtde":
+        return ToolTarget()  # the live TCP
     return ToolTarget(symbol=SYMBOL) if protocol.startswith("abb") else ToolTarget(slot=3)
 
 
@@ -86,9 +96,9 @@ def _settle(sim: Any) -> None:
         time.sleep(0.01)
 
 
-def _write(settings: ControllerSettings, protocol: str) -> ControllerUnreachable:
+def _write(settings: ControllerSettings, protocol: str, seed: int = 7) -> ControllerUnreachable:
     with pytest.raises(ControllerUnreachable) as caught, connect(settings) as conn:
-        conn.write_tool(_target(protocol), random_tool(7))
+        conn.write_tool(_target(protocol), random_tool(seed))
     return caught.value
 
 
@@ -104,7 +114,8 @@ def test_a_controller_silent_after_the_write_marks_the_failure_write_sent(
     if protocol == "abb_rws2":
         sim.mastership_holder = None  # the silent session's, which this test is not about
     sim.fault = go_silent("before", REQUESTS[protocol][0])
-    assert _write(settings, protocol).write_sent is True
+    # another tool: UR confirms a write by tcp_offset showing it, which the first one set
+    assert _write(settings, protocol, seed=8).write_sent is True
 
 
 def test_a_controller_silent_before_the_write_leaves_the_mark_off(

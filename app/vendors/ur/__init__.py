@@ -4,16 +4,18 @@
 |---|---|
 | text.py | URScript ``set_tcp(p[x,y,z,rx,ry,rz])`` (m, rad) and ``set_payload``, and its reader |
 | file.py | a URScript file with a function per tool that sets its TCP and payload |
+| rtde.py | the connector: tcp_offset over RTDE (30004), set_tcp on the secondary (30002) |
 
 No tool numbers (one TCP at a time, named in the installation).
 
-Protocol: ``ur_rtde`` (RTDE and the secondary client interface, URScript; TCP); its
-connector is not written yet.
+Protocol: ``ur_rtde`` (RTDE and the secondary client interface, URScript; TCP). A
+deployment is live (``set_tcp`` holds until the next program start sets the installation's
+TCP); the file is what a program keeps.
 """
 
 from __future__ import annotations
 
-from app.vendors.maker import FileModule, LiveTcp, Maker, TextModule, WireProtocol
+from app.vendors.maker import FileModule, LiveTcp, Maker, OpenSession, TextModule, WireProtocol
 
 
 def _text() -> TextModule:
@@ -28,11 +30,17 @@ def _file() -> FileModule:
     return file
 
 
+def _rtde() -> OpenSession:
+    from app.vendors.ur.rtde import UrRtdeConnector
+
+    return UrRtdeConnector
+
+
 #: RTDE (TCP) and the secondary client interface (TCP, URScript).
 RTDE = WireProtocol(
     "ur_rtde",
     LiveTcp("tcp_offset"),
-    None,
+    _rtde,
     services=(("rtde", 30004), ("secondary", 30002)),
 )
 
