@@ -14,6 +14,8 @@ judge with themselves):
   [w, x, y, z] as tcpcal's quaternions.
 - Yaskawa Rx, Ry, Rz of TOOL.CND (about the fixed X, Y, Z axes, as Yaskawa-Global/motoros2
   composes them): R = Rz(Rz) Ry(Ry) Rx(Rx), the product FANUC's W P R make.
+- UR ``p[x, y, z, rx, ry, rz]`` (URScript manual, "Pose"): metres and a rotation vector
+  (axis times angle, rad); the pendant shows x, y, z in mm, which `native` follows.
 Each product is composed from single-axis rotations as the documents write it; the angles
 of a rotation are scipy's Euler angles for that product, checked against it."""
 
@@ -31,10 +33,11 @@ from scipy.spatial.transform import Rotation
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator
+from tests.controllers.ur_sim import UrSimulator
 from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 #: Every protocol, each with its simulator.
-PROTOCOLS = ["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2", "yaskawa_hses"]
+PROTOCOLS = ["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2", "yaskawa_hses", "ur_rtde"]
 TIMEOUT_S = 1.0
 SLOT = 3
 SYMBOL = "T_ROB1/user/tTorch"
@@ -105,6 +108,8 @@ class Rig:
         }
         if self.protocol == "yaskawa_hses":
             body["ports"] = {"robot": self.sim.robot_port, "file": self.sim.file_port}
+        elif self.protocol == "ur_rtde":
+            body["ports"] = {"rtde": self.sim.rtde_port, "secondary": self.sim.secondary_port}
         else:
             body["port"] = self.sim.port
         if self.protocol.startswith("abb"):
@@ -114,7 +119,11 @@ class Rig:
 
     def native(self) -> list[float]:
         """The tool data as the controller holds it, in its own convention: KUKA X Y Z A B C,
-        FANUC X Y Z W P R, ABB trans and rot (a quaternion q1..q4)."""
+        FANUC X Y Z W P R, ABB trans and rot (a quaternion q1..q4), UR x y z (mm) and the
+        rotation vector (rad) of tcp_offset, the live TCP."""
+        if self.protocol == "ur_rtde":
+            pose = self.sim.tcp()
+            return [*(v * 1000.0 for v in pose[:3]), *pose[3:]]
         if self.protocol.startswith("abb"):
             held = self.sim.tool(SYMBOL)
             return [*map(float, held.trans), *map(float, held.rot)]
@@ -125,6 +134,8 @@ class Rig:
 
     def native_of(self, position_mm: list[float], quaternion: list[float]) -> list[float]:
         """A frame in the controller's own convention."""
+        if self.protocol == "ur_rtde":
+            return [*position_mm, *(float(v) for v in rotation_of(quaternion).as_rotvec())]
         if self.protocol not in ANGLES:
             return [*position_mm, *quaternion]
         compose, sequence = ANGLES[self.protocol]
@@ -136,6 +147,8 @@ class Rig:
     def rotation(self) -> Rotation:
         """The rotation of the tool data the controller holds, read in its convention."""
         values = self.native()
+        if self.protocol == "ur_rtde":
+            return Rotation.from_rotvec(values[3:])
         if self.protocol in ANGLES:
             compose, _ = ANGLES[self.protocol]
             return compose(*values[3:])
@@ -149,7 +162,9 @@ class Rig:
     def set_behind_back(self, position_mm: list[float], quaternion: list[float]) -> None:
         """The operator types a frame into the pendant."""
         native = self.native_of(position_mm, quaternion)
-        if self.protocol.startswith("abb"):
+        if self.protocol == "ur_rtde":
+            self.sim.pendant_set_tcp([*(v / 1000.0 for v in native[:3]), *native[3:]])
+        elif self.protocol.startswith("abb"):
             self.sim.set_tool(SYMBOL, tuple(native[:3]), tuple(native[3:]))
         elif self.protocol == "yaskawa_hses":
             self.sim.set_tool(SLOT, tuple(native[:3]), tuple(native[3:]))
@@ -179,6 +194,8 @@ def rig(protocol: str) -> Iterator[Rig]:
     elif protocol == "yaskawa_hses":
         # a transfer a failed attempt left open is dropped 0.3 s after its last packet
         sim, fields = YaskawaSimulator(transfer_timeout_s=0.3), {"slot": SLOT}
+    elif protocol == "ur_rtde":
+        sim, fields = UrSimulator(), {}  # one live TCP, written by value
     else:
         sim = AbbRwsSimulator(version=1 if protocol == "abb_rws1" else 2)
         fields = {"controller_symbol": SYMBOL}

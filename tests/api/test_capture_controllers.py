@@ -110,6 +110,23 @@ class YaskawaCell(Cell):
         self.rig.sim.moving_per_read = mm_per_read
 
 
+class UrCell(Cell):
+    """The robot moves by a TCP set at the pendant (an oriented tcp_offset): RTDE's
+    actual_TCP_pose is that TCP, not the flange (UR has no base frame to move by)."""
+
+    def __init__(self, r: Rig) -> None:
+        super().__init__(r)
+        turned = Rotation.from_euler("ZYX", [35.0, 2.0, -1.5], degrees=True).as_rotvec()
+        r.sim.pendant_set_tcp((*(TRUE_TCP / 1000.0), *turned))
+
+    def place(self, rotation: np.ndarray, position: np.ndarray) -> None:
+        self.rig.sim.set_flange(tuple(float(v) for v in position), rotation)
+
+    def set_moving(self, mm_per_read: float) -> None:
+        # RTDE streams: the flange moves in time; 20 reads' worth a second
+        self.rig.sim.moving_mm_per_s = 20 * mm_per_read
+
+
 #: protocol -> its cell: every protocol whose connector reads the pose (issue 39).
 SETUPS: dict[str, Callable[[Rig], Cell]] = {
     "kuka_kvp": KukaCell,
@@ -117,6 +134,7 @@ SETUPS: dict[str, Callable[[Rig], Cell]] = {
     "abb_rws1": AbbCell,
     "abb_rws2": AbbCell,
     "yaskawa_hses": YaskawaCell,
+    "ur_rtde": UrCell,
 }
 
 

@@ -30,6 +30,8 @@ STAGES = [
     ("abb_rws2", "login"),
     ("abb_rws2", "POST /rw/mastership/edit/request"),
     ("abb_rws2", "POST /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data"),
+    ("ur_rtde", "RTDE_CONTROL_PACKAGE_SETUP_OUTPUTS"),
+    ("ur_rtde", "script"),
 ]
 
 

@@ -18,6 +18,8 @@ from tests.conftest import Api
 from tests.controllers.helpers import angle_between_deg
 from tests.controllers.simbase import go_silent
 
+#: Protocols whose robot moves by one live TCP (contract v1.3 deployment scope "live").
+LIVE_SCOPE = {"ur_rtde"}
 ACTIVE_POSITION = [12.5, -3.25, 187.125]
 ACTIVE_Q = [
     float(v) for v in np.roll(Rotation.from_euler("ZYX", [30, -20, 10], degrees=True).as_quat(), 1)
@@ -183,6 +185,10 @@ def test_a_stopped_controller_is_502_unreachable_within_the_timeout_and_recorded
     assert after.headers["etag"] == before.headers["etag"]  # nothing else changed
     recon = api.post(f"/v1/robots/{ids['robot']['id']}/reconcile", scope="read").json()
     assert recon["state"] == "unreachable"
+    if r.protocol in LIVE_SCOPE:
+        # one live TCP, and no deployment reached it: no tool is the one it moves by
+        assert recon["tools"][0]["state"] == "not_live"
+        return
     assert recon["tools"][0]["error"]
     row = api.get("/v1/tools", params={"robot_id": ids["robot"]["id"]}).json()["items"][0]
     assert row["attention"] == ["controller_unreachable"]
@@ -365,11 +371,13 @@ WRITE_REQUEST = {
     "abb_rws2": "POST /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data",
     # the controller applies a loaded TOOL.CND at its last block
     "yaskawa_hses": "load TOOL.CND last block",
+    "ur_rtde": "script",  # the set_tcp program on the secondary interface
 }
 #: The last request before the write, and which time it comes in a deployment. KUKA reads
 #: $LOAD_DATA for `previous` and again for the load members it keeps; ABB reads the tooldata
 #: for `previous` and again for the robhold and load it keeps. FANUC RMI sends nothing
-#: between its read of `previous` and the write, so that controller stops at the read.
+#: between its read of `previous` and the write, so that controller stops at the read; UR
+#: asks nothing after RTDE starts its data, so that one stops at the start.
 BEFORE_WRITE = {
     "kuka_kvp": (f"read $LOAD_DATA[{SLOT}]", 2),
     "fanuc_rmi": ("FRC_ReadUToolData", 1),
@@ -377,6 +385,7 @@ BEFORE_WRITE = {
     "abb_rws2": ("GET /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data", 2),
     # the load's request: no data has left yet (the file goes in the blocks after it)
     "yaskawa_hses": ("load TOOL.CND", 1),
+    "ur_rtde": ("RTDE_CONTROL_PACKAGE_START", 1),
 }
 NOT_CONFIRMED = (
     "written, not confirmed: the controller may hold v1 or what it held before; "
@@ -454,8 +463,8 @@ def test_a_controller_silent_before_the_write_is_not_written_and_keeps_its_frame
     problem = _failed_deploy(api, tool_id, "not_written")
     r.assert_holds(PREVIOUS_POSITION, PREVIOUS_Q)  # untouched
     [dep] = _deployments(api, tool_id)
-    if r.protocol == "fanuc_rmi":
-        assert dep["previous"] is None  # it stopped at that read
+    if r.protocol in ("fanuc_rmi", "ur_rtde"):
+        assert dep["previous"] is None  # it stopped at or before that read
     else:
         np.testing.assert_allclose(dep["previous"]["position_mm"], PREVIOUS_POSITION, atol=1e-3)
     assert problem["type"].endswith("/controller-unreachable")
@@ -463,7 +472,9 @@ def test_a_controller_silent_before_the_write_is_not_written_and_keeps_its_frame
     assert NOTHING_WRITTEN in problem["detail"]
     r.sim.stalled = False
     recon = api.post(f"/v1/robots/{robot_id}/reconcile", scope="read")
-    assert recon.json()["tools"][0]["state"] == "drifted", recon.text
+    # a live TCP judges the tool last deployed to it, and a not_written one does not count
+    kept = "not_live" if r.protocol in LIVE_SCOPE else "drifted"
+    assert recon.json()["tools"][0]["state"] == kept, recon.text
     assert _deployments(api, tool_id)[0]["settled"] is None  # nothing to settle
     assert _audit(api, tool_id, "deployment.settled") == []
 
