@@ -12,6 +12,14 @@ What it changes, and how the controller merges it: loading the file defines func
 changes nothing; calling one sets the TCP (and payload) of the running program until it
 ends (a script-set TCP lasts until a program is played again: UR's payload article). The
 installation's TCPs and every other tool are untouched. Its header comment says so.
+
+How it relates to the live deploy (``ur_rtde``, app.vendors.ur.rtde): a deployment sends the
+same ``set_tcp`` (and ``set_payload``) as a secondary program, so the robot moves by the
+version at once, and only until the next program start, which sets the installation's TCP
+again (deployment ``scope: "live"``). This file is what persists: a program that calls
+``tcpcal_<tool>()`` at its start sets the version at every start, and the reconcile rounds
+then find the robot moving by it. Deploy to switch now; put the file in the program to keep
+it.
 """
 
 from __future__ import annotations
