@@ -13,7 +13,7 @@ lists them and answers by format (`export_tool`, `parse_controller_text`, `contr
 | fanuc_rmi | fanuc/rmi.py | FANUC B-84184EN Remote Motion Interface Operator's Manual |
 | abb_rws1 | abb/rws.py | ABB Robot Web Services 1.0 (RobotWare 6) |
 | abb_rws2 | abb/rws.py | ABB Robot Web Services 2.0 (RobotWare 7) |
-| techman | (not yet) | TMflow Listen Node and Ethernet Slave |
+| techman | techman/tmflow.py | Techman Listen Node manual (I848); TMflow Ethernet Slave table |
 | yaskawa_hses | (not yet) | Yaskawa High Speed Ethernet Server |
 | ur_rtde | ur/rtde.py | UR RTDE Guide (30004) and the secondary client interface (30002) |
 

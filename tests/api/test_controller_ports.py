@@ -173,7 +173,9 @@ def test_a_protocol_without_its_connector_yet_is_501_and_nothing_is_sent_or_reco
     from app.vendors.registry import has_connector
 
     robot = api.robot()
-    tool = api.tool(robot["id"], "torch")
+    # slot 1: a tool every protocol can address (Yaskawa numbers its tools 0-63), so the
+    # answer is about the connector, not the tool's place
+    tool = api.tool(robot["id"], "torch", slot=1)
     api.manual(tool["id"], [0.0, 0.0, 150.0])
     missing = [p for p in REAL_PORTS if not has_connector(p)]
     if not missing:

@@ -4,17 +4,19 @@
 |---|---|
 | text.py | TMscript ``ChangeTCP({X,Y,Z,RX,RY,RZ},mass)`` and its reader |
 | file.py | TMscript lines, one ChangeTCP per tool, for a Script or SET node |
+| tmflow.py | the connector: the Listen Node (ChangeTCP) and the Ethernet Slave (the data table) |
 
 No tool numbers (TCPs are named in TMflow's TCP list). X Y Z RX RY RZ are taken as
 app.vendors.wpr's fixed-axis convention.
 
 Protocol: ``techman`` (TMflow's Listen Node, ChangeTCP, and Ethernet Slave, the data table;
-TCP); its connector is not written yet.
+TCP 5890 and 5891): it writes the robot's one live TCP, scope "live" (the next project start
+sets its own TCP).
 """
 
 from __future__ import annotations
 
-from app.vendors.maker import FileModule, LiveTcp, Maker, TextModule, WireProtocol
+from app.vendors.maker import FileModule, LiveTcp, Maker, OpenSession, TextModule, WireProtocol
 
 
 def _text() -> TextModule:
@@ -29,11 +31,17 @@ def _file() -> FileModule:
     return file
 
 
+def _tmflow() -> OpenSession:
+    from app.vendors.techman.tmflow import TechmanConnector
+
+    return TechmanConnector
+
+
 #: TMflow: Listen Node (TCP, ChangeTCP) and Ethernet Slave (TCP, the data table).
 TMFLOW = WireProtocol(
     "techman",
     LiveTcp("current TCP"),
-    None,
+    _tmflow,
     services=(("listen_node", 5890), ("ethernet_slave", 5891)),
 )
 
