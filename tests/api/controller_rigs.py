@@ -16,6 +16,8 @@ judge with themselves):
   composes them): R = Rz(Rz) Ry(Ry) Rx(Rx), the product FANUC's W P R make.
 - UR ``p[x, y, z, rx, ry, rz]`` (URScript manual, "Pose"): metres and a rotation vector
   (axis times angle, rad); the pendant shows x, y, z in mm, which `native` follows.
+- Techman RX, RY, RZ (TMflow's Euler angles about the fixed X, Y, Z axes, as Techman's
+  tm_driver composes them with setRPY): R = Rz(RZ) Ry(RY) Rx(RX).
 Each product is composed from single-axis rotations as the documents write it; the angles
 of a rotation are scipy's Euler angles for that product, checked against it."""
 
@@ -33,11 +35,22 @@ from scipy.spatial.transform import Rotation
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.kuka_sim import KukaSimulator
+from tests.controllers.techman_sim import TechmanSimulator
 from tests.controllers.ur_sim import UrSimulator
 from tests.controllers.yaskawa_sim import YaskawaSimulator
 
 #: Every protocol, each with its simulator.
-PROTOCOLS = ["kuka_kvp", "fanuc_rmi", "abb_rws1", "abb_rws2", "yaskawa_hses", "ur_rtde"]
+PROTOCOLS = [
+    "kuka_kvp",
+    "fanuc_rmi",
+    "abb_rws1",
+    "abb_rws2",
+    "yaskawa_hses",
+    "ur_rtde",
+    "techman",
+]
+#: The protocols whose deployment writes the robot's one live TCP (contract v1.3 scope).
+LIVE_PROTOCOLS = {"ur_rtde", "techman"}
 TIMEOUT_S = 1.0
 SLOT = 3
 SYMBOL = "T_ROB1/user/tTorch"
@@ -82,12 +95,22 @@ def fanuc_rotation(w: float, p: float, r: float) -> Rotation:
     )
 
 
+def techman_rotation(rx: float, ry: float, rz: float) -> Rotation:
+    """R = Rz(RZ) Ry(RY) Rx(RX), degrees."""
+    return (
+        Rotation.from_euler("z", rz, degrees=True)
+        * Rotation.from_euler("y", ry, degrees=True)
+        * Rotation.from_euler("x", rx, degrees=True)
+    )
+
+
 #: protocol -> (the rotation of its three angles, scipy's name for the same product:
 #: upper case intrinsic, lower case about fixed axes)
 ANGLES = {
     "kuka_kvp": (kuka_rotation, "ZYX"),
     "fanuc_rmi": (fanuc_rotation, "xyz"),
     "yaskawa_hses": (fanuc_rotation, "xyz"),
+    "techman": (techman_rotation, "xyz"),
 }
 
 
@@ -98,6 +121,11 @@ class Rig:
     protocol: str
     sim: Any
     tool_fields: dict[str, Any]
+
+    @property
+    def scope(self) -> str:
+        """Where a deployment holds: "live" (the robot's one live TCP) or "stored"."""
+        return "live" if self.protocol in LIVE_PROTOCOLS else "stored"
 
     def controller_body(self, **extra: Any) -> dict[str, Any]:
         """The PUT /v1/robots/{id}/controller body that reaches the simulator."""
@@ -110,6 +138,11 @@ class Rig:
             body["ports"] = {"robot": self.sim.robot_port, "file": self.sim.file_port}
         elif self.protocol == "ur_rtde":
             body["ports"] = {"rtde": self.sim.rtde_port, "secondary": self.sim.secondary_port}
+        elif self.protocol == "techman":
+            body["ports"] = {
+                "listen_node": self.sim.listen_node_port,
+                "ethernet_slave": self.sim.ethernet_slave_port,
+            }
         else:
             body["port"] = self.sim.port
         if self.protocol.startswith("abb"):
@@ -120,10 +153,13 @@ class Rig:
     def native(self) -> list[float]:
         """The tool data as the controller holds it, in its own convention: KUKA X Y Z A B C,
         FANUC X Y Z W P R, ABB trans and rot (a quaternion q1..q4), UR x y z (mm) and the
-        rotation vector (rad) of tcp_offset, the live TCP."""
+        rotation vector (rad) of tcp_offset, the live TCP, Techman the current TCP's X Y Z RX
+        RY RZ."""
         if self.protocol == "ur_rtde":
             pose = self.sim.tcp()
             return [*(v * 1000.0 for v in pose[:3]), *pose[3:]]
+        if self.protocol == "techman":
+            return [float(v) for v in self.sim.current_tcp()[1].values]
         if self.protocol.startswith("abb"):
             held = self.sim.tool(SYMBOL)
             return [*map(float, held.trans), *map(float, held.rot)]
@@ -160,10 +196,12 @@ class Rig:
         return self.native()[:3], [float(w), float(x), float(y), float(z)]
 
     def set_behind_back(self, position_mm: list[float], quaternion: list[float]) -> None:
-        """The operator types a frame into the pendant."""
+        """The operator types a frame into the pendant (Techman: the project sets its TCP)."""
         native = self.native_of(position_mm, quaternion)
         if self.protocol == "ur_rtde":
             self.sim.pendant_set_tcp([*(v / 1000.0 for v in native[:3]), *native[3:]])
+        elif self.protocol == "techman":
+            self.sim.set_current_tcp(tuple(native))
         elif self.protocol.startswith("abb"):
             self.sim.set_tool(SYMBOL, tuple(native[:3]), tuple(native[3:]))
         elif self.protocol == "yaskawa_hses":
@@ -196,6 +234,8 @@ def rig(protocol: str) -> Iterator[Rig]:
         sim, fields = YaskawaSimulator(transfer_timeout_s=0.3), {"slot": SLOT}
     elif protocol == "ur_rtde":
         sim, fields = UrSimulator(), {}  # one live TCP, written by value
+    elif protocol == "techman":
+        sim, fields = TechmanSimulator(), {}
     else:
         sim = AbbRwsSimulator(version=1 if protocol == "abb_rws1" else 2)
         fields = {"controller_symbol": SYMBOL}

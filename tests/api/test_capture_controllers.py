@@ -110,6 +110,21 @@ class YaskawaCell(Cell):
         self.rig.sim.moving_per_read = mm_per_read
 
 
+class TechmanCell(Cell):
+    """The project moves by an oriented TCP it set itself; Coord_Robot_Flange is the flange
+    in the robot base whatever base the project works in."""
+
+    def __init__(self, r: Rig) -> None:
+        super().__init__(r)
+        r.sim.set_current_tcp((*TRUE_TCP, 20.0, -10.0, 5.0), mass=1.5)
+
+    def place(self, rotation: np.ndarray, position: np.ndarray) -> None:
+        self.rig.sim.set_flange(tuple(float(v) for v in position), rotation)
+
+    def set_moving(self, mm_per_read: float) -> None:
+        self.rig.sim.moving_per_read = mm_per_read
+
+
 class UrCell(Cell):
     """The robot moves by a TCP set at the pendant (an oriented tcp_offset): RTDE's
     actual_TCP_pose is that TCP, not the flange (UR has no base frame to move by)."""
@@ -135,6 +150,7 @@ SETUPS: dict[str, Callable[[Rig], Cell]] = {
     "abb_rws2": AbbCell,
     "yaskawa_hses": YaskawaCell,
     "ur_rtde": UrCell,
+    "techman": TechmanCell,
 }
 
 

@@ -32,6 +32,8 @@ STAGES = [
     ("abb_rws2", "POST /rw/rapid/symbol/RAPID/T_ROB1/user/tTorch/data"),
     ("ur_rtde", "RTDE_CONTROL_PACKAGE_SETUP_OUTPUTS"),
     ("ur_rtde", "script"),
+    ("techman", "TMSVR 12"),
+    ("techman", "ChangeTCP"),
 ]
 
 
@@ -59,10 +61,17 @@ def _deploy(api: Api, tool_id: str) -> Any:
 
 def _settled(r: Rig) -> None:
     """The simulator has seen the failed session's connection close (FANUC serves one RMI
-    session at a time and frees it when the connection closes)."""
+    session at a time and frees it when the connection closes; a Techman Listen node serves
+    one client until it leaves)."""
     deadline = time.monotonic() + 2
-    while getattr(r.sim, "session_open", False) and time.monotonic() < deadline:
+    while _held(r) and time.monotonic() < deadline:
         time.sleep(0.01)
+
+
+def _held(r: Rig) -> bool:
+    if r.protocol == "techman":
+        return bool(r.sim.listen_node_clients())
+    return bool(getattr(r.sim, "session_open", False))
 
 
 @pytest.mark.parametrize(("protocol", "stage"), STAGES)
@@ -80,6 +89,7 @@ def test_a_deploy_that_stalls_answers_within_the_timeout_and_the_next_one_succee
         assert elapsed < TIMEOUT_S + 1, elapsed
         r.sim.stalled = False  # the controller answers again
         _settled(r)
+        assert not _held(r), "the failed session still holds the controller"
         _allow(api, robot_id, r, NEXT_TIMEOUT_S)
         done = _deploy(api, tool_id)
         assert done.status_code == 201, done.text
@@ -176,3 +186,42 @@ def test_get_of_a_controller_not_set_is_404_no_controller(api: Api) -> None:
     deploy = _deploy(api, tool["id"])
     assert deploy.status_code == 409
     assert deploy.json()["type"].endswith("/no-controller")
+
+
+def test_a_techman_robot_says_what_to_do_and_no_answer_holds_a_secret(
+    api: Api, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A project not waiting in its Listen node refuses the script ($CPERR F1): nothing was
+    written, and the answer says to let the flow reach the node; no project running refuses
+    the connection: the answer says to start one. A password stored for the controller (a
+    Listen node and an Ethernet Slave take none) is in no answer, audit event or log line."""
+    secret = "tm-Pa55-not-to-be-seen-1c9e"
+    with rig("techman") as r:
+        caplog.set_level("DEBUG")
+        robot_id, tool_id = _setup(api, r, password=secret)
+        texts = [api.get(f"/v1/robots/{robot_id}/controller").text]
+        r.sim.leave_listen_node()
+        refused = _deploy(api, tool_id)
+        assert refused.status_code == 502, refused.text
+        problem = refused.json()
+        assert problem["type"].endswith("/controller-refused")
+        assert problem["deployment_status"] == "not_written"
+        assert "$CPERR F1" in problem["controller_message"]
+        assert "reach its Listen node" in problem["detail"]
+        r.sim.stop_project()
+        stopped = _deploy(api, tool_id)
+        assert stopped.status_code == 502, stopped.text
+        assert stopped.json()["deployment_status"] == "not_written"
+        assert "no project is running" in stopped.json()["detail"]
+        assert "Play" in stopped.json()["detail"]
+        r.sim.start_project()
+        done = _deploy(api, tool_id)
+        assert done.status_code == 201, done.text
+        assert done.json()["scope"] == "live"
+        texts += [refused.text, stopped.text, done.text]
+        texts.append(api.post(f"/v1/robots/{robot_id}/reconcile", scope="read").text)
+        texts.append(api.get(f"/v1/robots/{robot_id}/controller/pose", scope="calibrate").text)
+        texts.append(api.get(f"/v1/tools/{tool_id}/deployments").text)
+        texts.append(api.get("/v1/audit", params={"robot_id": robot_id}, scope="admin").text)
+        texts.append(caplog.text)
+    assert all(secret not in t for t in texts)

@@ -12,14 +12,14 @@ from scipy.spatial.transform import Rotation
 from sqlalchemy import text
 
 from app.db import get_engine
-from tests.api.controller_rigs import PROTOCOLS, SLOT, TIMEOUT_S, Rig, rig
+from tests.api.controller_rigs import LIVE_PROTOCOLS, PROTOCOLS, SLOT, TIMEOUT_S, Rig, rig
 from tests.api.controller_rigs import secret_key as secret_key  # autouse: ABB passwords
 from tests.conftest import Api
 from tests.controllers.helpers import angle_between_deg
 from tests.controllers.simbase import go_silent
 
 #: Protocols whose robot moves by one live TCP (contract v1.3 deployment scope "live").
-LIVE_SCOPE = {"ur_rtde"}
+LIVE_SCOPE = LIVE_PROTOCOLS
 ACTIVE_POSITION = [12.5, -3.25, 187.125]
 ACTIVE_Q = [
     float(v) for v in np.roll(Rotation.from_euler("ZYX", [30, -20, 10], degrees=True).as_quat(), 1)
@@ -372,12 +372,14 @@ WRITE_REQUEST = {
     # the controller applies a loaded TOOL.CND at its last block
     "yaskawa_hses": "load TOOL.CND last block",
     "ur_rtde": "script",  # the set_tcp program on the secondary interface
+    "techman": "ChangeTCP",
 }
 #: The last request before the write, and which time it comes in a deployment. KUKA reads
 #: $LOAD_DATA for `previous` and again for the load members it keeps; ABB reads the tooldata
 #: for `previous` and again for the robhold and load it keeps. FANUC RMI sends nothing
-#: between its read of `previous` and the write, so that controller stops at the read; UR
-#: asks nothing after RTDE starts its data, so that one stops at the start.
+#: between its read of `previous` and the write, so that controller stops at the read (so does
+#: Techman's: a tool with a load writes it, and reads no TCP_Mass to keep); UR asks nothing
+#: after RTDE starts its data, so that one stops at the start.
 BEFORE_WRITE = {
     "kuka_kvp": (f"read $LOAD_DATA[{SLOT}]", 2),
     "fanuc_rmi": ("FRC_ReadUToolData", 1),
@@ -386,6 +388,7 @@ BEFORE_WRITE = {
     # the load's request: no data has left yet (the file goes in the blocks after it)
     "yaskawa_hses": ("load TOOL.CND", 1),
     "ur_rtde": ("RTDE_CONTROL_PACKAGE_START", 1),
+    "techman": ("TMSVR 12", 1),
 }
 NOT_CONFIRMED = (
     "written, not confirmed: the controller may hold v1 or what it held before; "
@@ -463,7 +466,7 @@ def test_a_controller_silent_before_the_write_is_not_written_and_keeps_its_frame
     problem = _failed_deploy(api, tool_id, "not_written")
     r.assert_holds(PREVIOUS_POSITION, PREVIOUS_Q)  # untouched
     [dep] = _deployments(api, tool_id)
-    if r.protocol in ("fanuc_rmi", "ur_rtde"):
+    if r.protocol in ("fanuc_rmi", "ur_rtde", "techman"):
         assert dep["previous"] is None  # it stopped at or before that read
     else:
         np.testing.assert_allclose(dep["previous"]["position_mm"], PREVIOUS_POSITION, atol=1e-3)

@@ -355,3 +355,46 @@ def test_yaskawa_moves_by_the_tool_number_its_position_read_reports(api: Api) ->
         assert row["live"]["state"] == "unknown"
         assert row["attention"] == ["moving_by_unknown_tcp"]
         assert [e["number"] for e in _live_events(robot_id)] == [SLOT, SLOT, 1]
+
+
+def test_techman_moves_by_its_current_tcp_and_a_project_start_sets_its_own(
+    watching: float, api: Api
+) -> None:
+    """A TM robot moves by its current TCP (TCP_Value), which a deployment sets for the
+    running project only (scope live): the next project start sets the TCP the project was
+    written with. Here that is v1's values, a TCP of the robot's list named "torch_v1": the
+    next round flags the robot as moving by the stale v1, and the pose read names it."""
+    with rig("techman") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id, tool_id = ids["robot"]["id"], ids["tool"]["id"]
+        deployed = api.post(f"/v1/tools/{tool_id}/deployments", {}, scope="calibrate")
+        assert deployed.status_code == 201, deployed.text
+        assert (deployed.json()["scope"], deployed.json()["target"]) == ("live", "current TCP")
+
+        def live_is(state: str) -> bool:
+            return bool(_rows(api, robot_id)["t1"]["live"]["state"] == state)
+
+        wait_for(lambda: live_is("active"), 2 * watching + 1.0, "moving by the active v2")
+        row = _rows(api, robot_id)["t1"]
+        assert (row["live"]["version"], row["live"]["tool_id"]) == (2, tool_id)
+        assert row["controller"]["state"] == "in_sync"
+        assert row["attention"] == []
+        r.sim.add_tcp("torch_v1", tuple(r.native_of(PREVIOUS_POSITION, PREVIOUS_Q)))
+        r.sim.project_tcp = "torch_v1"
+        r.sim.start_project()  # the operator presses Play: the project sets its own TCP
+        started = time.monotonic()
+        wait_for(lambda: live_is("stale_version"), watching + 2.0, "moving by v1")
+        took = time.monotonic() - started
+        assert took <= watching + 1.0, took  # the next round, plus its read
+        row = _rows(api, robot_id)["t1"]
+        assert row["live"]["version"] == 1
+        assert row["controller"]["state"] == "drifted"  # the live TCP is not the active v2
+        assert row["attention"] == ["controller_drifted", "moving_by_stale_version"]
+        pose = api.get(f"/v1/robots/{robot_id}/controller/pose", scope="calibrate")
+        assert pose.status_code == 200, pose.text
+        live = pose.json()["live_tool"]
+        assert live["number"] is None  # a TM robot's TCP has a name, not a number
+        assert live["matches"] == [{"tool_id": tool_id, "version": 1, "active": False}]
+        assert pose.json()["readings"]["TCP_Name"] == '"torch_v1"'
+        events = _live_events(robot_id)
+        assert events[-1]["matches"] == [{"tool_id": tool_id, "version": 1, "active": False}]

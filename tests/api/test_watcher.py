@@ -44,15 +44,21 @@ def _row(api: Api, robot_id: str) -> dict[str, object]:
     return dict(api.get("/v1/tools", params={"robot_id": robot_id}).json()["items"][0])
 
 
-@pytest.mark.parametrize("protocol", ["kuka_kvp", "yaskawa_hses"])
+@pytest.mark.parametrize("protocol", ["kuka_kvp", "yaskawa_hses", "techman"])
 def test_the_watcher_finds_drift_within_two_intervals_and_records_it_once(
     watching: float, api: Api, protocol: str
 ) -> None:
+    """KUKA, Yaskawa: the pendant edits the tool's frame; Techman: the project (a SET node,
+    the pendant) sets its current TCP to other values after tcpcal deployed the tool to it."""
     with rig(protocol) as r:
         ids = _setup(api, r)
         tool_id, robot_id = ids["tool"]["id"], ids["robot"]["id"]
-        r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)  # the controller holds the active TCP
-        r.sim.select_tool(SLOT)  # and the robot moves by it
+        if r.scope == "live":  # the robot's one live TCP is the tool once it is deployed
+            deployed = api.post(f"/v1/tools/{tool_id}/deployments", {}, scope="calibrate")
+            assert deployed.status_code == 201, deployed.text
+        else:
+            r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)  # the controller holds the active TCP
+            r.sim.select_tool(SLOT)  # and the robot moves by it
         _wait_for(api, robot_id, "in_sync", 2 * watching)
         ready = api.client.get("/ready").json()["watcher"]
         assert ready["enabled"] is True
@@ -75,13 +81,14 @@ def test_the_watcher_finds_drift_within_two_intervals_and_records_it_once(
         assert _count(tool_id, "controller.unreachable") == 1
 
 
+@pytest.mark.parametrize("protocol", ["kuka_kvp", "techman"])
 def test_the_watcher_settles_an_unverified_deployment_at_its_next_round(
-    watching: float, api: Api
+    watching: float, api: Api, protocol: str
 ) -> None:
-    with rig("kuka_kvp") as r:
+    with rig(protocol) as r:
         ids = _setup(api, r)
         tool_id = ids["tool"]["id"]
-        r.sim.fault = go_silent("after", WRITE_REQUEST["kuka_kvp"])
+        r.sim.fault = go_silent("after", WRITE_REQUEST[protocol])
         failed = api.post(f"/v1/tools/{tool_id}/deployments", {}, scope="calibrate")
         assert failed.json()["deployment_status"] == "unverified", failed.text
         r.sim.stalled = False  # the controller back

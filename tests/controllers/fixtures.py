@@ -70,6 +70,22 @@ def techman_sim() -> Iterator[TechmanSimulator]:
         yield sim
 
 
+def techman_settings(
+    sim: TechmanSimulator, *, timeout_s: float = SIM_TIMEOUT_S
+) -> ControllerSettings:
+    """How to reach `sim` as a techman controller: its Listen Node and Ethernet Slave, each
+    on its own port (`port` is the main service's, the Listen Node)."""
+    return ControllerSettings(
+        protocol="techman",
+        host=sim.host,
+        port=sim.listen_node_port,
+        username=None,
+        password=None,
+        timeout_s=timeout_s,
+        ports={"listen_node": sim.listen_node_port, "ethernet_slave": sim.ethernet_slave_port},
+    )
+
+
 @pytest.fixture
 def abb_rws1_sim() -> Iterator[AbbRwsSimulator]:
     """RobotWare 6 Robot Web Services (HTTP, Digest; user "Default User", "robotics")."""

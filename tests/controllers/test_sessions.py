@@ -25,6 +25,7 @@ from app.vendors.connector import (
 from app.vendors.fanuc import rmi as fanuc_rmi
 from app.vendors.kuka import kvp as kuka_kvp
 from app.vendors.registry import connect
+from app.vendors.techman import tmflow as techman_tmflow
 from app.vendors.tool import ToolData
 from tests.controllers.abb_sim import AbbRwsSimulator
 from tests.controllers.fanuc_sim import FanucSimulator
@@ -32,12 +33,14 @@ from tests.controllers.fixtures import (
     abb_settings,
     fanuc_settings,
     kuka_settings,
+    techman_settings,
     ur_settings,
     yaskawa_settings,
 )
 from tests.controllers.helpers import random_tool
 from tests.controllers.kuka_sim import KukaSimulator
 from tests.controllers.simbase import go_silent
+from tests.controllers.techman_sim import TechmanSimulator
 from tests.controllers.ur_sim import UrSimulator
 from tests.controllers.yaskawa_sim import YaskawaSimulator
 
@@ -45,7 +48,7 @@ from tests.controllers.yaskawa_sim import YaskawaSimulator
 # (for ABB httpx, and httpcore and cryptography at its first client: 0.5 s here idle, over
 # 2 s with two suites beside) is the process's start-up, not an attempt's, and landed inside
 # the first ABB test's timing (2.7-2.8 s for a 0.5 s timeout).
-CONNECTORS = (kuka_kvp, fanuc_rmi, abb_rws)
+CONNECTORS = (kuka_kvp, fanuc_rmi, abb_rws, techman_tmflow)
 httpx.Client().close()
 
 TIMEOUT_S = 0.5
@@ -79,6 +82,9 @@ STAGES = [
     ("ur_rtde", "RTDE_REQUEST_PROTOCOL_VERSION"),
     ("ur_rtde", "RTDE_CONTROL_PACKAGE_START"),
     ("ur_rtde", "script"),
+    ("techman", "TMSVR 12"),
+    ("techman", "ChangeTCP"),
+    ("techman", "TMSTA 01"),
 ]
 
 
@@ -99,6 +105,9 @@ def simulator(protocol: str, timeout_s: float) -> Iterator[tuple[Any, Controller
     elif protocol == "ur_rtde":
         with UrSimulator() as sim:
             yield sim, ur_settings(sim, timeout_s=timeout_s)
+    elif protocol == "techman":
+        with TechmanSimulator() as sim:
+            yield sim, techman_settings(sim, timeout_s=timeout_s)
     else:
         with AbbRwsSimulator(1 if protocol == "abb_rws1" else 2) as sim:
             yield sim, abb_settings(sim, timeout_s=timeout_s)
@@ -120,10 +129,17 @@ def deploy(settings: ControllerSettings, target: ToolTarget, data: ToolData) -> 
 
 def settle(sim: Any) -> None:
     """Wait until the simulator has seen the failed session's connection close (FANUC
-    serves one RMI session at a time and frees it when the connection closes)."""
+    serves one RMI session at a time and frees it when the connection closes; so does a
+    Techman Listen node its client)."""
     deadline = time.monotonic() + 2
-    while getattr(sim, "session_open", False) and time.monotonic() < deadline:
+    while _held(sim) and time.monotonic() < deadline:
         time.sleep(0.01)
+
+
+def _held(sim: Any) -> bool:
+    if isinstance(sim, TechmanSimulator):
+        return sim.listen_node_clients() > 0
+    return bool(getattr(sim, "session_open", False))
 
 
 @pytest.mark.parametrize(("protocol", "stage"), STAGES)
@@ -147,6 +163,7 @@ def test_a_stall_anywhere_fails_the_whole_attempt_within_the_timeout_and_leaves_
         # (ABB: edit mastership and the RWS session; FANUC: the RMI session).
         sim.stalled = False
         settle(sim)
+        assert not _held(sim), "the failed session still holds the controller"
         back = deploy(settings, target, data)
         assert back.position_mm == pytest.approx(data.position_mm, abs=1e-3)
         if protocol.startswith("abb"):
@@ -163,6 +180,7 @@ def test_a_stall_anywhere_fails_the_whole_attempt_within_the_timeout_and_leaves_
         ("abb_rws2", 0.11),
         ("yaskawa_hses", 0.01),
         ("ur_rtde", 0.2),
+        ("techman", 0.2),
     ],
 )
 def test_a_slow_controller_fails_the_attempt_at_its_timeout_not_each_steps(
