@@ -128,16 +128,27 @@ def test_outside_the_listen_node_the_write_is_refused_saying_what_to_do(
     assert techman_sim.current_tcp()[1].values == (0.0,) * 6
 
 
+@pytest.mark.parametrize(
+    ("table", "state"),
+    [
+        ("all", "no project is running"),
+        ("without Project_Run", "no project is running, or the running one has no Listen node"),
+    ],
+)
 def test_no_project_running_is_a_refusal_before_anything_is_sent(
-    techman_sim: TechmanSimulator,
+    techman_sim: TechmanSimulator, table: str, state: str
 ) -> None:
+    if table != "all":
+        techman_sim.data_table.discard("Project_Run")
     techman_sim.stop_project()
     with connect(settings(techman_sim)) as tm:
         assert tm.read_tool(LIVE).position_mm == (0.0, 0.0, 0.0)  # reads need no project
         with pytest.raises(ControllerRefused) as refused:
             tm.write_tool(LIVE, random_tool(2, load=False))
     assert not refused.value.write_sent
-    assert "no project is running" in str(refused.value)
+    assert f"Listen Node at 127.0.0.1:{techman_sim.listen_node_port}: {state};" in str(
+        refused.value
+    )
     assert "Play" in str(refused.value)
 
 

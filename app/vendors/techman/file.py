@@ -9,6 +9,16 @@ tool, each under a comment naming it).
 What it changes, and how the controller merges it: a ChangeTCP line, when the flow runs it,
 sets the current TCP (and mass) of the running project, until the project sets another one;
 the TCP list (the tools stored on the controller) is untouched. Its header comment says so.
+
+How it relates to a deployment (the ``techman`` connector, app.vendors.techman.tmflow): a
+deployment sends the same ChangeTCP, through the Listen Node, to the project running now,
+with the tool's mass (and its centre of gravity when tcpcal has the tool's load), and reads
+the current TCP back: scope "live", it lasts until the next project start sets the TCP the
+project was written with. This file's line is how the project itself sets the calibrated
+TCP at its start (pasted into a SET or Script node before the motions that use the tool),
+so that the calibration outlives a restart; the reconcile rounds show which TCP the robot
+moves by either way. A tool re-calibrated later needs its line pasted again (a deployment
+does not change the project).
 """
 
 from __future__ import annotations

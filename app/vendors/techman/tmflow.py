@@ -377,8 +377,7 @@ class TechmanConnector(ClosingSession):
         except ControllerUnreachable as err:
             if not isinstance(err.__cause__, ConnectionRefusedError):
                 raise
-            running = self._read_items(("Project_Run",))[0]["Project_Run"]
-            state = "no project is running" if running is False else "no Listen node listens"
+            state = self._why_no_listen_node()
             raise ControllerRefused(
                 f"the robot refused a connection to its Listen Node at {host}:{port}: {state}",
                 controller_message=f"connection refused ({state})",
@@ -386,6 +385,16 @@ class TechmanConnector(ClosingSession):
             ) from err
         self._node = _Channel(sock, f"TMflow Listen Node at {host}:{port}")
         return self._node
+
+    def _why_no_listen_node(self) -> str:
+        """Why nothing listens on the Listen Node's port, as far as the data table tells."""
+        try:
+            running = self._read_items(("Project_Run",))[0]["Project_Run"]
+        except ControllerRefused:  # Project_Run not in the Ethernet Slave's data table
+            return "no project is running, or the running one has no Listen node"
+        if running is False:
+            return "no project is running"
+        return "the running project has no Listen node listening"
 
     def _node_packet(self, node: _Channel, wanted: str) -> str:
         """The data of the next `wanted` packet ($TMSCT or $TMSTA) on the Listen Node; a
