@@ -43,10 +43,14 @@ from sqlalchemy import text
 from app.auth import Principal
 from app.config import get_settings
 from app.db import get_engine, is_sqlite
+from app.errors import ConnectorMissing
+from app.logs import get_logger
 from app.models import utcnow
 from app.services.reconcile import reconcile_robot, robots_with_controller
 
 log = logging.getLogger("tcpcal.watcher")
+#: The same logger's structured lines (an event and its fields).
+events = get_logger("tcpcal.watcher")
 
 #: Who the watcher's audit events name.
 WATCHER = Principal(key_id="watcher", name="watcher", scope="read")
@@ -217,6 +221,8 @@ class Watcher:
         self._pool = ReadPool(size, self._reconcile)
         #: The fleet lock while this watcher holds it (across rounds while reads are in flight)
         self._lock: ExitStack | None = None
+        #: Robots whose protocol this tcpcal has no connector for, warned of once each
+        self._no_connector: set[str] = set()
 
     def document(self) -> dict[str, object]:
         """The watcher's state for /ready, with the reads now in flight."""
@@ -298,6 +304,12 @@ class Watcher:
             reconcile_robot(
                 robot_id=robot_id, actor=WATCHER, trigger="watcher", cancelled=self._stop.is_set
             )
+        except ConnectorMissing as exc:  # stored for a later tcpcal: not a fault of this one
+            self.status.last_error = f"robot {robot_id}: {exc}"
+            if robot_id not in self._no_connector:
+                self._no_connector.add(robot_id)
+                events.warning("watcher.no_connector", robot_id=robot_id, detail=str(exc))
+            return
         except Exception as exc:  # one robot's failure must not stop the others
             self.status.last_error = f"robot {robot_id}: {type(exc).__name__}: {exc}"
             log.exception("watcher could not reconcile robot %s", robot_id)

@@ -280,3 +280,43 @@ def test_another_process_holding_the_sqlite_lock_keeps_this_one_out(api: Api, db
         holder.wait()
     with fleet_lock() as taken:
         assert taken is True
+
+
+def test_a_robot_without_its_connector_is_one_warning_line_not_a_traceback_each_round(
+    api: Api, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A stored controller whose protocol this tcpcal has no connector for (501
+    /no-connector): every round logged its full traceback, one every interval for as long
+    as it stayed. One warning line names the robot and the protocol, the first round it is
+    met; the other robots are reconciled as before."""
+    import logging
+
+    from app.watcher import Watcher
+
+    # ur_rtde as if this tcpcal had no connector for it (the gate settings_of keeps)
+    monkeypatch.setattr(
+        "app.services.controllers.has_connector", lambda protocol: protocol != "ur_rtde"
+    )
+    caplog.set_level(logging.INFO, logger="tcpcal.watcher")
+    with rig("kuka_kvp") as r:
+        reached = _setup(api, r)["robot"]["id"]
+        missing = api.robot("ur10e")["id"]
+        body = {"protocol": "ur_rtde", "host": "127.0.0.1", "ports": {"rtde": 1, "secondary": 2}}
+        put = api.request("PUT", f"/v1/robots/{missing}/controller", "admin", json=body)
+        assert put.status_code == 200, put.text
+        watcher = Watcher(5.0)
+        try:
+            for _ in range(3):
+                watcher.round()
+        finally:
+            watcher.stop()
+        assert watcher.status.rounds == 3
+        assert _row(api, reached)["controller"] is not None  # the other robot was read
+    lines = [rec for rec in caplog.records if rec.name == "tcpcal.watcher"]
+    assert [(rec.levelname, rec.exc_info) for rec in lines] == [("WARNING", None)]
+    said = str(lines[0].getMessage())
+    assert "watcher.no_connector" in said
+    assert missing in said
+    assert "ur_rtde" in said
+    assert reached not in said
+    assert "no ur_rtde connector" in str(watcher.status.last_error)
