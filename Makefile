@@ -23,7 +23,7 @@ unexport PYTHONDONTWRITEBYTECODE
 # Only what is imported: `uv pip install --compile-bytecode` compiled all 8,500 modules of the
 # venv (18 s on 2 cores here), plotly's 1,500, pip's and mypy's among them, and none of the
 # rewritten ones. (What these miss is compiled on its first import.)
-WARM_IMPORTS := app.main, app.cli, app.backup, app.publish.runner, app.publish.mqtt, app.publish.opcua_sink, uvicorn, alembic.command, playwright.sync_api, yourdfpy, scipy.stats, scipy.optimize
+WARM_IMPORTS := app.main, app.cli, app.storage.backup, app.publish.runner, app.publish.mqtt, app.publish.opcua_sink, uvicorn, alembic.command, playwright.sync_api, yourdfpy, scipy.stats, scipy.optimize
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet 'uv>=0.5'

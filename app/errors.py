@@ -55,8 +55,8 @@ class DomainError(Exception):
         return f"{type(self).__name__}({self.kind!r}, {self.detail!r}, loc={self.loc!r})"
 
     def __reduce__(self) -> tuple[object, tuple[type[DomainError], dict[str, object]]]:
-        """Picklable with every field, so an error raised in the solver pool (app.solve_pool)
-        reaches the request as it was raised."""
+        """Picklable with every field, so an error raised in the solver pool
+        (app.services.solve_pool) reaches the request as it was raised."""
         return _rebuild, (type(self), dict(self.__dict__))
 
 

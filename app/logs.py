@@ -1,6 +1,6 @@
 """Structured logs with structlog: JSON lines for machines, readable lines on a terminal.
 
-Every line carries the request id of the request it belongs to (app.middleware reads
+Every line carries the request id of the request it belongs to (app.api.middleware reads
 `X-Request-ID` or makes one, echoes it, and leaves it in REQUEST_ID). Uvicorn's and the
 libraries' stdlib logging goes through the same renderer, so an operator's log shipper sees
 one format. Set
@@ -25,7 +25,7 @@ SERVING_ENV = "TCPCAL_SERVING"
 #: The id of the request being served (None outside one), for every log line it causes.
 REQUEST_ID: ContextVar[str | None] = ContextVar("tcpcal.request_id", default=None)
 #: Where the authenticated key's name is left in the ASGI scope for the access line
-#: (app.deps writes it, app.middleware reads it); never the key itself.
+#: (app.api.deps writes it, app.api.middleware reads it); never the key itself.
 KEY_NAME = "tcpcal.key_name"
 
 
@@ -71,12 +71,12 @@ _direct: dict[str, EventLogger] = {
 
 
 def access_logger() -> EventLogger:
-    """The logger of the one access line per request (app.middleware)."""
+    """The logger of the one access line per request (app.api.middleware)."""
     return _direct[ACCESS_LOGGER]
 
 
 def events_logger() -> EventLogger:
-    """The logger of the audit events, one line per committed write (app.services.audit)."""
+    """The logger of the audit events, one line per committed write (app.services.audit.writes)."""
     return _direct[EVENTS_LOGGER]
 
 
@@ -131,7 +131,7 @@ def configure_logging(level: int = logging.INFO) -> None:
     for name in ("uvicorn", "uvicorn.error"):
         logging.getLogger(name).handlers[:] = []
         logging.getLogger(name).propagate = True
-    # One access line per request comes from app.middleware, with the route and key name.
+    # One access line per request comes from app.api.middleware, with the route and key name.
     logging.getLogger("uvicorn.access").disabled = True
 
 

@@ -12,7 +12,7 @@ from fastapi import FastAPI
 from fastapi.routing import APIRoute
 from sqlalchemy.exc import SQLAlchemyError
 
-from app import __version__, solve_pool, watcher
+from app import __version__
 from app.api import (
     audit,
     calibrations,
@@ -32,14 +32,16 @@ from app.api import (
     tools,
     versions,
 )
+from app.api.middleware import BodyLimitMiddleware, HeadAsGetMiddleware, RequestLogMiddleware
+from app.api.openapi import build_openapi
 from app.api.problems import install_error_handlers
-from app.auth import ensure_bootstrap_key
 from app.config import get_settings
-from app.db import get_engine, session_scope
 from app.logs import SERVING_ENV, configure_logging
-from app.middleware import BodyLimitMiddleware, HeadAsGetMiddleware, RequestLogMiddleware
-from app.migrate import current_revision, head_revision
-from app.openapi import build_openapi
+from app.security.auth import ensure_bootstrap_key
+from app.services import solve_pool
+from app.services.controllers import watcher
+from app.storage.db import get_engine, session_scope
+from app.storage.migrate import current_revision, head_revision
 
 log = logging.getLogger("tcpcal")
 #: What each solver process imports as it starts: the solve path of the calibrations and of

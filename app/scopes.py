@@ -1,6 +1,6 @@
 """The scopes of an API key, each including the ones before it: read < calibrate < admin.
 
-Pure Python, so that the request schemas (app.schemas.keys), the key check (app.auth) and
+Pure Python, so that the request schemas (app.schemas.keys), the key check (app.security.auth) and
 the CLI read the one list without importing each other.
 """
 

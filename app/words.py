@@ -5,7 +5,7 @@ What a calibration (and the TCP version it writes), a guided session and a deplo
 what state a tool's controller was found in, what an audit event says was done and to what,
 which method made a version, what kind an activation was, where a touch came from.
 
-Pure Python, so that the stored rows (app.models), the documents (app.schemas) and the
+Pure Python, so that the stored rows (app.storage.models), the documents (app.schemas) and the
 services share the one list of each without importing each other. The controller makers'
 words are here too (`ControllerFormat`, `ProtocolName`): app.vendors.registry lists the makers
 that serve them, and tests/vendors/test_registry.py holds that both say the same words. Key
@@ -52,7 +52,7 @@ ROBOT_STATES: tuple[RobotState, ...] = get_args(RobotState)
 
 #: The pose formats the API takes (the `format` of touches, references and guided sessions);
 #: app.kinematics.poses parses them and reads POSE_FORMATS off this Literal. Written here, not
-#: there, so that the rows (app.models) name it without importing numpy and scipy.
+#: there, so that the rows (app.storage.models) name it without importing numpy and scipy.
 PoseFormat = Literal[
     "matrix",
     "xyz_wxyz",

@@ -35,7 +35,7 @@ from app.kinematics.poses import PoseUnits, pose_to_format
 from app.kinematics.readings import Reading
 from app.methods.requests import SolveRequest
 from app.services.calibrate import solve
-from app.services.contexts import StatelessContext
+from app.services.calibrate.contexts import StatelessContext
 from testbed.sim.touches import Touches, simulate_touches
 
 RESULTS = Path(__file__).resolve().parent / "results"

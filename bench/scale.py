@@ -46,18 +46,12 @@ from typing import Any
 
 from sqlalchemy import Engine, event, insert, select, text
 
-from app.auth import hash_key
-from app.db import make_engine, session_scope
-from app.models import (
-    Activation,
-    AuditEvent,
-    Calibration,
-    Robot,
-    TcpVersion,
-    Tool,
-)
-from app.services import fleet, hot_read, versions
-from app.services.audit import row as audit_row
+from app.security.auth import hash_key
+from app.services.audit.writes import row as audit_row
+from app.services.fleet import fleet
+from app.services.tools import hot_read, versions
+from app.storage.db import make_engine, session_scope
+from app.storage.models import Activation, AuditEvent, Calibration, Robot, TcpVersion, Tool
 from bench.wrk_load import PG_URL, _percentile, _pg_reachable, _wrk, touches_body
 from testbed.live_server import LiveServer, fresh_database, live_server
 

@@ -10,7 +10,7 @@ wall time over all of them, the median CPU time of this process (every thread: c
 loop, worker; what other work on a shared machine disturbs least), and the median wall time
 over the first and the last fifth (a cost that grows with the tool's versions shows as last >
 first). The statements one request sends to the driver are counted and listed (--sql):
-SQLAlchemy's cursor events and app.db's driver reads and writes; BEGIN and COMMIT are not.
+SQLAlchemy's cursor events and app.storage.db's driver reads and writes; BEGIN and COMMIT are not.
 
 `--profile PREFIX` runs each scenario's requests again on a TestClient of their own with
 cProfile in every thread it starts (cProfile sees its own thread only) and writes
@@ -41,7 +41,7 @@ from typing import Any
 
 from sqlalchemy import Engine, event
 
-import app.db as appdb
+import app.storage.db as appdb
 from bench.wrk_load import PG_URL, _pg_reachable, touches_body
 from testbed.databases import fresh_database
 
@@ -87,10 +87,10 @@ def run(backend: str, n: int, tmp: Path, profile: str | None, stmts: Statements)
         os.environ["TCPCAL_SOLVE_PROCESSES"] = "0"
         os.environ.pop("TCPCAL_BOOTSTRAP_ADMIN_KEY", None)
         from app.config import get_settings
-        from app.db import dispose_engines, session_scope
         from app.main import create_app
-        from app.migrate import upgrade
         from app.services.keys import create_key
+        from app.storage.db import dispose_engines, session_scope
+        from app.storage.migrate import upgrade
 
         dispose_engines()
         get_settings.cache_clear()

@@ -42,8 +42,8 @@ from typing import Any
 import httpx
 
 import testbed.live_server as live
-from app import solve_pool
 from app.kinematics.poses import pose_to_format
+from app.services import solve_pool
 from testbed.live_server import fresh_database, live_server
 from testbed.sim.touches import simulate_touches
 

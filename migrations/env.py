@@ -5,8 +5,8 @@ from __future__ import annotations
 from alembic import context
 
 from app.config import get_settings
-from app.db import make_engine
-from app.models import Base
+from app.storage.db import make_engine
+from app.storage.models import Base
 
 config = context.config
 target_metadata = Base.metadata

@@ -15,7 +15,7 @@ from typing import Any
 from sqlalchemy import Connection, create_engine, text
 from sqlalchemy.engine import make_url
 
-from app.models import Base
+from app.storage.models import Base
 
 
 @contextmanager

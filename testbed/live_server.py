@@ -17,9 +17,9 @@ from typing import IO, Any
 
 import httpx
 
-from app.db import make_engine, session_scope
-from app.migrate import upgrade
 from app.services.keys import create_key
+from app.storage.db import make_engine, session_scope
+from app.storage.migrate import upgrade
 from testbed.databases import fresh_database
 
 __all__ = ["LiveServer", "fresh_database", "http_client", "live_server"]

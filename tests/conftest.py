@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
 PG_URL = os.environ.get("TCPCAL_TEST_DATABASE_URL")
 
-# The CLI's rich consoles read COLUMNS once, when app.client is first imported, and a run
+# The CLI's rich consoles read COLUMNS once, when app.cli.client is first imported, and a run
 # without a terminal (CI, xdist workers) otherwise gets 80: tables of ids and names then
 # truncate the very words the CLI tests look for, depending on which test imported it first.
 os.environ.setdefault("COLUMNS", "250")
@@ -69,8 +69,8 @@ def database(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> Iterator[Database]:
     """A migrated database per backend, shared by the tests of the session."""
-    from app.db import dispose_engines
-    from app.migrate import upgrade
+    from app.storage.db import dispose_engines
+    from app.storage.migrate import upgrade
 
     tmp = tmp_path_factory.mktemp("db")
     with fresh_database(request.param, tmp, PG_URL, prefix="tcpcal_test") as url:
@@ -90,7 +90,7 @@ def _use_database(url: str) -> None:
     the same: disposing them after every test made each test connect again (a PostgreSQL
     connection, SQLite's WAL reopened), about 14 ms a test on PostgreSQL and 4 on SQLite."""
     from app.config import get_settings
-    from app.db import dispose_engines
+    from app.storage.db import dispose_engines
 
     get_settings.cache_clear()
     if _engines_for != [url]:
@@ -102,7 +102,7 @@ def _leave_database(url: str) -> None:
     """After a test: close the held connections (the threads that held them are gone with the
     test's app), and every engine if the test pointed the app at another database."""
     from app.config import get_settings
-    from app.db import HELD_CONNECTIONS, dispose_engines
+    from app.storage.db import HELD_CONNECTIONS, dispose_engines
 
     while HELD_CONNECTIONS:
         with contextlib.suppress(Exception):
@@ -124,7 +124,7 @@ def db(database: Database, monkeypatch: pytest.MonkeyPatch) -> Iterator[Database
     monkeypatch.setenv("TCPCAL_SOLVE_PROCESSES", "0")
     _use_database(database.url)
     yield database
-    from app.db import engine_for
+    from app.storage.db import engine_for
 
     with engine_for(database.url).begin() as conn:
         delete_all(conn)
@@ -156,7 +156,7 @@ class Api:
         versions and sessions: 0.3 s each time). A test then starts from the same database it
         would have built itself; whatever it changes is gone before the next. `build` must
         depend on nothing but the api (no parameter, no other fixture's value)."""
-        from app.db import engine_for
+        from app.storage.db import engine_for
 
         engine = engine_for(self.database.url)
         world = self.database.worlds.get(build)
@@ -235,8 +235,8 @@ def api(db: Database) -> Iterator[Api]:
     """The app over an in-process client, with one API key per scope."""
     import warnings
 
-    from app.db import session_scope
     from app.services.keys import create_key
+    from app.storage.db import session_scope
 
     keys = {}
     with session_scope(write=True) as session:

@@ -8,10 +8,10 @@ import pytest
 from sqlalchemy import select
 from typer.testing import CliRunner
 
-from app.auth import hash_key
 from app.cli import cli
-from app.db import session_scope
-from app.models import ApiKey
+from app.security.auth import hash_key
+from app.storage.db import session_scope
+from app.storage.models import ApiKey
 from tests.conftest import Database
 
 
@@ -68,7 +68,7 @@ def test_cli_keys_list_revoke_rotate(db: Database) -> None:
     from fastapi.testclient import TestClient
 
     from app.main import create_app
-    from app.models import AuditEvent
+    from app.storage.models import AuditEvent
 
     runner = CliRunner()
     made = runner.invoke(cli, ["keys", "create", "--scope", "calibrate", "--name", "cell-3"])

@@ -1,6 +1,6 @@
-"""SQLite writers queue across threads and processes (app.db.SqliteWriters), and each process
-keeps one engine per database URL (a solver process stores calibrations through the one it is
-handed)."""
+"""SQLite writers queue across threads and processes (app.storage.db.SqliteWriters), and each
+process keeps one engine per database URL (a solver process stores calibrations through the one it
+is handed)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from sqlalchemy import text
 
-from app.db import (
+from app.storage.db import (
     SqliteWriters,
     dispose_engines,
     engine_for,
@@ -29,7 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 _OTHER_WRITER = """
 import sys, time
 from pathlib import Path
-from app.db import SqliteWriters
+from app.storage.db import SqliteWriters
 writers = SqliteWriters(Path(sys.argv[1]))
 print("waiting", flush=True)
 with writers:

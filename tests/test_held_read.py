@@ -10,7 +10,7 @@ from typing import NamedTuple
 import pytest
 from sqlalchemy import Column, Integer, MetaData, String, Table, bindparam, select
 
-from app.db import HeldRead, make_engine
+from app.storage.db import HeldRead, make_engine
 
 _THINGS = Table(
     "things",

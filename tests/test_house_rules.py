@@ -108,3 +108,20 @@ def test_bench_imports_nothing_of_tests() -> None:
                 if name == "tests" or name.startswith("tests.")
             ]
     assert offenders == []
+
+
+def test_only_the_session_dependency_of_app_api_reaches_storage() -> None:
+    """The contract "routers speak HTTP" lists the modules of app.api by hand, all but
+    app.api.deps (which opens the request's session): a module added to app.api and left off
+    it would be free to import the database."""
+    import tomllib
+
+    pyproject = tomllib.loads((APP.parent / "pyproject.toml").read_text(encoding="utf-8"))
+    contracts = pyproject["tool"]["importlinter"]["contracts"]
+    listed = next(c["source_modules"] for c in contracts if "speak HTTP" in c["name"])
+    modules = [
+        f"app.api.{path.stem}"
+        for path in sorted((APP / "api").glob("*.py"))
+        if path.stem not in ("__init__", "deps")
+    ]
+    assert sorted(listed) == modules

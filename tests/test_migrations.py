@@ -13,9 +13,9 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy import inspect, text
 
-from app.db import make_engine
-from app.migrate import downgrade, head_revision, upgrade
-from app.models import Base
+from app.storage.db import make_engine
+from app.storage.migrate import downgrade, head_revision, upgrade
+from app.storage.models import Base
 from testbed.databases import fresh_database
 from tests.conftest import BACKENDS, PG_URL
 
@@ -52,8 +52,8 @@ def test_ready_is_false_until_migrated(empty_url: str, monkeypatch: pytest.Monke
     from fastapi.testclient import TestClient
 
     from app.config import get_settings
-    from app.db import dispose_engines
     from app.main import create_app
+    from app.storage.db import dispose_engines
 
     monkeypatch.setenv("TCPCAL_DATABASE_URL", empty_url)
     get_settings.cache_clear()

@@ -13,7 +13,6 @@ from typing import Annotated, Literal, Union, get_args, get_origin, get_type_hin
 from pydantic import BaseModel
 from sqlalchemy.orm import Mapped
 
-from app import models
 from app.api.methods import describe
 from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHOD_NAMES, METHODS
@@ -24,8 +23,9 @@ from app.methods.requests import SOLVE_MODELS, CalibrationRequest
 from app.schemas import audit, controllers, fleet, keys, references, results, sessions, tools
 from app.schemas.formats import FormatList
 from app.scopes import Scope
-from app.services.controller_states import EVENT_ACTIONS, SEVERITY
+from app.services.controllers.states import EVENT_ACTIONS, SEVERITY
 from app.solvers.npoint import ALGORITHMS
+from app.storage import models
 from app.words import (
     CONTROLLER_FORMATS,
     ROBOT_STATES,

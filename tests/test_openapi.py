@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from app.api.openapi import openapi_text
 from app.main import create_app
-from app.openapi import openapi_text
 
 SPEC = Path(__file__).resolve().parents[1] / "openapi" / "openapi.json"
 

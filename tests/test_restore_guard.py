@@ -14,7 +14,7 @@ from sqlalchemy import create_engine, text
 from typer.testing import CliRunner
 
 from app.cli import cli
-from app.migrate import upgrade
+from app.storage.migrate import upgrade
 from testbed.databases import fresh_database
 from tests.conftest import BACKENDS, PG_URL
 
@@ -22,7 +22,7 @@ from tests.conftest import BACKENDS, PG_URL
 HOLD = """
 import sys, time
 from sqlalchemy import text
-from app.db import make_engine
+from app.storage.db import make_engine
 engine = make_engine(sys.argv[1])
 with engine.connect() as conn:
     conn.execute(text("SELECT 1")).all()

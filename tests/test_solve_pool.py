@@ -11,10 +11,10 @@ from typing import Any, TypeVar
 
 import pytest
 
-from app import solve_pool
 from app.config import get_settings
 from app.errors import InvalidInput, NotFound
 from app.methods.requests import SOLVE_MODELS
+from app.services import solve_pool
 from app.services.calibrate import solve_detached
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses

@@ -3,7 +3,7 @@
 
 These modules are imported where they are used, not at start: scipy.stats (the solvers take
 their quantiles from scipy.special, app.solvers.distributions), scipy.optimize (the fits; the
-solver processes preload it), alembic and Mako (app.migrate), httpx (the client commands).
+solver processes preload it), alembic and Mako (app.storage.migrate), httpx (the client commands).
 """
 
 from __future__ import annotations
@@ -66,5 +66,7 @@ def test_the_rows_import_no_numeric_core() -> None:
     """The words the rows are typed with are plain data (app.words: pose formats and
     algorithms too), so `tcpcal db upgrade`, a backup and the key check read and write rows
     without importing numpy and scipy."""
-    modules = _imported_by("import app.models, app.migrate, app.backup, app.auth")
+    modules = _imported_by(
+        "import app.storage.models, app.storage.migrate, app.storage.backup, app.security.auth"
+    )
     assert {m.split(".")[0] for m in modules} & {"numpy", "scipy"} == set()

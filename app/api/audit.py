@@ -7,13 +7,13 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Query
 from pydantic import AwareDatetime
 
+from app.api.deps import AdminKey, SessionDep
 from app.api.params import Cursor, Limit, known_query_only
 from app.api.shared import page
-from app.deps import AdminKey, SessionDep
 from app.helpers.pagination import DEFAULT_LIMIT
 from app.schemas.audit import AuditEvent
 from app.schemas.common import ID_PATTERN, NO_CONTROL_PATTERN, Page
-from app.services import trail
+from app.services.audit import reads as trail
 
 router = APIRouter(tags=["audit"])
 

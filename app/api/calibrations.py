@@ -6,14 +6,15 @@ from typing import Annotated
 
 from fastapi import APIRouter, Body, Request, Response
 
+from app.api.deps import HeldCalibrateKey, ReadKey, SessionDep
 from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
 from app.api.shared import page, raw_json_body
-from app.deps import HeldCalibrateKey, ReadKey, SessionDep
 from app.methods import openapi_examples
 from app.methods.requests import CalibrationRequest
 from app.schemas.common import Page
 from app.schemas.results import Calibration, CalibrationDetail
-from app.services import calibrate, submissions
+from app.services import calibrate
+from app.services.calibrate import submissions
 
 router = APIRouter(tags=["calibrations"])
 

@@ -7,12 +7,13 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Response
 from starlette.concurrency import run_in_threadpool
 
+from app.api.deps import AdminKey, HeldCalibrateKey, HeldReadKey, ReadKey, SessionDep
 from app.api.params import PathId
 from app.api.shared import CONTROLLER_FAILURES
-from app.deps import AdminKey, HeldCalibrateKey, HeldReadKey, ReadKey, SessionDep
 from app.errors import NoControllerSet
 from app.schemas.controllers import Controller, ControllerIn, ControllerPose, Reconciliation
-from app.services import capture, controllers, reconcile
+from app.services.controllers import capture, reconcile
+from app.services.robots import connection
 from app.words import PoseFormat
 
 router = APIRouter(tags=["controllers"])
@@ -26,27 +27,27 @@ def put_controller(
     `password` is write-only and stored encrypted under TCPCAL_SECRET_KEY (422 while it is
     unset): left out, the stored one is kept; null removes it. The answer says
     `has_password`, never the password."""
-    controller = controllers.put_controller(
+    controller = connection.put_controller(
         session, robot_id=robot_id, data=body, fields_sent=body.model_fields_set, actor=key
     )
     return Controller.model_validate(
-        controllers.controller_document(controller), from_attributes=True
+        connection.controller_document(controller), from_attributes=True
     )
 
 
 @router.get("/v1/robots/{robot_id}/controller", response_model=Controller)
 def get_controller(robot_id: PathId, session: SessionDep, key: ReadKey) -> Controller:
     """How tcpcal reaches the robot's controller (404 `/no-controller` when it has none)."""
-    controller = controllers.get_controller(session, robot_id, missing=NoControllerSet)
+    controller = connection.get_controller(session, robot_id, missing=NoControllerSet)
     return Controller.model_validate(
-        controllers.controller_document(controller), from_attributes=True
+        connection.controller_document(controller), from_attributes=True
     )
 
 
 @router.delete("/v1/robots/{robot_id}/controller", status_code=204)
 def delete_controller(robot_id: PathId, session: SessionDep, key: AdminKey) -> Response:
     """Forget the robot's controller connection; its deployments stay in the history."""
-    controllers.delete_controller(session, robot_id=robot_id, actor=key)
+    connection.delete_controller(session, robot_id=robot_id, actor=key)
     return Response(status_code=204)
 
 

@@ -7,12 +7,12 @@ from typing import Annotated
 from fastapi import APIRouter, Body, Request, Response
 from starlette.concurrency import run_in_threadpool
 
+from app.api.deps import HeldCalibrateKey, ReadKey, SessionDep
 from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
 from app.api.shared import page, raw_json_body
-from app.deps import HeldCalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.controllers import Deployment, DeploymentIn
-from app.services import deployments
+from app.services.controllers import deployments
 
 router = APIRouter(tags=["deployments"])
 

@@ -7,14 +7,15 @@ from typing import Annotated, TypedDict
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 
+from app.api.deps import ReadKey, SessionDep
 from app.api.params import Cursor, Limit, PathId
 from app.api.shared import page
-from app.deps import ReadKey, SessionDep
 from app.helpers.pagination import DEFAULT_LIMIT, MAX_LIMIT
 from app.schemas.common import ID_PATTERN, NO_CONTROL_PATTERN, Page
 from app.schemas.drift import ToolDrift
 from app.schemas.fleet import CalibrationStatus, CheckRecord, FleetTool
-from app.services import drift, fleet
+from app.services.fleet import fleet
+from app.services.tools import drift
 
 router = APIRouter(tags=["fleet"])
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
+from app.api.deps import ReadKey
 from app.api.shared import all_formats
-from app.deps import ReadKey
 from app.schemas.formats import FormatList
 from app.vendors.registry import FILE_KINDS, TOOL_NUMBERS
 

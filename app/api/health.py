@@ -5,11 +5,11 @@ from __future__ import annotations
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse, PlainTextResponse, Response
 
-from app.deps import ReadKey
-from app.fleet_metrics import FLEET
+from app.api.deps import ReadKey
 from app.metrics import render
 from app.services import readiness
-from app.watcher import watcher_document
+from app.services.controllers.watcher import watcher_document
+from app.services.fleet.collector import FLEET
 
 router = APIRouter(tags=["operations"])
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
+from app.api.deps import AdminKey, ReadKey, SessionDep
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.api.shared import page
-from app.deps import AdminKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.keys import KeyCreate, KeyCreated, KeyMe, KeyOut
 from app.services import keys

@@ -5,8 +5,8 @@ from __future__ import annotations
 from fastapi import APIRouter
 from pydantic import BaseModel
 
+from app.api.deps import ReadKey
 from app.api.shared import all_formats
-from app.deps import ReadKey
 from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHODS
 from app.methods.base import PosesRequired, RegisteredMethod

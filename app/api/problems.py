@@ -17,9 +17,9 @@ from sqlalchemy.exc import IntegrityError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
+from app.api.problem_json import ErrorItem, problem_response
 from app.errors import INPUT_KINDS, Conflict, DomainError, IdempotencyConflict
 from app.methods import METHOD_NAMES
-from app.problem_json import ErrorItem, problem_response
 
 log = logging.getLogger("tcpcal.errors")
 
@@ -148,7 +148,7 @@ _METHODS = ("DELETE", "GET", "HEAD", "OPTIONS", "PATCH", "POST", "PUT")
 def _allowed_methods(request: Request) -> list[str]:
     """Every method some route of the app serves at the request's path, asked of the routes
     themselves (Starlette's matching), so that nested routers are covered too. HEAD wherever
-    GET is (app.middleware.HeadAsGetMiddleware answers it)."""
+    GET is (app.api.middleware.HeadAsGetMiddleware answers it)."""
     allowed = {
         method
         for method in _METHODS

@@ -5,9 +5,9 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 from starlette.concurrency import run_in_threadpool
 
+from app.api.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep
 from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
 from app.api.shared import CONTROLLER_FAILURES, page
-from app.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.references import (
     CheckCreate,
@@ -17,7 +17,7 @@ from app.schemas.references import (
     ReferencePoint,
     ReferencePointCreate,
 )
-from app.services import laser_devices, recheck, references
+from app.services.calibrate import laser_devices, recheck, references
 
 router = APIRouter(tags=["reference points and checks"])
 

@@ -6,12 +6,12 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
 
+from app.api.deps import AdminKey, ReadKey, SessionDep
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.api.shared import page
-from app.deps import AdminKey, ReadKey, SessionDep
 from app.schemas.common import NO_CONTROL_PATTERN, Page
 from app.schemas.robots import Robot, RobotCreate, RobotUpdate
-from app.services import robots
+from app.services.robots import robots
 
 router = APIRouter(prefix="/v1/robots", tags=["robots"])
 

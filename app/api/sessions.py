@@ -7,15 +7,15 @@ from typing import Annotated
 from fastapi import APIRouter, Path, Response
 from starlette.concurrency import run_in_threadpool
 
+from app.api.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep
 from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
 from app.api.shared import CONTROLLER_FAILURES, page
-from app.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep
 from app.methods.guided import SessionCreate
 from app.metrics import CALIBRATIONS
 from app.schemas.common import Page
 from app.schemas.results import Calibration
 from app.schemas.sessions import Plan, PlanRequest, Session, SessionFinish, TouchAdd
-from app.services import sessions
+from app.services.calibrate import sessions
 
 router = APIRouter(tags=["guided"])
 

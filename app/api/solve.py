@@ -6,11 +6,11 @@ from typing import Annotated
 
 from fastapi import APIRouter, Body, Response
 
-from app.deps import HeldReadKey
+from app.api.deps import HeldReadKey
 from app.methods import openapi_examples
 from app.methods.requests import SolveRequest
 from app.schemas.results import SolveResult
-from app.services import stateless
+from app.services.calibrate import stateless
 
 router = APIRouter(tags=["stateless"])
 

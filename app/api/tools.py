@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response
 
+from app.api.deps import AdminKey, ReadKey, SessionDep
 from app.api.params import DEFAULT_PAGE, Cursor, IfMatch, Limit, PathId
 from app.api.shared import page
-from app.deps import AdminKey, ReadKey, SessionDep
 from app.schemas.common import Page
 from app.schemas.tools import Tool, ToolCreate, ToolUpdate
-from app.services import tools
+from app.services.tools import tools
 
 router = APIRouter(tags=["tools"])
 

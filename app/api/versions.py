@@ -7,8 +7,8 @@ from typing import Annotated, cast
 from fastapi import APIRouter, Header, Query, Request, Response
 from fastapi.responses import PlainTextResponse
 
+from app.api.deps import CalibrateKey, ReadKey, SessionDep, label_request
 from app.api.params import IfMatch, PathId, RawParam, VersionNumber
-from app.deps import CalibrateKey, ReadKey, SessionDep, label_request
 from app.helpers.etags import IF_NONE_MATCH_PATTERN
 from app.schemas.common import ID_PATTERN
 from app.schemas.tools import (
@@ -20,7 +20,7 @@ from app.schemas.tools import (
     Version,
     VersionList,
 )
-from app.services import activation, active_tcp, export_files, tools, versions
+from app.services.tools import activation, active_tcp, controller_files, tools, versions
 from app.words import CONTROLLER_FORMATS, ControllerFormat
 
 router = APIRouter(tags=["versions"])
@@ -82,7 +82,7 @@ async def get_active_tcp(request: Request) -> Response:
     if_none_match = IF_NONE_MATCH.read(request)
     as_text = "text/plain" in (ACCEPT.read(request) or "")
     # On the event loop, no dependency and no threadpool hop: the key check and the read are
-    # one indexed statement (app.services.hot_read).
+    # one indexed statement (app.services.tools.hot_read).
     served = active_tcp.active_tcp(
         authorization=request.headers.get("authorization"),
         tool_id=tool_id,
@@ -206,7 +206,7 @@ def tool_table(
     listed apart. With `Accept: text/plain` (and `?format=`) one file holding all of the
     robot's tools, as the controller loads it (Content-Disposition names it)."""
     if "text/plain" in (accept or ""):
-        served = export_files.robot_file(
+        served = controller_files.robot_file(
             session, robot_id=robot_id, fmt=format, base_url=str(request.base_url)
         )
         headers = {"Content-Disposition": f'attachment; filename="{served.name}"', "Vary": "Accept"}

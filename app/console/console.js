@@ -666,7 +666,7 @@ async function withPlotly(draw) {
 
 // ---- tool -----------------------------------------------------------------------------------
 // The versions a rollback can return to, the active one last: the server's rule
-// (rollback_stack in app/services/activation.py) replayed over GET .../versions' activations,
+// (rollback_stack in app/services/tools/activation.py) replayed over GET .../versions' activations,
 // oldest first. Each activation moves its version to the top; a rollback first takes off the
 // version it left. Roll back is offered only when something lies below the top (it was offered
 // always, and a tool activated once got "409 Nothing to roll back" after giving a reason).

@@ -1,6 +1,6 @@
 """`tcpcal publish`: the outbox sent to the plant (MQTT; OPC UA plugs in as another sink).
 
-- app.services.outbox writes the rows (in the transaction of each change);
+- app.services.audit.outbox writes the rows (in the transaction of each change);
 - sink.py: what a publisher target implements (`Sink`) and what it is given (`Batch`);
 - source.py: the database side: undelivered rows, current tool states, marking, pruning;
 - lock.py: one publisher per fleet (PostgreSQL advisory lock, or an flock beside SQLite);

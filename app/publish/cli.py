@@ -41,9 +41,9 @@ def run_publisher() -> int:
         return _fail(str(exc))
     from sqlalchemy.exc import SQLAlchemyError
 
-    from app.db import get_engine
-    from app.migrate import current_revision, head_revision
     from app.publish.runner import LockLost, Runner
+    from app.storage.db import get_engine
+    from app.storage.migrate import current_revision, head_revision
 
     engine = get_engine()
     try:

@@ -5,7 +5,7 @@
   also when the process is killed with SIGKILL, so a restarted publisher takes over at once.
   https://www.postgresql.org/docs/current/explicit-locking.html#ADVISORY-LOCKS
 - SQLite: an exclusive flock(2) on `<database>-publisher.lock` beside the database file (as
-  app.db.SqliteWriters does for writers); the kernel releases it when the process dies. An
+  app.storage.db.SqliteWriters does for writers); the kernel releases it when the process dies. An
   in-memory database has no other process to share with, and is refused.
 
 A second publisher waits (polling every `poll` seconds, so SIGTERM still stops it at once)
@@ -24,9 +24,9 @@ from typing import IO
 
 from sqlalchemy import Connection, Engine, text
 
-from app.db import is_sqlite
 from app.publish.sink import SinkError
-from app.services.outbox import PUBLISHER_LOCK, publisher_lock_file
+from app.services.audit.outbox import PUBLISHER_LOCK, publisher_lock_file
+from app.storage.db import is_sqlite
 
 try:
     import fcntl
@@ -35,8 +35,8 @@ except ImportError:  # Windows: no flock
 
 log = logging.getLogger(__name__)
 
-# The advisory lock key and the lock file's name are app.services.outbox's, where /metrics
-# (app.fleet_metrics) also reads whether a publisher holds the lock.
+# The advisory lock key and the lock file's name are app.services.audit.outbox's, where /metrics
+# (app.services.fleet.collector) also reads whether a publisher holds the lock.
 __all__ = ["PUBLISHER_LOCK", "FleetLock", "fleet_lock", "lock_path"]
 
 

@@ -11,7 +11,7 @@ Topics (API.md v1.2, prefix TCPCAL_MQTT_PREFIX, default `tcpcal`):
   reason, at, by: API.md v1.3); an empty retained message (which clears the topic) when the tool
   is archived or has no active version;
 - `{prefix}/events`, QoS 1, not retained: one JSON object per outbox row (with `kind` and
-  `reason`: app.services.outbox.event_of);
+  `reason`: app.services.audit.outbox.event_of);
 - `{prefix}/status`, retained: `online` once connected, `offline` as the last will and on a
   clean stop;
 - with TCPCAL_MQTT_COMMANDS=true, it also subscribes to `{prefix}/commands/recheck` (QoS 1) and

@@ -46,7 +46,7 @@ from app.publish.endpoint import Endpoint as Endpoint
 from app.publish.endpoint import OpcUaStartError as OpcUaStartError
 from app.publish.endpoint import parse_endpoint as parse_endpoint
 from app.publish.opcua_certs import APPLICATION_URI, ServerCertificate
-from app.services.plant import PlantRobot, PlantTool
+from app.services.fleet.plant import PlantRobot, PlantTool
 
 if TYPE_CHECKING:
     from asyncua.server.internal_server import InternalServer

@@ -3,7 +3,7 @@ refreshed from the database for every robot a batch concerns, so its values foll
 database within the runner's poll interval.
 
 A batch only says which robots to read again, never what to show: the values are read by
-one path (app.services.plant) at start-up and after every batch, so a message delivered
+one path (app.services.fleet.plant) at start-up and after every batch, so a message delivered
 twice, late or out of order still leaves the address space equal to the database, and
 ControllerState, UpdatedAt and a robot that has no tool yet are shown as well.
 
@@ -24,13 +24,13 @@ from typing import Protocol, TypeVar
 
 from sqlalchemy import select
 
-from app.auth import authenticate_key
-from app.db import session_scope
 from app.errors import DomainError
-from app.models import Tool
 from app.publish.opcua import KeyCheck, PlantOpcUaServer, parse_endpoint
 from app.publish.opcua_certs import ServerCertificate, server_certificate
-from app.services.plant import PlantRobot, plant_robots
+from app.security.auth import authenticate_key
+from app.services.fleet.plant import PlantRobot, plant_robots
+from app.storage.db import session_scope
+from app.storage.models import Tool
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -66,7 +66,7 @@ class BatchLike(Protocol):
 
 def key_may_read(username: str, password: str) -> bool:
     """True when `password` is a live API key of scope read or above, named `username`, and
-    not limited to cells (checked by app.auth, as an Authorization header is)."""
+    not limited to cells (checked by app.security.auth, as an Authorization header is)."""
     try:
         with session_scope(write=False) as session:
             principal = authenticate_key(session, password, required="read")

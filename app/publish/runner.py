@@ -28,10 +28,10 @@ from collections.abc import Sequence
 from sqlalchemy import Engine
 from sqlalchemy.exc import SQLAlchemyError
 
-from app.db import session_scope
 from app.publish import source
 from app.publish.lock import FleetLock, fleet_lock
 from app.publish.sink import Batch, Sink, SinkError
+from app.storage.db import session_scope
 
 log = logging.getLogger(__name__)
 

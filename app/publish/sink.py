@@ -19,7 +19,7 @@ The runner (app.publish.runner) owns the database; a sink owns one connection to
   outbox.
 - `close()` disconnects cleanly (MQTT: publishes `offline`).
 
-Messages come in `id` order (commit order per tool: app.services.outbox); the states of a
+Messages come in `id` order (commit order per tool: app.services.audit.outbox); the states of a
 batch are read from the database after its messages, so the last state a sink sees of a
 tool is the tool's current one (the retained topic always ends at the current state).
 """

@@ -2,9 +2,9 @@
 tools they concern, marking rows delivered and pruning them.
 
 A tool's state is the document GET /v1/tools/{tool_id}/tcp serves, built by the same service
-(`app.services.versions.served_tcp`), with the active version's `status` (accepted or
+(`app.services.tools.versions.served_tcp`), with the active version's `status` (accepted or
 out_of_tolerance) and `activation` (how it went live: kind, reason, at, by; the plant's
-reading, app.services.plant) added, read when it is published, never a snapshot taken when
+reading, app.services.fleet.plant) added, read when it is published, never a snapshot taken when
 the change was made: whatever the order in which redelivered rows arrive, the last state a
 sink receives of a tool is its current one.
 """
@@ -20,10 +20,10 @@ from sqlalchemy.orm import Session
 
 from app.errors import Archived, NoActiveVersion, NotFound
 from app.jsontypes import JsonObject
-from app.models import OutboxMessage, Robot, Tool, utcnow
 from app.publish.sink import Message, ToolState
-from app.services.plant import activations_of, active_statuses
-from app.services.versions import served_tcp
+from app.services.fleet.plant import activations_of, active_statuses
+from app.services.tools.versions import served_tcp
+from app.storage.models import OutboxMessage, Robot, Tool, utcnow
 
 
 def undelivered(session: Session, *, limit: int) -> list[Message]:

@@ -14,7 +14,7 @@ from app.words import Status, ToolState
 CalibrationStatus = Status
 
 #: Why a fleet row needs a person's attention: every code, in the order rows list them (the
-#: one list of them; each has its rule in app.services.fleet.RULES).
+#: one list of them; each has its rule in app.services.fleet.fleet.RULES).
 AttentionCode = Literal[
     "active_out_of_tolerance",
     "last_calibration_out_of_tolerance",

@@ -9,11 +9,11 @@ from datetime import UTC, datetime, timedelta
 from sqlalchemy import delete, insert, select, update
 from sqlalchemy.orm import Session
 
-from app.auth import Principal
 from app.config import get_settings
 from app.errors import IdempotencyConflict
 from app.jsontypes import JsonObject
-from app.models import IdempotencyRecord, table_of, utcnow
+from app.security.auth import Principal
+from app.storage.models import IdempotencyRecord, table_of, utcnow
 
 
 def request_fingerprint(tool_id: str, raw_body: JsonObject) -> str:

@@ -7,13 +7,13 @@ from collections.abc import Sequence
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.auth import Principal, generate_key, hash_key
 from app.errors import Conflict, Forbidden, NotFound
 from app.helpers.pagination import paginate
 from app.jsontypes import JsonObject
-from app.models import ApiKey, new_id, utcnow
 from app.scopes import Scope
-from app.services import audit
+from app.security.auth import Principal, generate_key, hash_key
+from app.services.audit import writes as audit
+from app.storage.models import ApiKey, new_id, utcnow
 
 
 def create_key(

@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 from sqlalchemy.exc import SQLAlchemyError
 
-from app.db import get_engine
-from app.migrate import current_revision, head_revision
+from app.storage.db import get_engine
+from app.storage.migrate import current_revision, head_revision
 
 
 @dataclass(frozen=True)

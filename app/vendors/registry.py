@@ -18,7 +18,7 @@ lists them and answers by format (`export_tool`, `parse_controller_text`, `contr
 | ur_rtde | ur/rtde.py | UR RTDE Guide (30004) and the secondary client interface (30002) |
 
 A controller of a protocol whose connector is not written yet is stored, and nothing is sent
-to it (app.services.controllers.settings_of answers 501 /no-connector).
+to it (app.services.robots.connection.settings_of answers 501 /no-connector).
 
 Adding a maker: its package, its line in `MAKERS`, and its words (format, protocols) in
 app.words; tests/vendors/test_registry.py holds that it provides all the registry

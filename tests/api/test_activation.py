@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from sqlalchemy import select
 
-from app.services.activation import rollback_stack
+from app.services.tools.activation import rollback_stack
 from tests.api.touches import row_counts
 from tests.conftest import Api
 from tests.publish.plant_changes import out_of_tolerance_version
@@ -37,8 +37,8 @@ def _active(api: Api, tool_id: str) -> int | None:
 
 
 def _audit(tool_id: str, action: str) -> list[dict[str, Any]]:
-    from app.db import get_engine
-    from app.models import AuditEvent
+    from app.storage.db import get_engine
+    from app.storage.models import AuditEvent
 
     with get_engine().connect() as conn:
         rows = conn.execute(

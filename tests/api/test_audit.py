@@ -221,9 +221,9 @@ def long_trail(api: Api) -> Iterator[None]:
     SQLite is planned as a deployment has it: the migrations never run ANALYZE there."""
     from sqlalchemy import insert
 
-    from app.db import get_engine
-    from app.models import AuditEvent
-    from app.services.audit import row
+    from app.services.audit.writes import row
+    from app.storage.db import get_engine
+    from app.storage.models import AuditEvent
 
     rows = [
         row(
@@ -292,7 +292,7 @@ _FILTERS: list[tuple[dict[str, str], tuple[str, ...] | None, tuple[str, ...]]] =
 
 def _index_on(columns: tuple[str, ...]) -> str:
     """The name of the model's index of audit_events on exactly these columns, in order."""
-    from app.models import AuditEvent, table_of
+    from app.storage.models import AuditEvent, table_of
 
     (name,) = [
         str(ix.name)
@@ -307,7 +307,7 @@ def _page_statements(api: Api, params: dict[str, str]) -> list[tuple[str, Any]]:
     page of the default size under `params`: the first, and one after a cursor."""
     from sqlalchemy import event
 
-    from app.db import get_engine
+    from app.storage.db import get_engine
 
     cursor = _audit(api, limit=1, **params)["next_cursor"]
     assert cursor, params
@@ -381,7 +381,7 @@ def test_each_filter_is_a_seek_in_its_index(api: Api, long_trail: None) -> None:
     audit_events through its filter's index alone (no scan of the table, of its primary key
     or of another index), and on SQLite an equality's events come out of the index newest
     first, unsorted. Fails if any of the indexes is missing from the database."""
-    from app.db import get_engine
+    from app.storage.db import get_engine
 
     engine = get_engine()
     judge = _sqlite_wrong if engine.dialect.name == "sqlite" else _postgresql_wrong

@@ -12,14 +12,15 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 from app.cli import cli
-from app.client import audit_why
+from app.cli.client import audit_why
 from tests.conftest import Api, Database
 
 
 @pytest.fixture
 def run(api: Api, monkeypatch: pytest.MonkeyPatch) -> CliRunner:
     """The CLI with its client's requests sent to the app (an admin key)."""
-    from app import client, client_http
+    from app.cli import client
+    from app.cli import http as client_http
     from app.main import create_app
 
     with warnings.catch_warnings():
@@ -75,7 +76,7 @@ def test_audit_needs_an_admin_key(
 ) -> None:
     from fastapi.testclient import TestClient
 
-    from app import client_http
+    from app.cli import http as client_http
     from app.main import create_app
 
     app = create_app()
@@ -144,7 +145,7 @@ def test_why_of_a_deployment_and_a_forced_activation() -> None:
 def test_audit_rows_carry_the_version_and_fit_80_columns(
     api: Api, run: CliRunner, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from app import client
+    from app.cli import client
     from tests.api.controller_rigs import rig
     from tests.api.test_deployments import _setup
 
@@ -175,8 +176,8 @@ def test_keys_create_with_cells(db: Database) -> None:
     bad = runner.invoke(cli, ["keys", "create", "--scope", "read", "--name", "pc", "--cells", ","])
     assert bad.exit_code == 2, bad.output
     assert "cells" in bad.output
-    from app.db import session_scope
-    from app.models import ApiKey, AuditEvent
+    from app.storage.db import session_scope
+    from app.storage.models import ApiKey, AuditEvent
 
     with session_scope(write=False) as session:
         rows = session.query(ApiKey).all()

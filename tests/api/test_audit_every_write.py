@@ -300,7 +300,7 @@ def test_every_write_route_is_in_the_table() -> None:
     missing = [r for r in routes if r not in CALLS]
     assert missing == [], (
         f"write routes without an entry in CALLS: {missing}; add how to call each, and make "
-        "its service record an audit event (app.services.audit) in the same transaction"
+        "its service record an audit event (app.services.audit.writes) in the same transaction"
     )
     stale = [r for r in CALLS if r not in routes]
     assert stale == [], f"CALLS names routes the app no longer has: {stale}"
@@ -308,7 +308,7 @@ def test_every_write_route_is_in_the_table() -> None:
 
 
 def _events(api: Api) -> list[dict[str, Any]]:
-    from app.db import get_engine
+    from app.storage.db import get_engine
 
     with get_engine().connect() as conn:
         rows = conn.execute(text("SELECT * FROM audit_events ORDER BY id")).mappings().all()
@@ -385,7 +385,8 @@ def test_an_event_and_its_change_commit_or_roll_back_together(
     """One transaction: when the event's insert fails the robot is not created either, and
     when the commit fails after the event was inserted (the outbox row, written last in the
     transaction) neither is kept. Then, unbroken, both are."""
-    from app.services import audit, outbox
+    from app.services.audit import outbox
+    from app.services.audit import writes as audit
 
     def broken(*_: object) -> None:
         raise RuntimeError("planted by the test")
@@ -406,7 +407,7 @@ def test_an_event_and_its_change_commit_or_roll_back_together(
 
 
 def test_the_audit_of_a_key_change_never_holds_the_key(api: Api) -> None:
-    from app.auth import hash_key
+    from app.security.auth import hash_key
 
     made = api.post("/v1/keys", {"name": "cell-12 pc", "scope": "calibrate", "cells": ["cell-12"]})
     assert made.status_code == 201, made.text

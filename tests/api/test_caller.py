@@ -1,4 +1,4 @@
-"""Who calls: one dependency authenticates and names the key in the access line (app.deps),
+"""Who calls: one dependency authenticates and names the key in the access line (app.api.deps),
 and every route, with a session or without, refuses a missing or too narrow key before it
 reads the request (API.md: only /health and /ready are open)."""
 
@@ -29,7 +29,7 @@ class _AccessLines:
 @pytest.fixture
 def access(monkeypatch: pytest.MonkeyPatch) -> _AccessLines:
     lines = _AccessLines()
-    monkeypatch.setattr("app.middleware.access_logger", lambda: lines)
+    monkeypatch.setattr("app.api.middleware.access_logger", lambda: lines)
     return lines
 
 

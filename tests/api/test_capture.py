@@ -92,7 +92,7 @@ class Connection(ClosingSession):
 @pytest.fixture
 def controller(monkeypatch: pytest.MonkeyPatch) -> FakeController:
     fake = FakeController()
-    monkeypatch.setattr("app.services.capture.connect", fake.connect)
+    monkeypatch.setattr("app.services.controllers.capture.connect", fake.connect)
     return fake
 
 

@@ -9,8 +9,8 @@ import httpx
 import pytest
 from typer.testing import CliRunner
 
-from app import client_http
 from app.cli import cli
+from app.cli import http as client_http
 from tests.api.controller_rigs import SLOT, rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, WRITE_REQUEST, _setup
 from tests.api.test_deployments import secret_key as secret_key  # ABB's password, autouse
@@ -62,7 +62,8 @@ def narrow(monkeypatch: pytest.MonkeyPatch) -> None:
     """The client's consoles 80 columns wide, a cell PC's terminal."""
     from rich.console import Console
 
-    from app import client, client_controllers
+    from app.cli import client
+    from app.cli import controllers as client_controllers
 
     for module in (client_http, client, client_controllers):
         monkeypatch.setattr(module, "out", Console(width=80))

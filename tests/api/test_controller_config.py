@@ -11,8 +11,8 @@ from typing import Any
 import pytest
 from sqlalchemy import text
 
-from app.backup import backup
-from app.db import get_engine
+from app.storage.backup import backup
+from app.storage.db import get_engine
 from tests.conftest import Api, Database
 
 PASSWORD = "Pa55-w0rd-that-must-not-leak-7f3a"
@@ -105,9 +105,9 @@ def test_bad_fields_are_422_naming_the_field_and_store_nothing(
 
 def test_hosts_that_are_names_or_addresses_are_taken(api: Api) -> None:
     """Each is stored as sent and served back: the PUT's answer, a later GET and the row the
-    connectors are given (app.services.controllers.settings_of) all hold it."""
-    from app.db import session_scope
-    from app.services.controllers import get_controller, settings_of
+    connectors are given (app.services.robots.connection.settings_of) all hold it."""
+    from app.services.robots.connection import get_controller, settings_of
+    from app.storage.db import session_scope
 
     robot = api.robot()
     for host in ["192.168.1.20", "fe80::1", "kr16-cell12.plant.local", "a" * 63 + ".b"]:
@@ -161,7 +161,7 @@ def test_the_password_is_never_served_logged_or_backed_up_in_clear(
     stored = _stored(robot["id"])
     assert stored.password_encrypted
     assert PASSWORD not in stored.password_encrypted
-    from app import secretbox
+    from app.security import secretbox
 
     assert secretbox.decrypt(stored.password_encrypted) == PASSWORD
     texts.append(api.get(f"/v1/robots/{robot['id']}/controller").text)

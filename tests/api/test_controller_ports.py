@@ -12,8 +12,8 @@ from typing import Any
 import pytest
 from sqlalchemy import create_engine, text
 
-from app.backup import backup, restore
-from app.migrate import upgrade
+from app.storage.backup import backup, restore
+from app.storage.migrate import upgrade
 from app.vendors.connector import ControllerSettings
 from app.vendors.registry import port_of, ports_in_use, where
 from testbed.databases import fresh_database
@@ -71,8 +71,8 @@ def test_ports_given_are_used_and_those_left_out_keep_their_default(
 ) -> None:
     """A plant (or a test's simulator) on other ports: each service where it was told,
     the one not named on its real port; what a connector is given says the same."""
-    from app.db import session_scope
-    from app.services.controllers import get_controller, settings_of
+    from app.services.robots.connection import get_controller, settings_of
+    from app.storage.db import session_scope
 
     robot = api.robot()
     r = _put(api, robot["id"], protocol="ur_rtde", host="127.0.0.1", ports={"rtde": 40004})
@@ -83,7 +83,7 @@ def test_ports_given_are_used_and_those_left_out_keep_their_default(
     r = _put(api, robot["id"], protocol="techman", host="127.0.0.1", ports={"ethernet_slave": 6001})
     assert r.json()["ports"] == {"listen_node": 5890, "ethernet_slave": 6001}
     # What a connector is given, once its protocol has one.
-    monkeypatch.setattr("app.services.controllers.has_connector", lambda protocol: True)
+    monkeypatch.setattr("app.services.robots.connection.has_connector", lambda protocol: True)
     with session_scope(write=False) as session:
         settings = settings_of(get_controller(session, robot["id"]))
     assert port_of(settings, "listen_node") == 5890

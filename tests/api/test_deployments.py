@@ -11,7 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from sqlalchemy import text
 
-from app.db import get_engine
+from app.storage.db import get_engine
 from tests.api.controller_rigs import LIVE_PROTOCOLS, PROTOCOLS, SLOT, TIMEOUT_S, Rig, rig
 from tests.api.controller_rigs import secret_key as secret_key  # autouse: ABB passwords
 from tests.conftest import Api

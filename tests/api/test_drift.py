@@ -13,7 +13,7 @@ import pytest
 from typer.testing import CliRunner
 
 from app.cli import cli
-from app.models import clock_at
+from app.storage.models import clock_at
 from tests.conftest import Api
 
 DAY = timedelta(days=1)
@@ -170,7 +170,7 @@ def test_a_fleet_page_reads_the_stored_drift_not_the_histories(
     reads the checks' or versions' history (the trend is stored on the tool)."""
     from sqlalchemy import event
 
-    from app.db import get_engine
+    from app.storage.db import get_engine
 
     def statements() -> list[str]:
         seen: list[str] = []

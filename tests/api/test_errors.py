@@ -8,8 +8,8 @@ from collections.abc import Iterator
 import httpx
 import pytest
 
+from app.api.problem_json import problem_response
 from app.jsontypes import JsonObject
-from app.problem_json import problem_response
 from tests.conftest import Api
 
 PROBLEM = "application/problem+json"

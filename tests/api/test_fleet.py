@@ -10,7 +10,7 @@ from datetime import UTC, datetime
 import pytest
 
 from app.jsontypes import JsonObject
-from app.models import clock_at
+from app.storage.models import clock_at
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api

@@ -11,9 +11,9 @@ from typing import Any
 
 import pytest
 
-from app.models import clock_at
 from app.schemas.fleet import AttentionCode
-from app.services.fleet import RULES
+from app.services.fleet.fleet import RULES
+from app.storage.models import clock_at
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api
@@ -154,8 +154,8 @@ def test_csv_carries_attention_and_the_active_tcp(
 def _backdate_calibrations(moment: datetime) -> None:
     from sqlalchemy import update
 
-    from app.db import get_engine
-    from app.models import Calibration
+    from app.storage.db import get_engine
+    from app.storage.models import Calibration
 
     with get_engine().begin() as conn:
         conn.execute(update(Calibration).values(created_at=moment))

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 from sqlalchemy import text
 
-from app.db import get_engine
+from app.storage.db import get_engine
 from tests.api.controller_rigs import SLOT, Rig, rig
 from tests.api.test_deployments import (
     ACTIVE_POSITION,

@@ -9,9 +9,9 @@ import pytest
 from prometheus_client.parser import text_string_to_metric_families
 from sqlalchemy import update
 
-from app.db import session_scope
-from app.models import Calibration, Tool, clock_at
 from app.schemas.fleet import FleetTool
+from app.storage.db import session_scope
+from app.storage.models import Calibration, Tool, clock_at
 from tests.conftest import Api
 
 DAY = 86400.0

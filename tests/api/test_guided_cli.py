@@ -18,8 +18,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
-from app import client_guided
 from app.cli import cli
+from app.cli import guided as client_guided
 from testbed.sim.touches import simulate_touches
 from tests.api.capture_steps import POINT, TRUE_TCP
 from tests.api.capture_steps import krc as krc

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from sqlalchemy import create_engine, text
 
-from app.db import HELD_CONNECTIONS
+from app.storage.db import HELD_CONNECTIONS
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api, Database
@@ -123,7 +123,7 @@ def test_the_held_reads_share_one_connection_per_thread(api: Api) -> None:
 def test_the_hot_read_after_the_engines_were_disposed(api: Api) -> None:
     """dispose_engines closes the held connections (settings changed, tests): the next read
     takes a new one instead of failing on the closed one."""
-    from app.db import dispose_engines
+    from app.storage.db import dispose_engines
 
     tid = _tool_with_tcp(api)
     assert api.get(f"/v1/tools/{tid}/tcp").status_code == 200

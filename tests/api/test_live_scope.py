@@ -18,7 +18,7 @@ import pytest
 from prometheus_client.parser import text_string_to_metric_families
 from sqlalchemy import text
 
-from app.db import get_engine
+from app.storage.db import get_engine
 from app.vendors.connector import (
     ClosingSession,
     ControllerRefused,
@@ -104,9 +104,9 @@ def live(monkeypatch: pytest.MonkeyPatch) -> LiveController:
             return controller.connect(settings)
         return real_connect(settings)
 
-    monkeypatch.setattr("app.services.controllers.has_connector", lambda protocol: True)
+    monkeypatch.setattr("app.services.robots.connection.has_connector", lambda protocol: True)
     for module in ("reconcile", "deployments"):
-        monkeypatch.setattr(f"app.services.{module}.connect", connect)
+        monkeypatch.setattr(f"app.services.controllers.{module}.connect", connect)
     return controller
 
 
@@ -266,8 +266,8 @@ def test_a_deployment_during_a_round_makes_the_round_judge_the_new_live_tool(
     """The torch is live; while a round reads, the gripper is deployed. What the round read
     was the torch's to judge: it reads again, judges the gripper and records no drift of the
     torch (which the controller no longer holds because it is not the live one)."""
-    from app.auth import Principal
-    from app.services import deployments
+    from app.security.auth import Principal
+    from app.services.controllers import deployments
 
     cell = _cell(api)
     assert _deploy(api, cell.torch["id"]).status_code == 201
@@ -300,8 +300,8 @@ def test_the_cli_says_what_live_means(
     import httpx
     from typer.testing import CliRunner
 
-    from app import client_http
     from app.cli import cli
+    from app.cli import http as client_http
 
     def http() -> httpx.Client:
         return httpx.Client(

@@ -211,8 +211,8 @@ def test_idempotency_keys_expire_after_their_ttl(api: Api, tool: JsonObject) -> 
 
     from sqlalchemy import update
 
-    from app.db import session_scope
-    from app.models import IdempotencyRecord, utcnow
+    from app.storage.db import session_scope
+    from app.storage.models import IdempotencyRecord, utcnow
 
     body = {"method": "manual", "tcp": {"position_mm": [0, 0, 120]}}
     headers = {"Idempotency-Key": "k-1"}

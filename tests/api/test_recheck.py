@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from app.models import utcnow
+from app.storage.models import utcnow
 from tests.api.controller_rigs import rig
 from tests.api.test_capture_controllers import SETUPS, Cell
 from tests.api.test_recheck_controllers import (
@@ -196,8 +196,8 @@ def test_only_corrections_of_the_last_30_days_count_toward_frequent_corrections(
     days ago makes four, and it is."""
     from sqlalchemy import update
 
-    from app.db import get_engine
-    from app.models import Activation
+    from app.storage.db import get_engine
+    from app.storage.models import Activation
 
     tool, point_id = tool_at_reference(api, kuka.rig)
     for hit in range(1, 5):

@@ -174,8 +174,8 @@ def test_checks_inside_and_outside_tolerance_leave_active_tcp(api: Api) -> None:
 def test_check_is_in_the_audit_trail(api: Api) -> None:
     from sqlalchemy import select
 
-    from app.db import session_scope
-    from app.models import AuditEvent
+    from app.storage.db import session_scope
+    from app.storage.models import AuditEvent
 
     robot = api.robot()
     tool = api.tool(robot["id"])

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from app.services.slots import numbered_vendor
+from app.services.robots.slots import numbered_vendor
 from tests.conftest import Api
 
 

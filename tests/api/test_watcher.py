@@ -9,7 +9,7 @@ import time
 import pytest
 from sqlalchemy import text
 
-from app.db import get_engine
+from app.storage.db import get_engine
 from tests.api.controller_rigs import SLOT, TIMEOUT_S, rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, WRITE_REQUEST, _setup
 from tests.conftest import Api, Database
@@ -154,7 +154,7 @@ def test_a_hung_controller_delays_no_other_robots_drift_beyond_the_interval(
         ready = api.client.get("/ready").json()["watcher"]
         assert ready["rounds"] >= rounds + 2
         # and the fleet lock stays held while it is: no other instance starts it meanwhile
-        from app.watcher import fleet_lock
+        from app.services.controllers.watcher import fleet_lock
 
         with fleet_lock() as taken:
             assert taken is False
@@ -163,7 +163,7 @@ def test_a_hung_controller_delays_no_other_robots_drift_beyond_the_interval(
 def test_the_read_pool_keeps_to_its_size_and_reads_a_robot_once_at_a_time() -> None:
     import threading
 
-    from app.watcher import ReadPool
+    from app.services.controllers.watcher import ReadPool
 
     release = threading.Event()
     running: list[str] = []
@@ -204,7 +204,7 @@ def test_the_watcher_stops_within_a_second_while_a_controller_stalls(api: Api) -
     """stop() returns within a second while a read waits on a stalled controller; that read
     ends at the controller's timeout (the rig's TIMEOUT_S) and stores nothing: no state of
     the tool and no controller.* event, as if the round had never begun."""
-    from app.watcher import Watcher
+    from app.services.controllers.watcher import Watcher
 
     with rig("kuka_kvp") as r:
         ids = _setup(api, r)
@@ -238,7 +238,7 @@ def test_the_watcher_stops_within_a_second_while_a_controller_stalls(api: Api) -
 
 
 def test_one_round_at_a_time_per_database(api: Api) -> None:
-    from app.watcher import fleet_lock
+    from app.services.controllers.watcher import fleet_lock
 
     with fleet_lock() as first:
         assert first is True
@@ -253,8 +253,8 @@ def test_another_process_holding_the_sqlite_lock_keeps_this_one_out(api: Api, db
     import subprocess
     import sys
 
-    from app.db import get_engine as engine_of
-    from app.watcher import fleet_lock
+    from app.services.controllers.watcher import fleet_lock
+    from app.storage.db import get_engine as engine_of
 
     if db.backend != "sqlite":
         pytest.skip("the advisory lock of PostgreSQL is tested with two live servers")
@@ -291,11 +291,11 @@ def test_a_robot_without_its_connector_is_one_warning_line_not_a_traceback_each_
     met; the other robots are reconciled as before."""
     import logging
 
-    from app.watcher import Watcher
+    from app.services.controllers.watcher import Watcher
 
     # ur_rtde as if this tcpcal had no connector for it (the gate settings_of keeps)
     monkeypatch.setattr(
-        "app.services.controllers.has_connector", lambda protocol: protocol != "ur_rtde"
+        "app.services.robots.connection.has_connector", lambda protocol: protocol != "ur_rtde"
     )
     caplog.set_level(logging.INFO, logger="tcpcal.watcher")
     with rig("kuka_kvp") as r:

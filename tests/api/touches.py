@@ -19,7 +19,7 @@ def row_counts(tables: tuple[str, ...]) -> dict[str, int]:
     """Rows in each table, through the app's own engine."""
     from sqlalchemy import text
 
-    from app.db import get_engine
+    from app.storage.db import get_engine
 
     with get_engine().connect() as conn:
         return {

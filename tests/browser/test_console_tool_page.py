@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 from playwright.sync_api import Page, Route, expect
 
-from app.db import engine_for, session_scope
-from app.models import Deployment, utcnow
+from app.storage.db import engine_for, session_scope
+from app.storage.models import Deployment, utcnow
 from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.browser.conftest import sign_in_to
 

@@ -3,7 +3,7 @@ tinted on the fleet with its rate and the `drifting` code; its page gives the ra
 under both plots and draws the trend on the checks plot.
 
 The history spans 100 days, so it is written in-process with the clock set back
-(app.models.clock_at, as `tcpcal demo` does) before the live server starts on the database.
+(app.storage.models.clock_at, as `tcpcal demo` does) before the live server starts on the database.
 """
 
 from __future__ import annotations
@@ -16,15 +16,18 @@ from datetime import UTC, datetime, timedelta
 import pytest
 from playwright.sync_api import Page, expect
 
-from app.auth import Principal
-from app.db import engine_for, session_scope
 from app.methods.requests import CALIBRATION_REQUESTS
-from app.migrate import upgrade
-from app.models import clock_at
 from app.schemas.references import CheckCreate, ReferencePointCreate
 from app.schemas.robots import RobotCreate
 from app.schemas.tools import ToolCreate
-from app.services import calibrate, checks, references, robots, tools
+from app.security.auth import Principal
+from app.services import calibrate
+from app.services.calibrate import checks, references
+from app.services.robots import robots
+from app.services.tools import tools
+from app.storage.db import engine_for, session_scope
+from app.storage.migrate import upgrade
+from app.storage.models import clock_at
 from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.browser.conftest import sign_in_to
 

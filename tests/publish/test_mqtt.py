@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 from sqlalchemy import select
 
-from app.db import session_scope
-from app.models import AuditEvent, OutboxMessage
+from app.storage.db import session_scope
+from app.storage.models import AuditEvent, OutboxMessage
 from tests.conftest import Api, one_backend
 from tests.polling import wait_for
 from tests.publish.mqtt_harness import Broker, Publisher, Subscriber, needs_mosquitto

@@ -23,7 +23,7 @@ from app.publish.opcua import (
 from app.publish.opcua_certs import server_certificate
 from app.publish.opcua_sink import robots_concerned
 from app.publish.sink import SinkError
-from app.services.plant import LastActivation, PlantTool
+from app.services.fleet.plant import LastActivation, PlantTool
 
 
 @pytest.mark.parametrize(
@@ -194,7 +194,7 @@ def test_a_rename_or_an_archive_rebuilds_a_robot_of_ten_tools_well_within_a_seco
     import time
 
     from app.publish.opcua import PlantOpcUaServer
-    from app.services.plant import PlantRobot
+    from app.services.fleet.plant import PlantRobot
     from tests.publish.mqtt_harness import free_port
 
     tools = [_tool(tool_id=f"t{i}", tool_name=f"tool{i}") for i in range(10)]

@@ -11,11 +11,13 @@ import pytest
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.auth import Principal
-from app.db import make_engine, session_scope
-from app.models import Activation, OutboxMessage, utcnow
 from app.schemas.tools import ActivationRequest
-from app.services import activation, audit, outbox
+from app.security.auth import Principal
+from app.services.audit import outbox
+from app.services.audit import writes as audit
+from app.services.tools import activation
+from app.storage.db import make_engine, session_scope
+from app.storage.models import Activation, OutboxMessage, utcnow
 from app.words import AuditAction
 from tests.conftest import Api, Database
 

@@ -7,10 +7,10 @@ import threading
 
 from sqlalchemy import select
 
-from app.db import get_engine, session_scope
-from app.models import OutboxMessage
 from app.publish.runner import DELIVERED, FAILED, IDLE, Runner
 from app.publish.sink import Batch
+from app.storage.db import get_engine, session_scope
+from app.storage.models import OutboxMessage
 from tests.conftest import Api
 
 

@@ -10,8 +10,9 @@ import pytest
 from pydantic import BaseModel, Field
 
 from app.schemas.fleet import FleetTool, LastCalibration
-from app.services import fleet_gauges, outbox
-from app.services.fleet_gauges import declared_values, read_fleet_gauges
+from app.services.audit import outbox
+from app.services.fleet import gauges as fleet_gauges
+from app.services.fleet.gauges import declared_values, read_fleet_gauges
 
 NOW = datetime(2026, 11, 24, 6, 0, tzinfo=UTC)
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from app.db import session_scope
-from app.services.live_tool import live_tool_matches
+from app.services.robots.live_tool import live_tool_matches
+from app.storage.db import session_scope
 from app.vendors.connector import Frame
 from tests.conftest import Api
 

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from app.methods.requests import CALIBRATION_REQUESTS
-from app.services import calibrate, contexts, frames
-from app.services.contexts import StatelessContext
+from app.services import calibrate
+from app.services.calibrate import contexts, tool_frames
+from app.services.calibrate.contexts import StatelessContext
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 
@@ -18,7 +19,7 @@ from tests.api.touches import as_poses
 def _counting(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str | None]]:
     """Every reading parsed from then on: (format, units)."""
     reads: list[tuple[str, str | None]] = []
-    real = frames.parse_poses_with
+    real = tool_frames.parse_poses_with
 
     def counted(kinematics: Any, fmt: str, poses: Any, units: Any, **kwargs: Any) -> Any:
         reads.append((fmt, None if units is None else units.model_dump_json()))

@@ -9,12 +9,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from app.auth import Principal
-from app.db import get_engine, session_scope
 from app.errors import Archived, NotFound
 from app.methods.requests import CALIBRATION_REQUESTS
+from app.security.auth import Principal
 from app.services import calibrate
 from app.services.calibrate import Presolved
+from app.storage.db import get_engine, session_scope
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 from tests.conftest import Api

@@ -9,7 +9,7 @@ from app.errors import InvalidInput
 from app.methods.base import Solved
 from app.schemas.results import QualityOut
 from app.services.calibrate import graded_result
-from app.services.contexts import StatelessContext
+from app.services.calibrate.contexts import StatelessContext
 
 
 def test_nan_anywhere_in_the_result_is_a_422_kind() -> None:

@@ -1,4 +1,4 @@
-"""The version writes under a tool's lock (Core statements, app.services.versions) and the
+"""The version writes under a tool's lock (Core statements, app.services.tools.versions) and the
 audit trail written at commit: an ORM copy of the tool in the same session reads the writes
 back, and a transaction that rolls back leaves no version and no audit event behind."""
 
@@ -8,11 +8,11 @@ import pytest
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.auth import Principal
-from app.db import session_scope
-from app.models import AuditEvent, TcpVersion
-from app.services import versions
-from app.services.tools import get_tool, tool_etag
+from app.security.auth import Principal
+from app.services.tools import versions
+from app.services.tools.tools import get_tool, tool_etag
+from app.storage.db import session_scope
+from app.storage.models import AuditEvent, TcpVersion
 from tests.conftest import Api
 
 ACTOR = Principal(key_id="test", name="test", scope="admin")
@@ -122,8 +122,8 @@ def test_driver_writes_store_what_the_orm_reads_back(api: Api) -> None:
 def test_a_driver_write_refuses_a_statement_left_without_values(api: Api) -> None:
     from sqlalchemy import bindparam, update
 
-    from app.db import DriverWrite
-    from app.models import Tool
+    from app.storage.db import DriverWrite
+    from app.storage.models import Tool
 
     tid = api.tool(api.robot("kr")["id"])["id"]
     write = DriverWrite(

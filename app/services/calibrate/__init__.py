@@ -11,11 +11,19 @@ One module per concern, every name importable from here:
 - presolve: the snapshot a calibration solves against before its transaction;
 - writes: the transaction that stores it (`submit`; `solve_and_submit` for a solver process);
 - stored: stored calibrations as served;
-- stateless: POST /v1/solve's solve, with nothing stored.
+- detached: POST /v1/solve's solve, with nothing stored (run in a solver process).
+
+The package also holds what calibrating calls for besides: the use cases POST
+.../calibrations (submissions) and POST /v1/solve (stateless) start from, the contexts
+a method reads (contexts, tool_frames), guided sessions (sessions), checks and the
+re-check after a collision (checks, recheck), reference points and laser devices
+(references, laser_devices), and the sentences and refusals a result is given
+(verdict, diagnosis).
 """
 
 from __future__ import annotations
 
+from app.services.calibrate.detached import solve_detached, stateless_kinematics, stateless_robot_id
 from app.services.calibrate.grading import (
     Outcome,
     graded_result,
@@ -29,11 +37,6 @@ from app.services.calibrate.presolve import (
     SnapshotRow,
     snapshot_held,
     solve_snapshot,
-)
-from app.services.calibrate.stateless import (
-    solve_detached,
-    stateless_kinematics,
-    stateless_robot_id,
 )
 from app.services.calibrate.stored import (
     calibration_out,

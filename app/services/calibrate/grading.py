@@ -1,6 +1,7 @@
 """Solving a calibration request and grading what its method found: the result document
 (graded against the tolerance, compared with the active version, summed up, every number
-finite), with a unit or convention mix-up refused instead of graded (app.services.diagnosis).
+finite), with a unit or convention mix-up refused instead of graded
+(app.services.calibrate.diagnosis).
 """
 
 from __future__ import annotations
@@ -25,11 +26,14 @@ from app.schemas.results import (
     CalibrationResult,
 )
 from app.schemas.tools import Tcp
-from app.services.diagnosis import Fit, implausible_flanges, refuse_mix_up, refusing_mix_ups
-from app.services.verdict import change_warning, held_for_change, summarise
-from app.services.versions import (
-    IDENTITY_QUATERNION,
+from app.services.calibrate.diagnosis import (
+    Fit,
+    implausible_flanges,
+    refuse_mix_up,
+    refusing_mix_ups,
 )
+from app.services.calibrate.verdict import change_warning, held_for_change, summarise
+from app.services.tools.versions import IDENTITY_QUATERNION
 from app.words import MethodName
 
 
@@ -43,7 +47,7 @@ class Outcome:
 
 def solve(request: MethodRequest, ctx: MethodContext) -> Outcome:
     """Run the request's method and grade its outcome against the context's tolerance;
-    refuse a unit or convention mix-up (app.services.diagnosis) instead of grading it."""
+    refuse a unit or convention mix-up (app.services.calibrate.diagnosis) instead of grading it."""
 
     def attempt(fmt: str, units: Units) -> Fit:
         changed = request.model_copy(update={"format": fmt, "units": units})

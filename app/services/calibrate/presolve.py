@@ -10,18 +10,18 @@ from typing import NamedTuple
 
 from sqlalchemy import Engine, and_, bindparam, select
 
-from app.auth import Principal
-from app.db import HeldRead
 from app.errors import InvalidInput
 from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonArray, JsonObject
 from app.methods.base import MethodRequest
-from app.models import Calibration as CalibrationRow
-from app.models import Robot, TcpVersion, Tool, table_of
+from app.security.auth import Principal
+from app.services.calibrate.contexts import SnapshotContext
 from app.services.calibrate.grading import Outcome, solve
-from app.services.contexts import SnapshotContext
-from app.services.frames import frame_from
-from app.services.live import live_or_404
+from app.services.calibrate.tool_frames import frame_from
+from app.services.visible import live_or_404
+from app.storage.db import HeldRead
+from app.storage.models import Calibration as CalibrationRow
+from app.storage.models import Robot, TcpVersion, Tool, table_of
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,7 @@ class SnapshotRow(NamedTuple):
 _TOOL, _ROBOT = table_of(Tool), table_of(Robot)
 _VERSION, _CALIBRATION = table_of(TcpVersion), table_of(CalibrationRow)
 #: What a calibration's solve reads, as one statement on the event loop's held connection
-#: (app.db.HeldRead): the tool, its robot's model, its active version and the covariance
+#: (app.storage.db.HeldRead): the tool, its robot's model, its active version and the covariance
 #: its calibration reported. Read in a worker thread through a session, the same took three
 #: ORM queries and a thread hop (2 ms of the server's one core per calibration).
 SNAPSHOT_READ = HeldRead(

@@ -12,20 +12,20 @@ from sqlalchemy.orm import Session
 from app.errors import InvalidInput, NotFound
 from app.helpers.pagination import paginate
 from app.methods.requests import CALIBRATION_REQUESTS
-from app.models import Calibration as CalibrationRow
-from app.models import Tool
 from app.schemas.results import (
     Calibration,
     CalibrationDetail,
     CalibrationResult,
     TouchGeometry,
 )
-from app.services.capture import touch_sources
-from app.services.frames import parse_poses_with
-from app.services.live import visible_tool
-from app.services.robots import get_robot
-from app.services.tools import get_tool
+from app.services.calibrate.tool_frames import parse_poses_with
+from app.services.controllers.capture import touch_sources
+from app.services.robots.robots import get_robot
+from app.services.tools.tools import get_tool
+from app.services.visible import visible_tool
 from app.solvers.quality import ellipsoid_semi_axes
+from app.storage.models import Calibration as CalibrationRow
+from app.storage.models import Tool
 
 
 def calibration_out(row: CalibrationRow, tool: Tool) -> Calibration:

@@ -9,34 +9,29 @@ from dataclasses import dataclass
 from sqlalchemy import insert
 from sqlalchemy.orm import Session
 
-from app.auth import Principal, act_for
-from app.db import DriverWrite, engine_for, session_scope
 from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonObject
 from app.logs import REQUEST_ID
 from app.methods.base import MethodRequest, StoredPoint
-from app.models import Calibration as CalibrationRow
-from app.models import new_id, table_of, utcnow
 from app.schemas.results import (
     Calibration,
     CalibrationResult,
 )
-from app.services import audit, idempotency
+from app.security.auth import Principal, act_for
+from app.services import idempotency
+from app.services.audit import writes as audit
+from app.services.calibrate.contexts import DbContext, SnapshotContext
 from app.services.calibrate.grading import reference_point_to_save, solve
 from app.services.calibrate.presolve import Presolved, Snapshot, solve_snapshot
+from app.services.calibrate.references import create_reference_point, ensure_reference_name_free
 from app.services.calibrate.stored import served
-from app.services.contexts import DbContext, SnapshotContext
-from app.services.references import create_reference_point, ensure_reference_name_free
-from app.services.robots import get_robot
-from app.services.tools import get_tool
-from app.services.verdict import held_for_change
-from app.services.versions import (
-    LockedTool,
-    activate,
-    add_version,
-    lock_tool,
-    save_deferred,
-)
+from app.services.calibrate.verdict import held_for_change
+from app.services.robots.robots import get_robot
+from app.services.tools.tools import get_tool
+from app.services.tools.versions import LockedTool, activate, add_version, lock_tool, save_deferred
+from app.storage.db import DriverWrite, engine_for, session_scope
+from app.storage.models import Calibration as CalibrationRow
+from app.storage.models import new_id, table_of, utcnow
 from app.words import MethodName, Status
 
 
@@ -86,8 +81,8 @@ def solve_and_submit(
     request_id: str | None,
 ) -> Submitted:
     """A calibration from its snapshot on: the solve, with no transaction open, then `submit`
-    in a write transaction of its own. One call for a solver process (app.solve_pool), which
-    writes to `database_url` itself: the result never travels back to be stored, and the
+    in a write transaction of its own. One call for a solver process (app.services.solve_pool),
+    which writes to `database_url` itself: the result never travels back to be stored, and the
     write costs the server's event loop nothing. Its audit events carry `request_id`."""
     token = REQUEST_ID.set(request_id)
     try:

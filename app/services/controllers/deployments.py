@@ -1,0 +1,468 @@
+"""Deploy a tool's active version to its robot's controller: write it, read it back,
+compare, and record the attempt whatever became of it.
+
+Three steps, and no database transaction is open during the controller's I/O (which may
+take up to the controller's timeout): 1. a read transaction gathers what to write and where;
+2. the connector writes and reads back; 3. a write transaction records the attempt (and,
+when verified, that the controller holds the active version). Runs in a worker thread: the
+connectors are blocking I/O with a deadline.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.errors import (
+    ControllerMismatch,
+    ControllerRefusedError,
+    ControllerUnreachableError,
+    DomainError,
+    InvalidInput,
+    NothingToDeploy,
+)
+from app.helpers.frame_deviation import (
+    DEPLOY_TOLERANCE_DEG,
+    DEPLOY_TOLERANCE_MM,
+    frame_deviation,
+    within,
+)
+from app.helpers.pagination import paginate_newest_first
+from app.jsontypes import JsonObject
+from app.metrics import DEPLOYMENTS
+from app.schemas.controllers import Deployment as DeploymentOut
+from app.security.auth import Principal, act_for
+from app.services import idempotency
+from app.services.audit import writes as audit
+from app.services.controllers import states as controller_states
+from app.services.robots.connection import get_controller, refusal_words, settings_of
+from app.services.tools.tools import get_tool
+from app.storage.db import session_scope
+from app.storage.models import Deployment, Robot, TcpVersion, ToolControllerState, utcnow
+from app.vendors.connector import (
+    Connector,
+    ControllerError,
+    ControllerRefused,
+    ControllerSettings,
+    ControllerUnreachable,
+    ToolTarget,
+)
+from app.vendors.registry import (
+    TARGET_FIELD,
+    connect,
+    describe_target,
+    scope_of,
+    target_problem,
+)
+from app.vendors.registry import where as controller_address
+from app.vendors.tool import ToolData, ToolLoad
+from app.words import DeploymentStatus, FailedDeploymentStatus, ProtocolName
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What to write where, read in one transaction before any I/O."""
+
+    tool_id: str
+    robot_id: str
+    version: int
+    target: ToolTarget
+    target_name: str
+    data: ToolData
+    settings: ControllerSettings
+    #: the version the controller held in sync at the last look, if another one
+    held_version: int | None = None
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What the controller did with it."""
+
+    status: DeploymentStatus
+    previous: ToolData | None = None
+    read_back: ToolData | None = None
+    deviation: tuple[float, float] | None = None
+    error: DomainError | None = None
+    controller_message: str | None = None
+
+
+def tool_target(protocol: ProtocolName, slot: int | None, symbol: str | None) -> ToolTarget:
+    """Where the tool lives in its controller; 422 naming the tool's field to set."""
+    target = ToolTarget(slot=slot, symbol=symbol)
+    problem = target_problem(protocol, target)
+    if problem is not None:
+        field = "slot" if TARGET_FIELD.get(protocol) == "slot" else "controller_symbol"
+        raise InvalidInput(
+            "controller-target",
+            f"{problem} (PATCH /v1/tools/{{tool_id}} with {field!r})",
+            members={"field": field},
+        )
+    return target
+
+
+def plan_deployment(session: Session, tool_id: str) -> Plan:
+    """What deploying the tool now means; 409 without an active version or a controller,
+    422 when the tool has no place in the controller."""
+    tool = get_tool(session, tool_id)
+    if tool.active_version is None:
+        raise NothingToDeploy(
+            f"tool {tool_id} has no active version to deploy: activate a version first"
+        )
+    controller = get_controller(session, tool.robot_id)
+    target = tool_target(controller.protocol, tool.slot, tool.controller_symbol)
+    version = session.scalars(
+        select(TcpVersion).where(
+            TcpVersion.tool_id == tool.id, TcpVersion.version == tool.active_version
+        )
+    ).one()
+    load = None
+    if tool.load is not None:
+        cog = tool.load.get("cog_mm") or [0.0, 0.0, 0.0]
+        load = ToolLoad(mass_kg=float(tool.load["mass_kg"]), cog_mm=_vec3(cog))
+    data = ToolData(
+        position_mm=_vec3(version.position_mm),
+        quaternion=_vec4(version.quaternion),
+        load=load,
+    )
+    state = session.get(ToolControllerState, tool.id)
+    held_version = None
+    if state is not None and state.state == "in_sync" and state.active_version != version.version:
+        held_version = state.active_version
+    return Plan(
+        tool_id=tool.id,
+        robot_id=tool.robot_id,
+        version=version.version,
+        target=target,
+        target_name=describe_target(controller.protocol, target),
+        data=data,
+        settings=settings_of(controller),
+        held_version=held_version,
+    )
+
+
+def _vec3(values: object) -> tuple[float, float, float]:
+    x, y, z = (float(v) for v in values)  # type: ignore[attr-defined]
+    return x, y, z
+
+
+def _vec4(values: object) -> tuple[float, float, float, float]:
+    w, x, y, z = (float(v) for v in values)  # type: ignore[attr-defined]
+    return w, x, y, z
+
+
+@dataclass
+class _Attempt:
+    """How far an attempt got: what was read before, whether the write may have reached
+    the controller, what was read after."""
+
+    previous: ToolData | None = None
+    sent: bool = False
+    read_back: ToolData | None = None
+
+
+def write_and_read_back(plan: Plan) -> Outcome:
+    """Write the plan into the controller and read it back (no database here). A failure
+    is `not_written` when it came before the write was sent, `unverified` after."""
+    attempt = _Attempt()
+    try:
+        with connect(plan.settings) as conn:
+            attempt.previous = conn.read_tool(plan.target)
+            _write(conn, plan, attempt)
+            attempt.read_back = conn.read_tool(plan.target)
+    except ControllerError as exc:
+        return _failure(plan, attempt, exc)
+    read_back = attempt.read_back
+    data = plan.data
+    deviation = frame_deviation(
+        data.position_mm, data.quaternion, read_back.position_mm, read_back.quaternion
+    )
+    if within(deviation, mm=DEPLOY_TOLERANCE_MM, deg=DEPLOY_TOLERANCE_DEG):
+        return Outcome("verified", attempt.previous, read_back, deviation)
+    error = ControllerMismatch(
+        f"{plan.target_name} reads back {deviation[0]:.4f} mm and {deviation[1]:.4f} deg "
+        f"from what was written (allowed {DEPLOY_TOLERANCE_MM} mm, {DEPLOY_TOLERANCE_DEG} deg)",
+        members={"deployment_status": "mismatch"},
+    )
+    return Outcome("mismatch", attempt.previous, read_back, deviation, error=error)
+
+
+def _write(conn: Connector, plan: Plan, attempt: _Attempt) -> None:
+    """Write, noting whether the write may have reached the controller. A refusal after
+    the write was sent (the controller still answers) is followed by one read: the
+    controller may show it kept what it held."""
+    try:
+        conn.write_tool(plan.target, plan.data)
+    except ControllerRefused as exc:
+        attempt.sent = exc.write_sent
+        if exc.write_sent:
+            with contextlib.suppress(ControllerError):
+                attempt.read_back = conn.read_tool(plan.target)
+        raise
+    except ControllerError as exc:
+        attempt.sent = exc.write_sent
+        raise
+    attempt.sent = True
+
+
+def _same_frame(a: ToolData, b: ToolData) -> bool:
+    deviation = frame_deviation(a.position_mm, a.quaternion, b.position_mm, b.quaternion)
+    return within(deviation, mm=DEPLOY_TOLERANCE_MM, deg=DEPLOY_TOLERANCE_DEG)
+
+
+def _failure_status(plan: Plan, attempt: _Attempt) -> FailedDeploymentStatus:
+    """not_written when the write never left, or the controller refused it and still shows
+    what it held; unverified otherwise (it may hold either frame)."""
+    if not attempt.sent:
+        return "not_written"
+    held, before = attempt.read_back, attempt.previous
+    if (
+        held is not None
+        and before is not None
+        and _same_frame(held, before)
+        and not _same_frame(held, plan.data)
+    ):
+        return "not_written"
+    return "unverified"
+
+
+def status_words(status: FailedDeploymentStatus, version: int, held_version: int | None) -> str:
+    """What a deployment that failed short of a read-back leaves on the controller, in the
+    words of the person at the cell."""
+    if status == "not_written":
+        return "nothing was written: the controller still holds what it held"
+    before = "what it held before" if held_version is None else f"v{held_version}"
+    return (
+        f"written, not confirmed: the controller may hold v{version} or {before}; "
+        "the next reconcile round will tell"
+    )
+
+
+def _failure(plan: Plan, attempt: _Attempt, exc: ControllerError) -> Outcome:
+    status = _failure_status(plan, attempt)
+    where = controller_address(plan.settings)
+    words = status_words(status, plan.version, plan.held_version)
+    members: dict[str, object] = {"deployment_status": status}
+    message = None
+    error: DomainError
+    if isinstance(exc, ControllerRefused):
+        message = exc.controller_message
+        members["controller_message"] = message
+        error = ControllerRefusedError(
+            f"the controller refused: {refusal_words(exc, plan.robot_id)}; {words}",
+            members=members,
+        )
+    elif isinstance(exc, ControllerUnreachable):
+        happened = (
+            "stopped answering after the write was sent"
+            if attempt.sent
+            else f"could not be reached within {plan.settings.timeout_s:g} s"
+        )
+        error = ControllerUnreachableError(
+            f"the controller at {where} {happened}: {exc}; {words}", members=members
+        )
+    else:
+        error = ControllerUnreachableError(
+            f"the controller at {where} answered something that is not its protocol: {exc}; "
+            f"{words}",
+            members=members,
+        )
+    return Outcome(
+        status,
+        attempt.previous,
+        attempt.read_back,
+        error=error,
+        controller_message=message,
+    )
+
+
+def deploy(
+    *,
+    tool_id: str,
+    actor: Principal,
+    idempotency_key: str | None,
+    raw_body: JsonObject,
+    reason: str | None = None,
+) -> tuple[JsonObject, bool]:
+    """Deploy the tool's active version: (the Deployment, whether it is a replay). A failed
+    or mismatched attempt is recorded and then raised as its 502 with `deployment_id`."""
+    fingerprint = idempotency.request_fingerprint(f"deploy:{tool_id}", raw_body)
+    if idempotency_key is not None:
+        with session_scope(write=False) as session:
+            act_for(session, actor)  # only the robots the key's cells hold
+            replayed = idempotency.replay(
+                session, actor=actor, key=idempotency_key, fingerprint=fingerprint, purge=False
+            )
+        if replayed is not None:
+            return replayed, True
+
+    def keep(session: Session, document: JsonObject) -> None:
+        if idempotency_key is not None:
+            idempotency.remember(
+                session,
+                actor=actor,
+                key=idempotency_key,
+                fingerprint=fingerprint,
+                response=document,
+            )
+
+    done = attempt(tool_id=tool_id, actor=actor, reason=reason, keep=keep)
+    if done.error is not None:
+        raise done.error
+    return done.document.model_dump(mode="json"), False
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """A recorded deployment as served, and its failure (None when verified) as the 502 a
+    client gets, `deployment_id` and `deployment_status` among its members."""
+
+    document: DeploymentOut
+    error: DomainError | None
+
+
+def attempt(
+    *,
+    tool_id: str,
+    actor: Principal,
+    reason: str | None,
+    keep: Callable[[Session, JsonObject], None] | None = None,
+) -> Attempt:
+    """Deploy the tool's active version and record the attempt whatever became of it;
+    refusals before any I/O (no active version, controller or address) are raised.
+    `keep`: called with the verified deployment's document in the transaction recording it
+    (an Idempotency-Key's answer)."""
+    with session_scope(write=False) as session:
+        act_for(session, actor)  # only the robots the key's cells hold
+        plan = plan_deployment(session, tool_id)
+    outcome = write_and_read_back(plan)
+    with session_scope(write=True) as session:
+        act_for(session, actor)  # only the robots the key's cells hold
+        row = _record(session, plan, outcome, actor, reason)
+        document = deployment_document(row)
+        if keep is not None and outcome.status == "verified":
+            keep(session, document.model_dump(mode="json"))
+    DEPLOYMENTS.labels(plan.settings.protocol, outcome.status).inc()
+    if outcome.error is not None:
+        outcome.error.members["deployment_id"] = str(row.id)
+    return Attempt(document, outcome.error)
+
+
+def _record(
+    session: Session, plan: Plan, outcome: Outcome, actor: Principal, reason: str | None
+) -> Deployment:
+    """The attempt, its audit event and, when verified, the tool's state in sync."""
+    error = None
+    if outcome.error is not None:
+        error = {
+            "type": outcome.error.kind,
+            "detail": outcome.error.detail,
+            "controller_message": outcome.controller_message,
+        }
+    dev_mm, dev_deg = outcome.deviation if outcome.deviation is not None else (None, None)
+    row = Deployment(
+        tool_id=plan.tool_id,
+        robot_id=plan.robot_id,
+        version=plan.version,
+        protocol=plan.settings.protocol,
+        target=plan.target_name,
+        status=outcome.status,
+        scope=scope_of(plan.settings.protocol),
+        previous=controller_states.frame_json(outcome.previous),
+        read_back=controller_states.frame_json(outcome.read_back),
+        deviation_mm=dev_mm,
+        deviation_deg=dev_deg,
+        error=error,
+        reason=reason,
+        actor=actor.name,
+        created_at=utcnow(),
+    )
+    audit.add_created(
+        session,
+        row,
+        actor=actor,
+        action="tool.deploy",
+        resource_type="deployment",
+        robot_id=plan.robot_id,
+        tool_id=plan.tool_id,
+        details={
+            "status": outcome.status,
+            "version": plan.version,
+            "protocol": plan.settings.protocol,
+            "target": plan.target_name,
+            "scope": row.scope,
+            "previous": row.previous,
+            "error": error,
+            "reason": reason,
+        },
+    )
+    if row.scope == "live":
+        # the robot's one live TCP: its row first, as every writer of its tools' states
+        session.execute(select(Robot.id).where(Robot.id == plan.robot_id).with_for_update())
+    if outcome.status == "verified":
+        controller_states.observe(
+            session,
+            controller_states.Observation(
+                tool_id=plan.tool_id,
+                robot_id=plan.robot_id,
+                state="in_sync",
+                target=plan.target_name,
+                controller=controller_states.frame_json(outcome.read_back),
+                active_version=plan.version,
+                deviation_mm=dev_mm,
+                deviation_deg=dev_deg,
+                error=None,
+            ),
+            at=row.created_at,
+            actor=actor,
+        )
+        if row.scope == "live":
+            controller_states.others_not_live(
+                session,
+                robot_id=plan.robot_id,
+                live_tool_id=plan.tool_id,
+                target=plan.target_name,
+                at=row.created_at,
+                actor=actor,
+            )
+    return row
+
+
+def deployment_document(row: Deployment) -> DeploymentOut:
+    """A deployment as served."""
+    return DeploymentOut.model_validate(
+        {
+            "id": str(row.id),
+            "tool_id": row.tool_id,
+            "robot_id": row.robot_id,
+            "version": row.version,
+            "protocol": row.protocol,
+            "target": row.target,
+            "scope": row.scope,
+            "status": row.status,
+            "previous": row.previous,
+            "read_back": row.read_back,
+            "deviation_mm": row.deviation_mm,
+            "deviation_deg": row.deviation_deg,
+            "error": row.error,
+            "reason": row.reason,
+            "settled": row.settled,
+            "actor": row.actor,
+            "created_at": row.created_at,
+        }
+    )
+
+
+def list_deployments(
+    session: Session, *, tool_id: str, limit: int, cursor: str | None
+) -> tuple[Sequence[DeploymentOut], str | None]:
+    """A tool's deployments, newest first."""
+    tool = get_tool(session, tool_id)
+    stmt = select(Deployment).where(Deployment.tool_id == tool.id)
+    rows, next_cursor = paginate_newest_first(
+        session, stmt, id_col=Deployment.id, limit=limit, cursor=cursor
+    )
+    return [deployment_document(r) for r in rows], next_cursor

@@ -1,0 +1,88 @@
+"""Settle an `unverified` deployment: the reconcile round after it records what the
+controller holds (the written version, the frame it held before, or something else) on the
+deployment and as an audit event `deployment.settled`.
+
+Only a tool's newest deployment is settled, and only by a reading that began after it was
+recorded: what a controller holds now says nothing about an attempt a later one followed,
+and a reading taken while the attempt ran could show the frame from before its write.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.helpers.frame_deviation import (
+    DEPLOY_TOLERANCE_DEG,
+    DEPLOY_TOLERANCE_MM,
+    frame_deviation,
+    within,
+)
+from app.jsontypes import JsonObject
+from app.security.auth import Principal
+from app.services.audit import writes as audit
+from app.services.controllers.states import Observation
+from app.storage.models import Deployment, TcpVersion
+from app.words import SettledHolds
+
+
+def settle(
+    session: Session, seen: Observation, *, read_from: datetime, at: datetime, actor: Principal
+) -> None:
+    """Settle the tool's newest deployment with what the round saw (at `at`), when it is
+    `unverified`, not settled yet and was recorded before the round began reading
+    (`read_from`)."""
+    held = seen.controller
+    if held is None:
+        return  # not read this round: the next one will tell
+    row = session.scalars(
+        select(Deployment)
+        .where(Deployment.tool_id == seen.tool_id)
+        .order_by(Deployment.id.desc())
+        .limit(1)
+    ).first()
+    if row is None or row.status != "unverified" or row.settled is not None:
+        return
+    if row.created_at >= read_from:
+        return
+    written = session.scalars(
+        select(TcpVersion).where(
+            TcpVersion.tool_id == row.tool_id, TcpVersion.version == row.version
+        )
+    ).one()
+    holds: SettledHolds = "other"
+    if _same(held, {"position_mm": written.position_mm, "quaternion": written.quaternion}):
+        holds = "written"
+    elif row.previous is not None and _same(held, row.previous):
+        holds = "previous"
+    row.settled = {"at": at.isoformat(), "holds": holds, "frame": held}
+    audit.record(
+        session,
+        actor=actor,
+        action="deployment.settled",
+        resource_type="deployment",
+        resource_id=str(row.id),
+        robot_id=row.robot_id,
+        tool_id=row.tool_id,
+        version=row.version,
+        details={
+            "deployment_id": str(row.id),
+            "holds": holds,
+            "version": row.version,
+            "target": row.target,
+            "controller": held,
+            "previous": row.previous,
+        },
+    )
+
+
+def _same(a: JsonObject, b: JsonObject) -> bool:
+    deviation = frame_deviation(
+        a["position_mm"],
+        a["quaternion"],
+        b["position_mm"],
+        b["quaternion"],
+    )
+    return within(deviation, mm=DEPLOY_TOLERANCE_MM, deg=DEPLOY_TOLERANCE_DEG)

@@ -1,0 +1,202 @@
+"""Tools of a robot: register, list, update, archive; the tool's ETag and If-Match."""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Sequence
+from typing import Protocol
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.errors import Conflict, InvalidInput, PreconditionFailed
+from app.helpers.etags import if_match_ok
+from app.helpers.pagination import paginate
+from app.helpers.tolerance import effective_tolerance
+from app.schemas.tools import Load, ToolCreate, ToolUpdate
+from app.security.auth import Principal
+from app.services.audit import writes as audit
+from app.services.robots.connection import check_slot_for_controller
+from app.services.robots.robots import get_robot
+from app.services.robots.slots import check_slot
+from app.services.tools.drift import restate_drift
+from app.services.visible import get_live, visible_tool
+from app.storage.models import Tool, new_id, utcnow
+
+
+def get_tool(session: Session, tool_id: str, *, for_update: bool = False) -> Tool:
+    """A live tool, or 404. `for_update` locks the row (serialises versions)."""
+    return get_live(session, Tool, tool_id, for_update=for_update)
+
+
+def tool_named_in_body(
+    session: Session, tool_id: str, *, robot_id: str, loc: tuple[str, ...]
+) -> Tool:
+    """A live tool of the robot that a request body names (a reference tool, a teaching
+    tool): when there is none, the body field is wrong (422 at `loc`), not the URL (404)."""
+    tool = visible_tool(session, tool_id)
+    if tool is None or tool.archived_at is not None or tool.robot_id != robot_id:
+        raise InvalidInput(
+            "unknown-reference",
+            f"robot {robot_id} has no tool {tool_id} in service; name one of its live tools",
+            loc=loc,
+        )
+    return tool
+
+
+class _Revised(Protocol):
+    """A tool as its ETag sees it (the ORM row, or one read under its lock)."""
+
+    @property
+    def id(self) -> str: ...
+    @property
+    def revision(self) -> int: ...
+
+
+def tool_etag(tool: _Revised) -> str:
+    """Strong ETag of a tool; changes with every change to it, its versions or activation."""
+    digest = hashlib.sha256(f"{tool.id}:{tool.revision}".encode()).hexdigest()[:20]
+    return f'"{digest}"'
+
+
+def check_if_match(tool: _Revised, if_match: str | None) -> None:
+    """412 when an If-Match header does not name the tool's current ETag."""
+    if if_match_ok(if_match, tool_etag(tool)):
+        return
+    raise PreconditionFailed(
+        f"tool {tool.id} changed since you read it: its ETag is now {tool_etag(tool)}; "
+        "read it again and retry",
+        headers={"ETag": tool_etag(tool)},
+    )
+
+
+def _tool_unique(
+    session: Session,
+    *,
+    robot_id: str,
+    name: str | None,
+    slot: int | None,
+    except_id: str | None = None,
+) -> None:
+    live = select(Tool.id).where(Tool.robot_id == robot_id, Tool.archived_at.is_(None))
+    if except_id:
+        live = live.where(Tool.id != except_id)
+    if name is not None and session.scalars(live.where(Tool.name == name)).first():
+        raise Conflict(
+            f"robot {robot_id} already has a tool named {name!r}",
+            loc=("body", "name"),
+            msg="already taken",
+        )
+    if slot is not None and session.scalars(live.where(Tool.slot == slot)).first():
+        raise Conflict(
+            f"slot {slot} of robot {robot_id} is already taken by another tool",
+            loc=("body", "slot"),
+            msg="already taken",
+        )
+
+
+def create_tool(session: Session, *, robot_id: str, data: ToolCreate, actor: Principal) -> Tool:
+    """Register a tool on a robot (name and slot unique among the robot's live tools)."""
+    robot = get_robot(session, robot_id, for_update=True)
+    check_slot(robot.vendor, data.slot, loc=("body", "slot"))
+    _tool_unique(session, robot_id=robot_id, name=data.name, slot=data.slot)
+    check_slot_for_controller(session, robot_id=robot_id, slot=data.slot)
+    values = data.model_dump()
+    tool = Tool(id=new_id(), robot_id=robot_id, last_version=0, revision=1, **values)
+    return audit.add_created(
+        session,
+        tool,
+        actor=actor,
+        action="tool.create",
+        resource_type="tool",
+        robot_id=robot_id,
+        tool_id=tool.id,
+        details={"name": tool.name, "slot": tool.slot, "tolerance": tool.tolerance},
+    )
+
+
+def list_tools(
+    session: Session, *, robot_id: str, limit: int, cursor: str | None
+) -> tuple[Sequence[Tool], str | None]:
+    """Live tools of a robot."""
+    get_robot(session, robot_id)  # 404 for a robot of another cell: its tools are not listed
+    stmt = select(Tool).where(Tool.robot_id == robot_id, Tool.archived_at.is_(None))
+    return paginate(
+        session, stmt, created_col=Tool.created_at, id_col=Tool.id, limit=limit, cursor=cursor
+    )
+
+
+#: The fields whose old and new values a tool's update event shows (all but the free text).
+_SHOWN_CHANGES = ("name", "slot", "serial", "load", "tolerance", "controller_symbol")
+
+
+def update_tool(
+    session: Session, *, tool_id: str, data: ToolUpdate, if_match: str | None, actor: Principal
+) -> Tool:
+    """Change the fields given in the PATCH body (If-Match honoured)."""
+    tool = get_tool(session, tool_id, for_update=True)
+    check_if_match(tool, if_match)
+    changes = data.model_dump(exclude_unset=True)
+    if changes.get("name", "") is None:
+        changes.pop("name")
+    if changes.get("slot") is not None:
+        check_slot(get_robot(session, tool.robot_id).vendor, changes["slot"], loc=("body", "slot"))
+    _tool_unique(
+        session,
+        robot_id=tool.robot_id,
+        name=changes.get("name"),
+        slot=changes.get("slot"),
+        except_id=tool.id,
+    )
+    check_slot_for_controller(session, robot_id=tool.robot_id, slot=changes.get("slot"))
+    # Nested objects merge (JSON merge patch): {"tolerance": {"max_rms_mm": 0.2}} changes that
+    # one limit and keeps the others, rather than resetting them to the defaults.
+    if "tolerance" in changes:
+        if changes["tolerance"] is None:
+            changes.pop("tolerance")
+        else:
+            changes["tolerance"] = {
+                **effective_tolerance(tool.tolerance).model_dump(),
+                **changes["tolerance"],
+            }
+    if changes.get("load") is not None and tool.load is not None:
+        changes["load"] = Load.model_validate({**tool.load, **changes["load"]}).model_dump()
+    details = audit.changes(
+        tool,
+        changes,
+        values_of=_SHOWN_CHANGES,
+        before={"tolerance": effective_tolerance(tool.tolerance).model_dump()},
+    )
+    for key, value in changes.items():
+        setattr(tool, key, value)
+    if "tolerance" in changes:  # another check_mm, another projection
+        restate_drift(session, tool)
+    tool.updated_at = utcnow()
+    tool.revision += 1
+    audit.record(
+        session,
+        actor=actor,
+        action="tool.update",
+        resource_type="tool",
+        resource_id=tool.id,
+        robot_id=tool.robot_id,
+        tool_id=tool.id,
+        details=details,
+    )
+    return tool
+
+
+def archive_tool(session: Session, *, tool_id: str, actor: Principal) -> None:
+    """Archive a tool: it stops serving a TCP; its history stays."""
+    tool = get_tool(session, tool_id, for_update=True)
+    tool.archived_at = utcnow()
+    tool.revision += 1
+    audit.record(
+        session,
+        actor=actor,
+        action="tool.archive",
+        resource_type="tool",
+        resource_id=tool.id,
+        robot_id=tool.robot_id,
+        tool_id=tool.id,
+    )
