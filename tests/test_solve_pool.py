@@ -90,7 +90,7 @@ def test_solvers_end_with_a_killed_server_worker() -> None:
     code = (
         "import os, time\n"
         "os.environ['TCPCAL_SOLVE_PROCESSES'] = '2'\n"
-        "from app import solve_pool\n"
+        "from app.services import solve_pool\n"
         "solve_pool.start()\n"
         "print(*solve_pool._get_pool()._processes, flush=True)\n"
         # The watchdogs are waiting on the live worker: each blocks in a join of it, so one
