@@ -183,6 +183,22 @@ def test_the_independence_contract_names_every_maker() -> None:
     assert set(independent["modules"]) == packages
 
 
+def test_the_layers_contract_puts_every_maker_between_the_registry_and_the_shared_modules() -> None:
+    """pyproject.toml's layers contract of app.vendors keeps each maker under the registry and
+    over maker.py and the shared modules: a maker left out of its layer is held by nothing
+    there (it could import the registry, or a shared module import it)."""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    contracts = config["tool"]["importlinter"]["contracts"]
+    (layers,) = [
+        c for c in contracts if c["type"] == "layers" and c.get("containers") == ["app.vendors"]
+    ]
+    makers = [layer for layer in layers["layers"] if "kuka" in layer.split(" | ")]
+    packages = {inspect.getmodule(m.text).__name__ for m in MAKERS}  # type: ignore[union-attr]
+    assert [{f"app.vendors.{name}" for name in layer.split(" | ")} for layer in makers] == [
+        packages
+    ]
+
+
 def _module(**functions: object) -> SimpleNamespace:
     return SimpleNamespace(**functions)
 
@@ -215,9 +231,9 @@ def test_a_maker_lacking_a_part_is_told_what_it_lacks() -> None:
         "file module has no write or no read": replace(
             kuka, file=lambda: cast(FileModule, no_read)
         ),
-        "not a word of ControllerFormat": replace(kuka, format="stäubli"),
+        "not a word of ControllerFormat": replace(kuka, format="not_a_format"),
         "not a word of ProtocolName": replace(
-            kuka, protocols=(replace(wire, name="staubli_val3"),)
+            kuka, protocols=(replace(wire, name="not_a_protocol"),)
         ),
         "its slots (1, 10) are not its maker's": replace(
             kuka, protocols=(replace(wire, address=BySlot((1, 10), "$TOOL_DATA[{}]")),)
