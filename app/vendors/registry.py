@@ -106,8 +106,10 @@ def scope_of(protocol: str) -> DeploymentScope:
 
 
 def has_connector(protocol: str) -> bool:
-    """Whether `connect` can open a session under `protocol`."""
-    return protocol in CONNECTED_PROTOCOLS
+    """Whether `connect` can open a session under `protocol` (read off its declaration, as
+    `connect` reads it)."""
+    wire = WIRE_PROTOCOLS.get(protocol)
+    return wire is not None and wire.connector is not None
 
 
 def connect(settings: ControllerSettings) -> Connector:
