@@ -120,7 +120,7 @@ def db(database: Database, monkeypatch: pytest.MonkeyPatch) -> Iterator[Database
     monkeypatch.delenv("TCPCAL_BOOTSTRAP_ADMIN_KEY", raising=False)
     # In-process apps solve in the request's thread: a solver pool is a forkserver process
     # that imports numpy, scipy and the methods (about a second) for every test's app, and
-    # the pool path has tests of its own (tests/test_solve_pool.py, the live servers).
+    # the pool path has tests of its own (tests/services/test_solve_pool.py, the live servers).
     monkeypatch.setenv("TCPCAL_SOLVE_PROCESSES", "0")
     _use_database(database.url)
     yield database

@@ -264,9 +264,9 @@ EVENTS: dict[tuple[str, str], tuple[tuple[str, str, str], ...]] = {
 #: The actions no write route records, and the tests that show them recorded.
 RECORDED_BY_A_ROUND: dict[str, str] = {
     "controller.unreachable": "a reconcile round that cannot reach the controller "
-    "(tests/api/test_watcher.py)",
+    "(tests/services/controllers/test_watcher.py)",
     "deployment.settled": "the reconcile round after an unverified deployment "
-    "(tests/api/test_deployments.py, tests/api/test_watcher.py)",
+    "(tests/api/test_deployments.py, tests/services/controllers/test_watcher.py)",
 }
 
 

@@ -96,8 +96,8 @@ def test_two_instances_with_the_watcher_record_each_drift_once(
 ) -> None:
     # Two instances of one worker each: two watchers in two processes contend for the fleet
     # lock, as four did with two workers each (at 5 s of CPU more). Rounds every half second;
-    # how soon a round finds a change is tests/api/test_watcher.py's subject, so a change is
-    # waited for generously here (a loaded machine delays rounds).
+    # how soon a round finds a change is tests/services/controllers/test_watcher.py's subject, so a
+    # change is waited for generously here (a loaded machine delays rounds).
     interval = 0.5
     settle = 10.0
     monkeypatch.setenv("TCPCAL_RECONCILE_INTERVAL_S", str(interval))

@@ -114,7 +114,7 @@ def _protocol_missing(maker: Maker, wire: WireProtocol) -> list[str]:
     if wire.target_problem(target) is not None or not wire.describe(target):
         found.append(f"{wire.name}: cannot address its maker's first tool")
     if wire.connector is None:
-        return found  # not written yet: connect() says so (tests/controllers/test_interface)
+        return found  # not written yet: connect() says so (tests/vendors/test_connector)
     connector = wire.connector()
     methods = [m for m in CONNECTOR_METHODS if not callable(getattr(connector, m, None))]
     if not inspect.isclass(connector) or methods:

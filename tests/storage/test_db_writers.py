@@ -23,7 +23,7 @@ from app.storage.db import (
     sqlite_writers,
 )
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 # A writer in another process: takes the queue, says when, holds it for `hold` seconds.
 _OTHER_WRITER = """

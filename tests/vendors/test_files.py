@@ -20,8 +20,8 @@ from app.vendors.files import FileContext, FileTool, ParsedTool, Provenance
 from app.vendors.registry import controller_file, parse_controller_file, vendor_formats
 from app.vendors.tool import ToolData
 from app.words import CONTROLLER_FORMATS
-from tests.exports.ls_grammar import check_ls
-from tests.exports.tools import tool_data
+from tests.vendors.fanuc.ls_grammar import check_ls
+from tests.vendors.tools import tool_data
 
 GOLDEN = Path(__file__).parent / "golden"
 WHEN = datetime(2026, 11, 24, 5, 0, 12, tzinfo=UTC)

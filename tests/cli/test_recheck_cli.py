@@ -16,7 +16,6 @@ from typer.testing import CliRunner
 from app.cli import cli
 from tests.api.controller_rigs import rig
 from tests.api.test_capture_controllers import SETUPS, Cell
-from tests.api.test_controller_cli import runner as runner  # the CLI on the in-process app
 from tests.api.test_deployments import WRITE_REQUEST
 from tests.api.test_deployments import secret_key as secret_key  # ABB's password, autouse
 from tests.api.test_recheck_controllers import (
@@ -28,6 +27,7 @@ from tests.api.test_recheck_controllers import (
     tool_at_reference,
 )
 from tests.api.touches import row_counts
+from tests.cli.test_controller_cli import runner as runner  # the CLI on the in-process app
 from tests.conftest import Api
 from tests.controllers.simbase import go_silent
 

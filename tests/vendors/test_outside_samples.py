@@ -35,7 +35,7 @@ from scipy.spatial.transform import Rotation
 
 from app.vendors.files import FileContext, FileTool
 from app.vendors.registry import controller_file, parse_controller_file, parse_controller_text
-from tests.exports.tools import tool_data
+from tests.vendors.tools import tool_data
 
 DATA = Path(__file__).parents[1] / "data" / "controller-files"
 #: Three unequal, non-zero angles (deg): any two swapped, or another order, is another rotation.

@@ -18,7 +18,7 @@ import pytest
 
 from app.vendors.files import FileContext, FileTool
 from app.vendors.registry import controller_file, parse_controller_file
-from tests.exports.tools import tool_data
+from tests.vendors.tools import tool_data
 
 DATA = Path(__file__).parents[1] / "data" / "controller-files"
 #: tcpcal manages tools 5 and 9 of this robot; the controller has others (1-3 in the backup).

@@ -24,7 +24,7 @@ from testbed.sim.touches import simulate_touches
 from tests.api.capture_steps import POINT, TRUE_TCP
 from tests.api.capture_steps import krc as krc
 from tests.api.controller_rigs import Rig
-from tests.api.test_controller_cli import runner as runner  # the app in process, calibrate key
+from tests.cli.test_controller_cli import runner as runner  # the app in process, calibrate key
 from tests.conftest import Api
 
 #: A touch line: number, source, the controller's time of reading (none when typed), numbers.

@@ -16,7 +16,7 @@ from app.vendors.abb.text import rapid_identifier
 from app.vendors.registry import export_tool, parse_controller_text
 from app.vendors.tool import ToolData
 from app.words import CONTROLLER_FORMATS
-from tests.exports.tools import tool_data
+from tests.vendors.tools import tool_data
 
 H = math.sqrt(0.5)
 

@@ -1,0 +1,1 @@
+"""The `tcpcal` command's tests (app/cli/), its requests sent to the app in process."""

@@ -1,0 +1,1 @@
+"""Tests of app/storage/: SQLite writers, held reads, migrations, restore."""

@@ -1,0 +1,1 @@
+"""FANUC's connector (RMI) against the RMI simulator; the LS grammar."""

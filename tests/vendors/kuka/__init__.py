@@ -1,0 +1,1 @@
+"""KUKA's connector (KUKAVARPROXY) against the KRC simulator."""

@@ -1,0 +1,1 @@
+"""Techman's connector (TMflow) against the TMflow simulator."""

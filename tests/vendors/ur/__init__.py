@@ -1,0 +1,1 @@
+"""Universal Robots' connector (RTDE) against the UR simulator."""

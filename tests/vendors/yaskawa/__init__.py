@@ -1,0 +1,1 @@
+"""Yaskawa's connector (HSES) against the HSES simulator."""
