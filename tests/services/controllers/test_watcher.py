@@ -1,22 +1,64 @@
-"""The watcher in the app's lifespan: drift found within two intervals, one audit event per
-change, its state in /ready, a stop within a second even when a controller stalls, and a hung
-controller that delays no other robot's state change beyond the interval."""
+"""The watcher in the app's lifespan: a pendant-side change flagged within one interval on
+every protocol, one audit event per change, its state in /ready, a stop within a second even
+when a controller stalls, and a hung controller that delays no other robot's state change
+beyond the interval."""
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
+from typing import Any
 
 import pytest
 from sqlalchemy import text
 
 from app.storage.db import get_engine
-from tests.api.controller_rigs import SLOT, TIMEOUT_S, rig
+from tests.api.controller_rigs import PROTOCOLS, SLOT, TIMEOUT_S, Rig, rig
+from tests.api.controller_rigs import secret_key as secret_key  # ABB's stored password
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, WRITE_REQUEST, _setup
 from tests.conftest import Api, Database
 from tests.controllers.simbase import go_silent
 from tests.polling import wait_for
 
 INTERVAL_S = 0.5
+#: "Within one interval" (docs/controllers.md, "Reconcile"): rounds begin one interval apart,
+#: and the first round to begin after a change reads it, so it flags the change when its read
+#: of the controller and its store end (a read bounded by the controller's timeout_s). What
+#: the tests allow beyond the interval for that round to begin: the loop's wake-up, its query
+#: of the robots that have a controller and the hand-off to a reading thread. Measured on 2
+#: cores shared by other work (load 3-5), over every protocol: a robot's reads began one
+#: interval apart within -0.015..+0.004 s, the first after a change 0.29-0.47 s after it (a
+#: change made just after a round), and its read took 0.013-0.15 s (UR's and KUKA's longest).
+START_MARGIN_S = 0.1
+
+
+@dataclass(frozen=True)
+class WatcherRead:
+    """One reconcile of a robot by the watcher: when it began and ended (monotonic), and the
+    robot's state it stored (None: cancelled)."""
+
+    began: float
+    ended: float
+    state: str | None
+
+
+def _watcher_reads(monkeypatch: pytest.MonkeyPatch, robot_id: str) -> list[WatcherRead]:
+    """Every reconcile of `robot_id` by the running watcher from now on, as it ends."""
+    from app.services.controllers import watcher
+
+    reads: list[WatcherRead] = []
+    reconcile = watcher.reconcile_robot
+
+    def recorded(**kwargs: Any) -> Any:
+        began = time.monotonic()
+        answer = reconcile(**kwargs)
+        if kwargs["robot_id"] == robot_id:
+            state = None if answer is None else answer.state
+            reads.append(WatcherRead(began, time.monotonic(), state))
+        return answer
+
+    monkeypatch.setattr(watcher, "reconcile_robot", recorded)
+    return reads
 
 
 @pytest.fixture
@@ -44,35 +86,66 @@ def _row(api: Api, robot_id: str) -> dict[str, object]:
     return dict(api.get("/v1/tools", params={"robot_id": robot_id}).json()["items"][0])
 
 
-@pytest.mark.parametrize("protocol", ["kuka_kvp", "yaskawa_hses", "techman"])
-def test_the_watcher_finds_drift_within_two_intervals_and_records_it_once(
-    watching: float, api: Api, protocol: str
+def _moving_by_the_tool(api: Api, r: Rig, tool_id: str) -> None:
+    """The controller holds the tool's active TCP and the robot moves by it: a live-TCP robot
+    (UR, Techman) once the tool is deployed to it; KUKA, Yaskawa and FANUC with the tool's
+    number selected (ABB RWS does not say which tooldata a program moves by)."""
+    if r.scope == "live":
+        deployed = api.post(f"/v1/tools/{tool_id}/deployments", {}, scope="calibrate")
+        assert deployed.status_code == 201, deployed.text
+        return
+    r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)
+    if r.protocol == "fanuc_rmi":
+        r.sim.select(uframe=0, utool=SLOT)
+    elif not r.protocol.startswith("abb"):
+        r.sim.select_tool(SLOT)
+
+
+def _after_a_round(api: Api, within_s: float) -> None:
+    """Return just after a round has ended: every robot's controller read and stored."""
+    rounds = api.client.get("/ready").json()["watcher"]["rounds"]
+    wait_for(
+        lambda: api.client.get("/ready").json()["watcher"]["rounds"] > rounds,
+        within_s,
+        "a round's end",
+    )
+
+
+@pytest.mark.parametrize("protocol", PROTOCOLS)
+def test_a_pendant_change_is_flagged_within_one_interval_and_recorded_once(
+    watching: float, api: Api, protocol: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """KUKA, Yaskawa: the pendant edits the tool's frame; Techman: the project (a SET node,
-    the pendant) sets its current TCP to other values after tcpcal deployed the tool to it."""
+    """The pendant edits the tool's frame (KUKA, FANUC, ABB, Yaskawa), or sets the robot's
+    live TCP to other values after tcpcal deployed the tool to it (UR at the pendant,
+    Techman a SET node of the project), just after a round read the controller (the latest
+    phase): the first round to begin after it flags it, and begins within one interval."""
     with rig(protocol) as r:
         ids = _setup(api, r)
         tool_id, robot_id = ids["tool"]["id"], ids["robot"]["id"]
-        if r.scope == "live":  # the robot's one live TCP is the tool once it is deployed
-            deployed = api.post(f"/v1/tools/{tool_id}/deployments", {}, scope="calibrate")
-            assert deployed.status_code == 201, deployed.text
-        else:
-            r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)  # the controller holds the active TCP
-            r.sim.select_tool(SLOT)  # and the robot moves by it
-        _wait_for(api, robot_id, "in_sync", 2 * watching)
+        reads = _watcher_reads(monkeypatch, robot_id)
+        _moving_by_the_tool(api, r, tool_id)
+        # the state before the change, not the subject: a round that began before the frame
+        # was set finds it drifted, the next in sync; a first read may take up to its timeout
+        # on a loaded machine (ABB RWS 1.0 and FANUC missed 2 intervals at load 6-8)
+        _wait_for(api, robot_id, "in_sync", 2 * watching + TIMEOUT_S)
         ready = api.client.get("/ready").json()["watcher"]
         assert ready["enabled"] is True
         assert ready["interval_s"] == watching
         assert ready["rounds"] >= 1
         assert ready["running"] is True
+        _after_a_round(api, 2 * watching)
         r.set_behind_back(
             [ACTIVE_POSITION[0], ACTIVE_POSITION[1] + 0.2, ACTIVE_POSITION[2]], ACTIVE_Q
         )
-        started = time.monotonic()
-        row = _wait_for(api, robot_id, "drifted", 2 * watching)
-        assert time.monotonic() - started <= 2 * watching
-        # the robot moves by the edited tool: a frame no version has (issue 39)
-        assert row["attention"] == ["controller_drifted", "moving_by_unknown_tcp"]
+        edited = time.monotonic()
+        row = _wait_for(api, robot_id, "drifted", 2 * watching + TIMEOUT_S + 1.0)
+        first = next(read for read in list(reads) if read.began > edited)
+        assert first.state == "drifted", (protocol, reads)  # the next round flags it
+        assert first.began - edited <= watching + START_MARGIN_S, (protocol, first, edited)
+        assert first.ended - first.began <= TIMEOUT_S  # its read: up to the controller's timeout
+        # the robot moves by the edited tool: a frame no version has (issue 39); ABB's is unread
+        moving = [] if protocol.startswith("abb") else ["moving_by_unknown_tcp"]
+        assert row["attention"] == ["controller_drifted", *moving]
         time.sleep(3 * watching)  # three more rounds find it drifted still
         assert _count(tool_id, "controller.drifted") == 1
         assert _count(tool_id, "controller.in_sync") == 1
@@ -114,7 +187,7 @@ def _wait_for(api: Api, robot_id: str, state: str, within_s: float) -> dict[str,
             return row
         if time.monotonic() > deadline:
             raise AssertionError(f"not {state} within {within_s} s: {row}")
-        time.sleep(0.05)
+        time.sleep(0.02)
 
 
 def test_a_hung_controller_delays_no_other_robots_drift_beyond_the_interval(
