@@ -363,13 +363,14 @@ def test_a_robot_without_its_connector_is_one_warning_line_not_a_traceback_each_
     as it stayed. One warning line names the robot and the protocol, the first round it is
     met; the other robots are reconciled as before."""
     import logging
+    from dataclasses import replace
 
     from app.services.controllers.watcher import Watcher
+    from app.vendors import registry
 
-    # ur_rtde as if this tcpcal had no connector for it (the gate settings_of keeps)
-    monkeypatch.setattr(
-        "app.services.robots.connection.has_connector", lambda protocol: protocol != "ur_rtde"
-    )
+    # ur_rtde declared as a maker declares a protocol whose connector is not written yet
+    unwritten = replace(registry.WIRE_PROTOCOLS["ur_rtde"], connector=None)
+    monkeypatch.setitem(registry.WIRE_PROTOCOLS, "ur_rtde", unwritten)
     caplog.set_level(logging.INFO, logger="tcpcal.watcher")
     with rig("kuka_kvp") as r:
         reached = _setup(api, r)["robot"]["id"]
