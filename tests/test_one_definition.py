@@ -305,3 +305,28 @@ def test_no_literal_is_written_twice() -> None:
     assert {w: n for w, n in by_words.items() if len(n) > 1} == {}, "one list, two names"
     again = [(f"{f}:{line}", by_words[w]) for f, line, w in in_place if w in by_words]
     assert again == [], "a named Literal's words written out again: use the name"
+
+
+def _bound_at_top(path: Path) -> set[str]:
+    """The public upper-case names a module binds at its top level (not imports)."""
+    names: set[str] = set()
+    for node in ast.parse(path.read_text()).body:
+        targets, _ = _alias_value(node)
+        names |= {t for t in targets if t.isupper() and not t.startswith("_")}
+    return names
+
+
+def test_the_registrys_tables_have_names_of_their_own() -> None:
+    """Each table app.vendors.registry keeps by protocol or by format (SLOT_RANGES, the slots
+    each protocol addresses; TOOL_NUMBERS; the deployment scopes ...) has a name no module
+    outside app/vendors binds to something else: one name was {protocol: (low, high)} there
+    and {format: (vendor, low, high)} in app/services/robots/slots.py, another the
+    deployment scope of each protocol there and the API keys' scopes in app/scopes.py. (A
+    maker's package binds its own TOOL_NUMBERS: its entry of the registry's table.)"""
+    tables = _bound_at_top(APP / "vendors" / "registry.py")
+    again = {
+        str(path.relative_to(APP.parent)): sorted(tables & _bound_at_top(path))
+        for path in APP.rglob("*.py")
+        if path.parent.relative_to(APP).parts[:1] != ("vendors",)
+    }
+    assert {where: names for where, names in again.items() if names} == {}

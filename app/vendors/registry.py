@@ -78,7 +78,7 @@ SERVICE_PORTS: dict[str, dict[str, int]] = {
 }
 #: Where a deployment under each protocol holds: "stored" where the controller keeps it,
 #: "live" where it holds only for the running program (contract v1.3 Deployment `scope`).
-SCOPES: dict[str, DeploymentScope] = {n: w.scope for n, w in WIRE_PROTOCOLS.items()}
+DEPLOYMENT_SCOPES: dict[str, DeploymentScope] = {n: w.scope for n, w in WIRE_PROTOCOLS.items()}
 #: The protocols `connect` has a connector for.
 CONNECTED_PROTOCOLS: frozenset[str] = frozenset(
     n for n, w in WIRE_PROTOCOLS.items() if w.connector is not None
@@ -102,7 +102,7 @@ FILE_KINDS: dict[str, str] = {m.format: m.file_kind for m in MAKERS}
 
 def scope_of(protocol: str) -> DeploymentScope:
     """Where a deployment under `protocol` holds; "stored" for a protocol not known here."""
-    return SCOPES.get(protocol, "stored")
+    return DEPLOYMENT_SCOPES.get(protocol, "stored")
 
 
 def has_connector(protocol: str) -> bool:

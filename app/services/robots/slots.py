@@ -18,15 +18,18 @@ from collections.abc import Iterable
 from app.errors import InvalidInput
 from app.vendors.registry import MAKERS
 
-#: The tool numbers of each vendor whose controller numbers its tools: (name, first, last).
-SLOT_RANGES: dict[str, tuple[str, int, int]] = {
+#: The tool numbers of each vendor whose controller numbers its tools, by its controller format:
+#: (name, first, last) (app.vendors.registry.SLOT_RANGES holds them by protocol).
+SLOTS_BY_FORMAT: dict[str, tuple[str, int, int]] = {
     m.format: (m.name, *m.tool_numbers) for m in MAKERS if m.tool_numbers is not None
 }
-_ALIASES = {word: m.format for m in MAKERS if m.format in SLOT_RANGES for word in m.vendor_words}
+_ALIASES = {
+    word: m.format for m in MAKERS if m.format in SLOTS_BY_FORMAT for word in m.vendor_words
+}
 
 
 def numbered_vendor(vendor: str | None) -> str | None:
-    """The key in SLOT_RANGES of a robot's vendor, or None when its tools are not numbered
+    """The key in SLOTS_BY_FORMAT of a robot's vendor, or None when its tools are not numbered
     (ABB, UR) or the vendor is unknown or not given."""
     if not vendor:
         return None
@@ -37,7 +40,7 @@ def numbered_vendor(vendor: str | None) -> str | None:
 def slot_range(vendor: str | None) -> tuple[str, int, int] | None:
     """(vendor name, first, last) tool number of the robot's controller, None if unchecked."""
     key = numbered_vendor(vendor)
-    return None if key is None else SLOT_RANGES[key]
+    return None if key is None else SLOTS_BY_FORMAT[key]
 
 
 def check_slot(vendor: str | None, slot: int | None, *, loc: tuple[str, ...]) -> None:
