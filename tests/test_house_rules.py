@@ -125,3 +125,21 @@ def test_only_the_session_dependency_of_app_api_reaches_storage() -> None:
         if path.stem not in ("__init__", "deps")
     ]
     assert sorted(listed) == modules
+
+
+def test_every_list_route_builds_its_page_with_the_shared_wrapper() -> None:
+    """A page is built in one place, app.api.shared.page(): no module of app.api constructs
+    `Page[...](...)` itself (a route that answers a Response of its own still builds the page
+    it serialises there)."""
+    by_hand = []
+    for path in sorted((APP / "api").glob("*.py")):
+        if path.stem == "shared":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Subscript)
+                and ast.unparse(node.func.value) == "Page"
+            ):
+                by_hand.append(f"{path.name}:{node.lineno}")
+    assert by_hand == []

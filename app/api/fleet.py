@@ -20,6 +20,7 @@ from app.services.tools import drift
 router = APIRouter(tags=["fleet"])
 
 CSV = "text/csv"
+JSON = "application/json"
 
 
 class Filters(TypedDict):
@@ -73,10 +74,10 @@ def list_fleet(
         rows: list[FleetTool] = []
         page_cursor = None
         while True:
-            page, page_cursor = fleet.list_fleet(
+            chunk, page_cursor = fleet.list_fleet(
                 session, **filters, limit=MAX_LIMIT, cursor=page_cursor
             )
-            rows += page
+            rows += chunk
             if page_cursor is None:
                 break
         return Response(
@@ -86,8 +87,7 @@ def list_fleet(
         )
     items, next_cursor = fleet.list_fleet(session, **filters, limit=limit, cursor=cursor)
     # The rows were validated as they were built: serialised once, not validated again.
-    answer = Page[FleetTool](items=items, next_cursor=next_cursor)
-    return Response(answer.model_dump_json(), media_type="application/json")
+    return Response(page(FleetTool, items, next_cursor).model_dump_json(), media_type=JSON)
 
 
 @router.get("/v1/tools/{tool_id}/checks", response_model=Page[CheckRecord])
