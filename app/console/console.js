@@ -334,8 +334,10 @@ const CONTROLLER_LABELS = {
 
 // What a `live` scope deployment means (UR, Techman: contract v1.3), for the person at the cell.
 const LIVE_SCOPE = "The robot holds this TCP only for the running program: the next program start sets its own TCP, and the reconcile rounds then show what the robot moves by.";
-// Why a tool of a robot with one live TCP is not judged.
-const NOT_LIVE = "the robot has one live TCP, and another tool was deployed to it last: deploy this one to make it the live one";
+// What a robot of live scope holds, on its tools' pages, before anything is deployed.
+const LIVE_ROBOT = "This robot moves by one live TCP: a deployment sets it for the running program only, the next program start sets its own TCP, and the reconcile rounds then show what the robot moves by.";
+// Why a tool of a robot with one live TCP is not judged (also when nothing was deployed yet).
+const NOT_LIVE = "the robot has one live TCP, and this tool is not the one deployed to it last: deploy this one to make it the live one";
 
 // A drifted badge gives the distance; with `degrees` (the fleet's cell) the angle too when the
 // controller's TCP turned: an orientation-only pendant edit read "drifted 0.000 mm".
@@ -453,6 +455,9 @@ async function controllerSection(tool, versions, onChange) {
         state ? controllerBadge(state) : "not looked at yet",
         state ? ` · checked ${when(state.checked_at)}` : ""),
     );
+    // A robot with one live TCP (UR, Techman) says what that means, and why a tool is not live.
+    if (connection.scope === "live") section.append(h("p", { id: "controller-scope", class: "muted" }, LIVE_ROBOT));
+    if (state?.state === "not_live") section.append(h("p", { id: "controller-not-live" }, `Not live: ${NOT_LIVE}.`));
     const row = rows.find((r) => r.id === tool.id);
     const moving = row ? movingBy(row, rows) : null;
     if (moving) {
