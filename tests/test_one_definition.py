@@ -330,3 +330,17 @@ def test_the_registrys_tables_have_names_of_their_own() -> None:
         if path.parent.relative_to(APP).parts[:1] != ("vendors",)
     }
     assert {where: names for where, names in again.items() if names} == {}
+
+
+def test_the_services_take_formats_as_their_literals() -> None:
+    """A format reaches the services validated (the request models' PoseFormat, the routes'
+    ?format= checked against ControllerFormat): no service takes one as a plain `str`, which
+    would let an unchecked word through where mypy could have said so."""
+    plain = []
+    for path in sorted((APP / "services").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.arg | ast.AnnAssign) and node.annotation is not None:
+                name = node.arg if isinstance(node, ast.arg) else ast.unparse(node.target)
+                if name in ("fmt", "format") and "str" in ast.unparse(node.annotation):
+                    plain.append(f"{path.relative_to(APP.parent)}:{node.lineno}")
+    assert plain == []

@@ -47,7 +47,7 @@ from app.words import Angle, Length, PoseFormat
 #: so the schemas' enum and the parser cannot disagree.
 POSE_FORMATS: tuple[PoseFormat, ...] = get_args(PoseFormat)
 #: Formats that are X Y Z W P R with Rz(R) Ry(P) Rx(W) under another vendor's name.
-WPR_FORMATS: tuple[str, ...] = ("fanuc_wpr", "yaskawa_rxyz", "techman_rxyz")
+WPR_FORMATS: tuple[PoseFormat, ...] = ("fanuc_wpr", "yaskawa_rxyz", "techman_rxyz")
 #: Largest angle accepted in any angle field, degrees (ten turns). Bigger values are a
 #: unit mistake or a sentinel, and their sine is numerically meaningless.
 MAX_ABS_ANGLE_DEG = 3600.0

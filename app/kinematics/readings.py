@@ -16,10 +16,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from app.kinematics.poses import WPR_FORMATS, PoseUnits, resolve_units
-from app.words import Angle, Length
+from app.words import Angle, Length, PoseFormat
 
 #: Formats whose numbers may be confused with each other: same arity, same layout of x y z.
-_SAME_ARITY: dict[str, tuple[str, ...]] = {
+_SAME_ARITY: dict[str, tuple[PoseFormat, ...]] = {
     "matrix": ("matrix",),
     "xyz_wxyz": ("xyz_wxyz", "xyz_xyzw"),
     "xyz_xyzw": ("xyz_xyzw", "xyz_wxyz"),
@@ -41,12 +41,12 @@ NEAR_BASE_MM = 20.0
 class Reading:
     """A pose format and the units its numbers are read in."""
 
-    format: str
+    format: PoseFormat
     length: Length
     angle: Angle
 
     @classmethod
-    def of(cls, fmt: str, units: PoseUnits) -> Reading:
+    def of(cls, fmt: PoseFormat, units: PoseUnits) -> Reading:
         return cls(fmt, units.length, units.angle)
 
     def changes_from(self, other: Reading) -> int:
@@ -77,7 +77,7 @@ class Reading:
         return {"format": self.format, "units": self.units()}
 
 
-def given_reading(fmt: str, units: dict[str, str] | None) -> Reading:
+def given_reading(fmt: PoseFormat, units: dict[str, str] | None) -> Reading:
     """The reading a submission asks for: its format with the units resolved."""
     return Reading.of(fmt, resolve_units(fmt, units))
 

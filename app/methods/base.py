@@ -137,7 +137,12 @@ class MethodContext(Protocol):
     def active_frame(self) -> ActiveFrame | None: ...
 
     def parse_poses(
-        self, fmt: str, poses: Sequence[Pose], units: Units | None, *, loc: Sequence[str | int]
+        self,
+        fmt: PoseFormat,
+        poses: Sequence[Pose],
+        units: Units | None,
+        *,
+        loc: Sequence[str | int],
     ) -> tuple[FloatArray, FloatArray]: ...
 
     def reference_point(self, reference_point_id: str) -> StoredPoint: ...

@@ -29,7 +29,7 @@ from app.schemas.common import (
 from app.schemas.results import QualityOut
 from app.solvers.npoint import MIN_POSES, NPointResult, solve_npoint
 from app.solvers.quality import format_vector
-from app.words import Algorithm
+from app.words import Algorithm, PoseFormat
 
 #: The `method` of an N-point calibration, and of the guided sessions that collect one.
 XyzNpoint = Literal["xyz_npoint"]
@@ -55,7 +55,7 @@ class XyzNpointCalibration(PosesRequired):
 
 def solve_touches(
     ctx: MethodContext,
-    fmt: str,
+    fmt: PoseFormat,
     poses: Sequence[Pose],
     units: Units | None,
     options: NPointOptions,

@@ -37,7 +37,7 @@ from app.services.tools.versions import active_version_row, lock_tool
 from app.solvers.reference import TcpDeviation, check_tcp
 from app.storage.db import session_scope
 from app.storage.models import ReferencePoint, Tool, utcnow
-from app.words import CHECK_ACTION
+from app.words import CHECK_ACTION, PoseFormat
 
 
 @dataclass(frozen=True)
@@ -72,7 +72,7 @@ def as_typed(data: CheckCreate, captured: Captured) -> CheckCreate:
 
 
 #: The format a captured check touch is converted to (any would do: it is read back at once).
-CAPTURE_FORMAT = "matrix"
+CAPTURE_FORMAT: PoseFormat = "matrix"
 
 
 def run_check(
@@ -138,7 +138,7 @@ def record(
 class Typed:
     """A check's touches as poses in a format."""
 
-    format: str
+    format: PoseFormat
     poses: Sequence[Pose]
     units: Units | None
 
@@ -155,17 +155,17 @@ def _measured_touches(
     the flanges sit implausibly near the base, a clearly better reading of the poses'
     format or units is refused as a mix-up (app.services.calibrate.diagnosis)."""
 
-    def positions(fmt: str, units: Units | None) -> FloatArray:
+    def positions(fmt: PoseFormat, units: Units | None) -> FloatArray:
         return parse_poses_with(kinematics, fmt, data.poses, units, loc=("poses",))[1]
 
-    def measure(fmt: str, units: Units | None) -> list[TcpDeviation]:
+    def measure(fmt: PoseFormat, units: Units | None) -> list[TcpDeviation]:
         rotations, flanges = parse_poses_with(kinematics, fmt, data.poses, units, loc=("poses",))
         return [
             check_tcp(tcp_mm=tcp_mm, rotation=R, position_mm=f, reference_mm=reference_mm)
             for R, f in zip(rotations, flanges, strict=True)
         ]
 
-    def attempt(fmt: str, units: Units) -> Fit:
+    def attempt(fmt: PoseFormat, units: Units) -> Fit:
         worst = max(t.distance_mm for t in measure(fmt, units))
         return Fit(float(worst), float(worst) <= limit)
 

@@ -22,6 +22,7 @@ from app.schemas.common import Pose, Units
 from app.schemas.tools import Tolerance
 from app.services.calibrate.tool_frames import active_frame, parse_poses_with
 from app.storage.models import LaserDevice, ReferencePoint, Robot, Tool
+from app.words import PoseFormat
 
 #: Poses read: rotations (N, 3, 3) and flange positions (N, 3) mm.
 PosesRead = tuple[FloatArray, FloatArray]
@@ -38,7 +39,7 @@ class _Readings:
     def read(
         self,
         kinematics: Mapping[str, object] | None,
-        fmt: str,
+        fmt: PoseFormat,
         poses: Sequence[Pose],
         units: Units | None,
         loc: Sequence[str | int],
@@ -66,7 +67,12 @@ class DbContext:
         return active_frame(self.session, self.tool)
 
     def parse_poses(
-        self, fmt: str, poses: Sequence[Pose], units: Units | None, *, loc: Sequence[str | int]
+        self,
+        fmt: PoseFormat,
+        poses: Sequence[Pose],
+        units: Units | None,
+        *,
+        loc: Sequence[str | int],
     ) -> PosesRead:
         return self._readings.read(self.robot.kinematics, fmt, poses, units, loc)
 
@@ -127,7 +133,12 @@ class StatelessContext:
         return None
 
     def parse_poses(
-        self, fmt: str, poses: Sequence[Pose], units: Units | None, *, loc: Sequence[str | int]
+        self,
+        fmt: PoseFormat,
+        poses: Sequence[Pose],
+        units: Units | None,
+        *,
+        loc: Sequence[str | int],
     ) -> PosesRead:
         return self._readings.read(self._kinematics, fmt, poses, units, loc)
 

@@ -27,6 +27,7 @@ from app.kinematics.readings import (
     other_readings,
 )
 from app.schemas.common import Units
+from app.words import PoseFormat
 
 #: Refusals of the given reading that another reading may explain (a malformed request,
 #: a missing value or an unknown reference are not).
@@ -56,12 +57,12 @@ class _Candidate:
 
 
 #: Reads the submission's poses under a reading: flange positions (N, 3) mm.
-Positions = Callable[[str, Units | None], FloatArray]
+Positions = Callable[[PoseFormat, Units | None], FloatArray]
 #: Solves (or checks) the submission under a reading.
-Attempt = Callable[[str, Units], Fit]
+Attempt = Callable[[PoseFormat, Units], Fit]
 
 
-def implausible_flanges(positions: Positions, fmt: str | None, units: Units | None) -> bool:
+def implausible_flanges(positions: Positions, fmt: PoseFormat | None, units: Units | None) -> bool:
     """Read as given, every flange lies within a few mm of the base: not millimetres."""
     if fmt is None:
         return False
@@ -73,7 +74,7 @@ def implausible_flanges(positions: Positions, fmt: str | None, units: Units | No
 
 @contextmanager
 def refusing_mix_ups(
-    fmt: str | None,
+    fmt: PoseFormat | None,
     units: Units | None,
     attempt: Attempt,
     positions: Positions,
@@ -102,14 +103,14 @@ def refusing_mix_ups(
         raise
 
 
-def one_touch_fits(fmt: str, units: Units) -> Fit:
+def one_touch_fits(fmt: PoseFormat, units: Units) -> Fit:
     """The `attempt` for a single touch: with nothing to fit it against, a reading under which
     it reads (in range, the flange off the base) is as good as any."""
     return Fit(0.0, good=True)
 
 
 def refuse_mix_up(
-    fmt: str | None,
+    fmt: PoseFormat | None,
     units: Units | None,
     attempt: Attempt,
     positions: Positions,

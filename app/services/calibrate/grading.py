@@ -34,7 +34,7 @@ from app.services.calibrate.diagnosis import (
 )
 from app.services.calibrate.verdict import change_warning, held_for_change, summarise
 from app.services.tools.versions import IDENTITY_QUATERNION
-from app.words import MethodName
+from app.words import MethodName, PoseFormat
 
 
 @dataclass(frozen=True)
@@ -49,12 +49,12 @@ def solve(request: MethodRequest, ctx: MethodContext) -> Outcome:
     """Run the request's method and grade its outcome against the context's tolerance;
     refuse a unit or convention mix-up (app.services.calibrate.diagnosis) instead of grading it."""
 
-    def attempt(fmt: str, units: Units) -> Fit:
+    def attempt(fmt: PoseFormat, units: Units) -> Fit:
         changed = request.model_copy(update={"format": fmt, "units": units})
         result = _solve_as_given(changed, ctx).result
         return Fit(result.quality.rms_mm or 0.0, result.status == "accepted")
 
-    def positions(fmt: str, units: Units | None) -> FloatArray:
+    def positions(fmt: PoseFormat, units: Units | None) -> FloatArray:
         return ctx.parse_poses(fmt, request.poses or [], units, loc=())[1]
 
     fmt, units = request.format, request.units

@@ -28,6 +28,7 @@ from app.services.robots.robots import get_robot
 from app.services.tools.tools import tool_named_in_body
 from app.solvers.reference import reference_point_from_touch
 from app.storage.models import LaserDevice, ReferencePoint, new_id
+from app.words import PoseFormat
 
 
 def ensure_name_free(
@@ -136,12 +137,12 @@ def register_reference_point(
             loc=("body", "touch", "tool_id"),
         )
 
-    def read(fmt: str, units: Units | None) -> tuple[FloatArray, FloatArray]:
+    def read(fmt: PoseFormat, units: Units | None) -> tuple[FloatArray, FloatArray]:
         with one_pose(("touch", "pose")):
             pose = [touch.pose]
             return parse_poses_with(robot.kinematics, fmt, pose, units, loc=("touch", "pose"))
 
-    def flange(fmt: str, units: Units | None) -> FloatArray:
+    def flange(fmt: PoseFormat, units: Units | None) -> FloatArray:
         return read(fmt, units)[1]
 
     # One touch has no redundancy: only whether it reads, and where the flange is, tell a

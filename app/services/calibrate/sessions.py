@@ -61,7 +61,7 @@ from app.solvers.planning import Cone, next_touch, plan_touches, smallest_plan, 
 from app.storage.db import session_scope
 from app.storage.models import Calibration as CalibrationRow
 from app.storage.models import GuidedSession, Tool, utcnow
-from app.words import AuditAction
+from app.words import AuditAction, PoseFormat
 
 #: The TCP assumed when neither the request nor the tool gives one (mm, flange frame).
 DEFAULT_TCP_MM = (0.0, 0.0, 150.0)
@@ -146,7 +146,7 @@ def _poses_towards(
     spin: FloatArray,
     tcp: FloatArray,
     point: FloatArray,
-    fmt: str,
+    fmt: PoseFormat,
     units: Units | None,
 ) -> list[Pose]:
     rotations = cone_rotations(start, tilt, azimuth, spin)
@@ -304,7 +304,7 @@ def add_touch(
         )
     tool, ctx = _context(session, row)
 
-    def flange(fmt: str, units: Units | None) -> FloatArray:
+    def flange(fmt: PoseFormat, units: Units | None) -> FloatArray:
         # Arity, NaN, sentinels, a non-rotation: refused for this touch, named at body.pose
         # and by its number in the session.
         with one_pose(("body", "pose"), number(len(row.poses))):

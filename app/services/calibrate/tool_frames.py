@@ -14,11 +14,12 @@ from app.methods.base import ActiveFrame
 from app.schemas.common import Pose, Units
 from app.services.tools.versions import active_version_row
 from app.storage.models import Calibration, TcpVersion, Tool
+from app.words import PoseFormat
 
 
 def parse_poses_with(
     kinematics: Mapping[str, object] | None,
-    fmt: str,
+    fmt: PoseFormat,
     poses: Sequence[Pose],
     units: Units | None,
     *,

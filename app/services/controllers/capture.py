@@ -54,7 +54,7 @@ from app.vendors.connector import (
 )
 from app.vendors.registry import connect
 from app.vendors.registry import where as controller_address
-from app.words import ProtocolName, TouchOrigin
+from app.words import PoseFormat, ProtocolName, TouchOrigin
 
 #: The two reads of one capture are at least this far apart (s).
 STILL_GAP_S = 0.1
@@ -178,7 +178,7 @@ def capture(*, robot_id: str, actor: Principal) -> Capture:
 
 
 def pose_in_format(
-    captured: Capture, fmt: str, units: Units | None, *, loc: tuple[str, ...]
+    captured: Capture, fmt: PoseFormat, units: Units | None, *, loc: tuple[str, ...]
 ) -> Pose:
     """The captured flange in pose format `fmt` (joints: the controller's joint angles),
     as a typed pose in that format would be written."""
@@ -198,7 +198,7 @@ def pose_in_format(
     return pose_to_format(fmt, rotation.as_matrix(), position, units=unit_map)
 
 
-def controller_pose(*, robot_id: str, fmt: str, actor: Principal) -> ControllerPose:
+def controller_pose(*, robot_id: str, fmt: PoseFormat, actor: Principal) -> ControllerPose:
     """GET /v1/robots/{robot_id}/controller/pose: a still reading, in format `fmt`."""
     captured = capture(robot_id=robot_id, actor=actor)
     reading = captured.reading

@@ -11,6 +11,7 @@ from app.security.auth import Principal
 from app.services.tools import controller_files, versions
 from app.storage.db import loop_engine
 from app.vendors.files import ControllerFile
+from app.words import ControllerFormat
 
 
 class ServedTcp(NamedTuple):
@@ -27,7 +28,7 @@ def active_tcp(
     *,
     authorization: str | None,
     tool_id: str,
-    fmt: str | None,
+    fmt: ControllerFormat | None,
     if_none_match: str | None,
     file_base_url: str | None,
 ) -> ServedTcp:

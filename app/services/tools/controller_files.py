@@ -24,10 +24,10 @@ from app.services.tools.hot_read import active_of, read_for_key
 from app.storage.models import TcpVersion, Tool
 from app.vendors.files import ControllerFile, FileContext, FileTool, Provenance
 from app.vendors.registry import controller_file
-from app.words import FORMATS_IN_WORDS
+from app.words import FORMATS_IN_WORDS, ControllerFormat
 
 
-def needs_format(fmt: str | None) -> str:
+def needs_format(fmt: ControllerFormat | None) -> ControllerFormat:
     """The format a file is asked in, or 422 naming ?format=."""
     if fmt is None:
         raise InvalidInput(
@@ -74,7 +74,7 @@ def served_file_for_key(
     *,
     authorization: str | None,
     tool_id: str,
-    fmt: str | None,
+    fmt: ControllerFormat | None,
     if_none_match: str | None,
     base_url: str,
 ) -> tuple[Principal, ControllerFile | None, str]:
@@ -95,7 +95,7 @@ def served_file_for_key(
 
 
 def robot_file(
-    session: Session, *, robot_id: str, fmt: str | None, base_url: str
+    session: Session, *, robot_id: str, fmt: ControllerFormat | None, base_url: str
 ) -> ControllerFile:
     """Every live tool of a robot with an active version, in one file of format `fmt`; tools
     the format cannot hold are named in its header."""

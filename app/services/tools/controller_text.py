@@ -9,7 +9,7 @@ from app.jsontypes import JsonArray, JsonObject
 from app.schemas.tools import ControllerText
 from app.vendors.registry import export_tool
 from app.vendors.tool import ToolData, ToolLoad, vec3, vec4
-from app.words import MethodName
+from app.words import ControllerFormat, MethodName
 
 
 class ServedTool(Protocol):
@@ -63,7 +63,9 @@ def tool_data(tool: ServedTool, version: ServedVersion) -> ToolData:
     )
 
 
-def controller_text(fmt: str, *, tool: ServedTool, version: ServedVersion) -> ControllerText:
+def controller_text(
+    fmt: ControllerFormat, *, tool: ServedTool, version: ServedVersion
+) -> ControllerText:
     """{format, text, values} of a tool's version in a controller's own syntax."""
     export = export_tool(fmt, tool_data(tool, version))
     return ControllerText(format=export.format, text=export.text, values=export.values)

@@ -27,7 +27,14 @@ from app.services.tools.tools import get_tool
 from app.services.visible import live_or_404
 from app.storage.db import DriverWrite, HeldRead
 from app.storage.models import Activation, Robot, TcpVersion, Tool, new_id, table_of, utcnow
-from app.words import FORMATS_IN_WORDS, ActivationKind, AuditAction, MethodName, Status
+from app.words import (
+    FORMATS_IN_WORDS,
+    ActivationKind,
+    AuditAction,
+    ControllerFormat,
+    MethodName,
+    Status,
+)
 
 IDENTITY_QUATERNION = [1.0, 0.0, 0.0, 0.0]
 
@@ -339,7 +346,9 @@ def active_version_row(session: Session, tool: Tool) -> TcpVersion:
     ).one()
 
 
-def tcp_etag(tool: ServedTool, row: ServedVersion, fmt: str | None, as_text: bool = False) -> str:
+def tcp_etag(
+    tool: ServedTool, row: ServedVersion, fmt: ControllerFormat | None, as_text: bool = False
+) -> str:
     """Strong ETag of what /tcp serves: the numbers, slot, load and the representation
     (the JSON document or the controller text alone)."""
     payload = json.dumps(
@@ -374,7 +383,9 @@ def version_document(row: TcpVersion, tool: Tool) -> Version:
     )
 
 
-def active_document(tool: ServedTool, row: ServedVersion, fmt: str | None) -> ActiveTcp:
+def active_document(
+    tool: ServedTool, row: ServedVersion, fmt: ControllerFormat | None
+) -> ActiveTcp:
     """What a cell controller reads: the active TCP, and its controller text when asked."""
     return ActiveTcp(
         tool_id=tool.id,
@@ -389,7 +400,7 @@ def active_document(tool: ServedTool, row: ServedVersion, fmt: str | None) -> Ac
     )
 
 
-def _text_needs_format(as_text: bool, fmt: str | None) -> None:
+def _text_needs_format(as_text: bool, fmt: ControllerFormat | None) -> None:
     if as_text and fmt is None:
         raise InvalidInput(
             "invalid-options",
@@ -403,7 +414,7 @@ def served_tcp(
     session: Session,
     *,
     tool_id: str,
-    fmt: str | None,
+    fmt: ControllerFormat | None,
     if_none_match: str | None,
     as_text: bool = False,
 ) -> tuple[ActiveTcp | None, str]:
@@ -418,7 +429,7 @@ def served_tcp(
     return active_document(tool, row, fmt), etag
 
 
-def tool_table(session: Session, *, robot_id: str, fmt: str | None) -> ToolTable:
+def tool_table(session: Session, *, robot_id: str, fmt: ControllerFormat | None) -> ToolTable:
     """Every live tool's active TCP. A tool the format cannot express (no slot for KUKA, no
     load for ABB) carries its own controller_error instead of failing the whole table."""
     get_robot(session, robot_id)
@@ -451,7 +462,7 @@ def served_tcp_for_key(
     *,
     authorization: str | None,
     tool_id: str,
-    fmt: str | None,
+    fmt: ControllerFormat | None,
     if_none_match: str | None,
     as_text: bool = False,
 ) -> tuple[Principal, ActiveTcp | None, str]:

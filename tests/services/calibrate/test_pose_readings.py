@@ -12,6 +12,7 @@ from app.methods.requests import CALIBRATION_REQUESTS
 from app.services import calibrate
 from app.services.calibrate import contexts, tool_frames
 from app.services.calibrate.contexts import StatelessContext
+from app.words import PoseFormat
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 
@@ -21,7 +22,7 @@ def _counting(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str | None]]:
     reads: list[tuple[str, str | None]] = []
     real = tool_frames.parse_poses_with
 
-    def counted(kinematics: Any, fmt: str, poses: Any, units: Any, **kwargs: Any) -> Any:
+    def counted(kinematics: Any, fmt: PoseFormat, poses: Any, units: Any, **kwargs: Any) -> Any:
         reads.append((fmt, None if units is None else units.model_dump_json()))
         return real(kinematics, fmt, poses, units, **kwargs)
 
