@@ -130,6 +130,21 @@ def left_out_lines(left_out: Sequence[LeftOut]) -> list[str]:
     ]
 
 
+def header_comments(
+    tools: Sequence[FileTool],
+    left_out: Sequence[LeftOut],
+    context: FileContext,
+    how: Sequence[str],
+    mark: str,
+    width: int,
+) -> list[str]:
+    """A file's header as comment lines of at most `width` characters, each starting with
+    the format's comment `mark` ("; ", "# ", "  ! "): `header_lines`, `left_out_lines`, then
+    the format's own sentences on what the file changes (`how`)."""
+    sentences = [*header_lines(tools, context), *left_out_lines(left_out), *how]
+    return [f"{mark}{piece}" for s in sentences for piece in wrap(s, width - len(mark))]
+
+
 def wrap(line: str, width: int) -> list[str]:
     """`line` cut into pieces of at most `width` characters, at spaces where it can be."""
     pieces: list[str] = []

@@ -49,10 +49,8 @@ from app.vendors.files import (
     FileTool,
     LeftOut,
     ParsedTool,
-    header_lines,
-    left_out_lines,
+    header_comments,
     split_fitting,
-    wrap,
 )
 from app.vendors.names import unique
 from app.vendors.text import parse_error
@@ -135,9 +133,8 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     routine = routine_name(module)
     held, names, clashes = _data_names(kept, [module, routine])
     left = [*left, *clashes]
-    lines = [f"MODULE {module}"]
-    for sentence in header_lines(held, context) + left_out_lines(left) + _how(held, names, routine):
-        lines.extend(f"  ! {piece}" for piece in wrap(sentence, LINE_WIDTH - 4))
+    how = _how(held, names, routine)
+    lines = [f"MODULE {module}", *header_comments(held, left, context, how, "  ! ", LINE_WIDTH)]
     for item, name in zip(held, names, strict=True):
         if not item.data.controller_symbol:
             lines.append(f"  PERS tooldata {name}:={tooldata_value(item.data)};")

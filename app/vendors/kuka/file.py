@@ -43,10 +43,8 @@ from app.vendors.files import (
     FileContext,
     FileTool,
     ParsedTool,
-    header_lines,
-    left_out_lines,
+    header_comments,
     split_fitting,
-    wrap,
 )
 from app.vendors.kuka.text import export, parse
 from app.vendors.names import ascii_text, file_stem
@@ -92,9 +90,7 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     """Each tool's TOOL_DATA[n], TOOL_NAME[n,] (and LOAD_DATA[n]) line, by tool number."""
     kept, left = split_fitting(tools, export, context)
     by_slot = {item.data.slot: item.data for item in sorted(kept, key=lambda t: t.data.slot or 0)}
-    lines: list[str] = []
-    for sentence in header_lines(kept, context) + left_out_lines(left) + _how(by_slot):
-        lines.extend(f"; {piece}" for piece in wrap(sentence, LINE_WIDTH - 2))
+    lines = header_comments(kept, left, context, _how(by_slot), "; ", LINE_WIDTH)
     for slot, tool in by_slot.items():
         lines.append(f"TOOL_DATA[{slot}]={frame_value(tool)}")
         lines.append(f'TOOL_NAME[{slot},]="{tool_name(tool.name)}"')

@@ -30,10 +30,8 @@ from app.vendors.files import (
     FileContext,
     FileTool,
     ParsedTool,
-    header_lines,
-    left_out_lines,
+    header_comments,
     split_fitting,
-    wrap,
 )
 from app.vendors.names import ascii_text, file_stem
 from app.vendors.techman.text import export, parse
@@ -48,9 +46,7 @@ _MASS = re.compile(r"\}\s*,\s*([-+]?\d+(?:\.\d*)?)\s*\)")
 def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     """Header comments, then per tool ``// <name>`` and its ChangeTCP line."""
     kept, left = split_fitting(tools, export, context)
-    lines: list[str] = []
-    for sentence in header_lines(kept, context) + left_out_lines(left) + _how(kept):
-        lines.extend(f"// {piece}" for piece in wrap(sentence, LINE_WIDTH - 3))
+    lines = header_comments(kept, left, context, _how(kept), "// ", LINE_WIDTH)
     for item in kept:
         call = export(item.data).text.split("  //", 1)[0]
         lines += [f"// {ascii_text(item.data.name, 40) or 'tool'}", call]

@@ -33,10 +33,8 @@ from app.vendors.files import (
     FileContext,
     FileTool,
     ParsedTool,
-    header_lines,
-    left_out_lines,
+    header_comments,
     split_fitting,
-    wrap,
 )
 from app.vendors.names import identifier, unique
 from app.vendors.text import (
@@ -84,9 +82,7 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     """Header comments, then ``def tcpcal_<tool>(): set_tcp(..) set_payload(..) end`` each."""
     kept, left = split_fitting(tools, export, context)
     names = unique([function_name(item.data.name) for item in kept], NAME_CHARS)
-    lines: list[str] = []
-    for sentence in header_lines(kept, context) + left_out_lines(left) + _how(names):
-        lines.extend(f"# {piece}" for piece in wrap(sentence, LINE_WIDTH - 2))
+    lines = header_comments(kept, left, context, _how(names), "# ", LINE_WIDTH)
     for item, name in zip(kept, names, strict=True):
         lines += [f"def {name}():", *_body(item.data), "end"]
     file_name = "tcpcal_tools.script" if context.table or len(kept) != 1 else f"{names[0]}.script"
