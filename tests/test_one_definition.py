@@ -344,3 +344,20 @@ def test_the_services_take_formats_as_their_literals() -> None:
                 if name in ("fmt", "format") and "str" in ast.unparse(node.annotation):
                     plain.append(f"{path.relative_to(APP.parent)}:{node.lineno}")
     assert plain == []
+
+
+#: The problems a connector's failure becomes (app.errors): the 502s a client gets.
+CONTROLLER_PROBLEMS = {"ControllerRefusedError", "ControllerUnreachableError"}
+
+
+def test_a_controllers_failure_becomes_its_502_in_one_place() -> None:
+    """Capture and deployments once each wrote the mapping from a connector's failure to its
+    502 (capture.controller_failure, deployments._failure), each sentence twice: the one
+    function in app/services/controllers/failures.py is the only place that raises or builds
+    them (others may test for them)."""
+    built = set()
+    for path in sorted(APP.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and ast.unparse(node.func) in CONTROLLER_PROBLEMS:
+                built.add(str(path.relative_to(APP.parent)))
+    assert built == {"app/services/controllers/failures.py"}

@@ -5,10 +5,18 @@ GET of a controller that is not set is 404 /no-controller."""
 from __future__ import annotations
 
 import time
+from functools import partial
 from typing import Any
 
 import pytest
 
+from app.services.controllers.failures import controller_problem
+from app.vendors.connector import (
+    ControllerProtocolError,
+    ControllerRefused,
+    ControllerSettings,
+    ControllerUnreachable,
+)
 from tests.api.controller_rigs import Rig, rig
 from tests.api.controller_rigs import secret_key as secret_key  # autouse: ABB passwords
 from tests.conftest import Api
@@ -225,3 +233,36 @@ def test_a_techman_robot_says_what_to_do_and_no_answer_holds_a_secret(
         texts.append(api.get("/v1/audit", params={"robot_id": robot_id}, scope="admin").text)
         texts.append(caplog.text)
     assert all(secret not in t for t in texts)
+
+
+def test_a_connectors_failure_is_worded_as_a_capture_and_a_deployment_say_it() -> None:
+    """One function words the 502 for both; the refusal's words differ on purpose (a
+    capture gives the connector's sentence, a deployment the controller's words and remedy,
+    then its status words), the rest only in what the attempt left."""
+    settings = ControllerSettings(
+        protocol="kuka_kvp", host="127.0.0.1", port=7000, username=None, password=None
+    )
+    refused = ControllerRefused("the KRC refused X", controller_message="$X", remedy="do Y")
+    capture = partial(controller_problem, robot_id="r1", left="nothing was kept")
+    deploy = partial(controller_problem, robot_id="r1", left="LEFT", refusal="remedy")
+    got = capture(refused, settings, refusal="connector")
+    assert got.detail == "the controller refused ($X): the KRC refused X; do Y; nothing was kept"
+    assert got.members == {"controller_message": "$X"}
+    got = deploy(refused, settings, members={"deployment_status": "not_written"})
+    assert got.detail == "the controller refused: $X; do Y; LEFT"
+    assert got.members == {"deployment_status": "not_written", "controller_message": "$X"}
+    gone = ControllerUnreachable("timed out")
+    assert capture(gone, settings, refusal="connector").detail == (
+        "the controller at 127.0.0.1:7000 could not be reached within 5 s: timed out; "
+        "nothing was kept"
+    )
+    assert deploy(gone, settings, sent=True).detail == (
+        "the controller at 127.0.0.1:7000 stopped answering after the write was sent: "
+        "timed out; LEFT"
+    )
+    garbled = deploy(ControllerProtocolError("garbage"), settings)
+    assert garbled.detail == (
+        "the controller at 127.0.0.1:7000 answered something that is not its protocol: "
+        "garbage; LEFT"
+    )
+    assert garbled.kind == "controller-unreachable"

@@ -24,9 +24,6 @@ from scipy.spatial.transform import Rotation
 from sqlalchemy.orm import Session
 
 from app.errors import (
-    ControllerRefusedError,
-    ControllerUnreachableError,
-    DomainError,
     InvalidInput,
     NoController,
     NoControllerSet,
@@ -39,21 +36,18 @@ from app.schemas.common import Pose, Units
 from app.schemas.controllers import ControllerPose
 from app.schemas.results import TouchSource
 from app.security.auth import Principal, act_for
-from app.services.robots.connection import get_controller, refusal_words, settings_of
+from app.services.controllers.failures import controller_problem
+from app.services.robots.connection import get_controller, settings_of
 from app.services.robots.live_tool import live_tool_matches, live_tool_out
 from app.storage.db import session_scope
 from app.storage.models import utcnow
 from app.vendors.connector import (
-    ControllerCredentialsRefused,
     ControllerError,
-    ControllerRefused,
     ControllerSettings,
-    ControllerUnreachable,
     Frame,
     PoseReading,
 )
 from app.vendors.registry import connect
-from app.vendors.registry import where as controller_address
 from app.words import PoseFormat, ProtocolName, TouchOrigin
 
 #: The two reads of one capture are at least this far apart (s).
@@ -123,7 +117,9 @@ def read_still(settings: ControllerSettings, *, robot_id: str) -> Capture:
             time.sleep(STILL_GAP_S)  # from the first read's answer to the second's request
             second = conn.read_pose()
     except ControllerError as exc:
-        raise controller_failure(exc, settings, robot_id=robot_id) from None
+        raise controller_problem(
+            exc, settings, robot_id=robot_id, left="nothing was kept", refusal="connector"
+        ) from None
     _still(first.flange, second.flange)
     return Capture(robot_id=robot_id, protocol=settings.protocol, reading=second, read_at=utcnow())
 
@@ -139,33 +135,6 @@ def _still(first: Frame, second: Frame) -> None:
             "nothing was kept; let it come to rest at the touch and capture again",
             members={"moved_mm": moved_mm, "moved_deg": moved_deg},
         )
-
-
-def controller_failure(
-    exc: ControllerError, settings: ControllerSettings, *, robot_id: str
-) -> DomainError:
-    """A connector's failure as the 502 a client gets (as for deployments)."""
-    where = controller_address(settings)
-    if isinstance(exc, ControllerRefused):
-        # The connector's sentence says why and what to do (KUKA's external-TCP mode: move
-        # with the tool on the flange); the controller's own words alone do not. Refused
-        # credentials: which user, and the request that sets the password (as deployments).
-        why = str(exc)
-        if isinstance(exc, ControllerCredentialsRefused):
-            why = refusal_words(exc, robot_id)
-        return ControllerRefusedError(
-            f"the controller refused ({exc.controller_message}): {why}; nothing was kept",
-            members={"controller_message": exc.controller_message},
-        )
-    if isinstance(exc, ControllerUnreachable):
-        return ControllerUnreachableError(
-            f"the controller at {where} could not be reached within {settings.timeout_s:g} s: "
-            f"{exc}; nothing was kept"
-        )
-    return ControllerUnreachableError(
-        f"the controller at {where} answered something that is not its protocol: {exc}; "
-        "nothing was kept"
-    )
 
 
 def capture(*, robot_id: str, actor: Principal) -> Capture:

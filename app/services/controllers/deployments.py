@@ -19,8 +19,6 @@ from sqlalchemy.orm import Session
 
 from app.errors import (
     ControllerMismatch,
-    ControllerRefusedError,
-    ControllerUnreachableError,
     DomainError,
     InvalidInput,
     NothingToDeploy,
@@ -39,7 +37,8 @@ from app.security.auth import Principal, act_for
 from app.services import idempotency
 from app.services.audit import writes as audit
 from app.services.controllers import states as controller_states
-from app.services.robots.connection import get_controller, refusal_words, settings_of
+from app.services.controllers.failures import controller_problem
+from app.services.robots.connection import get_controller, settings_of
 from app.services.tools.tools import get_tool
 from app.storage.db import session_scope
 from app.storage.models import Deployment, Robot, TcpVersion, ToolControllerState, utcnow
@@ -48,7 +47,6 @@ from app.vendors.connector import (
     ControllerError,
     ControllerRefused,
     ControllerSettings,
-    ControllerUnreachable,
     ToolTarget,
 )
 from app.vendors.registry import (
@@ -58,7 +56,6 @@ from app.vendors.registry import (
     scope_of,
     target_problem,
 )
-from app.vendors.registry import where as controller_address
 from app.vendors.tool import ToolData, ToolLoad
 from app.words import DeploymentStatus, FailedDeploymentStatus, ProtocolName
 
@@ -243,33 +240,16 @@ def status_words(status: FailedDeploymentStatus, version: int, held_version: int
 
 def _failure(plan: Plan, attempt: _Attempt, exc: ControllerError) -> Outcome:
     status = _failure_status(plan, attempt)
-    where = controller_address(plan.settings)
-    words = status_words(status, plan.version, plan.held_version)
-    members: dict[str, object] = {"deployment_status": status}
-    message = None
-    error: DomainError
-    if isinstance(exc, ControllerRefused):
-        message = exc.controller_message
-        members["controller_message"] = message
-        error = ControllerRefusedError(
-            f"the controller refused: {refusal_words(exc, plan.robot_id)}; {words}",
-            members=members,
-        )
-    elif isinstance(exc, ControllerUnreachable):
-        happened = (
-            "stopped answering after the write was sent"
-            if attempt.sent
-            else f"could not be reached within {plan.settings.timeout_s:g} s"
-        )
-        error = ControllerUnreachableError(
-            f"the controller at {where} {happened}: {exc}; {words}", members=members
-        )
-    else:
-        error = ControllerUnreachableError(
-            f"the controller at {where} answered something that is not its protocol: {exc}; "
-            f"{words}",
-            members=members,
-        )
+    error = controller_problem(
+        exc,
+        plan.settings,
+        robot_id=plan.robot_id,
+        left=status_words(status, plan.version, plan.held_version),
+        refusal="remedy",
+        sent=attempt.sent,
+        members={"deployment_status": status},
+    )
+    message = exc.controller_message if isinstance(exc, ControllerRefused) else None
     return Outcome(
         status,
         attempt.previous,
