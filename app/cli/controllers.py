@@ -174,14 +174,20 @@ def reconcile(robot_ref: RobotArg) -> None:
 
 def _live_words(result: Reconciliation, names: dict[str, str]) -> str:
     """Which tool a robot with one live TCP was judged by, and what live means."""
+    live = f"{LIVE_SCOPE[0].upper()}{LIVE_SCOPE[1:]}"
     judged = [t for t in result["tools"] if t["state"] != "not_live"]
+    if judged and all(t["state"] == "unreachable" for t in result["tools"]):
+        return (
+            "one live TCP: its controller could not be read, so no tool was judged and each "
+            f"is unreachable. {live}"
+        )
     if judged:
         which = f"{names.get(judged[0]['tool_id'], judged[0]['tool_id'])}, deployed to it last"
     else:
         which = "none: no tool was deployed to it from tcpcal yet"
     return (
         f"one live TCP: judged by {which}; its other tools are not_live (deploy one to make "
-        f"it the live one). {LIVE_SCOPE[0].upper()}{LIVE_SCOPE[1:]}"
+        f"it the live one). {live}"
     )
 
 

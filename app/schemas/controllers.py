@@ -239,7 +239,8 @@ class Reconciliation(BaseModel):
         default="stored",
         description="stored: every tool is judged against what the controller keeps for it; "
         "live (UR, Techman): the robot has one live TCP, the tool deployed to it last is "
-        "judged and its other tools are not_live",
+        "judged and its other tools are not_live (each unreachable when the controller "
+        "could not be reached)",
     )
     tools: list[ReconciledTool] = Field(description="every live tool the controller addresses")
     not_addressable: list[NotAddressable] = Field(

@@ -185,10 +185,8 @@ def test_a_stopped_controller_is_502_unreachable_within_the_timeout_and_recorded
     assert after.headers["etag"] == before.headers["etag"]  # nothing else changed
     recon = api.post(f"/v1/robots/{ids['robot']['id']}/reconcile", scope="read").json()
     assert recon["state"] == "unreachable"
-    if r.protocol in LIVE_SCOPE:
-        # one live TCP, and no deployment reached it: no tool is the one it moves by
-        assert recon["tools"][0]["state"] == "not_live"
-        return
+    # one live TCP (no deployment reached it) too: not reached, the tool is unreachable
+    assert recon["tools"][0]["state"] == "unreachable"
     assert recon["tools"][0]["error"]
     row = api.get("/v1/tools", params={"robot_id": ids["robot"]["id"]}).json()["items"][0]
     assert row["attention"] == ["controller_unreachable"]

@@ -247,17 +247,35 @@ def test_a_deployment_refused_before_the_write_leaves_the_live_tool_judged(
 def test_an_unreachable_live_robot_is_unreachable_even_with_nothing_deployed(
     api: Api, live: LiveController
 ) -> None:
+    """A controller not reached says nothing of which tool the robot moves by: every tool of
+    the robot is unreachable, saying where, and the fleet flags each (not_live would hide a
+    dead controller of a robot nothing was deployed to yet: no row flagged at all)."""
     cell = _cell(api)
+    robot_id = cell.robot["id"]
+    address = "127.0.0.1 (rtde 30004, secondary 30002)"
     live.reachable = False
-    answer = _reconcile(api, cell.robot["id"])
+    answer = _reconcile(api, robot_id)
     assert answer["state"] == "unreachable"
-    assert _states(answer, cell) == {"torch": "not_live", "gripper": "not_live"}
-    assert "127.0.0.1 (rtde 30004, secondary 30002)" in answer["live_tool_error"]
+    assert _states(answer, cell) == {"torch": "unreachable", "gripper": "unreachable"}
+    assert all(address in t["error"] for t in answer["tools"]), answer["tools"]
+    assert address in answer["live_tool_error"]
+    fleet = _fleet(api, robot_id)
+    assert [fleet[name]["attention"] for name in ("torch", "gripper")] == [
+        ["controller_unreachable"],
+        ["controller_unreachable"],
+    ]
+    # Reached again: nothing deployed, no tool is the live one, nothing flagged.
     live.reachable = True
+    assert _states(_reconcile(api, robot_id), cell) == {
+        "torch": "not_live",
+        "gripper": "not_live",
+    }
+    assert "controller_unreachable" not in _fleet(api, robot_id)["gripper"]["attention"]
     assert _deploy(api, cell.torch["id"]).status_code == 201
     live.reachable = False
-    answer = _reconcile(api, cell.robot["id"])
-    assert _states(answer, cell) == {"torch": "unreachable", "gripper": "not_live"}
+    answer = _reconcile(api, robot_id)
+    assert _states(answer, cell) == {"torch": "unreachable", "gripper": "unreachable"}
+    assert ("controller.unreachable", cell.gripper["id"]) in _events(robot_id)
 
 
 def test_a_deployment_during_a_round_makes_the_round_judge_the_new_live_tool(
@@ -302,6 +320,7 @@ def test_the_cli_says_what_live_means(
 
     from app.cli import cli
     from app.cli import http as client_http
+    from app.cli.controllers import EXIT_CONTROLLER_UNREACHABLE
 
     def http() -> httpx.Client:
         return httpx.Client(
@@ -323,3 +342,8 @@ def test_the_cli_says_what_live_means(
     assert "not_live" in done.output
     assert "one live TCP: judged by torch, deployed to it last" in done.output
     assert "the next program start sets its own TCP" in done.output
+    live.reachable = False
+    done = runner.invoke(cli, ["reconcile", cell.robot["id"]])
+    assert done.exit_code == EXIT_CONTROLLER_UNREACHABLE, done.output
+    assert "its controller could not be read, so no tool was judged" in done.output
+    assert "judged by torch" not in done.output

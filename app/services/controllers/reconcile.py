@@ -3,7 +3,8 @@ the tool's active version (in sync within 0.01 mm and 0.01 deg).
 
 A robot whose protocol writes its one live TCP (a `live` scope, UR and Techman: contract
 v1.3) holds one tool at a time: the round judges the tool deployed to it last (in sync or
-drifted against that tool's active version) and reports its other tools `not_live`.
+drifted against that tool's active version) and reports its other tools `not_live`; when
+the controller cannot be reached, every tool is `unreachable`, as a stored-scope robot's.
 
 As for deployments, the controller is read with no database transaction open; the states
 found are then stored in one write transaction, each change of a tool's state an audit event.
@@ -290,8 +291,13 @@ def _store_round(read: _Round, actor: Principal, trigger: str, *, final: bool) -
 
 
 def _seen(robot_id: str, tool: ToolToCheck, read: _Round) -> Observation:
-    """The tool's state this round: judged from what the controller held, or `not_live`."""
+    """The tool's state this round: judged from what the controller held, or `not_live`.
+    A controller not reached makes every tool unreachable, a live-TCP robot's not judged
+    too: nothing then says which tool it moves by, and `not_live` would leave the fleet
+    flagging no row of a robot nothing was deployed to yet."""
     if read.live_scope is not None and not read.live_scope.judges(tool.tool_id):
+        if not read.live.reached:
+            return _observation(robot_id, tool, Reading(None, read.live.error))
         return controller_states.not_live(tool.tool_id, robot_id, tool.target_name, tool.version)
     return _observation(robot_id, tool, read.readings[tool.tool_id])
 
