@@ -14,11 +14,13 @@ lists them and answers by format (`export_tool`, `parse_controller_text`, `contr
 | abb_rws1 | abb/rws.py | ABB Robot Web Services 1.0 (RobotWare 6) |
 | abb_rws2 | abb/rws.py | ABB Robot Web Services 2.0 (RobotWare 7) |
 | techman | techman/tmflow.py | Techman Listen Node manual (I848); TMflow Ethernet Slave table |
-| yaskawa_hses | (not yet) | Yaskawa High Speed Ethernet Server |
+| yaskawa_hses | yaskawa/hses.py | Yaskawa High-Speed Ethernet Server Function (FS100 160766-1CD) |
 | ur_rtde | ur/rtde.py | UR RTDE Guide (30004) and the secondary client interface (30002) |
 
-A controller of a protocol whose connector is not written yet is stored, and nothing is sent
-to it (app.services.robots.connection.settings_of answers 501 /no-connector).
+Every protocol has its connector today; a controller of a protocol whose connector is not
+written yet (the table's "(not yet)") would be stored, and nothing sent to it
+(app.services.robots.connection.settings_of answers 501 /no-connector).
+tests/vendors/test_registry.py holds the table true to the registry.
 
 Adding a maker: its package, its line in `MAKERS`, and its words (format, protocols) in
 app.words; tests/vendors/test_registry.py holds that it provides all the registry

@@ -18,6 +18,7 @@ from typing import cast, get_args
 import numpy as np
 import pytest
 
+from app.vendors import registry
 from app.vendors.connector import ToolTarget
 from app.vendors.files import FileContext, FileTool
 from app.vendors.maker import (
@@ -197,6 +198,26 @@ def test_the_layers_contract_puts_every_maker_between_the_registry_and_the_share
     assert [{f"app.vendors.{name}" for name in layer.split(" | ")} for layer in makers] == [
         packages
     ]
+
+
+def test_the_registrys_table_names_each_protocols_connector() -> None:
+    """app/vendors/registry.py's docstring table has a row for every registered protocol, in
+    their order, naming the module of its connector (or "(not yet)" without one): the table
+    once said yaskawa_hses had none after its connector landed."""
+    rows = [
+        [cell.strip() for cell in line.strip("|").split("|")]
+        for line in (registry.__doc__ or "").splitlines()
+        if line.startswith("| ") and not line.startswith("| protocol ")
+    ]
+    table = {protocol: connector for protocol, connector, _document in rows}
+    assert tuple(table) == PROTOCOLS, "a row per registered protocol, in their order"
+    for protocol, wire in WIRE_PROTOCOLS.items():
+        module = "(not yet)"
+        if wire.connector is not None:
+            name = inspect.getmodule(wire.connector())
+            assert name is not None
+            module = name.__name__.removeprefix("app.vendors.").replace(".", "/") + ".py"
+        assert table[protocol] == module, protocol
 
 
 def _module(**functions: object) -> SimpleNamespace:
