@@ -361,3 +361,18 @@ def test_a_controllers_failure_becomes_its_502_in_one_place() -> None:
             if isinstance(node, ast.Call) and ast.unparse(node.func) in CONTROLLER_PROBLEMS:
                 built.add(str(path.relative_to(APP.parent)))
     assert built == {"app/services/controllers/failures.py"}
+
+
+def test_no_class_is_named_as_a_literal() -> None:
+    """A name is a Literal's or a class's, not both: app.publish.sink's dataclass ToolState
+    (a tool's published document) once shared its name with app.words.ToolState (a tool's
+    controller state), so a reader of either could take one for the other."""
+    aliases, _in_place = _literals_in_app()
+    literal_names = {name for _module, name in aliases}
+    classes = [
+        f"{path.relative_to(APP.parent)}:{node.name}"
+        for path in sorted(APP.rglob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ClassDef) and node.name in literal_names
+    ]
+    assert classes == [], "a class named as a Literal: rename it to say what it holds"

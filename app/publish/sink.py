@@ -53,8 +53,9 @@ class Message:
 
 
 @dataclass(frozen=True, slots=True)
-class ToolState:
-    """A tool as the plant sees it now: `document` is what GET /v1/tools/{id}/tcp serves,
+class PublishedTool:
+    """What is published of one tool now (a batch's state of it; not app.words.ToolState, a
+    tool's controller state): `document` is what GET /v1/tools/{id}/tcp serves,
     with its `etag`, the active version's `status` and its `activation` added (source.py);
     None when the tool is archived or has no active version (MQTT clears the retained
     message)."""
@@ -73,7 +74,7 @@ class Batch:
     tool they concern (or, with `full`, of every live tool, and no messages)."""
 
     messages: Sequence[Message] = ()
-    states: Sequence[ToolState] = ()
+    states: Sequence[PublishedTool] = ()
     full: bool = False
 
 

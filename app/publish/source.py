@@ -20,7 +20,7 @@ from sqlalchemy.orm import Session
 
 from app.errors import Archived, NoActiveVersion, NotFound
 from app.jsontypes import JsonObject
-from app.publish.sink import Message, ToolState
+from app.publish.sink import Message, PublishedTool
 from app.services.fleet.plant import activations_of, active_statuses
 from app.services.tools.versions import served_tcp
 from app.storage.models import OutboxMessage, Robot, Tool, utcnow
@@ -63,7 +63,7 @@ def tools_concerned(session: Session, messages: Sequence[Message]) -> list[str]:
     return list(ordered)
 
 
-def states(session: Session, tool_ids: Iterable[str]) -> list[ToolState]:
+def states(session: Session, tool_ids: Iterable[str]) -> list[PublishedTool]:
     """The current state of each tool (unknown ids are left out)."""
     wanted = list(tool_ids)
     if not wanted:
@@ -89,7 +89,7 @@ def states(session: Session, tool_ids: Iterable[str]) -> list[ToolState]:
             body["status"] = statuses.get(tool_id)
             body["activation"] = None if activation is None else activation.model_dump(mode="json")
         found.append(
-            ToolState(
+            PublishedTool(
                 tool_id=row.id,
                 robot_id=row.robot_id,
                 tool_name=row.name,
