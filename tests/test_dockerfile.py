@@ -101,6 +101,22 @@ def test_compose_runs_two_workers_against_postgres_with_a_volume_and_health_chec
     assert db["environment"]["POSTGRES_PASSWORD"] == "${TCPCAL_DB_PASSWORD:-tcpcal}"
 
 
+def test_every_tcpcal_service_in_compose_gets_the_one_secret_key() -> None:
+    """TCPCAL_SECRET_KEY opens the controller passwords stored in the database
+    (app.security.secretbox): tcpcal needs it to store one and to deploy and reconcile
+    with it, the publisher to run the MQTT re-check commands, which capture and deploy. Each
+    service built from this image takes the same one from the host's environment (never a
+    secret written in the file); unset, it is empty, which tcpcal reads as not set (a
+    password is then refused with 422 saying so)."""
+    import yaml
+
+    services = yaml.safe_load((REPO / "compose.yaml").read_text())["services"]
+    ours = {name: s for name, s in services.items() if s.get("build") == "."}
+    assert set(ours) == {"tcpcal", "publisher"}
+    keys = {name: s["environment"].get("TCPCAL_SECRET_KEY") for name, s in ours.items()}
+    assert keys == dict.fromkeys(ours, "${TCPCAL_SECRET_KEY:-}"), keys
+
+
 @pytest.mark.live
 def test_image_steps_run_outside_docker(tmp_path: Path) -> None:
     """What the image does at start, from a copy holding only what the Dockerfile copies."""
