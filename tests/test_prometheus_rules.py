@@ -10,9 +10,12 @@ import re
 import shutil
 import subprocess
 from pathlib import Path
+from typing import get_args
 
 import pytest
 import yaml
+
+from app.schemas.fleet import AttentionCode
 
 RULES_DIR = Path(__file__).resolve().parents[1] / "deploy" / "prometheus"
 RULES = RULES_DIR / "tcpcal.rules.yml"
@@ -82,3 +85,26 @@ def test_alerts_use_only_metric_names_the_server_serves() -> None:
     names = set(re.findall(r"\btcpcal_[a-z_]+\b", RULES.read_text()))
     missing = {n for n in names if f'"{n}"' not in app_text}
     assert missing == set()
+
+
+#: The fleet's attention codes (tcpcal_tool_attention{code}) no alert fires on, and why;
+#: every other code has its alert, so a code added to the fleet is judged here.
+NOT_ALERTED = {
+    "last_calibration_out_of_tolerance": "a calibration not activated: the TCP served is "
+    "the active one (active_out_of_tolerance alerts when that one is bad)",
+    "no_active_version": "a tool being set up: no TCP is served for it yet",
+    "frequent_corrections": "each re-check corrected the TCP already; the fleet view and "
+    "the audit trail show the tool that keeps getting hit",
+}
+
+
+def test_every_attention_code_has_an_alert_or_a_reason_not_to() -> None:
+    """The robot moving by an older version or by a TCP no version has (contract v1.3) was
+    exported as tcpcal_tool_attention but fired no alert: each code now either has an alert
+    or is in NOT_ALERTED with its reason. (A tool's controller state not_live is no fault:
+    tcpcal_fleet_tools_controller_state{state="not_live"} counts such tools.)"""
+    alerted = set(re.findall(r'tcpcal_tool_attention\{code="([a-z_]+)"\}', RULES.read_text()))
+    codes = set(get_args(AttentionCode))
+    assert alerted <= codes, alerted - codes
+    assert not alerted & set(NOT_ALERTED), alerted & set(NOT_ALERTED)
+    assert codes - alerted == set(NOT_ALERTED), codes - alerted - set(NOT_ALERTED)
