@@ -28,11 +28,13 @@ from app.jsontypes import JsonObject
 
 EXIT_IN_TOLERANCE = 0
 EXIT_CORRECTED = 1
-EXIT_RECALIBRATE = 2
 EXIT_CONTROLLER_FAILED = 3
+#: Not 2: typer exits 2 for bad use (an unknown option, a missing argument), and a cell PC's
+#: script must not read a typo as "recalibrate"; 4 to 6 are every command's (app.cli.http).
+EXIT_RECALIBRATE = 7
 
 #: The exit code of each verdict (the server's CheckResult.verdict). Out of tolerance without
-#: --correct needs a person as much as a TCP beyond max_correction_mm does: 2.
+#: --correct needs a person as much as a TCP beyond max_correction_mm does: 7.
 VERDICT_EXITS = {
     "within_tolerance": EXIT_IN_TOLERANCE,
     "corrected": EXIT_CORRECTED,
@@ -45,10 +47,10 @@ VERDICT_EXITS = {
 #: --capture existed, and typed checks keep it).
 CHECK_EXITS = (
     "Exit codes with --capture: 0 in tolerance; 1 corrected (the new version is active and, "
-    "unless --no-deploy, on the controller and read back); 2 needs recalibration (beyond the "
-    "tool's max_correction_mm, nothing changed; or out of tolerance without --correct); 3 "
-    "controller failure (the touch could not be read, or the correction is active in tcpcal "
-    "but its deployment failed). Typed poses: 0 in tolerance, 3 out of tolerance. Both: 4 "
+    "unless --no-deploy, on the controller and read back); 3 controller failure (the touch "
+    "could not be read, or the correction is active in tcpcal but its deployment failed); 7 "
+    "needs recalibration (beyond the tool's max_correction_mm, nothing changed; or out of "
+    "tolerance without --correct). Typed poses: 0 in tolerance, 3 out of tolerance. Both: 4 "
     "refused (bad input, robot moving), 5 not found or not allowed, 6 server failed, 2 bad use."
 )
 

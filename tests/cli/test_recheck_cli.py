@@ -1,7 +1,8 @@
 """`tcpcal check TOOL --capture --reference NAME --correct` (issue 41) through typer's runner,
 against the in-process app and a controller simulator: the summary sentence, the correction
 (version, delta in mm, deployment status in words) and the exit codes 0 in tolerance, 1
-corrected, 2 needs recalibration, 3 controller failure. The robot stands with the tip at the
+corrected, 7 needs recalibration, 3 controller failure (2 is typer's bad use, never an
+outcome). The robot stands with the tip at the
 reference point as tests/api/test_recheck_controllers.py places it."""
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ import pytest
 from typer.testing import CliRunner
 
 from app.cli import cli
+from app.cli.http import EXIT_BAD_USE, EXIT_NOT_FOUND, EXIT_REFUSED, EXIT_UNREACHABLE
+from app.cli.recheck import EXIT_CONTROLLER_FAILED, EXIT_RECALIBRATE, VERDICT_EXITS
 from tests.api.controller_rigs import rig
 from tests.api.test_capture_controllers import SETUPS, Cell
 from tests.api.test_deployments import WRITE_REQUEST
@@ -85,14 +88,14 @@ def test_in_tolerance_exit_0_and_the_point_by_id(api: Api, runner: CliRunner) ->
         assert again.exit_code == 0, again.output
 
 
-def test_beyond_max_correction_exit_2_nothing_changed(api: Api, runner: CliRunner) -> None:
+def test_beyond_max_correction_exit_7_nothing_changed(api: Api, runner: CliRunner) -> None:
     with rig(KUKA) as r:
         tool, _ = _ready(api, SETUPS[KUKA](r), CRASHED)
         counts, held = row_counts(TABLES), r.native()
         done = runner.invoke(
             cli, ["check", tool["id"], "--capture", "--reference", "pin", "--correct"]
         )
-        assert done.exit_code == 2, done.output
+        assert done.exit_code == EXIT_RECALIBRATE == 7, done.output
         assert "nothing was changed: recalibrate" in done.output
         assert "version" not in done.output.split("recalibrate", 1)[1]  # no correction lines
         assert row_counts(TABLES) == counts
@@ -100,13 +103,13 @@ def test_beyond_max_correction_exit_2_nothing_changed(api: Api, runner: CliRunne
         assert _active(api, tool["id"]) == 1
 
 
-def test_out_of_tolerance_without_correct_exit_2_nothing_corrected(
+def test_out_of_tolerance_without_correct_exit_7_nothing_corrected(
     api: Api, runner: CliRunner
 ) -> None:
     with rig(KUKA) as r:
         tool, _ = _ready(api, SETUPS[KUKA](r), MOVED)
         done = runner.invoke(cli, ["check", tool["id"], "--capture", "--reference", "pin"])
-        assert done.exit_code == 2, done.output
+        assert done.exit_code == EXIT_RECALIBRATE, done.output
         assert "out of tolerance" in done.output
         assert _active(api, tool["id"]) == 1
 
@@ -172,5 +175,18 @@ def test_the_help_says_the_exit_codes(runner: CliRunner) -> None:
     assert shown.exit_code == 0, shown.output
     said = " ".join(shown.output.split())
     assert "0 in tolerance; 1 corrected" in said
-    assert "2 needs recalibration" in said
+    assert "7 needs recalibration" in said
+    assert "2 bad use" in said
     assert "3 controller failure" in said
+
+
+def test_no_outcome_of_a_capture_check_exits_as_bad_use_or_a_refusal(runner: CliRunner) -> None:
+    """A cell PC's script branches on the code: needs recalibration exited 2, which typer
+    also exits with for bad use (an unknown option, a missing argument), so a typo in the
+    script read as "recalibrate". Every verdict's code and the controller failure's are
+    their own, apart from the codes every command shares."""
+    outcomes = {*VERDICT_EXITS.values(), EXIT_CONTROLLER_FAILED}
+    shared = {EXIT_BAD_USE, EXIT_REFUSED, EXIT_NOT_FOUND, EXIT_UNREACHABLE}
+    assert outcomes & shared == set()
+    typo = runner.invoke(cli, ["check", "t1", "--capture", "--refrence", "pin"])
+    assert typo.exit_code == EXIT_BAD_USE, typo.output
