@@ -44,10 +44,11 @@ class WatcherRead:
 
 def _watcher_reads(monkeypatch: pytest.MonkeyPatch, robot_id: str) -> list[WatcherRead]:
     """Every reconcile of `robot_id` by the running watcher from now on, as it ends."""
+    from app.services.controllers import reconcile as rounds
     from app.services.controllers import watcher
 
     reads: list[WatcherRead] = []
-    reconcile = watcher.reconcile_robot
+    reconcile = rounds.reconcile_robot
 
     def recorded(**kwargs: Any) -> Any:
         began = time.monotonic()
