@@ -19,6 +19,7 @@ import typer
 
 from app.cli import http as client_http
 from app.cli.client import register as register_client
+from app.cli.connection import register as register_connection_commands
 from app.cli.controllers import register as register_controller_commands
 
 if TYPE_CHECKING:
@@ -369,3 +370,4 @@ def main() -> None:
 
 register_client(cli)
 register_controller_commands(cli)
+register_connection_commands(cli)

@@ -222,3 +222,17 @@ class Reconciliation(TypedDict):
     tools: list[ReconciledTool]
     not_addressable: list[NotAddressable]
     scope: NotRequired[str]
+
+
+class Controller(TypedDict):
+    """How the server reaches a robot's controller (GET/PUT /v1/robots/{id}/controller)."""
+
+    protocol: str
+    host: str
+    port: int | None
+    ports: dict[str, int] | None
+    username: str | None
+    scope: str
+    has_password: bool
+    timeout_s: float
+    tls_verify: bool

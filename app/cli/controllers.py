@@ -39,7 +39,7 @@ def register(cli: typer.Typer) -> None:
         cli.command(rich_help_panel="Client (talks to a server)", epilog=_EXITS)(command)
 
 
-def _exit_for_problem(response: httpx.Response) -> int:
+def exit_for_problem(response: httpx.Response) -> int:
     """The exit code of a failed answer (the 502s by what the controller did)."""
     kind = str(problem(response).get("type", "")).rsplit("/", 1)[-1]
     by_kind = {
@@ -103,7 +103,7 @@ def deploy(
                 f"deployment {failed['deployment_id']}: {failed['deployment_status']}",
                 highlight=False,
             )
-        raise typer.Exit(_exit_for_problem(response))
+        raise typer.Exit(exit_for_problem(response))
     dep: Deployment = response.json()
     name = tool_names({tool_id}).get(tool_id, tool_ref)
     out.print(f"deployment {dep['id']} of {name}: {dep['status']}", highlight=False)
@@ -138,7 +138,7 @@ def reconcile(robot_ref: RobotArg) -> None:
             highlight=False,
             soft_wrap=True,
         )
-        raise typer.Exit(_exit_for_problem(response))
+        raise typer.Exit(exit_for_problem(response))
     result: Reconciliation = response.json()
     skipped = result.get("not_addressable", [])
     names = tool_names({t["tool_id"] for t in [*result["tools"], *skipped]})
