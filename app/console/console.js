@@ -10,6 +10,7 @@ const main = document.getElementById("main");
 // The signed-in key's name and scope (GET /v1/keys/me): write buttons only for what it may do.
 let me = null;
 const mayCalibrate = () => me !== null && SCOPES.indexOf(me.scope) >= SCOPES.indexOf("calibrate");
+const mayAdminister = () => me !== null && me.scope === "admin";
 
 // ---- DOM ------------------------------------------------------------------------------------
 function h(tag, attrs = {}, ...children) {
@@ -447,7 +448,9 @@ async function controllerSection(tool, versions, onChange) {
   ]);
   const state = rows.find((r) => r.id === tool.id)?.controller ?? null;
   if (!connection) {
-    section.append(h("p", { id: "controller-none" }, "This robot has no controller connection: PUT /v1/robots/{id}/controller (admin) to deploy and watch its TCPs."));
+    section.append(h("p", { id: "controller-none" }, mayAdminister()
+      ? "This robot has no controller connection: connect it below to deploy and watch its TCPs."
+      : "This robot has no controller connection: an admin connects it (on this page or with tcpcal connect) to deploy and watch its TCPs."));
   } else {
     section.append(
       h("p", { id: "controller-state" },
@@ -468,6 +471,7 @@ async function controllerSection(tool, versions, onChange) {
     section.append(deployControls(tool, connection, onChange));
     if (points.length && tool.active_version !== null) section.append(recheckControls(tool, points, versions));
   }
+  if (mayAdminister()) section.append(connectionForm(tool, connection, onChange));
   section.append(
     h("h3", {}, "Deployments"),
     deployments.length
@@ -526,6 +530,145 @@ function deployControls(tool, connection, onChange) {
   });
   box.append(ask, confirmBox, outcome);
   return box;
+}
+
+// ---- the controller connection (admin) -------------------------------------------------------
+// The protocols and their default ports, read from the API's own schema (/openapi.json: the
+// enum of ControllerIn's `protocol` and its `x-default-ports`), never a second list here.
+let connectionSchema = null;
+async function controllerProtocols() {
+  if (!connectionSchema) {
+    const response = await fetch("/openapi.json", { headers: { Accept: "application/json" } });
+    if (!response.ok) throw new Error(`the API's schema (/openapi.json) answered ${response.status}`);
+    const protocol = (await response.json()).components.schemas.ControllerIn.properties.protocol;
+    connectionSchema = { protocols: protocol.enum, defaults: protocol["x-default-ports"] ?? {} };
+  }
+  return connectionSchema;
+}
+
+// A field of the form: its label, the input, and where a 422 naming it is said.
+function connectionField(label, input, hint) {
+  return h("label", { class: "connection-field", "data-field": input.name },
+    h("span", {}, label), input, hint ? h("span", { class: "muted hint" }, hint) : null,
+    h("span", { class: "field-problem", role: "alert", hidden: true }));
+}
+
+// The body a PUT sends: what the person filled in; an empty field is left out (the server's
+// default, and the stored password kept). A number field sends what was typed when it is not
+// a number, so that the server's 422 names it.
+function connectionBody(form, services) {
+  const value = (name) => form.elements.namedItem(name)?.value.trim() ?? "";
+  const number = (text) => (/^-?\d+(\.\d+)?$/.test(text) ? Number(text) : text);
+  const body = { protocol: value("protocol"), host: value("host") };
+  if (services) {
+    const ports = {};
+    for (const service of services) if (value(`ports.${service}`)) ports[service] = number(value(`ports.${service}`));
+    if (Object.keys(ports).length) body.ports = ports;
+  } else if (value("port")) body.port = number(value("port"));
+  if (value("username")) body.username = value("username");
+  if (form.elements.namedItem("password").value) body.password = form.elements.namedItem("password").value;
+  if (value("timeout_s")) body.timeout_s = number(value("timeout_s"));
+  return body;
+}
+
+// The field a 422 error's `loc` names (body.ports.rtde -> the rtde port; a `port` or `ports`
+// as a whole -> the first port field), or null.
+function connectionFieldFor(form, loc) {
+  const parts = (loc || []).filter((part) => part !== "body").map(String);
+  const fields = [...form.querySelectorAll(".connection-field")];
+  for (let n = parts.length; n > 0; n -= 1) {
+    const found = fields.find((f) => f.dataset.field === parts.slice(0, n).join("."));
+    if (found) return found;
+  }
+  if (parts[0] === "port" || parts[0] === "ports") return fields.find((f) => f.dataset.field === "port" || f.dataset.field.startsWith("ports.")) ?? null;
+  return null;
+}
+
+// Each 422 error said next to the field it names; what names no field goes under the form.
+function showConnectionProblem(form, outcome, error) {
+  const errors = error instanceof Problem && error.status === 422 ? (error.doc.errors || []) : [];
+  let placed = 0;
+  for (const e of errors) {
+    const field = connectionFieldFor(form, e.loc);
+    if (!field) continue;
+    const said = field.querySelector(".field-problem");
+    said.textContent = errors.length === 1 ? error.doc.detail : `${(e.loc || []).filter((p) => p !== "body").join(".")}: ${e.msg}`;
+    said.hidden = false;
+    placed += 1;
+  }
+  outcome.replaceChildren(placed && placed === errors.length
+    ? h("p", { class: "muted", id: "connection-refused" }, `${error.status} ${error.doc.title || ""}: nothing was stored.`)
+    : problemBox(error));
+}
+
+// The form's fields drawn once the API's schema is read; the page is not held up by it (a
+// robot with a connection shows the form folded, and reads the schema when it is opened).
+function connectionForm(tool, connection, onChange) {
+  const details = h("details", { id: "connection", open: !connection },
+    h("summary", {}, connection ? "Change the connection (admin)" : "Connect the controller (admin)"));
+  let drawn = false;
+  const draw = async () => {
+    if (drawn) return;
+    drawn = true;
+    try {
+      details.append(connectionFields(tool, connection, onChange, await controllerProtocols()));
+    } catch (error) {
+      details.append(problemBox(error));
+    }
+  };
+  details.addEventListener("toggle", () => { if (details.open) draw(); });
+  if (!connection) draw();
+  return details;
+}
+
+function connectionFields(tool, connection, onChange, { protocols, defaults }) {
+  const protocolSelect = h("select", { name: "protocol", id: "connection-protocol" },
+    protocols.map((p) => h("option", { value: p, selected: connection?.protocol === p }, p)));
+  const portsBox = h("div", { id: "connection-ports", class: "pose-fields" });
+  const servicesOf = (protocol) => {
+    const ports = defaults[protocol] ?? {};
+    return "port" in ports ? null : Object.keys(ports);
+  };
+  const drawPorts = () => {
+    const protocol = protocolSelect.value;
+    const ports = defaults[protocol] ?? {};
+    const services = servicesOf(protocol);
+    const same = connection?.protocol === protocol;
+    portsBox.replaceChildren(...(services
+      ? services.map((service) => connectionField(`${service} port`,
+        h("input", { name: `ports.${service}`, inputmode: "numeric", placeholder: String(ports[service]), value: same ? connection.ports?.[service] ?? "" : "" }),
+        `default ${ports[service]}`))
+      : [connectionField("port", h("input", { name: "port", inputmode: "numeric", placeholder: ports.port === undefined ? "" : String(ports.port), value: same ? connection.port ?? "" : "" }),
+        ports.port === undefined ? null : `default ${ports.port}`)]));
+  };
+  protocolSelect.addEventListener("change", drawPorts);
+  drawPorts();
+  const outcome = h("div", { id: "connection-outcome" });
+  const form = h("form", { id: "connection-form", class: "card" },
+    connectionField("protocol", protocolSelect),
+    connectionField("host", h("input", { name: "host", required: true, placeholder: "192.168.1.20", value: connection?.host ?? "" })),
+    portsBox,
+    connectionField("user", h("input", { name: "username", autocomplete: "off", value: connection?.username ?? "" }), "ABB RWS"),
+    connectionField("password", h("input", { name: "password", type: "password", autocomplete: "new-password" }),
+      connection?.has_password ? "a password is stored: left empty, it is kept" : "write-only: never shown again"),
+    connectionField("timeout, s", h("input", { name: "timeout_s", inputmode: "decimal", placeholder: "5", value: connection ? connection.timeout_s : "" }), "default 5"),
+    h("div", { class: "actions" }, h("button", { type: "submit", id: "connection-save" }, connection ? "Save connection" : "Connect")),
+    outcome);
+  form.addEventListener("submit", async (event) => {
+    event.preventDefault();
+    form.querySelectorAll(".field-problem").forEach((p) => { p.hidden = true; p.textContent = ""; });
+    const save = form.querySelector("#connection-save");
+    save.disabled = true;
+    outcome.replaceChildren(h("p", { class: "muted" }, "Saving…"));
+    try {
+      await json(`/v1/robots/${tool.robot_id}/controller`, { method: "PUT", body: connectionBody(form, servicesOf(protocolSelect.value)) });
+      await onChange();
+    } catch (error) {
+      showConnectionProblem(form, outcome, error);
+      save.disabled = false;
+    }
+  });
+  return form;
 }
 
 // ---- re-check after a collision (issue 41) ---------------------------------------------------

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, get_args
 
-from pydantic import BaseModel, BeforeValidator, Field, SecretStr
+from pydantic import BaseModel, BeforeValidator, Field, JsonValue, SecretStr
 
 from app.schemas.common import Reason, ShortText, StoredWord, StrictModel, Timestamp, json_integer
 from app.vendors.abb.symbol import SYMBOL_PATTERN
@@ -61,6 +61,10 @@ PROTOCOL_DESCRIPTION = "; ".join(
         ),
     ]
 )
+DEFAULT_PORTS_BY_PROTOCOL: dict[str, JsonValue] = {
+    **{name: {"port": port} for name, port in DEFAULT_PORTS.items()},
+    **{name: dict(services) for name, services in SERVICE_PORTS.items()},
+}
 PORTS_DESCRIPTION = (
     f"a protocol of several services ({', '.join(SERVICE_PORTS)}), in place of `port`: the "
     "port of each service, each defaulting to the real one ("
@@ -78,7 +82,12 @@ class ControllerIn(StrictModel):
     """How to reach a robot's controller. `password` is write-only (stored encrypted); left
     out, the stored one is kept; null removes it."""
 
-    protocol: ProtocolName = Field(description=PROTOCOL_DESCRIPTION)
+    protocol: ProtocolName = Field(
+        description=PROTOCOL_DESCRIPTION,
+        # The same defaults, for a form (the console's) to read: {protocol: {"port": N}} or
+        # {protocol: {service: N, ...}} for a protocol of several services.
+        json_schema_extra={"x-default-ports": DEFAULT_PORTS_BY_PROTOCOL},
+    )
     host: Host = Field(description="the controller's host name or IP address")
     port: Port | None = Field(
         default=None,
