@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import time
 from collections.abc import Coroutine
+from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
 import numpy as np
@@ -39,7 +40,11 @@ def svr(sim: TechmanSimulator) -> object:
 
 
 def run(coroutine: Coroutine[object, object, T], timeout_s: float = 5.0) -> T:
-    return asyncio.run(asyncio.wait_for(coroutine, timeout_s))
+    """Run techmanpy's coroutine to its end in a thread of its own: in the full suite a module
+    before this one on the same pytest worker (sync Playwright) can leave an event loop running
+    in the worker's thread, where asyncio.run refuses to start."""
+    with ThreadPoolExecutor(max_workers=1) as thread:
+        return thread.submit(asyncio.run, asyncio.wait_for(coroutine, timeout_s)).result()
 
 
 async def change_tcp(sim: TechmanSimulator, *args: object) -> None:
