@@ -187,8 +187,12 @@ def test_a_rename_or_an_archive_rebuilds_a_robot_of_ten_tools_well_within_a_seco
     """docs/publishing.md: the values follow the database within a second, and robots and
     tools appear and disappear as they change. asyncua's delete scanned the whole address
     space for every node it deleted: a robot of ten tools took 2.3 s to rename (0.2 s a
-    tool) before a client could see it. The server alone here, without the network's time;
-    what is left in its address space is checked too (no reference to a deleted node)."""
+    tool) before a client could see it. The server alone here, without the network's time,
+    and its own work: the CPU time of the thread its event loop runs in (time.thread_time),
+    not the wall time, which on a loaded machine counts the time other processes held the
+    cores (0.28 s wall at load 5 on 2 cores). The promise is the second; 0.25 s of the
+    server's own time is the tripwire for the 2.3 s this once took. What is left in its
+    address space is checked too (no reference to a deleted node)."""
     import asyncio
     import concurrent.futures
     import time
@@ -213,9 +217,9 @@ def test_a_rename_or_an_archive_rebuilds_a_robot_of_ten_tools_well_within_a_seco
                 PlantRobot("r", "kr16-b", tools[:1]),  # nine tools archived
                 None,  # the robot archived
             ):
-                started = time.monotonic()
+                started = time.thread_time()
                 await server.replace_robot("r", change)
-                took.append(time.monotonic() - started)
+                took.append(time.thread_time() - started)
             assert server._root is not None
             left = [
                 str((await c.read_browse_name()).Name) for c in await server._root.get_children()
