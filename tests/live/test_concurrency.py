@@ -22,7 +22,10 @@ T = TypeVar("T")
 
 @pytest.fixture(params=BACKENDS)
 def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[LiveServer]:
-    with fresh_database(request.param, tmp_path, PG_URL) as url, live_server(url) as srv:
+    # solvers=0: what is tested is the database under concurrent writers, not the solver
+    # pool, whose forkserver cost each of the two workers ~3 CPU-s of a start that hit
+    # the 60 s readiness limit at load 5 on 2 cores (testbed/live_server.py)
+    with fresh_database(request.param, tmp_path, PG_URL) as url, live_server(url, solvers=0) as srv:
         yield srv
 
 
