@@ -27,6 +27,7 @@ from tests.controllers.ur_sim import (
     UrSimulator,
     split_programs,
 )
+from tests.polling import wait_for
 
 CHILD_TIMEOUT_S = 30.0
 TCP = (0.01, -0.02, 0.15, 0.0, 0.0, 1.2)
@@ -363,7 +364,8 @@ def test_silent_at_the_script_no_package_leaves_any_connection(
     with _secondary(sim) as sock:
         _robot_messages(sock, 0.15)  # the version and state packages while it answers
         sock.sendall(SCRIPT.encode())
-        time.sleep(0.1)
+        # until the fault has fired (a fixed 0.1 s was not always enough on a loaded machine)
+        wait_for(lambda: sim.stalled, 10, "the controller to go silent at the script")
         rtde.drain()
         with pytest.raises(TimeoutError):
             rtde.package(DATA_PACKAGE, timeout=0.3)
@@ -384,8 +386,11 @@ def test_a_session_left_behind_holds_its_inputs(sim: UrSimulator, rtde: Rtde) ->
 def test_open_connections_counts_what_clients_left_open(sim: UrSimulator) -> None:
     client = Rtde(sim)
     sock = _secondary(sim)
-    time.sleep(0.1)
-    assert sim.open_connections() == {"rtde": 1, "secondary": 1}
+    wait_for(
+        lambda: sim.open_connections() == {"rtde": 1, "secondary": 1},
+        10,
+        "the simulator to hold both connections",
+    )
     client.close()
     sock.close()
     deadline = time.monotonic() + 2
