@@ -155,6 +155,6 @@ def test_help_names_every_protocol_and_service() -> None:
     shown = CliRunner().invoke(cli, ["connect", "--help"], env={"COLUMNS": "400"}).output
     for protocol in PROTOCOLS:
         assert protocol in shown
-    for protocol, services in SERVICE_PORTS.items():
-        assert f"{protocol} {', '.join(services)}" in shown
+    for multi, services in SERVICE_PORTS.items():
+        assert f"{multi} {', '.join(services)}" in shown
     assert "--no-password-stdin" not in shown
