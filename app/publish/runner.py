@@ -109,6 +109,7 @@ class Runner:
             if not self._full_state(sink):
                 return FAILED
         with session_scope(write=False, engine=self.engine) as session:
+            source.snapshot(session)
             messages = source.undelivered(session, limit=self.batch)
             if not messages:
                 return IDLE
@@ -130,6 +131,7 @@ class Runner:
             return True
         for page in source.live_tool_pages(self.engine, page=self.batch):
             with session_scope(write=False, engine=self.engine) as session:
+                source.snapshot(session)
                 states = source.states(session, page)
             if self.stopping.is_set() or not sink.deliver(Batch(states=states, full=True)):
                 return False

@@ -63,6 +63,19 @@ def tools_concerned(session: Session, messages: Sequence[Message]) -> list[str]:
     return list(ordered)
 
 
+def snapshot(session: Session) -> None:
+    """Make the rest of `session`'s transaction read the database as of one moment.
+
+    A tool's document (its active version) and that version's status and activation are read
+    by separate statements; in PostgreSQL's default READ COMMITTED each statement sees what was
+    committed when it began, so an activation committed between them published an
+    out-of-tolerance TCP as `accepted` (a fresh clone's .ci/run, test_mqtt.py:377).
+    REPEATABLE READ reads them all from the transaction's first snapshot. Call it first.
+    """
+    if session.get_bind().dialect.name == "postgresql":
+        session.connection(execution_options={"isolation_level": "REPEATABLE READ"})
+
+
 def states(session: Session, tool_ids: Iterable[str]) -> list[PublishedTool]:
     """The current state of each tool (unknown ids are left out)."""
     wanted = list(tool_ids)

@@ -5,13 +5,17 @@ from __future__ import annotations
 
 import threading
 
+import pytest
 from sqlalchemy import select
+from sqlalchemy.orm import Session
 
+from app.publish import source
 from app.publish.runner import DELIVERED, FAILED, IDLE, Runner
 from app.publish.sink import Batch
 from app.storage.db import get_engine, session_scope
 from app.storage.models import OutboxMessage
 from tests.conftest import Api
+from tests.publish.plant_changes import force, out_of_tolerance_version
 
 
 class RecordingSink:
@@ -101,3 +105,40 @@ def test_delivered_rows_are_pruned_after_keep_s(api: Api) -> None:
     assert Runner(get_engine(), [sink], threading.Event(), keep_s=0).step() == DELIVERED
     with session_scope(write=False) as session:
         assert list(session.scalars(select(OutboxMessage.id))) == []
+
+
+def test_a_published_state_is_read_as_of_one_moment(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A tool's active version and that version's status are read by separate statements: an
+    activation committed between them must not publish an out-of-tolerance TCP as `accepted`
+    (a fresh clone's .ci/run on PostgreSQL met it: test_mqtt.py:377)."""
+    robot = api.robot("r-moment")
+    tool = api.tool(robot["id"], "t")
+    api.manual(tool["id"], [0.0, 0.0, 150.0])
+    bad = out_of_tolerance_version(api, tool["id"])
+    real = source.active_statuses
+    forced: list[int] = []
+
+    def then_activated(session: Session, tool_ids: list[str]) -> dict[str, str]:
+        found = real(session, tool_ids)
+        if not forced:  # the forced activation commits between the two reads, once
+            force(api, tool["id"], bad, "activated between two reads of the publisher")
+            forced.append(bad)
+        return found
+
+    monkeypatch.setattr(source, "active_statuses", then_activated)
+    sink = RecordingSink()
+    runner = Runner(get_engine(), [sink], threading.Event(), keep_s=3600)
+    while runner.step() == DELIVERED:
+        pass
+    assert forced == [bad]
+    shown = [
+        (state.document["version"], state.document["status"])
+        for batch in sink.batches
+        for state in batch.states
+        if state.tool_id == tool["id"] and state.document is not None
+    ]
+    assert shown, "the tool's state was never published"
+    status_of = {1: "accepted", bad: "out_of_tolerance"}
+    assert [(version, status_of[version]) for version, _ in shown] == shown
