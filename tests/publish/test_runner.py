@@ -12,6 +12,7 @@ from sqlalchemy.orm import Session
 from app.publish import source
 from app.publish.runner import DELIVERED, FAILED, IDLE, Runner
 from app.publish.sink import Batch
+from app.services.fleet import plant
 from app.storage.db import get_engine, session_scope
 from app.storage.models import OutboxMessage
 from tests.conftest import Api
@@ -117,7 +118,7 @@ def test_a_published_state_is_read_as_of_one_moment(
     tool = api.tool(robot["id"], "t")
     api.manual(tool["id"], [0.0, 0.0, 150.0])
     bad = out_of_tolerance_version(api, tool["id"])
-    real = source.active_statuses
+    real = plant.active_statuses
     forced: list[int] = []
 
     def then_activated(session: Session, tool_ids: list[str]) -> dict[str, str]:
