@@ -54,6 +54,9 @@ def test_cli_keys_create_prints_a_working_key(db: Database) -> None:
         assert client.post("/v1/robots", json={"name": "x"}, headers=headers).status_code == 403
     bad = CliRunner().invoke(cli, ["keys", "create", "--scope", "root", "--name", "x"])
     assert bad.exit_code == 2
+    reserved = CliRunner().invoke(cli, ["keys", "create", "--scope", "read", "--name", "me"])
+    assert reserved.exit_code == 2, reserved.output
+    assert "name: Value error, 'me' is a reserved word" in reserved.output
 
 
 def _key_of(output: str) -> str:
@@ -118,7 +121,7 @@ def test_cli_keys_list_revoke_rotate(db: Database) -> None:
     assert all(a.startswith("cli:") for a in actors)
 
 
-@pytest.mark.parametrize("command", [["keys", "create", "--scope", "admin", "--name", "me"],
+@pytest.mark.parametrize("command", [["keys", "create", "--scope", "admin", "--name", "ops"],
                                      ["keys", "list"]])  # fmt: skip
 def test_keys_outside_the_project_directory_say_which_database_and_create_none(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: list[str]

@@ -3,15 +3,27 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, Response
+from starlette.convertors import StringConvertor, register_url_convertor
 
 from app.api.deps import AdminKey, ReadKey, SessionDep
 from app.api.params import DEFAULT_PAGE, Cursor, Limit, PathId
 from app.api.shared import page
 from app.schemas.common import Page
-from app.schemas.keys import KeyCreate, KeyCreated, KeyMe, KeyOut
+from app.schemas.keys import RESERVED_KEY_NAME, KeyCreate, KeyCreated, KeyMe, KeyOut
 from app.services import keys
 
 router = APIRouter(prefix="/v1/keys", tags=["keys"])
+
+
+class _KeyIdConvertor(StringConvertor):
+    """A key id's path segment: anything but `me`, the reserved word of the caller's own key,
+    so /v1/keys/me is GET's only (DELETE and OPTIONS of it answer 405 naming GET, HEAD)
+    and never the id route's."""
+
+    regex = f"(?!{RESERVED_KEY_NAME}$)[^/]+"
+
+
+register_url_convertor("key_id", _KeyIdConvertor())
 
 
 @router.post("", status_code=201, response_model=KeyCreated)
@@ -45,7 +57,7 @@ def who_am_i(key: ReadKey) -> KeyMe:
     return KeyMe(id=key.key_id, name=key.name, scope=key.scope)
 
 
-@router.delete("/{key_id}", status_code=204)
+@router.delete("/{key_id:key_id}", status_code=204)
 def revoke_key(key_id: PathId, session: SessionDep, key: AdminKey) -> Response:
     """Revoke a key: it is refused from the next request on."""
     keys.revoke_key(session, key_id=key_id, actor=key)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, Field
+from pydantic import AfterValidator, BaseModel, Field
 
 from app.schemas.common import Name, StrictModel, Timestamp
 from app.scopes import Scope
@@ -21,9 +21,22 @@ Cells = Annotated[
     ),
 ]
 
+#: /v1/keys/me is the caller's own key: no key is named so, nor id'd so (ids are UUIDs, and
+#: app.api.keys's path convertor keeps `me` from the id routes).
+RESERVED_KEY_NAME = "me"
+
+
+def _not_reserved(name: str) -> str:
+    if name.casefold() == RESERVED_KEY_NAME:
+        raise ValueError(
+            f"'{name}' is a reserved word (/v1/keys/{RESERVED_KEY_NAME} is the caller's own "
+            "key): give the key another name"
+        )
+    return name
+
 
 class KeyCreate(StrictModel):
-    name: Name
+    name: Annotated[Name, AfterValidator(_not_reserved)]
     scope: Scope
     cells: Cells | None = None
 

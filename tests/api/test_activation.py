@@ -259,3 +259,25 @@ def test_keys_me_tells_each_key_its_own_scope_and_never_the_key(api: Api) -> Non
         assert api.keys[scope] not in response.text
     anonymous = api.client.get("/v1/keys/me")
     assert anonymous.status_code == 401
+
+
+def test_me_is_no_key_id_delete_and_options_of_it_answer_405_naming_get(api: Api) -> None:
+    """Issue 51 #10: /v1/keys/me also matched DELETE /v1/keys/{key_id}, so OPTIONS answered
+    Allow: DELETE, GET, HEAD and DELETE /v1/keys/me looked for a key with id 'me'. 'me' is a
+    reserved word: the path is the caller's own key, read-only, and no key is ever id'd so."""
+    for method in ("DELETE", "OPTIONS", "PUT"):
+        response = api.request(method, "/v1/keys/me", "admin")
+        assert response.status_code == 405, (method, response.status_code, response.text)
+        assert response.headers["Allow"] == "GET, HEAD", method
+        assert response.json()["type"].endswith("method-not-allowed")
+    # and a real key id is still revoked at its own path
+    made = api.post("/v1/keys", {"name": "to-revoke", "scope": "read"}).json()
+    assert api.delete(f"/v1/keys/{made['id']}").status_code == 204
+
+
+def test_a_key_cannot_be_named_me(api: Api) -> None:
+    for name in ("me", "ME"):
+        refused = api.post("/v1/keys", {"name": name, "scope": "read"})
+        assert refused.status_code == 422, refused.text
+        assert refused.json()["errors"][0]["loc"] == ["body", "name"]
+        assert "reserved" in refused.json()["detail"]
