@@ -5,7 +5,8 @@
         --target 'app/kinematics/poses.py=tests/kinematics/test_poses.py' \\
         --n 35 --seed 51 --json mutants.json
 
-A target is MODULE=TESTS: MODULE a .py file or a directory of them (its mutants are pooled),
+A target is MODULE=TESTS: MODULE a .py file, a directory or several joined by commas (its
+mutants are pooled),
 TESTS what pytest is given (files, node ids, `-k` expressions: split on spaces). For each target
 the script lists every mutant it can make (below), ranks them by a hash of the seed and the
 mutant's key and tries the first N. The key names the file, the enclosing function, the kind
@@ -401,12 +402,17 @@ def mutants_of(path: Path, target: str) -> list[Mutant]:
 
 
 def _files(module: str) -> list[Path]:
-    path = (REPO / module).resolve()
-    if path.is_dir():
-        return sorted(p for p in path.rglob("*.py") if "__pycache__" not in p.parts)
-    if path.suffix == ".py" and path.is_file():
-        return [path]
-    raise SystemExit(f"mutate: {module} is neither a .py file nor a directory of them")
+    """A target's files: MODULE is a .py file, a directory, or several joined by commas."""
+    found: list[Path] = []
+    for part in module.split(","):
+        path = (REPO / part.strip()).resolve()
+        if path.is_dir():
+            found += sorted(p for p in path.rglob("*.py") if "__pycache__" not in p.parts)
+        elif path.suffix == ".py" and path.is_file():
+            found.append(path)
+        else:
+            raise SystemExit(f"mutate: {part} is neither a .py file nor a directory of them")
+    return found
 
 
 def sample(module: str, n: int, seed: int) -> list[Mutant]:
