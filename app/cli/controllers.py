@@ -1,9 +1,9 @@
 """`tcpcal deploy TOOL` and `tcpcal reconcile ROBOT`: the controller commands of the client.
 
-Exit codes (for scripts and cell PCs): 0 verified / in sync; 2 mismatch / drifted; 3 the
-controller is unreachable; 4 refused (by the controller, in its own words, or by the
-server: no active version, no slot or symbol); 5 not found or not allowed; 6 the server could
-not be reached or failed.
+Exit codes (for scripts and cell PCs): 0 verified / in sync; 3 the controller is
+unreachable; 4 refused (by the controller, in its own words, or by the server: no active
+version, no slot or symbol); 5 not found or not allowed; 6 the server could not be reached
+or failed; 8 mismatch / drifted; 2 bad use (typer's: an unknown option, a missing argument).
 """
 
 from __future__ import annotations
@@ -27,10 +27,14 @@ LIVE_SCOPE = (
     "sets its own TCP, and the reconcile rounds then show what the robot moves by"
 )
 
-EXIT_DRIFTED = 2
+#: Not 2: typer exits 2 for bad use (an unknown option, a missing argument), and a cell PC's
+#: script must not read a typo as "drifted"; 4 to 6 are every command's (app.cli.http), 7 is
+#: check --capture's "needs recalibration" (app.cli.recheck).
+EXIT_DRIFTED = 8
 EXIT_CONTROLLER_UNREACHABLE = 3
-_EXITS = """Exit codes: 0 verified / in sync; 2 mismatch / drifted; 3 controller unreachable;
-4 refused (by the controller or the server); 5 not found or not allowed; 6 server failed."""
+_EXITS = """Exit codes: 0 verified / in sync; 3 controller unreachable; 4 refused (by the
+controller or the server); 5 not found or not allowed; 6 server failed; 8 mismatch / drifted;
+2 bad use."""
 
 
 def register(cli: typer.Typer) -> None:

@@ -1,5 +1,6 @@
 """`tcpcal deploy` and `tcpcal reconcile` against the app and a controller simulator: the
-tables and the exit codes (0 verified / in sync, 2 drifted, 3 unreachable)."""
+tables and the exit codes (0 verified / in sync, 8 mismatch / drifted, 3 unreachable; 2 is
+typer's bad use, never an outcome)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ from typer.testing import CliRunner
 
 from app.cli import cli
 from app.cli import http as client_http
+from app.cli.controllers import EXIT_CONTROLLER_UNREACHABLE, EXIT_DRIFTED
+from app.cli.http import EXIT_BAD_USE, EXIT_NOT_FOUND, EXIT_REFUSED, EXIT_UNREACHABLE
 from tests.api.controller_rigs import SLOT, rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, WRITE_REQUEST, _setup
 from tests.api.test_deployments import secret_key as secret_key  # ABB's password, autouse
@@ -46,7 +49,7 @@ def test_deploy_and_reconcile_exit_codes(api: Api, runner: CliRunner) -> None:
         assert "in_sync" in synced.output
         r.set_behind_back([ACTIVE_POSITION[0] + 1, *ACTIVE_POSITION[1:]], ACTIVE_Q)
         drifted = runner.invoke(cli, ["reconcile", robot_id])
-        assert drifted.exit_code == 2, drifted.output
+        assert drifted.exit_code == EXIT_DRIFTED == 8, drifted.output
         assert "drifted: t1 at $TOOL_DATA[3]" in drifted.output
         assert "off by      1.0000 mm, 0.0000 deg" in drifted.output
         r.sim.stop()
@@ -106,8 +109,25 @@ def test_a_tool_or_robot_no_one_has_is_named_in_the_refusal(api: Api, runner: Cl
 def test_help_says_the_exit_codes() -> None:
     for command in ("deploy", "reconcile"):
         shown = CliRunner().invoke(cli, [command, "--help"], env={"COLUMNS": "200"})
-        assert "2 mismatch / drifted" in shown.output
-        assert "3 controller unreachable" in shown.output
+        said = " ".join(shown.output.split())
+        assert "8 mismatch / drifted" in said
+        assert "3 controller unreachable" in said
+        assert "2 bad use" in said
+
+
+def test_no_outcome_of_deploy_or_reconcile_exits_as_bad_use_or_a_refusal(
+    runner: CliRunner,
+) -> None:
+    """Issue 51: reconcile exited 2 for drifted (and deploy for a read-back mismatch), which
+    typer also exits with for bad use (an unknown option, a missing argument): a cell PC's
+    script read a typo in its own command line as 'the controller drifted'. The outcomes'
+    codes are their own, apart from the codes every command shares (as check --capture's 7)."""
+    outcomes = {EXIT_DRIFTED, EXIT_CONTROLLER_UNREACHABLE}
+    shared = {EXIT_BAD_USE, EXIT_REFUSED, EXIT_NOT_FOUND, EXIT_UNREACHABLE}
+    assert outcomes & shared == set(), outcomes & shared
+    for typo in (["reconcile", "r1", "--robto"], ["deploy", "t1", "--reson", "x"], ["reconcile"]):
+        used = runner.invoke(cli, typo)
+        assert used.exit_code == EXIT_BAD_USE, used.output
 
 
 def test_deploy_says_in_words_what_the_controller_may_hold_and_keeps_the_reason(
