@@ -39,6 +39,7 @@ from app.services.audit import writes as audit
 from app.services.controllers import states as controller_states
 from app.services.controllers.failures import controller_problem
 from app.services.robots.connection import get_controller, settings_of
+from app.services.robots.live_tool import LiveRead, record_live
 from app.services.tools.tools import get_tool
 from app.storage.db import session_scope
 from app.storage.models import Deployment, Robot, TcpVersion, ToolControllerState, utcnow
@@ -47,6 +48,8 @@ from app.vendors.connector import (
     ControllerError,
     ControllerRefused,
     ControllerSettings,
+    Frame,
+    LiveTool,
     ToolTarget,
 )
 from app.vendors.registry import (
@@ -380,8 +383,7 @@ def _record(
         },
     )
     if row.scope == "live":
-        # the robot's one live TCP: its row first, as every writer of its tools' states
-        session.execute(select(Robot.id).where(Robot.id == plan.robot_id).with_for_update())
+        _record_live_tcp(session, plan, outcome, row, actor)
     if outcome.status == "verified":
         controller_states.observe(
             session,
@@ -409,6 +411,40 @@ def _record(
                 actor=actor,
             )
     return row
+
+
+def _record_live_tcp(
+    session: Session, plan: Plan, outcome: Outcome, row: Deployment, actor: Principal
+) -> None:
+    """The robot's one live TCP as the deployment left it (`live_after`); the robot's row is
+    locked first, as every writer of its tools' states locks it."""
+    session.execute(select(Robot.id).where(Robot.id == plan.robot_id).with_for_update())
+    live = live_after(outcome)
+    if live is not None:
+        record_live(session, robot_id=plan.robot_id, live=live, at=row.created_at, actor=actor)
+
+
+#: Why a robot's one live TCP is not known after a deployment wrote it and read nothing back.
+LIVE_UNCONFIRMED = (
+    "a deployment's write was sent and not read back: the robot may move by the version "
+    "written or by what it held; the next reconcile round will tell"
+)
+
+
+def live_after(outcome: Outcome) -> LiveRead | None:
+    """What a deployment to a robot's one live TCP (a `live` scope, UR and Techman: the tool
+    read and written is the TCP the robot moves by) last read of it: the read-back, else what
+    it held before a write that was never sent; unread when a write was sent and nothing was
+    read after it. None when nothing was read and nothing changed (the round's read stands).
+    A stored-scope controller's read-back says nothing of which tool the robot moves by."""
+    held = outcome.read_back
+    if held is None and outcome.status == "not_written":
+        held = outcome.previous
+        if held is None:
+            return None
+    if held is None:
+        return LiveRead(None, LIVE_UNCONFIRMED)
+    return LiveRead(LiveTool(number=None, frame=Frame(held.position_mm, held.quaternion)), None)
 
 
 def deployment_document(row: Deployment) -> DeploymentOut:
