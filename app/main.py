@@ -16,6 +16,7 @@ from app import __version__
 from app.api import (
     audit,
     calibrations,
+    checks,
     console,
     controllers,
     deployments,
@@ -47,7 +48,11 @@ log = logging.getLogger("tcpcal")
 #: What each solver process imports as it starts: the solve path of the calibrations and of
 #: /v1/solve (numpy, scipy, the methods), and scipy.optimize, which the fits import when they
 #: first run (app.solvers.plane.search): a server worker does not import it at start.
-SOLVER_PRELOAD = ("app.services.calibrate", "scipy.optimize")
+SOLVER_PRELOAD = (
+    "app.services.calibrations.writes",
+    "app.services.calibrations.detached",
+    "scipy.optimize",
+)
 
 
 def settle_heap() -> None:
@@ -121,6 +126,7 @@ def create_app() -> FastAPI:
         robots,
         tools,
         references,
+        checks,
         methods,
         formats,
         fleet,

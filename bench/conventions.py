@@ -3,7 +3,7 @@
 Simulated N-point touch sets (seeded): N in {4, 6, 8, 12, 20}, a tilt cone of 15-45 deg
 with spin, |TCP| 50-350 mm, touch noise 0.01-0.15 mm, and in a fifth of the sets of 6 or
 more touches one touch that missed by 3-5 mm (the robust fit sets it aside). Each set is
-submitted through the service's own solve path (app.services.calibrate.solve, the code
+submitted through the service's own solve path (app.services.calibrations.grading.solve, the code
 behind POST /calibrations and /v1/solve, with the default tolerance):
 
 - correctly, in one format per set (cycling over every pose format but `joints`, which needs
@@ -34,8 +34,8 @@ from app.errors import InvalidInput
 from app.kinematics.poses import PoseUnits, pose_to_format
 from app.kinematics.readings import Reading
 from app.methods.requests import SolveRequest
-from app.services.calibrate import solve
-from app.services.calibrate.contexts import StatelessContext
+from app.services.calibrations.contexts import StatelessContext
+from app.services.calibrations.grading import solve
 from testbed.sim.touches import Touches, simulate_touches
 
 RESULTS = Path(__file__).resolve().parent / "results"

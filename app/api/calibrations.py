@@ -13,8 +13,7 @@ from app.methods import openapi_examples
 from app.methods.requests import CalibrationRequest
 from app.schemas.common import Page
 from app.schemas.results import Calibration, CalibrationDetail
-from app.services import calibrate
-from app.services.calibrate import submissions
+from app.services.calibrations import stored, submissions
 
 router = APIRouter(tags=["calibrations"])
 
@@ -60,7 +59,7 @@ def list_calibrations(
 ) -> Page[Calibration]:
     """A tool's calibrations, oldest first, each with its result, version and whether it is
     active."""
-    items, next_cursor = calibrate.list_calibrations(
+    items, next_cursor = stored.list_calibrations(
         session, tool_id=tool_id, limit=limit, cursor=cursor
     )
     return page(Calibration, items, next_cursor)
@@ -69,4 +68,4 @@ def list_calibrations(
 @router.get("/v1/calibrations/{calibration_id}", response_model=CalibrationDetail)
 def get_calibration(calibration_id: PathId, session: SessionDep, key: ReadKey) -> CalibrationDetail:
     """One calibration with its result and the submission exactly as received."""
-    return calibrate.get_calibration(session, calibration_id=calibration_id)
+    return stored.get_calibration(session, calibration_id=calibration_id)

@@ -15,7 +15,7 @@ from app.metrics import CALIBRATIONS
 from app.schemas.common import Page
 from app.schemas.results import Calibration
 from app.schemas.sessions import Plan, PlanRequest, Session, SessionFinish, TouchAdd
-from app.services.calibrate import sessions
+from app.services.sessions import sessions
 
 router = APIRouter(tags=["guided"])
 

@@ -10,7 +10,7 @@ from app.api.deps import HeldReadKey
 from app.methods import openapi_examples
 from app.methods.requests import SolveRequest
 from app.schemas.results import SolveResult
-from app.services.calibrate import stateless
+from app.services.calibrations import stateless
 
 router = APIRouter(tags=["stateless"])
 

@@ -26,8 +26,9 @@ from app.schemas.references import CheckCreate, ReferencePointCreate
 from app.schemas.robots import RobotCreate
 from app.schemas.tools import Load, ToolCreate
 from app.security.auth import Principal
-from app.services import calibrate
-from app.services.calibrate import checks, references
+from app.services.calibrations import writes
+from app.services.checks import checks
+from app.services.references import references
 from app.services.robots import robots
 from app.services.tools import tools
 from app.storage.models import Robot, clock_at
@@ -301,7 +302,7 @@ def _a_pin(rng: np.random.Generator) -> np.ndarray:
 
 
 def _submit(session: Session, tool_id: str, body: JsonObject, actor: Principal) -> None:
-    calibrate.submit(
+    writes.submit(
         session,
         tool_id=tool_id,
         request=CALIBRATION_REQUESTS.validate_python(body),

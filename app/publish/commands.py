@@ -5,7 +5,7 @@
 the MQTT 5 user property `authorization` (the key, or `Bearer <key>`), is answered on
 `{prefix}/replies/{request_id}`, QoS 1, with what `POST /v1/tools/{tool_id}/checks`
 `{"capture": true, ...}` answers: the Check document, or its problem+json document. Both
-run the one service function (app.services.calibrate.recheck.recheck) with the request_id as the
+run the one service function (app.services.checks.recheck.recheck) with the request_id as the
 Idempotency-Key, so the record is the same as the HTTP call's and a repeated request_id (a
 PLC that lost the reply and sends the command again) gets the first answer again and changes
 nothing. The problem documents are the HTTP layer's own (app.api.problems).
@@ -44,7 +44,7 @@ from app.errors import DomainError, Unauthorized
 from app.jsontypes import JsonObject
 from app.schemas.references import CheckCreate
 from app.security.auth import Principal, authenticate_key
-from app.services.calibrate import recheck
+from app.services.checks import recheck
 from app.storage.db import session_scope
 
 log = logging.getLogger(__name__)

@@ -10,9 +10,10 @@ and a burst of solves queues in the pool instead of in the loop. The pool lives 
 its worker process (the executor joins its processes at exit). Errors raised in a solver
 process come back as they were raised (DomainError pickles with every field).
 
-A calibration is solved and stored by one call here (app.services.calibrate.solve_and_submit):
-the solver process writes it to the database itself, on its own engine, queued with every
-other writer (app.storage.db.SqliteWriters on SQLite, the tool's row lock on PostgreSQL).
+A calibration is solved and stored by one call here
+(app.services.calibrations.writes.solve_and_submit): the solver process writes it to the
+database itself, on its own engine, queued with every other writer
+(app.storage.db.SqliteWriters on SQLite, the tool's row lock on PostgreSQL).
 """
 
 from __future__ import annotations

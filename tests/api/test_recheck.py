@@ -171,7 +171,7 @@ def test_corrections_are_versions_of_the_drift_trend_and_frequent_ones_are_flagg
 ) -> None:
     """A tool hit four times in four days: each correction is a point of the versions'
     trend, and more than TCPCAL_CORRECTIONS_ALERT (3) corrections in 30 days flag it."""
-    import app.services.calibrate.writes as writes
+    import app.services.calibrations.writes as writes
 
     tool, point_id = tool_at_reference(api, kuka.rig)
     start = utcnow() - timedelta(days=4)

@@ -21,8 +21,9 @@ from app.schemas.references import CheckCreate, ReferencePointCreate
 from app.schemas.robots import RobotCreate
 from app.schemas.tools import ToolCreate
 from app.security.auth import Principal
-from app.services import calibrate
-from app.services.calibrate import checks, references
+from app.services.calibrations import writes
+from app.services.checks import checks
+from app.services.references import references
 from app.services.robots import robots
 from app.services.tools import tools
 from app.storage.db import engine_for, session_scope
@@ -66,7 +67,7 @@ def _seed(url: str) -> tuple[str, str]:
                 session, robot_id=robot.id, data=ToolCreate(name=name, slot=slot), actor=ACTOR
             )
             body = {"method": "manual", "tcp": {"position_mm": [0, 0, 100]}}
-            calibrate.submit(
+            writes.submit(
                 session,
                 tool_id=tool.id,
                 request=CALIBRATION_REQUESTS.validate_python(body),

@@ -15,7 +15,7 @@ from app.config import get_settings
 from app.errors import InvalidInput, NotFound
 from app.methods.requests import SOLVE_MODELS
 from app.services import solve_pool
-from app.services.calibrate import solve_detached
+from app.services.calibrations.detached import solve_detached
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
 

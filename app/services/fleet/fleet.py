@@ -153,7 +153,7 @@ def _rules(
     }
 
 
-#: The verdicts of a check that corrected the TCP (app.services.calibrate.recheck).
+#: The verdicts of a check that corrected the TCP (app.services.checks.recheck).
 CORRECTED = ("corrected", "deployment_failed")
 
 

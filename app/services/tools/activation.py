@@ -27,7 +27,7 @@ OUT_OF_TOLERANCE: Final[Status] = "out_of_tolerance"
 EXPLICIT: Final[ActivationKind] = "explicit"
 FORCED: Final[ActivationKind] = "forced"
 ROLLBACK: Final[ActivationKind] = "rollback"
-#: The kind of a version a re-check corrected the TCP to (app.services.calibrate.recheck).
+#: The kind of a version a re-check corrected the TCP to (app.services.checks.recheck).
 CHECK_CORRECTION: Final[ActivationKind] = "check_correction"
 
 

@@ -20,20 +20,20 @@ from app.schemas.common import Pose, Units
 from app.schemas.references import CheckCreate, CheckResult, CheckTouch
 from app.security.auth import Principal, act_for
 from app.services.audit import writes as audit
-from app.services.calibrate.diagnosis import (
+from app.services.calibrations.verdict import check_summary
+from app.services.controllers import capture
+from app.services.references.references import get_reference_point
+from app.services.robots.robots import get_robot
+from app.services.tools.drift import Point, refresh_drift
+from app.services.tools.tools import get_tool
+from app.services.tools.versions import active_version_row, lock_tool
+from app.services.touches.diagnosis import (
     Fit,
     implausible_flanges,
     refuse_mix_up,
     refusing_mix_ups,
 )
-from app.services.calibrate.references import get_reference_point
-from app.services.calibrate.tool_frames import frame_of, parse_poses_with
-from app.services.calibrate.verdict import check_summary
-from app.services.controllers import capture
-from app.services.robots.robots import get_robot
-from app.services.tools.drift import Point, refresh_drift
-from app.services.tools.tools import get_tool
-from app.services.tools.versions import active_version_row, lock_tool
+from app.services.touches.tool_frames import frame_of, parse_poses_with
 from app.solvers.reference import TcpDeviation, check_tcp
 from app.storage.db import session_scope
 from app.storage.models import ReferencePoint, Tool, utcnow
@@ -153,7 +153,7 @@ def _measured_touches(
 ) -> list[TcpDeviation]:
     """Each touch's deviation from the reference point; when the worst is past the limit or
     the flanges sit implausibly near the base, a clearly better reading of the poses'
-    format or units is refused as a mix-up (app.services.calibrate.diagnosis)."""
+    format or units is refused as a mix-up (app.services.touches.diagnosis)."""
 
     def positions(fmt: PoseFormat, units: Units | None) -> FloatArray:
         return parse_poses_with(kinematics, fmt, data.poses, units, loc=("poses",))[1]

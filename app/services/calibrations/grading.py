@@ -1,7 +1,7 @@
 """Solving a calibration request and grading what its method found: the result document
 (graded against the tolerance, compared with the active version, summed up, every number
 finite), with a unit or convention mix-up refused instead of graded
-(app.services.calibrate.diagnosis).
+(app.services.touches.diagnosis).
 """
 
 from __future__ import annotations
@@ -26,14 +26,14 @@ from app.schemas.results import (
     CalibrationResult,
 )
 from app.schemas.tools import Tcp
-from app.services.calibrate.diagnosis import (
+from app.services.calibrations.verdict import change_warning, held_for_change, summarise
+from app.services.tools.versions import IDENTITY_QUATERNION
+from app.services.touches.diagnosis import (
     Fit,
     implausible_flanges,
     refuse_mix_up,
     refusing_mix_ups,
 )
-from app.services.calibrate.verdict import change_warning, held_for_change, summarise
-from app.services.tools.versions import IDENTITY_QUATERNION
 from app.words import MethodName, PoseFormat
 
 
@@ -47,7 +47,7 @@ class Outcome:
 
 def solve(request: MethodRequest, ctx: MethodContext) -> Outcome:
     """Run the request's method and grade its outcome against the context's tolerance;
-    refuse a unit or convention mix-up (app.services.calibrate.diagnosis) instead of grading it."""
+    refuse a unit or convention mix-up (app.services.touches.diagnosis) instead of grading it."""
 
     def attempt(fmt: PoseFormat, units: Units) -> Fit:
         changed = request.model_copy(update={"format": fmt, "units": units})

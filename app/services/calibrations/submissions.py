@@ -20,7 +20,8 @@ from app.methods.base import MethodRequest
 from app.metrics import CALIBRATIONS
 from app.schemas.results import Calibration
 from app.security.auth import Principal, act_for
-from app.services import calibrate, solve_pool
+from app.services import solve_pool
+from app.services.calibrations import presolve, writes
 from app.storage.db import loop_engine, session_scope
 
 
@@ -47,9 +48,9 @@ async def submit_calibration(
         replay = await run_sync(_replay, tool_id, raw_body, idempotency_key, actor)
         if replay is not None:
             return Submission(replay, replayed=True)
-    snapshot, ctx = calibrate.snapshot_held(loop_engine(), tool_id, actor)
+    snapshot, ctx = presolve.snapshot_held(loop_engine(), tool_id, actor)
     done = await solve_pool.run(
-        calibrate.solve_and_submit,
+        writes.solve_and_submit,
         get_settings().database_url,
         tool_id=tool_id,
         request=request,
@@ -70,4 +71,4 @@ def _replay(
 ) -> Calibration | None:
     with session_scope(write=False) as session:
         act_for(session, actor)
-        return calibrate.replayed(session, tool_id, raw_body, idempotency_key, actor)
+        return writes.replayed(session, tool_id, raw_body, idempotency_key, actor)

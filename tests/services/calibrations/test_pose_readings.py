@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from app.methods.requests import CALIBRATION_REQUESTS
-from app.services import calibrate
-from app.services.calibrate import contexts, tool_frames
-from app.services.calibrate.contexts import StatelessContext
+from app.services.calibrations import contexts, grading
+from app.services.calibrations.contexts import StatelessContext
+from app.services.touches import tool_frames
 from app.words import PoseFormat
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
@@ -36,7 +36,7 @@ def test_a_good_submission_is_read_once(monkeypatch: pytest.MonkeyPatch) -> None
     request = CALIBRATION_REQUESTS.validate_python(
         {"method": "xyz_npoint", "format": "kuka_abc", "poses": as_poses(touches, "kuka_abc")}
     )
-    outcome = calibrate.solve(request, StatelessContext(None, None))
+    outcome = grading.solve(request, StatelessContext(None, None))
     assert outcome.result.status == "accepted"
     assert reads == [("kuka_abc", None)]
 
@@ -52,7 +52,7 @@ def test_a_mix_up_reads_each_reading_once(monkeypatch: pytest.MonkeyPatch) -> No
         {"method": "xyz_npoint", "format": "xyz_wxyz", "poses": poses}
     )
     with pytest.raises(InvalidInput) as refused:
-        calibrate.solve(request, StatelessContext(None, None))
+        grading.solve(request, StatelessContext(None, None))
     assert refused.value.kind == "convention-mismatch"
     assert reads[0] == ("xyz_wxyz", None)  # as given, then other readings
     assert len(reads) > 1

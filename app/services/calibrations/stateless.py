@@ -5,7 +5,8 @@ from __future__ import annotations
 from app.methods.base import MethodRequest
 from app.schemas.results import SolveResult
 from app.security.auth import Principal, act_for
-from app.services import calibrate, solve_pool
+from app.services import solve_pool
+from app.services.calibrations import detached
 from app.storage.db import loop_engine, session_scope
 
 
@@ -14,10 +15,10 @@ async def solve_stateless(request: MethodRequest, *, actor: Principal) -> SolveR
     # On the event loop, nothing awaited until the solve: a session is opened (on the loop's
     # held connection) only for a stored robot's model. The solve then runs in a solver
     # process (app.services.solve_pool) with no database connection held.
-    if calibrate.stateless_robot_id(request) is None:
-        kinematics = calibrate.stateless_kinematics(None, request)
+    if detached.stateless_robot_id(request) is None:
+        kinematics = detached.stateless_kinematics(None, request)
     else:
         with session_scope(write=False, engine=loop_engine()) as session:
             act_for(session, actor)
-            kinematics = calibrate.stateless_kinematics(session, request)
-    return await solve_pool.run(calibrate.solve_detached, request, kinematics)
+            kinematics = detached.stateless_kinematics(session, request)
+    return await solve_pool.run(detached.solve_detached, request, kinematics)

@@ -8,8 +8,8 @@ import pytest
 from app.errors import InvalidInput
 from app.methods.base import Solved
 from app.schemas.results import QualityOut
-from app.services.calibrate import graded_result
-from app.services.calibrate.contexts import StatelessContext
+from app.services.calibrations.contexts import StatelessContext
+from app.services.calibrations.grading import graded_result
 
 
 def test_nan_anywhere_in_the_result_is_a_422_kind() -> None:

@@ -20,12 +20,12 @@ from app.schemas.results import (
 from app.security.auth import Principal, act_for
 from app.services import idempotency
 from app.services.audit import writes as audit
-from app.services.calibrate.contexts import DbContext, SnapshotContext
-from app.services.calibrate.grading import reference_point_to_save, solve
-from app.services.calibrate.presolve import Presolved, Snapshot, solve_snapshot
-from app.services.calibrate.references import create_reference_point, ensure_reference_name_free
-from app.services.calibrate.stored import served
-from app.services.calibrate.verdict import held_for_change
+from app.services.calibrations.contexts import DbContext, SnapshotContext
+from app.services.calibrations.grading import reference_point_to_save, solve
+from app.services.calibrations.presolve import Presolved, Snapshot, solve_snapshot
+from app.services.calibrations.stored import served
+from app.services.calibrations.verdict import held_for_change
+from app.services.references.references import create_reference_point, ensure_reference_name_free
 from app.services.robots.robots import get_robot
 from app.services.tools.tools import get_tool
 from app.services.tools.versions import LockedTool, activate, add_version, lock_tool, save_deferred

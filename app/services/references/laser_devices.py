@@ -13,10 +13,10 @@ from app.methods.laser import sweeps_from
 from app.schemas.references import LaserDeviceCreate
 from app.security.auth import Principal
 from app.services.audit import writes as audit
-from app.services.calibrate.references import ensure_name_free, list_robot_rows
-from app.services.calibrate.tool_frames import active_frame, parse_poses_with
+from app.services.references.references import ensure_name_free, list_robot_rows
 from app.services.robots.robots import get_robot
 from app.services.tools.tools import tool_named_in_body
+from app.services.touches.tool_frames import active_frame, parse_poses_with
 from app.solvers.laser import teach_device
 from app.storage.models import LaserDevice, new_id
 

@@ -2,8 +2,8 @@
 
 A session stores its settings and the touches kept so far; the estimate, the outliers, the
 next suggested pose and `done` are computed from them on every read, with the same N-point
-solve and grading a calibration gets (app.services.calibrate.solve). So a session survives a
-restart and any worker or instance continues it; writes lock the session row.
+solve and grading a calibration gets (app.services.calibrations.grading.solve). So a session
+survives a restart and any worker or instance continues it; writes lock the session row.
 
 The first touch is the centre of the reachable cone (its tool axis, its spin). The next pose
 is the touch within the cone that most reduces the largest remaining TCP variance
@@ -46,14 +46,15 @@ from app.schemas.sessions import (
 from app.schemas.sessions import Plan as PlanOut
 from app.schemas.sessions import Session as SessionOut
 from app.security.auth import Principal, act_for
-from app.services import calibrate, idempotency
+from app.services import idempotency
 from app.services.audit import writes as audit
-from app.services.calibrate.contexts import DbContext
-from app.services.calibrate.diagnosis import one_touch_fits, refusing_mix_ups
-from app.services.calibrate.tool_frames import active_frame, parse_poses_with
+from app.services.calibrations import grading, writes
+from app.services.calibrations.contexts import DbContext
 from app.services.controllers import capture
 from app.services.robots.robots import get_robot
 from app.services.tools.tools import get_tool
+from app.services.touches.diagnosis import one_touch_fits, refusing_mix_ups
+from app.services.touches.tool_frames import active_frame, parse_poses_with
 from app.services.visible import in_scope, visible_tool
 from app.solvers.npoint import NOISE_CONTRADICTED
 from app.solvers.numbering import number
@@ -317,7 +318,7 @@ def add_touch(
     poses = [*row.poses, pose]
     if len(poses) >= MIN_SOLVE_TOUCHES:
         try:
-            calibrate.solve(_request(row, poses), ctx)
+            grading.solve(_request(row, poses), ctx)
         except InvalidInput as refusal:
             if refusal.kind == "convention-mismatch":
                 raise
@@ -387,7 +388,7 @@ def finish(
             "needed to calibrate: add touches (POST .../poses) before finishing",
             loc=("path", "session_id"),
         )
-    out, replayed = calibrate.submit(
+    out, replayed = writes.submit(
         session,
         tool_id=row.tool_id,
         request=CALIBRATION_REQUESTS.validate_python(body),
@@ -473,7 +474,7 @@ def _read(row: GuidedSession, poses: Sequence[Pose], ctx: DbContext) -> _Reading
         )
         return reading
     try:
-        result = calibrate.solve(_request(row, poses), ctx).result
+        result = grading.solve(_request(row, poses), ctx).result
     except InvalidInput as refusal:
         reading.messages.append(f"no estimate yet: {refusal.detail}")
         return reading

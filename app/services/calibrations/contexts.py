@@ -20,7 +20,7 @@ from app.helpers.tolerance import effective_tolerance
 from app.methods.base import ActiveFrame, StoredPoint
 from app.schemas.common import Pose, Units
 from app.schemas.tools import Tolerance
-from app.services.calibrate.tool_frames import active_frame, parse_poses_with
+from app.services.touches.tool_frames import active_frame, parse_poses_with
 from app.storage.models import LaserDevice, ReferencePoint, Robot, Tool
 from app.words import PoseFormat
 
@@ -30,8 +30,9 @@ PosesRead = tuple[FloatArray, FloatArray]
 
 class _Readings:
     """Poses as read under each format and units asked for, each read once: a calibration's
-    method reads the submission's poses, and the mix-up check (app.services.calibrate.solve)
-    reads them again, and under other readings when the fit is poor. Callers get copies."""
+    method reads the submission's poses, and the mix-up check
+    (app.services.calibrations.grading.solve) reads them again, and under other readings when
+    the fit is poor. Callers get copies."""
 
     def __init__(self) -> None:
         self._done: list[tuple[Sequence[Pose], str, Units | None, PosesRead]] = []

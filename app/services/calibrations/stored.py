@@ -18,10 +18,10 @@ from app.schemas.results import (
     CalibrationResult,
     TouchGeometry,
 )
-from app.services.calibrate.tool_frames import parse_poses_with
 from app.services.controllers.capture import touch_sources
 from app.services.robots.robots import get_robot
 from app.services.tools.tools import get_tool
+from app.services.touches.tool_frames import parse_poses_with
 from app.services.visible import visible_tool
 from app.solvers.quality import ellipsoid_semi_axes
 from app.storage.models import Calibration as CalibrationRow

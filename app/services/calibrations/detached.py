@@ -10,8 +10,8 @@ from app.methods.requests import StatelessFields
 from app.schemas.results import (
     SolveResult,
 )
-from app.services.calibrate.contexts import StatelessContext
-from app.services.calibrate.grading import reference_point_to_save, solve
+from app.services.calibrations.contexts import StatelessContext
+from app.services.calibrations.grading import reference_point_to_save, solve
 from app.services.robots.robots import get_robot, validate_kinematics
 
 

@@ -15,9 +15,9 @@ from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonArray, JsonObject
 from app.methods.base import MethodRequest
 from app.security.auth import Principal
-from app.services.calibrate.contexts import SnapshotContext
-from app.services.calibrate.grading import Outcome, solve
-from app.services.calibrate.tool_frames import frame_from
+from app.services.calibrations.contexts import SnapshotContext
+from app.services.calibrations.grading import Outcome, solve
+from app.services.touches.tool_frames import frame_from
 from app.services.visible import live_or_404
 from app.storage.db import HeldRead
 from app.storage.models import Calibration as CalibrationRow

@@ -7,7 +7,7 @@ The steps, and why each is where it is:
 1. a read transaction refuses what can be refused before the robot is read (no active
    version, no such point, no controller, a tool the controller cannot address), and
    replays the first answer to an Idempotency-Key;
-2. the controller's read, no transaction open (app.services.calibrate.checks.capture_touch);
+2. the controller's read, no transaction open (app.services.checks.checks.capture_touch);
 3. one write transaction, under the tool's lock (so a repeated key waits for the first and
    replays it): the check recorded and, for a correction, a calibration by xyz_reference
    from that touch (orientation kept from the active version, the reference point's
@@ -34,10 +34,13 @@ from app.helpers.tolerance import effective_tolerance
 from app.methods.reference import XyzReferenceCalibration
 from app.schemas.references import CheckCreate, CheckResult, Correction
 from app.security.auth import Principal, act_for
-from app.services import calibrate, idempotency
-from app.services.calibrate import Outcome, Presolved, Snapshot, checks
-from app.services.calibrate.contexts import DbContext
-from app.services.calibrate.verdict import recheck_summary
+from app.services import idempotency
+from app.services.calibrations import grading, writes
+from app.services.calibrations.contexts import DbContext
+from app.services.calibrations.grading import Outcome
+from app.services.calibrations.presolve import Presolved, Snapshot
+from app.services.calibrations.verdict import recheck_summary
+from app.services.checks import checks
 from app.services.controllers import deployments
 from app.services.controllers import states as controller_states
 from app.services.robots.connection import get_controller
@@ -238,7 +241,7 @@ def _solve_correction(
         return None
     tool = measured.tool
     ctx = DbContext(session, tool, get_robot(session, tool.robot_id))
-    outcome = calibrate.solve(_correction_request(measured, captured), ctx)
+    outcome = grading.solve(_correction_request(measured, captured), ctx)
     if outcome.result.status != "accepted":
         measured.result.verdict = "recalibrate"
         return None
@@ -258,7 +261,7 @@ def _store_correction(
     request = _correction_request(measured, captured)
     tool = lock_tool(session, measured.tool.id)
     snapshot = Snapshot(tool.tolerance, tool.active_version, tool.kinematics)
-    stored, _ = calibrate.submit(
+    stored, _ = writes.submit(
         session,
         tool_id=tool.id,
         request=request,

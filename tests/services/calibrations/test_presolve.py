@@ -12,8 +12,8 @@ import pytest
 from app.errors import Archived, NotFound
 from app.methods.requests import CALIBRATION_REQUESTS
 from app.security.auth import Principal
-from app.services import calibrate
-from app.services.calibrate import Presolved
+from app.services.calibrations import presolve, writes
+from app.services.calibrations.presolve import Presolved
 from app.storage.db import get_engine, session_scope
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
@@ -41,8 +41,8 @@ def test_a_stale_presolve_is_solved_again_under_the_lock(api: Api) -> None:
         "activate": "never",
     }
     request = CALIBRATION_REQUESTS.validate_python(body)
-    snapshot, ctx = calibrate.snapshot_held(get_engine(), tid)
-    outcome = calibrate.solve_snapshot(request, ctx)
+    snapshot, ctx = presolve.snapshot_held(get_engine(), tid)
+    outcome = presolve.solve_snapshot(request, ctx)
     assert outcome is not None
     before = outcome.result.change_from_active_mm
     assert before is not None
@@ -50,18 +50,18 @@ def test_a_stale_presolve_is_solved_again_under_the_lock(api: Api) -> None:
 
     _manual(api, tid, [*map(float, touches.t[:2]), float(touches.t[2]) + 3.0])  # now v2
     with session_scope(write=True) as session:
-        stored, _ = calibrate.submit(
+        stored, _ = writes.submit(
             session, tool_id=tid, request=request, raw_body=body, idempotency_key=None,
             actor=ACTOR, solved=Presolved(snapshot, outcome),
         )  # fmt: skip
     assert stored.change_from_active_mm is not None
     assert abs(stored.change_from_active_mm - 3.0) < 0.2  # against version 2, not 1
 
-    snapshot, ctx = calibrate.snapshot_held(get_engine(), tid)
-    fresh = calibrate.solve_snapshot(request, ctx)
+    snapshot, ctx = presolve.snapshot_held(get_engine(), tid)
+    fresh = presolve.solve_snapshot(request, ctx)
     assert fresh is not None
     with session_scope(write=True) as session:
-        kept, _ = calibrate.submit(
+        kept, _ = writes.submit(
             session, tool_id=tid, request=request, raw_body=body, idempotency_key=None,
             actor=ACTOR, solved=Presolved(snapshot, fresh),
         )  # fmt: skip
@@ -81,8 +81,8 @@ def test_methods_that_look_up_stored_data_are_solved_in_place(api: Api) -> None:
             "poses": [[800, 0, 400, 0, 0, 180]],
             "options": {"reference_point_id": point["id"]}}  # fmt: skip
     request = CALIBRATION_REQUESTS.validate_python(body)
-    _, ctx = calibrate.snapshot_held(get_engine(), tool["id"])
-    assert calibrate.solve_snapshot(request, ctx) is None
+    _, ctx = presolve.snapshot_held(get_engine(), tool["id"])
+    assert presolve.solve_snapshot(request, ctx) is None
     done = api.post(f"/v1/tools/{tool['id']}/calibrations", json=body)
     assert done.status_code == 201, done.text
 
@@ -90,7 +90,7 @@ def test_methods_that_look_up_stored_data_are_solved_in_place(api: Api) -> None:
 def test_the_held_snapshot_reads_the_active_frame_with_its_reported_covariance(api: Api) -> None:
     tool = api.tool(api.robot("kr3")["id"])
     tid = tool["id"]
-    _, ctx = calibrate.snapshot_held(get_engine(), tid)
+    _, ctx = presolve.snapshot_held(get_engine(), tid)
     assert ctx.active_frame() is None  # no version yet
     touches = simulate_touches(8, seed=4, tcp_mm=None, touch_noise_mm=0.05)
     done = api.post(
@@ -100,7 +100,7 @@ def test_the_held_snapshot_reads_the_active_frame_with_its_reported_covariance(a
     )  # fmt: skip
     assert done.status_code == 201, done.text
     result = done.json()
-    snapshot, ctx = calibrate.snapshot_held(get_engine(), tid)
+    snapshot, ctx = presolve.snapshot_held(get_engine(), tid)
     frame = ctx.active_frame()
     assert frame is not None
     assert snapshot.active_version == frame.version == result["version"]
@@ -109,7 +109,7 @@ def test_the_held_snapshot_reads_the_active_frame_with_its_reported_covariance(a
     assert frame.covariance_mm2 is not None
     np.testing.assert_allclose(frame.covariance_mm2, result["quality"]["tcp_covariance_mm2"])
     with pytest.raises(NotFound):
-        calibrate.snapshot_held(get_engine(), "no-such-tool")
+        presolve.snapshot_held(get_engine(), "no-such-tool")
     assert api.delete(f"/v1/tools/{tid}").status_code == 204
     with pytest.raises(Archived):
-        calibrate.snapshot_held(get_engine(), tid)
+        presolve.snapshot_held(get_engine(), tid)

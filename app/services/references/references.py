@@ -17,15 +17,15 @@ from app.schemas.common import Units
 from app.schemas.references import ReferencePointCreate
 from app.security.auth import Principal
 from app.services.audit import writes as audit
-from app.services.calibrate.diagnosis import (
+from app.services.robots.robots import get_robot
+from app.services.tools.tools import tool_named_in_body
+from app.services.touches.diagnosis import (
     implausible_flanges,
     one_touch_fits,
     refuse_mix_up,
     refusing_mix_ups,
 )
-from app.services.calibrate.tool_frames import active_frame, parse_poses_with
-from app.services.robots.robots import get_robot
-from app.services.tools.tools import tool_named_in_body
+from app.services.touches.tool_frames import active_frame, parse_poses_with
 from app.solvers.reference import reference_point_from_touch
 from app.storage.models import LaserDevice, ReferencePoint, new_id
 from app.words import PoseFormat
