@@ -45,6 +45,16 @@ class LastCheck(BaseModel):
     within_tolerance: bool
     distance_mm: float
     created_at: Timestamp
+    verdict: str | None = Field(
+        default=None,
+        description="within_tolerance | out_of_tolerance | corrected (the re-check found the "
+        "TCP out of tolerance and made a new active version of it) | deployment_failed "
+        "(corrected, and the correction's deployment failed) | recalibrate (checks recorded "
+        "since v1.3; null before)",
+    )
+    correction_version: int | None = Field(
+        default=None, description="the version a re-check corrected the TCP to, if it did"
+    )
 
 
 class FleetController(BaseModel):
@@ -59,6 +69,17 @@ class FleetController(BaseModel):
     deviation_deg: float | None = Field(
         description="controller vs active TCP: angle between the orientations, deg (an "
         "orientation-only edit drifts with deviation_mm 0)"
+    )
+    version: int | None = Field(
+        default=None,
+        description="the version the controller was compared with at checked_at (the active "
+        "one then); when it is not the row's active_version, the state is that version's, "
+        "and nothing has compared the controller with the active one yet",
+    )
+    target: str | None = Field(
+        default=None,
+        description="where the controller holds the tool: $TOOL_DATA[3], UTOOL[3], "
+        "TOOL.CND tool 3, a RAPID symbol, current TCP",
     )
 
 

@@ -7,16 +7,27 @@ row says only what the last look, deployment or check found."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from tests.api.controller_rigs import LIVE_PROTOCOLS, rig
+from tests.api.test_capture_controllers import SETUPS
 from tests.api.test_deployments import (
+    ACTIVE_POSITION,
+    ACTIVE_Q,
     PREVIOUS_POSITION,
     PREVIOUS_Q,
     _deploy,
     secret_key,  # noqa: F401 (a fixture: ABB's password is stored under it)
 )
-from tests.api.test_fleet_live import _reconcile, _rows, _torch_v1_v2
+from tests.api.test_fleet_live import _calibrate, _reconcile, _rows, _torch_v1_v2
+from tests.api.test_recheck_controllers import ACTIVE_POSITION as RECHECK_ACTIVE
+from tests.api.test_recheck_controllers import (
+    MOVED,
+    recheck,
+    stand_at_reference,
+    tool_at_reference,
+)
 from tests.conftest import Api
 
 
@@ -59,3 +70,44 @@ def test_a_verified_deployment_to_a_stored_tool_leaves_what_the_robot_moves_by_a
         deployed = _deploy(api, tool_id)
         assert deployed.status_code == 201, deployed.text
         assert _rows(api, robot_id)["t1"]["live"] == before
+
+
+def test_a_state_read_before_the_active_version_changed_names_the_version_it_compared(
+    api: Api,
+) -> None:
+    """The last look found $TOOL_DATA[3] in sync with v2; v3 is then activated and its
+    deployment never reaches the controller: the row's controller state is still the look's,
+    and says it compared v2, where, and when, so that nobody reads it as v3 in sync."""
+    with rig("kuka_kvp") as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id, tool_id = ids["robot"]["id"], ids["tool"]["id"]
+        r.set_behind_back(ACTIVE_POSITION, ACTIVE_Q)
+        looked = _reconcile(api, robot_id)
+        _calibrate(api, tool_id, [ACTIVE_POSITION[0] + 0.8, *ACTIVE_POSITION[1:]], ACTIVE_Q)
+        r.sim.stop()
+        failed = _deploy(api, tool_id)
+        assert failed.status_code == 502, failed.text
+        assert failed.json()["deployment_status"] == "not_written"
+        row = _rows(api, robot_id)["t1"]
+        assert row["active_version"] == 3
+        controller = row["controller"]
+        assert (controller["state"], controller["deviation_mm"]) == ("in_sync", 0.0)
+        assert (controller["version"], controller["target"]) == (2, "$TOOL_DATA[3]"), controller
+        assert controller["checked_at"] == looked["checked_at"]
+
+
+def test_a_check_that_corrected_the_tool_is_a_correction_on_the_fleet(api: Api) -> None:
+    """0.8 mm off, corrected to v2 and deployed: the row's last check carries the verdict and
+    the version it corrected to, not only within_tolerance false."""
+    with rig("kuka_kvp") as r:
+        cell = SETUPS["kuka_kvp"](r)
+        tool, point_id = tool_at_reference(api, r)
+        stand_at_reference(cell, np.asarray(RECHECK_ACTIVE) + MOVED)
+        done = recheck(api, tool["id"], point_id)
+        assert done.status_code == 201, done.text
+        assert done.json()["verdict"] == "corrected"
+        [row] = _rows(api, tool["robot_id"]).values()
+        check = row["last_check"]
+        assert check["within_tolerance"] is False
+        assert (check["verdict"], check["correction_version"]) == ("corrected", 2), check
+        assert "check_failed" not in row["attention"]

@@ -336,6 +336,8 @@ _ATTENTION = (
         _STATE.checked_at,
         _STATE.deviation_mm,
         _STATE.deviation_deg,
+        _STATE.active_version,
+        _STATE.target,
         LIVE_STATE.label("live_state"),
         LIVE_VERSION.label("live_version"),
         LIVE_TOOL_ID.label("live_tool_id"),
@@ -362,7 +364,7 @@ def _attention_of(
     states: dict[str, FleetController] = {}
     live: dict[str, FleetLive] = {}
     for row in session.execute(_ATTENTION, {"ids": ids, **moments}):
-        tool_id, state, checked_at, deviation_mm, deviation_deg, *rest = row
+        tool_id, state, checked_at, deviation_mm, deviation_deg, version, target, *rest = row
         live_state, live_version, live_tool_id, live_checked_at, *hits = rest
         codes[tool_id] = [code for code, hit in zip(_ORDER, hits, strict=True) if hit]
         live[tool_id] = FleetLive(
@@ -377,6 +379,8 @@ def _attention_of(
                 checked_at=checked_at,
                 deviation_mm=deviation_mm,
                 deviation_deg=deviation_deg,
+                version=version,
+                target=target,
             )
     return codes, states, live
 
@@ -424,6 +428,8 @@ def _last_check(row: Row[int, str | None, datetime, JsonObject | None] | None) -
         within_tolerance=bool(details.get("within_tolerance")),
         distance_mm=float(details.get("distance_mm", 0.0)),
         created_at=row.at,
+        verdict=details.get("verdict"),
+        correction_version=_correction_version(details.get("correction")),
     )
 
 
