@@ -187,6 +187,10 @@ InputKind = Literal[
     "controller-target",
     "invalid-host",
     "reason-required",
+    "missing-role",
+    "repeated-role",
+    "collinear-points",
+    "rigid-misfit",
 ]
 
 #: The short title of each kind's problem document (every kind has one: checked below).
@@ -219,6 +223,10 @@ INPUT_TITLES: dict[InputKind, str] = {
     "controller-target": "Tool has no place in its controller",
     "invalid-host": "Invalid host",
     "reason-required": "Reason required",
+    "missing-role": "Touch role missing",
+    "repeated-role": "Touch role repeated",
+    "collinear-points": "Points on one line",
+    "rigid-misfit": "Points do not fit a rigid body",
 }
 if set(INPUT_TITLES) != set(get_args(InputKind)):
     raise RuntimeError("INPUT_TITLES must title every InputKind, and only those")
