@@ -7,6 +7,7 @@ touches of a pointer tool whose TCP is calibrated (METHODS.md section 7).
 - `construction`: `three_point` (by maker convention) and `four_point`, exact constructions.
 - `fit_points`: the weighted rigid fit of nominal points, robust to one bad touch in five.
 - `fixed_tip`: a stationary tool's tip by the N-point pivot fit.
+- `shift`: re-registration after a move, the rigid shift from stored fiducials touched again.
 """
 
 from __future__ import annotations
