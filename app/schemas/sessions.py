@@ -96,6 +96,11 @@ class TouchAdd(StrictModel):
     )
 
     pose: Pose | None = Field(default=None, description="the touch, in the session's format")
+    format: PoseFormat | None = Field(
+        default=None,
+        description="the format the client holds `pose` in, when it says so: it must be the "
+        "session's (422 at body.format otherwise; a touch is never converted)",
+    )
     capture: Literal[True] | None = Field(
         default=None,
         description="true: read the touch from the tool's robot's controller (two reads "

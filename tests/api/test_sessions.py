@@ -291,3 +291,35 @@ def test_each_read_gives_the_residuals_and_the_next_touch_in_words(
     after = api.get(f"/v1/sessions/{sid}").json()
     assert after["next_pose"] is None
     assert after["next_touch"] is None
+
+
+def test_a_touch_is_read_in_the_sessions_format_and_a_declared_other_one_is_refused(
+    api: Api, tool: dict[str, Any]
+) -> None:
+    """A session's format is the session's (issue 51, defect 2): a touch may say which format
+    it is in (`format`), and one that names another is refused at body.format, naming both,
+    never read as the session's; the session keeps nothing. An empty session asked to drop
+    a touch says it holds none (it said "touches 1 to 0, indices 0 to -1")."""
+    sid = api.post(
+        f"/v1/tools/{tool['id']}/sessions", json={"method": "xyz_npoint", "format": "techman_rxyz"}
+    ).json()["id"]
+    pose = [887.5, 18.251, 568.212, 0.0, 0.0, -155.0]
+    other = api.post(f"/v1/sessions/{sid}/poses", json={"pose": pose, "format": "kuka_abc"})
+    assert other.status_code == 422, other.text
+    problem = other.json()
+    assert other.headers["content-type"].startswith("application/problem+json")
+    assert problem["errors"][0]["loc"] == ["body", "format"]
+    assert problem["detail"] == (
+        f"session {sid} reads its poses as techman_rxyz, not kuka_abc: send the pose as "
+        "techman_rxyz (a touch is never converted), or start a session in kuka_abc"
+    )
+    assert api.get(f"/v1/sessions/{sid}").json()["n_poses"] == 0
+    empty = api.delete(f"/v1/sessions/{sid}/poses/0")
+    assert empty.status_code == 404
+    assert empty.json()["detail"] == f"session {sid} holds no touches yet: there is none to delete"
+
+    same = api.post(f"/v1/sessions/{sid}/poses", json={"pose": pose, "format": "techman_rxyz"})
+    assert same.status_code == 200, same.text
+    assert same.json()["poses"] == [pose]
+    past = api.delete(f"/v1/sessions/{sid}/poses/1")
+    assert "it holds 1 (touch 1, index 0; touch n is index n - 1)" in past.json()["detail"]

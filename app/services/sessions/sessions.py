@@ -269,6 +269,10 @@ def add_touch_request(*, session_id: str, data: TouchAdd, actor: Principal) -> S
     robot's controller with no transaction open meanwhile, then added as a typed one is."""
     captured = None
     pose = data.pose
+    if data.format is not None:
+        with session_scope(write=False) as session:
+            act_for(session, actor)
+            _same_format(_open(session, session_id, for_update=False), data.format)
     if data.capture:
         with session_scope(write=False) as session:
             act_for(session, actor)  # only the robots the key's cells hold
@@ -283,6 +287,19 @@ def add_touch_request(*, session_id: str, data: TouchAdd, actor: Principal) -> S
     with session_scope(write=True) as session:
         act_for(session, actor)
         return add_touch(session, session_id=session_id, pose=pose, actor=actor, captured=captured)
+
+
+def _same_format(row: GuidedSession, fmt: PoseFormat) -> None:
+    """Refuse a touch that says it is in another format than the session reads its poses in:
+    read as the session's, its numbers would be another pose (issue 51: kuka_abc A B C
+    0 0 -155 read as techman_rxyz rx ry rz)."""
+    if fmt != row.format:
+        raise InvalidInput(
+            "validation",
+            f"session {row.id} reads its poses as {row.format}, not {fmt}: send the pose as "
+            f"{row.format} (a touch is never converted), or start a session in {fmt}",
+            loc=("body", "format"),
+        )
 
 
 def add_touch(
@@ -337,11 +354,14 @@ def _touch_records(row: GuidedSession) -> list[JsonObject]:
 
 def delete_touch(session: Session, *, session_id: str, index: int, actor: Principal) -> SessionOut:
     row = _open(session, session_id)
-    if not 0 <= index < len(row.poses):
+    held = len(row.poses)
+    if not row.poses:
+        raise NotFound(f"session {session_id} holds no touches yet: there is none to delete")
+    if not 0 <= index < held:
+        which = "touch 1, index 0" if held == 1 else f"touches 1 to {held}, indices 0 to {held - 1}"
         raise NotFound(
-            f"session {session_id} has no touch at index {index}: it holds "
-            f"{len(row.poses)} (touches 1 to {len(row.poses)}, indices 0 to "
-            f"{len(row.poses) - 1}; touch n is index n - 1)"
+            f"session {session_id} has no touch at index {index}: it holds {held} ({which}; "
+            "touch n is index n - 1)"
         )
     removed = row.poses[index]
     row.poses = [p for i, p in enumerate(row.poses) if i != index]
