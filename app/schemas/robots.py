@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, BeforeValidator, Field
+from pydantic_core import PydanticCustomError
 
 from app.kinematics.dh import MAX_LINK_DEG, MAX_LINK_MM
 from app.kinematics.dh_table import Convention
@@ -46,7 +47,30 @@ class UrdfKinematics(StrictModel):
     )
 
 
-Kinematics = PresetKinematics | DHKinematics | UrdfKinematics
+_SHAPES = '{"convention": ..., "links": [...]} or {"urdf": "<robot ...>"}'
+
+
+def _an_object(value: object) -> object:
+    """A robot model is one of three objects: pydantic tried each on a bare name and said
+    three times "Input should be a valid dictionary" at one loc (issue 51). Say instead
+    which object to send: `{"preset": "tm5_900"}` for a preset's name."""
+    if isinstance(value, dict | BaseModel):
+        return value
+    if isinstance(value, str) and value in PRESETS:
+        send = f'{{"preset": "{value}"}}'
+    else:
+        send = f'{{"preset": NAME}} with NAME one of {", ".join(sorted(PRESETS))}; or {_SHAPES}'
+    what = "a string" if isinstance(value, str) else type(value).__name__
+    raise PydanticCustomError(
+        "validation",
+        "a robot model is an object, not {what}: send {send}",
+        {"what": what, "send": send},
+    )
+
+
+Kinematics = Annotated[
+    PresetKinematics | DHKinematics | UrdfKinematics, BeforeValidator(_an_object)
+]
 
 
 class RobotCreate(StrictModel):

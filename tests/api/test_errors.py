@@ -78,6 +78,38 @@ def test_unknown_field_is_422_naming_it(api: Api) -> None:
     assert body["errors"][0]["loc"] == ["body", "vendr"]
 
 
+def test_a_robot_model_given_as_a_bare_name_is_told_the_object_to_send(api: Api) -> None:
+    """`"kinematics": "tm5_900"` answered three "Input should be a valid dictionary or
+    instance of ...Kinematics" lines at one loc (issue 51, defect 9): one error names the
+    object to send, on creation, on change and in /v1/solve's inline model."""
+    created = _problem(
+        api.post("/v1/robots", {"name": "tm", "kinematics": "tm5_900"}), 422, "validation"
+    )
+    assert created["errors"] == [
+        {
+            "loc": ["body", "kinematics"],
+            "msg": 'a robot model is an object, not a string: send {"preset": "tm5_900"}',
+        }
+    ]
+    assert created["detail"] == f"body.kinematics: {created['errors'][0]['msg']}"
+    robot = api.robot("tm")
+    unknown = api.request(
+        "PATCH", f"/v1/robots/{robot['id']}", "admin", json={"kinematics": "tm12"}
+    ).json()
+    [error] = unknown["errors"]
+    assert error["loc"] == ["body", "kinematics"]
+    assert '{"preset": NAME} with NAME one of tm5_900, ur10e' in error["msg"]
+    assert '{"convention": ..., "links": [...]} or {"urdf": "<robot ...>"}' in error["msg"]
+    solve = api.post(
+        "/v1/solve",
+        {"method": "xyz_npoint", "format": "joints", "poses": [[0] * 6] * 4, "kinematics": 5},
+        scope="calibrate",
+    ).json()
+    [error] = solve["errors"]
+    assert error["loc"] == ["body", "kinematics"]
+    assert error["msg"].startswith('a robot model is an object, not int: send {"preset"')
+
+
 @pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity"])
 def test_non_finite_numbers_are_422_non_finite(api: Api, token: str) -> None:
     robot = api.robot()
