@@ -4,6 +4,7 @@ is handed)."""
 
 from __future__ import annotations
 
+import os
 import sqlite3
 import subprocess
 import sys
@@ -25,7 +26,8 @@ from app.storage.db import (
 
 REPO = Path(__file__).resolve().parents[2]
 
-# A writer in another process: takes the queue, says when, holds it for `hold` seconds.
+# A writer in another process: takes the queue and says when, holds it until told (a line on
+# its standard input, or at once with "0"), says when it let go.
 _OTHER_WRITER = """
 import sys, time
 from pathlib import Path
@@ -34,14 +36,18 @@ writers = SqliteWriters(Path(sys.argv[1]))
 print("waiting", flush=True)
 with writers:
     print(time.time(), flush=True)
-    time.sleep(float(sys.argv[2]))
+    if sys.argv[2] != "0":
+        sys.stdin.readline()
+    released = time.time()
+print(released, flush=True)
 """
 
 
-def _other_writer(lock: Path, hold: float) -> subprocess.Popen[str]:
+def _other_writer(lock: Path, *, hold: bool) -> subprocess.Popen[str]:
     proc = subprocess.Popen(
-        [sys.executable, "-c", _OTHER_WRITER, str(lock), str(hold)],
+        [sys.executable, "-c", _OTHER_WRITER, str(lock), "1" if hold else "0"],
         cwd=REPO,
+        stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
     )
@@ -50,11 +56,25 @@ def _other_writer(lock: Path, hold: float) -> subprocess.Popen[str]:
     return proc
 
 
+def _wait_until_blocked(pid: int, timeout_s: float = 30.0) -> None:
+    """Until process `pid` waits for an flock: the kernel lists each waiter in /proc/locks
+    as a line marked "->" with the waiting process's id (proc(5)). An event, not a sleep: a
+    sleep of 0.5 s here once only hoped the other process had reached the queue."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for line in Path("/proc/locks").read_text().splitlines():
+            fields = line.split()
+            if "->" in fields and "FLOCK" in fields and str(pid) in fields:
+                return
+        time.sleep(0.001)
+    raise AssertionError(f"process {pid} never waited for the writers' lock")
+
+
 def test_a_writer_of_another_process_waits_for_the_one_writing(tmp_path: Path) -> None:
     writers = SqliteWriters(tmp_path / "db.sqlite3-writer.lock")
     with writers:
-        other = _other_writer(tmp_path / "db.sqlite3-writer.lock", 0.0)
-        time.sleep(0.5)  # the other process is blocked in the queue all this time
+        other = _other_writer(tmp_path / "db.sqlite3-writer.lock", hold=False)
+        _wait_until_blocked(other.pid)  # the other process is blocked in the queue
         released = time.time()
     assert other.stdout is not None
     started = float(other.stdout.readline())
@@ -64,13 +84,27 @@ def test_a_writer_of_another_process_waits_for_the_one_writing(tmp_path: Path) -
 
 def test_this_process_waits_for_a_writer_of_another(tmp_path: Path) -> None:
     lock = tmp_path / "db.sqlite3-writer.lock"
-    other = _other_writer(lock, 0.5)
+    other = _other_writer(lock, hold=True)
     assert other.stdout is not None
-    other_started = float(other.stdout.readline())
-    with SqliteWriters(lock):
-        started = time.time()
+    assert other.stdin is not None
+    float(other.stdout.readline())  # the other holds the queue
+    started: list[float] = []
+
+    def write() -> None:
+        with SqliteWriters(lock):
+            started.append(time.time())
+
+    writer = threading.Thread(target=write)
+    writer.start()
+    _wait_until_blocked(os.getpid())  # this process waits in the queue...
+    assert started == []
+    other.stdin.write("release\n")  # ...until the other lets go
+    other.stdin.flush()
+    other_released = float(other.stdout.readline())
+    writer.join(timeout=30)
     assert other.wait(timeout=30) == 0
-    assert started >= other_started + 0.5
+    assert started
+    assert started[0] >= other_released
 
 
 def test_threads_of_a_process_write_one_at_a_time(tmp_path: Path) -> None:
