@@ -12,7 +12,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Protocol, TypeVar
 
-from sqlalchemy import ColumnElement, Select, select
+from sqlalchemy import Column, ColumnElement, Select, select
 from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from app.errors import Archived, NotFound
@@ -42,7 +42,7 @@ def robots_of(cells: tuple[str, ...]) -> ColumnElement[bool]:
 def in_scope(
     session: Session,
     stmt: S,
-    robot_id: InstrumentedAttribute[str] | InstrumentedAttribute[str | None],
+    robot_id: InstrumentedAttribute[str] | InstrumentedAttribute[str | None] | Column[str],
 ) -> S:
     """`stmt` limited to the rows whose `robot_id` column names a robot the session's key may
     see (unchanged for a key of every cell)."""

@@ -330,6 +330,11 @@ class IdempotencyRecord(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow, index=True)
 
 
+#: The columns of audit_events and outbox that name a calibrated subject, one per subject
+#: (app.services.lifecycle.subject.Subject.key; tests/services/lifecycle holds them equal).
+SUBJECT_KEYS: tuple[str, ...] = ("tool_id",)
+
+
 class AuditEvent(Base):
     """Every write, with who, when and in which request: the audit trail.
 

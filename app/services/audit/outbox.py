@@ -4,7 +4,8 @@ Every change a consumer of the plant must see (an activation or rollback, an arc
 tool or robot, a deployment, a controller state, a check, a calibration stored) writes an
 audit event through `app.services.audit.writes.record`, and those events are inserted as the
 transaction commits. `write` is called from that same place with the same rows: every audit
-event that concerns a robot or a tool (has `robot_id` or `tool_id`) becomes an `outbox` row
+event that concerns a robot or a calibrated subject (has `robot_id`, or a subject's key:
+`tool_id`, app.storage.models.SUBJECT_KEYS) becomes an `outbox` row
 in the same transaction, so no service can change something and forget to tell the plant,
 and a rolled-back change is never published. Events about API keys (no robot, no tool) stay
 in the audit trail only: the plant's broker is no place for who holds which key.
@@ -50,7 +51,7 @@ except ImportError:  # Windows: no flock
 from app.jsontypes import JsonObject
 from app.logs import REQUEST_ID
 from app.storage.db import DriverWrite, is_sqlite
-from app.storage.models import OutboxMessage, table_of
+from app.storage.models import SUBJECT_KEYS, OutboxMessage, table_of
 
 #: The transaction-scoped advisory lock that orders outbox inserts by commit on PostgreSQL
 #: (a constant of the service's own: int64 of "tcpcal.outbox.order").
@@ -82,7 +83,7 @@ def event_of(row: Mapping[str, object]) -> JsonObject:
     request_id = row.get("request_id", REQUEST_ID.get())
     return {
         "action": str(row["action"]),
-        "tool_id": _text_or_none(row.get("tool_id")),
+        **{key: _text_or_none(row.get(key)) for key in SUBJECT_KEYS},
         "robot_id": _text_or_none(row.get("robot_id")),
         "version": version if isinstance(version, int) else None,
         "actor": str(row["actor"]),
@@ -111,8 +112,9 @@ def _text_or_none(value: object) -> str | None:
 
 
 def concerns_plant(row: Mapping[str, object]) -> bool:
-    """Whether an audit row is one the plant hears of: it concerns a robot or a tool."""
-    return row.get("tool_id") is not None or row.get("robot_id") is not None
+    """Whether an audit row is one the plant hears of: it concerns a robot or a calibrated
+    subject (a tool)."""
+    return any(row.get(key) is not None for key in ("robot_id", *SUBJECT_KEYS))
 
 
 def write(session: Session, audit_rows: Sequence[Mapping[str, object]]) -> None:
@@ -124,7 +126,7 @@ def write(session: Session, audit_rows: Sequence[Mapping[str, object]]) -> None:
             "created_at": now,
             "action": str(row["action"]),
             "robot_id": row.get("robot_id"),
-            "tool_id": row.get("tool_id"),
+            **{key: row.get(key) for key in SUBJECT_KEYS},
             "payload": event_of(row),
             "delivered_at": None,
         }

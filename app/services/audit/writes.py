@@ -30,33 +30,40 @@ def record(
     tool_id: str | None = None,
     version: int | None = None,
     details: JsonObject | None = None,
+    about: Mapping[str, str] | None = None,
 ) -> None:
     """Append an audit event to the current transaction: written when it commits, with every
     other event of the transaction in one statement, and logged once it has committed. Its
     request id is the one the access log line carries (app.logs.REQUEST_ID: set by the
-    request middleware, and by a solver process for the calibration it stores)."""
+    request middleware, and by a solver process for the calibration it stores). `about`:
+    the calibrated subject the event concerns, by the column that names it
+    (app.services.lifecycle.subject.Subject.key: {"tool_id": ...})."""
     request_id = REQUEST_ID.get()
+    ids = {"tool_id": tool_id, **(about or {})}
     session.info.setdefault(_ROWS, []).append(
-        row(
-            at=utcnow(),  # now, not when the transaction commits
-            actor=actor.name,
-            api_key_id=actor.key_id,
-            action=action,
-            resource_type=resource_type,
-            resource_id=resource_id,
-            robot_id=robot_id,
-            tool_id=tool_id,
-            version=version,
-            request_id=request_id,
-            details=details,
-        )
+        {
+            **row(
+                at=utcnow(),  # now, not when the transaction commits
+                actor=actor.name,
+                api_key_id=actor.key_id,
+                action=action,
+                resource_type=resource_type,
+                resource_id=resource_id,
+                robot_id=robot_id,
+                tool_id=tool_id,
+                version=version,
+                request_id=request_id,
+                details=details,
+            ),
+            **ids,
+        }
     )
     event: JsonObject = {
         "actor": actor.name,
         "resource_type": resource_type,
         "resource_id": resource_id,
         "robot_id": robot_id,
-        "tool_id": tool_id,
+        **ids,
         "version": version,
         **(details or {}),
     }

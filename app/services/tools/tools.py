@@ -2,24 +2,24 @@
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
-from typing import Protocol
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.errors import Conflict, InvalidInput, PreconditionFailed
-from app.helpers.etags import if_match_ok
+from app.errors import Conflict, InvalidInput
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.security.auth import Principal
 from app.services.audit import writes as audit
+from app.services.lifecycle.versions import Revised, etag
+from app.services.lifecycle.versions import check_if_match as lifecycle_check_if_match
 from app.services.robots.connection import check_slot_for_controller
 from app.services.robots.robots import get_robot
 from app.services.robots.slots import check_slot
 from app.services.tools.drift import restate_drift
+from app.services.tools.subject import TOOL
 from app.services.visible import get_live, visible_tool
 from app.storage.models import Tool, new_id, utcnow
 
@@ -44,30 +44,14 @@ def tool_named_in_body(
     return tool
 
 
-class _Revised(Protocol):
-    """A tool as its ETag sees it (the ORM row, or one read under its lock)."""
-
-    @property
-    def id(self) -> str: ...
-    @property
-    def revision(self) -> int: ...
-
-
-def tool_etag(tool: _Revised) -> str:
+def tool_etag(tool: Revised) -> str:
     """Strong ETag of a tool; changes with every change to it, its versions or activation."""
-    digest = hashlib.sha256(f"{tool.id}:{tool.revision}".encode()).hexdigest()[:20]
-    return f'"{digest}"'
+    return etag(tool)
 
 
-def check_if_match(tool: _Revised, if_match: str | None) -> None:
+def check_if_match(tool: Revised, if_match: str | None) -> None:
     """412 when an If-Match header does not name the tool's current ETag."""
-    if if_match_ok(if_match, tool_etag(tool)):
-        return
-    raise PreconditionFailed(
-        f"tool {tool.id} changed since you read it: its ETag is now {tool_etag(tool)}; "
-        "read it again and retry",
-        headers={"ETag": tool_etag(tool)},
-    )
+    lifecycle_check_if_match(TOOL, tool, if_match)
 
 
 def _tool_unique(

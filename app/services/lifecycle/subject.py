@@ -1,0 +1,125 @@
+"""What a calibrated subject declares, as one `Subject` in its package (the tool's:
+app.services.tools.subject), the way a maker declares its `Maker` (app.vendors.maker): its
+name, its tables and the words its messages use. The lifecycle (app.services.lifecycle)
+takes the declaration and never branches on which subject it is.
+
+Storage: a table per subject, its versions' and its activations' tables, each of one shape
+(tests/services/lifecycle/test_subject.py holds that every declared subject's tables have
+the columns the lifecycle reads): the subject's row `id`, `robot_id`, `name`, `tolerance`,
+the counters `active_version`, `last_version`, `revision`, `updated_at`, `archived_at` and
+the drift trend `drift`, `drift_crosses_at`; a version's `<key>`, `version`, `position_mm`,
+`quaternion`, `source`, `status`, `calibration_id`, `note`, `created_at`, `created_by`; an
+activation's `<key>`, `version`, `previous_version`, `reason`, `reason_text`,
+`activated_at`, `activated_by`. `key` ("tool_id") names the subject in its versions, its
+activations, the audit trail and the outbox alike.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any, Generic, Protocol, TypeVar
+
+from sqlalchemy import Column, Table
+
+from app.jsontypes import JsonArray, JsonObject
+from app.storage.models import AuditEvent, Base, table_of
+from app.words import AuditAction, MethodName, ResourceType, Status
+
+
+class SubjectRow(Protocol):
+    """What the lifecycle reads of a subject's ORM row (a models.Tool)."""
+
+    __tablename__: str
+
+    @property
+    def id(self) -> str: ...
+    @property
+    def robot_id(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def tolerance(self) -> JsonObject: ...
+    @property
+    def active_version(self) -> int | None: ...
+    @property
+    def revision(self) -> int: ...
+    @property
+    def archived_at(self) -> datetime | None: ...
+    @property
+    def drift(self) -> JsonObject | None: ...
+
+
+class VersionRow(Protocol):
+    """What the lifecycle reads of a version's ORM row (a models.TcpVersion)."""
+
+    __tablename__: str
+
+    @property
+    def version(self) -> int: ...
+    @property
+    def position_mm(self) -> JsonArray: ...
+    @property
+    def quaternion(self) -> JsonArray: ...
+    @property
+    def source(self) -> MethodName: ...
+    @property
+    def status(self) -> Status: ...
+    @property
+    def calibration_id(self) -> str | None: ...
+    @property
+    def created_at(self) -> datetime: ...
+
+
+Row = TypeVar("Row", bound=SubjectRow)
+VersionT = TypeVar("VersionT", bound=VersionRow)
+ActivationT = TypeVar("ActivationT", bound=Base)
+
+
+@dataclass(frozen=True, eq=False)
+class Subject(Generic[Row, VersionT, ActivationT]):
+    """A calibrated subject: `kind`, the name its audit events carry as their resource type
+    and its messages use ("tool"); its ORM models (the subject, a version, an activation,
+    a calibration);
+    `key`, the column naming it in each lifecycle table ("tool_id"); `value`, what a version
+    holds, in words ("TCP"); `calibration_model`, the calibrations a version's
+    `calibration_id` names (their `result` holds the quality an out-of-tolerance refusal
+    cites); `path`, where its routes start ("/v1/tools"); `check_action`,
+    the audit action of a check of its active version, which the drift trend reads back."""
+
+    kind: ResourceType
+    model: type[Row]
+    version_model: type[VersionT]
+    activation_model: type[ActivationT]
+    calibration_model: type[Base]
+    key: str
+    value: str
+    path: str
+    check_action: AuditAction
+    table: Table = field(init=False)
+    versions: Table = field(init=False)
+    activations: Table = field(init=False)
+    calibrations: Table = field(init=False)
+
+    def __post_init__(self) -> None:
+        tables = Base.metadata.tables
+        object.__setattr__(self, "table", tables[self.model.__tablename__])
+        object.__setattr__(self, "versions", tables[self.version_model.__tablename__])
+        object.__setattr__(self, "activations", table_of(self.activation_model))
+        object.__setattr__(self, "calibrations", table_of(self.calibration_model))
+
+    def version_key(self) -> Column[str]:
+        """The versions' column naming the subject."""
+        return self.versions.c[self.key]
+
+    def activation_key(self) -> Column[str]:
+        """The activations' column naming the subject."""
+        return self.activations.c[self.key]
+
+    def audit_key(self) -> Column[str]:
+        """The audit trail's column naming the subject."""
+        return table_of(AuditEvent).c[self.key]
+
+
+#: A subject of any kind, for the functions that read nothing of its row types.
+AnySubject = Subject[Any, Any, Any]
