@@ -98,7 +98,20 @@ class FleetLive(BaseModel):
         description="the tool whose version it is: this row's, or another's for other_tool"
     )
     checked_at: Timestamp | None = Field(
-        description="when a reconcile round last read it; null when never"
+        description="when a reconcile round (or a deployment to a robot with one live TCP, "
+        "which reads it back) last read it; null when never"
+    )
+    number: int | None = Field(
+        default=None,
+        description="the tool number the controller reported (KUKA $ACT_TOOL, FANUC's active "
+        "UTOOL, Yaskawa's tool); null where it names none or was not read",
+    )
+    no_tool: bool = Field(
+        default=False,
+        description="true when the robot moves by its bare flange (tool 0, KUKA $NULLFRAME, "
+        "FANUC UTOOL 0, a zero UR tcp_offset or Techman TCP): no tool is selected, as robots "
+        "idle between jobs; state is then unknown (no version has the flange's frame) and "
+        "raises no moving_by_unknown_tcp",
     )
 
 
@@ -135,7 +148,8 @@ class FleetTool(BaseModel):
         "drifting (the drift trend leaves check_mm within 30 days at 95 % confidence), "
         "moving_by_stale_version (the robot moves by an older version of this tool), "
         "moving_by_unknown_tcp (it moves by a frame no version has, in this tool's slot or, "
-        "where that is not known, by one of its robot's tools), "
+        "where that is not known, by one of its robot's tools; not its bare flange, no tool "
+        "selected), "
         "frequent_corrections (corrected by re-checks more than TCPCAL_CORRECTIONS_ALERT "
         "times, default 3, in 30 days: a tool that keeps getting hit)",
     )

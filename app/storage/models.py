@@ -26,6 +26,7 @@ from sqlalchemy import (
     Table,
     Text,
     UniqueConstraint,
+    false,
     text,
 )
 from sqlalchemy.engine import Dialect
@@ -485,6 +486,9 @@ class RobotLiveTool(Base):
     since: Mapped[datetime] = mapped_column()
     checked_at: Mapped[datetime] = mapped_column()
     error: Mapped[str | None] = mapped_column(Text)
+    #: the frame is the bare flange (tool 0, KUKA $NULLFRAME, FANUC UTOOL 0, a zero UR
+    #: tcp_offset): no tool is selected, which is no unknown TCP
+    flange: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
 
 
 class RobotLiveMatch(Base):

@@ -164,6 +164,8 @@ def test_an_unknown_frame_is_blamed_on_the_tool_in_the_live_slot(api: Api) -> No
             "version": 1,
             "tool_id": other,
             "checked_at": None,
+            "number": SLOT,
+            "no_tool": False,
         }
         assert rows["gripper"]["live"]["state"] == "active"
         assert "moving_by_unknown_tcp" not in rows["t1"]["attention"]
@@ -200,7 +202,14 @@ def test_abb_is_unread(api: Api, protocol: str) -> None:
         ids = _torch_v1_v2(api, r)
         robot_id = ids["robot"]["id"]
         never = _rows(api, robot_id)["t1"]["live"]
-        assert never == {"state": "unread", "version": None, "tool_id": None, "checked_at": None}
+        assert never == {
+            "state": "unread",
+            "version": None,
+            "tool_id": None,
+            "checked_at": None,
+            "number": None,
+            "no_tool": False,
+        }
         r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)  # the controller holds v1
         done = _reconcile(api, robot_id)
         # RWS answers the pose but names no tooldata: read, and nothing to match
@@ -247,6 +256,8 @@ def test_fanuc_moves_by_its_active_utool(api: Api) -> None:
             "version": 2,
             "tool_id": tool_id,
             "checked_at": None,
+            "number": SLOT,
+            "no_tool": False,
         }
         assert row["attention"] == []
         # UTOOL 1, which no tool of tcpcal's holds, and whose frame no version has
@@ -321,6 +332,8 @@ def test_a_robot_whose_controller_is_removed_is_unread_again(api: Api) -> None:
             "version": None,
             "tool_id": None,
             "checked_at": None,
+            "number": None,
+            "no_tool": False,
         }
         assert row["attention"] == []
 

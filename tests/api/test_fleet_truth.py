@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.api.controller_rigs import LIVE_PROTOCOLS, rig
+from tests.api.controller_rigs import LIVE_PROTOCOLS, Rig, rig
 from tests.api.test_capture_controllers import SETUPS
 from tests.api.test_deployments import (
     ACTIVE_POSITION,
@@ -111,3 +111,51 @@ def test_a_check_that_corrected_the_tool_is_a_correction_on_the_fleet(api: Api) 
         assert check["within_tolerance"] is False
         assert (check["verdict"], check["correction_version"]) == ("corrected", 2), check
         assert "check_failed" not in row["attention"]
+
+
+def _stand_at_the_flange(r: Rig) -> None:
+    """The robot idles between jobs with no tool selected: KUKA $TOOL = $NULLFRAME (set by a
+    program: the simulator selects numbers 1-16 only), FANUC UTOOL 0, Yaskawa tool 0 (its
+    TOOL.CND block all zeros), UR tcp_offset and Techman's current TCP zero."""
+    if r.protocol == "kuka_kvp":
+        r.sim.set_tool_frame(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    elif r.protocol == "fanuc_rmi":
+        r.sim.select(uframe=0, utool=0)
+    elif r.protocol == "yaskawa_hses":
+        r.sim.select_tool(0)
+    else:
+        r.set_behind_back([0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize("protocol", ["kuka_kvp", "fanuc_rmi", "yaskawa_hses", *LIVE_PROTOCOLS])
+def test_a_robot_at_its_bare_flange_has_no_tool_selected_not_an_unknown_tcp(
+    api: Api, protocol: str
+) -> None:
+    """Tool 0 is the flange itself, where robots idle between jobs: no version has that
+    frame, and none should (it is not a tool). The row says no tool is selected, and raises
+    no moving_by_unknown_tcp on any tool, where each of the robot's tools had it."""
+    with rig(protocol) as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id = ids["robot"]["id"]
+        api.tool(robot_id, "gripper", **({"slot": 5} if r.tool_fields else {}))
+        _stand_at_the_flange(r)
+        live = _reconcile(api, robot_id)["live_tool"]
+        assert live["frame"] == {"position_mm": [0.0, 0.0, 0.0], "quaternion": [1.0, 0.0, 0.0, 0.0]}
+        for name, row in _rows(api, robot_id).items():
+            assert row["live"]["state"] == "unknown", (name, row["live"])
+            assert row["live"]["no_tool"] is True, (name, row["live"])
+            assert "moving_by_unknown_tcp" not in row["attention"], (name, row["attention"])
+        flagged = _rows(api, robot_id, attention="true")
+        assert all("moving_by_unknown_tcp" not in row["attention"] for row in flagged.values())
+        # a frame no version has, in a tool the robot selects: an unknown TCP as before
+        r.set_behind_back([0.0, 0.0, 99.0], [1.0, 0.0, 0.0, 0.0])
+        if protocol == "kuka_kvp":
+            r.sim.select_tool(3)
+        elif protocol == "fanuc_rmi":
+            r.sim.select(uframe=0, utool=3)
+        elif protocol == "yaskawa_hses":
+            r.sim.select_tool(3)
+        _reconcile(api, robot_id)
+        row = _rows(api, robot_id)["t1"]
+        assert (row["live"]["state"], row["live"]["no_tool"]) == ("unknown", False)
+        assert "moving_by_unknown_tcp" in row["attention"]

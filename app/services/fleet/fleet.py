@@ -39,7 +39,9 @@ from app.schemas.fleet import (
     LastCheck,
 )
 from app.services.fleet.live import (
+    AT_FLANGE,
     LIVE_CHECKED_AT,
+    LIVE_NUMBER,
     LIVE_STATE,
     LIVE_TOOL_ID,
     LIVE_VERSION,
@@ -147,7 +149,8 @@ def _rules(
         "drifting": crosses_by(drifting_until),
         # What the last reconcile round read of the TCP the robot moves by.
         "moving_by_stale_version": LIVE_STATE == "stale_version",
-        "moving_by_unknown_tcp": and_(LIVE_STATE == "unknown", UNKNOWN_TCP_HERE),
+        # (a robot at its bare flange has no tool selected: no unknown TCP)
+        "moving_by_unknown_tcp": and_(LIVE_STATE == "unknown", UNKNOWN_TCP_HERE, ~AT_FLANGE),
         # Corrected by re-checks more often than TCPCAL_CORRECTIONS_ALERT in 30 days.
         "frequent_corrections": _corrections_since(corrections_since) > corrections_alert,
     }
@@ -342,6 +345,8 @@ _ATTENTION = (
         LIVE_VERSION.label("live_version"),
         LIVE_TOOL_ID.label("live_tool_id"),
         LIVE_CHECKED_AT.label("live_checked_at"),
+        LIVE_NUMBER.label("live_number"),
+        AT_FLANGE.label("live_flange"),
         *(RULES[code].label(f"rule_{i}") for i, code in enumerate(_ORDER)),
     )
     .outerjoin(
@@ -365,13 +370,15 @@ def _attention_of(
     live: dict[str, FleetLive] = {}
     for row in session.execute(_ATTENTION, {"ids": ids, **moments}):
         tool_id, state, checked_at, deviation_mm, deviation_deg, version, target, *rest = row
-        live_state, live_version, live_tool_id, live_checked_at, *hits = rest
+        live_state, live_version, live_tool_id, live_checked_at, number, flange, *hits = rest
         codes[tool_id] = [code for code, hit in zip(_ORDER, hits, strict=True) if hit]
         live[tool_id] = FleetLive(
             state=live_state,
             version=live_version,
             tool_id=live_tool_id,
             checked_at=live_checked_at,
+            number=None if live_state == "unread" else number,
+            no_tool=live_state == "unknown" and bool(flange),
         )
         if state is not None:
             states[tool_id] = FleetController(

@@ -6,7 +6,8 @@ robot_live_matches (robot_id, tool_id, version).
 The cases, first that holds: `unread` (no round read a frame: ABB, a connector without
 read_pose, a failed read, never reconciled); `active` (a match is this tool's active
 version); `stale_version` (a match is another version of this tool: the newest such);
-`other_tool` (a match is another tool's version); else `unknown` (no version has the frame).
+`other_tool` (a match is another tool's version); else `unknown` (no version has the frame:
+`no_tool` when it is the bare flange, no tool selected).
 """
 
 from __future__ import annotations
@@ -82,6 +83,11 @@ LIVE_TOOL_ID = case(
     else_=null(),
 )
 LIVE_CHECKED_AT = _robot_live(RobotLiveTool.checked_at)
+#: The tool number the controller reported (null where it names none).
+LIVE_NUMBER = _robot_live(RobotLiveTool.number)
+#: The robot moves by its bare flange: no tool selected (tool 0, KUKA $NULLFRAME, FANUC
+#: UTOOL 0, a zero UR tcp_offset), not an unknown TCP: it raises no moving_by_unknown_tcp.
+AT_FLANGE = _robot_live(RobotLiveTool.flange).is_(true())
 
 _HOLDER = aliased(Tool, name="slot_holder")
 #: The tool an unknown TCP is blamed on: the one whose slot is the live tool number (KUKA,

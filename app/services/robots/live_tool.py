@@ -92,6 +92,25 @@ def read_live(conn: Connector) -> LiveRead:
         return LiveRead(None, str(exc))
 
 
+#: The bare flange: the frame of tool 0 (KUKA $NULLFRAME, FANUC UTOOL 0, Yaskawa's tool 0 as
+#: shipped, a zero UR tcp_offset, Techman's NOTOOL).
+FLANGE = Frame((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
+
+
+def bare_flange(tool: LiveTool | None) -> bool:
+    """True when the robot moves by its bare flange (within 0.01 mm and 0.01 deg) with no
+    tool selected, as robots stand between jobs: not an unknown TCP. No tool is tool 0 or no
+    number (KUKA $ACT_TOOL 0 and -1, FANUC UTOOL 0, UR, Techman); a job that selects tool 5
+    holding zeros (a Yaskawa TOOL.CND block never filled in) moves by an unknown TCP."""
+    if tool is None or tool.frame is None or tool.number not in (None, 0):
+        return False
+    frame = tool.frame
+    deviation = frame_deviation(
+        frame.position_mm, frame.quaternion, FLANGE.position_mm, FLANGE.quaternion
+    )
+    return within(deviation, mm=SYNC_TOLERANCE_MM, deg=SYNC_TOLERANCE_DEG)
+
+
 def _frame_json(frame: Frame | None) -> JsonObject | None:
     if frame is None:
         return None
@@ -135,6 +154,7 @@ def record_live(
     if changed:
         row.since = at
     row.read, row.number, row.frame = frame is not None, number, frame_json
+    row.flange = bare_flange(live.tool)
     row.checked_at, row.error = at, live.error
     session.flush()
     if before != found:
