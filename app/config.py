@@ -46,10 +46,11 @@ class Settings(BaseSettings):
         default=8,
         ge=1,
         le=256,
-        description="controllers a reconcile round reads at once (threads, one controller "
-        "connection each; a database connection only before and after each read): a "
-        "controller that hangs holds one of them until its timeout_s and delays no other "
-        "robot unless this many hang together",
+        description="controllers a reconcile round reads at once at least (threads, one "
+        "controller connection each); each round reads as many more as its robots need for "
+        "their reads to end within half the interval (robots x the reads' median time / half "
+        "the interval, at most 256), and a read still going after 4 times that median (0.25 s "
+        "to half the interval) holds no place: a controller that hangs delays no other robot",
     )
     public_url: str | None = Field(
         default=None,

@@ -66,6 +66,32 @@ RECONCILES = Counter(
     "Robots reconciled with their controller, by who asked (api, watcher) and the robot's state.",
     ["trigger", "state"],
 )
+WATCHED_ROBOTS = Gauge(
+    "tcpcal_watcher_robots",
+    "Robots this instance's controller watcher reads each round (0: it watches none).",
+    multiprocess_mode="livesum",
+)
+WATCHER_CONCURRENCY = Gauge(
+    "tcpcal_watcher_concurrency",
+    "Controllers the watcher reads at once, sized each round from the fleet, the interval "
+    "and the reads' median time (reads stalled past 4 times that median apart).",
+    multiprocess_mode="livesum",
+)
+WATCHER_ROUND_SECONDS = Gauge(
+    "tcpcal_watcher_round_seconds",
+    "How long the watcher's last round took, from its start to its last read's store.",
+    multiprocess_mode="max",
+)
+WATCHER_OVERRUNS = Counter(
+    "tcpcal_watcher_rounds_overrun",
+    "Watcher rounds whose interval ended before every robot's read began.",
+)
+WATCHER_INTERVAL_NEEDED = Gauge(
+    "tcpcal_watcher_interval_needed_seconds",
+    "The interval the last overrun round's reads would have fitted at the pool's size "
+    "(TCPCAL_RECONCILE_INTERVAL_S at least this, or more concurrency).",
+    multiprocess_mode="max",
+)
 SESSIONS_OPEN = Gauge(
     "tcpcal_db_sessions_open",
     "Database sessions (units of work) open right now, over all workers.",

@@ -8,13 +8,16 @@ Before a round it takes the fleet's watcher lock without waiting: PostgreSQL's
 does not get it skips the round. The states a round finds are stored under each tool's row
 lock (app.services.controllers.states), so a change is recorded once even if two rounds met.
 
-A round reads its robots' controllers concurrently, at most TCPCAL_RECONCILE_CONCURRENCY at
-once (a ReadPool of daemon threads), and each robot's states are stored as soon as its own
-read ends: read one by one, a controller that hung for its timeout_s (30 s in the trial)
-delayed every other robot's state change by as much. A robot whose read is still in flight
-is not read again by the next round (no pile-up of threads or connections on a hung
-controller), and while any read is in flight the fleet lock stays held into the next round,
-so no other instance starts those controllers meanwhile.
+A round reads its robots' controllers concurrently (a ReadPool of daemon threads), as many
+at once as its robots need for their reads to end within half the interval and at least
+TCPCAL_RECONCILE_CONCURRENCY; a read that has stalled holds no place (issue 51: ten hung
+controllers filled a fixed pool of 8 and held a healthy robot's edit 1.0-7.2 s). Each
+robot's states are stored as soon as its own read ends: read one by one, a controller that
+hung for its timeout_s (30 s in the trial) delayed every other robot's state change by as
+much. A robot whose read is still in flight is not read again by the next round (no pile-up
+of threads or connections on a hung controller), and while any read is in flight the fleet
+lock stays held into the next round, so no other instance starts those controllers
+meanwhile.
 The threads are daemons: stop() returns within a second, and a read stalled on a controller
 ends at that controller's timeout, storing nothing.
 """
@@ -22,10 +25,12 @@ ends at that controller's timeout, storing nothing.
 from __future__ import annotations
 
 import logging
+import math
 import os
-import queue
+import statistics
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
@@ -43,6 +48,13 @@ from sqlalchemy import text
 from app.config import get_settings
 from app.errors import ConnectorMissing
 from app.logs import get_logger
+from app.metrics import (
+    WATCHED_ROBOTS,
+    WATCHER_CONCURRENCY,
+    WATCHER_INTERVAL_NEEDED,
+    WATCHER_OVERRUNS,
+    WATCHER_ROUND_SECONDS,
+)
 from app.security.auth import Principal
 from app.services.controllers.reconcile import reconcile_robot, robots_with_controller
 from app.storage.db import get_engine, is_sqlite
@@ -58,6 +70,14 @@ WATCHER = Principal(key_id="watcher", name="watcher", scope="read")
 ADVISORY_KEY = int.from_bytes(b"tcpcal.w", "big") & 0x7FFF_FFFF_FFFF_FFFF
 
 _THREADS_LOCK = threading.Lock()
+#: A read still going this long (seconds) no longer holds a place of the pool, until the
+#: watcher has measured its fleet's reads (then 4 times their median, 0.25 s to half the
+#: interval).
+STALL_S = 1.0
+#: The time a read is taken to take before any has been measured (seconds).
+FIRST_READ_S = 0.5
+#: The most threads reading at once that the pool is sized to (stalled reads apart).
+MAX_SIZE = 256
 
 
 @contextmanager
@@ -109,19 +129,38 @@ def _flock(path: Path) -> Iterator[bool]:
 
 
 class ReadPool:
-    """At most `size` daemon threads, each reconciling one robot at a time. A robot is in
-    flight from when it is offered until its read has ended and its states are stored;
-    offering it again meanwhile does nothing, so a hung controller is read once, not once
-    per round."""
+    """Daemon threads, each reconciling one robot at a time, `size` of them reading at once,
+    not counting reads that have stalled. A robot is in flight from when it is offered until
+    its read has ended and its states are stored; offering it again meanwhile does nothing,
+    so a hung controller is read once, not once per round.
 
-    def __init__(self, size: int, work: Callable[[str], None]) -> None:
+    A read still going `stall_s` after it began stops holding a place: another thread takes
+    the next robot queued (issue 51: ten controllers that accept and never answer held all 8
+    places of a fixed pool until their timeout_s, and a healthy robot's pendant edit waited
+    1.0-7.2 s behind them). The threads are at most one per robot in flight; one that ends
+    its read with more threads about than the pool needs ends too."""
+
+    def __init__(self, size: int, work: Callable[[str], None], *, stall_s: float = STALL_S) -> None:
         self.size = size
+        self.stall_s = stall_s
         self._work = work
-        self._queue: queue.SimpleQueue[str | None] = queue.SimpleQueue()  # None: end
+        self._queue: deque[str] = deque()
         self._in_flight: set[str] = set()
+        #: robot -> when its read began (monotonic), while it reads
+        self._reading: dict[str, float] = {}
         self._changed = threading.Condition()
-        self._threads: list[threading.Thread] = []
+        self._threads = 0
+        self._idle = 0
+        self._started = 0
         self._stopped = False
+        #: how long the last reads that did not stall took (seconds), newest last
+        self.read_s: deque[float] = deque(maxlen=256)
+
+    def resize(self, size: int) -> None:
+        """Read up to `size` robots at once from now on."""
+        with self._changed:
+            self.size = size
+            self._top_up()
 
     def offer(self, robot_ids: Iterable[str]) -> set[str]:
         """Queue each of these robots that is not in flight; the ones queued now."""
@@ -130,15 +169,9 @@ class ReadPool:
                 return set()
             fresh = [robot_id for robot_id in robot_ids if robot_id not in self._in_flight]
             self._in_flight.update(fresh)
-            for robot_id in fresh:
-                self._queue.put(robot_id)
-            # threads are started as the work needs them, never more than `size`
-            while len(self._threads) < min(self.size, len(self._in_flight)):
-                thread = threading.Thread(
-                    target=self._run, name=f"tcpcal-reconcile-{len(self._threads) + 1}", daemon=True
-                )
-                thread.start()
-                self._threads.append(thread)
+            self._queue.extend(fresh)
+            self._top_up()
+            self._changed.notify_all()
         return set(fresh)
 
     def in_flight(self) -> int:
@@ -146,38 +179,134 @@ class ReadPool:
         with self._changed:
             return len(self._in_flight)
 
+    def queued(self, robot_ids: set[str]) -> int:
+        """How many of these robots wait for a read that has not begun."""
+        with self._changed:
+            return sum(1 for robot_id in self._queue if robot_id in robot_ids)
+
+    def median_read_s(self) -> float | None:
+        """The median of the last reads that did not stall (None before the first)."""
+        with self._changed:
+            return statistics.median(self.read_s) if self.read_s else None
+
+    def stalled(self) -> int:
+        """How many reads have gone on for `stall_s` or longer."""
+        with self._changed:
+            return self._stalled(time.monotonic())
+
+    def threads(self) -> int:
+        """How many threads the pool has now."""
+        with self._changed:
+            return self._threads
+
     def wait(self, robot_ids: set[str], timeout_s: float) -> bool:
         """Wait up to `timeout_s` until none of these robots is in flight (or the pool
-        stopped); whether that happened."""
+        stopped); whether that happened. Meanwhile a read that stalls hands its place on."""
+        until = time.monotonic() + timeout_s
         with self._changed:
-            return self._changed.wait_for(
-                lambda: self._stopped or not robot_ids & self._in_flight, timeout_s
-            )
+            while True:
+                if self._stopped or not robot_ids & self._in_flight:
+                    return True
+                now = time.monotonic()
+                if now >= until:
+                    return False
+                self._top_up()
+                self._changed.wait(min(until - now, self._next_stall(now)))
 
     def stop(self) -> None:
         """Take no more work; idle threads end now, busy ones when their read ends."""
         with self._changed:
             self._stopped = True
+            self._queue.clear()
             self._changed.notify_all()
-            for _ in self._threads:
-                self._queue.put(None)
 
     def join(self, until: float) -> None:
         """Wait for the threads to end, until the monotonic time `until` at the latest."""
-        for thread in list(self._threads):
-            thread.join(max(0.0, until - time.monotonic()))
+        with self._changed:
+            while self._threads and time.monotonic() < until:
+                self._changed.wait(max(0.0, until - time.monotonic()))
+
+    def _stalled(self, now: float) -> int:
+        return sum(1 for began in self._reading.values() if now - began >= self.stall_s)
+
+    def _next_stall(self, now: float) -> float:
+        """Seconds until the next read in progress stalls (at least 10 ms)."""
+        fresh = [b + self.stall_s - now for b in self._reading.values() if now - b < self.stall_s]
+        return max(0.01, min(fresh, default=self.stall_s))
+
+    def _top_up(self) -> None:
+        """Start threads for the queued robots: `size` reading at once, stalled reads apart
+        (called holding the condition)."""
+        if self._stopped:
+            return
+        reading = len(self._reading) - self._stalled(time.monotonic())
+        wanted = min(len(self._queue), max(0, self.size - reading)) - self._idle
+        for _ in range(max(0, wanted)):
+            self._started += 1
+            self._threads += 1
+            self._idle += 1
+            thread = threading.Thread(
+                target=self._run, name=f"tcpcal-reconcile-{self._started}", daemon=True
+            )
+            thread.start()
+
+    def _take(self) -> str | None:
+        """The next robot to read, or None when this thread should end (held condition)."""
+        while not self._stopped:
+            now = time.monotonic()
+            if self._queue and len(self._reading) - self._stalled(now) < self.size:
+                robot_id = self._queue.popleft()
+                self._reading[robot_id] = now
+                self._idle -= 1
+                return robot_id
+            if self._idle > max(0, self.size - len(self._reading)):
+                return None  # more threads waiting than places left: end this one
+            self._changed.wait(max(0.01, self._next_stall(now)) if self._queue else None)
+        return None
 
     def _run(self) -> None:
-        while True:
-            robot_id = self._queue.get()
-            if robot_id is None or self._stopped:
-                return
+        with self._changed:
+            robot_id = self._take()
+        while robot_id is not None:
             try:
                 self._work(robot_id)
             finally:
                 with self._changed:
+                    began = self._reading.pop(robot_id)
+                    took = time.monotonic() - began
+                    if took < self.stall_s:
+                        self.read_s.append(took)
                     self._in_flight.discard(robot_id)
+                    self._idle += 1
                     self._changed.notify_all()
+                    robot_id = self._take()
+        with self._changed:
+            self._threads -= 1
+            self._idle -= 1
+            self._changed.notify_all()
+
+
+@dataclass(frozen=True)
+class Overrun:
+    """A round that did not begin reading every robot within its interval, and what would
+    have fitted it: the interval its reads took at the pool's size, and the size at which
+    they would have fitted this interval."""
+
+    robots: int
+    unread: int
+    interval_s: float
+    median_read_s: float
+    concurrency: int
+    interval_needed_s: float
+    concurrency_needed: int
+
+    def words(self) -> str:
+        return (
+            f"{self.unread} of {self.robots} robots not yet read when the {self.interval_s} s "
+            f"interval ended (reads take {self.median_read_s:.3f} s, {self.concurrency} at "
+            f"once): set TCPCAL_RECONCILE_INTERVAL_S to at least {self.interval_needed_s} or "
+            f"TCPCAL_RECONCILE_CONCURRENCY to at least {self.concurrency_needed}"
+        )
 
 
 @dataclass
@@ -189,49 +318,76 @@ class WatcherStatus:
     running: bool = False
     rounds: int = 0
     rounds_skipped: int = 0
+    robots: int = 0
     last_round_at: datetime | None = None
     last_round_s: float | None = None
     last_error: str | None = None
+    overruns: int = 0
+    last_overrun: Overrun | None = None
     errors: dict[str, str] = field(default_factory=dict)
 
     def document(self) -> dict[str, object]:
+        overrun = self.last_overrun
         return {
             "enabled": True,
             "interval_s": self.interval_s,
             "concurrency": self.concurrency,
             "running": self.running,
             "pid": os.getpid(),
+            "robots": self.robots,
             "rounds": self.rounds,
             "rounds_skipped_locked": self.rounds_skipped,
+            "rounds_overrun": self.overruns,
+            "last_overrun": None if overrun is None else overrun.words(),
             "last_round_at": None if self.last_round_at is None else self.last_round_at.isoformat(),
             "last_round_s": self.last_round_s,
             "last_error": self.last_error,
         }
 
 
+def pool_size(robots: int, read_s: float, interval_s: float, least: int) -> int:
+    """Threads reading at once for `robots` reads of `read_s` each to end within half the
+    interval (the other half for reads that take longer), at least `least`, at most
+    MAX_SIZE, and no more than the robots."""
+    needed = math.ceil(robots * read_s / max(interval_s / 2, 1e-3))
+    return max(1, min(max(least, needed), MAX_SIZE, max(robots, least)))
+
+
+def stall_after(read_s: float, interval_s: float) -> float:
+    """When a read has stalled: 4 times the median read, 0.25 s to half the interval."""
+    return max(0.25, min(4 * read_s, interval_s / 2))
+
+
 class Watcher:
     """Reconciles every robot with a controller every `interval_s`, in a daemon thread, at
-    most `concurrency` controllers at once (default TCPCAL_RECONCILE_CONCURRENCY)."""
+    least `concurrency` controllers at once (default TCPCAL_RECONCILE_CONCURRENCY) and as
+    many more as the fleet's reads need to end within half the interval."""
 
     def __init__(self, interval_s: float, concurrency: int | None = None) -> None:
-        size = get_settings().reconcile_concurrency if concurrency is None else concurrency
-        self.status = WatcherStatus(interval_s=interval_s, concurrency=size)
+        least = get_settings().reconcile_concurrency if concurrency is None else concurrency
+        self.least = least
+        self.status = WatcherStatus(interval_s=interval_s, concurrency=least)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._pool = ReadPool(size, self._reconcile)
+        self._pool = ReadPool(least, self._reconcile)
         #: The fleet lock while this watcher holds it (across rounds while reads are in flight)
         self._lock: ExitStack | None = None
         #: Robots whose protocol this tcpcal has no connector for, warned of once each
         self._no_connector: set[str] = set()
+        #: Robots whose last read stalled: offered after the others
+        self._slow: set[str] = set()
 
     def document(self) -> dict[str, object]:
         """The watcher's state for /ready, with the reads now in flight."""
-        return self.status.document() | {"reads_in_flight": self._pool.in_flight()}
+        return self.status.document() | {
+            "reads_in_flight": self._pool.in_flight(),
+            "reads_stalled": self._pool.stalled(),
+        }
 
     def start(self) -> None:
         """Start the loop (its first round at once)."""
         self._stop.clear()
-        self._pool = ReadPool(self.status.concurrency, self._reconcile)
+        self._pool = ReadPool(self.least, self._reconcile)
         self._thread = threading.Thread(target=self._loop, name="tcpcal-watcher", daemon=True)
         self._thread.start()
         self.status.running = True
@@ -247,7 +403,10 @@ class Watcher:
         if self._thread is not None:
             self._thread.join(timeout_s)
         self._pool.join(until)
+        if self._thread is None or not self._thread.is_alive():
+            self._release()  # rounds run without the loop keep the lock while reads are in flight
         self.status.running = False
+        WATCHED_ROBOTS.set(0)
 
     def _loop(self) -> None:
         try:
@@ -270,16 +429,70 @@ class Watcher:
             return
         try:
             started = time.monotonic()
-            offered = self._pool.offer(robots_with_controller())
-            self._pool.wait(offered, self.status.interval_s)
+            robots = robots_with_controller()
+            self._size(len(robots))
+            # robots whose last read stalled go last: a hung controller first in line would
+            # hold a place for stall_s before the healthy ones behind it are read
+            ordered = sorted(robots, key=lambda robot_id: robot_id in self._slow)
+            offered = self._pool.offer(ordered)
+            done = self._pool.wait(offered, self.status.interval_s)
             if self._stop.is_set():
                 return
-            self.status.rounds += 1
-            self.status.last_round_at = utcnow()
-            self.status.last_round_s = round(time.monotonic() - started, 3)
+            if not done:
+                self._overrun(len(robots), self._pool.queued(offered))
+            self._finish_round(time.monotonic() - started)
         finally:
             if self._pool.in_flight() == 0:  # else held into the next round
                 self._release()
+
+    def _size(self, robots: int) -> None:
+        """Size the pool and its stall time from the fleet, the interval and the reads."""
+        read_s = self._pool.median_read_s() or FIRST_READ_S
+        self._pool.stall_s = stall_after(read_s, self.status.interval_s)
+        self._pool.resize(pool_size(robots, read_s, self.status.interval_s, self.least))
+        self.status.concurrency = self._pool.size
+        self.status.robots = robots
+        WATCHED_ROBOTS.set(robots)
+        WATCHER_CONCURRENCY.set(self._pool.size)
+
+    def _finish_round(self, took_s: float) -> None:
+        self.status.rounds += 1
+        self.status.last_round_at = utcnow()
+        self.status.last_round_s = round(took_s, 3)
+        WATCHER_ROUND_SECONDS.set(took_s)
+
+    def _overrun(self, robots: int, unread: int) -> None:
+        """The round's interval ended before every robot's read began: say so, with the
+        interval and the pool size that would have fitted it."""
+        if unread == 0:
+            return  # only reads that began and have not ended (a hung controller's)
+        interval = self.status.interval_s
+        read_s = self._pool.median_read_s() or FIRST_READ_S
+        size = self._pool.size
+        overrun = Overrun(
+            robots=robots,
+            unread=unread,
+            interval_s=interval,
+            median_read_s=read_s,
+            concurrency=size,
+            interval_needed_s=math.ceil(10 * 2 * robots * read_s / size) / 10,
+            concurrency_needed=math.ceil(robots * read_s / max(interval / 2, 1e-3)),
+        )
+        self.status.overruns += 1
+        self.status.last_overrun = overrun
+        WATCHER_OVERRUNS.inc()
+        WATCHER_INTERVAL_NEEDED.set(overrun.interval_needed_s)
+        events.warning(
+            "watcher.round_overrun",
+            robots=robots,
+            unread=unread,
+            interval_s=interval,
+            median_read_s=round(read_s, 4),
+            concurrency=size,
+            interval_needed_s=overrun.interval_needed_s,
+            concurrency_needed=overrun.concurrency_needed,
+            detail=overrun.words(),
+        )
 
     def _take_lock(self) -> bool:
         if self._lock is not None:
@@ -300,6 +513,16 @@ class Watcher:
         """One robot, in a pool thread: its states are stored as its read ends."""
         if self._stop.is_set():
             return
+        began = time.monotonic()
+        try:
+            self._reconcile_one(robot_id)
+        finally:
+            if time.monotonic() - began >= self._pool.stall_s:
+                self._slow.add(robot_id)
+            else:
+                self._slow.discard(robot_id)
+
+    def _reconcile_one(self, robot_id: str) -> None:
         try:
             reconcile_robot(
                 robot_id=robot_id, actor=WATCHER, trigger="watcher", cancelled=self._stop.is_set

@@ -6,6 +6,7 @@ beyond the interval."""
 from __future__ import annotations
 
 import time
+from contextlib import ExitStack
 from dataclasses import dataclass
 from typing import Any
 
@@ -60,6 +61,15 @@ def _watcher_reads(monkeypatch: pytest.MonkeyPatch, robot_id: str) -> list[Watch
 
     monkeypatch.setattr(watcher, "reconcile_robot", recorded)
     return reads
+
+
+def _read_begun_after(reads: list[WatcherRead], moment: float, within_s: float) -> None:
+    """Wait until a watcher read that began after `moment` has ended."""
+    wait_for(
+        lambda: any(read.began > moment for read in list(reads)),
+        within_s,
+        "a watcher read begun after the edit",
+    )
 
 
 @pytest.fixture
@@ -140,6 +150,9 @@ def test_a_pendant_change_is_flagged_within_one_interval_and_recorded_once(
         )
         edited = time.monotonic()
         row = _wait_for(api, robot_id, "drifted", 2 * watching + TIMEOUT_S + 1.0)
+        # a round that began just before the edit may have found it (on a loaded machine the
+        # round after the one awaited can begin at once): the subject is the one after it
+        _read_begun_after(reads, edited, 2 * watching + TIMEOUT_S + 1.0)
         first = next(read for read in list(reads) if read.began > edited)
         assert first.state == "drifted", (protocol, reads)  # the next round flags it
         assert first.began - edited <= watching + START_MARGIN_S, (protocol, first, edited)
@@ -234,6 +247,49 @@ def test_a_hung_controller_delays_no_other_robots_drift_beyond_the_interval(
             assert taken is False
 
 
+#: Issue 51's trial: more controllers that accept and never answer than a fixed pool's 8.
+HUNG_ROBOTS = 10
+#: Their timeout: long enough that a pool they fill keeps a healthy robot waiting for it.
+MANY_HUNG_TIMEOUT_S = 3.0
+
+
+def test_ten_hung_controllers_delay_no_healthy_robots_edit_beyond_the_interval(
+    watching: float, api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 51, defect 4: ten controllers that accept and never answer held every place of
+    the fixed pool of 8 until their timeout_s, and a healthy robot's pendant edit was flagged
+    1.0-7.2 s after it (10 trials, 0.5 s interval). A read that has stalled hands its place
+    on: each edit, made at any phase of the rounds, is read by a round beginning within one
+    interval and flagged by it."""
+    with ExitStack() as stack:
+        hung = [stack.enter_context(rig("kuka_kvp")) for _ in range(HUNG_ROBOTS)]
+        for n, r in enumerate(hung):
+            r.sim.stalled = True
+            robot = _setup(api, r, timeout_s=MANY_HUNG_TIMEOUT_S)["robot"]["id"]
+            assert api.patch(f"/v1/robots/{robot}", {"name": f"hung{n}"}).status_code == 200
+        live = stack.enter_context(rig("kuka_kvp"))
+        ids = _setup(api, live)
+        robot_id = ids["robot"]["id"]
+        reads = _watcher_reads(monkeypatch, robot_id)
+        _moving_by_the_tool(api, live, ids["tool"]["id"])
+        _wait_for(api, robot_id, "in_sync", 2 * MANY_HUNG_TIMEOUT_S + 2 * watching)
+        delays = []
+        for trial in range(6):
+            time.sleep(watching * (trial % 3) / 3)  # the edit at several phases of a round
+            y = ACTIVE_POSITION[1] + (0.2 if trial % 2 == 0 else 0.0)
+            live.set_behind_back([ACTIVE_POSITION[0], y, ACTIVE_POSITION[2]], ACTIVE_Q)
+            edited = time.monotonic()
+            expected = "drifted" if trial % 2 == 0 else "in_sync"
+            _wait_for(api, robot_id, expected, 2 * MANY_HUNG_TIMEOUT_S + 2 * watching)
+            # (a read that began just before the edit may have found it already)
+            _read_begun_after(reads, edited, 2 * MANY_HUNG_TIMEOUT_S + 2 * watching)
+            first = next(read for read in list(reads) if read.began > edited)
+            delays.append(round(first.began - edited, 3))
+            assert first.state == expected, (trial, first)
+        assert max(delays) <= watching + START_MARGIN_S, delays
+        assert sum(r.sim.connections_accepted for r in hung) >= HUNG_ROBOTS  # all were tried
+
+
 def test_the_read_pool_keeps_to_its_size_and_reads_a_robot_once_at_a_time() -> None:
     import threading
 
@@ -272,6 +328,85 @@ def test_the_read_pool_keeps_to_its_size_and_reads_a_robot_once_at_a_time() -> N
         assert pool.wait({"a"}, 5)
     finally:
         pool.stop()
+
+
+def test_a_stalled_read_hands_its_place_on_and_the_pool_is_sized_from_the_fleet() -> None:
+    """A read still going stall_s after it began no longer holds a place: the robot behind
+    it is read although the pool has one place; a pool is sized to read its fleet in half
+    the interval (at least its least, at most one thread per robot)."""
+    import threading
+
+    from app.services.controllers.watcher import ReadPool, pool_size
+
+    release = threading.Event()
+    began: dict[str, float] = {}
+
+    def work(robot_id: str) -> None:
+        began[robot_id] = time.monotonic()
+        if robot_id == "hung":
+            release.wait(10)
+
+    pool = ReadPool(1, work, stall_s=0.2)
+    try:
+        start = time.monotonic()
+        pool.offer(["hung", "healthy", "next"])
+        assert pool.wait({"healthy", "next"}, 2.0)
+        assert 0.2 <= began["healthy"] - start < 0.2 + 0.5
+        assert pool.stalled() == 1
+        assert pool.in_flight() == 1  # the hung read alone
+        assert pool.median_read_s() is not None
+        release.set()
+        assert pool.wait({"hung"}, 5)
+    finally:
+        pool.stop()
+    # 1000 robots of 0.25 s each at 10 s: 50 at once; the least stands; one thread a robot
+    assert pool_size(1000, 0.25, 10.0, 8) == 50
+    assert pool_size(10, 0.05, 10.0, 8) == 8
+    assert pool_size(3, 5.0, 1.0, 1) == 3
+
+
+def test_a_round_that_cannot_finish_within_its_interval_says_so_with_the_figure_that_fits(
+    api: Api, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Four robots of 0.2 s each, one at a time (the pool held to one), at a 0.3 s interval:
+    the round's interval ends with robots unread, and the log, /ready and /metrics say so,
+    with the interval that fits (2 x 4 x 0.2 s = 1.6 s) and the concurrency that would."""
+    import logging
+
+    from app.services.controllers import watcher as watching_module
+
+    def slow(**kwargs: Any) -> None:
+        time.sleep(0.2)
+
+    monkeypatch.setattr(watching_module, "reconcile_robot", slow)
+    monkeypatch.setattr(watching_module, "robots_with_controller", lambda: list("abcd"))
+    monkeypatch.setattr(watching_module, "MAX_SIZE", 1)
+    caplog.set_level(logging.INFO, logger="tcpcal.watcher")
+    watcher = watching_module.Watcher(0.3, concurrency=1)
+    try:
+        watcher.round()  # the first round: reads measured from here
+        watcher._pool.wait(set("abcd"), 2.0)
+        watcher.round()
+    finally:
+        watcher.stop()
+    assert watcher.status.overruns == 2
+    overrun = watcher.status.last_overrun
+    assert overrun is not None
+    assert (overrun.robots, overrun.concurrency) == (4, 1)
+    assert overrun.unread >= 2
+    assert 1.6 <= overrun.interval_needed_s <= 2.0  # 2 x 4 x 0.2 s, at most 0.25 s a read
+    assert overrun.concurrency_needed >= 6  # 4 x 0.2 s in half of 0.3 s
+    said = [r.getMessage() for r in caplog.records if "watcher.round_overrun" in r.getMessage()]
+    assert len(said) == 2
+    assert "TCPCAL_RECONCILE_INTERVAL_S to at least" in said[-1]
+    assert str(overrun.interval_needed_s) in said[-1]
+    metrics = api.get("/metrics").text
+    assert "tcpcal_watcher_rounds_overrun_total" in metrics
+    needed = [
+        line for line in metrics.splitlines() if line.startswith("tcpcal_watcher_interval_needed")
+    ]
+    assert needed
+    assert float(needed[0].split()[-1]) == overrun.interval_needed_s
 
 
 def test_the_watcher_stops_within_a_second_while_a_controller_stalls(api: Api) -> None:
