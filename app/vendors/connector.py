@@ -110,6 +110,12 @@ class ControllerUnreachable(ControllerError):
     """The controller could not be reached or stopped answering: refused, reset, timed out."""
 
 
+class ControllerSilent(ControllerUnreachable):
+    """Something accepted the TCP connection and sent nothing back in the time allowed: it
+    listens at the port, but perhaps does not speak the protocol tried (another maker's
+    controller, another service's port) or is hung."""
+
+
 class ControllerRefused(ControllerError):
     """The controller answered and said no; `controller_message` is its own words, `remedy`
     what a person can do about it when the connector knows."""
@@ -209,11 +215,15 @@ class Deadline:
     def __init__(self, timeout_s: float) -> None:
         self.timeout_s = timeout_s
         self._end = time.monotonic() + timeout_s
+        #: Whether the controller has sent anything under this budget (app.vendors.sockets
+        #: sets it): a stall before it is `ControllerSilent`, after it one that stopped.
+        self.answered = False
 
     def extended(self, seconds: float) -> Deadline:
         """A deadline `seconds` after this one (what ending the session may use)."""
         later = Deadline(self.timeout_s + seconds)
         later._end = self._end + seconds
+        later.answered = self.answered
         return later
 
     def left(self) -> float:

@@ -3,9 +3,9 @@
 Each maker is one package under app/vendors/ declaring its `Maker` (app.vendors.maker): its
 format and text, its file, its tool numbers, the protocols its connectors speak. This module
 lists them and answers by format (`export_tool`, `parse_controller_text`, `controller_file`,
-`parse_controller_file`), by robot vendor (`vendor_formats`) and by protocol (`connect`,
-`has_connector`, `target_problem`, `describe_target`, `where`, `DEFAULT_PORTS`,
-`SERVICE_PORTS`, `SLOT_RANGES`, `TARGET_FIELD`).
+`parse_controller_file`), by robot vendor (`vendor_formats`, `vendor_protocols`) and by
+protocol (`connect`, `has_connector`, `target_problem`, `describe_target`, `where`,
+`DEFAULT_PORTS`, `SERVICE_PORTS`, `SLOT_RANGES`, `TARGET_FIELD`).
 
 | protocol | connector | vendor document followed |
 |---|---|---|
@@ -226,3 +226,12 @@ def vendor_formats(vendor: str | None) -> tuple[str, ...]:
         if words & set(maker.vendor_initials):
             return (maker.format,)
     return CONTROLLER_FORMATS
+
+
+def vendor_protocols(vendor: str | None) -> tuple[str, ...]:
+    """The protocols a robot of `vendor`'s controller speaks (its maker's, as
+    `vendor_formats` finds the maker; every protocol when the vendor is not known)."""
+    formats = vendor_formats(vendor)
+    if formats == CONTROLLER_FORMATS:
+        return tuple(WIRE_PROTOCOLS)
+    return tuple(wire.name for wire in BY_FORMAT[formats[0]].protocols)

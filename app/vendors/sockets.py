@@ -3,7 +3,9 @@
 Every wait (connect, send, receive) gets what is left of the operation's `Deadline`, so a
 controller that accepts the connection and never answers fails the operation in
 ``timeout_s``, however many reads it would have taken. OS errors become
-`ControllerUnreachable` naming the host, port and reason.
+`ControllerUnreachable` naming the host, port and reason; a stall before the controller sent
+a byte under the deadline (`Deadline.answered`) is `ControllerSilent`: something accepted the
+connection, perhaps not speaking the protocol tried.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from __future__ import annotations
 import contextlib
 import socket
 
-from app.vendors.connector import ControllerUnreachable, Deadline
+from app.vendors.connector import ControllerSilent, ControllerUnreachable, Deadline
 
 
 def open_connection(host: str, port: int, deadline: Deadline) -> socket.socket:
@@ -50,6 +52,7 @@ def recv_some(sock: socket.socket, deadline: Deadline, *, peer: str) -> bytes:
         raise ControllerUnreachable(f"{peer}: the connection failed: {_reason(err)}") from err
     if not chunk:
         raise ControllerUnreachable(f"{peer} closed the connection")
+    deadline.answered = True
     return chunk
 
 
@@ -92,7 +95,12 @@ def close_quietly(sock: socket.socket | None) -> None:
 
 
 def _stalled(peer: str, deadline: Deadline) -> ControllerUnreachable:
-    return ControllerUnreachable(f"{peer} did not answer within {deadline.timeout_s:g} s")
+    """A stall of a controller that answered under this deadline, or of one that never did."""
+    if deadline.answered:
+        return ControllerUnreachable(f"{peer} did not answer within {deadline.timeout_s:g} s")
+    return ControllerSilent(
+        f"{peer} accepted the TCP connection and sent nothing within {deadline.timeout_s:g} s"
+    )
 
 
 def _reason(err: OSError) -> str:

@@ -262,3 +262,36 @@ def test_a_protocol_whose_tool_numbers_exclude_a_tools_slot_is_422(api: Api) -> 
     assert r.json()["errors"][0]["loc"] == ["body", "protocol"]
     assert "spindle" in r.json()["detail"]
     assert _stored(robot["id"]) is None
+
+
+@pytest.mark.parametrize(
+    ("vendor", "protocol", "fitting"),
+    [
+        ("KUKA", "techman", "kuka_kvp"),
+        ("ABB", "kuka_kvp", "abb_rws1, abb_rws2"),
+        ("Universal Robots", "fanuc_rmi", "ur_rtde"),
+        ("TM5", "ur_rtde", "techman"),
+    ],
+)
+def test_a_protocol_of_another_maker_than_the_robots_vendor_is_refused(
+    api: Api, vendor: str, protocol: str, fitting: str
+) -> None:
+    """Issue 51 #8: a KUKA robot connected with protocol techman was stored, and every
+    capture then talked Techman to a KUKA controller (or timed out at its port)."""
+    robot = api.robot("r-vendor", vendor=vendor)
+    r = _put(api, robot["id"], protocol=protocol, host="10.0.0.7")
+    assert r.status_code == 422, r.text
+    problem = r.json()
+    assert problem["errors"][0]["loc"] == ["body", "protocol"]
+    assert f"robot r-vendor's vendor is {vendor!r}" in problem["detail"], problem["detail"]
+    assert f"its controllers speak {fitting}" in problem["detail"], problem["detail"]
+    assert protocol in problem["detail"]
+    assert _stored(robot["id"]) is None
+    first = fitting.split(", ")[0]
+    assert _put(api, robot["id"], protocol=first, host="10.0.0.7").status_code == 200
+
+
+def test_a_robot_of_no_known_vendor_takes_any_protocol(api: Api) -> None:
+    for vendor in (None, "Acme Robotics"):
+        robot = api.robot(f"r-{vendor}", **({} if vendor is None else {"vendor": vendor}))
+        assert _put(api, robot["id"], protocol="techman", host="10.0.0.7").status_code == 200

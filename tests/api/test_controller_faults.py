@@ -4,7 +4,11 @@ GET of a controller that is not set is 404 /no-controller."""
 
 from __future__ import annotations
 
+import socket
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from functools import partial
 from typing import Any
 
@@ -17,6 +21,7 @@ from app.vendors.connector import (
     ControllerSettings,
     ControllerUnreachable,
 )
+from app.vendors.registry import SERVICE_PORTS
 from tests.api.controller_rigs import Rig, rig
 from tests.api.controller_rigs import secret_key as secret_key  # autouse: ABB passwords
 from tests.conftest import Api
@@ -266,3 +271,70 @@ def test_a_connectors_failure_is_worded_as_a_capture_and_a_deployment_say_it() -
         "garbage; LEFT"
     )
     assert garbled.kind == "controller-unreachable"
+
+
+@contextmanager
+def _silent_listener() -> Iterator[int]:
+    """A port that accepts every TCP connection and never sends a byte (another maker's
+    controller, or another service's port, met with the wrong protocol): its port."""
+    server = socket.create_server(("127.0.0.1", 0))
+    held: list[socket.socket] = []
+    stop = threading.Event()
+
+    def accept() -> None:
+        server.settimeout(0.05)
+        while not stop.is_set():
+            with suppress(TimeoutError):
+                held.append(server.accept()[0])
+
+    thread = threading.Thread(target=accept, daemon=True)
+    thread.start()
+    try:
+        yield server.getsockname()[1]
+    finally:
+        stop.set()
+        thread.join()
+        for conn in held:
+            conn.close()
+        server.close()
+
+
+@pytest.mark.parametrize("protocol", ["kuka_kvp", "fanuc_rmi", "abb_rws1", "ur_rtde", "techman"])
+def test_a_port_that_accepts_and_never_answers_is_named_as_such(api: Api, protocol: str) -> None:
+    """Issue 51 #8: a controller that accepted the connection and never answered said
+    'could not be reached within 3 s', sending a person to check the cable and the address
+    when something did answer the port: the protocol or the port is what to check."""
+    robot = api.robot()
+    with _silent_listener() as port:
+        body: dict[str, Any] = {"protocol": protocol, "host": "127.0.0.1", "timeout_s": 0.5}
+        services = SERVICE_PORTS.get(protocol)
+        if services:
+            body["ports"] = dict.fromkeys(services, port)
+        else:
+            body["port"] = port
+        put = api.request("PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=body)
+        assert put.status_code == 200, put.text
+        read = api.get(f"/v1/robots/{robot['id']}/controller/pose", scope="calibrate")
+    assert read.status_code == 502, read.text
+    detail = read.json()["detail"]
+    assert "could not be reached" not in detail, detail
+    assert f"127.0.0.1:{port} accepted the TCP connection and sent nothing within 0.5 s" in detail
+    assert "Something answered the port (the TCP connection was accepted)" in detail
+    assert f"check that the robot's controller speaks {protocol} and that the port is its" in (
+        detail
+    )
+    assert detail.endswith("nothing was kept"), detail
+
+
+def test_a_port_that_refuses_the_connection_is_still_not_reached(api: Api) -> None:
+    """The other side of it: nothing listening is 'could not be reached', no protocol hint."""
+    robot = api.robot()
+    with socket.create_server(("127.0.0.1", 0)) as closed:
+        port = closed.getsockname()[1]
+    body = {"protocol": "kuka_kvp", "host": "127.0.0.1", "port": port, "timeout_s": 0.5}
+    api.request("PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=body)
+    read = api.get(f"/v1/robots/{robot['id']}/controller/pose", scope="calibrate")
+    assert read.status_code == 502, read.text
+    detail = read.json()["detail"]
+    assert f"could not be reached within 0.5 s: cannot connect to 127.0.0.1:{port}" in detail
+    assert "accepted" not in detail

@@ -19,6 +19,7 @@ from app.vendors.connector import (
     ControllerError,
     ControllerRefused,
     ControllerSettings,
+    ControllerSilent,
     ControllerUnreachable,
 )
 from app.vendors.registry import where as controller_address
@@ -50,6 +51,16 @@ def controller_problem(
     if isinstance(exc, ControllerRefused):
         told["controller_message"] = exc.controller_message
         return ControllerRefusedError(f"{_refused(exc, robot_id, refusal)}; {left}", members=told)
+    if isinstance(exc, ControllerSilent) and not sent:
+        return ControllerUnreachableError(
+            f"the controller at {where} did not answer: {exc}. Something answered the port "
+            "(the TCP connection was accepted) and sent nothing back: check that the robot's "
+            f"controller speaks {settings.protocol} and that the port is its "
+            f"{settings.protocol} port (another maker's controller, or another of its "
+            f"services, accepts and stays silent so; PUT /v1/robots/{robot_id}/controller "
+            f"sets them); {left}",
+            members=told,
+        )
     if isinstance(exc, ControllerUnreachable):
         happened = (
             "stopped answering after the write was sent"

@@ -21,7 +21,7 @@ from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.robots import live_tool
 from app.services.robots.robots import get_robot
-from app.storage.models import RobotController, Tool, ToolControllerState, utcnow
+from app.storage.models import Robot, RobotController, Tool, ToolControllerState, utcnow
 from app.vendors.connector import (
     ControllerCredentialsRefused,
     ControllerRefused,
@@ -33,6 +33,7 @@ from app.vendors.registry import (
     SLOT_RANGES,
     has_connector,
     scope_of,
+    vendor_protocols,
 )
 from app.words import ProtocolName
 
@@ -131,8 +132,9 @@ def put_controller(
 ) -> RobotController:
     """Set how to reach the robot's controller. A password left out keeps the stored one;
     null removes it. Its live tools must be addressable under the protocol (422 otherwise)."""
-    get_robot(session, robot_id, for_update=True)
+    robot = get_robot(session, robot_id, for_update=True)
     check_host(data.host)
+    _protocol_of_vendor(robot, data.protocol)
     port, ports = ports_in_use(data)
     _tools_addressable(session, robot_id, data.protocol)
     controller = session.get(RobotController, robot_id)
@@ -168,6 +170,24 @@ def put_controller(
         },
     )
     return controller
+
+
+def _protocol_of_vendor(robot: Robot, protocol: ProtocolName) -> None:
+    """422 naming body.protocol when the robot's vendor is a maker whose controllers do not
+    speak `protocol` (a KUKA connected with techman): every capture would then talk another
+    maker's protocol to it. A vendor no maker is known by takes any protocol."""
+    fitting = vendor_protocols(robot.vendor)
+    if protocol in fitting:
+        return
+    raise InvalidInput(
+        "validation",
+        f"protocol {protocol} is not its robot's: robot {robot.name}'s vendor is "
+        f"{robot.vendor!r}, and its controllers speak {', '.join(fitting)}: give one of those, "
+        f"or correct the robot's vendor first (PATCH /v1/robots/{robot.id}) if it is wrong; "
+        "nothing was stored",
+        loc=("body", "protocol"),
+        context={"vendor": robot.vendor, "protocols": list(fitting)},
+    )
 
 
 def _encrypted(data: ControllerIn) -> str | None:

@@ -69,6 +69,7 @@ from app.vendors.connector import (
     ControllerProtocolError,
     ControllerRefused,
     ControllerSettings,
+    ControllerSilent,
     ControllerUnreachable,
     Deadline,
     Frame,
@@ -387,6 +388,15 @@ class AbbRwsConnector(ClosingSession):
                 headers=headers,
                 timeout=httpx.Timeout(deadline.remaining()),
             )
+        except (httpx.ReadTimeout, httpx.WriteTimeout) as err:
+            if self._logged_in or deadline.answered:  # it answered: it stopped answering
+                raise ControllerUnreachable(
+                    f"{self._peer} did not answer within {deadline.timeout_s:g} s ({what})"
+                ) from err
+            raise ControllerSilent(
+                f"{self._peer} accepted the TCP connection and sent nothing within "
+                f"{deadline.timeout_s:g} s ({what})"
+            ) from err
         except httpx.TimeoutException as err:
             raise ControllerUnreachable(
                 f"{self._peer} did not answer within {deadline.timeout_s:g} s ({what})"
@@ -397,7 +407,7 @@ class AbbRwsConnector(ClosingSession):
             raise ControllerUnreachable(
                 f"{self._peer}: the connection failed ({what}): {err}"
             ) from err
-        self._logged_in = True
+        self._logged_in = deadline.answered = True
         if response.status_code >= 400:
             raise self._refusal(response, what)
         return response

@@ -18,6 +18,7 @@ from scipy.spatial.transform import Rotation
 from app.vendors.connector import (
     ControllerProtocolError,
     ControllerRefused,
+    ControllerSilent,
     ControllerUnreachable,
     Deadline,
     Frame,
@@ -203,7 +204,7 @@ def test_a_controller_that_never_answers_fails_within_the_timeout(
     fanuc_sim.stalled = True
     settings = fanuc_settings(fanuc_sim, timeout_s=0.5)
     started = time.monotonic()
-    with pytest.raises(ControllerUnreachable, match="did not answer"):
+    with pytest.raises(ControllerSilent, match="accepted the TCP connection and sent nothing"):
         connect(settings)
     elapsed = time.monotonic() - started
     assert settings.timeout_s * 0.9 <= elapsed < settings.timeout_s + 1.0, elapsed
