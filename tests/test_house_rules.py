@@ -143,3 +143,76 @@ def test_every_list_route_builds_its_page_with_the_shared_wrapper() -> None:
             ):
                 by_hand.append(f"{path.name}:{node.lineno}")
     assert by_hand == []
+
+
+def _called_names(tree: ast.AST) -> list[tuple[int, str]]:
+    """(line, name) of every call of a bare or dotted name."""
+    calls = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            func = node.func
+            name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+            calls.append((node.lineno, name))
+    return calls
+
+
+def _imported_names(tree: ast.AST) -> set[str]:
+    return {
+        alias.name
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ImportFrom | ast.Import)
+        for alias in node.names
+    } | {
+        node.module
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ImportFrom) and node.module is not None
+    }
+
+
+def test_every_router_reaches_its_use_case_through_one_runner() -> None:
+    """One way into a transaction (issue 46): a route takes the request's session
+    (SessionDep) or, when its use case blocks on a controller, hands the use case to
+    app.api.deps.run_blocking, the one call of the thread pool; it never opens a transaction,
+    limits one to the caller's cells, or reaches the thread pool by itself, and never wraps
+    its use case in a lambda (whose arguments mypy cannot check against the use case's)."""
+    own = {"session_scope", "act_for", "transaction_for", "run_in_threadpool", "run_sync"}
+    strays = []
+    blocking = 0
+    for path in sorted((APP / "api").glob("*.py")):
+        if path.name == "deps.py":
+            continue
+        tree = ast.parse(path.read_text())
+        where = path.relative_to(APP.parent)
+        strays += [f"{where}: imports {name}" for name in sorted(_imported_names(tree) & own)]
+        strays += [
+            f"{where}: imports {name}"
+            for name in sorted(_imported_names(tree))
+            if name in {"starlette.concurrency", "anyio.to_thread"}
+        ]
+        strays += [
+            f"{where}:{line} calls {name}" for line, name in _called_names(tree) if name in own
+        ]
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "run_blocking":
+                blocking += 1
+                if any(isinstance(arg, ast.Lambda) for arg in node.args):
+                    strays.append(f"{where}:{node.lineno} hands run_blocking a lambda")
+    assert not strays, "\n".join(strays)
+    assert blocking >= 5  # the capture, reconcile, deployment, touch and check routes
+
+
+def test_a_use_case_acts_for_its_caller_through_one_transaction() -> None:
+    """Every transaction a use case opens for a caller is app.security.auth.transaction_for
+    (the session, limited to the caller's cells), and a request's session is limited by
+    `authenticate`: act_for is called nowhere else, so no transaction is opened for a caller
+    and left to find every cell's robots."""
+    calls = [
+        f"{path.relative_to(APP.parent)}:{line}"
+        for path in _sources()
+        if path != APP / "security" / "auth.py"
+        for line, name in _called_names(ast.parse(path.read_text()))
+        if name == "act_for"
+    ]
+    assert calls == []
+    auth = ast.parse((APP / "security" / "auth.py").read_text())
+    assert sorted(name for _, name in _called_names(auth) if name == "act_for") == ["act_for"] * 2

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, Response
-from starlette.concurrency import run_in_threadpool
 
-from app.api.deps import HeldCalibrateKey
+from app.api.deps import HeldCalibrateKey, run_blocking
 from app.api.params import IdempotencyKey, PathId
 from app.api.shared import CONTROLLER_FAILURES
 from app.schemas.references import CheckCreate, CheckResult
@@ -45,10 +44,8 @@ async def check_tool(
     `verdict` what came of it (a failed deployment leaves the new version active and the
     controller flagged: `deployment_failed`). Beyond max_correction_mm nothing changes
     (`recalibrate`). Retry-safe with `Idempotency-Key`."""
-    done = await run_in_threadpool(
-        lambda: recheck.recheck(
-            tool_id=tool_id, data=body, actor=key, idempotency_key=idempotency_key
-        )
+    done = await run_blocking(
+        recheck.recheck, tool_id=tool_id, data=body, actor=key, idempotency_key=idempotency_key
     )
     if body.capture:
         response.status_code = 201

@@ -5,9 +5,8 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
-from starlette.concurrency import run_in_threadpool
 
-from app.api.deps import AdminKey, HeldCalibrateKey, HeldReadKey, ReadKey, SessionDep
+from app.api.deps import AdminKey, HeldCalibrateKey, HeldReadKey, ReadKey, SessionDep, run_blocking
 from app.api.params import PathId
 from app.api.shared import CONTROLLER_FAILURES
 from app.errors import NoControllerSet
@@ -67,9 +66,7 @@ async def read_controller_pose(
     `/controller-refused` (the controller's words, e.g. a KUKA in `$IPO_MODE #TCP`). With
     the joints, the tool the robot moves by (`live_tool`) and every value read as the
     controller printed it. Calibrate scope (it is how a touch is captured)."""
-    return await run_in_threadpool(
-        lambda: capture.controller_pose(robot_id=robot_id, fmt=fmt, actor=key)
-    )
+    return await run_blocking(capture.controller_pose, robot_id=robot_id, fmt=fmt, actor=key)
 
 
 @router.post("/v1/robots/{robot_id}/reconcile", response_model=Reconciliation)
@@ -78,6 +75,6 @@ async def reconcile_robot(robot_id: PathId, key: HeldReadKey) -> Reconciliation:
     tool's active version: `in_sync` within 0.01 mm and 0.01 deg, else `drifted`;
     `unreachable` when it cannot be read. The robot's state is the worst of its tools'.
     Each change of a tool's state is an audit event. Read scope."""
-    reconciled = await run_in_threadpool(reconcile.reconcile_robot, robot_id=robot_id, actor=key)
+    reconciled = await run_blocking(reconcile.reconcile_robot, robot_id=robot_id, actor=key)
     assert reconciled is not None  # None only when cancelled, which a request never is
     return reconciled

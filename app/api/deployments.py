@@ -5,9 +5,8 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Body, Request, Response
-from starlette.concurrency import run_in_threadpool
 
-from app.api.deps import HeldCalibrateKey, ReadKey, SessionDep
+from app.api.deps import HeldCalibrateKey, ReadKey, SessionDep, run_blocking
 from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
 from app.api.shared import page, raw_json_body
 from app.schemas.common import Page
@@ -51,14 +50,13 @@ async def deploy_tool(
     `{"reason": "..."}`. Calibrate scope; retry-safe with `Idempotency-Key`."""
     raw_body = {} if body is None else await raw_json_body(request)  # no body: as {}
     reason = None if body is None else body.reason
-    document, replayed = await run_in_threadpool(
-        lambda: deployments.deploy(
-            tool_id=tool_id,
-            actor=key,
-            idempotency_key=idempotency_key,
-            raw_body=raw_body,
-            reason=reason,
-        )
+    document, replayed = await run_blocking(
+        deployments.deploy,
+        tool_id=tool_id,
+        actor=key,
+        idempotency_key=idempotency_key,
+        raw_body=raw_body,
+        reason=reason,
     )
     if replayed:
         response.headers["Idempotent-Replayed"] = "true"

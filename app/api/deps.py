@@ -7,11 +7,12 @@ statement, names it through `label_request` as well.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from typing import Annotated
+from collections.abc import Callable, Iterator
+from typing import Annotated, ParamSpec, TypeVar
 
 from fastapi import Depends, Request
 from sqlalchemy.orm import Session
+from starlette.concurrency import run_in_threadpool
 
 from app.logs import KEY_NAME
 from app.scopes import Scope
@@ -19,6 +20,9 @@ from app.security.auth import Principal, authenticate, authenticate_held
 from app.storage.db import loop_engine, session_scope
 
 READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+
+P = ParamSpec("P")
+T = TypeVar("T")
 
 
 def get_session(request: Request) -> Iterator[Session]:
@@ -32,6 +36,16 @@ def get_session(request: Request) -> Iterator[Session]:
 
 
 SessionDep = Annotated[Session, Depends(get_session, scope="function")]
+
+
+async def run_blocking(service: Callable[P, T], /, *args: P.args, **kwargs: P.kwargs) -> T:
+    """The one way a route reaches a use case that blocks on a controller (a capture, a
+    deployment, a reconcile, a re-check): run in the thread pool, so the event loop keeps
+    serving, the use case opening each of its transactions for the caller
+    (app.security.auth.transaction_for) and holding none while it waits on the controller.
+    Every other route's use case takes the request's session (SessionDep), committed when
+    the route returns and limited to the caller's cells as it is authenticated."""
+    return await run_in_threadpool(service, *args, **kwargs)
 
 
 def label_request(request: Request, principal: Principal) -> Principal:

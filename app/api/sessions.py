@@ -5,9 +5,8 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Path, Response
-from starlette.concurrency import run_in_threadpool
 
-from app.api.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep
+from app.api.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep, run_blocking
 from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
 from app.api.shared import CONTROLLER_FAILURES, page
 from app.methods.guided import SessionCreate
@@ -71,8 +70,8 @@ async def add_touch(session_id: PathId, body: TouchAdd, key: HeldCalibrateKey) -
     session's format and added as a typed pose is. A touch that cannot be read, or that
     makes the set read as a unit or convention mix-up, is refused (422) and the session
     stays as it was; 409 once finished. `touches` says where each came from."""
-    return await run_in_threadpool(
-        lambda: sessions.add_touch_request(session_id=session_id, data=body, actor=key)
+    return await run_blocking(
+        sessions.add_touch_request, session_id=session_id, data=body, actor=key
     )
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import hashlib
 import hmac
 import secrets
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import datetime
 from typing import NamedTuple, Protocol
@@ -16,7 +18,7 @@ from sqlalchemy.orm import Session
 from app.errors import Forbidden, Unauthorized
 from app.jsontypes import JsonArray
 from app.scopes import SCOPES, Scope
-from app.storage.db import HeldRead
+from app.storage.db import HeldRead, session_scope
 from app.storage.models import ApiKey
 
 KEY_PREFIX = "tcpcal_"
@@ -51,6 +53,21 @@ CELLS_INFO = "tcpcal.cells"
 def act_for(session: Session, principal: Principal) -> None:
     """Limit what `session` finds to the robots (and their tools) `principal` may see."""
     session.info[CELLS_INFO] = principal.cells
+
+
+@contextmanager
+def transaction_for(
+    actor: Principal, *, write: bool, engine: Engine | None = None
+) -> Iterator[Session]:
+    """A transaction acting for `actor`: committed on success, rolled back on any error
+    (app.storage.db.session_scope), and finding only the robots of the actor's cells and
+    their tools (act_for). The one way a use case opens a transaction for its caller when it
+    opens its own: one that blocks on a controller between two transactions, or runs in a
+    solver process. A route's own session (app.api.deps.SessionDep) is limited to the
+    caller's cells by `authenticate`."""
+    with session_scope(write=write, engine=engine) as session:
+        act_for(session, actor)
+        yield session
 
 
 def cells_of(session: Session) -> tuple[str, ...] | None:

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from app.methods.base import MethodRequest
 from app.schemas.results import SolveResult
-from app.security.auth import Principal, act_for
+from app.security.auth import Principal, transaction_for
 from app.services import solve_pool
 from app.services.calibrations import detached
-from app.storage.db import loop_engine, session_scope
+from app.storage.db import loop_engine
 
 
 async def solve_stateless(request: MethodRequest, *, actor: Principal) -> SolveResult:
@@ -18,7 +18,6 @@ async def solve_stateless(request: MethodRequest, *, actor: Principal) -> SolveR
     if detached.stateless_robot_id(request) is None:
         kinematics = detached.stateless_kinematics(None, request)
     else:
-        with session_scope(write=False, engine=loop_engine()) as session:
-            act_for(session, actor)
+        with transaction_for(actor, write=False, engine=loop_engine()) as session:
             kinematics = detached.stateless_kinematics(session, request)
     return await solve_pool.run(detached.solve_detached, request, kinematics)

@@ -19,10 +19,10 @@ from app.logs import REQUEST_ID
 from app.methods.base import MethodRequest
 from app.metrics import CALIBRATIONS
 from app.schemas.results import Calibration
-from app.security.auth import Principal, act_for
+from app.security.auth import Principal, transaction_for
 from app.services import solve_pool
 from app.services.calibrations import presolve, writes
-from app.storage.db import loop_engine, session_scope
+from app.storage.db import loop_engine
 
 
 class Submission(NamedTuple):
@@ -69,6 +69,5 @@ async def submit_calibration(
 def _replay(
     tool_id: str, raw_body: JsonObject, idempotency_key: str, actor: Principal
 ) -> Calibration | None:
-    with session_scope(write=False) as session:
-        act_for(session, actor)
+    with transaction_for(actor, write=False) as session:
         return writes.replayed(session, tool_id, raw_body, idempotency_key, actor)

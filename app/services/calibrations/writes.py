@@ -17,7 +17,7 @@ from app.schemas.results import (
     Calibration,
     CalibrationResult,
 )
-from app.security.auth import Principal, act_for
+from app.security.auth import Principal, transaction_for
 from app.services import idempotency
 from app.services.audit import writes as audit
 from app.services.calibrations.contexts import DbContext, SnapshotContext
@@ -29,7 +29,7 @@ from app.services.references.references import create_reference_point, ensure_re
 from app.services.robots.robots import get_robot
 from app.services.tools.tools import get_tool
 from app.services.tools.versions import LockedTool, activate, add_version, lock_tool, save_deferred
-from app.storage.db import DriverWrite, engine_for, session_scope
+from app.storage.db import DriverWrite, engine_for
 from app.storage.models import Calibration as CalibrationRow
 from app.storage.models import new_id, table_of, utcnow
 from app.words import MethodName, Status
@@ -87,8 +87,7 @@ def solve_and_submit(
     token = REQUEST_ID.set(request_id)
     try:
         outcome = solve_snapshot(request, ctx)
-        with session_scope(write=True, engine=engine_for(database_url)) as session:
-            act_for(session, actor)
+        with transaction_for(actor, write=True, engine=engine_for(database_url)) as session:
             doc, replayed = submit(
                 session,
                 tool_id=tool_id,

@@ -18,7 +18,7 @@ from app.jsontypes import JsonArray, JsonObject
 from app.methods.base import ActiveFrame
 from app.schemas.common import Pose, Units
 from app.schemas.references import CheckCreate, CheckResult, CheckTouch
-from app.security.auth import Principal, act_for
+from app.security.auth import Principal, transaction_for
 from app.services.audit import writes as audit
 from app.services.calibrations.verdict import check_summary
 from app.services.controllers import capture
@@ -35,7 +35,6 @@ from app.services.touches.diagnosis import (
 )
 from app.services.touches.tool_frames import frame_of, parse_poses_with
 from app.solvers.reference import TcpDeviation, check_tcp
-from app.storage.db import session_scope
 from app.storage.models import ReferencePoint, Tool, utcnow
 from app.words import CHECK_ACTION, PoseFormat
 
@@ -53,8 +52,7 @@ def capture_touch(tool_id: str, data: CheckCreate, actor: Principal) -> Captured
     """The one touch of a captured check: what is refused before the controller is read is
     refused first (no active version, no such point), then one still read with no
     transaction open."""
-    with session_scope(write=False) as session:
-        act_for(session, actor)  # only the robots the key's cells hold
+    with transaction_for(actor, write=False) as session:
         tool = get_tool(session, tool_id)
         active_version_row(session, tool)
         get_reference_point(session, robot_id=tool.robot_id, point_id=data.reference_point_id)

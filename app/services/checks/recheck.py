@@ -33,7 +33,7 @@ from app.errors import ControllerUnreachableError, InvalidInput
 from app.helpers.tolerance import effective_tolerance
 from app.methods.reference import XyzReferenceCalibration
 from app.schemas.references import CheckCreate, CheckResult, Correction
-from app.security.auth import Principal, act_for
+from app.security.auth import Principal, transaction_for
 from app.services import idempotency
 from app.services.calibrations import grading, writes
 from app.services.calibrations.contexts import DbContext
@@ -48,7 +48,6 @@ from app.services.robots.robots import get_robot
 from app.services.tools.activation import CHECK_CORRECTION
 from app.services.tools.tools import get_tool
 from app.services.tools.versions import activate, lock_tool
-from app.storage.db import session_scope
 
 
 @dataclass(frozen=True)
@@ -69,8 +68,7 @@ def recheck(
         f"check:{tool_id}", data.model_dump(mode="json", exclude_unset=True)
     )
     keyed = None if idempotency_key is None else (idempotency_key, fingerprint)
-    with session_scope(write=False) as session:
-        act_for(session, actor)
+    with transaction_for(actor, write=False) as session:
         first = _replay(session, actor, keyed, purge=False)
         if first is None and data.correct == "within_limits" and _deploys(data):
             _refuse_undeployable(session, tool_id)
@@ -78,8 +76,7 @@ def recheck(
         return Rechecked(_as_it_ends(first, data, actor, keyed), replayed=True)
     captured = checks.capture_touch(tool_id, data, actor) if data.capture else None
     typed = data if captured is None else checks.as_typed(data, captured)
-    with session_scope(write=True) as session:
-        act_for(session, actor)
+    with transaction_for(actor, write=True) as session:
         lock_tool(session, tool_id)  # a repeated key waits here for the first, then replays
         first = _replay(session, actor, keyed, purge=True)
         if first is None:
@@ -132,8 +129,7 @@ def _as_it_ends(
     deadline = time.monotonic() + DEPLOYMENT_WAIT_S
     while _deploying(first, data) and time.monotonic() < deadline:
         time.sleep(0.1)
-        with session_scope(write=False) as session:
-            act_for(session, actor)
+        with transaction_for(actor, write=False) as session:
             first = _replay(session, actor, keyed, purge=False) or first
     return first
 
@@ -301,8 +297,7 @@ def _deploy(
     if attempt.error is not None:
         result.verdict = "deployment_failed"
     tolerance = None
-    with session_scope(write=True) as session:
-        act_for(session, actor)
+    with transaction_for(actor, write=True) as session:
         tool = get_tool(session, result.tool_id)
         tolerance = effective_tolerance(tool.tolerance)
         if attempt.error is not None:

@@ -35,11 +35,10 @@ from app.kinematics.poses import pose_to_format, resolve_units
 from app.schemas.common import Pose, Units
 from app.schemas.controllers import ControllerPose
 from app.schemas.results import TouchSource
-from app.security.auth import Principal, act_for
+from app.security.auth import Principal, transaction_for
 from app.services.controllers.failures import controller_problem
 from app.services.robots.connection import get_controller, settings_of
 from app.services.robots.live_tool import live_tool_matches, live_tool_out
-from app.storage.db import session_scope
 from app.storage.models import utcnow
 from app.vendors.connector import (
     ControllerError,
@@ -140,8 +139,7 @@ def _still(first: Frame, second: Frame) -> None:
 def capture(*, robot_id: str, actor: Principal) -> Capture:
     """A still reading of the robot's pose (404 /no-controller without one): how to reach
     it read in a transaction of its own, then the controller's I/O with none open."""
-    with session_scope(write=False) as session:
-        act_for(session, actor)  # only the robots the key's cells hold
+    with transaction_for(actor, write=False) as session:
         settings = settings_for_robot(session, robot_id, missing=NoControllerSet)
     return read_still(settings, robot_id=robot_id)
 
@@ -172,8 +170,7 @@ def controller_pose(*, robot_id: str, fmt: PoseFormat, actor: Principal) -> Cont
     captured = capture(robot_id=robot_id, actor=actor)
     reading = captured.reading
     live = reading.live_tool
-    with session_scope(write=False) as session:
-        act_for(session, actor)  # only the robots the key's cells hold
+    with transaction_for(actor, write=False) as session:
         matches = live_tool_matches(session, robot_id, live.frame)
     return ControllerPose(
         pose=pose_in_format(captured, fmt, None, loc=("query", "format")),

@@ -33,7 +33,7 @@ from app.helpers.pagination import paginate_newest_first
 from app.jsontypes import JsonObject
 from app.metrics import DEPLOYMENTS
 from app.schemas.controllers import Deployment as DeploymentOut
-from app.security.auth import Principal, act_for
+from app.security.auth import Principal, transaction_for
 from app.services import idempotency
 from app.services.audit import writes as audit
 from app.services.controllers import states as controller_states
@@ -41,7 +41,6 @@ from app.services.controllers.failures import controller_problem
 from app.services.robots.connection import get_controller, settings_of
 from app.services.robots.live_tool import LiveRead, record_live
 from app.services.tools.tools import get_tool
-from app.storage.db import session_scope
 from app.storage.models import Deployment, Robot, TcpVersion, ToolControllerState, utcnow
 from app.vendors.connector import (
     Connector,
@@ -274,8 +273,7 @@ def deploy(
     or mismatched attempt is recorded and then raised as its 502 with `deployment_id`."""
     fingerprint = idempotency.request_fingerprint(f"deploy:{tool_id}", raw_body)
     if idempotency_key is not None:
-        with session_scope(write=False) as session:
-            act_for(session, actor)  # only the robots the key's cells hold
+        with transaction_for(actor, write=False) as session:
             replayed = idempotency.replay(
                 session, actor=actor, key=idempotency_key, fingerprint=fingerprint, purge=False
             )
@@ -318,12 +316,10 @@ def attempt(
     refusals before any I/O (no active version, controller or address) are raised.
     `keep`: called with the verified deployment's document in the transaction recording it
     (an Idempotency-Key's answer)."""
-    with session_scope(write=False) as session:
-        act_for(session, actor)  # only the robots the key's cells hold
+    with transaction_for(actor, write=False) as session:
         plan = plan_deployment(session, tool_id)
     outcome = write_and_read_back(plan)
-    with session_scope(write=True) as session:
-        act_for(session, actor)  # only the robots the key's cells hold
+    with transaction_for(actor, write=True) as session:
         row = _record(session, plan, outcome, actor, reason)
         document = deployment_document(row)
         if keep is not None and outcome.status == "verified":

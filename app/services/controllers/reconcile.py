@@ -27,7 +27,7 @@ from app.helpers.frame_deviation import (
 )
 from app.metrics import CONTROLLER_STATE_CHANGES, RECONCILES
 from app.schemas.controllers import Reconciliation
-from app.security.auth import Principal, act_for
+from app.security.auth import Principal, transaction_for
 from app.services.controllers import settling
 from app.services.controllers import states as controller_states
 from app.services.controllers.states import SEVERITY, Observation
@@ -229,8 +229,7 @@ def reconcile_robot(
 
 def _read_round(robot_id: str, actor: Principal) -> _Round:
     """What to judge (read transaction), then the controller's values (no database)."""
-    with session_scope(write=False) as session:
-        act_for(session, actor)  # only the robots the key's cells hold
+    with transaction_for(actor, write=False) as session:
         get_robot(session, robot_id)
         controller = get_controller(session, robot_id)
         settings = settings_of(controller)
@@ -253,8 +252,7 @@ def _store_round(read: _Round, actor: Principal, trigger: str, *, final: bool) -
     found: list[ToolState] = []
     answer_tools: list[dict[str, object]] = []
     skipped: list[dict[str, object]] = []
-    with session_scope(write=True) as session:
-        act_for(session, actor)  # only the robots the key's cells hold
+    with transaction_for(actor, write=True) as session:
         # first: it locks the robot's row before the tools' (the order every writer keeps),
         # and the round's tool states and live tool commit together
         live = read.live

@@ -45,7 +45,7 @@ from app.schemas.sessions import (
 )
 from app.schemas.sessions import Plan as PlanOut
 from app.schemas.sessions import Session as SessionOut
-from app.security.auth import Principal, act_for
+from app.security.auth import Principal, transaction_for
 from app.services import idempotency
 from app.services.audit import writes as audit
 from app.services.calibrations import grading, writes
@@ -59,7 +59,6 @@ from app.services.visible import in_scope, visible_tool
 from app.solvers.npoint import NOISE_CONTRADICTED
 from app.solvers.numbering import number
 from app.solvers.planning import Cone, next_touch, plan_touches, smallest_plan, tilt_lean_spin
-from app.storage.db import session_scope
 from app.storage.models import Calibration as CalibrationRow
 from app.storage.models import GuidedSession, Tool, utcnow
 from app.words import AuditAction, PoseFormat
@@ -270,12 +269,10 @@ def add_touch_request(*, session_id: str, data: TouchAdd, actor: Principal) -> S
     captured = None
     pose = data.pose
     if data.format is not None:
-        with session_scope(write=False) as session:
-            act_for(session, actor)
+        with transaction_for(actor, write=False) as session:
             _same_format(_open(session, session_id, for_update=False), data.format)
     if data.capture:
-        with session_scope(write=False) as session:
-            act_for(session, actor)  # only the robots the key's cells hold
+        with transaction_for(actor, write=False) as session:
             row = _open(session, session_id, for_update=False)  # refused before any I/O
             tool = session.get(Tool, row.tool_id)
             assert tool is not None
@@ -284,8 +281,7 @@ def add_touch_request(*, session_id: str, data: TouchAdd, actor: Principal) -> S
         captured = capture.read_still(settings, robot_id=tool.robot_id)
         pose = capture.pose_in_format(captured, fmt, units, loc=("body", "capture"))
     assert pose is not None  # TouchAdd holds a pose or capture
-    with session_scope(write=True) as session:
-        act_for(session, actor)
+    with transaction_for(actor, write=True) as session:
         return add_touch(session, session_id=session_id, pose=pose, actor=actor, captured=captured)
 
 
