@@ -8,7 +8,7 @@ from pydantic import BaseModel, BeforeValidator, Field, JsonValue, SecretStr
 
 from app.schemas.common import Reason, ShortText, StoredWord, StrictModel, Timestamp, json_integer
 from app.vendors.abb.symbol import SYMBOL_PATTERN
-from app.vendors.registry import DEFAULT_PORTS, SERVICE_PORTS, WIRE_PROTOCOLS
+from app.vendors.registry import DEFAULT_PORTS, PENDANT_FORMATS, SERVICE_PORTS, WIRE_PROTOCOLS
 from app.words import (
     DeploymentScope,
     DeploymentStatus,
@@ -138,6 +138,13 @@ class Controller(BaseModel):
         "(UR, Techman: only for the running program; the next program start sets its own TCP)",
     )
     has_password: bool = Field(description="whether a password is stored (never served)")
+    pose_format: StoredWord[PoseFormat] | None = Field(
+        description="the pose format the controller's pendant shows a flange pose in, its "
+        "maker's ("
+        + "; ".join(f"{protocol}: {fmt}" for protocol, fmt in PENDANT_FORMATS.items())
+        + "): what a session captured from it is typed in unless told otherwise; null for a "
+        "protocol this tcpcal does not know",
+    )
     timeout_s: float = Field(description="deadline of each connect and read, s")
     tls_verify: bool = Field(description="abb_rws2: whether the certificate is checked")
     created_at: Timestamp

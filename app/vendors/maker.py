@@ -19,7 +19,7 @@ from app.vendors.connector import Connector, ControllerSettings, ToolTarget
 from app.vendors.files import ControllerFile, FileContext, FileTool, ParsedTool
 from app.vendors.text import ControllerExport
 from app.vendors.tool import ToolData
-from app.words import DeploymentScope
+from app.words import DeploymentScope, PoseFormat
 
 
 class TextModule(Protocol):
@@ -178,6 +178,8 @@ class Maker:
     """One controller maker, as its package declares it (``MAKER``).
 
     - `format`: its controller format (``?format=``), a word of app.words.ControllerFormat;
+    - `pose_format`: the pose format its pendant shows a flange pose in ("kuka_abc"): what a
+      touch captured from its controllers is typed in unless the person says otherwise;
     - `name`: how a sentence names it ("KUKA");
     - `vendor_words`: what a robot's vendor contains when it is this maker's ("motoman"), and
       `vendor_initials`: whole words that name it alone ("ur", "tm");
@@ -187,6 +189,7 @@ class Maker:
     """
 
     format: str
+    pose_format: PoseFormat
     name: str
     vendor_words: tuple[str, ...]
     file_kind: str

@@ -4,8 +4,8 @@ Each maker is one package under app/vendors/ declaring its `Maker` (app.vendors.
 format and text, its file, its tool numbers, the protocols its connectors speak. This module
 lists them and answers by format (`export_tool`, `parse_controller_text`, `controller_file`,
 `parse_controller_file`), by robot vendor (`vendor_formats`, `vendor_protocols`) and by
-protocol (`connect`, `has_connector`, `target_problem`, `describe_target`, `where`,
-`DEFAULT_PORTS`, `SERVICE_PORTS`, `SLOT_RANGES`, `TARGET_FIELD`).
+protocol (`connect`, `has_connector`, `pose_format_of`, `target_problem`, `describe_target`,
+`where`, `DEFAULT_PORTS`, `SERVICE_PORTS`, `SLOT_RANGES`, `TARGET_FIELD`).
 
 | protocol | connector | vendor document followed |
 |---|---|---|
@@ -45,7 +45,7 @@ from app.vendors.files import ControllerFile, FileContext, FileTool, ParsedTool
 from app.vendors.maker import BySlot, Maker, WireProtocol
 from app.vendors.text import ControllerExport
 from app.vendors.tool import ToolData
-from app.words import CONTROLLER_FORMATS, PROTOCOLS, DeploymentScope
+from app.words import CONTROLLER_FORMATS, PROTOCOLS, DeploymentScope, PoseFormat
 
 #: Every maker, in the order the API lists their formats.
 MAKERS: tuple[Maker, ...] = (
@@ -100,11 +100,22 @@ TOOL_NUMBERS: dict[str, tuple[int, int]] = {
 }
 #: What each format's file is, in a few words (the console's download buttons, the README).
 FILE_KINDS: dict[str, str] = {m.format: m.file_kind for m in MAKERS}
+#: The pose format the pendant of each protocol's controllers shows a flange pose in (its
+#: maker's): a session captured from the controller types in it unless told otherwise.
+PENDANT_FORMATS: dict[str, PoseFormat] = {
+    w.name: m.pose_format for m in MAKERS for w in m.protocols
+}
 
 
 def scope_of(protocol: str) -> DeploymentScope:
     """Where a deployment under `protocol` holds; "stored" for a protocol not known here."""
     return DEPLOYMENT_SCOPES.get(protocol, "stored")
+
+
+def pose_format_of(protocol: str) -> PoseFormat | None:
+    """The pose format a `protocol` controller's pendant shows; None for a protocol not
+    known here."""
+    return PENDANT_FORMATS.get(protocol)
 
 
 def has_connector(protocol: str) -> bool:

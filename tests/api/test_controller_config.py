@@ -67,6 +67,24 @@ def test_put_fills_the_protocols_default_port_and_get_and_delete(api: Api) -> No
     assert actions.count("controller.delete") == 1
 
 
+def test_the_controller_says_which_pose_format_its_pendant_shows(api: Api) -> None:
+    """`pose_format` (issue 51): what `tcpcal calibrate --guided --capture` and the console
+    type a captured session in when no format is given, from the registry's makers, not a
+    copy of their table in each client."""
+    robot = api.robot()
+    pendants = {
+        "kuka_kvp": "kuka_abc",
+        "fanuc_rmi": "fanuc_wpr",
+        "abb_rws1": "xyz_wxyz",
+        "abb_rws2": "xyz_wxyz",
+    }
+    for protocol, fmt in pendants.items():
+        put = _put(api, robot["id"], protocol=protocol, host="10.0.0.7")
+        assert put.status_code == 200, put.text
+        assert put.json()["pose_format"] == fmt
+        assert api.get(f"/v1/robots/{robot['id']}/controller").json()["pose_format"] == fmt
+
+
 def _audit(robot_id: str) -> list[dict[str, Any]]:
     with get_engine().connect() as conn:
         rows = conn.execute(

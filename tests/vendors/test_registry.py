@@ -42,7 +42,7 @@ from app.vendors.registry import (
     vendor_formats,
 )
 from app.vendors.tool import ToolData, ToolLoad
-from app.words import CONTROLLER_FORMATS, PROTOCOLS, ControllerFormat, ProtocolName
+from app.words import CONTROLLER_FORMATS, PROTOCOLS, ControllerFormat, PoseFormat, ProtocolName
 
 ROOT = Path(__file__).resolve().parents[2]
 #: What a connector class offers (app.vendors.connector.Connector).
@@ -130,6 +130,8 @@ def missing(maker: Maker) -> list[str]:
     found = []
     if maker.format not in CONTROLLER_FORMATS:
         found.append(f"{maker.format}: not a word of ControllerFormat (app/words.py)")
+    if maker.pose_format not in get_args(PoseFormat) or maker.pose_format in ("joints", "matrix"):
+        found.append(f"{maker.format}: {maker.pose_format!r} is no pose format a pendant shows")
     if not (maker.name and maker.file_kind and maker.vendor_words):
         found.append(f"{maker.format}: no name, file kind or vendor word")
     if any(w != w.lower() for w in maker.vendor_words + maker.vendor_initials):
@@ -170,6 +172,7 @@ def test_the_stored_words_are_the_registrys() -> None:
     assert tuple(DEFAULT_PORTS) + tuple(SERVICE_PORTS) == PROTOCOLS
     assert set(SLOT_RANGES) == {p for p, field in TARGET_FIELD.items() if field == "slot"}
     assert {m.format: m.tool_numbers for m in MAKERS if m.tool_numbers} == TOOL_NUMBERS
+    assert set(registry.PENDANT_FORMATS) == set(PROTOCOLS)  # every controller's pendant format
 
 
 def test_the_independence_contract_names_every_maker() -> None:
@@ -253,6 +256,7 @@ def test_a_maker_lacking_a_part_is_told_what_it_lacks() -> None:
             kuka, file=lambda: cast(FileModule, no_read)
         ),
         "not a word of ControllerFormat": replace(kuka, format="not_a_format"),
+        "'joints' is no pose format a pendant shows": replace(kuka, pose_format="joints"),
         "not a word of ProtocolName": replace(
             kuka, protocols=(replace(wire, name="not_a_protocol"),)
         ),

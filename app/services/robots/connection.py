@@ -32,6 +32,7 @@ from app.vendors.registry import (
     SERVICE_PORTS,
     SLOT_RANGES,
     has_connector,
+    pose_format_of,
     scope_of,
     vendor_protocols,
 )
@@ -276,6 +277,7 @@ def controller_document(controller: RobotController) -> dict[str, object]:
         "username": controller.username,
         "scope": scope_of(controller.protocol),
         "has_password": controller.password_encrypted is not None,
+        "pose_format": pose_format_of(controller.protocol),
         "timeout_s": controller.timeout_s,
         "tls_verify": controller.tls_verify,
         "created_at": controller.created_at,

@@ -46,6 +46,7 @@ RWS2 = WireProtocol("abb_rws2", _BY_SYMBOL, _rws, default_port=443)
 
 MAKER = Maker(
     format="abb",
+    pose_format="xyz_wxyz",
     name="ABB",
     vendor_words=("abb",),
     file_kind="RAPID module",

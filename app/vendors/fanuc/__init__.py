@@ -41,6 +41,7 @@ RMI = WireProtocol("fanuc_rmi", BySlot(TOOL_NUMBERS, "UTOOL[{}]"), _rmi, default
 
 MAKER = Maker(
     format="fanuc",
+    pose_format="fanuc_wpr",
     name="Fanuc",
     vendor_words=("fanuc",),
     file_kind="TP program (.LS)",

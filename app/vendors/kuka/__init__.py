@@ -39,6 +39,7 @@ KVP = WireProtocol("kuka_kvp", BySlot(TOOL_NUMBERS, "$TOOL_DATA[{}]"), _kvp, def
 
 MAKER = Maker(
     format="kuka",
+    pose_format="kuka_abc",
     name="KUKA",
     vendor_words=("kuka",),
     file_kind="$config.dat lines",

@@ -47,6 +47,7 @@ TMFLOW = WireProtocol(
 
 MAKER = Maker(
     format="techman",
+    pose_format="techman_rxyz",
     name="Techman",
     vendor_words=("techman",),
     vendor_initials=("tm",),

@@ -46,6 +46,7 @@ RTDE = WireProtocol(
 
 MAKER = Maker(
     format="ur",
+    pose_format="ur_rotvec",
     name="Universal Robots",
     vendor_words=("universal",),
     vendor_initials=("ur",),

@@ -51,6 +51,7 @@ HSES = WireProtocol(
 
 MAKER = Maker(
     format="yaskawa",
+    pose_format="yaskawa_rxyz",
     name="Yaskawa",
     vendor_words=("yaskawa", "motoman"),
     file_kind="TOOL.CND",
