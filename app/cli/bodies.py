@@ -92,6 +92,11 @@ class NextTouch(TypedDict):
 
 class Session(TypedDict):
     id: str
+    tool_id: str
+    status: str
+    format: str
+    units: dict[str, str] | None
+    calibration_id: str | None
     estimate: Estimate | None
     n_poses: int
     poses: list[Pose]
@@ -234,5 +239,6 @@ class Controller(TypedDict):
     username: str | None
     scope: str
     has_password: bool
+    pose_format: str | None  # the pendant's, from the server's maker table
     timeout_s: float
     tls_verify: bool

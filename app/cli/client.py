@@ -235,7 +235,14 @@ def calibrate(
     poses_file: Annotated[
         Path | None, typer.Argument(help="CSV or JSON file of flange poses (not with --guided)")
     ] = None,
-    fmt: Annotated[str, typer.Option("--format", help="pose format, e.g. kuka_abc")] = "",
+    fmt: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            help="pose format, e.g. kuka_abc (--guided --session: the session's; --capture: "
+            "default the controller's pendant's)",
+        ),
+    ] = "",
     length: Annotated[str | None, typer.Option(help="mm | m (default: the format's)")] = None,
     angle: Annotated[str | None, typer.Option(help="deg | rad (default: the format's)")] = None,
     method: Annotated[str, typer.Option(help="calibration method")] = "xyz_npoint",
@@ -258,7 +265,7 @@ def calibrate(
     says which orientation to touch next and when the TCP is known well enough), typed or
     with --capture read from the robot's controller; prints the verdict sentence."""
     units = _units(length, angle)
-    if not fmt:
+    if not fmt and not guided:  # --guided: the session's, or the controller's with --capture
         fail(EXIT_BAD_USE, "give --format, the pendant's pose format (e.g. kuka_abc)")
     if capture and not guided:
         fail(EXIT_BAD_USE, "--capture reads touches one at a time: give --guided too")

@@ -9,6 +9,7 @@ captured touch is right only if the service composed $BASE * $POS_ACT * inverse(
 from __future__ import annotations
 
 import re
+import shlex
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -20,6 +21,7 @@ from typer.testing import CliRunner
 
 from app.cli import cli
 from app.cli import guided as client_guided
+from app.cli import http as client_http
 from testbed.sim.touches import simulate_touches
 from tests.api.capture_steps import POINT, TRUE_TCP
 from tests.api.capture_steps import krc as krc
@@ -201,3 +203,157 @@ def test_a_moving_robot_is_explained_and_the_same_touch_asked_for_again(
     sessions = api.get(f"/v1/tools/{tool['id']}/sessions").json()["items"]
     assert [(s["status"], s["n_poses"]) for s in sessions] == [("open", 0)]
     assert f"--guided --session {sessions[0]['id']}" in " ".join(left.output.split())
+
+
+# ---- issue 51: a session's format is the session's; the line printed on q works pasted ------
+def _left_open(output: str) -> list[str]:
+    """The command `q` printed, as a shell would split it when pasted: it must stand on one
+    line of the terminal (at 80 columns), and starts with `tcpcal`."""
+    found = re.findall(r"(?:^|> )left open: (tcpcal .*)$", output, re.MULTILINE)  # after q
+    assert len(found) == 1, output
+    words = shlex.split(found[0])
+    assert words[0] == "tcpcal"
+    return words[1:]
+
+
+def test_a_resumed_session_reads_poses_in_its_own_format_and_refuses_another(
+    api: Api, runner: CliRunner, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A techman_rxyz session resumed with --format kuka_abc once prompted "(kuka_abc)" and
+    stored `887.5 18.251 568.212 0 0 -155` as rx ry rz = 0 0 -155 (issue 51, defect 2): a
+    different format on resume is refused, naming both, and nothing is stored."""
+    monkeypatch.setattr(client_http.err, "width", 80)  # a terminal's: the q line must not wrap
+    tool = _tool(api, None)
+    opened = runner.invoke(
+        cli, ["calibrate", tool["id"], "--guided", "--format", "techman_rxyz"], input="q\n"
+    )
+    assert opened.exit_code == 0, opened.output
+    [session] = api.get(f"/v1/tools/{tool['id']}/sessions").json()["items"]
+    typed = "887.5 18.251 568.212 0 0 -155"
+
+    other = runner.invoke(
+        cli,
+        ["calibrate", tool["id"], "--guided", "--session", session["id"], "--format", "kuka_abc"],
+        input=f"{typed}\nq\n",
+    )
+    said = " ".join(other.output.split())
+    assert other.exit_code == 2, other.output
+    assert f"session {session['id']} reads its poses as techman_rxyz, not kuka_abc" in said
+    assert "leave out --format to go on in techman_rxyz" in said
+    assert api.get(f"/v1/sessions/{session['id']}").json()["n_poses"] == 0
+    resume = ["calibrate", tool["id"], "--guided", "--session", session["id"]]
+    metres = runner.invoke(cli, [*resume, "--length", "m"], input=f"{typed}\nq\n")
+    assert metres.exit_code == 2, metres.output
+    assert "reads its poses in mm and deg, not --length m" in " ".join(metres.output.split())
+    finer = runner.invoke(cli, [*resume, "--target", "0.001"], input=f"{typed}\nq\n")
+    assert finer.exit_code == 2, finer.output
+    assert "not --target 0.001: leave out --target" in " ".join(finer.output.split())
+    assert api.get(f"/v1/sessions/{session['id']}").json()["n_poses"] == 0
+
+    # The line q printed, pasted: the session's own format, no --format needed.
+    resumed = runner.invoke(cli, _left_open(opened.output), input=f"{typed}\nq\n")
+    assert resumed.exit_code == 0, resumed.output
+    assert "type each touch's pose (techman_rxyz)" in " ".join(resumed.output.split())
+    kept = api.get(f"/v1/sessions/{session['id']}").json()
+    assert kept["poses"] == [[887.5, 18.251, 568.212, 0.0, 0.0, -155.0]]
+    assert kept["format"] == "techman_rxyz"
+
+
+def test_a_session_of_another_tool_or_finished_is_refused_on_resume(
+    api: Api, runner: CliRunner
+) -> None:
+    """--session names one open session of the tool given: another tool's session is not
+    continued under this tool's name, and a finished one is said so before any touch."""
+    tool = _tool(api, None)
+    other = api.tool(tool["robot_id"], "gun", slot=4)
+    sid = api.post(
+        f"/v1/tools/{other['id']}/sessions",
+        {"method": "xyz_npoint", "format": "kuka_abc"},
+        scope="calibrate",
+    ).json()["id"]
+    resume = ["calibrate", tool["id"], "--guided", "--format", "kuka_abc", "--session"]
+    wrong = runner.invoke(cli, [*resume, sid], input="q\n")
+    assert wrong.exit_code == 2, wrong.output
+    assert f"session {sid} is tool {other['id']}'s, not {tool['id']}'s" in " ".join(
+        wrong.output.split()
+    )
+    touches = simulate_touches(4, seed=5, touch_noise_mm=0.0, tcp_mm=TRUE_TCP, pivot_mm=POINT)
+    mine = api.post(
+        f"/v1/tools/{tool['id']}/sessions",
+        {"method": "xyz_npoint", "format": "kuka_abc"},
+        scope="calibrate",
+    ).json()["id"]
+    for r, f in zip(touches.R, touches.f, strict=True):
+        pose = [float(v) for v in _kuka_abc(r, f).split()]
+        assert api.post(f"/v1/sessions/{mine}/poses", {"pose": pose}, scope="calibrate").is_success
+    assert api.post(f"/v1/sessions/{mine}/finish", {"activate": "never"}, scope="calibrate")
+    done = runner.invoke(cli, [*resume, mine], input="1 2 3 0 0 0\nq\n")
+    assert done.exit_code == 2, done.output
+    assert f"session {mine} is finished (calibration " in " ".join(done.output.split())
+    assert "start a new one: leave out --session" in " ".join(done.output.split())
+
+
+def test_q_prints_a_line_that_resumes_the_capture_session_and_capture_needs_no_format(
+    api: Api, runner: CliRunner, krc: Rig, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`--guided --capture` without --format takes the pendant's format from the robot's
+    controller (GET /v1/robots/{id}/controller `pose_format`: kuka_abc for kuka_kvp); the
+    line `q` prints keeps --capture and, pasted, continues the session by Enter (issue 51,
+    defect 3: it said "error: give --format", exit 2, and dropped --capture)."""
+    monkeypatch.setattr(client_http.err, "width", 80)
+    tool = _tool(api, krc)
+    first = runner.invoke(cli, ["calibrate", tool["id"], "--guided", "--capture"], input="\nq\n")
+    assert first.exit_code == 0, first.output
+    said = " ".join(first.output.split())
+    assert "or type a pose (kuka_abc) as the pendant shows it" in said
+    [session] = api.get(f"/v1/tools/{tool['id']}/sessions").json()["items"]
+    assert (session["format"], session["n_poses"]) == ("kuka_abc", 1)
+
+    again = _left_open(first.output)
+    assert "--capture" in again
+    resumed = runner.invoke(cli, again, input="\nq\n")
+    assert resumed.exit_code == 0, resumed.output
+    assert resumed.output.count("(Enter captures)> ") == 2, resumed.output
+    kept = api.get(f"/v1/sessions/{session['id']}").json()
+    assert [t["source"] for t in kept["touches"]] == ["controller", "controller"]
+
+
+def test_the_guided_prompts_hints_are_its_own_words_not_http_calls(
+    api: Api, runner: CliRunner
+) -> None:
+    """What the prompt says to do is what the prompt takes: `d 3` for a miss, not "DELETE
+    /v1/sessions/.../poses/2"; an empty session says it holds no touches (it said "touches 1
+    to 0, indices 0 to -1"); finishing too early says to touch more, not "POST .../poses";
+    a robot without a controller names `tcpcal connect` (issue 51, defect 9)."""
+    tool = _tool(api, None)
+    touches = simulate_touches(6, seed=3, touch_noise_mm=0.0, tcp_mm=TRUE_TCP, pivot_mm=POINT)
+    flanges = [f + ([0.0, 6.0, 0.0] if i == 2 else 0.0) for i, f in enumerate(touches.f)]
+    typed = [_kuka_abc(r, f) for r, f in zip(touches.R, flanges, strict=True)]
+    lines = ["d 1", "f", *typed, "d 3", "f"]
+    done = runner.invoke(
+        cli,
+        ["calibrate", tool["id"], "--guided", "--format", "kuka_abc", "--activate", "never"],
+        input="\n".join(lines) + "\n",
+    )
+    assert done.exit_code == 0, done.output
+    said = " ".join(done.output.split())
+    assert "no touch 1: the session holds no touches yet" in said
+    assert (
+        "not finished: the session holds 0 touches; at least 4 are needed to calibrate: add "
+        "touches before finishing; touch more, or 'q' leaves it open"
+    ) in said
+    assert re.search(
+        r"touch 3 is \d+\.\d\d mm off the others, more than the touch noise explains: touch the "
+        r"point again, then drop touch 3 with 'd 3'",
+        said,
+    ), said
+    assert "/v1/" not in said, said
+    assert "index" not in said, said
+    calibration = api.get(f"/v1/tools/{tool['id']}/calibrations").json()["items"][0]
+    assert calibration["quality"]["n_poses"] == 5
+
+    refused = runner.invoke(cli, ["calibrate", tool["id"], "--guided", "--capture"], input="q\n")
+    assert refused.exit_code == 4, refused.output
+    words = " ".join(refused.output.split())
+    assert f"an admin connects it (tcpcal connect {tool['robot_id']} --protocol" in words
+    assert "/v1/" not in words
