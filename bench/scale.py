@@ -444,7 +444,9 @@ def plans(db: Seeded) -> dict[str, list[dict[str, Any]]]:
             call()
         if name == "tcp":  # sent on the held connection, past the engine's events
             digest = hash_key(db.server.admin_key)
-            sent.append(hot_read.HOT_READ.statement(db.engine, digest=digest, tool_id=db.tool_id))
+            sent.append(
+                hot_read.HOT_READ.statement(db.engine, digest=digest, subject_id=db.tool_id)
+            )
         out[name] = []
         for statement, params in sent:
             plan = explain(db.engine, statement, params)

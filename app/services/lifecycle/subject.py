@@ -85,7 +85,9 @@ class Subject(Generic[Row, VersionT, ActivationT]):
     holds, in words ("TCP"); `calibration_model`, the calibrations a version's
     `calibration_id` names (their `result` holds the quality an out-of-tolerance refusal
     cites); `path`, where its routes start ("/v1/tools"); `check_action`,
-    the audit action of a check of its active version, which the drift trend reads back."""
+    the audit action of a check of its active version, which the drift trend reads back;
+    `served_detail`, the one JSON column of its own that its hot read serves (a tool's
+    `load`; app.services.lifecycle.hot_read)."""
 
     kind: ResourceType
     model: type[Row]
@@ -96,6 +98,7 @@ class Subject(Generic[Row, VersionT, ActivationT]):
     value: str
     path: str
     check_action: AuditAction
+    served_detail: str | None = None
     table: Table = field(init=False)
     versions: Table = field(init=False)
     activations: Table = field(init=False)

@@ -2,13 +2,11 @@
 loads (app.vendors), with the header saying which version, calibrated when and by whom.
 
 A tool's file is served by the one-statement read of GET /v1/tools/{id}/tcp
-(app.services.tools.hot_read), which also reads who made the version.
+(app.services.lifecycle.hot_read), which also reads who made the version.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 from typing import Protocol
 
 from sqlalchemy import Engine, and_, select
@@ -18,6 +16,7 @@ from app.config import get_settings
 from app.errors import InvalidInput
 from app.helpers.etags import if_none_match_hit
 from app.security.auth import Principal
+from app.services.lifecycle.hot_read import served_etag
 from app.services.robots.robots import get_robot
 from app.services.tools.controller_text import ServedTool, ServedVersion, tool_data
 from app.services.tools.hot_read import active_of, read_for_key
@@ -64,11 +63,6 @@ def file_tool(tool: ServedTool, version: FileVersion, *, base_url: str) -> FileT
     return FileTool(tool_data(tool, version), origin)
 
 
-def _etag(parts: list[object]) -> str:
-    payload = json.dumps(parts, sort_keys=True, default=str)
-    return '"' + hashlib.sha256(payload.encode()).hexdigest()[:32] + '"'
-
-
 def served_file_for_key(
     engine: Engine,
     *,
@@ -79,7 +73,8 @@ def served_file_for_key(
     base_url: str,
 ) -> tuple[Principal, ControllerFile | None, str]:
     """(who, the tool's file or None when the client's copy is current, ETag): the key check,
-    the tool and its active version in the JSON read's one statement (app.services.tools.hot_read).
+    the tool and its active version in the JSON read's one statement
+    (app.services.lifecycle.hot_read).
     A key limited to cells finds another cell's tool as absent as an unknown one."""
     principal, found = read_for_key(engine, authorization, tool_id)
     fmt = needs_format(fmt)
@@ -87,7 +82,7 @@ def served_file_for_key(
     url = public_url(base_url)
     tool_part = [tool.id, tool.slot, tool.name, tool.load, tool.controller_symbol]
     version_part = [row.version, row.position_mm, row.quaternion, row.created_by]
-    etag = _etag([*tool_part, *version_part, fmt, "file", url])
+    etag = served_etag([*tool_part, *version_part, fmt, "file", url])
     if if_none_match_hit(if_none_match, etag):
         return principal, None, etag
     item = file_tool(tool, row, base_url=url)

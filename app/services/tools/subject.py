@@ -19,4 +19,5 @@ TOOL: Final = Subject(
     value="TCP",
     path="/v1/tools",
     check_action=CHECK_ACTION,
+    served_detail="load",
 )

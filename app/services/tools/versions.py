@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import hashlib
-import json
 from collections.abc import Sequence
 from datetime import datetime
 
@@ -18,6 +16,7 @@ from app.jsontypes import JsonObject
 from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.security.auth import Principal
 from app.services.lifecycle import versions as lifecycle
+from app.services.lifecycle.hot_read import served_etag
 from app.services.lifecycle.versions import Locked
 from app.services.robots.robots import get_robot
 from app.services.tools.controller_text import ServedTool, ServedVersion, controller_text
@@ -135,7 +134,7 @@ def tcp_etag(
 ) -> str:
     """Strong ETag of what /tcp serves: the numbers, slot, load and the representation
     (the JSON document or the controller text alone)."""
-    payload = json.dumps(
+    return served_etag(
         [
             tool.id,
             tool.slot,
@@ -146,10 +145,8 @@ def tcp_etag(
             row.quaternion,
             fmt,
             as_text,
-        ],
-        sort_keys=True,
+        ]
     )
-    return '"' + hashlib.sha256(payload.encode()).hexdigest()[:32] + '"'
 
 
 def version_document(row: TcpVersion, tool: Tool) -> Version:

@@ -19,7 +19,7 @@ LIFECYCLE = Path(__file__).resolve().parents[3] / "app" / "services" / "lifecycl
 
 SUBJECT_COLUMNS = {
     "id", "robot_id", "name", "tolerance", "active_version", "last_version", "revision",
-    "updated_at", "archived_at", "drift", "drift_crosses_at",
+    "updated_at", "archived_at", "drift", "drift_crosses_at", "slot", "controller_symbol",
 }  # fmt: skip
 VERSION_COLUMNS = {
     "version", "position_mm", "quaternion", "source", "status", "calibration_id", "note",
@@ -37,6 +37,8 @@ def test_each_subjects_tables_have_the_lifecycles_columns(subject: AnySubject) -
     assert (VERSION_COLUMNS | {subject.key}) - set(subject.versions.c.keys()) == set()
     assert (ACTIVATION_COLUMNS | {subject.key}) - set(subject.activations.c.keys()) == set()
     assert {"id", "result"} - set(subject.calibrations.c.keys()) == set()
+    if subject.served_detail is not None:  # a JSON column of the subject's own
+        assert subject.served_detail in subject.table.c
     # The key names the subject in the audit trail and the outbox as well.
     assert subject.key in table_of(AuditEvent).c
     assert subject.key in table_of(OutboxMessage).c
