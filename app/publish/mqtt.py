@@ -6,7 +6,8 @@ https://docs.oasis-open.org/mqtt/mqtt/v3.1.1/os/mqtt-v3.1.1-os.html ; Eclipse Pa
 client 2.x, https://eclipse.dev/paho/files/paho.mqtt.python/html/client.html .
 
 Topics (API.md v1.2, prefix TCPCAL_MQTT_PREFIX, default `tcpcal`):
-- `{prefix}/tools/{tool_id}/tcp`, retained, QoS 1: the document GET /v1/tools/{tool_id}/tcp
+- `{prefix}/tools/{tool_id}/tcp` (each subject's: `state_topic`), retained, QoS 1: the
+  document GET /v1/tools/{tool_id}/tcp
   serves, with its `etag`, the active version's `status` and its `activation` (kind,
   reason, at, by: API.md v1.3); an empty retained message (which clears the topic) when the tool
   is archived or has no active version;
@@ -52,6 +53,7 @@ from paho.mqtt.reasoncodes import ReasonCode
 from app.jsontypes import JsonObject
 from app.publish.settings import PublishSettings
 from app.publish.sink import Batch, SinkError
+from app.services.lifecycle.subject import AnySubject
 
 if TYPE_CHECKING:
     from app.publish.commands import Reply, Workers
@@ -120,9 +122,10 @@ def check_prefix(prefix: str) -> str:
     return prefix
 
 
-def tool_topic(prefix: str, tool_id: str) -> str:
-    """The retained topic of a tool's active TCP."""
-    return f"{prefix}/tools/{tool_id}/tcp"
+def state_topic(prefix: str, subject: AnySubject, subject_id: str) -> str:
+    """The retained topic of a subject's active version (a tool's TCP:
+    {prefix}/tools/{tool_id}/tcp), named by the subject's declaration."""
+    return f"{prefix}/{subject.plural}/{subject_id}/{subject.leaf}"
 
 
 def authorization_of(properties: Properties | None) -> str | None:
@@ -339,7 +342,7 @@ class MqttSink:
             body = json.dumps(message.event, separators=(",", ":")).encode()
             infos.append(self._client.publish(self.events_topic, body, qos=1))
         for state in batch.states:
-            topic = tool_topic(self.prefix, state.tool_id)
+            topic = state_topic(self.prefix, state.subject, state.subject_id)
             infos.append(
                 self._client.publish(topic, payload_of(state.document), qos=1, retain=True)
             )

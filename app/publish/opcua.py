@@ -47,6 +47,7 @@ from app.publish.endpoint import OpcUaStartError as OpcUaStartError
 from app.publish.endpoint import parse_endpoint as parse_endpoint
 from app.publish.opcua_certs import APPLICATION_URI, ServerCertificate
 from app.services.fleet.plant import PlantRobot, PlantTool
+from app.services.tools.subject import TOOL
 
 if TYPE_CHECKING:
     from asyncua.server.internal_server import InternalServer
@@ -317,9 +318,11 @@ class PlantOpcUaServer:
         folder = await self._root.add_folder(
             self._nid(f"robots/{robot.robot_id}"), ua.QualifiedName(robot.name, self._ns)
         )
+        # The folder and the node ids are named by the tool's declaration (Subject.folder,
+        # Subject.plural): a robot's "Tools" folder, a tool's node ids "tools/<id>/...".
         tools = await folder.add_folder(
-            self._nid(f"robots/{robot.robot_id}/Tools"),
-            ua.QualifiedName("Tools", self._ns),
+            self._nid(f"robots/{robot.robot_id}/{TOOL.folder}"),
+            ua.QualifiedName(TOOL.folder, self._ns),
         )
         nodes = _RobotNodes(name=robot.name, folder=folder, tools_folder=tools, tools={})
         self._robots[robot.robot_id] = nodes
@@ -372,7 +375,7 @@ class PlantOpcUaServer:
     async def _add_tool(
         self, robot: _RobotNodes, tool: PlantTool, values: dict[str, object]
     ) -> _ToolNodes:
-        base = f"tools/{tool.tool_id}"
+        base = f"{TOOL.plural}/{tool.tool_id}"
         folder = await robot.tools_folder.add_folder(
             self._nid(base), ua.QualifiedName(tool.tool_name, self._ns)
         )

@@ -19,7 +19,8 @@ import asyncio
 import hmac
 import logging
 import threading
-from collections.abc import Callable, Coroutine, Iterable, Sequence
+from collections.abc import Callable, Coroutine, Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Protocol, TypeVar
 
 from sqlalchemy import select
@@ -29,6 +30,7 @@ from app.publish.opcua import KeyCheck, PlantOpcUaServer, parse_endpoint
 from app.publish.opcua_certs import ServerCertificate, server_certificate
 from app.security.auth import authenticate_key
 from app.services.fleet.plant import PlantRobot, plant_robots
+from app.services.tools.subject import TOOL
 from app.storage.db import session_scope
 from app.storage.models import Tool
 
@@ -53,15 +55,39 @@ class Concerns(Protocol):
     def tool_id(self) -> str | None: ...
 
 
+class _Named(Protocol):
+    """What the sink reads of a message or a state: the robot, and the subjects (by key)."""
+
+    @property
+    def robot_id(self) -> str | None: ...
+    @property
+    def ids(self) -> Mapping[str, str | None]: ...
+
+
+class _Located(Protocol):
+    """What the sink reads of a state: its robot (every state has one)."""
+
+    @property
+    def robot_id(self) -> str: ...
+
+
 class BatchLike(Protocol):
     """What the sink reads of the runner's batch (app.publish.sink.Batch)."""
 
     @property
-    def messages(self) -> Sequence[Concerns]: ...
+    def messages(self) -> Sequence[_Named]: ...
     @property
-    def states(self) -> Sequence[Concerns]: ...
+    def states(self) -> Sequence[_Located]: ...
     @property
     def full(self) -> bool: ...
+
+
+@dataclass(frozen=True, slots=True)
+class _Tool:
+    """A message's robot and tool (the address space shows the tools of each robot)."""
+
+    robot_id: str | None
+    tool_id: str | None
 
 
 def key_may_read(username: str, password: str) -> bool:
@@ -162,7 +188,9 @@ class OpcUaPlantSink:
             # The whole fleet was read when the sink opened, and every change since is an
             # undelivered outbox row (rows are marked only once this sink accepted them).
             return True
-        robot_ids, tool_ids = robots_concerned([*batch.messages, *batch.states])
+        named = [_Tool(m.robot_id, m.ids.get(TOOL.key)) for m in batch.messages]
+        located = [_Tool(s.robot_id, None) for s in batch.states]
+        robot_ids, tool_ids = robots_concerned([*named, *located])
         if not robot_ids and not tool_ids:
             return True
         try:

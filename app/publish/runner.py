@@ -113,7 +113,7 @@ class Runner:
             messages = source.undelivered(session, limit=self.batch)
             if not messages:
                 return IDLE
-            states = source.states(session, source.tools_concerned(session, messages))
+            states = source.states(session, source.subjects_concerned(session, messages))
         batch = Batch(messages=messages, states=states)
         accepted = [sink.deliver(batch) for sink in self.sinks]  # each sink, even after one fails
         if not all(accepted):
@@ -125,11 +125,11 @@ class Runner:
         return DELIVERED
 
     def _full_state(self, sink: Sink) -> bool:
-        """Send every live tool's state to a sink that (re)connected; True when it has it."""
+        """Send every live subject's state to a sink that (re)connected; True when it has it."""
         connection = sink.connection_id()
         if self._full_sent.get(sink.name) == connection:
             return True
-        for page in source.live_tool_pages(self.engine, page=self.batch):
+        for page in source.live_pages(self.engine, page=self.batch):
             with session_scope(write=False, engine=self.engine) as session:
                 source.snapshot(session)
                 states = source.states(session, page)

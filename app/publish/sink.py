@@ -27,11 +27,12 @@ tool is the tool's current one (the retained topic always ends at the current st
 from __future__ import annotations
 
 import threading
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
 from app.jsontypes import JsonObject
+from app.services.lifecycle.subject import AnySubject
 from app.words import AuditAction
 
 
@@ -43,26 +44,29 @@ class SinkError(Exception):
 @dataclass(frozen=True, slots=True)
 class Message:
     """One outbox row: an event for the plant (`event` is the published JSON object:
-    action, tool_id, robot_id, version, actor, at, request_id)."""
+    action, tool_id, robot_id, version, actor, at, request_id); `ids`, the subject it names
+    by each subject's key (app.storage.models.SUBJECT_KEYS: {"tool_id": ...}), None for a
+    key it does not name."""
 
     id: int
     action: AuditAction
     robot_id: str | None
-    tool_id: str | None
+    ids: Mapping[str, str | None]
     event: JsonObject
 
 
 @dataclass(frozen=True, slots=True)
-class PublishedTool:
-    """What is published of one tool now (a batch's state of it; not app.words.ToolState, a
-    tool's controller state): `document` is what GET /v1/tools/{id}/tcp serves,
+class PublishedSubject:
+    """What is published of one calibrated subject now (a batch's state of it: a tool's, of
+    `subject` app.services.tools.subject.TOOL; not app.words.ToolState, a tool's controller
+    state): `document` is what its read route serves (a tool's GET /v1/tools/{id}/tcp),
     with its `etag`, the active version's `status` and its `activation` added (source.py);
-    None when the tool is archived or has no active version (MQTT clears the retained
-    message)."""
+    None when it is archived or has no active version (MQTT clears the retained message)."""
 
-    tool_id: str
+    subject: AnySubject
+    subject_id: str
     robot_id: str
-    tool_name: str
+    name: str
     robot_name: str
     archived: bool
     document: JsonObject | None
@@ -71,10 +75,10 @@ class PublishedTool:
 @dataclass(frozen=True, slots=True)
 class Batch:
     """What one `deliver` call sends: messages in id order, then the current state of every
-    tool they concern (or, with `full`, of every live tool, and no messages)."""
+    subject they concern (or, with `full`, of every live one, and no messages)."""
 
     messages: Sequence[Message] = ()
-    states: Sequence[PublishedTool] = ()
+    states: Sequence[PublishedSubject] = ()
     full: bool = False
 
 

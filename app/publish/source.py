@@ -1,12 +1,13 @@
 """The publisher's side of the database: undelivered outbox rows, the current state of the
-tools they concern, marking rows delivered and pruning them.
+calibrated subjects they concern (each subject of app.services.subjects), marking rows
+delivered and pruning them.
 
-A tool's state is the document GET /v1/tools/{tool_id}/tcp serves, built by the same service
-(`app.services.tools.versions.served_tcp`), with the active version's `status` (accepted or
-out_of_tolerance) and `activation` (how it went live: kind, reason, at, by; the plant's
-reading, app.services.fleet.plant) added, read when it is published, never a snapshot taken when
-the change was made: whatever the order in which redelivered rows arrive, the last state a
-sink receives of a tool is its current one.
+A subject's state is the document its read route serves (a tool's GET /v1/tools/{id}/tcp,
+built by the same service: `app.services.tools.versions.served_tcp`), with the active
+version's `status` (accepted or out_of_tolerance) and `activation` (how it went live: kind,
+reason, at, by: app.services.lifecycle.published) added, read when it is published, never a
+snapshot taken when the change was made: whatever the order in which redelivered rows
+arrive, the last state a sink receives of a subject is its current one.
 """
 
 from __future__ import annotations
@@ -20,10 +21,10 @@ from sqlalchemy.orm import Session
 
 from app.errors import Archived, NoActiveVersion, NotFound
 from app.jsontypes import JsonObject
-from app.publish.sink import Message, PublishedTool
-from app.services.fleet.plant import activations_of, active_statuses
-from app.services.tools.versions import served_tcp
-from app.storage.models import OutboxMessage, Robot, Tool, utcnow
+from app.publish.sink import Message, PublishedSubject
+from app.services.lifecycle.published import active_statuses, last_activations
+from app.services.subjects import SERVED, Served
+from app.storage.models import SUBJECT_KEYS, OutboxMessage, Robot, utcnow
 
 
 def undelivered(session: Session, *, limit: int) -> list[Message]:
@@ -34,33 +35,47 @@ def undelivered(session: Session, *, limit: int) -> list[Message]:
         .order_by(OutboxMessage.id)
         .limit(limit)
     )
-    return [Message(r.id, r.action, r.robot_id, r.tool_id, r.payload) for r in rows]
-
-
-def tools_concerned(session: Session, messages: Sequence[Message]) -> list[str]:
-    """The tools whose state follows the messages: each message's tool, and for a message
-    about a robot alone (an update, an archive) the robot's live tools and those archived
-    with it. In order of first mention."""
-    ordered: dict[str, None] = {}
-    robots: list[str] = []
-    for message in messages:
-        if message.tool_id is not None:
-            ordered[message.tool_id] = None
-        elif message.robot_id is not None:
-            robots.append(message.robot_id)
-    if robots:
-        stmt = (
-            select(Tool.id)
-            .join(Robot, Robot.id == Tool.robot_id)
-            .where(
-                Tool.robot_id.in_(robots),
-                or_(Tool.archived_at.is_(None), Tool.archived_at == Robot.archived_at),
-            )
-            .order_by(Tool.created_at, Tool.id)
+    return [
+        Message(
+            r.id, r.action, r.robot_id, {key: getattr(r, key) for key in SUBJECT_KEYS}, r.payload
         )
-        for tool_id in session.scalars(stmt):
-            ordered[tool_id] = None
-    return list(ordered)
+        for r in rows
+    ]
+
+
+#: A subject of a batch, and its id.
+Concerned = tuple[Served, str]
+
+
+def subjects_concerned(session: Session, messages: Sequence[Message]) -> list[Concerned]:
+    """The subjects whose state follows the messages: each message's subject (by the outbox
+    column of its key, app.storage.models.SUBJECT_KEYS), and for a message about a robot
+    alone (an update, an archive) the robot's live subjects and those archived with it. In
+    order of first mention, subject by subject."""
+    robots = [m.robot_id for m in messages if m.robot_id is not None and not _named(m)]
+    found: list[Concerned] = []
+    for served in SERVED:
+        subject = served.subject
+        ordered = {key: None for m in messages if isinstance(key := m.ids.get(subject.key), str)}
+        if robots:
+            table = subject.table
+            stmt = (
+                select(table.c.id)
+                .join(Robot, Robot.id == table.c.robot_id)
+                .where(
+                    table.c.robot_id.in_(robots),
+                    or_(table.c.archived_at.is_(None), table.c.archived_at == Robot.archived_at),
+                )
+                .order_by(table.c.created_at, table.c.id)
+            )
+            ordered.update(dict.fromkeys(session.scalars(stmt)))
+        found.extend((served, subject_id) for subject_id in ordered)
+    return found
+
+
+def _named(message: Message) -> bool:
+    """Whether a message names a subject (not a robot alone)."""
+    return any(value is not None for value in message.ids.values())
 
 
 def snapshot(session: Session) -> None:
@@ -76,36 +91,49 @@ def snapshot(session: Session) -> None:
         session.connection(execution_options={"isolation_level": "REPEATABLE READ"})
 
 
-def states(session: Session, tool_ids: Iterable[str]) -> list[PublishedTool]:
-    """The current state of each tool (unknown ids are left out)."""
-    wanted = list(tool_ids)
-    if not wanted:
-        return []
+def states(session: Session, concerned: Iterable[Concerned]) -> list[PublishedSubject]:
+    """The current state of each subject (unknown ids are left out), subject by subject."""
+    wanted: dict[Served, list[str]] = {}
+    for served, subject_id in concerned:
+        wanted.setdefault(served, []).append(subject_id)
+    return [state for served, ids in wanted.items() for state in _states_of(session, served, ids)]
+
+
+def _states_of(session: Session, served: Served, ids: list[str]) -> list[PublishedSubject]:
+    subject = served.subject
+    table = subject.table
     names = {
         row.id: row
         for row in session.execute(
-            select(Tool.id, Tool.robot_id, Tool.name, Tool.archived_at, Robot.name.label("robot"))
-            .join(Robot, Robot.id == Tool.robot_id)
-            .where(Tool.id.in_(wanted))
+            select(
+                table.c.id,
+                table.c.robot_id,
+                table.c.name,
+                table.c.archived_at,
+                Robot.name.label("robot"),
+            )
+            .join(Robot, Robot.id == table.c.robot_id)
+            .where(table.c.id.in_(ids))
         )
     }
-    statuses = active_statuses(session, wanted)
-    activations = activations_of(session, wanted)
+    statuses = active_statuses(session, subject, ids)
+    activations = last_activations(session, subject, ids)
     found = []
-    for tool_id in wanted:
-        row = names.get(tool_id)
+    for subject_id in ids:
+        row = names.get(subject_id)
         if row is None:
             continue
-        body = document(session, tool_id)
+        body = document(session, served, subject_id)
         if body is not None:
-            activation = activations.get(tool_id)
-            body["status"] = statuses.get(tool_id)
+            activation = activations.get(subject_id)
+            body["status"] = statuses.get(subject_id)
             body["activation"] = None if activation is None else activation.model_dump(mode="json")
         found.append(
-            PublishedTool(
-                tool_id=row.id,
+            PublishedSubject(
+                subject=subject,
+                subject_id=row.id,
                 robot_id=row.robot_id,
-                tool_name=row.name,
+                name=row.name,
                 robot_name=row.robot,
                 archived=row.archived_at is not None,
                 document=body,
@@ -114,37 +142,40 @@ def states(session: Session, tool_ids: Iterable[str]) -> list[PublishedTool]:
     return found
 
 
-def document(session: Session, tool_id: str) -> JsonObject | None:
-    """What GET /v1/tools/{tool_id}/tcp serves now, with its ETag as `etag`; None when it
-    serves no TCP (archived, no active version)."""
+def document(session: Session, served: Served, subject_id: str) -> JsonObject | None:
+    """What the subject's read route (a tool's GET /v1/tools/{tool_id}/tcp) serves now, with
+    its ETag as `etag`; None when it serves nothing (archived, no active version)."""
     try:
-        served, etag = served_tcp(session, tool_id=tool_id, fmt=None, if_none_match=None)
+        answer, etag = served.document(session, subject_id)
     except (Archived, NoActiveVersion, NotFound):
         return None
-    assert served is not None  # no If-None-Match given
-    body: JsonObject = json.loads(served.model_dump_json())
+    assert answer is not None  # no If-None-Match given
+    body: JsonObject = json.loads(answer.model_dump_json())
     body["etag"] = etag
     return body
 
 
-def live_tool_pages(engine: Engine, *, page: int) -> Iterator[list[str]]:
-    """The ids of every live tool, `page` at a time (for a sink's full state)."""
-    after: tuple[datetime, str] | None = None
-    while True:
-        with Session(engine) as session:
-            stmt = select(Tool.id, Tool.created_at).where(Tool.archived_at.is_(None))
-            if after is not None:
-                stmt = stmt.where(
-                    or_(
-                        Tool.created_at > after[0],
-                        (Tool.created_at == after[0]) & (Tool.id > after[1]),
+def live_pages(engine: Engine, *, page: int) -> Iterator[list[Concerned]]:
+    """Every live subject, `page` at a time (for a sink's full state), subject by subject."""
+    for served in SERVED:
+        table = served.subject.table
+        after: tuple[datetime, str] | None = None
+        while True:
+            with Session(engine) as session:
+                stmt = select(table.c.id, table.c.created_at).where(table.c.archived_at.is_(None))
+                if after is not None:
+                    stmt = stmt.where(
+                        or_(
+                            table.c.created_at > after[0],
+                            (table.c.created_at == after[0]) & (table.c.id > after[1]),
+                        )
                     )
-                )
-            rows = session.execute(stmt.order_by(Tool.created_at, Tool.id).limit(page)).all()
-        if not rows:
-            return
-        yield [r.id for r in rows]
-        after = (rows[-1].created_at, rows[-1].id)
+                order = (table.c.created_at, table.c.id)
+                rows = session.execute(stmt.order_by(*order).limit(page)).all()
+            if not rows:
+                break
+            yield [(served, r.id) for r in rows]
+            after = (rows[-1].created_at, rows[-1].id)
 
 
 def mark_delivered(session: Session, ids: Sequence[int]) -> None:

@@ -11,10 +11,34 @@ outbox, by a migration) and its resource type in app.words.ResourceType.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from pydantic import BaseModel
+from sqlalchemy.orm import Session
+
 from app.services.lifecycle.subject import AnySubject
 from app.services.tools.subject import TOOL
+from app.services.tools.versions import served_tcp
 
+
+@dataclass(frozen=True)
+class Served:
+    """A subject and what its read route serves of its active version (the subject's own
+    document and its ETag: a tool's GET /v1/tools/{id}/tcp), which the publisher publishes;
+    `document` raises the route's 404 when it serves none (archived, no active version)."""
+
+    subject: AnySubject
+    document: Callable[[Session, str], tuple[BaseModel | None, str]]
+
+
+def _tool_document(session: Session, tool_id: str) -> tuple[BaseModel | None, str]:
+    return served_tcp(session, tool_id=tool_id, fmt=None, if_none_match=None)
+
+
+#: Every calibrated subject with what it serves, tools first.
+SERVED: tuple[Served, ...] = (Served(TOOL, _tool_document),)
 #: Every calibrated subject, tools first.
-SUBJECTS: tuple[AnySubject, ...] = (TOOL,)
+SUBJECTS: tuple[AnySubject, ...] = tuple(served.subject for served in SERVED)
 #: The subjects by kind (their audit resource type).
 BY_KIND: dict[str, AnySubject] = {subject.kind: subject for subject in SUBJECTS}

@@ -12,7 +12,8 @@ from sqlalchemy.orm import Session
 from app.publish import source
 from app.publish.runner import DELIVERED, FAILED, IDLE, Runner
 from app.publish.sink import Batch
-from app.services.fleet import plant
+from app.services.lifecycle import published
+from app.services.lifecycle.subject import AnySubject
 from app.storage.db import get_engine, session_scope
 from app.storage.models import OutboxMessage
 from tests.conftest import Api
@@ -66,7 +67,7 @@ def test_a_refused_batch_stays_undelivered_and_is_sent_again_with_fresh_states(
     full, first = sink.batches
     assert full.full
     assert not full.messages
-    assert [s.tool_id for s in full.states] == [tool["id"]]
+    assert [s.subject_id for s in full.states] == [tool["id"]]
     assert [m.id for m in first.messages] == sorted(m.id for m in first.messages)
     assert first.messages[0].action == "robot.create"
     assert _undelivered() == []
@@ -92,7 +93,7 @@ def test_a_refused_batch_stays_undelivered_and_is_sent_again_with_fresh_states(
     api.tool(robot["id"], "t2")
     assert runner.step() == DELIVERED
     assert sink.batches[-2].full
-    assert [s.tool_name for s in sink.batches[-2].states] == ["t2"]
+    assert [s.name for s in sink.batches[-2].states] == ["t2"]
     assert [m.action for m in sink.batches[-1].messages] == ["tool.create"]
 
 
@@ -118,11 +119,11 @@ def test_a_published_state_is_read_as_of_one_moment(
     tool = api.tool(robot["id"], "t")
     api.manual(tool["id"], [0.0, 0.0, 150.0])
     bad = out_of_tolerance_version(api, tool["id"])
-    real = plant.active_statuses
+    real = published.active_statuses
     forced: list[int] = []
 
-    def then_activated(session: Session, tool_ids: list[str]) -> dict[str, str]:
-        found = real(session, tool_ids)
+    def then_activated(session: Session, subject: AnySubject, ids: list[str]) -> dict[str, str]:
+        found = real(session, subject, ids)
         if not forced:  # the forced activation commits between the two reads, once
             force(api, tool["id"], bad, "activated between two reads of the publisher")
             forced.append(bad)
@@ -138,7 +139,7 @@ def test_a_published_state_is_read_as_of_one_moment(
         (state.document["version"], state.document["status"])
         for batch in sink.batches
         for state in batch.states
-        if state.tool_id == tool["id"] and state.document is not None
+        if state.subject_id == tool["id"] and state.document is not None
     ]
     assert shown, "the tool's state was never published"
     status_of = {1: "accepted", bad: "out_of_tolerance"}

@@ -14,33 +14,29 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import datetime
 
-from pydantic import BaseModel, ConfigDict
-from sqlalchemy import and_, func, select
+from sqlalchemy import and_, select
 from sqlalchemy.orm import Session
 
 from app.kinematics.poses import kuka_abc_from_matrix, matrix_from_quaternion_wxyz
-from app.schemas.common import Timestamp
 from app.schemas.fleet import FleetTool
 from app.services.fleet.fleet import list_fleet
 from app.services.fleet.gauges import PAGE, controller_state
-from app.storage.models import Activation, Robot, TcpVersion, Tool
-from app.words import ActivationKind
+from app.services.lifecycle.published import LastActivation, last_activations
+from app.services.lifecycle.published import active_statuses as lifecycle_statuses
+from app.services.tools.subject import TOOL
+from app.storage.models import Robot, TcpVersion, Tool
+
+__all__ = [
+    "LastActivation",
+    "PlantRobot",
+    "PlantTool",
+    "activations_of",
+    "active_statuses",
+    "plant_robots",
+    "plant_tools",
+]
 
 Vector = tuple[float, ...]
-
-
-class LastActivation(BaseModel):
-    """How a tool's active version went live: the activation's kind (explicit, forced,
-    rollback, calibration:auto, ...: activations.reason), the words the person gave (None
-    when none were), when and by whom. As JSON (`model_dump(mode="json")`) it is the MQTT
-    retained message's `activation`."""
-
-    model_config = ConfigDict(frozen=True)
-
-    kind: ActivationKind
-    reason: str | None
-    at: Timestamp
-    by: str
 
 
 @dataclass(frozen=True)
@@ -102,31 +98,8 @@ def plant_tools(session: Session, *, robot_id: str | None = None) -> list[PlantT
 
 
 def activations_of(session: Session, tool_ids: list[str]) -> dict[str, LastActivation]:
-    """Each tool's latest activation (the one that made its active version active: every
-    activation, rollback and auto-activation writes one), for the tools that have one."""
-    if not tool_ids:
-        return {}
-    latest = (
-        select(func.max(Activation.id).label("id"))
-        .where(Activation.tool_id.in_(tool_ids))
-        .group_by(Activation.tool_id)
-        .subquery()
-    )
-    rows = session.execute(
-        select(
-            Activation.tool_id,
-            Activation.reason,
-            Activation.reason_text,
-            Activation.activated_at,
-            Activation.activated_by,
-        ).join(latest, Activation.id == latest.c.id)
-    )
-    return {
-        r.tool_id: LastActivation(
-            kind=r.reason, reason=r.reason_text, at=r.activated_at, by=r.activated_by
-        )
-        for r in rows
-    }
+    """Each tool's latest activation, for the tools that have one (app.services.lifecycle)."""
+    return last_activations(session, TOOL, tool_ids)
 
 
 def _pages(session: Session, robot_id: str | None) -> Iterator[list[FleetTool]]:
@@ -141,17 +114,8 @@ def _pages(session: Session, robot_id: str | None) -> Iterator[list[FleetTool]]:
 
 
 def active_statuses(session: Session, tool_ids: list[str]) -> dict[str, str]:
-    """The status of each tool's active version (accepted, out_of_tolerance), for the tools
-    that have one."""
-    stmt = (
-        select(Tool.id, TcpVersion.status)
-        .join(
-            TcpVersion,
-            and_(TcpVersion.tool_id == Tool.id, TcpVersion.version == Tool.active_version),
-        )
-        .where(Tool.id.in_(tool_ids))
-    )
-    return {r.id: r.status for r in session.execute(stmt)}
+    """The status of each tool's active version, for the tools that have one."""
+    return lifecycle_statuses(session, TOOL, tool_ids)
 
 
 _ActiveRow = tuple[datetime, list[float] | None, list[float] | None]

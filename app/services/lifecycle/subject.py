@@ -78,16 +78,24 @@ ActivationT = TypeVar("ActivationT", bound=Base)
 
 @dataclass(frozen=True, eq=False)
 class Subject(Generic[Row, VersionT, ActivationT]):
-    """A calibrated subject: `kind`, the name its audit events carry as their resource type
-    and its messages use ("tool"); its ORM models (the subject, a version, an activation,
-    a calibration);
-    `key`, the column naming it in each lifecycle table ("tool_id"); `value`, what a version
-    holds, in words ("TCP"); `calibration_model`, the calibrations a version's
-    `calibration_id` names (their `result` holds the quality an out-of-tolerance refusal
-    cites); `path`, where its routes start ("/v1/tools"); `check_action`,
-    the audit action of a check of its active version, which the drift trend reads back;
-    `served_detail`, the one JSON column of its own that its hot read serves (a tool's
-    `load`; app.services.lifecycle.hot_read)."""
+    """A calibrated subject, declared once in its package:
+
+    - `kind`: the name its audit events carry as their resource type, and its messages use
+      ("tool");
+    - its ORM models: the subject, a version, an activation, and `calibration_model`, the
+      calibrations a version's `calibration_id` names (their `result` holds the quality an
+      out-of-tolerance refusal cites);
+    - `key`: the column naming it in each lifecycle table ("tool_id");
+    - `value`: what a version holds, in words ("TCP");
+    - `plural`: the segment its routes and its MQTT topics start with ("tools":
+      /v1/tools/..., {prefix}/tools/...); `leaf`: the last segment of the route and of the
+      retained topic that serve its active version ("tcp"); `folder`: the OPC UA folder of a
+      robot that holds them ("Tools");
+    - `check_action`: the audit action of a check of its active version, which the drift
+      trend reads back;
+    - `served_detail`: the one JSON column of its own that its hot read serves (a tool's
+      `load`; app.services.lifecycle.hot_read).
+    """
 
     kind: ResourceType
     model: type[Row]
@@ -96,7 +104,9 @@ class Subject(Generic[Row, VersionT, ActivationT]):
     calibration_model: type[Base]
     key: str
     value: str
-    path: str
+    plural: str
+    leaf: str
+    folder: str
     check_action: AuditAction
     served_detail: str | None = None
     table: Table = field(init=False)
@@ -110,6 +120,11 @@ class Subject(Generic[Row, VersionT, ActivationT]):
         object.__setattr__(self, "versions", tables[self.version_model.__tablename__])
         object.__setattr__(self, "activations", table_of(self.activation_model))
         object.__setattr__(self, "calibrations", table_of(self.calibration_model))
+
+    @property
+    def path(self) -> str:
+        """Where its routes start ("/v1/tools")."""
+        return f"/v1/{self.plural}"
 
     def version_key(self) -> Column[str]:
         """The versions' column naming the subject."""

@@ -17,7 +17,9 @@ TOOL: Final = Subject(
     calibration_model=Calibration,
     key="tool_id",
     value="TCP",
-    path="/v1/tools",
+    plural="tools",
+    leaf="tcp",
+    folder="Tools",
     check_action=CHECK_ACTION,
     served_detail="load",
 )
