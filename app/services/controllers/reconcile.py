@@ -26,7 +26,7 @@ from app.helpers.frame_deviation import (
     within,
 )
 from app.metrics import CONTROLLER_STATE_CHANGES, RECONCILES
-from app.schemas.controllers import Reconciliation
+from app.schemas.controllers import LiveToolMatch, Reconciliation
 from app.security.auth import Principal, transaction_for
 from app.services.controllers import settling
 from app.services.controllers import states as controller_states
@@ -194,8 +194,9 @@ def _observation(robot_id: str, tool: ToolToCheck, reading: Reading) -> Observat
 
 
 @dataclass(frozen=True)
-class _Round:
-    """What one round read of a robot's controller, before it is stored."""
+class RoundRead:
+    """What one round read of a robot's controller (over one connection), before it is
+    stored."""
 
     robot_id: str
     scope: DeploymentScope
@@ -206,28 +207,38 @@ class _Round:
     read_from: datetime
 
 
+#: Stores a round's read (and whether it is the last attempt); the watcher's batches.
+StoreRound = Callable[[RoundRead, bool], "Reconciliation"]
+
+
 def reconcile_robot(
     *,
     robot_id: str,
     actor: Principal,
     trigger: str = "api",
     cancelled: Callable[[], bool] = lambda: False,
+    store: StoreRound | None = None,
 ) -> Reconciliation | None:
     """Read the robot's controller, compare with every live tool's active version, store
     the states; 404 for the robot, 409 when it has no controller. None when `cancelled()`
-    turned true while the controller was read (a stopping watcher stores nothing)."""
+    turned true while the controller was read (a stopping watcher stores nothing). `store`
+    stores the read (default: in a write transaction of its own; the watcher's stores
+    several robots' reads in one)."""
     for attempt in range(_ROUNDS):
         read = _read_round(robot_id, actor)
         if cancelled():
             return None
+        final = attempt == _ROUNDS - 1
         try:
-            return _store_round(read, actor, trigger, final=attempt == _ROUNDS - 1)
+            if store is not None:
+                return store(read, final)
+            return store_rounds([read], actor, trigger, final=[final])[0].result()
         except _DeployedMeanwhile:
             continue  # read again: the live TCP is another tool's now
     raise AssertionError("unreachable: the final round stores what it read")
 
 
-def _read_round(robot_id: str, actor: Principal) -> _Round:
+def _read_round(robot_id: str, actor: Principal) -> RoundRead:
     """What to judge (read transaction), then the controller's values (no database)."""
     with transaction_for(actor, write=False) as session:
         get_robot(session, robot_id)
@@ -239,56 +250,116 @@ def _read_round(robot_id: str, actor: Principal) -> _Round:
     read_from = utcnow()
     judged = [t for t in tools if judging is None or judging.judges(t.tool_id)]
     readings, live = read_controller(settings, judged, robot_id=robot_id)
-    return _Round(robot_id, scope, judging, tools, readings, live, read_from)
+    return RoundRead(robot_id, scope, judging, tools, readings, live, read_from)
 
 
-def _store_round(read: _Round, actor: Principal, trigger: str, *, final: bool) -> Reconciliation:
-    """Store the round's tool states and live tool in one write transaction; the answer.
-    _DeployedMeanwhile (nothing stored) when a deployment made another tool a live-TCP
-    robot's live one while the round read, unless `final`."""
+@dataclass
+class _Stored:
+    """What storing one round wrote, for its answer once committed."""
+
+    checked_at: datetime
+    entered: list[ToolState]
+    found: list[ToolState]
+    answer_tools: list[dict[str, object]]
+    skipped: list[dict[str, object]]
+    matches: list[LiveToolMatch]
+
+
+class StoredRound:
+    """A round's answer once stored, or the error storing it raised."""
+
+    def __init__(self, answer: Reconciliation | None, error: BaseException | None) -> None:
+        self._answer = answer
+        self._error = error
+
+    def result(self) -> Reconciliation:
+        """The answer; raises what storing the round raised."""
+        if self._error is not None:
+            raise self._error
+        assert self._answer is not None
+        return self._answer
+
+
+def store_rounds(
+    reads: list[RoundRead], actor: Principal, trigger: str, *, final: list[bool]
+) -> list[StoredRound]:
+    """Store several robots' rounds in one write transaction (each robot's tool states and
+    live tool together, as one round's); each one's answer or error. When any of them
+    fails (a deployment meanwhile made another tool a live-TCP robot's live one, unless
+    `final`), the transaction is rolled back and each is stored in a transaction of its
+    own, so one robot's failure stores no other robot's round twice or not at all."""
+    if len(reads) > 1:
+        try:
+            with transaction_for(actor, write=True) as session:  # the key's cells' robots
+                stored = [
+                    _write_round(session, read, actor, final=last)
+                    for read, last in zip(reads, final, strict=True)
+                ]
+        except Exception:  # each is stored alone and says its own error
+            return [
+                store_rounds([read], actor, trigger, final=[last])[0]
+                for read, last in zip(reads, final, strict=True)
+            ]
+        return [
+            StoredRound(_answer(r, w, trigger), None) for r, w in zip(reads, stored, strict=True)
+        ]
+    try:
+        with transaction_for(actor, write=True) as session:
+            one = _write_round(session, reads[0], actor, final=final[0])
+    except Exception as exc:  # handed to the caller by result()
+        return [StoredRound(None, exc)]
+    return [StoredRound(_answer(reads[0], one, trigger), None)]
+
+
+def _write_round(session: Session, read: RoundRead, actor: Principal, *, final: bool) -> _Stored:
+    """Write one round's tool states and live tool in the open write transaction.
+    _DeployedMeanwhile (nothing written of it) when a deployment made another tool a
+    live-TCP robot's live one while the round read, unless `final`."""
     robot_id = read.robot_id
     checked_at = utcnow()
-    entered: list[ToolState] = []
-    found: list[ToolState] = []
-    answer_tools: list[dict[str, object]] = []
-    skipped: list[dict[str, object]] = []
-    with transaction_for(actor, write=True) as session:
-        # first: it locks the robot's row before the tools' (the order every writer keeps),
-        # and the round's tool states and live tool commit together
-        live = read.live
-        matches = record_live(session, robot_id=robot_id, live=live, at=checked_at, actor=actor)
-        if not final and read.live_scope != live_scope(session, robot_id, read.scope):
-            raise _DeployedMeanwhile  # rolls the round back
-        for tool in read.tools:
-            if tool.target is None:
-                skipped.append({"tool_id": tool.tool_id, "reason": tool.problem})
-                continue
-            seen = _seen(robot_id, tool, read)
-            row, changed = controller_states.observe(session, seen, at=checked_at, actor=actor)
-            settling.settle(session, seen, read_from=read.read_from, at=checked_at, actor=actor)
-            found.append(seen.state)
-            if changed:
-                entered.append(seen.state)
-            answer_tools.append(_tool_answer(tool, seen, row.since))
-    for state in entered:
+    stored = _Stored(checked_at, [], [], [], [], [])
+    # first: it locks the robot's row before the tools' (the order every writer keeps),
+    # and the round's tool states and live tool commit together
+    live = read.live
+    stored.matches = record_live(session, robot_id=robot_id, live=live, at=checked_at, actor=actor)
+    if not final and read.live_scope != live_scope(session, robot_id, read.scope):
+        raise _DeployedMeanwhile  # rolls the round back
+    for tool in read.tools:
+        if tool.target is None:
+            stored.skipped.append({"tool_id": tool.tool_id, "reason": tool.problem})
+            continue
+        seen = _seen(robot_id, tool, read)
+        row, changed = controller_states.observe(session, seen, at=checked_at, actor=actor)
+        settling.settle(session, seen, read_from=read.read_from, at=checked_at, actor=actor)
+        stored.found.append(seen.state)
+        if changed:
+            stored.entered.append(seen.state)
+        stored.answer_tools.append(_tool_answer(tool, seen, row.since))
+    return stored
+
+
+def _answer(read: RoundRead, stored: _Stored, trigger: str) -> Reconciliation:
+    """A stored round's answer, counted in /metrics."""
+    for state in stored.entered:
         CONTROLLER_STATE_CHANGES.labels(state).inc()
-    robot_state = _robot_state(found, reached=live.reached)
+    live = read.live
+    robot_state = _robot_state(stored.found, reached=live.reached)
     RECONCILES.labels(trigger, robot_state).inc()
     return Reconciliation.model_validate(
         {
-            "robot_id": robot_id,
-            "checked_at": checked_at,
+            "robot_id": read.robot_id,
+            "checked_at": stored.checked_at,
             "state": robot_state,
             "scope": read.scope,
-            "tools": answer_tools,
-            "not_addressable": skipped,
-            "live_tool": None if live.tool is None else live_tool_out(live.tool, matches),
+            "tools": stored.answer_tools,
+            "not_addressable": stored.skipped,
+            "live_tool": None if live.tool is None else live_tool_out(live.tool, stored.matches),
             "live_tool_error": live.error,
         }
     )
 
 
-def _seen(robot_id: str, tool: ToolToCheck, read: _Round) -> Observation:
+def _seen(robot_id: str, tool: ToolToCheck, read: RoundRead) -> Observation:
     """The tool's state this round: judged from what the controller held, or `not_live`.
     A controller not reached makes every tool unreachable, a live-TCP robot's not judged
     too: nothing then says which tool it moves by, and `not_live` would leave the fleet

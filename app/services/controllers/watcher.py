@@ -32,6 +32,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -55,8 +56,14 @@ from app.metrics import (
     WATCHER_OVERRUNS,
     WATCHER_ROUND_SECONDS,
 )
+from app.schemas.controllers import Reconciliation
 from app.security.auth import Principal
-from app.services.controllers.reconcile import reconcile_robot, robots_with_controller
+from app.services.controllers.reconcile import (
+    RoundRead,
+    reconcile_robot,
+    robots_with_controller,
+    store_rounds,
+)
 from app.storage.db import get_engine, is_sqlite
 from app.storage.models import utcnow
 
@@ -76,6 +83,8 @@ _THREADS_LOCK = threading.Lock()
 STALL_S = 1.0
 #: The time a read is taken to take before any has been measured (seconds).
 FIRST_READ_S = 0.5
+#: The most robots' rounds one write transaction stores.
+STORE_BATCH = 200
 #: The most threads reading at once that the pool is sized to (stalled reads apart).
 MAX_SIZE = 256
 
@@ -286,6 +295,75 @@ class ReadPool:
             self._changed.notify_all()
 
 
+class StoreBatches:
+    """The round's stores: each read that ends is handed here and stored, with the reads that
+    ended meanwhile, in one write transaction (app.services.controllers.reconcile
+    .store_rounds) by one thread; the reading thread waits for its own. A write transaction
+    a robot, on SQLite each queued behind every other writer, stored about 9 robots a second
+    on a loaded machine, well below a 1000-robot fleet's 100 a second at a 10 s interval."""
+
+    def __init__(self, actor: Principal, trigger: str) -> None:
+        self._actor = actor
+        self._trigger = trigger
+        self._pending: list[tuple[RoundRead, bool, Future[Reconciliation]]] = []
+        self._changed = threading.Condition()
+        self._stopped = False
+        self._thread: threading.Thread | None = None
+        #: how many rounds each batch stored, the last ones
+        self.sizes: deque[int] = deque(maxlen=64)
+
+    def store(self, read: RoundRead, final: bool) -> Reconciliation:
+        """Store this read with the others pending; its answer (or what storing it raised)."""
+        done: Future[Reconciliation] = Future()
+        with self._changed:
+            if self._stopped:
+                raise RuntimeError("the watcher stopped")
+            self._pending.append((read, final, done))
+            if self._thread is None:
+                self._thread = threading.Thread(
+                    target=self._run, name="tcpcal-watcher-store", daemon=True
+                )
+                self._thread.start()
+            self._changed.notify_all()
+        return done.result()
+
+    def stop(self) -> None:
+        """Store what is pending, then end."""
+        with self._changed:
+            self._stopped = True
+            self._changed.notify_all()
+
+    def join(self, until: float) -> None:
+        thread = self._thread
+        if thread is not None:
+            thread.join(max(0.0, until - time.monotonic()))
+
+    def _run(self) -> None:
+        while True:
+            with self._changed:
+                self._changed.wait_for(lambda: self._pending or self._stopped)
+                batch, self._pending = self._pending[:STORE_BATCH], self._pending[STORE_BATCH:]
+                if not batch and self._stopped:
+                    return
+            self.sizes.append(len(batch))
+            try:
+                stored = store_rounds(
+                    [read for read, _, _ in batch],
+                    self._actor,
+                    self._trigger,
+                    final=[final for _, final, _ in batch],
+                )
+            except BaseException as exc:  # the database down: every reader hears it
+                for _, _, done in batch:
+                    done.set_exception(exc)
+                continue
+            for (_, _, done), one in zip(batch, stored, strict=True):
+                try:
+                    done.set_result(one.result())
+                except BaseException as exc:  # that robot's own error, raised in its reader
+                    done.set_exception(exc)
+
+
 @dataclass(frozen=True)
 class Overrun:
     """A round that did not begin reading every robot within its interval, and what would
@@ -370,6 +448,7 @@ class Watcher:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._pool = ReadPool(least, self._reconcile)
+        self._stores = StoreBatches(WATCHER, "watcher")
         #: The fleet lock while this watcher holds it (across rounds while reads are in flight)
         self._lock: ExitStack | None = None
         #: Robots whose protocol this tcpcal has no connector for, warned of once each
@@ -388,6 +467,7 @@ class Watcher:
         """Start the loop (its first round at once)."""
         self._stop.clear()
         self._pool = ReadPool(self.least, self._reconcile)
+        self._stores = StoreBatches(WATCHER, "watcher")
         self._thread = threading.Thread(target=self._loop, name="tcpcal-watcher", daemon=True)
         self._thread.start()
         self.status.running = True
@@ -403,6 +483,8 @@ class Watcher:
         if self._thread is not None:
             self._thread.join(timeout_s)
         self._pool.join(until)
+        self._stores.stop()  # after the reads: the ones storing what they found finish first
+        self._stores.join(until)
         if self._thread is None or not self._thread.is_alive():
             self._release()  # rounds run without the loop keep the lock while reads are in flight
         self.status.running = False
@@ -525,7 +607,11 @@ class Watcher:
     def _reconcile_one(self, robot_id: str) -> None:
         try:
             reconcile_robot(
-                robot_id=robot_id, actor=WATCHER, trigger="watcher", cancelled=self._stop.is_set
+                robot_id=robot_id,
+                actor=WATCHER,
+                trigger="watcher",
+                cancelled=self._stop.is_set,
+                store=self._stores.store,
             )
         except ConnectorMissing as exc:  # stored for a later tcpcal: not a fault of this one
             self.status.last_error = f"robot {robot_id}: {exc}"

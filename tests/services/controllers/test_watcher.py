@@ -365,6 +365,69 @@ def test_a_stalled_read_hands_its_place_on_and_the_pool_is_sized_from_the_fleet(
     assert pool_size(3, 5.0, 1.0, 1) == 3
 
 
+def test_the_reads_that_end_while_a_store_runs_are_stored_together_in_one_transaction(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Issue 50: a write transaction a robot (on SQLite each queued behind every writer)
+    stored about 9 robots a second on a loaded machine. The reads that end while a store
+    runs are stored by the next one together; each reader gets its own answer, or its own
+    error."""
+    import threading
+
+    from app.services.controllers import watcher as watching_module
+
+    batches: list[list[str]] = []
+
+    class Stored:
+        def __init__(self, robot_id: str) -> None:
+            self.robot_id = robot_id
+
+        def result(self) -> str:
+            if self.robot_id == "bad":
+                raise ValueError("bad robot")
+            return self.robot_id
+
+    def store_rounds(reads: list[Any], actor: Any, trigger: str, *, final: list[bool]) -> Any:
+        batches.append([read.robot_id for read in reads])
+        time.sleep(0.3)
+        return [Stored(read.robot_id) for read in reads]
+
+    @dataclass(frozen=True)
+    class Read:
+        robot_id: str
+
+    monkeypatch.setattr(watching_module, "store_rounds", store_rounds)
+    stores = watching_module.StoreBatches(watching_module.WATCHER, "watcher")
+    answers: dict[str, object] = {}
+
+    def read_and_store(robot_id: str) -> None:
+        try:
+            answers[robot_id] = stores.store(Read(robot_id), True)  # type: ignore[arg-type]
+        except ValueError as exc:
+            answers[robot_id] = exc
+
+    first = threading.Thread(target=read_and_store, args=("first",))
+    first.start()
+    time.sleep(0.1)  # the first store runs: these four end meanwhile
+    others = [threading.Thread(target=read_and_store, args=(r,)) for r in ("a", "b", "bad", "c")]
+    for thread in others:
+        thread.start()
+    for thread in [first, *others]:
+        thread.join(5)
+    stores.stop()
+    stores.join(time.monotonic() + 2)
+    assert batches[0] == ["first"]
+    assert sorted(batches[1]) == ["a", "b", "bad", "c"]
+    assert len(batches) == 2
+    assert {k: v for k, v in answers.items() if k != "bad"} == {
+        "first": "first",
+        "a": "a",
+        "b": "b",
+        "c": "c",
+    }
+    assert isinstance(answers["bad"], ValueError)
+
+
 def test_a_round_that_cannot_finish_within_its_interval_says_so_with_the_figure_that_fits(
     api: Api, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
