@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich import box
+from rich.markup import escape
 from rich.padding import Padding
 from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
@@ -297,6 +298,22 @@ def _force_advice(ref: str, version: int) -> str:
     )
 
 
+#: The advice a result held for its change gives an API client (app.services.calibrations
+#: .verdict.change_warning), and the same said as this CLI's commands.
+_HELD_FOR_CHANGE = re.compile(
+    r"\(POST /v1/tools/\{tool_id\}/versions/\{version\}/activate\) or resend with "
+    r'activate: "always"'
+)
+
+
+def _as_flags(warning: str, ref: str, cal: Calibration) -> str:
+    """A server's warning with its advice for an HTTP client said as this CLI's commands."""
+    return _HELD_FOR_CHANGE.sub(
+        f"(tcpcal activate {ref} {cal['version']}) or calibrate again with --activate always",
+        warning,
+    )
+
+
 def _print_calibration(cal: Calibration, ref: str) -> None:
     table = Table("version", "status", "active", "x mm", "y mm", "z mm", "rms mm", "touches")
     x, y, z = cal["tcp"]["position_mm"]
@@ -309,7 +326,7 @@ def _print_calibration(cal: Calibration, ref: str) -> None:
     out.print(table)
     out.print(cal["summary"], highlight=False)
     for warning in cal["warnings"]:
-        err.print(f"[yellow]warning[/]: {warning}", highlight=False)
+        err.print(f"[yellow]warning[/]: {escape(_as_flags(warning, ref, cal))}", highlight=False)
     if cal["status"] != "accepted":
         if not cal["active"]:
             out.print(
