@@ -128,7 +128,11 @@ def recheck(
         )
         raise typer.Exit(EXIT_CONTROLLER_FAILED)
     result: CheckResult = response.json()
-    out.print(result["summary"], highlight=False, soft_wrap=True)
+    # the server's advice to redeploy names the HTTP call for an API client: say the command
+    summary = result["summary"].replace(
+        f"(POST /v1/tools/{tool_id}/deployments)", f"(tcpcal deploy {tool_id})"
+    )
+    out.print(summary, highlight=False, soft_wrap=True, markup=False)
     correction = result.get("correction")
     if correction:
         _say_correction(correction)

@@ -126,6 +126,10 @@ def test_a_failed_deployment_exit_3_says_the_new_version_is_active(
         )
         assert done.exit_code == 3, done.output
         assert "failed" in done.output  # the summary: corrected in tcpcal, deployment failed
+        # said as this CLI's command, not the HTTP call an API client makes (issue 51, #9)
+        said = " ".join(done.output.split())
+        assert f"deploy version 2 again (tcpcal deploy {tool['id']}) once it answers" in said
+        assert "/v1/" not in said, said
         deployment = next(
             line for line in done.output.splitlines() if line.startswith("  deployment")
         )
