@@ -95,19 +95,30 @@ PROTOCOLS: tuple[ProtocolName, ...] = get_args(ProtocolName)
 #: runs them and reads ALGORITHMS off this Literal (written here for the same reason).
 Algorithm = Literal["robust", "stacked", "pairwise", "sphere", "gls"]
 
+#: Each calibration method's word, written once: its request model's `method` names it
+#: (`method: XyzPlane`, app.methods), and MethodName below is their union.
+XyzNpoint = Literal["xyz_npoint"]
+XyzPlane = Literal["xyz_plane"]
+XyzReference = Literal["xyz_reference"]
+TcpZX = Literal["tcp_z_x"]
+Abc2Point = Literal["abc_2point"]
+AbcWorld = Literal["abc_world"]
+LaserBeam = Literal["laser_beam"]
+Manual = Literal["manual"]
+
 #: A calibration method (a calibration's `method`, a version's `source`, a guided session's
 #: `method`): the registry's names, in its order (app.methods.METHOD_NAMES is read off the
-#: registry; tests/test_one_definition.py holds the two equal). Each method's request model
-#: names its own word (`method: Literal["xyz_plane"]`), which mypy checks is one of these.
+#: registry; tests/test_one_definition.py holds the two equal and each word written here
+#: only). GET /v1/methods lists them; the CLI and the console read them from there.
 MethodName = Literal[
-    "xyz_npoint",
-    "xyz_plane",
-    "xyz_reference",
-    "tcp_z_x",
-    "abc_2point",
-    "abc_world",
-    "laser_beam",
-    "manual",
+    XyzNpoint,
+    XyzPlane,
+    XyzReference,
+    TcpZX,
+    Abc2Point,
+    AbcWorld,
+    LaserBeam,
+    Manual,
 ]
 
 #: The kind of an activation (activations.reason): a version activated by name

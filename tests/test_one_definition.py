@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import re
 from pathlib import Path
 from types import UnionType
 from typing import Annotated, Literal, Union, get_args, get_origin, get_type_hints
@@ -17,7 +18,7 @@ from app.api.methods import describe
 from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHOD_NAMES, METHODS
 from app.methods.base import MethodRequest
-from app.methods.guided import SessionCreate
+from app.methods.guided import GUIDED, SessionCreate
 from app.methods.npoint import NPointOptions
 from app.methods.requests import SOLVE_MODELS, CalibrationRequest
 from app.schemas import audit, controllers, fleet, keys, references, results, sessions, tools
@@ -376,3 +377,37 @@ def test_no_class_is_named_as_a_literal() -> None:
         if isinstance(node, ast.ClassDef) and node.name in literal_names
     ]
     assert classes == [], "a class named as a Literal: rename it to say what it holds"
+
+
+def test_each_method_name_is_written_once() -> None:
+    """A method's name is written in app/words.py only (issue 46: it was spelled in its
+    request's Literal, the list in app/words.py, the CLI's and the console's defaults): the
+    requests, the registry and GET /v1/methods name it through its Literal, the services
+    through its registry entry, the CLI and the console read it from GET /v1/methods."""
+    names = set(METHOD_NAMES)
+    spelled = [
+        f"{path.relative_to(APP.parent)}:{node.lineno} {node.value}"
+        for path in sorted(APP.rglob("*.py"))
+        if path != APP / "words.py"
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.Constant) and node.value in names
+    ]
+    alternatives = "|".join(map(re.escape, sorted(names)))
+    quoted = re.compile(rf"""["'`]({alternatives})["'`]""")
+    spelled += [
+        f"{path.relative_to(APP.parent)}:{number} {match.group(1)}"
+        for path in sorted((APP / "console").rglob("*"))
+        if path.suffix in {".js", ".html"}
+        for number, line in enumerate(path.read_text().splitlines(), 1)
+        for match in quoted.finditer(line)
+    ]
+    assert spelled == [], "name the method through app.words or its registry entry"
+    words = (APP / "words.py").read_text()
+    assert all(words.count(f'"{name}"') == 1 for name in names)
+
+
+def test_the_guided_method_is_the_one_a_session_takes() -> None:
+    """GET /v1/methods marks one method `guided`, the one a guided session's `method` takes:
+    the CLI and the console start sessions, and calibrate by default, with it."""
+    assert get_args(_annotation(SessionCreate, "method")) == (GUIDED.name,)
+    assert [describe(m).name for m in METHODS if describe(m).guided] == [GUIDED.name]

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 from fastapi import APIRouter
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 from app.api.deps import ReadKey
 from app.api.shared import all_formats
 from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHODS
 from app.methods.base import PosesRequired, RegisteredMethod
+from app.methods.guided import GUIDED
 from app.schemas.formats import FormatInfo
 
 router = APIRouter(tags=["stateless"])
@@ -23,6 +24,10 @@ class MethodInfo(BaseModel):
     formats: list[str]
     requires: list[str]
     options: dict[str, dict[str, object]]
+    guided: bool = Field(
+        description="a guided session (POST /v1/tools/{tool_id}/sessions) collects its touches: "
+        "the method a client calibrates with unless told otherwise"
+    )
 
 
 class MethodList(BaseModel):
@@ -65,6 +70,7 @@ def describe(method: RegisteredMethod) -> MethodInfo:
             if name not in _COMMON and field.is_required()
         ],
         options=_options(method),
+        guided=method is GUIDED,
     )
 
 

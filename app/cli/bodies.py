@@ -57,6 +57,17 @@ class FleetTool(TypedDict):
     attention: list[str]
 
 
+class MethodInfo(TypedDict):
+    name: str
+    guided: bool
+
+
+class MethodList(TypedDict):
+    """GET /v1/methods, the fields the CLI reads: each method's name and which one guides."""
+
+    items: list[MethodInfo]
+
+
 class Quality(TypedDict):
     rms_mm: float | None
     n_poses: int

@@ -43,7 +43,7 @@ from app.cli.bodies import (
     VersionList,
     flat_pose,
 )
-from app.cli.guided import guided_session
+from app.cli.guided import guided_method, guided_session
 from app.cli.http import (
     EXIT_BAD_USE,
     EXIT_NOT_FOUND,
@@ -246,7 +246,9 @@ def calibrate(
     ] = "",
     length: Annotated[str | None, typer.Option(help="mm | m (default: the format's)")] = None,
     angle: Annotated[str | None, typer.Option(help="deg | rad (default: the format's)")] = None,
-    method: Annotated[str, typer.Option(help="calibration method")] = "xyz_npoint",
+    method: Annotated[
+        str | None, typer.Option(help="calibration method (default: GET /v1/methods' guided one)")
+    ] = None,
     activate: Annotated[str, typer.Option(help="auto | always | never")] = "auto",
     note: Annotated[str | None, typer.Option(help="why, for the tool's history")] = None,
     guided: Annotated[
@@ -278,7 +280,8 @@ def calibrate(
     if poses_file is None:
         fail(EXIT_BAD_USE, "give a poses file, or --guided to touch one pose at a time")
     poses = read_poses(poses_file, fmt, units)
-    body: JsonObject = {"method": method, "format": fmt, "poses": poses, "activate": activate}
+    body: JsonObject = {"method": method or guided_method(), "format": fmt, "poses": poses}
+    body["activate"] = activate
     if units:
         body["units"] = units
     if note:

@@ -21,6 +21,8 @@ from sqlalchemy.orm import Session
 from app.jsontypes import JsonObject
 from app.kinematics.poses import pose_to_format
 from app.kinematics.touchsets import flange_positions, random_cone_rotations
+from app.methods.manual import MANUAL
+from app.methods.npoint import XYZ_NPOINT
 from app.methods.requests import CALIBRATION_REQUESTS
 from app.schemas.references import CheckCreate, ReferencePointCreate
 from app.schemas.robots import RobotCreate
@@ -42,7 +44,7 @@ class Event:
     """Something that happened to a tool `days_ago`: a calibration or a check."""
 
     days_ago: float
-    kind: str = "calibration"  # or "check", "manual"
+    kind: str = "calibration"  # or "check", or MANUAL.name: a TCP entered by hand
     drift_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)  # the tool bent since the start
     n_touches: int = 8
     noise_mm: float = 0.03
@@ -135,7 +137,7 @@ FLEET = (
                 (0.0, 0.0, 185.0),
                 "Schunk PGN-plus 100, finger tips",
                 (
-                    Event(200, kind="manual", note="data sheet"),
+                    Event(200, kind=MANUAL.name, note="data sheet"),
                     Event(150, n_touches=10, noise_mm=0.05, note="fingers reground"),
                     Event(20, kind="check", drift_mm=(0.1, 0.0, 0.1)),
                 ),
@@ -267,9 +269,9 @@ def _play(
 ) -> str:
     """One event of a tool's history; the kind of record it made."""
     tcp = np.asarray(spec.tcp_mm) + np.asarray(event.drift_mm)
-    if event.kind == "manual":
+    if event.kind == MANUAL.name:
         body: JsonObject = {
-            "method": "manual",
+            "method": MANUAL.name,
             "tcp": {"position_mm": [float(v) for v in tcp]},
             "note": event.note,
         }
@@ -289,7 +291,7 @@ def _play(
         )
         checks.run_check(session, tool_id=tool_id, data=data, actor=actor)
         return "checks"
-    body = {"method": "xyz_npoint", "format": fmt, "poses": poses}
+    body = {"method": XYZ_NPOINT.name, "format": fmt, "poses": poses}
     if event.note:
         body["note"] = event.note
     _submit(session, tool_id, body, actor)

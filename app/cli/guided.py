@@ -26,7 +26,15 @@ from typing import TYPE_CHECKING
 import typer
 from rich.markup import escape
 
-from app.cli.bodies import Calibration, Controller, Pose, Session, TouchSource, flat_pose
+from app.cli.bodies import (
+    Calibration,
+    Controller,
+    MethodList,
+    Pose,
+    Session,
+    TouchSource,
+    flat_pose,
+)
 from app.cli.http import (
     EXIT_BAD_USE,
     EXIT_REFUSED,
@@ -51,6 +59,13 @@ _TOUCH_PROBLEMS = {
     "controller-unreachable": "controller unreachable",
     "controller-refused": "controller refused",
 }
+
+
+def guided_method() -> str:
+    """The method a guided session collects touches for, and `tcpcal calibrate`'s default:
+    the one GET /v1/methods marks `guided` (the CLI keeps no copy of the server's methods)."""
+    listed: MethodList = send("GET", "/v1/methods").json()
+    return next(m["name"] for m in listed["items"] if m["guided"])
 
 
 def guided_session(
@@ -195,7 +210,7 @@ def _session_units(state: Session) -> dict[str, str]:
 
 def _create(tool_id: str, fmt: str, units: dict[str, str], target: float | None) -> Session:
     """A new session of the tool, typed in `fmt`."""
-    body: JsonObject = {"method": "xyz_npoint", "format": fmt}
+    body: JsonObject = {"method": guided_method(), "format": fmt}
     if units:
         body["units"] = units
     if target is not None:

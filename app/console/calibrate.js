@@ -47,9 +47,10 @@ export async function calibratePage(toolId, ui) {
   const { h, show, json, everyPage, Problem } = ui;
   const tool = await json(`/v1/tools/${toolId}`);
   document.title = `Calibrate ${tool.name} · tcpcal`;
-  const [robot, formats, sessions] = await Promise.all([
+  const [robot, formats, methods, sessions] = await Promise.all([
     json(`/v1/robots/${tool.robot_id}`),
     json("/v1/formats"),
+    json("/v1/methods"),
     json(`/v1/tools/${toolId}/sessions?limit=20`),
   ]);
   let connection = null;
@@ -59,7 +60,9 @@ export async function calibratePage(toolId, ui) {
     if (!(error instanceof Problem) || !String(error.doc.type || "").endsWith("/no-controller")) throw error;
   }
   const infoOf = new Map(formats.items.map((f) => [f.name, f]));
-  const page = { tool, robot, connection, infoOf, ui, everyPage };
+  // The method a guided session collects touches for, as the server says (no copy here).
+  const guided = methods.items.find((m) => m.guided).name;
+  const page = { tool, robot, connection, infoOf, guided, ui, everyPage };
   const header = [
     h("h1", {}, `Calibrate ${tool.name} `, h("span", { class: "muted" }, `on ${robot.name}`)),
     h("p", { class: "muted" }, h("a", { href: `/ui/tools/${tool.id}` }, `Back to ${tool.name}`),
@@ -91,7 +94,7 @@ function drawStart(page, body) {
   form.addEventListener("submit", async (event) => {
     event.preventDefault();
     try {
-      const session = await json(`/v1/tools/${page.tool.id}/sessions`, { method: "POST", body: { method: "xyz_npoint", format: select.value } });
+      const session = await json(`/v1/tools/${page.tool.id}/sessions`, { method: "POST", body: { method: page.guided, format: select.value } });
       drawSession(page, body, session, { resumed: false });
     } catch (error) {
       outcome.replaceChildren(problemBox(error));

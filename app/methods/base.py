@@ -178,8 +178,8 @@ class Method(Generic[R]):
     request: type[R]
     run: Callable[[R, MethodContext], Solved]
     description: str
-    #: a body that solves (tests post it), shown in the OpenAPI spec
-    example: JsonObject
+    #: a body that solves, but its `method` (the name, added by `example`)
+    example_body: JsonObject
     #: False for a TCP entered by hand: nothing was touched, so its summary says so and the
     #: drift trend leaves it out
     measured: bool = True
@@ -189,6 +189,11 @@ class Method(Generic[R]):
         """The `method` value that selects this method (its request's Literal)."""
         (name,) = typing.get_args(self.request.model_fields["method"].annotation)
         return str(name)
+
+    @property
+    def example(self) -> JsonObject:
+        """A body that solves (tests post it), shown in the OpenAPI spec."""
+        return {"method": self.name, **self.example_body}
 
     @property
     def pose_count(self) -> PoseCount:

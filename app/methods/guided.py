@@ -8,10 +8,15 @@ from __future__ import annotations
 from pydantic import Field, field_validator
 
 from app.methods import METHOD_NAMES
-from app.methods.npoint import XYZ_NPOINT, NPointOptions, XyzNpoint
+from app.methods.base import RegisteredMethod
+from app.methods.npoint import XYZ_NPOINT, NPointOptions
 from app.schemas.common import PositiveFloat, StrictModel, Units
 from app.schemas.sessions import SpinDeg, TiltDeg
-from app.words import PoseFormat
+from app.words import PoseFormat, XyzNpoint
+
+#: The method a guided session collects touches for (its `method`): GET /v1/methods marks it
+#: `guided`, and the CLI and the console calibrate with it unless told otherwise.
+GUIDED: RegisteredMethod = XYZ_NPOINT
 
 
 class SessionCreate(StrictModel):
@@ -31,7 +36,7 @@ class SessionCreate(StrictModel):
     @field_validator("method", mode="before")
     @classmethod
     def _guided_method(cls, method: object) -> object:
-        guided = XYZ_NPOINT.name
+        guided = GUIDED.name
         if isinstance(method, str) and method != guided and method in METHOD_NAMES:
             raise ValueError(
                 f"guided sessions guide touches of one point ({guided}) only, not {method}: "

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 import numpy as np
 from pydantic import ConfigDict, Field, model_validator
@@ -27,6 +27,7 @@ from app.schemas.common import (
 from app.schemas.references import SweepIn
 from app.schemas.results import LaserDetails, LaserSigma, QualityOut, ResultExtras
 from app.solvers.laser import LaserDevice, LaserResult, Sweep, solve_laser
+from app.words import LaserBeam
 
 
 class LaserGeometry(StrictModel):
@@ -57,7 +58,7 @@ class LaserOptions(StrictModel):
 
 
 class LaserBeamCalibration(PosesRequired):
-    method: Literal["laser_beam"]
+    method: LaserBeam
     poses: Annotated[
         list[Pose],
         PoseCount(1, 1, hint="the flange pose held during the sweeps (its rotation is used)"),
@@ -149,8 +150,7 @@ LASER_BEAM = Method(
     run=run,
     description="beam break/restore sweeps at two or more heights and a final descent -> "
     "tool axis, runout, offset, length",
-    example={
-        "method": "laser_beam",
+    example_body={
         "format": "xyz_wxyz",
         "poses": [[420.0, -150.0, 250.0, 0.014599, -0.965781, 0.258623, 0.012945]],
         "laser": {"beam_a_y_mm": -150.0, "beam_b_x_mm": 420.0, "plane_z_mm": 100.0},

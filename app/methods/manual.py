@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 import numpy as np
 from pydantic import ConfigDict, Field, model_validator
@@ -12,6 +12,7 @@ from app.methods.base import Method, MethodContext, MethodRequest, PoseCount, So
 from app.schemas.common import Pose, Quaternion, StrictModel, Vec3, one_of
 from app.schemas.results import QualityOut
 from app.solvers.validation import check_positions_mm, normalised_quaternions
+from app.words import Manual
 
 
 class ManualTcpIn(StrictModel):
@@ -28,7 +29,7 @@ class ManualCalibration(MethodRequest):
         json_schema_extra=one_of((("tcp",), ("format", "poses")), (("format", "poses"), ("tcp",)))
     )
 
-    method: Literal["manual"]
+    method: Manual
     poses: (
         Annotated[list[Pose], PoseCount(1, 1, hint="the tool frame relative to the flange")] | None
     ) = None
@@ -81,6 +82,6 @@ MANUAL = Method(
     request=ManualCalibration,
     run=run,
     description="a TCP entered by hand, as numbers or as one pose (e.g. a pasted $TOOL_DATA)",
-    example={"method": "manual", "tcp": {"position_mm": [0.0, 0.0, 150.0]}, "note": "data sheet"},
+    example_body={"tcp": {"position_mm": [0.0, 0.0, 150.0]}, "note": "data sheet"},
     measured=False,
 )

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Annotated, Literal
+from typing import Annotated
 
 import numpy as np
 from pydantic import Field
@@ -29,10 +29,8 @@ from app.schemas.common import (
 from app.schemas.results import QualityOut
 from app.solvers.npoint import MIN_POSES, NPointResult, solve_npoint
 from app.solvers.quality import format_vector
-from app.words import Algorithm, PoseFormat
+from app.words import Algorithm, PoseFormat, XyzNpoint
 
-#: The `method` of an N-point calibration, and of the guided sessions that collect one.
-XyzNpoint = Literal["xyz_npoint"]
 #: N touches of one fixed point, each from another orientation.
 Touches = Annotated[
     list[Pose],
@@ -133,8 +131,7 @@ XYZ_NPOINT = Method(
     run=run,
     description="N >= 4 touches of one fixed point from different orientations -> TCP "
     "position and the touched point (the XYZ 4-point method, generalised)",
-    example={
-        "method": "xyz_npoint",
+    example_body={
         "format": "kuka_abc",
         "poses": [
             [753.897, -81.965, 320.965, -108.243, -25.048, -167.066],

@@ -34,6 +34,7 @@ from app.solvers.orientation import (
     orientation_from_translations,
     orientation_from_world,
 )
+from app.words import Abc2Point, AbcWorld, TcpZX
 
 #: A tool axis an alignment names (the keys of `align`).
 ToolAxis = Literal["x", "y", "z"]
@@ -51,7 +52,7 @@ class DirectionIn(StrictModel):
 
 
 class TcpZxCalibration(PosesRequired):
-    method: Literal["tcp_z_x"]
+    method: TcpZX
     poses: Touches
     directions: Annotated[list[DirectionIn], Field(min_length=1, max_length=4)]
     options: NPointOptions = Field(default_factory=NPointOptions)
@@ -64,7 +65,7 @@ class Abc2PointOptions(StrictModel):
 
 
 class Abc2PointCalibration(PosesRequired):
-    method: Literal["abc_2point"]
+    method: Abc2Point
     poses: Annotated[
         list[Pose],
         PoseCount(3, 3, hint="the TCP touch, a point on the working axis behind it, a point on +Y"),
@@ -83,7 +84,7 @@ class AbcWorldOptions(StrictModel):
 
 
 class AbcWorldCalibration(PosesRequired):
-    method: Literal["abc_world"]
+    method: AbcWorld
     poses: Annotated[
         list[Pose], PoseCount(1, 1, hint="one pose with the tool aligned to base axes")
     ]
@@ -177,8 +178,7 @@ TCP_Z_X = Method(
     run=run_tcp_z_x,
     description="N-point touches plus pure translations along tool +-Z (and X) -> full "
     "frame (ABB TCP&Z,X; Fanuc six-point)",
-    example={
-        "method": "tcp_z_x",
+    example_body={
         "format": "kuka_abc",
         "poses": [
             [791.988, -94.321, 330.308, -171.92, 4.509, 162.959],
@@ -206,8 +206,7 @@ ABC_2POINT = Method(
     run=run_abc_2point,
     description="TCP touch, a point behind it on the working axis, a point on +Y -> "
     "orientation (KUKA ABC 2-point)",
-    example={
-        "method": "abc_2point",
+    example_body={
         "format": "kuka_abc",
         "poses": [
             [599.743, -50.246, 300.0, 0.397, -0.082, -179.922],
@@ -221,8 +220,7 @@ ABC_WORLD = Method(
     request=AbcWorldCalibration,
     run=run_abc_world,
     description="one pose with the tool aligned to base axes -> orientation (KUKA ABC world 5D/6D)",
-    example={
-        "method": "abc_world",
+    example_body={
         "format": "kuka_abc",
         "poses": [[400.0, 0.0, 300.0, -16.102, 25.659, -23.69]],
         "options": {"align": {"x": "-z", "y": "+y"}, "tcp_mm": [0.0, 0.0, 200.0]},

@@ -39,6 +39,7 @@ from app.methods.base import (
 from app.schemas.common import Pose, StrictModel, TouchNoise
 from app.schemas.results import PlaneDetails, PlaneOut, QualityOut, ResultExtras
 from app.solvers.plane import MIN_POSES, PlaneResult, check_predicted_sigma, solve_plane
+from app.words import XyzPlane
 
 PlaneLabel = Literal["a", "b", "c"]
 
@@ -97,7 +98,7 @@ Touches = Annotated[
 class XyzPlaneCalibration(PosesRequired):
     model_config = ConfigDict(json_schema_extra=_touch_schema)
 
-    method: Literal["xyz_plane"]
+    method: XyzPlane
     poses: Touches
     options: PlaneOptions = Field(default_factory=PlaneOptions)
     #: each touch's plane label as sent (None for a bare pose), in pose order
@@ -257,8 +258,7 @@ XYZ_PLANE = Method(
     description="N >= 7 touches of one flat surface, its place unknown, with the tool tilted "
     "differently at each -> TCP position and the plane (RoboDK's calibrate by plane); up to "
     "3 labelled planes",
-    example={
-        "method": "xyz_plane",
+    example_body={
         "format": "kuka_abc",
         "poses": [
             [773.872, -182.194, 415.969, -91.983, -19.054, -169.019],

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 import numpy as np
 from pydantic import ConfigDict, model_validator
@@ -27,6 +27,7 @@ from app.schemas.common import (
 )
 from app.schemas.results import QualityOut
 from app.solvers.reference import reference_point_from_touch, solve_reference
+from app.words import XyzReference
 
 _TOUCHED = ("reference_tool_id", "reference_pose")
 
@@ -70,7 +71,7 @@ class ReferenceOptions(StrictModel):
 
 
 class XyzReferenceCalibration(PosesRequired):
-    method: Literal["xyz_reference"]
+    method: XyzReference
     poses: Annotated[
         list[Pose],
         PoseCount(
@@ -137,8 +138,7 @@ XYZ_REFERENCE = Method(
     run=run,
     description="one touch of a known point (a stored reference point, another tool's touch "
     "of it, or its coordinates) -> TCP position",
-    example={
-        "method": "xyz_reference",
+    example_body={
         "format": "kuka_abc",
         "poses": [[753.897, -81.965, 320.965, -108.243, -25.048, -167.066]],
         "options": {"reference_point_mm": [786.293, -194.53, 227.266]},

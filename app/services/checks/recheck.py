@@ -31,7 +31,7 @@ from sqlalchemy.orm import Session
 
 from app.errors import ControllerUnreachableError, InvalidInput
 from app.helpers.tolerance import effective_tolerance
-from app.methods.reference import XyzReferenceCalibration
+from app.methods.reference import XYZ_REFERENCE, XyzReferenceCalibration
 from app.schemas.references import CheckCreate, CheckResult, Correction
 from app.security.auth import Principal, transaction_for
 from app.services import idempotency
@@ -218,7 +218,7 @@ def _correction_request(
     """The correction as the calibration it is: xyz_reference from the one touch."""
     return XyzReferenceCalibration.model_validate(
         {
-            "method": "xyz_reference",
+            "method": XYZ_REFERENCE.name,
             "format": checks.CAPTURE_FORMAT,
             "poses": [captured.pose],
             "options": {"reference_point_id": measured.point.id},
