@@ -43,6 +43,14 @@ class LastCalibration(TypedDict):
 
 class LastCheck(TypedDict):
     within_tolerance: bool
+    verdict: NotRequired[str | None]
+    correction_version: NotRequired[int | None]
+
+
+class FleetController(TypedDict):
+    state: str
+    checked_at: str
+    version: NotRequired[int | None]
 
 
 class FleetTool(TypedDict):
@@ -55,6 +63,7 @@ class FleetTool(TypedDict):
     last_calibration: LastCalibration | None
     last_check: LastCheck | None
     attention: list[str]
+    controller: NotRequired[FleetController | None]
 
 
 class MethodInfo(TypedDict):

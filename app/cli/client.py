@@ -36,6 +36,7 @@ from app.cli.bodies import (
     Calibration,
     CheckResult,
     FleetTool,
+    LastCheck,
     Page,
     Plan,
     Robot,
@@ -205,7 +206,7 @@ def tools(
         return
     table = Table(
         "tool", "slot", "robot", "cell", "active", "last calibration", "rms mm", "check",
-        "attention",
+        "controller", "attention",
     )  # fmt: skip
     table.add_column("id", no_wrap=True, overflow="ignore", min_width=36)
     for row in _fleet_rows(params):
@@ -225,10 +226,38 @@ def _fleet_cells(row: FleetTool) -> list[str]:
         "-" if row["active_version"] is None else f"v{row['active_version']}",
         cal["status"] if cal else "-",
         "" if rms is None else f"{rms:.3f}",
-        "-" if chk is None else ("ok" if chk["within_tolerance"] else "FAILED"),
+        _check_word(chk),
+        _controller_word(row),
         ", ".join(row.get("attention", [])),
         row["id"],
     ]
+
+
+def _check_word(chk: LastCheck | None) -> str:
+    """ "ok", "FAILED", or a re-check that corrected the TCP as that: "corrected to v7" (it
+    read "FAILED", the check's within_tolerance)."""
+    if chk is None:
+        return "-"
+    verdict = chk.get("verdict")
+    if verdict in ("corrected", "deployment_failed"):
+        to = chk.get("correction_version")
+        words = "corrected" if to is None else f"corrected to v{to}"
+        return f"{words}, not deployed" if verdict == "deployment_failed" else words
+    return "ok" if chk["within_tolerance"] else "FAILED"
+
+
+def _controller_word(row: FleetTool) -> str:
+    """The controller state the last look found, and, when it compared another version than
+    the active one, which and when: "v5 in sync at 22:29 UTC; v6 not compared yet"."""
+    ctl = row.get("controller")
+    if ctl is None:
+        return "-"
+    state = ctl["state"].replace("_", " ")
+    version, active = ctl.get("version"), row["active_version"]
+    if version is not None and active is not None and version != active:
+        at = ctl["checked_at"][11:16]
+        return f"v{version} {state} at {at} UTC; v{active} not compared yet"
+    return state
 
 
 def calibrate(

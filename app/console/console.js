@@ -37,6 +37,12 @@ function show(...nodes) {
 const mm = (v) => (v === null || v === undefined ? "—" : Number(v).toFixed(3));
 const vec = (v) => (v ? v.map(mm).join(", ") : "—");
 const when = (iso) => (iso ? new Date(iso).toLocaleString() : "—");
+// A moment in a badge: "22:29" today, else its date and time.
+function clock(iso) {
+  const d = new Date(iso);
+  if (d.toDateString() === new Date().toDateString()) return d.toLocaleTimeString([], { hour: "2-digit", minute: "2-digit" });
+  return d.toLocaleString([], { dateStyle: "short", timeStyle: "short" });
+}
 
 function age(iso) {
   if (!iso) return "—";
@@ -230,7 +236,7 @@ async function fleetPage() {
   const table = h(
     "table",
     { id: "fleet" },
-    h("thead", {}, h("tr", {}, ["Tool", "Robot", "Cell", "Slot", "Active", "Last calibration", "rms mm", "Age", "Last check", "Controller", "Moving by", "Drift", "Attention"].map((c) => h("th", {}, c)))),
+    h("thead", {}, h("tr", {}, FLEET_COLUMNS.map((c) => h("th", {}, c)))),
     body,
   );
   show(h("h1", {}, "Fleet"), filters, summary, table);
@@ -265,7 +271,17 @@ async function fleetPage() {
   render(all);
 }
 
+// The fleet table's columns; below 1100 px each row is a card whose cells carry these as
+// labels (data-label), so a 768 px tablet never scrolls sideways (the table was 909-1202 px).
+const FLEET_COLUMNS = ["Tool", "Robot", "Cell", "Slot", "Active", "Last calibration", "rms mm", "Age", "Last check", "Controller", "Moving by", "Drift", "Attention"];
+
 function fleetRow(tool, fleet) {
+  const row = fleetCells(tool, fleet);
+  [...row.children].forEach((td, i) => td.setAttribute("data-label", FLEET_COLUMNS[i]));
+  return row;
+}
+
+function fleetCells(tool, fleet) {
   const last = tool.last_calibration;
   const check = tool.last_check;
   const codes = tool.attention;
@@ -280,14 +296,28 @@ function fleetRow(tool, fleet) {
     h("td", {}, last ? h("a", { href: `/ui/calibrations/${last.id}` }, badge(last.status)) : "never"),
     h("td", { class: "num" }, last ? mm(last.rms_mm) : "—"),
     h("td", { class: "num", title: last ? when(last.created_at) : "" }, last ? age(last.created_at) : "—"),
-    h("td", {}, check ? h("span", { class: `badge ${check.within_tolerance ? "accepted" : "out_of_tolerance"}` }, `${check.within_tolerance ? "pass" : "fail"} ${mm(check.distance_mm)}`) : "—"),
-    h("td", { class: "controller-state" }, controllerBadge(tool.controller, { degrees: true })),
-    h("td", { class: "live-state", "data-state": tool.live?.state ?? null, title: liveTitle(tool.live) }, movingBy(tool, fleet) ?? "—"),
+    h("td", { class: "last-check" }, checkBadge(check)),
+    h("td", { class: "controller-state" }, controllerBadge(tool.controller, { degrees: true, active: tool.active_version })),
+    h("td", { class: "live-state", "data-state": tool.live?.no_tool ? "no_tool" : tool.live?.state ?? null, title: liveTitle(tool.live) }, movingBy(tool, fleet) ?? "—"),
     h("td", { class: "num drift", title: tool.drift ? `from the ${tool.drift.basis}${tool.drift.crosses_check_at ? `; out of check_mm by ${when(tool.drift.crosses_check_at)}` : ""}` : "fewer than three points over a day" },
       tool.drift ? rate(tool.drift.rate_mm_per_month, tool.drift.sigma_mm_per_month) : "—"),
     h("td", { class: "reasons", title: codes.map((c) => ATTENTION[c] ?? c).join("; ") },
       codes.map((c) => h("span", { class: "code", "data-code": c }, c))),
   );
+}
+
+// The fleet's last check: "pass 0.120", "fail 0.808", or a re-check that corrected the TCP
+// as the correction it was, "corrected 0.808 → v7" (it showed as a red "fail 0.808").
+function checkBadge(check) {
+  if (!check) return "—";
+  const distance = mm(check.distance_mm);
+  if (check.verdict === "corrected" || check.verdict === "deployment_failed") {
+    const to = check.correction_version === null || check.correction_version === undefined ? "" : ` → v${check.correction_version}`;
+    const failed = check.verdict === "deployment_failed";
+    const title = `the re-check found the TCP ${distance} mm off and made${to ? ` v${check.correction_version}` : " a new version"} of it, active${failed ? ", but its deployment to the controller failed: see the Controller column" : " and deployed"}`;
+    return h("span", { class: `badge check ${check.verdict}`, title }, `corrected ${distance}${to}${failed ? ", not deployed" : ""}`);
+  }
+  return h("span", { class: `badge ${check.within_tolerance ? "accepted" : "out_of_tolerance"}` }, `${check.within_tolerance ? "pass" : "fail"} ${distance}`);
 }
 
 // Which TCP the row's robot moves by right now (contract v1.3 fleet rows' `live`, from the
@@ -305,12 +335,16 @@ function movingBy(row, fleet) {
     const other = fleet.find((t) => t.id === live.tool_id);
     return `moving by ${other ? other.name : "another tool"} v${live.version}, not ${row.name}`;
   }
-  if (live.state === "unknown") return "moving by a TCP no version has";
+  if (live.state === "unknown" && live.no_tool) return NO_TOOL;
+  if (live.state === "unknown") return live.number === null || live.number === undefined ? "moving by a TCP no version has" : `moving by tool ${live.number}: a TCP no version has`;
   return live.checked_at ? "not known" : null;
 }
+// A robot at its bare flange (tool 0, KUKA $NULLFRAME, FANUC UTOOL 0), as robots idle between jobs.
+const NO_TOOL = "no tool selected (bare flange)";
 const liveTitle = (live) => {
   if (!live) return "";
   if (!live.checked_at) return LIVE_NEVER;
+  if (live.no_tool) return `the robot moves by its bare flange: no tool is selected, as between jobs (not an unknown TCP); read ${when(live.checked_at)}`;
   return `${live.state === "unread" ? `${LIVE_UNREAD}; ` : ""}read ${when(live.checked_at)}`;
 };
 // Why a robot's live TCP is "not known", or not shown.
@@ -341,14 +375,25 @@ const LIVE_ROBOT = "This robot moves by one live TCP: a deployment sets it for t
 const NOT_LIVE = "the robot has one live TCP, and this tool is not the one deployed to it last: deploy this one to make it the live one";
 
 // A drifted badge gives the distance; with `degrees` (the fleet's cell) the angle too when the
-// controller's TCP turned: an orientation-only pendant edit read "drifted 0.000 mm".
-function controllerBadge(controller, { degrees = false } = {}) {
+// controller's TCP turned: an orientation-only pendant edit read "drifted 0.000 mm". `active`:
+// the tool's active version. A look taken before it became active says which version it
+// compared, and when: "v5 in sync at 22:29; v6 not compared yet" (it said "in sync", beside
+// "moving by torch v5: not the active v6").
+function controllerBadge(controller, { degrees = false, active = null } = {}) {
   if (!controller) return "—";
   const label = CONTROLLER_LABELS[controller.state] ?? controller.state;
   const turned = degrees ? turnedBy(controller.deviation_deg) : "";
   const deviation = controller.state === "drifted" ? ` ${mm(controller.deviation_mm)} mm${turned}` : "";
-  const title = `checked ${when(controller.checked_at)}${controller.state === "not_live" ? `: ${NOT_LIVE}` : ""}`;
-  return h("span", { class: `badge controller ${controller.state}`, title }, label + deviation);
+  const compared = controller.version ?? null;
+  const where = controller.target ? `${controller.target} ` : "the controller ";
+  if (active !== null && compared !== null && compared !== active) {
+    const title = `the last look, ${when(controller.checked_at)}, compared ${where}with v${compared}, the active version then; nothing has compared it with v${active} since: deploy v${active}, or reconcile the robot`;
+    return h("span", { class: "badge controller earlier", "data-state": controller.state, title },
+      `v${compared} ${label}${deviation} at ${clock(controller.checked_at)}; v${active} not compared yet`);
+  }
+  const against = compared === null ? "" : ` against v${compared}`;
+  const title = `${where}checked ${when(controller.checked_at)}${against}${controller.state === "not_live" ? `: ${NOT_LIVE}` : ""}`;
+  return h("span", { class: `badge controller ${controller.state}`, "data-state": controller.state, title }, label + deviation);
 }
 
 // ", 0.500 deg", or nothing when the angle is none at the figures shown (3 decimals).
@@ -455,7 +500,7 @@ async function controllerSection(tool, versions, onChange) {
     section.append(
       h("p", { id: "controller-state" },
         `${connection.protocol} at ${controllerAddress(connection)} · `,
-        state ? controllerBadge(state) : "not looked at yet",
+        state ? controllerBadge(state, { active: tool.active_version }) : "not looked at yet",
         state ? ` · checked ${when(state.checked_at)}` : ""),
     );
     // A robot with one live TCP (UR, Techman) says what that means, and why a tool is not live.
@@ -464,7 +509,7 @@ async function controllerSection(tool, versions, onChange) {
     const row = rows.find((r) => r.id === tool.id);
     const moving = row ? movingBy(row, rows) : null;
     if (moving) {
-      section.append(h("p", { id: "live-tool", "data-state": row.live.state, class: ["stale_version", "unknown", "other_tool"].includes(row.live.state) ? "attention" : null },
+      section.append(h("p", { id: "live-tool", "data-state": row.live.no_tool ? "no_tool" : row.live.state, class: ["stale_version", "unknown", "other_tool"].includes(row.live.state) && !row.live.no_tool ? "attention" : null },
         h("strong", {}, "The robot is "), moving, row.live.state === "unread" ? `: ${LIVE_UNREAD}` : "",
         h("span", { class: "muted" }, ` · read ${when(row.live.checked_at)}`)));
     }
@@ -799,6 +844,14 @@ function plotly() {
   return plotlyLoading;
 }
 
+// A plot, its div held at the plot's height: a responsive plot's container is 100 % of a div
+// whose height is its min-height, so narrowing the window let the residual chart's 300 px hang
+// 58 px out of its 242 px div, under the 3-D plot below it.
+function newPlot(id, traces, layout, config) {
+  document.getElementById(id).style.minHeight = `${layout.height}px`;
+  return Plotly.newPlot(id, traces, layout, config);
+}
+
 // Draws a page's plots once Plotly is loaded; a page without plots never loads it. If it cannot
 // be loaded, each plot's box says so and the rest of the page stays.
 async function withPlotly(draw) {
@@ -1062,16 +1115,28 @@ function plotTcp(versions, sigmaOf) {
     xaxis: "x",
     yaxis: `y${i === 0 ? "" : i + 1}`,
   }));
-  Plotly.newPlot("plot-tcp", traces, {
+  newPlot("plot-tcp", traces, {
     grid: { rows: 3, columns: 1, shared_xaxes: true },
     xaxis: { type: "linear", range: [0.5, versions.length + 0.5], tickmode: "array", tickvals: ticks, ticktext: ticks.map((step) => `v${versions[step - 1].version}`), zeroline: false },
     height: 480,
     margin: { t: 10, r: 10, b: 40, l: 70 },
-    yaxis: { title: { text: "x mm" }, tickformat: ".3f" },
-    yaxis2: { title: { text: "y mm" }, tickformat: ".3f" },
-    yaxis3: { title: { text: "z mm" }, tickformat: ".3f" },
+    yaxis: { title: { text: "x mm" }, tickformat: ".3f", ...spanAtLeast(traces[0]) },
+    yaxis2: { title: { text: "y mm" }, tickformat: ".3f", ...spanAtLeast(traces[1]) },
+    yaxis3: { title: { text: "z mm" }, tickformat: ".3f", ...spanAtLeast(traces[2]) },
     showlegend: false,
   }, { displaylogo: false, responsive: true });
+}
+
+// An axis shown to 3 decimals spans at least MIN_SPAN_MM: one version with a 1-sigma of
+// thousandths (or none) autoranged to a few thousandths, and every tick read "12.500".
+const MIN_SPAN_MM = 0.02;
+function spanAtLeast(trace) {
+  const errors = trace.error_y.array;
+  const low = Math.min(...trace.y.map((y, i) => y - errors[i]));
+  const high = Math.max(...trace.y.map((y, i) => y + errors[i]));
+  if (high - low >= MIN_SPAN_MM) return {};
+  const middle = (low + high) / 2;
+  return { range: [middle - MIN_SPAN_MM / 2, middle + MIN_SPAN_MM / 2] };
 }
 
 // A series' drift under its plot: the rate ± its standard error with the 95 % interval per
@@ -1103,7 +1168,7 @@ function plotChecks(checks, limit, trend) {
   const trace = trend ? trendTrace(trend) : null;
   const range = timeRange([...ordered.map((c) => c.checked_at), ...(trace ? [trace.x[trace.x.length - 1]] : [])]);
   const top = 1.15 * Math.max(limit, ...ordered.map((c) => c.distance_mm), ...(trace ? trace.y : []));
-  Plotly.newPlot("plot-checks", [
+  newPlot("plot-checks", [
     { type: "scatter", mode: "lines+markers", name: "distance mm", x: ordered.map((c) => c.checked_at), y: ordered.map((c) => c.distance_mm),
       marker: { color: ordered.map((c) => (c.within_tolerance ? "#2e7d32" : "#c62828")), size: 10 } },
     { type: "scatter", mode: "lines", name: "check_mm", x: range, y: [limit, limit], line: { dash: "dash", color: "#c62828" } },
@@ -1161,7 +1226,7 @@ function plotResiduals(q, tolerance) {
   const outliers = new Set(q.outliers);
   const n = q.residuals_mm.length;
   const touch = q.residuals_mm.map((_, i) => i + 1);
-  Plotly.newPlot("plot-residuals", [
+  newPlot("plot-residuals", [
     { type: "bar", name: "residual mm", x: touch, y: q.residuals_mm,
       marker: { color: q.residuals_mm.map((_, i) => (outliers.has(i) ? "#c62828" : "#1565c0")) },
       text: q.residuals_mm.map((v, i) => (outliers.has(i) ? `${mm(v)} outlier` : mm(v))), textposition: "outside",
@@ -1191,7 +1256,7 @@ function plot3d(cal, geometry) {
     const [x, y, z] = cal.reference_point_mm;
     traces.push({ type: "scatter3d", mode: "markers", name: "touched point", x: [x], y: [y], z: [z], marker: { size: 6, symbol: "diamond", color: "#ff8f00" } });
   }
-  Plotly.newPlot("plot-3d", traces, { height: 520, margin: { t: 0, r: 0, b: 0, l: 0 }, scene: { aspectmode: "data" }, legend: { x: 0, y: 1 } }, { displaylogo: false, responsive: true });
+  newPlot("plot-3d", traces, { height: 520, margin: { t: 0, r: 0, b: 0, l: 0 }, scene: { aspectmode: "data" }, legend: { x: 0, y: 1 } }, { displaylogo: false, responsive: true });
 }
 
 // The helpers the calibrate page (calibrate.js) draws and talks to the API with.
