@@ -91,10 +91,12 @@ def add_created(
     robot_id: str | None = None,
     tool_id: str | None = None,
     details: JsonObject | None = None,
+    about: Mapping[str, str] | None = None,
 ) -> Created:
     """Insert a new resource's row and its audit event in the current transaction: the one
     way every service creates what it audits (the row is flushed, so its id and defaults
-    are set and a unique constraint fails here, before the event)."""
+    are set and a unique constraint fails here, before the event). `about`: the calibrated
+    subject it concerns by its key, as for `record`."""
     session.add(new)
     session.flush()
     record(
@@ -106,6 +108,7 @@ def add_created(
         robot_id=robot_id,
         tool_id=tool_id,
         details=details,
+        about=about,
     )
     return new
 
