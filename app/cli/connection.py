@@ -3,7 +3,8 @@ server reaches a robot's controller (PUT, GET and DELETE /v1/robots/{id}/control
 scope to change it).
 
 The password never reaches the command line: `--password-stdin` reads it from the first line
-of stdin (a secret store's pipe), `--password-prompt` asks for it without echo.
+of stdin (a secret store's pipe), `--password-prompt` asks for it without echo;
+`--forget-password` removes the stored one (the API's `password: null`).
 """
 
 from __future__ import annotations
@@ -104,11 +105,17 @@ def _ports(given: list[str]) -> dict[str, int]:
     return ports
 
 
-def _password(from_stdin: bool, prompt: bool) -> str | None:
+def _password(from_stdin: bool, prompt: bool, forget: bool = False) -> str | None:
     """The password, read without it touching the command line or the screen; None: left
-    out (the server keeps the stored one)."""
+    out (the server keeps the stored one), or `forget` (it removes it)."""
     if from_stdin and prompt:
         fail(EXIT_BAD_USE, "give --password-stdin or --password-prompt, not both")
+    if forget and (from_stdin or prompt):
+        fail(
+            EXIT_BAD_USE,
+            "--forget-password removes the stored password: give it without --password-stdin "
+            "or --password-prompt",
+        )
     if from_stdin:
         line = sys.stdin.readline().rstrip("\r\n")
         if not line:
@@ -146,6 +153,9 @@ def connect(
     password_prompt: Annotated[
         bool, typer.Option("--password-prompt", help="ask for the password, not echoed")
     ] = False,
+    forget_password: Annotated[
+        bool, typer.Option("--forget-password", help="remove the stored password")
+    ] = False,
     timeout: Annotated[
         float | None, typer.Option(help="connect and read timeout, s (default 5)")
     ] = None,
@@ -154,8 +164,8 @@ def connect(
     ] = True,
 ) -> None:
     """Set how the server reaches the robot's controller (admin scope). Without a password
-    option a stored password is kept."""
-    secret = _password(password_stdin, password_prompt)
+    option a stored password is kept; --forget-password removes it."""
+    secret = _password(password_stdin, password_prompt, forget_password)
     robot_id = resolve_robot(robot_ref)
     body: JsonObject = {"protocol": protocol, "host": host, "tls_verify": tls_verify}
     optional: JsonObject = {
@@ -166,6 +176,8 @@ def connect(
         "timeout_s": timeout,
     }
     body.update({name: value for name, value in optional.items() if value is not None})
+    if forget_password:
+        body["password"] = None  # null removes it; left out keeps it
     response = request("PUT", f"/v1/robots/{robot_id}/controller", json=body)
     if response.status_code >= 400:
         _refused(response)

@@ -611,7 +611,9 @@ function connectionBody(form, services) {
     if (Object.keys(ports).length) body.ports = ports;
   } else if (value("port")) body.port = number(value("port"));
   if (value("username")) body.username = value("username");
-  if (form.elements.namedItem("password").value) body.password = form.elements.namedItem("password").value;
+  // null removes the stored password (left out, it is kept)
+  if (form.elements.namedItem("forget_password")?.checked) body.password = null;
+  else if (form.elements.namedItem("password").value) body.password = form.elements.namedItem("password").value;
   if (value("timeout_s")) body.timeout_s = number(value("timeout_s"));
   return body;
 }
@@ -689,13 +691,20 @@ function connectionFields(tool, connection, onChange, { protocols, defaults }) {
   protocolSelect.addEventListener("change", drawPorts);
   drawPorts();
   const outcome = h("div", { id: "connection-outcome" });
+  const passwordInput = h("input", { name: "password", id: "connection-password", type: "password", autocomplete: "new-password" });
+  const forgetPassword = h("input", { name: "forget_password", id: "connection-forget-password", type: "checkbox" });
+  forgetPassword.addEventListener("change", () => {
+    passwordInput.disabled = forgetPassword.checked;
+    if (forgetPassword.checked) passwordInput.value = "";
+  });
   const form = h("form", { id: "connection-form", class: "card" },
     connectionField("protocol", protocolSelect),
     connectionField("host", h("input", { name: "host", required: true, placeholder: "192.168.1.20", value: connection?.host ?? "" })),
     portsBox,
     connectionField("user", h("input", { name: "username", autocomplete: "off", value: connection?.username ?? "" }), "ABB RWS"),
-    connectionField("password", h("input", { name: "password", type: "password", autocomplete: "new-password" }),
+    connectionField("password", passwordInput,
       connection?.has_password ? "a password is stored: left empty, it is kept" : "write-only: never shown again"),
+    connection?.has_password ? connectionField("remove the stored password", forgetPassword, "on save; the controller is then reached without one") : null,
     connectionField("timeout, s", h("input", { name: "timeout_s", inputmode: "decimal", placeholder: "5", value: connection ? connection.timeout_s : "" }), "default 5"),
     h("div", { class: "actions" }, h("button", { type: "submit", id: "connection-save" }, connection ? "Save connection" : "Connect")),
     outcome);

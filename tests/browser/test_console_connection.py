@@ -2,7 +2,7 @@
 a UR connection with ports of its own and the tool page says where the controller is reached
 (each service's port); the protocols and their default ports are the API's own (its schema's
 enum and `x-default-ports`); a value the server refuses is said next to its field, nothing
-stored; a calibrate key sees no form.
+stored; a stored password is removed with its own control; a calibrate key sees no form.
 
 A live server (SQLite, one worker) with a robot and a tool and no controller connection."""
 
@@ -16,10 +16,12 @@ from playwright.sync_api import Page, expect
 
 from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.browser.conftest import sign_in_to
+from tests.polling import wait_for
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
 
 RTDE, SECONDARY = 30104, 30102
+SECRET = "a-long-random-secret-for-the-console-tests-0123456789"
 
 
 @dataclass
@@ -33,16 +35,18 @@ class Cell:
 @pytest.fixture(scope="module")
 def cell(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Cell]:
     tmp = tmp_path_factory.mktemp("console-connection")
-    with (
-        fresh_database("sqlite", tmp, None) as url,
-        live_server(url, workers=1, solvers=0) as server,
-        server.client() as http,
-    ):
-        robot = http.post("/v1/robots", json={"name": "ur10e-glue", "cell": "glue-1"}).json()
-        tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "glue-gun"}).json()
-        key = http.post("/v1/keys", json={"name": "cell-pc", "scope": "calibrate"})
-        key.raise_for_status()
-        yield Cell(server, robot["id"], tool["id"], key.json()["key"])
+    with pytest.MonkeyPatch.context() as env:
+        env.setenv("TCPCAL_SECRET_KEY", SECRET)  # a password can be stored
+        with (
+            fresh_database("sqlite", tmp, None) as url,
+            live_server(url, workers=1, solvers=0) as server,
+            server.client() as http,
+        ):
+            robot = http.post("/v1/robots", json={"name": "ur10e-glue", "cell": "glue-1"}).json()
+            tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "glue-gun"}).json()
+            key = http.post("/v1/keys", json={"name": "cell-pc", "scope": "calibrate"})
+            key.raise_for_status()
+            yield Cell(server, robot["id"], tool["id"], key.json()["key"])
 
 
 @pytest.fixture(scope="module")
@@ -104,6 +108,40 @@ def test_a_refused_value_is_said_next_to_its_field(page: Page, cell: Cell) -> No
     expect(page.locator("#connection-refused")).to_contain_text("nothing was stored")
     with cell.server.client() as http:
         assert http.get(f"/v1/robots/{cell.robot_id}/controller").status_code == 404
+
+
+def test_a_stored_password_is_removed_with_its_own_control(page: Page, cell: Cell) -> None:
+    """Issue 51: the form could keep a stored password (empty field) or replace it, never
+    remove it: a controller whose user needs none kept being sent the old one."""
+    body = {"protocol": "abb_rws2", "host": "127.0.0.1", "password": "old-pw-4711"}
+    controller = f"/v1/robots/{cell.robot_id}/controller"
+    with cell.server.client() as http:
+        put = http.put(controller, json=body)
+        assert put.status_code == 200, put.text
+        assert put.json()["has_password"] is True
+        try:
+            sign_in_to(page, cell.server, f"/ui/tools/{cell.tool_id}")
+            page.locator("details#connection summary").click()
+            form = page.locator("#connection-form")
+            forget = form.locator("#connection-forget-password")
+            expect(form.locator("[data-field=password]")).to_contain_text("a password is stored")
+            expect(forget).not_to_be_checked()
+            forget.check()
+            expect(form.locator("#connection-password")).to_be_disabled()
+            form.locator("#connection-save").click()
+            wait_for(lambda: not http.get(controller).json()["has_password"], 10, "the removal")
+            stored = http.get(controller).json()
+            assert (stored["protocol"], stored["host"]) == ("abb_rws2", "127.0.0.1")
+            # drawn again (still signed in): no password to remove
+            page.reload()
+            expect(page.locator("main")).to_have_attribute("aria-busy", "false")
+            page.locator("details#connection summary").click()
+            expect(page.locator("#connection-form [data-field=password]")).to_contain_text(
+                "write-only: never shown again"
+            )
+            expect(page.locator("#connection-forget-password")).to_have_count(0)
+        finally:
+            http.delete(controller)
 
 
 def test_a_calibrate_key_sees_no_form(page: Page, cell: Cell) -> None:

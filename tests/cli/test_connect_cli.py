@@ -128,6 +128,38 @@ def test_the_password_is_stored_and_never_shown(api: Api, runner: CliRunner, how
     assert "  password    stored\n" in kept.output
 
 
+def test_forget_password_removes_the_stored_one(api: Api, runner: CliRunner) -> None:
+    """Issue 51: a stored password could not be removed from the CLI (a controller whose
+    user needs none any more kept sending it)."""
+    robot = api.robot("cell9-irb")
+    connect = ["connect", "cell9-irb", "--protocol", "abb_rws2", "--host", "127.0.0.1"]
+    stored = runner.invoke(cli, [*connect, "--password-stdin"], input=f"{PASSWORD}\n")
+    assert stored.exit_code == 0, stored.output
+    assert api.get(f"/v1/robots/{robot['id']}/controller").json()["has_password"] is True
+    both = runner.invoke(cli, [*connect, "--password-stdin", "--forget-password"], input="x\n")
+    assert both.exit_code == 2, both.output
+    assert "--forget-password removes the stored password" in " ".join(both.output.split())
+    assert api.get(f"/v1/robots/{robot['id']}/controller").json()["has_password"] is True
+    forgot = runner.invoke(cli, [*connect, "--forget-password"])
+    assert forgot.exit_code == 0, forgot.output
+    assert "  password    none\n" in forgot.output
+    assert api.get(f"/v1/robots/{robot['id']}/controller").json()["has_password"] is False
+
+
+def test_a_protocol_of_another_maker_is_refused_naming_the_option(
+    api: Api, runner: CliRunner
+) -> None:
+    robot = api.robot("cell2-kr16", vendor="KUKA")
+    refused = runner.invoke(
+        cli, ["connect", "cell2-kr16", "--protocol", "techman", "--host", "127.0.0.1"]
+    )
+    assert refused.exit_code == 4, refused.output
+    said = " ".join(refused.output.split())
+    assert "422: --protocol: protocol techman is not its robot's" in said, said
+    assert "its controllers speak kuka_kvp" in said
+    assert api.get(f"/v1/robots/{robot['id']}/controller").status_code == 404
+
+
 def test_changing_a_connection_needs_admin(
     api: Api, runner: CliRunner, monkeypatch: pytest.MonkeyPatch
 ) -> None:
