@@ -36,8 +36,17 @@ the operator at the pendant.
 Where the robot stands (KUKA System Software 8, *System Variables* manual, and the
 *Programming manual for system integrators*, "Coordinate systems", "Status and Turn"):
 ``$POS_ACT`` (E6POS) is the Cartesian position of the TCP, the frame ``$TOOL`` on the
-flange, in the frame ``$BASE``: $POS_ACT = inverse($BASE) * flange * $TOOL, the flange and
-``$BASE`` both in the robot's base frame ($ROBROOT = $WORLD here), A B C with
+flange, in the frame ``$BASE``; ``$BASE`` is in ``$WORLD``, and so is the robot: its root
+(the robot's base frame, the flange's reference) stands at ``$ROBROOT`` in ``$WORLD``
+(KUKA, *Machine Data* KR C2 12.0400 en, 2.1.8 ``$ROBROOT``: "Offset and orientation of the
+robot relative to the world coordinate system", ceiling-mounted C = 180, wall-mounted
+B = 90; its Fig. 2 frame chain: $WORLD -> $ROBROOT -> robot -> $TOOL, $WORLD -> $BASE ->
+$POS_ACT; "The BASE coordinate system ... has the WORLD coordinate system as its reference
+coordinate system"). On a track (a ROBROOT kinematic, 2.1.9 ``$ERSYSROOT``) the machine
+datum ``$ROBROOT`` is ignored and "the current value can be read from the main run variable
+``$ROBROOT_C``": this KRC serves both, ``$ROBROOT_C`` the current one (`set_robroot`, the
+track moving the robot or the mount as built). So $POS_ACT = inverse($BASE) * $ROBROOT_C *
+flange * $TOOL, the flange in the robot's base frame, A B C with
 R = Rz(A) Ry(B) Rx(C); S (Status) and T (Turn: bit n set when axis n+1 stands below
 0 deg) follow. ``$AXIS_ACT`` (E6AXIS) holds the axis angles A1..A6 and E1..E6.
 ``$ACT_TOOL`` is the number of the tool selected (-1: ``$TOOL`` was set without one), and
@@ -120,6 +129,8 @@ class KukaSimulator(TcpSimulator):
         self.act_tool = -1
         self._tool_frame: dict[str, float] = dict.fromkeys(FRAME_MEMBERS, 0.0)
         self.base: dict[str, float] = dict.fromkeys(FRAME_MEMBERS, 0.0)
+        #: $ROBROOT_C: the robot's base frame in $WORLD (identity: the robot is the world)
+        self.robroot: dict[str, float] = dict.fromkeys(FRAME_MEMBERS, 0.0)
         #: ``#BASE`` or ``#TCP`` (external TCP)
         self.ipo_mode = "#BASE"
         #: the Status bits S of $POS_ACT (the arm's configuration; not computed here)
@@ -201,8 +212,19 @@ class KukaSimulator(TcpSimulator):
                 for k, v in zip(FRAME_MEMBERS, (x, y, z, a, b, c), strict=True)
             }
 
+    def set_robroot(self, x: float, y: float, z: float, a: float, b: float, c: float) -> None:
+        """$ROBROOT (and the current $ROBROOT_C): the robot's base frame in $WORLD (mm, deg),
+        a robot on a track, a raised or tilted mount; the flange stays where it is on the
+        robot (`set_flange` is in the robot's base frame), so $POS_ACT changes."""
+        with self._data_lock:
+            self.robroot = {
+                k: real(v, self.single_precision)
+                for k, v in zip(FRAME_MEMBERS, (x, y, z, a, b, c), strict=True)
+            }
+
     def set_base(self, x: float, y: float, z: float, a: float, b: float, c: float) -> None:
-        """$BASE: the base frame in the robot's base frame (mm, deg)."""
+        """$BASE: the base frame in $WORLD (mm, deg; the robot's base frame while $ROBROOT
+        is the identity)."""
         with self._data_lock:
             self.base = {
                 k: real(v, self.single_precision)
@@ -216,7 +238,8 @@ class KukaSimulator(TcpSimulator):
 
     def _pos_act(self) -> dict[str, float]:
         tool = self.tools[self.act_tool] if self.act_tool in SLOTS else self._tool_frame
-        tcp = np.linalg.inv(_matrix(self.base)) @ self._flange @ _matrix(tool)
+        world_flange = _matrix(self.robroot) @ self._flange
+        tcp = np.linalg.inv(_matrix(self.base)) @ world_flange @ _matrix(tool)
         abc = Rotation.from_matrix(tcp[:3, :3]).as_euler("ZYX", degrees=True)
         values = (*tcp[:3, 3], *abc)
         return {
@@ -276,6 +299,8 @@ class KukaSimulator(TcpSimulator):
                 return _print_frame(tool, "FRAME")
             if name == "$BASE":
                 return _print_frame(self.base, "FRAME")
+            if name in ("$ROBROOT", "$ROBROOT_C"):
+                return _print_frame(self.robroot, "FRAME")
             if name == "$ACT_TOOL":
                 return str(self.act_tool)
             if name == "$IPO_MODE":

@@ -18,9 +18,17 @@ the TCP of the frame ``$TOOL`` on the flange, in the frame ``$BASE``), ``$AXIS_A
 (E6AXIS, deg), ``$ACT_TOOL`` (the tool number selected; -1 when ``$TOOL`` was set without
 one) and ``$IPO_MODE``: ``#BASE`` (the tool moves with the flange) or ``#TCP`` (external
 TCP: the workpiece rides on the flange past a fixed tool, and ``$POS_ACT`` is not a tool on
-the flange, so a read in that mode is refused). The six are asked for in one send (the
-proxy answers the requests of one TCP read in turn), so they describe one moment as
-nearly as the KRC allows; the flange is ``$BASE * $POS_ACT * inverse($TOOL)``.
+the flange, so a read in that mode is refused). ``$BASE`` is in ``$WORLD``, and the robot
+stands in ``$WORLD`` at ``$ROBROOT`` (KUKA, *Machine Data* KR C2 12.0400 en, 2.1.8
+``$ROBROOT``: "Offset and orientation of the robot relative to the world coordinate system";
+its Fig. 2 frame chain $WORLD -> $ROBROOT -> robot -> $TOOL and $WORLD -> $BASE ->
+$POS_ACT), whose current value on a track is ``$ROBROOT_C`` (2.1.9 ``$ERSYSROOT``: with a
+ROBROOT kinematic "the contents of the machine datum $ROBROOT are ignored. The current value
+can be read from the main run variable $ROBROOT_C"). The seven are asked for in one send
+(the proxy answers the requests of one TCP read in turn), so they describe one moment as
+nearly as the KRC allows; the flange, in the robot's base frame, is
+``inverse($ROBROOT_C) * $BASE * $POS_ACT * inverse($TOOL)`` (the flange in $WORLD when the
+robot is its world, a tilted, raised or track-borne robot's in its own frame).
 
 Variables (KUKA System Software 8, Programming manual for system integrators, "$TOOL_DATA",
 "$LOAD_DATA"; declared in ``$config.dat``/``$machine.dat`` for tools 1-16):
@@ -39,7 +47,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from app.kinematics.frames import Wxyz, flange_from_tcp
+from app.kinematics.frames import Wxyz, compose, flange_from_tcp, inverse
 from app.kinematics.poses import kuka_abc_from_quaternion_wxyz, quaternion_wxyz_from_kuka_abc
 from app.vendors.connector import (
     ClosingSession,
@@ -66,7 +74,15 @@ _STATUS_OK = 1
 #: KUKA's "no load data" mass: the controller uses the robot's default load.
 DEFAULT_LOAD_MASS = -1.0
 #: What a pose read asks the KRC for, in this order (all in one send).
-POSE_VARIABLES = ("$IPO_MODE", "$ACT_TOOL", "$TOOL", "$BASE", "$POS_ACT", "$AXIS_ACT")
+POSE_VARIABLES = (
+    "$IPO_MODE",
+    "$ACT_TOOL",
+    "$TOOL",
+    "$BASE",
+    "$ROBROOT_C",
+    "$POS_ACT",
+    "$AXIS_ACT",
+)
 _FRAME = ("X", "Y", "Z", "A", "B", "C")
 _ROBOT_AXES = ("A1", "A2", "A3", "A4", "A5", "A6")
 
@@ -138,7 +154,8 @@ class KukaKvpConnector(ClosingSession):
 
     def read_pose(self) -> PoseReading:
         """Where the robot stands: the flange in the robot's base frame
-        (``$BASE * $POS_ACT * inverse($TOOL)``), A1..A6 of ``$AXIS_ACT``, the tool it moves by
+        (``inverse($ROBROOT_C) * $BASE * $POS_ACT * inverse($TOOL)``), A1..A6 of
+        ``$AXIS_ACT``, the tool it moves by
         (``$ACT_TOOL``, ``$TOOL``) and the six values as the KRC printed them. ControllerRefused
         in external-TCP mode (``$IPO_MODE #TCP``)."""
         readings = self.read_variables(POSE_VARIABLES, self._deadline)
@@ -157,7 +174,9 @@ class KukaKvpConnector(ClosingSession):
                 f"{self._peer}: $IPO_MODE = {readings['$IPO_MODE']!r} is neither #BASE nor #TCP"
             )
         tool = _kuka_frame(self._numbers_of(readings, "$TOOL", _FRAME))
-        base = _kuka_frame(self._numbers_of(readings, "$BASE", _FRAME))
+        world_base = _kuka_frame(self._numbers_of(readings, "$BASE", _FRAME))
+        robroot = _kuka_frame(self._numbers_of(readings, "$ROBROOT_C", _FRAME))
+        base = compose(inverse(*robroot), world_base)  # $BASE in the robot's base frame
         tcp = _kuka_frame(self._numbers_of(readings, "$POS_ACT", _FRAME))
         position, quaternion = flange_from_tcp(tcp, tool=tool, base=base)
         return PoseReading(

@@ -285,12 +285,14 @@ def test_the_simulators_pos_act_is_the_tcp_of_tool_in_base_worked_by_hand(
 
 @pytest.mark.parametrize("seed", range(4))
 def test_read_pose_gives_the_simulators_own_flange_to_1e6(seed: int) -> None:
-    """A general pose: a tool and a base each shifted and turned by three unequal angles,
-    the flange anywhere; the connector's flange is the one the simulator computed $POS_ACT
-    from, to 1e-6 mm and 1e-6 deg (the simulator keeping every digit)."""
+    """A general pose: a tool, a base and the robot's root in $WORLD ($ROBROOT_C) each
+    shifted and turned by three unequal angles, the flange anywhere; the connector's flange
+    is the one the simulator computed $POS_ACT from, to 1e-6 mm and 1e-6 deg (the simulator
+    keeping every digit)."""
     rng = np.random.default_rng(seed)
     tool = (*rng.uniform(-150, 150, 2), rng.uniform(80, 300), 35.0, -20.0, 170.0 - 15 * seed)
     base = (*rng.uniform(-800, 800, 3), -60.0 + seed, 7.5, -12.25)
+    robroot = (*rng.uniform(-3000, 3000, 3), 25.0 - 10 * seed, -14.0, 172.5)
     flange_at = rng.uniform(-1200, 1200, 3)
     flange_turn = Rotation.random(random_state=rng).as_matrix()
     joints = tuple(float(v) for v in rng.uniform(-170, 170, 6))
@@ -298,6 +300,7 @@ def test_read_pose_gives_the_simulators_own_flange_to_1e6(seed: int) -> None:
         sim.set_tool(7, *tool)
         sim.select_tool(7)
         sim.set_base(*base)
+        sim.set_robroot(*robroot)
         sim.set_flange(tuple(flange_at), flange_turn)
         sim.set_joints(*joints)
         with KukaKvpConnector(kuka_settings(sim)) as kuka:
@@ -317,6 +320,38 @@ def test_read_pose_gives_the_simulators_own_flange_to_1e6(seed: int) -> None:
     assert_allclose(kuka_abc(reading.live_tool.frame.quaternion), tool[3:], atol=1e-9)
     assert reading.readings == shown, "each value as the KRC printed it"
     assert list(reading.readings) == list(POSE_VARIABLES)
+
+
+@pytest.mark.parametrize(
+    ("mount", "robroot"),
+    [
+        ("on a track, 2.4 m along it", (2400.0, 0.0, 0.0, 0.0, 0.0, 0.0)),
+        ("on a 400 mm riser, turned 90 deg", (0.0, 0.0, 400.0, 90.0, 0.0, 0.0)),
+        ("on the ceiling", (500.0, -300.0, 3200.0, 0.0, 0.0, 180.0)),
+        ("on a wall", (0.0, 1500.0, 1200.0, 0.0, 90.0, 0.0)),
+    ],
+)
+def test_the_flange_is_in_the_robots_base_frame_wherever_it_stands_in_world(
+    mount: str, robroot: tuple[float, ...]
+) -> None:
+    """Issue 51: the flange was $BASE * $POS_ACT * inverse($TOOL), the flange in $WORLD,
+    right only when $ROBROOT = $WORLD; $BASE (every BASE_DATA) is in $WORLD, and a robot on
+    a track or another mount stands at $ROBROOT_C in it. The flange is in the robot's own
+    base frame wherever the robot stands: inverse($ROBROOT_C) * $BASE * $POS_ACT * $TOOL^-1."""
+    with KukaSimulator(single_precision=False) as sim:
+        sim.set_tool(4, 0.0, 0.0, 250.0, 0.0, 30.0, 0.0)
+        sim.select_tool(4)
+        sim.set_base(1200.0, 800.0, 600.0, -45.0, 0.0, 0.0)  # a BASE_DATA, in $WORLD
+        sim.set_robroot(*robroot)
+        sim.jog_flange(900.0, -150.0, 1100.0, 10.0, 80.0, -170.0)
+        with KukaKvpConnector(kuka_settings(sim)) as kuka:
+            reading = kuka.read_pose()
+        held_at, held_turn = sim.flange()
+    off_mm = float(np.linalg.norm(np.subtract(reading.flange.position_mm, held_at)))
+    off_deg = angle_between_deg(reading.flange.quaternion, wxyz(held_turn))
+    assert off_mm < 1e-6, (mount, off_mm, off_deg)
+    assert off_deg < 1e-6, (mount, off_mm, off_deg)
+    assert reading.readings["$ROBROOT_C"] == sim.show_var("$ROBROOT_C")
 
 
 def test_read_pose_asks_for_the_six_variables_once(kuka_sim: KukaSimulator) -> None:
