@@ -26,7 +26,8 @@ from app.schemas.results import (
     CalibrationResult,
 )
 from app.schemas.tools import Tcp
-from app.services.calibrations.verdict import change_warning, held_for_change, summarise
+from app.services.calibrations.verdict import change_warning, summarise
+from app.services.lifecycle.activation import held_for_change
 from app.services.tools.versions import IDENTITY_QUATERNION
 from app.services.touches.diagnosis import (
     Fit,

@@ -15,11 +15,6 @@ from app.schemas.tools import Tolerance
 from app.solvers.numbering import numbered
 
 
-def held_for_change(change_mm: float | None, tolerance: Tolerance) -> bool:
-    """Whether a result moved the TCP too far from the active one to activate it by "auto"."""
-    return change_mm is not None and change_mm > tolerance.max_change_mm
-
-
 def change_warning(change_mm: float, previous: ActiveFrame, tolerance: Tolerance) -> str:
     """Why a result that moved the TCP far was not activated, and how to activate it."""
     return (

@@ -24,7 +24,7 @@ from app.services.calibrations.contexts import DbContext, SnapshotContext
 from app.services.calibrations.grading import reference_point_to_save, solve
 from app.services.calibrations.presolve import Presolved, Snapshot, solve_snapshot
 from app.services.calibrations.stored import served
-from app.services.calibrations.verdict import held_for_change
+from app.services.lifecycle.activation import activation_due
 from app.services.references.references import create_reference_point, ensure_reference_name_free
 from app.services.robots.robots import get_robot
 from app.services.tools.tools import get_tool
@@ -265,18 +265,14 @@ def _activate_if_due(
     """Activate the new version as `activate` asks ("auto": only within tolerance and not
     too far from the active version)."""
     tolerance = effective_tolerance(tool.tolerance)
-    due = request.activate == "always" or (
-        request.activate == "auto"
-        and result.status == "accepted"
-        and not held_for_change(result.change_from_active_mm, tolerance)
-    )
-    if due:
+    kind = activation_due(request.activate, result.status, result.change_from_active_mm, tolerance)
+    if kind is not None:
         activate(
             session,
             tool=tool,
             version=tool.last_version,
-            reason="calibration:always" if request.activate == "always" else "calibration:auto",
+            reason=kind,
             actor=actor,
             deferred=True,  # saved by submit with the version's
         )
-    return due
+    return kind is not None

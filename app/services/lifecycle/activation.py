@@ -16,7 +16,8 @@ from sqlalchemy.orm import Session
 
 from app.errors import InvalidInput, NothingToRollBack, OutOfTolerance
 from app.jsontypes import JsonObject
-from app.schemas.tools import ActivationRequest, RollbackRequest
+from app.schemas.common import Activate
+from app.schemas.tools import ActivationRequest, RollbackRequest, Tolerance
 from app.security.auth import Principal
 from app.services.lifecycle.subject import (
     ActivationT,
@@ -36,6 +37,25 @@ FORCED: Final[ActivationKind] = "forced"
 ROLLBACK: Final[ActivationKind] = "rollback"
 #: The kind of a version a re-check corrected the subject to (app.services.checks.recheck).
 CHECK_CORRECTION: Final[ActivationKind] = "check_correction"
+
+
+def held_for_change(change_mm: float | None, tolerance: Tolerance) -> bool:
+    """Whether a new version moved the subject too far from the active one (more than the
+    tolerance's max_change_mm) to activate it by "auto"."""
+    return change_mm is not None and change_mm > tolerance.max_change_mm
+
+
+def activation_due(
+    activate: Activate, status: Status, change_mm: float | None, tolerance: Tolerance
+) -> ActivationKind | None:
+    """The kind of activation a calibration's new version gets as its request's `activate`
+    asks (None: it is stored, not activated): "always" always; "auto" only when it is
+    accepted and within max_change_mm of the active version; "never" never."""
+    if activate == "always":
+        return "calibration:always"
+    if activate == "auto" and status == "accepted" and not held_for_change(change_mm, tolerance):
+        return "calibration:auto"
+    return None
 
 
 def activate_version(
