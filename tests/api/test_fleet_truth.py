@@ -17,6 +17,7 @@ from tests.api.test_deployments import (
     ACTIVE_Q,
     PREVIOUS_POSITION,
     PREVIOUS_Q,
+    WRITE_REQUEST,
     _deploy,
     secret_key,  # noqa: F401 (a fixture: ABB's password is stored under it)
 )
@@ -29,6 +30,7 @@ from tests.api.test_recheck_controllers import (
     tool_at_reference,
 )
 from tests.conftest import Api
+from tests.controllers.simbase import go_silent
 
 
 @pytest.mark.parametrize("protocol", sorted(LIVE_PROTOCOLS))
@@ -159,3 +161,27 @@ def test_a_robot_at_its_bare_flange_has_no_tool_selected_not_an_unknown_tcp(
         row = _rows(api, robot_id)["t1"]
         assert (row["live"]["state"], row["live"]["no_tool"]) == ("unknown", False)
         assert "moving_by_unknown_tcp" in row["attention"]
+
+
+@pytest.mark.parametrize("protocol", sorted(LIVE_PROTOCOLS))
+def test_a_live_tcp_written_and_not_read_back_is_not_known(api: Api, protocol: str) -> None:
+    """The controller takes the write and goes silent: the robot may move by v2 or by the
+    v1 the round read before; the fleet claims neither (unread, no stale_version) until the
+    next round reads it."""
+    with rig(protocol) as r:
+        ids = _torch_v1_v2(api, r)
+        robot_id, tool_id = ids["robot"]["id"], ids["tool"]["id"]
+        r.set_behind_back(PREVIOUS_POSITION, PREVIOUS_Q)
+        _reconcile(api, robot_id)
+        assert _rows(api, robot_id)["t1"]["live"]["state"] == "stale_version"
+        r.sim.fault = go_silent("after", WRITE_REQUEST[r.protocol])
+        failed = _deploy(api, tool_id)
+        assert failed.status_code == 502, failed.text
+        assert failed.json()["deployment_status"] == "unverified"
+        row = _rows(api, robot_id)["t1"]
+        assert row["live"]["state"] == "unread", row["live"]
+        assert "moving_by_stale_version" not in row["attention"]
+        r.sim.stalled = False  # the controller back: the next round reads it
+        _reconcile(api, robot_id)
+        row = _rows(api, robot_id)["t1"]
+        assert (row["live"]["state"], row["live"]["version"]) == ("active", 2), row["live"]
