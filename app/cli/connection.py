@@ -19,6 +19,7 @@ from app.cli.client import RobotArg, resolve_robot
 from app.cli.controllers import LIVE_SCOPE, exit_for_problem
 from app.cli.http import EXIT_BAD_USE, err, fail, out, problem, request
 from app.jsontypes import JsonObject
+from app.vendors.registry import SERVICE_PORTS
 from app.words import PROTOCOLS
 
 if TYPE_CHECKING:
@@ -142,8 +143,8 @@ def connect(
         typer.Option(
             metavar="SERVICE=PORT",
             help="a protocol of several services, once per service, in place of --port: "
-            "techman listen_node, ethernet_slave; yaskawa_hses robot, file; ur_rtde rtde, "
-            "secondary (any left out keeps its default)",
+            + "; ".join(f"{name} {', '.join(ports)}" for name, ports in SERVICE_PORTS.items())
+            + " (any left out keeps its default)",
         ),
     ] = None,
     user: Annotated[str | None, typer.Option(help="the controller's user (ABB RWS)")] = None,

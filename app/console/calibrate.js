@@ -4,14 +4,10 @@
 // next pose and its tilt and spin from the first touch): the page parses no pose itself.
 // console.js passes its helpers in `ui` (one definition each).
 
-// The pose format a robot's pendant shows, by its controller's protocol, else its vendor.
-const PROTOCOL_FORMATS = { kuka_kvp: "kuka_abc", fanuc_rmi: "fanuc_wpr", abb_rws1: "xyz_wxyz", abb_rws2: "xyz_wxyz", ur_rtde: "ur_rotvec", techman: "techman_rxyz", yaskawa_hses: "yaskawa_rxyz" };
-const VENDOR_FORMATS = [[/kuka/i, "kuka_abc"], [/fanuc/i, "fanuc_wpr"], [/abb/i, "xyz_wxyz"], [/universal|^ur/i, "ur_rotvec"], [/yaskawa|motoman/i, "yaskawa_rxyz"], [/techman|^tm/i, "techman_rxyz"]];
-
-export function robotFormat(robot, connection) {
-  if (connection && PROTOCOL_FORMATS[connection.protocol]) return PROTOCOL_FORMATS[connection.protocol];
-  const byVendor = VENDOR_FORMATS.find(([pattern]) => pattern.test(robot.vendor || ""));
-  return byVendor ? byVendor[1] : "kuka_abc";
+// The pose format a robot's pendant shows, as the server says: its controller's (by its
+// protocol), else its maker's (by its vendor), else the first format listed (GET /v1/formats).
+export function robotFormat(robot, connection, formats) {
+  return connection?.pose_format ?? robot.pose_format ?? formats[0];
 }
 
 // "2.000" for a length, "45.0" for an angle: what a pendant shows.
@@ -81,7 +77,7 @@ export async function calibratePage(toolId, ui) {
 
 function drawStart(page, body) {
   const { h, json, problemBox } = page.ui;
-  const fallback = robotFormat(page.robot, page.connection);
+  const fallback = robotFormat(page.robot, page.connection, [...page.infoOf.keys()]);
   const select = h("select", { id: "session-format", name: "format" },
     [...page.infoOf.keys()].filter((name) => name !== "joints").map((name) => h("option", { value: name, selected: name === fallback }, name)));
   const outcome = h("div", { id: "start-outcome" });

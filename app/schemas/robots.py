@@ -4,14 +4,16 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import BaseModel, BeforeValidator, Field
+from pydantic import BaseModel, BeforeValidator, Field, computed_field
 from pydantic_core import PydanticCustomError
 
 from app.kinematics.dh import MAX_LINK_DEG, MAX_LINK_MM
 from app.kinematics.dh_table import Convention
 from app.kinematics.presets import PRESETS
 from app.kinematics.urdf import MAX_URDF_CHARS
-from app.schemas.common import FiniteFloat, Name, ShortText, StrictModel, Timestamp
+from app.schemas.common import FiniteFloat, Name, ShortText, StoredWord, StrictModel, Timestamp
+from app.vendors.registry import vendor_pose_format
+from app.words import PoseFormat
 
 LinkMm = Annotated[FiniteFloat, Field(ge=-MAX_LINK_MM, le=MAX_LINK_MM)]
 LinkDeg = Annotated[FiniteFloat, Field(ge=-MAX_LINK_DEG, le=MAX_LINK_DEG)]
@@ -101,3 +103,12 @@ class Robot(BaseModel):
     kinematics: dict[str, object] | None
     created_at: Timestamp
     updated_at: Timestamp
+
+    @computed_field(  # type: ignore[prop-decorator]
+        description="the pose format its maker's pendant shows a flange pose in, the maker "
+        "found by its `vendor` (null when it names none this tcpcal knows): what its touches "
+        "are typed in unless told otherwise (its controller's `pose_format` when it has one)"
+    )
+    @property
+    def pose_format(self) -> StoredWord[PoseFormat] | None:
+        return vendor_pose_format(self.vendor)

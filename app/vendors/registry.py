@@ -246,3 +246,12 @@ def vendor_protocols(vendor: str | None) -> tuple[str, ...]:
     if formats == CONTROLLER_FORMATS:
         return tuple(WIRE_PROTOCOLS)
     return tuple(wire.name for wire in BY_FORMAT[formats[0]].protocols)
+
+
+def vendor_pose_format(vendor: str | None) -> PoseFormat | None:
+    """The pose format the pendant of a robot of `vendor` shows (its maker's, as
+    `vendor_formats` finds the maker); None when the vendor names no maker known here."""
+    formats = vendor_formats(vendor)
+    if formats == CONTROLLER_FORMATS:
+        return None
+    return BY_FORMAT[formats[0]].pose_format

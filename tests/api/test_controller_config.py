@@ -313,3 +313,15 @@ def test_a_robot_of_no_known_vendor_takes_any_protocol(api: Api) -> None:
     for vendor in (None, "Acme Robotics"):
         robot = api.robot(f"r-{vendor}", **({} if vendor is None else {"vendor": vendor}))
         assert _put(api, robot["id"], protocol="techman", host="10.0.0.7").status_code == 200
+
+
+def test_a_robot_says_which_pose_format_its_makers_pendant_shows(api: Api) -> None:
+    """A robot's `pose_format` (issue 46): its maker's, found by its vendor as the registry
+    finds it, so the console types a robot without a controller in it with no copy of the
+    makers' table (calibrate.js kept VENDOR_FORMATS); null for a vendor no maker answers to."""
+    for vendor, fmt in {"KUKA Roboter": "kuka_abc", "Yaskawa Motoman": "yaskawa_rxyz"}.items():
+        robot = api.robot(vendor, vendor=vendor)
+        assert robot["pose_format"] == fmt
+        assert api.get(f"/v1/robots/{robot['id']}").json()["pose_format"] == fmt
+    assert api.robot("acme", vendor="Acme")["pose_format"] is None
+    assert api.robot("bare")["pose_format"] is None

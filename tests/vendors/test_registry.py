@@ -8,7 +8,9 @@ planted without one of its parts is told what it lacks (so the check can fail).
 
 from __future__ import annotations
 
+import ast
 import inspect
+import re
 import tomllib
 from dataclasses import replace
 from pathlib import Path
@@ -157,6 +159,51 @@ def test_every_vendor_word_names_its_maker(maker: Maker) -> None:
         assert vendor_formats(f"{word.title()} Robotics") == (maker.format,)
     for initials in maker.vendor_initials:
         assert vendor_formats(f"{initials.upper()} 10") == (maker.format,)
+
+
+@pytest.mark.parametrize("maker", MAKERS, ids=lambda m: m.format)
+def test_a_vendors_pose_format_is_its_makers(maker: Maker) -> None:
+    for word in maker.vendor_words:
+        assert registry.vendor_pose_format(f"{word.title()} Robotics") == maker.pose_format
+    assert registry.vendor_pose_format("Acme") is None
+    assert registry.vendor_pose_format(None) is None
+
+
+def test_the_calibrate_page_and_the_cli_copy_no_makers_table() -> None:
+    """The console's calibrate page reads a robot's pose format from the API (its
+    controller's and its own `pose_format`) and the CLI's --ports help the services from the
+    registry (issue 46): calibrate.js:8-9 copied each protocol's and vendor's pose format,
+    app/cli/connection.py:138 each protocol's services. Neither names a maker, its vendor
+    words, its protocols or its pendant's pose format."""
+    app = Path(__file__).resolve().parents[2] / "app"
+    words = {
+        word
+        for m in MAKERS
+        for word in (m.format, m.pose_format, *m.vendor_words, *(w.name for w in m.protocols))
+    }
+    alternatives = "|".join(sorted(map(re.escape, words)))
+    pattern = re.compile(rf"\b({alternatives})\b", re.IGNORECASE)
+    page = (app / "console" / "calibrate.js").read_text()
+    named = [
+        f"calibrate.js:{n}: {m.group(1)}"
+        for n, line in enumerate(page.splitlines(), 1)
+        for m in pattern.finditer(line)
+    ]
+    # The CLI's --ports help: no protocol named with its services (it said "techman
+    # listen_node, ethernet_slave; ..."), but read off SERVICE_PORTS.
+    services = re.compile(
+        "|".join(
+            rf"\b{re.escape(p)} {re.escape(next(iter(s)))}\b" for p, s in SERVICE_PORTS.items()
+        )
+    )
+    cli = ast.parse((app / "cli" / "connection.py").read_text())
+    named += [
+        f"connection.py:{node.lineno}: {match.group(0)}"
+        for node in ast.walk(cli)
+        if isinstance(node, ast.Constant) and isinstance(node.value, str)
+        for match in services.finditer(node.value)
+    ]
+    assert named == []
 
 
 def test_the_stored_words_are_the_registrys() -> None:
