@@ -340,7 +340,8 @@ function movingBy(row, fleet) {
   return live.checked_at ? "not known" : null;
 }
 // A robot at its bare flange (tool 0, KUKA $NULLFRAME, FANUC UTOOL 0), as robots idle between jobs.
-const NO_TOOL = "no tool selected (bare flange)";
+// Read after "The robot is " on the tool page as well.
+const NO_TOOL = "at its bare flange: no tool selected";
 const liveTitle = (live) => {
   if (!live) return "";
   if (!live.checked_at) return LIVE_NEVER;

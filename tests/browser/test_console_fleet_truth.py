@@ -141,8 +141,13 @@ def test_a_check_that_corrected_the_tool_is_not_a_failed_check(page: Page, cell:
 def test_a_robot_at_its_bare_flange_has_no_tool_selected(page: Page, cell: Cell) -> None:
     sign_in_to(page, cell.server, "/ui/")
     row = _row(page, cell.idle)
-    expect(row.locator("td.live-state")).to_have_text("no tool selected (bare flange)")
+    expect(row.locator("td.live-state")).to_have_text("at its bare flange: no tool selected")
+    expect(row.locator("td.live-state")).to_have_attribute("data-state", "no_tool")
     expect(row.locator("td.reasons [data-code=moving_by_unknown_tcp]")).to_have_count(0)
+    page.goto(f"{cell.server.url}/ui/tools/{cell.idle}")
+    live = page.locator("#live-tool")
+    expect(live).to_contain_text("The robot is at its bare flange: no tool selected")
+    expect(live).not_to_have_class("attention")
 
 
 @pytest.mark.parametrize("width", [768, 1024, 1400])
