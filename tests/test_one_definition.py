@@ -215,6 +215,8 @@ FREE_TEXT: dict[tuple[str, str], str] = {
     ("tool_controller_states", "target"): "where in the controller",
     ("tool_controller_states", "error"): "what went wrong, in a sentence",
     ("robot_live_tools", "error"): "what went wrong, in a sentence",
+    ("watch_leases", "holder"): "an instance's name: host:pid:random",
+    ("watchers", "holder"): "an instance's name: host:pid:random",
 }
 
 

@@ -491,6 +491,32 @@ class RobotLiveTool(Base):
     flange: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
 
 
+class WatchLease(Base):
+    """Which instance reads a robot's controller this round (PostgreSQL, several instances
+    sharing the watcher: app.services.controllers.leases). A robot is claimed when `due_at`
+    has come and no lease holds it (`leased_until` past or null); the claim moves `due_at`
+    one interval on, and the holder renews `leased_until` while its read is in flight."""
+
+    __tablename__ = "watch_leases"
+
+    robot_id: Mapped[str] = mapped_column(
+        ForeignKey("robots.id", ondelete="CASCADE"), primary_key=True
+    )
+    holder: Mapped[str | None] = mapped_column(String(100))
+    due_at: Mapped[datetime] = mapped_column(index=True)
+    leased_until: Mapped[datetime | None] = mapped_column()
+
+
+class WatcherSeen(Base):
+    """An instance whose watcher shares the rounds, and when it last said so: robots are
+    shared out among the ones seen within the last few claims."""
+
+    __tablename__ = "watchers"
+
+    holder: Mapped[str] = mapped_column(String(100), primary_key=True)
+    seen_at: Mapped[datetime] = mapped_column()
+
+
 class RobotLiveMatch(Base):
     """A version of one of the robot's tools equal to the frame it moved by at the last read
     (LiveTool.matches; the active flag is the tool's own, read when shown). A table, not a

@@ -1,12 +1,16 @@
 """The watcher: with TCPCAL_RECONCILE_INTERVAL_S > 0, every robot that has a controller is
-reconciled that often, by one instance at a time however many serve the fleet.
+reconciled that often.
 
-Each server process runs one watcher thread (started and stopped by the app's lifespan).
-Before a round it takes the fleet's watcher lock without waiting: PostgreSQL's
-`pg_try_advisory_lock` on a connection held for the round, or on SQLite an flock of
-`<database>-watcher.lock` next to the file (as app.storage.db queues SQLite's writers). Whoever
-does not get it skips the round. The states a round finds are stored under each tool's row
-lock (app.services.controllers.states), so a change is recorded once even if two rounds met.
+Each server process runs one watcher thread (started and stopped by the app's lifespan). On
+PostgreSQL the instances share the rounds by leases (app.services.controllers.leases): every
+tick each claims its share of the robots due and reads them, each robot by exactly one
+instance a round. On SQLite one instance watches: before a round it takes the fleet's
+watcher lock without waiting, an flock of `<database>-watcher.lock` next to the file (as
+app.storage.db queues SQLite's writers); whoever does not get it skips the round (`round()`,
+which takes PostgreSQL's `pg_try_advisory_lock` there, is what a direct call runs).
+
+The states a round finds are stored under each tool's row lock
+(app.services.controllers.states), so a change is recorded once even if two rounds met.
 
 A round reads its robots' controllers concurrently (a ReadPool of daemon threads), as many
 at once as its robots need for their reads to end within half the interval and at least
@@ -33,7 +37,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
@@ -58,6 +62,7 @@ from app.metrics import (
 )
 from app.schemas.controllers import Reconciliation
 from app.security.auth import Principal
+from app.services.controllers.leases import Leases
 from app.services.controllers.reconcile import (
     RoundRead,
     reconcile_robot,
@@ -187,6 +192,27 @@ class ReadPool:
         """How many robots are queued or being read."""
         with self._changed:
             return len(self._in_flight)
+
+    def in_flight_ids(self) -> set[str]:
+        """The robots queued or being read."""
+        with self._changed:
+            return set(self._in_flight)
+
+    def waiting(self) -> int:
+        """How many robots are queued, their reads not begun."""
+        with self._changed:
+            return len(self._queue)
+
+    def serve_for(self, seconds: float) -> None:
+        """Wait `seconds` (less if the pool stops), handing stalled reads' places on."""
+        until = time.monotonic() + seconds
+        with self._changed:
+            while not self._stopped:
+                now = time.monotonic()
+                if now >= until:
+                    return
+                self._top_up()
+                self._changed.wait(min(until - now, self._next_stall(now)))
 
     def queued(self, robot_ids: set[str]) -> int:
         """How many of these robots wait for a read that has not begun."""
@@ -453,6 +479,8 @@ class Watcher:
         self._lock: ExitStack | None = None
         #: Robots whose protocol this tcpcal has no connector for, warned of once each
         self._no_connector: set[str] = set()
+        #: This instance's name in the leases (PostgreSQL), once its loop began
+        self.holder: str | None = None
         #: Robots whose last read stalled: offered after the others
         self._slow: set[str] = set()
 
@@ -491,6 +519,9 @@ class Watcher:
         WATCHED_ROBOTS.set(0)
 
     def _loop(self) -> None:
+        if not is_sqlite(get_engine()):
+            self._lease_loop()
+            return
         try:
             while not self._stop.is_set():
                 started = time.monotonic()
@@ -502,6 +533,49 @@ class Watcher:
                 self._stop.wait(max(0.0, self.status.interval_s - (time.monotonic() - started)))
         finally:
             self._release()
+
+    def _lease_loop(self) -> None:
+        """PostgreSQL: every tick, claim this instance's share of the due robots (leases,
+        app.services.controllers.leases) and read them; a round is each interval."""
+        leases = Leases(self.status.interval_s)
+        self.holder = leases.holder
+        claims: deque[tuple[float, int]] = deque()
+        round_began = time.monotonic()
+        robots = 0
+        while not self._stop.is_set():
+            now = time.monotonic()
+            try:
+                size = self._pool.size
+                capacity = max(0, 2 * size - self._pool.in_flight())
+                tick = leases.tick(self._pool.in_flight_ids(), capacity, now)
+                self._pool.offer(tick.claimed)
+                claims.append((now, len(tick.claimed)))
+                robots = math.ceil(tick.robots / max(1, tick.watchers))
+                if now - round_began >= self.status.interval_s or self.status.rounds == 0:
+                    self._lease_round(claims, robots, tick.overdue, now - round_began)
+                    round_began = now
+            except Exception as exc:  # a database outage must not end the loop
+                self.status.last_error = f"{type(exc).__name__}: {exc}"
+                log.exception("watcher tick failed")
+            self._pool.serve_for(leases.tick_s)
+        with suppress(Exception):  # the database may be gone: the leases lapse on their own
+            leases.leave()
+
+    def _lease_round(
+        self, claims: deque[tuple[float, int]], share: int, overdue: int, took_s: float
+    ) -> None:
+        """A round's end on PostgreSQL: the robots this instance claimed in the last interval
+        are the ones it watches; the pool is sized for its share of the fleet."""
+        now = time.monotonic()
+        while claims and claims[0][0] < now - self.status.interval_s:
+            claims.popleft()
+        self._size(max(share, 1))
+        watched = sum(n for _, n in claims)
+        self.status.robots = watched
+        WATCHED_ROBOTS.set(watched)
+        if overdue > 0 and self.status.rounds > 0:
+            self._overrun(share, overdue)
+        self._finish_round(took_s)
 
     def round(self) -> None:
         """One round, if this instance holds the lock: every robot with a controller whose
