@@ -1,4 +1,4 @@
-"""A FANUC controller with option R912 Remote Motion Interface, in memory: UTOOL[1..10].
+"""A FANUC controller with option R912 Remote Motion Interface: UTOOL[1..10], UFRAME[1..9].
 
 Follows FANUC B-84184EN/03 *Remote Motion Interface Operator's Manual* (the copy in
 vertec-io/Fanuc_RMI_API ``docs/RMI Operators Manual.pdf``): JSON packets ended by
@@ -44,12 +44,29 @@ answers ``FrameNumber`` and ``Frame`` {X, Y, Z, W, P, R} of UFRAME[FrameNumber].
 an optional ``Group`` (group 1 without it); another group answers RMIT-039 Invalid Group
 Number (this controller has one group). The manual gives no range for FrameNumber: this one
 has the 9 user frames FRC_GetStatus calls NumberUFrame (2.3.7), and another number answers
-RMIT-003 Invalid UFrame Number. This module computes Position with its own numpy and scipy
-from a flange the test jogs (`set_flange`, `jog_flange`), the user frames the operator
-enters (`set_uframe`) and the numbers selected (`select`); the Configuration bits are the
-test's to set (`configuration`), not computed from joints. `moving_per_read` makes the
+RMIT-003 Invalid UFrame Number (Appendix A.1). This module computes Position with its own
+numpy and scipy from a flange the test jogs (`set_flange`, `jog_flange`), the user frames
+the operator enters (`set_uframe`) and the numbers selected (`select`); the Configuration
+bits are the test's to set (`configuration`), not computed from joints. `moving_per_read` makes the
 robot move: each pose read finds the flange that many mm further along world x and J1 that
 many degrees further.
+
+User frames over RMI: FRC_WriteUFrameData (2.3.9 "Packet To Set User Frame Data", manual
+pages 15-16) takes ``FrameNumber``, ``Frame`` {X, Y, Z, W, P, R} and an optional ``Group``
+and answers ``ErrorID`` and ``Group``; it needs only a connection (2.3, page 9). The frame
+table (`uframes`, number -> {X..R}) is apart from the tool table (`tools`): a frame write
+changes that one UFRAME and nothing else. A number outside 1-9 answers RMIT-003 Invalid
+UFrame Number, another group RMIT-039, a Frame missing one of X..R or not finite RMIT-023
+Invalid Position Data (as the UTOOL write). "The Remote Motion Interface rejects this packet
+if the robot is in motion when it receives this packet" (2.3.9, page 16): while `in_motion`
+(or `moving_per_read`) the write is refused and the frame kept; the manual names no code for
+it, and this controller answers RMIT-014 RMI Command Fail (Appendix A.1). FRC_GetUFrameUTool
+(2.3.17 "Packet To Get Current User/Tool Frame Number", page 20) answers ``UFrameNumber`` and
+``UToolNumber``, the numbers selected (the manual prints the return packet's name as
+"FRC_GetUFrameUtool"; this controller echoes the command's name, as for every other packet);
+FRC_SetUFrameUTool (2.3.6, page 13) selects them (a frame outside 0-9 answers RMIT-003, a
+tool outside 0-10 RMIT-002). The fault hook names a frame write "FRC_WriteUFrameData":
+"before" leaves the old frame, "after" holds the new one and answers nothing.
 """
 
 from __future__ import annotations
@@ -59,6 +76,7 @@ import socket
 import threading
 import time
 from collections.abc import Iterator
+from typing import TypeGuard
 
 import numpy as np
 from numpy.typing import NDArray
@@ -128,6 +146,8 @@ class FanucSimulator(TcpSimulator):
         #: a moving robot: each pose read finds the flange this many mm further along world x
         #: and J1 this many degrees further
         self.moving_per_read = 0.0
+        #: the robot is moving: FRC_WriteUFrameData is refused (2.3.9)
+        self.in_motion = False
         #: seconds the controller takes over each command on the session (a slow one)
         self.reply_delay_s = 0.0
         self._started = time.monotonic()
@@ -163,6 +183,11 @@ class FanucSimulator(TcpSimulator):
             self.uframes[number] = {
                 k: self._real(v) for k, v in zip(FRAME_KEYS, (x, y, z, w, p, r), strict=True)
             }
+
+    def uframe(self, number: int) -> tuple[float, ...]:
+        """X, Y, Z, W, P, R of UFRAME[number] as the controller holds them."""
+        with self._data_lock:
+            return tuple(self.uframes[number][k] for k in FRAME_KEYS)
 
     def select(self, *, uframe: int, utool: int) -> None:
         """The program's UFRAME_NUM and UTOOL_NUM (0: the world frame, the faceplate)."""
@@ -297,6 +322,8 @@ class FanucSimulator(TcpSimulator):
             return {"Command": name, "ErrorID": 0}
         if name in ("FRC_ReadUToolData", "FRC_WriteUToolData"):
             return self._utool(str(name), packet)
+        if name in ("FRC_WriteUFrameData", "FRC_GetUFrameUTool", "FRC_SetUFrameUTool"):
+            return self._uframe_command(str(name), packet)
         if name in ("FRC_ReadCartesianPosition", "FRC_ReadJointAngles", "FRC_ReadUFrameData"):
             group = packet.get("Group", 1)
             if group != 1:
@@ -325,6 +352,40 @@ class FanucSimulator(TcpSimulator):
             "Group": 1,
         }
 
+    def _uframe_command(self, name: str, packet: dict[str, object]) -> dict[str, object]:
+        """FRC_WriteUFrameData (2.3.9), FRC_GetUFrameUTool (2.3.17), FRC_SetUFrameUTool
+        (2.3.6)."""
+        group = packet.get("Group", 1)
+        answer: dict[str, object] = {"Command": name, "ErrorID": 0}
+        if group != 1:
+            return answer | {"ErrorID": INVALID_GROUP, "Group": group}
+        with self._data_lock:
+            if name == "FRC_GetUFrameUTool":
+                numbers = {"UFrameNumber": self.active_uframe, "UToolNumber": self.active_utool}
+                return answer | numbers | {"Group": group}
+            if name == "FRC_SetUFrameUTool":
+                return answer | {"ErrorID": self._set_numbers(packet), "Group": group}
+        number = packet.get("FrameNumber")
+        if not _is_number(number) or number not in UFRAMES:
+            return answer | {"ErrorID": INVALID_UFRAME, "Group": group}
+        frame_in = packet.get("Frame")
+        if not _is_frame(frame_in):
+            return answer | {"ErrorID": INVALID_POSITION_DATA, "Group": group}
+        if self.in_motion or self.moving_per_read:
+            return answer | {"ErrorID": COMMAND_FAIL, "Group": group}
+        self.set_uframe(number, *(float(frame_in[k]) for k in FRAME_KEYS))
+        return answer | {"Group": group}
+
+    def _set_numbers(self, packet: dict[str, object]) -> int:
+        """Select UFrameNumber and UToolNumber: 0 or the ErrorID refusing them."""
+        uframe, utool = packet.get("UFrameNumber"), packet.get("UToolNumber")
+        if not _is_number(uframe) or (uframe != 0 and uframe not in UFRAMES):
+            return INVALID_UFRAME
+        if not _is_number(utool) or (utool != 0 and utool not in SLOTS):
+            return INVALID_UTOOL
+        self.active_uframe, self.active_utool = uframe, utool
+        return 0
+
     def _utool(self, name: str, packet: dict[str, object]) -> dict[str, object]:
         number = packet.get("ToolNumber")
         group = packet.get("Group", 1)
@@ -347,6 +408,18 @@ class FanucSimulator(TcpSimulator):
             return {"Command": name, "ErrorID": INVALID_POSITION_DATA, "Group": group}
         self.set_tool(number, *(float(frame_in[k]) for k in FRAME_KEYS))
         return {"Command": name, "ErrorID": 0, "Group": group}
+
+
+def _is_number(value: object) -> TypeGuard[int]:
+    """A JSON integer (not a boolean)."""
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_frame(frame: object) -> TypeGuard[dict[str, float]]:
+    """{X, Y, Z, W, P, R}, each a finite number."""
+    return isinstance(frame, dict) and all(
+        isinstance(frame.get(k), int | float) and np.isfinite(frame[k]) for k in FRAME_KEYS
+    )
 
 
 def _wpr_rotation(wpr: tuple[float, ...]) -> Rotation:
