@@ -99,7 +99,7 @@ def kind_and_reason(details: Mapping[str, object]) -> tuple[str | None, str | No
     forced, rollback, calibration:auto, ...), None for other changes; the words the person
     gave with the change (an activation, a rollback, a deployment), None when none were.
     (An activation's audit `reason` is the kind when no words were given:
-    app.services.tools.versions.activate.)"""
+    app.services.lifecycle.versions.activate.)"""
     kind = details.get("kind")
     reason = details.get("reason")
     kind = kind if isinstance(kind, str) else None

@@ -25,10 +25,12 @@ from app.services.calibrations.grading import reference_point_to_save, solve
 from app.services.calibrations.presolve import Presolved, Snapshot, solve_snapshot
 from app.services.calibrations.stored import served
 from app.services.lifecycle.activation import activation_due
+from app.services.lifecycle.versions import activate, add_version
 from app.services.references.references import create_reference_point, ensure_reference_name_free
 from app.services.robots.robots import get_robot
+from app.services.tools.subject import TOOL
 from app.services.tools.tools import get_tool
-from app.services.tools.versions import LockedTool, activate, add_version, lock_tool, save_deferred
+from app.services.tools.versions import LockedTool, lock_tool, save_deferred
 from app.storage.db import DriverWrite, engine_for
 from app.storage.models import Calibration as CalibrationRow
 from app.storage.models import new_id, table_of, utcnow
@@ -232,7 +234,8 @@ def _store(
     )
     add_version(
         session,
-        tool=tool,
+        TOOL,
+        locked=tool,
         position_mm=result.tcp.position_mm,
         quaternion=result.tcp.quaternion,
         source=request.method,
@@ -269,7 +272,8 @@ def _activate_if_due(
     if kind is not None:
         activate(
             session,
-            tool=tool,
+            TOOL,
+            locked=tool,
             version=tool.last_version,
             reason=kind,
             actor=actor,

@@ -274,8 +274,6 @@ def _refresh_trend(session: Session, tool_id: str, result: CheckResult) -> None:
     pending = Point(result.checked_at, result.deviation_flange_mm)
     refresh_drift(
         session,
-        tool_id=tool_id,
-        active_version=locked.active_version,
-        tolerance=locked.tolerance,
+        locked,
         pending_check=pending if locked.active_version == result.version else None,
     )

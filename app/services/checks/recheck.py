@@ -43,11 +43,13 @@ from app.services.calibrations.verdict import recheck_summary
 from app.services.checks import checks
 from app.services.controllers import deployments
 from app.services.controllers import states as controller_states
+from app.services.lifecycle.versions import activate
 from app.services.robots.connection import get_controller
 from app.services.robots.robots import get_robot
 from app.services.tools.activation import CHECK_CORRECTION
+from app.services.tools.subject import TOOL
 from app.services.tools.tools import get_tool
-from app.services.tools.versions import activate, lock_tool
+from app.services.tools.versions import lock_tool
 
 
 @dataclass(frozen=True)
@@ -271,7 +273,8 @@ def _store_correction(
     assert stored.version == correction.version
     activate(
         session,
-        tool=lock_tool(session, tool.id),
+        TOOL,
+        locked=lock_tool(session, tool.id),
         version=stored.version,
         reason=CHECK_CORRECTION,
         reason_text=data.reason,

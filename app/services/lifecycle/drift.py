@@ -26,11 +26,13 @@ from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonArray, JsonObject
 from app.methods import ENTERED_BY_HAND
 from app.schemas.drift import FleetDrift, SeriesTrend
-from app.services.lifecycle.subject import AnySubject
+from app.services.lifecycle.subject import AnySubject, Locked, SubjectRow
 from app.solvers.drift import Trend, crossing, fit_trend
 from app.storage.db import DriverWrite, HeldRead
 from app.storage.models import AuditEvent, table_of
 
+#: What a fit reads (id, active_version, tolerance) of: a subject's row, or one under its lock.
+Fitted = Locked | SubjectRow
 #: The newest points of each series that a trend is fitted to.
 MAX_POINTS = 60
 #: `drifting` when the projection leaves check_mm within this many days of now.
@@ -68,50 +70,29 @@ class StoredDrift(NamedTuple):
 
 
 def fit_drift(
-    session: Session,
-    subject: AnySubject,
-    *,
-    subject_id: str,
-    active_version: int | None,
-    tolerance: JsonObject | None,
-    pending_check: Point | None = None,
+    session: Session, subject: AnySubject, row: Fitted, pending_check: Point | None = None
 ) -> StoredDrift:
-    """Both trends of a subject against its tolerance's check_mm (`compute_drift`)."""
+    """Both trends of a subject against its tolerance's check_mm (`compute_drift`).
+    `pending_check`: a check recorded in this transaction (the audit trail is written at
+    commit, so the query cannot see it yet)."""
     return compute_drift(
         session,
         subject,
-        subject_id=subject_id,
-        active_version=active_version,
-        check_mm=effective_tolerance(tolerance).check_mm,
+        subject_id=row.id,
+        active_version=row.active_version,
+        check_mm=effective_tolerance(row.tolerance).check_mm,
         pending_check=pending_check,
     )
 
 
-def refresh_drift(
-    session: Session,
-    subject: AnySubject,
-    *,
-    subject_id: str,
-    active_version: int | None,
-    tolerance: JsonObject | None,
-    pending_check: Point | None = None,
-) -> StoredDrift:
-    """Fit the subject's trends and store them on its row, in the caller's transaction.
-    `pending_check`: a check recorded in this transaction (the audit trail is written at
-    commit, so the query cannot see it yet)."""
-    fitted = fit_drift(
-        session,
-        subject,
-        subject_id=subject_id,
-        active_version=active_version,
-        tolerance=tolerance,
-        pending_check=pending_check,
-    )
+def store_drift(
+    session: Session, subject: AnySubject, subject_id: str, fitted: StoredDrift
+) -> None:
+    """Store fitted trends on the subject's row, in the caller's transaction."""
     _reads(subject).save.execute(session, [{"subject_id": subject_id, **fitted._asdict()}])
     cached = session.identity_map.get(session.identity_key(subject.model, subject_id))
     if cached is not None:
         session.expire(cached, ["drift", "drift_crosses_at"])
-    return fitted
 
 
 def compute_drift(

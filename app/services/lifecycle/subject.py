@@ -71,6 +71,28 @@ class VersionRow(Protocol):
     def created_at(self) -> datetime: ...
 
 
+@dataclass(slots=True)
+class Locked:
+    """A live subject read under its row lock (FOR UPDATE; BEGIN IMMEDIATE on SQLite), with its
+    robot's model: what numbering and activating versions read and change."""
+
+    id: str
+    robot_id: str
+    name: str
+    tolerance: JsonObject | None
+    active_version: int | None
+    last_version: int
+    revision: int
+    kinematics: JsonObject | None
+    #: When a deferred write (add_version or activate with `deferred`) changed the counters.
+    updated_at: datetime | None = None
+
+    @property
+    def next_version(self) -> int:
+        """The number the subject's next version gets."""
+        return self.last_version + 1
+
+
 Row = TypeVar("Row", bound=SubjectRow)
 VersionT = TypeVar("VersionT", bound=VersionRow)
 ActivationT = TypeVar("ActivationT", bound=Base)

@@ -13,7 +13,6 @@ from __future__ import annotations
 import functools
 import hashlib
 from collections.abc import Sequence
-from dataclasses import dataclass
 from datetime import datetime
 from typing import NamedTuple, Protocol
 
@@ -26,7 +25,14 @@ from app.jsontypes import JsonObject
 from app.security.auth import Principal, cells_of
 from app.services.audit import writes as audit
 from app.services.lifecycle import drift
-from app.services.lifecycle.subject import ActivationT, AnySubject, Row, Subject, VersionT
+from app.services.lifecycle.subject import (
+    ActivationT,
+    AnySubject,
+    Locked,
+    Row,
+    Subject,
+    VersionT,
+)
 from app.services.visible import in_scope, live_or_404
 from app.storage.db import DriverWrite, HeldRead
 from app.storage.models import Robot, new_id, table_of, utcnow
@@ -96,28 +102,6 @@ def _statements(subject: AnySubject) -> _Statements:
         DriverWrite(insert(subject.versions)),
         DriverWrite(insert(subject.activations)),
     )
-
-
-@dataclass(slots=True)
-class Locked:
-    """A live subject read under its row lock (FOR UPDATE; BEGIN IMMEDIATE on SQLite), with its
-    robot's model: what numbering and activating versions read and change."""
-
-    id: str
-    robot_id: str
-    name: str
-    tolerance: JsonObject | None
-    active_version: int | None
-    last_version: int
-    revision: int
-    kinematics: JsonObject | None
-    #: When a deferred write (add_version or activate with `deferred`) changed the counters.
-    updated_at: datetime | None = None
-
-    @property
-    def next_version(self) -> int:
-        """The number the subject's next version gets."""
-        return self.last_version + 1
 
 
 def lock(session: Session, subject: AnySubject, subject_id: str) -> Locked:
@@ -205,13 +189,7 @@ def save_deferred(session: Session, subject: AnySubject, locked: Locked) -> None
     the row, and each refitted a trend that the next one replaced)."""
     if locked.updated_at is None:
         return
-    fitted = drift.fit_drift(
-        session,
-        subject,
-        subject_id=locked.id,
-        active_version=locked.active_version,
-        tolerance=locked.tolerance,
-    )
+    fitted = drift.fit_drift(session, subject, locked)
     row = {**_counters(locked, locked.updated_at), **fitted._asdict()}
     _statements(subject).save_with_drift.execute(session, [row])
     locked.updated_at = None
@@ -346,13 +324,7 @@ def activate(
 def _refresh_drift(session: Session, subject: AnySubject, locked: Locked) -> None:
     """The drift trend after a new version or activation (a new version is a new point of the
     series; another active version, another reference and set of checks)."""
-    drift.refresh_drift(
-        session,
-        subject,
-        subject_id=locked.id,
-        active_version=locked.active_version,
-        tolerance=locked.tolerance,
-    )
+    drift.store_drift(session, subject, locked.id, drift.fit_drift(session, subject, locked))
 
 
 def get_version(

@@ -8,10 +8,9 @@ from datetime import datetime
 from sqlalchemy import ColumnElement
 from sqlalchemy.orm import Session
 
-from app.jsontypes import JsonObject
 from app.schemas.drift import ToolDrift
 from app.services.lifecycle import drift
-from app.services.lifecycle.drift import DRIFTING_WITHIN, Point, fleet_drift
+from app.services.lifecycle.drift import DRIFTING_WITHIN, Fitted, Point, fleet_drift
 from app.services.lifecycle.versions import get_live
 from app.services.tools.subject import TOOL
 from app.storage.models import Tool
@@ -24,48 +23,20 @@ def crosses_by(until: ColumnElement[datetime]) -> ColumnElement[bool]:
     return drift.crosses_by(TOOL, until)
 
 
-def refresh_drift(
-    session: Session,
-    *,
-    tool_id: str,
-    active_version: int | None,
-    tolerance: JsonObject | None,
-    pending_check: Point | None = None,
-) -> None:
-    """Fit the tool's trends and store them on the tool, in the caller's transaction
+def refresh_drift(session: Session, tool: Fitted, *, pending_check: Point | None = None) -> None:
+    """Fit a tool's trends and store them on the tool, in the caller's transaction
     (`pending_check`: a check recorded in this transaction)."""
-    drift.refresh_drift(
-        session,
-        TOOL,
-        subject_id=tool_id,
-        active_version=active_version,
-        tolerance=tolerance,
-        pending_check=pending_check,
-    )
+    drift.store_drift(session, TOOL, tool.id, drift.fit_drift(session, TOOL, tool, pending_check))
 
 
 def restate_drift(session: Session, tool: Tool) -> None:
     """Refit a tool (an ORM object being changed) after its tolerance changed."""
-    tool.drift, tool.drift_crosses_at = drift.fit_drift(
-        session,
-        TOOL,
-        subject_id=tool.id,
-        active_version=tool.active_version,
-        tolerance=tool.tolerance,
-    )
+    tool.drift, tool.drift_crosses_at = drift.fit_drift(session, TOOL, tool)
 
 
 def tool_drift(session: Session, tool_id: str) -> ToolDrift:
     """A live tool's drift trends (404 otherwise): the stored trend; computed (not stored) for
     a tool written before trends were."""
     tool = get_live(session, TOOL, tool_id)
-    if tool.drift is not None:
-        return ToolDrift.model_validate(tool.drift)
-    fitted = drift.fit_drift(
-        session,
-        TOOL,
-        subject_id=tool.id,
-        active_version=tool.active_version,
-        tolerance=tool.tolerance,
-    )
-    return ToolDrift.model_validate(fitted.drift)
+    stored = tool.drift if tool.drift is not None else drift.fit_drift(session, TOOL, tool).drift
+    return ToolDrift.model_validate(stored)

@@ -3,21 +3,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from datetime import datetime
-
 from sqlalchemy import Engine, select
 from sqlalchemy.orm import Session
 
 from app.config import get_settings
 from app.errors import InvalidInput
 from app.helpers.etags import if_none_match_hit
-from app.jsontypes import JsonObject
 from app.schemas.tools import ActiveTcp, Tcp, ToolTable, Version
 from app.security.auth import Principal
 from app.services.lifecycle import versions as lifecycle
 from app.services.lifecycle.hot_read import served_etag
-from app.services.lifecycle.versions import Locked
+from app.services.lifecycle.subject import Locked
 from app.services.robots.robots import get_robot
 from app.services.tools.controller_text import ServedTool, ServedVersion, controller_text
 from app.services.tools.hot_read import active_of, read_for_key
@@ -26,11 +22,7 @@ from app.services.tools.tools import get_tool
 from app.storage.models import Activation, TcpVersion, Tool
 from app.words import (
     FORMATS_IN_WORDS,
-    ActivationKind,
-    AuditAction,
     ControllerFormat,
-    MethodName,
-    Status,
 )
 
 IDENTITY_QUATERNION = [1.0, 0.0, 0.0, 0.0]
@@ -48,68 +40,9 @@ def lock_tool(session: Session, tool_id: str) -> LockedTool:
 
 
 def save_deferred(session: Session, tool: LockedTool) -> None:
-    """Write what deferred writes changed: the tool's counters and its drift trend."""
+    """Write what deferred writes changed: the tool's counters and its drift trend. (A tool's
+    versions are added and activated by app.services.lifecycle.versions with TOOL.)"""
     lifecycle.save_deferred(session, TOOL, tool)
-
-
-def add_version(
-    session: Session,
-    *,
-    tool: LockedTool,
-    position_mm: Sequence[float],
-    quaternion: Sequence[float],
-    source: MethodName,
-    status: Status,
-    calibration_id: str | None,
-    note: str | None,
-    actor: Principal,
-    created_at: datetime | None = None,
-    deferred: bool = False,
-) -> int:
-    """Append version n+1 of a tool locked with `lock_tool`; its number
-    (app.services.lifecycle.versions.add_version)."""
-    return lifecycle.add_version(
-        session,
-        TOOL,
-        locked=tool,
-        position_mm=position_mm,
-        quaternion=quaternion,
-        source=source,
-        status=status,
-        calibration_id=calibration_id,
-        note=note,
-        actor=actor,
-        created_at=created_at,
-        deferred=deferred,
-    )
-
-
-def activate(
-    session: Session,
-    *,
-    tool: LockedTool,
-    version: int,
-    reason: ActivationKind,
-    actor: Principal,
-    reason_text: str | None = None,
-    action: AuditAction = "version.activate",
-    details: JsonObject | None = None,
-    deferred: bool = False,
-) -> None:
-    """Make `version` the tool's active one, with who, when and why
-    (app.services.lifecycle.versions.activate)."""
-    lifecycle.activate(
-        session,
-        TOOL,
-        locked=tool,
-        version=version,
-        reason=reason,
-        actor=actor,
-        reason_text=reason_text,
-        action=action,
-        details=details,
-        deferred=deferred,
-    )
 
 
 def get_version(session: Session, *, tool_id: str, version: int) -> TcpVersion:

@@ -1,4 +1,4 @@
-"""The version writes under a tool's lock (Core statements, app.services.tools.versions) and the
+"""The version writes under a tool's lock (Core statements, app.services.lifecycle.versions) and the
 audit trail written at commit: an ORM copy of the tool in the same session reads the writes
 back, and a transaction that rolls back leaves no version and no audit event behind."""
 
@@ -9,7 +9,9 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.security.auth import Principal
+from app.services.lifecycle import versions as lifecycle
 from app.services.tools import versions
+from app.services.tools.subject import TOOL
 from app.services.tools.tools import get_tool, tool_etag
 from app.storage.db import session_scope
 from app.storage.models import AuditEvent, TcpVersion
@@ -19,9 +21,10 @@ ACTOR = Principal(key_id="test", name="test", scope="admin")
 
 
 def _add(tool: versions.LockedTool, session: Session) -> int:
-    return versions.add_version(
+    return lifecycle.add_version(
         session,
-        tool=tool,
+        TOOL,
+        locked=tool,
         position_mm=[1.0, 2.0, 3.0],
         quaternion=[1.0, 0.0, 0.0, 0.0],
         source="manual",
@@ -39,7 +42,9 @@ def test_an_orm_copy_of_the_tool_reads_the_locked_writes_back(api: Api) -> None:
         etag_before, revision_before = tool_etag(orm_tool), orm_tool.revision
         locked = versions.lock_tool(session, tid)
         number = _add(locked, session)
-        versions.activate(session, tool=locked, version=number, reason="explicit", actor=ACTOR)
+        lifecycle.activate(
+            session, TOOL, locked=locked, version=number, reason="explicit", actor=ACTOR
+        )
         assert (orm_tool.active_version, orm_tool.last_version) == (number, number)
         assert orm_tool.revision == revision_before + 2
         assert tool_etag(orm_tool) != etag_before
@@ -97,9 +102,10 @@ def test_driver_writes_store_what_the_orm_reads_back(api: Api) -> None:
     at = datetime(2026, 11, 23, 17, 4, 5, 123456, tzinfo=UTC)
     with session_scope(write=True) as session:
         locked = versions.lock_tool(session, tid)
-        number = versions.add_version(
+        number = lifecycle.add_version(
             session,
-            tool=locked,
+            TOOL,
+            locked=locked,
             position_mm=[1.25, -2.5, 3e-7],
             quaternion=[0.0, 1.0, 0.0, 0.0],
             source="manual",
