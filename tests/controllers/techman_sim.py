@@ -33,18 +33,25 @@ asks about a queue tag, answered ``01,<tag>,true`` (reached), ``false`` (pending
 (no such tag).
 
 Commands this controller runs (the manual's function list; techmanpy's ``TMSCT_commands``
-writes the same calls): ``ChangeTCP`` in its overloads, ``ChangeTCP("name")`` (a TCP of the
+writes the same calls): ``ChangeBase`` in its overloads (``ChangeBase("name")``, a base of
+the base list, ``ChangeBase({X,Y,Z,RX,RY,RZ})`` and the six values spelled out, as
+techmanpy's ``set_base`` writes them: the base in the robot base), ``ChangeTCP`` in its
+overloads, ``ChangeTCP("name")`` (a TCP of the
 TCP list), ``ChangeTCP({X,Y,Z,RX,RY,RZ})``, ``ChangeTCP({...}, weight)``,
 ``ChangeTCP({...}, weight, {9 inertia values: Ixx Iyy Izz and the mass centre frame X Y Z
 RX RY RZ})`` and the same with the values spelled out (6, 7 or 16 numbers, as techmanpy
 writes them); ``QueueTag(tag[, wait])`` (tag 1-15); ``ScriptExit()`` (the flow leaves the
-node once the answer is sent). Any other command is a line in error. ChangeTCP and
-QueueTag enter the motion queue: the manual's second category of listen-node commands,
+node once the answer is sent). Any other command is a line in error. ChangeBase, ChangeTCP
+and QueueTag enter the motion queue: the manual's second category of listen-node commands,
 "placed in the queue and executed in order". The queue here runs at once unless
 `queue_delay_s` > 0 (a robot still finishing a motion): a queued command then runs that
 long after its script's OK, and a read before that finds the old TCP. A TCP given by values
 alone carries no mass (TCP_Mass 0) and, not being a TCP of the list, no name (TCP_Name
-reads ``""``): the manual says neither, this controller's choice.
+reads ``""``): the manual says neither, this controller's choice; so for a base given by
+values (Base_Name ``""``). The base list (`base_list`, name -> X Y Z RX RY RZ, TMflow's
+default base ``RobotBase`` the robot base itself) is apart from the TCP list: a ChangeBase
+changes the current base and nothing else, and a base of the list is changed only at the
+pendant (`add_base`); a name not in the list, or not six numbers, is a line in error.
 
 One client at a time: the manual does not say how many clients a Listen node serves; this
 one serves the first connection and lets any other wait, accepted and unanswered, until the
@@ -74,22 +81,25 @@ robot: a client must match its answers by its own ID and pass the rest by).
 The items served (Appendix data table): ``Coord_Robot_Flange`` (the flange in the robot
 base, X Y Z mm, RX RY RZ deg), ``Coord_Robot_Tool`` (the current TCP in the robot base: the
 flange times ``TCP_Value``), ``Coord_Base_Flange`` / ``Coord_Base_Tool`` (the same in the
-current base: the robot base here, ChangeBase is not played), ``Joint_Angle`` (J1-J6 deg),
-``TCP_Value`` (the current TCP in the flange frame, read-only), ``TCP_Name``, ``TCP_Mass``
-(kg), ``Project_Run``, ``Project_Pause``, ``Robot_Error``. RX RY RZ turn about the fixed
-axes: R = Rz(RZ) Ry(RY) Rx(RX) (tm_driver's ``tm_pose_conversion.h`` builds rotations with
-``setRPY``, that product), scipy's extrinsic ``"xyz"``. The joints and the flange are the
-test's to set (`set_joints`, `set_flange`), not computed from each other; `moving_per_read`
-makes the robot move (each read request finds the flange that many mm further along base x
-and J1 that many degrees further).
+current base: inverse(``Base_Value``) times the pose in the robot base), ``Joint_Angle``
+(J1-J6 deg), ``TCP_Value`` (the current TCP in the flange frame, read-only), ``TCP_Name``,
+``TCP_Mass`` (kg), ``Base_Value`` (the current base in the robot base, X Y Z RX RY RZ,
+read-only), ``Base_Name``, ``Project_Run``, ``Project_Pause``, ``Robot_Error``. RX RY RZ
+turn about the fixed axes: R = Rz(RZ) Ry(RY) Rx(RX) (tm_driver's ``tm_pose_conversion.h``
+builds rotations with ``setRPY``, that product), scipy's extrinsic ``"xyz"``. The joints and
+the flange are the test's to set (`set_joints`, `set_flange`), not computed from each other;
+`moving_per_read` makes the robot move (each read request finds the flange that many mm
+further along base x and J1 that many degrees further).
 
 The pendant and the flow (`select_tcp`, `set_current_tcp`, `add_tcp`, `start_project`,
-`stop_project`, `enter_listen_node`, `leave_listen_node`): the TCP the robot moves by is the
-project's; a project start sets the TCP it was written with (`project_tcp`, a name of the
-TCP list, "NOTOOL" the flange itself), so a TCP changed through the Listen node lasts only
-until the next start.
+`stop_project`, `enter_listen_node`, `leave_listen_node`, `add_base`, `select_base`): the
+TCP and the base the robot moves by are the project's; a project start sets the TCP and the
+base it was written with (`project_tcp`, a name of the TCP list, "NOTOOL" the flange itself;
+`project_base`, a name of the base list), so a TCP or base changed through the Listen node
+lasts only until the next start.
 
-The fault hook (`Faults`) names a request by each command of a script ("ChangeTCP",
+The fault hook (`Faults`) names a request by each command of a script ("ChangeBase",
+"ChangeTCP",
 "QueueTag", ...), "TMSTA 00" / "TMSTA 01", and "TMSVR <mode>": "before" leaves the script
 unrun and the controller silent, "after" runs it and goes silent without the answer.
 """
@@ -139,8 +149,11 @@ ITEMS = (
     "TCP_Name",
     "TCP_Value",
     "TCP_Mass",
+    "Base_Name",
+    "Base_Value",
 )
 NO_TOOL = "NOTOOL"
+ROBOT_BASE = "RobotBase"
 
 Arg = float | str | bool | list[float]
 ItemValue = bool | str | float | tuple[float, ...]
@@ -364,6 +377,21 @@ def change_tcp(args: list[Arg], tcp_list: dict[str, Tcp]) -> tuple[str, Tcp] | N
     return "", Tcp(f32(numbers[:6]), float(np.float32(mass)), f32(inertia))
 
 
+def change_base(
+    args: list[Arg], base_list: dict[str, tuple[float, ...]]
+) -> tuple[str, tuple[float, ...]] | None:
+    """The base a ChangeBase call names, with its name ("" for values); None if not valid."""
+    if len(args) == 1 and isinstance(args[0], str):
+        entry = base_list.get(args[0])
+        return None if entry is None else (args[0], entry)
+    numbers = _numbers(args)
+    if numbers is None and len(args) == 1 and isinstance(args[0], list):
+        numbers = args[0]
+    if numbers is None or len(numbers) != 6:
+        return None
+    return "", f32(numbers)
+
+
 # --- poses -----------------------------------------------------------------------------------
 
 
@@ -418,6 +446,12 @@ class TechmanSimulator(TcpSimulator):
         self.project_tcp = NO_TOOL
         self._tcp_name = NO_TOOL
         self._tcp = self.tcp_list[NO_TOOL]
+        #: the base list (TMflow's bases: name -> X Y Z RX RY RZ in the robot base)
+        self.base_list: dict[str, tuple[float, ...]] = {ROBOT_BASE: (0.0,) * 6}
+        #: the base list name the project starts with
+        self.project_base = ROBOT_BASE
+        self._base_name = ROBOT_BASE
+        self._base = self.base_list[ROBOT_BASE]
         self.project_running = True
         self.in_listen_node = True
         #: items checked in the Ethernet Slave's transmitted data table
@@ -475,6 +509,8 @@ class TechmanSimulator(TcpSimulator):
         with self._data_lock:
             self._queue.clear()
             self._tcp_name, self._tcp = self.project_tcp, self.tcp_list[self.project_tcp]
+            self._base_name = self.project_base
+            self._base = self.base_list[self.project_base]
             self.project_running, self.in_listen_node = True, False
         if self._node_listener is None:
             self._open_listen_node()
@@ -505,6 +541,22 @@ class TechmanSimulator(TcpSimulator):
         """A TCP taught into the TCP list (TMflow's tool list)."""
         with self._data_lock:
             self.tcp_list[name] = Tcp(f32(values), float(np.float32(mass)))
+
+    def add_base(self, name: str, values: tuple[float, ...]) -> None:
+        """A base taught into the base list (in the robot base)."""
+        with self._data_lock:
+            self.base_list[name] = f32(values)
+
+    def select_base(self, name: str) -> None:
+        """The flow or the operator sets a base of the list as the current base."""
+        with self._data_lock:
+            self._base_name, self._base = name, self.base_list[name]
+
+    def current_base(self) -> tuple[str, tuple[float, ...]]:
+        """The base's name ("" when set by values) and its values, now."""
+        with self._data_lock:
+            self._settle()
+            return self._base_name, self._base
 
     def select_tcp(self, name: str) -> None:
         """The flow or the operator sets a TCP of the list as the current TCP."""
@@ -665,6 +717,9 @@ class TechmanSimulator(TcpSimulator):
         name, args = call
         if name == "":
             return lambda: None
+        if name == "ChangeBase":
+            base = change_base(args, self.base_list)
+            return None if base is None else lambda: self._queue_base(*base)
         if name == "ChangeTCP":
             tcp = change_tcp(args, self.tcp_list)
             return None if tcp is None else lambda: self._queue_tcp(*tcp)
@@ -681,6 +736,12 @@ class TechmanSimulator(TcpSimulator):
     def _queue_tcp(self, name: str, tcp: Tcp) -> None:
         def run() -> None:
             self._tcp_name, self._tcp = name, tcp
+
+        self._enqueue(run)
+
+    def _queue_base(self, name: str, values: tuple[float, ...]) -> None:
+        def run() -> None:
+            self._base_name, self._base = name, values
 
         self._enqueue(run)
 
@@ -771,8 +832,9 @@ class TechmanSimulator(TcpSimulator):
         if move and self.moving_per_read:
             self._flange[0, 3] += self.moving_per_read
             self.joints[0] += self.moving_per_read
-        flange = values_of(self._flange)
-        tool = values_of(self._flange @ matrix(self._tcp.values))
+        tool_m = self._flange @ matrix(self._tcp.values)
+        flange, tool = values_of(self._flange), values_of(tool_m)
+        in_base = np.linalg.inv(matrix(self._base))
         return {
             "Robot_Error": False,
             "Project_Run": self.project_running,
@@ -780,11 +842,13 @@ class TechmanSimulator(TcpSimulator):
             "Joint_Angle": f32(self.joints),
             "Coord_Robot_Flange": flange,
             "Coord_Robot_Tool": tool,
-            "Coord_Base_Flange": flange,
-            "Coord_Base_Tool": tool,
+            "Coord_Base_Flange": values_of(in_base @ self._flange),
+            "Coord_Base_Tool": values_of(in_base @ tool_m),
             "TCP_Name": self._tcp_name,
             "TCP_Value": self._tcp.values,
             "TCP_Mass": self._tcp.mass,
+            "Base_Name": self._base_name,
+            "Base_Value": self._base,
         }
 
 

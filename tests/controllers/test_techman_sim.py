@@ -343,3 +343,104 @@ def test_a_moving_robot_moves_between_reads(sim: TechmanSimulator) -> None:
     first = run(read_items(sim, "Coord_Robot_Flange"))["Coord_Robot_Flange"]
     second = run(read_items(sim, "Coord_Robot_Flange"))["Coord_Robot_Flange"]
     assert second[0] - first[0] == pytest.approx(0.5, abs=1e-4)  # type: ignore[index]
+
+
+# --- bases: ChangeBase through the Listen Node, Base_Value / Base_Name from the Slave ------
+
+
+async def change_base(sim: TechmanSimulator, base: object) -> None:
+    async with sct(sim) as conn:  # type: ignore[attr-defined]
+        await conn.set_base(base)
+
+
+def test_techmanpy_changes_the_base_and_reads_it_back(sim: TechmanSimulator) -> None:
+    sim.add_base("Fixture", (100.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    sim.add_tcp("Gripper", (0.0, 0.0, 120.0, 0.0, 0.0, 45.0), mass=0.8)
+    sim.select_tcp("Gripper")
+    tcp_before = sim.current_tcp()
+    base = [612.5, -240.25, 35.125, 0.5, -1.25, 89.75]
+    run(change_base(sim, base))
+    items = run(read_items(sim, "Base_Value", "Base_Name", "TCP_Value", "TCP_Name"))
+    assert sim.scripts[-1][1] == "ChangeBase(612.5,-240.25,35.125,0.5,-1.25,89.75)"
+    assert_allclose(items["Base_Value"], base, atol=1e-5)  # type: ignore[call-overload]
+    assert items["Base_Name"] == ""
+    assert sim.current_base() == ("", tuple(float(np.float32(v)) for v in base))
+    # the base list and the TCP are untouched by a base change
+    assert sim.base_list == {"RobotBase": (0.0,) * 6, "Fixture": (100.0, 0.0, 0.0, 0.0, 0.0, 0.0)}
+    assert sim.current_tcp() == tcp_before
+    assert items["TCP_Name"] == "Gripper"
+    assert items["TCP_Value"] == [0.0, 0.0, 120.0, 0.0, 0.0, 45.0]
+
+
+def test_a_base_of_the_list_by_name_and_the_poses_in_it(sim: TechmanSimulator) -> None:
+    sim.jog_flange(417.5, -122.25, 610.0, 175.0, -3.5, 88.0)
+    fixture = [300.0, 200.0, 50.0, 0.0, 0.0, 30.0]
+    sim.add_base("Fixture", tuple(fixture))
+    run(change_base(sim, "Fixture"))
+    items = run(
+        read_items(sim, "Base_Name", "Base_Value", "Coord_Robot_Flange", "Coord_Base_Flange")
+    )
+    assert sim.scripts[-1][1] == 'ChangeBase("Fixture")'
+    assert items["Base_Name"] == "Fixture"
+    assert items["Base_Value"] == fixture
+    robot = tm_matrix(items["Coord_Robot_Flange"])  # type: ignore[arg-type]
+    in_base = tm_matrix(items["Coord_Base_Flange"])  # type: ignore[arg-type]
+    assert_allclose(tm_matrix(fixture) @ in_base, robot, atol=1e-3)
+
+
+def test_a_base_not_in_the_list_or_not_six_numbers_runs_nothing(sim: TechmanSimulator) -> None:
+    with pytest.raises(techmanpy.TMSCTError, match="resulted in an error"):
+        run(change_base(sim, "NoSuchBase"))
+    [reply] = exchange(
+        sim.listen_node_port,
+        packet("TMSCT", "8,ChangeBase(1,2,3,0,0,0)\r\nChangeBase(1,2,3)\r\nChangeBase({1,2})"),
+    )
+    assert reply == packet("TMSCT", "8,ERROR;2;3")
+    assert sim.current_base() == ("RobotBase", (0.0,) * 6)
+
+
+def test_a_project_start_sets_the_projects_base_again(sim: TechmanSimulator) -> None:
+    sim.add_base("Table", (0.0, 500.0, 0.0, 0.0, 0.0, 0.0))
+    sim.project_base = "Table"
+    run(change_base(sim, [1.0, 2.0, 3.0, 0.0, 0.0, 0.0]))
+    assert sim.current_base() == ("", (1.0, 2.0, 3.0, 0.0, 0.0, 0.0))
+    sim.start_project()
+    assert run(read_items(sim, "Base_Name", "Base_Value")) == {
+        "Base_Name": "Table",
+        "Base_Value": [0.0, 500.0, 0.0, 0.0, 0.0, 0.0],
+    }
+
+
+def test_a_base_change_waits_in_the_motion_queue(sim: TechmanSimulator) -> None:
+    sim.queue_delay_s = 0.4
+    run(change_base(sim, [0.0, 0.0, 10.0, 0.0, 0.0, 0.0]))
+    assert run(read_items(sim, "Base_Value"))["Base_Value"] == [0.0] * 6
+    time.sleep(0.45)
+    assert run(read_items(sim, "Base_Value"))["Base_Value"] == [0.0, 0.0, 10.0, 0.0, 0.0, 0.0]
+
+
+@pytest.mark.parametrize(("moment", "changed"), [("before", False), ("after", True)])
+def test_silence_around_a_base_change(sim: TechmanSimulator, moment: str, changed: bool) -> None:
+    """Cut before the ChangeBase: no answer and the old base; cut after: no answer, the new."""
+    sim.fault = go_silent(moment, "ChangeBase")  # type: ignore[arg-type]
+    with pytest.raises(TimeoutError):
+        run(change_base(sim, [0.0, 0.0, 250.0, 0.0, 0.0, 0.0]), timeout_s=1.0)
+    assert (sim.current_base()[1][2] == 250.0) is changed
+    with pytest.raises(TimeoutError):
+        run(read_items(sim, "Base_Value"), timeout_s=0.5)  # the Ethernet Slave is silent too
+    sim.stalled = False
+    expected = [0.0, 0.0, 250.0 if changed else 0.0, 0.0, 0.0, 0.0]
+    assert run(read_items(sim, "Base_Value"))["Base_Value"] == expected
+
+
+def test_the_base_items_are_read_only(sim: TechmanSimulator) -> None:
+    async def write() -> None:
+        async with svr(sim) as conn:  # type: ignore[attr-defined]
+            await conn.set_value("Base_Value", [1, 2, 3, 0, 0, 0])
+
+    with pytest.raises(techmanpy.TMSVRError, match=r"read-only.*Base_Value"):
+        run(write())
+    assert sim.current_base() == ("RobotBase", (0.0,) * 6)
+    sim.data_table.discard("Base_Name")
+    with pytest.raises(techmanpy.TMSVRError, match=r"does not exist.*Base_Name"):
+        run(read_items(sim, "Base_Name"))
