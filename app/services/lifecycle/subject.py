@@ -27,10 +27,8 @@ from app.storage.models import AuditEvent, Base, table_of
 from app.words import AuditAction, MethodName, ResourceType, Status
 
 
-class SubjectRow(Protocol):
-    """What the lifecycle reads of a subject's ORM row (a models.Tool)."""
-
-    __tablename__: str
+class Owned(Protocol):
+    """A subject as any reader names it: its id, its robot's, its name."""
 
     @property
     def id(self) -> str: ...
@@ -38,6 +36,13 @@ class SubjectRow(Protocol):
     def robot_id(self) -> str: ...
     @property
     def name(self) -> str: ...
+
+
+class SubjectRow(Owned, Protocol):
+    """What the lifecycle reads of a subject's ORM row (a models.Tool)."""
+
+    __tablename__: str
+
     @property
     def tolerance(self) -> JsonObject: ...
     @property
@@ -50,10 +55,9 @@ class SubjectRow(Protocol):
     def drift(self) -> JsonObject | None: ...
 
 
-class VersionRow(Protocol):
-    """What the lifecycle reads of a version's ORM row (a models.TcpVersion)."""
-
-    __tablename__: str
+class Valued(Protocol):
+    """What serving a version reads of it: its number, its values, its method and time (a
+    models.TcpVersion, or a hot read's columns: app.services.lifecycle.hot_read.HotVersion)."""
 
     @property
     def version(self) -> int: ...
@@ -64,11 +68,18 @@ class VersionRow(Protocol):
     @property
     def source(self) -> MethodName: ...
     @property
+    def created_at(self) -> datetime: ...
+
+
+class VersionRow(Valued, Protocol):
+    """What the lifecycle reads of a version's ORM row (a models.TcpVersion)."""
+
+    __tablename__: str
+
+    @property
     def status(self) -> Status: ...
     @property
     def calibration_id(self) -> str | None: ...
-    @property
-    def created_at(self) -> datetime: ...
 
 
 @dataclass(slots=True)

@@ -2,25 +2,19 @@
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Protocol
 
-from app.jsontypes import JsonArray, JsonObject
+from app.jsontypes import JsonObject
 from app.schemas.tools import ControllerText
+from app.services.lifecycle.subject import Owned, Valued
 from app.vendors.registry import export_tool
 from app.vendors.tool import ToolData, ToolLoad, vec3, vec4
-from app.words import ControllerFormat, MethodName
+from app.words import ControllerFormat
 
 
-class ServedTool(Protocol):
+class ServedTool(Owned, Protocol):
     """What serving a TCP reads of a tool: a models.Tool, or the hot read's few columns."""
 
-    @property
-    def id(self) -> str: ...
-    @property
-    def robot_id(self) -> str: ...
-    @property
-    def name(self) -> str: ...
     @property
     def slot(self) -> int | None: ...
     @property
@@ -29,19 +23,9 @@ class ServedTool(Protocol):
     def controller_symbol(self) -> str | None: ...
 
 
-class ServedVersion(Protocol):
-    """What serving a TCP reads of a version: a models.TcpVersion, or the hot read's columns."""
-
-    @property
-    def version(self) -> int: ...
-    @property
-    def position_mm(self) -> JsonArray: ...
-    @property
-    def quaternion(self) -> JsonArray: ...
-    @property
-    def source(self) -> MethodName: ...
-    @property
-    def created_at(self) -> datetime: ...
+class ServedVersion(Valued, Protocol):
+    """What serving a TCP reads of a version: a models.TcpVersion, or the hot read's columns
+    (app.services.lifecycle.subject.Valued)."""
 
 
 def tool_data(tool: ServedTool, version: ServedVersion) -> ToolData:
