@@ -1,4 +1,5 @@
-"""An ABB controller's Robot Web Services, in memory: PERS tooldata symbols in RAPID tasks.
+"""An ABB controller's Robot Web Services, in memory: PERS tooldata and wobjdata symbols in
+RAPID tasks.
 
 Follows ABB *Application manual - Robot Web Services* (3HAC050973-001, the rwsApi pages):
 "Operations on RAPID symbol data" (get, and ``action=set`` with form field ``value``),
@@ -30,6 +31,20 @@ minus allowed: nothing Python's ``float`` takes beyond that (``nan``, ``inf``, `
 The answer to a read (``rap-data`` with its ``value``) is the RWS manual's "Get symbol
 data" (rwsApi ``rapid_symbol_data_page``).
 
+Work objects (the same RAPID manual, "wobjdata"): ``[robhold, ufprog, ufmec, uframe,
+oframe]``, robhold a bool (TRUE: the robot holds the work object), ufprog a bool (TRUE: a
+fixed user frame), ufmec a string (the mechanical unit moving the user frame, ``""`` when
+fixed), uframe and oframe poses (the user frame, and the object frame in it); the manual's
+example ``[FALSE, TRUE, "", [[300, 600, 200], [1, 0, 0, 0]], [[0, 200, 30], [1, 0, 0, 0]]]``.
+A string literal is ``"..."`` (RAPID kernel, "String literals"; no quote inside here).
+`wobjdata` (symbol -> `WobjSymbol`) is the frame table, apart from the tool table
+(`symbols`): a write of a wobjdata symbol sets that symbol, every member as written (a client
+that means to change the uframe alone writes the oframe and robhold it read), and nothing
+else; a tooldata written to a wobjdata symbol, or a wobjdata to a tooldata symbol, is a type
+mismatch (400), as is a non-normalized quaternion. A write needs edit mastership on RWS 2.0,
+as for tools. A stationary tool is a tooldata with robhold FALSE (the manual's tooldata:
+tframe is then the TCP in the world frame), held and written as any tooldata.
+
 Where the robot stands (issue 39): "Get Robtarget" (rwsApi ``ms_mechunit_robtarget_page``),
 ``GET /rw/motionsystem/mechunits/{mechunit}/robtarget`` with ``tool``, ``wobj`` (each the
 mechunit's active one when left out) and ``coordinate`` (``Base | World | Tool | Wobj``,
@@ -43,7 +58,9 @@ are the XHTML form; JSON carries the same names and every value as a string: RWS
 in public RWS 2.0 clients' tests show. The simulator holds the flange (tool0) in the robot's
 base frame and the six joint angles, which a test sets (`set_pose`); it computes no
 kinematics: a robtarget of another tool is the flange composed with that tool's tframe, of
-coordinate Wobj the same seen from the work object's frame (``wobjs``, wobj0 the base), of
+coordinate Wobj the same seen from the work object's frame (``wobjs``, wobj0 the base; a
+wobjdata symbol of the task with robhold FALSE and a fixed uframe (ufprog TRUE) is
+uframe * oframe in the world, seen from the base through ``base_frame``), of
 World from ``base_frame`` (the base in the world; the identity by default); Tool is refused
 (400) as nothing here needs it.
 
@@ -157,6 +174,29 @@ def _inverse(a: SimFrame) -> SimFrame:
 
 
 @dataclass
+class WobjSymbol:
+    """One PERS wobjdata as the controller holds it."""
+
+    robhold: bool = False
+    ufprog: bool = True
+    ufmec: str = ""
+    uframe: SimFrame = IDENTITY
+    oframe: SimFrame = IDENTITY
+
+    def text(self) -> str:
+        def pose(frame: SimFrame) -> str:
+            trans, rot = frame
+            return (
+                f"[[{','.join(num_text(v) for v in trans)}],[{','.join(num_text(v) for v in rot)}]]"
+            )
+
+        return (
+            f"[{'TRUE' if self.robhold else 'FALSE'},{'TRUE' if self.ufprog else 'FALSE'},"
+            f'"{self.ufmec}",{pose(self.uframe)},{pose(self.oframe)}]'
+        )
+
+
+@dataclass
 class _Session:
     user: str
     cookie: str
@@ -189,6 +229,17 @@ class AbbRwsSimulator(Faults):
             "T_ROB1/user/tGripper": Symbol(robhold=False, mass=2.0, cog=(0.0, 0.0, 50.0)),
             "T_ROB2/user/tTorch": Symbol(),
         }
+        #: PERS wobjdata symbols (the frame table)
+        self.wobjdata: dict[str, WobjSymbol] = {
+            "T_ROB1/user/wobjTable": WobjSymbol(),
+            "T_ROB1/user/wobjFixture": WobjSymbol(
+                uframe=((800.0, -200.0, 350.0), (1.0, 0.0, 0.0, 0.0)),
+                oframe=((10.0, 20.0, 0.0), (0.7071068, 0.0, 0.0, 0.7071068)),
+            ),
+            "T_ROB2/user/wobjTable": WobjSymbol(),
+        }
+        for held in self.wobjdata.values():  # held as RobotWare holds num
+            held.uframe, held.oframe = self._frame(held.uframe), self._frame(held.oframe)
         #: non-tooldata symbols a client may name by mistake: symbol -> RAPID text
         self.other_symbols = {"T_ROB1/user/reg1": "0"}
         #: the motion task's mechanical unit (T_ROB1 moves ROB_1)
@@ -282,6 +333,21 @@ class AbbRwsSimulator(Faults):
                 held.mass = self._reals((mass,))[0]
             if cog is not None:
                 held.cog = self._reals(cog)  # type: ignore[assignment]
+
+    def set_wobj(self, symbol: str, uframe: SimFrame, oframe: SimFrame = IDENTITY) -> None:
+        """What an operator enters for a wobjdata's uframe and oframe on the FlexPendant."""
+        with self._lock:
+            held = self.wobjdata.setdefault(symbol, WobjSymbol())
+            held.uframe = self._frame(uframe)
+            held.oframe = self._frame(oframe)
+
+    def wobj(self, symbol: str) -> WobjSymbol:
+        """A copy of the wobjdata the controller holds in `symbol`."""
+        with self._lock:
+            return WobjSymbol(**self.wobjdata[symbol].__dict__)
+
+    def _frame(self, frame: SimFrame) -> SimFrame:
+        return self._reals(frame[0]), self._reals(frame[1])  # type: ignore[return-value]
 
     def tool(self, symbol: str) -> Symbol:
         """A copy of the tooldata the controller holds in `symbol`."""
@@ -392,7 +458,7 @@ class AbbRwsSimulator(Faults):
 
     def read_symbol(self, symbol: str) -> tuple[int, dict[str, object]]:
         with self._lock:
-            held = self.symbols.get(symbol)
+            held: Symbol | WobjSymbol | None = self.symbols.get(symbol) or self.wobjdata.get(symbol)
             text = held.text() if held is not None else self.other_symbols.get(symbol)
         if text is None:
             return 400, _error(NOT_FOUND_CODE, f"Symbol not found: RAPID/{symbol}")
@@ -419,6 +485,17 @@ class AbbRwsSimulator(Faults):
                 return held.trans, held.rot
         return None
 
+    def _wobj_frame(self, name: str) -> SimFrame | None:
+        """A work object's frame in the robot's base frame: a wobjdata symbol of the task
+        (robhold FALSE, fixed uframe: uframe * oframe in the world), else `wobjs`."""
+        task = "T_ROB" + self.mechunit.rsplit("_", 1)[-1]
+        held = self.wobjdata.get(f"{task}/user/{name}")
+        if held is None:
+            return self.wobjs.get(name)
+        if held.robhold or not held.ufprog:
+            return None  # a work object the robot holds or a unit moves: not played
+        return _compose(_inverse(self.base_frame), _compose(held.uframe, held.oframe))
+
     def robtarget(self, mechunit: str, query: dict[str, str]) -> tuple[int, dict[str, object]]:
         """Get Robtarget: the TCP of `tool` in `coordinate` (the flange for tool0 in Base)."""
         if mechunit != self.mechunit:
@@ -428,7 +505,7 @@ class AbbRwsSimulator(Faults):
             return 400, _error(PARAMETER_CODE, f"Invalid coordinate: {coordinate}")
         with self._lock:
             tool = self._tool_frame(query.get("tool") or self.active_tool)
-            wobj = self.wobjs.get(query.get("wobj") or self.active_wobj)
+            wobj = self._wobj_frame(query.get("wobj") or self.active_wobj)
             if tool is None or wobj is None:
                 return 400, _error(NOT_FOUND_CODE, "Tool or work object not found")
             self._move()
@@ -473,12 +550,15 @@ class AbbRwsSimulator(Faults):
                 f"Operation not allowed: edit mastership is required (held by {holder})",
             )
         with self._lock:
-            if symbol not in self.symbols:
+            is_wobj = symbol in self.wobjdata
+            if symbol not in self.symbols and not is_wobj:
                 if symbol in self.other_symbols:
                     return 400, _error(
                         TYPE_CODE, f"Type mismatch: RAPID/{symbol} is not a tooldata"
                     )
                 return 400, _error(NOT_FOUND_CODE, f"Symbol not found: RAPID/{symbol}")
+        if is_wobj:
+            return self._write_wobj(symbol, value)
         try:
             tool = read_tooldata(value)
         except RapidValueError as err:
@@ -499,6 +579,25 @@ class AbbRwsSimulator(Faults):
             held.cog = self._reals(tool.cog)  # type: ignore[assignment]
             held.aom = self._reals(tool.aom)  # type: ignore[assignment]
             held.inertia = self._reals(tool.inertia)  # type: ignore[assignment]
+        return 204, None
+
+    def _write_wobj(self, symbol: str, value: str) -> tuple[int, dict[str, object] | None]:
+        try:
+            wobj = read_wobjdata(value)
+        except RapidValueError as err:
+            return 400, _error(
+                TYPE_CODE, f"Invalid value for wobjdata RAPID/{symbol}: {err}: {value[:80]}"
+            )
+        for member, (_, rot) in (("uframe", wobj.uframe), ("oframe", wobj.oframe)):
+            norm = float(np.linalg.norm(rot))
+            if abs(norm - 1.0) > 1e-5:
+                return 400, _error(
+                    TYPE_CODE,
+                    f"Not a normalized quaternion in RAPID/{symbol} {member} (|q| = {norm:.6f})",
+                )
+        with self._lock:
+            wobj.uframe, wobj.oframe = self._frame(wobj.uframe), self._frame(wobj.oframe)
+            self.wobjdata[symbol] = wobj
         return 204, None
 
     def mastership(self, action: str, session: _Session) -> tuple[int, dict[str, object] | None]:
@@ -561,7 +660,7 @@ class AbbRwsSimulator(Faults):
 
 # --- RAPID text as the controller reads a write (this simulator's own reader) --------------
 
-RapidItem = float | bool | list["RapidItem"]
+RapidItem = float | bool | str | list["RapidItem"]
 
 
 class RapidValueError(ValueError):
@@ -570,7 +669,7 @@ class RapidValueError(ValueError):
 
 #: the largest num (a 32-bit float) RobotWare holds
 NUM_MAX = float(np.finfo(np.float32).max)
-_RAPID_TOKEN = re.compile(r"[\[\],]|[^\s\[\],]+")
+_RAPID_TOKEN = re.compile(r'"[^"]*"|[\[\],]|[^\s\[\],"]+')
 #: a num literal (RAPID kernel, "Numeric literals"), with a unary minus
 _RAPID_NUM = re.compile(r"-?(?:\d+\.?\d*|\.\d+)(?:[Ee][+-]?\d+)?")
 
@@ -600,6 +699,8 @@ def _item(tokens: list[str], pos: int) -> tuple[RapidItem, int]:
             if pos < len(tokens) and tokens[pos] == "]":
                 return items, pos + 1
             raise RapidValueError("an aggregate not closed by ]")
+    if token.startswith('"'):
+        return token[1:-1], pos + 1
     if token.upper() in ("TRUE", "FALSE"):
         return token.upper() == "TRUE", pos + 1
     if _RAPID_NUM.fullmatch(token):
@@ -633,6 +734,28 @@ def read_tooldata(text: str) -> Symbol:
         aom=(a1, a2, a3, a4),
         inertia=(ix, iy, iz),
     )
+
+
+def read_wobjdata(text: str) -> WobjSymbol:
+    """A wobjdata's RAPID text -> the WobjSymbol it sets (RapidValueError naming the
+    member)."""
+    value = read_value(text)
+    if not isinstance(value, list) or len(value) != 5:
+        raise RapidValueError("a wobjdata is [robhold, ufprog, ufmec, uframe, oframe]")
+    robhold, ufprog, ufmec, uframe, oframe = value
+    if not isinstance(robhold, bool) or not isinstance(ufprog, bool):
+        raise RapidValueError("robhold and ufprog are bools")
+    if not isinstance(ufmec, str):
+        raise RapidValueError("ufmec is not a string")
+    return WobjSymbol(robhold, ufprog, ufmec, _pose(uframe, "uframe"), _pose(oframe, "oframe"))
+
+
+def _pose(value: RapidItem, member: str) -> SimFrame:
+    if not isinstance(value, list) or len(value) != 2:
+        raise RapidValueError(f"{member} is not a pose [trans, rot]")
+    x, y, z = _nums(value[0], 3, f"{member}.trans")
+    q1, q2, q3, q4 = _nums(value[1], 4, f"{member}.rot")
+    return (x, y, z), (q1, q2, q3, q4)
 
 
 def _nums(value: RapidItem, count: int, member: str) -> tuple[float, ...]:
