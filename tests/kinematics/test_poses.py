@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -13,6 +14,7 @@ from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
+from app.kinematics.dh import kinematics_from_spec
 from app.kinematics.poses import (
     POSE_FORMATS,
     PoseUnits,
@@ -20,12 +22,14 @@ from app.kinematics.poses import (
     kuka_abc_from_matrix,
     matrix_from_fanuc_wpr,
     matrix_from_kuka_abc,
+    one_pose,
     pose_from_format,
     pose_to_format,
     poses_from_format,
     resolve_units,
 )
 from app.kinematics.presets import PRESETS
+from app.kinematics.urdf import UrdfChain
 
 FAST = settings(
     max_examples=150, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
@@ -293,6 +297,66 @@ def test_refuses_non_number() -> None:
     assert err.loc == ("poses", 0, 2)
     _refused("invalid-pose", "kuka_abc", [[0, 0, True, 0, 0, 0]])
     _refused("invalid-pose", "kuka_abc", "not a list")
+
+
+def test_a_bare_number_as_a_pose_is_refused_naming_the_pose() -> None:
+    # a pose that is neither a list nor a string (issue 51: `or` -> `and` let 5.0 on to len())
+    err = _refused("invalid-pose", "kuka_abc", [[0] * 6, 5.0])
+    assert err.loc == ("poses", 1)
+    assert err.detail == (
+        "pose 2: expected 6 numbers [X, Y, Z, A, B, C] for format 'kuka_abc', got float"
+    )
+    err = _refused("invalid-pose", "xyz_wxyz", [None])
+    assert err.loc == ("poses", 0)
+    assert err.detail.startswith("pose 1: expected 7 numbers [x, y, z, qw, qx, qy, qz]")
+    assert err.detail.endswith("got NoneType")
+
+
+def test_a_non_number_is_named_by_pose_number_and_label() -> None:
+    err = _refused("invalid-pose", "kuka_abc", [[0] * 6, [0] * 6, [0, 0, "x", 0, 0, 0]])
+    assert err.loc == ("poses", 2, 2)
+    assert err.detail == "pose 3: Z must be a number, got 'x'"
+    # joint labels count from 1, as the pendant does
+    err = _refused("invalid-pose", "joints", [[0, "a", 0, 0, 0, 0]], kinematics=PRESETS["ur5e"])
+    assert err.loc == ("poses", 0, 1)
+    assert err.detail == "pose 1: q2 must be a number, got 'a'"
+
+
+def test_a_bad_last_row_names_its_pose() -> None:
+    m = np.eye(4)
+    m[3, 0] = 0.5  # in column 0, not the pose's index: a mistake of axis shows
+    err = _refused("invalid-pose", "matrix", [np.eye(4).tolist(), np.eye(4).tolist(), m.tolist()])
+    assert err.loc == ("poses", 2, "matrix")
+    assert err.detail.startswith("pose 3: the last row of a 4x4 pose matrix must be [0, 0, 0, 1]")
+
+
+def test_one_pose_names_the_pose_by_its_number_and_drops_the_list_index() -> None:
+    # a session's fifth touch read alone: loc without the list's 0, "pose 5" in every message
+    with pytest.raises(InvalidInput) as info, one_pose(("body", "pose"), 5):
+        poses_from_format("kuka_abc", [[0, 0, "x", 0, 0, 0]], loc=("body", "pose"))
+    assert info.value.loc == ("body", "pose", 2)
+    assert info.value.detail == "pose 5: Z must be a number, got 'x'"
+    assert str(info.value) == info.value.detail  # what a log line or the CLI prints
+
+
+def test_joints_of_a_urdf_robot_go_through_its_chain() -> None:
+    text = (Path(__file__).resolve().parents[1] / "data" / "urdf" / "ur5e.urdf").read_text()
+    chain = kinematics_from_spec({"urdf": text, "base_link": "base", "tip_link": "tool0"})
+    assert isinstance(chain, UrdfChain)
+    q = np.radians([[10.0, -80.0, 70.0, -30.0, 90.0, 15.0], [0.0, -90.0, 90.0, 0.0, 45.0, 0.0]])
+    rotations, positions = poses_from_format("joints", q.tolist(), kinematics=chain)
+    R_chain, p_chain = chain.flange_poses(q)
+    assert_allclose(rotations, R_chain, atol=1e-12)
+    assert_allclose(positions, p_chain, atol=1e-9)
+
+
+@pytest.mark.parametrize("fmt", ["xyz_wxyz", "xyz_xyzw"])
+def test_quaternions_are_written_with_w_not_negative(fmt: str) -> None:
+    # 270 deg about z is -90 deg: scipy's own quaternion of that matrix has w = -0.707
+    pose = pose_to_format(fmt, rz(270.0), [0.0, 0.0, 0.0])
+    assert isinstance(pose[0], float)
+    w = pose[3] if fmt == "xyz_wxyz" else pose[6]
+    assert w == pytest.approx(math.sqrt(0.5))
 
 
 def test_refuses_non_finite() -> None:

@@ -12,7 +12,7 @@ from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
-from app.solvers.npoint import ALGORITHMS, solve_npoint
+from app.solvers.npoint import ALGORITHMS, NOISE_CONTRADICTED, solve_npoint
 from app.solvers.quality import Quality, ellipsoid95_scale, orientation_spread_deg
 from app.words import Algorithm
 from testbed.sim.touches import TOOL_DOWN, coaxial_rotations, simulate_touches
@@ -188,6 +188,28 @@ def test_residuals_are_distances_of_the_tcp_from_the_pivot() -> None:
     assert q.max_mm == pytest.approx(max(q.residuals_mm))
 
 
+def test_a_contradicted_touch_noise_is_warned() -> None:
+    # touches scattered by 0.3 mm solved with 0.05 mm configured: the sum of squares is far
+    # beyond chi2(3n - 6) at 99.9 %, and the reported uncertainty rests on that noise
+    sim = simulate_touches(12, seed=1, touch_noise_mm=0.3)
+    q = solve_npoint(sim.R, sim.f, algorithm="stacked", touch_noise_mm=0.05).quality
+    assert any(NOISE_CONTRADICTED in w for w in q.warnings), q.warnings
+    clean = simulate_touches(12, seed=1, touch_noise_mm=0.05)
+    q = solve_npoint(clean.R, clean.f, algorithm="stacked", touch_noise_mm=0.05).quality
+    assert not any(NOISE_CONTRADICTED in w for w in q.warnings), q.warnings
+
+
+def test_an_ellipsoid_resting_on_orientation_noise_is_nearly_chi2() -> None:
+    # Orientation noise given (0.05 deg at a 150 mm lever: 0.13 mm), touch noise estimated and
+    # small (0.002 mm): the estimated part is a small share w of the TCP covariance, so the
+    # ellipsoid's dof (nu / w^2) is large and its 95 % scale that of a known noise, not the
+    # F scale of the touch noise's own few dof (9.3 when that share is taken as 0)
+    for seed in range(3):
+        sim = simulate_touches(12, seed=seed, touch_noise_mm=0.002, orientation_noise_deg=0.05)
+        q = solve_npoint(sim.R, sim.f, algorithm="stacked", orientation_noise_deg=0.05).quality
+        assert q.ellipsoid95_scale == pytest.approx(ellipsoid95_scale(None), rel=0.01)
+
+
 def test_gls_beats_stacked_under_orientation_noise() -> None:
     err: dict[Algorithm, list[float]] = {"gls": [], "stacked": []}
     for seed in range(60):
@@ -266,6 +288,89 @@ def test_four_touches_with_a_miss_are_flagged_not_guessed() -> None:
     assert any("cannot be singled out" in w for w in result.quality.warnings)
 
 
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("n", [10, 15])
+def test_robust_names_four_in_ten_missed_touches_of_few(n: int, seed: int) -> None:
+    # Few touches with 40 % missed: the minimal-set search must score each hypothesis by its
+    # h-th closest touch (h = 60 %), not its farthest, or a hypothesis through a missed touch
+    # wins (scored by every touch, 7 of these 16 solves named the wrong touches)
+    sim = simulate_touches(n, seed=seed, outlier_fraction=0.4, outlier_mm=5.0)
+    result = solve_npoint(sim.R, sim.f)
+    assert result.quality.outliers == tuple(np.flatnonzero(sim.outliers))
+
+
+def test_four_clean_touches_with_a_configured_noise_are_not_flagged() -> None:
+    # The sum-of-squares test is chi2(3n - 6) at 1 - OUTLIER_ALPHA: clean touches fail it (and
+    # the per-touch test, at the same alpha) in at most 2 % of solves, 2 of 100 give or take
+    # 3 standard deviations (4.2); a wrong threshold warns on every one
+    warned = 0
+    for seed in range(100):
+        sim = simulate_touches(4, seed=seed, touch_noise_mm=0.05)
+        result = solve_npoint(sim.R, sim.f, touch_noise_mm=0.05)
+        assert result.quality.outliers == ()
+        warned += any("cannot be singled out" in w for w in result.quality.warnings)
+    assert warned <= 6, f"{warned} of 100 clean 4-touch solves warned"
+
+
+def test_a_touch_left_out_of_the_fit_is_judged_with_its_prediction_error() -> None:
+    # 6 and 7 touches, one missing by 3 mm (60 sigma): the clean touches the least-median start
+    # leaves out are judged by residual covariance Cov_i + A_i Cov A_i^T. Without the fit's
+    # prediction error (+ A_i Cov A_i^T) they are set aside wrongly in 26 of these 200 solves;
+    # the test's family-wise false alarm (1 %) allows 2 of 200, give or take 3 sd (4.2)
+    wrong = []
+    for n in (6, 7):
+        for seed in range(100):
+            sim = simulate_touches(n, seed=seed, outlier_fraction=1 / n, outlier_mm=3.0)
+            result = solve_npoint(sim.R, sim.f, touch_noise_mm=0.05)
+            if result.quality.outliers != tuple(np.flatnonzero(sim.outliers)):
+                wrong.append((n, seed, result.quality.outliers))
+    assert len(wrong) <= 6, wrong
+
+
+def test_small_misses_under_orientation_noise_raise_few_false_alarms() -> None:
+    # Orientation noise given, touch noise estimated: each touch is tested along its three
+    # eigen-directions against F(1, nu / w^2), w the touch noise's share. A wrong share or its
+    # dof sets clean touches aside in 6-8 of these 150 solves; the family-wise 1 % allows 1.5,
+    # give or take 3 sd (3.7)
+    false_alarms = 0
+    for seed in range(150):
+        sim = simulate_touches(
+            10,
+            seed=seed,
+            touch_noise_mm=0.02,
+            orientation_noise_deg=0.05,
+            outlier_fraction=0.1,
+            outlier_mm=0.6,
+        )
+        result = solve_npoint(sim.R, sim.f, orientation_noise_deg=0.05)
+        false_alarms += bool(set(result.quality.outliers) - set(np.flatnonzero(sim.outliers)))
+    assert false_alarms <= 5, f"{false_alarms} of 150 solves set a clean touch aside"
+
+
+def test_outlier_thresholds_are_the_documented_quantiles() -> None:
+    # robust.py's docstrings: Bonferroni over n touches at OUTLIER_ALPHA; chi2(3) with a
+    # configured noise, 3 F(3, dof) with an estimated one; per direction F(1, dof) at
+    # OUTLIER_ALPHA / 3n (chi2(1) from 10**6 dof); the sum of squares chi2(dof) at 1 - alpha
+    from scipy import stats
+
+    from app.solvers.npoint.robust import (
+        OUTLIER_ALPHA,
+        _direction_threshold,
+        _outlier_threshold,
+        _sse_threshold,
+    )
+
+    alpha = OUTLIER_ALPHA
+    for n in (4, 10, 57):
+        q = 1.0 - alpha / n
+        assert _outlier_threshold(n, None) == pytest.approx(stats.chi2.ppf(q, 3))
+        assert _outlier_threshold(n, 12) == pytest.approx(3 * stats.f.ppf(q, 3, 12))
+        q3 = 1.0 - alpha / (3 * n)
+        assert _direction_threshold(n, 9) == pytest.approx(stats.f.ppf(q3, 1, 9))
+        assert _direction_threshold(n, 10**6) == pytest.approx(stats.chi2.ppf(q3, 1))
+        assert _sse_threshold(3 * n - 6) == pytest.approx(stats.chi2.ppf(1 - alpha, 3 * n - 6))
+
+
 # ------------------------------------------------------------------------------ refusals
 
 
@@ -300,6 +405,46 @@ def test_repeated_orientation_among_many_touches_is_a_warning() -> None:
     result = solve_npoint(R, f)
     assert_allclose(result.tcp_mm, sim.t, atol=1e-9)
     assert any("touches 1 and 9 repeat" in w for w in result.quality.warnings)
+
+
+@pytest.mark.parametrize(
+    ("copies", "shown", "more"),
+    [
+        # touch 1 repeated as touches 9-12: the 10 pairs of 5 touches, all shown
+        (
+            [0, 0, 0, 0],
+            "1 and 9, 1 and 10, 1 and 11, 1 and 12, 9 and 10, 9 and 11, 9 and 12, 10 and 11, "
+            "10 and 12, 11 and 12",
+            "",
+        ),
+        # and touch 2 as touch 13: 11 pairs, the first ten (by first touch) shown
+        (
+            [0, 0, 0, 0, 1],
+            "1 and 9, 1 and 10, 1 and 11, 1 and 12, 2 and 13, 9 and 10, 9 and 11, 9 and 12, "
+            "10 and 11, 10 and 12",
+            " (and 1 more pairs)",
+        ),
+        # and as touch 14: 13 pairs
+        (
+            [0, 0, 0, 0, 1, 1],
+            "1 and 9, 1 and 10, 1 and 11, 1 and 12, 2 and 13, 2 and 14, 9 and 10, 9 and 11, "
+            "9 and 12, 10 and 11",
+            " (and 3 more pairs)",
+        ),
+    ],
+)
+def test_many_repeated_pairs_show_the_first_ten_and_count_the_rest(
+    copies: list[int], shown: str, more: str
+) -> None:
+    sim = simulate_touches(8, seed=1, touch_noise_mm=0.0)
+    R, f = np.concatenate([sim.R, sim.R[copies]]), np.concatenate([sim.f, sim.f[copies]])
+    result = solve_npoint(R, f)
+    assert_allclose(result.tcp_mm, sim.t, atol=1e-9)
+    repeats = [w for w in result.quality.warnings if "repeat an orientation" in w]
+    assert repeats == [
+        f"touches {shown}{more} repeat an orientation (within 0.5 deg): they average noise "
+        "but add nothing to the spread"
+    ]
 
 
 @pytest.mark.parametrize("axis", [(0, 0, 1), (1, 0, 0), (0.6, 0.8, 0)])
