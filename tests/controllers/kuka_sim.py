@@ -1,5 +1,6 @@
 """A KUKA KRC behind KUKAVARPROXY, in memory: the tool table ``$TOOL_DATA[1..16]`` and
-``$LOAD_DATA[1..16]`` spoken over the OpenShowVar protocol.
+``$LOAD_DATA[1..16]`` and the base table ``BASE_DATA[1..32]`` spoken over the OpenShowVar
+protocol.
 
 Follows KUKAVARPROXY's source (ImtsSrl/KUKAVARPROXY ``src/frmMain.frm`` ``sockServer_Read``
 and ``src/basMain.bas`` ``readMsg``): big-endian words ``msg_id, length, mode, len, name
@@ -61,6 +62,20 @@ C -0.680795908, S 6, T 19, E1 0.0, ...}`` and ``$AXIS_ACT`` ``{E6AXIS: A1 0.0, A
 This module computes the TCP from its own flange pose with numpy and scipy: the test sets
 the flange (`set_flange`, the operator jogging) and reads it back (`flange`) to judge a
 reader of ``$POS_ACT``.
+
+The base table, as $config.dat declares it (``DECL FRAME BASE_DATA[32]``, ``DECL CHAR
+BASE_NAME[32,24]``, ``BASE_TYPE[32]``; no ``$``, the names issue 48 writes):
+``BASE_DATA[n]`` a FRAME (the base in ``$WORLD``), read and written as ``$TOOL_DATA[n]``
+(the members named change, a member it has not refused); ``BASE_NAME[n,]`` the name, a
+string of at most 24 characters printed and written as a KRL string literal ``"..."``;
+``BASE_TYPE[n]`` ``#BASE`` (a base the robot moves a tool through), ``#TCP`` (a fixed tool:
+the frame is the external TCP) or ``#NONE`` (unused; each base starts so); any other value
+refused. A number outside 1-32 reads empty and a write is refused (ok = 0), as for tools.
+``$ACT_BASE`` is the number of the base selected (-1: ``$BASE`` set without one, as a
+program's own frame), and ``$BASE`` is ``BASE_DATA[$ACT_BASE]`` (a KRC copies it at
+selection; this controller reselects it after every change, as for tools). The frame table
+(`bases`, number -> FRAME members) is apart from the tool table: a base write changes that
+one base and nothing else. The fault hook names a base write ``write BASE_DATA[n]``.
 """
 
 from __future__ import annotations
@@ -80,7 +95,15 @@ from tests.controllers.simbase import TcpSimulator
 SLOTS = range(1, 17)
 FRAME_MEMBERS = ("X", "Y", "Z", "A", "B", "C")
 AXES = ("A1", "A2", "A3", "A4", "A5", "A6", "E1", "E2", "E3", "E4", "E5", "E6")
+BASES = range(1, 33)
+BASE_TYPES = ("#BASE", "#TCP", "#NONE")
+NAME_LENGTH = 24
 _VARIABLE = re.compile(r"^\$(TOOL_DATA|LOAD_DATA)\[\s*(-?\d+)\s*\]$", re.IGNORECASE)
+_BASE_VARIABLE = re.compile(
+    r"^(BASE_DATA|BASE_TYPE)\[\s*(-?\d+)\s*\]$|^(BASE_NAME)\[\s*(-?\d+)\s*,\s*\]$",
+    re.IGNORECASE,
+)
+_KRL_STRING = re.compile(r'^\s*"([^"]*)"\s*$')
 
 
 def real(value: float, single_precision: bool = True) -> float:
@@ -129,6 +152,14 @@ class KukaSimulator(TcpSimulator):
         self.act_tool = -1
         self._tool_frame: dict[str, float] = dict.fromkeys(FRAME_MEMBERS, 0.0)
         self.base: dict[str, float] = dict.fromkeys(FRAME_MEMBERS, 0.0)
+        #: BASE_DATA[1..32], BASE_NAME[n,], BASE_TYPE[n] (the frame table)
+        self.bases: dict[int, dict[str, float]] = {
+            n: dict.fromkeys(FRAME_MEMBERS, 0.0) for n in BASES
+        }
+        self.base_names: dict[int, str] = dict.fromkeys(BASES, "")
+        self.base_types: dict[int, str] = dict.fromkeys(BASES, "#NONE")
+        #: $ACT_BASE: the base selected (-1: $BASE is `base`, a frame of the program's own)
+        self.act_base = -1
         #: $ROBROOT_C: the robot's base frame in $WORLD (identity: the robot is the world)
         self.robroot: dict[str, float] = dict.fromkeys(FRAME_MEMBERS, 0.0)
         #: ``#BASE`` or ``#TCP`` (external TCP)
@@ -222,10 +253,36 @@ class KukaSimulator(TcpSimulator):
                 for k, v in zip(FRAME_MEMBERS, (x, y, z, a, b, c), strict=True)
             }
 
+    def set_base_data(
+        self, number: int, x: float, y: float, z: float, a: float, b: float, c: float
+    ) -> None:
+        """What an operator enters for BASE_DATA[number] on the pendant (mm, deg)."""
+        with self._data_lock:
+            self.bases[number] = {
+                k: real(v, self.single_precision)
+                for k, v in zip(FRAME_MEMBERS, (x, y, z, a, b, c), strict=True)
+            }
+
+    def base_data(self, number: int) -> tuple[float, ...]:
+        """X, Y, Z, A, B, C of BASE_DATA[number] as the KRC holds them."""
+        with self._data_lock:
+            return tuple(self.bases[number][k] for k in FRAME_MEMBERS)
+
+    def select_base(self, number: int) -> None:
+        """The operator selects base `number`: $ACT_BASE = n, $BASE = BASE_DATA[n]."""
+        if number not in BASES:
+            raise ValueError(f"base {number} is not one of 1-32")
+        with self._data_lock:
+            self.act_base = number
+
+    def _base_frame(self) -> dict[str, float]:
+        return self.bases[self.act_base] if self.act_base in BASES else self.base
+
     def set_base(self, x: float, y: float, z: float, a: float, b: float, c: float) -> None:
         """$BASE: the base frame in $WORLD (mm, deg; the robot's base frame while $ROBROOT
-        is the identity)."""
+        is the identity), set by a program: $ACT_BASE = -1."""
         with self._data_lock:
+            self.act_base = -1
             self.base = {
                 k: real(v, self.single_precision)
                 for k, v in zip(FRAME_MEMBERS, (x, y, z, a, b, c), strict=True)
@@ -239,7 +296,7 @@ class KukaSimulator(TcpSimulator):
     def _pos_act(self) -> dict[str, float]:
         tool = self.tools[self.act_tool] if self.act_tool in SLOTS else self._tool_frame
         world_flange = _matrix(self.robroot) @ self._flange
-        tcp = np.linalg.inv(_matrix(self.base)) @ world_flange @ _matrix(tool)
+        tcp = np.linalg.inv(_matrix(self._base_frame())) @ world_flange @ _matrix(tool)
         abc = Rotation.from_matrix(tcp[:3, :3]).as_euler("ZYX", degrees=True)
         values = (*tcp[:3, 3], *abc)
         return {
@@ -267,6 +324,15 @@ class KukaSimulator(TcpSimulator):
         pose_text = self._show_pose_variable(name.strip().upper())
         if pose_text is not None:
             return pose_text
+        base = _base_variable(name)
+        if base is not None:
+            kind, number = base
+            with self._data_lock:
+                if kind == "BASE_DATA":
+                    return _print_frame(self.bases[number], "FRAME")
+                if kind == "BASE_NAME":
+                    return f'"{self.base_names[number]}"'
+                return self.base_types[number]
         match = _VARIABLE.match(name.strip())
         if match is None or int(match.group(2)) not in SLOTS:
             return None
@@ -298,7 +364,9 @@ class KukaSimulator(TcpSimulator):
                 tool = self.tools[self.act_tool] if self.act_tool in SLOTS else self._tool_frame
                 return _print_frame(tool, "FRAME")
             if name == "$BASE":
-                return _print_frame(self.base, "FRAME")
+                return _print_frame(self._base_frame(), "FRAME")
+            if name == "$ACT_BASE":
+                return str(self.act_base)
             if name in ("$ROBROOT", "$ROBROOT_C"):
                 return _print_frame(self.robroot, "FRAME")
             if name == "$ACT_TOOL":
@@ -311,6 +379,8 @@ class KukaSimulator(TcpSimulator):
         """Assign a KRL aggregate; False for what the KRC would refuse."""
         if name.strip().upper() in self.undeclared:
             return False
+        if _BASE_VARIABLE.match(name.strip()):
+            return self._set_base_variable(name, value)
         match = _VARIABLE.match(name.strip())
         if match is None or int(match.group(2)) not in SLOTS:
             return False
@@ -321,6 +391,36 @@ class KukaSimulator(TcpSimulator):
         slot = int(match.group(2))
         with self._data_lock:
             target = self.tools[slot] if match.group(1).upper() == "TOOL_DATA" else self.loads[slot]
+            if not set(flat) <= set(target):
+                return False
+            target.update({k: real(v, self.single_precision) for k, v in flat.items()})
+        return True
+
+    def _set_base_variable(self, name: str, value: str) -> bool:
+        """BASE_DATA[n] (an aggregate), BASE_NAME[n,] (a string), BASE_TYPE[n] (an ENUM)."""
+        base = _base_variable(name)
+        if base is None:
+            return False
+        kind, number = base
+        if kind == "BASE_NAME":
+            text = _KRL_STRING.match(value)
+            if text is None or len(text.group(1)) > NAME_LENGTH:
+                return False
+            with self._data_lock:
+                self.base_names[number] = text.group(1)
+            return True
+        if kind == "BASE_TYPE":
+            if value.strip().upper() not in BASE_TYPES:
+                return False
+            with self._data_lock:
+                self.base_types[number] = value.strip().upper()
+            return True
+        try:
+            flat = _flatten(read_aggregate(value))
+        except KrlAggregateError:
+            return False
+        with self._data_lock:
+            target = self.bases[number]
             if not set(flat) <= set(target):
                 return False
             target.update({k: real(v, self.single_precision) for k, v in flat.items()})
@@ -375,6 +475,16 @@ class KukaSimulator(TcpSimulator):
         raw = text.encode("latin-1")
         reply = bytes([mode]) + struct.pack("!H", len(raw)) + raw + b"\x00\x01" + bytes([int(ok)])
         return struct.pack("!HH", msg_id, len(reply)) + reply
+
+
+def _base_variable(name: str) -> tuple[str, int] | None:
+    """("BASE_DATA" | "BASE_NAME" | "BASE_TYPE", n) for a base variable of 1-32, else None."""
+    match = _BASE_VARIABLE.match(name.strip())
+    if match is None:
+        return None
+    kind = (match.group(1) or match.group(3)).upper()
+    number = int(match.group(2) or match.group(4))
+    return (kind, number) if number in BASES else None
 
 
 def _split_fields(payload: bytes) -> list[bytes]:
