@@ -49,7 +49,7 @@ class Settings(BaseSettings):
         description="controllers a reconcile round reads at once at least (threads, one "
         "controller connection each); each round reads as many more as its robots need for "
         "their reads to end within half the interval (robots x the reads' median time / half "
-        "the interval, at most 256), and a read still going after 4 times that median (0.25 s "
+        "the interval, at most 64), and a read still going after 4 times that median (0.25 s "
         "to half the interval) holds no place: a controller that hangs delays no other robot",
     )
     public_url: str | None = Field(

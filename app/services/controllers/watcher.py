@@ -90,8 +90,12 @@ STALL_S = 1.0
 FIRST_READ_S = 0.5
 #: The most robots' rounds one write transaction stores.
 STORE_BATCH = 200
-#: The most threads reading at once that the pool is sized to (stalled reads apart).
-MAX_SIZE = 256
+#: The most threads reading at once that the pool is sized to (stalled reads apart): 1000
+#: robots of 0.25 s at a 10 s interval need 50. On a machine short of CPU a read's wall time
+#: grows with the threads that share the cores, and a pool sized from it grew to 256 threads
+#: an instance (3 instances, 2000 robots, load 18 on 2 cores: 21.4 ms of CPU a read against
+#: 14.0 ms for one watcher); more threads read no faster there.
+MAX_SIZE = 64
 
 
 @contextmanager
@@ -451,10 +455,10 @@ class WatcherStatus:
 
 def pool_size(robots: int, read_s: float, interval_s: float, least: int) -> int:
     """Threads reading at once for `robots` reads of `read_s` each to end within half the
-    interval (the other half for reads that take longer), at least `least`, at most
-    MAX_SIZE, and no more than the robots."""
+    interval (the other half for reads that take longer), at least `least` (the setting),
+    else at most MAX_SIZE, and no more than the robots."""
     needed = math.ceil(robots * read_s / max(interval_s / 2, 1e-3))
-    return max(1, min(max(least, needed), MAX_SIZE, max(robots, least)))
+    return max(1, min(max(least, min(needed, MAX_SIZE)), max(robots, least)))
 
 
 def stall_after(read_s: float, interval_s: float) -> float:
