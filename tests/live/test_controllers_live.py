@@ -94,8 +94,9 @@ def _events(url: str, action: str) -> int:
 def test_two_instances_with_the_watcher_record_each_drift_once(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    # Two instances of one worker each: two watchers in two processes contend for the fleet
-    # lock, as four did with two workers each (at 5 s of CPU more). Rounds every half second;
+    # Two instances of one worker each: two watchers in two processes share the robot by its
+    # lease (issue 50; each round one of them reads it), as four did with two workers each
+    # (at 5 s of CPU more). Rounds every half second;
     # how soon a round finds a change is tests/services/controllers/test_watcher.py's subject, so a
     # change is waited for generously here (a loaded machine delays rounds).
     interval = 0.5
