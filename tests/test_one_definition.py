@@ -27,6 +27,7 @@ from app.scopes import Scope
 from app.services.controllers.states import EVENT_ACTIONS, SEVERITY
 from app.solvers.npoint import ALGORITHMS
 from app.storage import models
+from app.vendors import registry
 from app.words import (
     CONTROLLER_FORMATS,
     ROBOT_STATES,
@@ -413,3 +414,141 @@ def test_the_guided_method_is_the_one_a_session_takes() -> None:
     the CLI and the console start sessions, and calibrate by default, with it."""
     assert get_args(_annotation(SessionCreate, "method")) == (GUIDED.name,)
     assert [describe(m).name for m in METHODS if describe(m).guided] == [GUIDED.name]
+
+
+#: The makers' package names (app/vendors/<maker>/), as the registry lists them.
+MAKER_PACKAGES = tuple(sorted(m.text.__module__.rsplit(".", 1)[-1] for m in registry.MAKERS))
+#: The files that may name any maker: the registry (its import and MAKERS line) and the words.
+MAY_NAME_MAKERS = frozenset({"vendors/registry.py", "words.py"})
+#: Files still naming makers, each with how many mentions it may keep and why (issue 46). A
+#: count only goes down: a new mention fails, and a file reworded lowers its figure here.
+MAKER_MENTIONS: dict[str, tuple[int, str]] = {
+    # Rotation conventions are named after the pendant that shows them (KUKA's A B C about
+    # Z, Y, X, FANUC's W P R, UR's rotation vector, ABB's w-first quaternion): the name is
+    # the convention's, and the conversions live in app.kinematics for every maker to share.
+    "kinematics/poses.py": (15, "the pose conventions, named by the pendant showing them"),
+    "kinematics/readings.py": (3, "the pose conventions a misread reading is tried in"),
+    "kinematics/frames.py": (2, "a user frame as each pendant names it ($BASE, UFRAME)"),
+    "kinematics/urdf.py": (2, "UR's published URDF link names (tool0, base)"),
+    "kinematics/dh.py": (1, "which robot models' datasheets use classic DH"),
+    "solvers/orientation.py": (11, "the orientation conventions a working axis is read in"),
+    "methods/orientation.py": (6, "the orientation conventions a working axis is read in"),
+    "solvers/frame/construction.py": (18, "the user-frame constructions as each pendant teaches"),
+    "solvers/frame/fixed_tip.py": (1, "the ABC world alignment (KUKA's convention)"),
+    # Robot models, not controllers: a preset is a published arm (a KUKA KR 16, a UR10e).
+    "kinematics/presets.py": (23, "robot model presets, named as their datasheets"),
+    # The demo plant's robots are a KUKA, an ABB and a FANUC by their vendor field.
+    "cli/demo.py": (4, "the demo plant's robots' vendor values"),
+    # Schema and glossary descriptions are the OpenAPI document: reworded with it, apart.
+    "schemas/controllers.py": (21, "the OpenAPI descriptions of each protocol's settings"),
+    "schemas/fleet.py": (10, "the OpenAPI descriptions of the fleet's fields"),
+    "schemas/tools.py": (3, "the OpenAPI description of controller_symbol (ABB's PERS)"),
+    "api/glossary.py": (2, "the OpenAPI glossary's examples of a vendor and an axis"),
+    "api/controllers.py": (1, "the OpenAPI description of /controller-refused's example"),
+    # The maker-shared modules of app/vendors say which makers a shared rule serves.
+    "vendors/__init__.py": (11, "the package's map of the makers' packages"),
+    "vendors/connector.py": (17, "the connector contract's examples of each maker's target"),
+    "vendors/wpr.py": (4, "the W P R convention FANUC and Yaskawa share"),
+    "vendors/maker.py": (5, "the declaration's examples of a live TCP and a name"),
+    "vendors/names.py": (2, "which pendants limit a name's character set"),
+    # The services' and the console's prose about a controller's particulars.
+    "services/robots/live_tool.py": (11, "the live-TCP protocols' reading, by their maker"),
+    "services/robots/slots.py": (11, "the tool numbers' examples, by their maker"),
+    "services/tools/controller_text.py": (7, "each format's text, by its maker"),
+    "services/fleet/live.py": (6, "the live reading's examples"),
+    "storage/models.py": (4, "the columns' comments (ABB's symbol, each bare flange)"),
+    "cli/client.py": (8, "the CLI's help and examples, by maker"),
+    "console/console.js": (12, "the console's hints, by maker"),
+    # Being rewritten by other engineers now (the frame subject, the watcher, OPC UA).
+    "services/controllers/deployments.py": (2, "being rewritten for the frame subject"),
+    "services/controllers/reconcile.py": (2, "being rewritten for the frame subject"),
+    "services/controllers/failures.py": (1, "the failures' examples, beside the files rewritten"),
+    "publish/opcua.py": (1, "being rewritten for the frame subject"),
+}
+
+
+def _words_of_words_py() -> frozenset[str]:
+    import app.words
+
+    words: set[str] = set()
+
+    def add(annotation: object) -> None:
+        for arg in get_args(annotation):
+            if isinstance(arg, str):
+                words.add(arg)
+            else:
+                add(arg)
+
+    for value in vars(app.words).values():
+        if get_origin(value) is Literal:
+            add(value)
+    return frozenset(words)
+
+
+def _names_a_maker(line: str, start: int, end: int, words: frozenset[str]) -> bool:
+    """Whether line[start:end], a maker's name standing as a word, names the maker: not when
+    it is part of a word of app/words.py (or an identifier built of one, `kuka_abc_from_matrix`),
+    a quoted format word (``"kuka"``), or the path of the maker's own package."""
+    left, right = start, end
+    while left > 0 and (line[left - 1].isalnum() or line[left - 1] == "_"):
+        left -= 1
+    while right < len(line) and (line[right].isalnum() or line[right] == "_"):
+        right += 1
+    token, name = line[left:right], line[start:end]
+    parts = token.split("_")
+    built = {"_".join(parts[i:j]) for i in range(len(parts)) for j in range(i + 2, len(parts) + 1)}
+    if any(name.lower() in word.split("_") for word in built & words):
+        return False
+    quoted = left > 0 and right < len(line) and line[left - 1] == line[right] in "\"'`"
+    if token == name and name in words and quoted:
+        return False
+    return not re.search(r"vendors[./]$", line[:left])
+
+
+def maker_mentions() -> dict[str, list[str]]:
+    """Every line of app/ (py, js, html, css) outside a maker's own package naming a maker,
+    by file (relative to app/), as "line: maker"."""
+    words = _words_of_words_py()
+    found: dict[str, list[str]] = {}
+    for path in sorted(APP.rglob("*")):
+        if path.suffix not in (".py", ".js", ".html", ".css"):
+            continue
+        rel = path.relative_to(APP).as_posix()
+        if rel in MAY_NAME_MAKERS:
+            continue
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            for maker in MAKER_PACKAGES:
+                if rel.startswith(f"vendors/{maker}/"):
+                    continue
+                # `ur` as the word ur or UR only (not Ur, not inside "pure" or "ur_rtde").
+                flags = 0 if maker == "ur" else re.IGNORECASE
+                spelled = "(?:ur|UR)" if maker == "ur" else maker
+                pattern = re.compile(rf"(?<![A-Za-z0-9]){spelled}(?![A-Za-z0-9])", flags)
+                found.setdefault(rel, []).extend(
+                    f"{number}: {maker}"
+                    for match in pattern.finditer(line)
+                    if _names_a_maker(line, match.start(), match.end(), words)
+                )
+    return {rel: lines for rel, lines in found.items() if lines}
+
+
+def test_a_maker_is_named_only_by_its_package_the_registry_and_the_words() -> None:
+    """A maker (its package name under app/vendors/) is named outside its own package only
+    by the registry (its import and MAKERS line), app/words.py, and the docs (README.md,
+    docs/; not scanned here) (issue 46): anything else that knows a maker copies a fact its
+    declaration holds. A word app/words.py defines and another file uses as that word
+    (`kuka_abc`, `techman_rxyz`, `kuka_kvp`, the format "kuka") is the word, not a copy of
+    the maker; nor is the path of the maker's package (app.vendors.kuka.text). The files
+    that still name one are MAKER_MENTIONS, each with its figure and why: a new mention
+    fails, and so does a figure left above its file's count."""
+    found = maker_mentions()
+    over = {
+        rel: lines
+        for rel, lines in found.items()
+        if len(lines) > MAKER_MENTIONS.get(rel, (0, ""))[0]
+    }
+    assert over == {}, "a maker named where its declaration or the registry is meant"
+    # A file reworded lowers its figure (or leaves the list): the exceptions stay true.
+    assert {rel: len(lines) for rel, lines in found.items()} == {
+        rel: count for rel, (count, _why) in MAKER_MENTIONS.items()
+    }

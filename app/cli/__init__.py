@@ -349,7 +349,7 @@ def _print_response(response: httpx.Response) -> None:
 
 @client_cli.command("get")
 def client_get(path: str) -> None:
-    """GET a path, e.g. /v1/tools/<id>/tcp?format=kuka."""
+    """GET a path, e.g. /v1/tools/<id>/tcp?format=<a format of /v1/formats>."""
     _print_response(client_http.request("GET", path))
 
 

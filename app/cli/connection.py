@@ -147,7 +147,9 @@ def connect(
             + " (any left out keeps its default)",
         ),
     ] = None,
-    user: Annotated[str | None, typer.Option(help="the controller's user (ABB RWS)")] = None,
+    user: Annotated[
+        str | None, typer.Option(help="the controller's user (abb_rws1, abb_rws2)")
+    ] = None,
     password_stdin: Annotated[
         bool, typer.Option("--password-stdin", help="read the password from stdin's first line")
     ] = False,

@@ -186,7 +186,7 @@ class Tool(Base):
     description: Mapped[str | None] = mapped_column(Text)
     load: Mapped[JsonObject | None] = mapped_column(JSON)
     tolerance: Mapped[JsonObject] = mapped_column(JSON)
-    #: ABB: the PERS tooldata the controller holds this tool in, "TASK/MODULE/SYMBOL".
+    #: Under a protocol addressing tools by symbol: its PERS tooldata, "TASK/MODULE/SYMBOL".
     controller_symbol: Mapped[str | None] = mapped_column(String(100))
     active_version: Mapped[int | None] = mapped_column(Integer)
     last_version: Mapped[int] = mapped_column(Integer, default=0)

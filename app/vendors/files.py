@@ -3,7 +3,7 @@ header), what a parser reads back, and the file's name and text.
 
 A file holds one tool (GET /v1/tools/{id}/tcp, Accept: text/plain) or all of a robot's tools
 (GET /v1/robots/{id}/tool-table): the same writer, one or many tools. A tool the format cannot
-hold (no tool number where the controller needs one, no load where ABB needs one) is left out
+hold (no tool number where the controller needs one, no load where the format needs one) is left out
 and named, with the reason, in the file's header where the format has comments.
 """
 

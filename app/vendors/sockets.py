@@ -1,4 +1,4 @@
-"""Blocking TCP I/O under one deadline, for the socket-based connectors (KUKA, FANUC).
+"""Blocking TCP I/O under one deadline, for the socket-based connectors (kuka_kvp, fanuc_rmi).
 
 Every wait (connect, send, receive) gets what is left of the operation's `Deadline`, so a
 controller that accepts the connection and never answers fails the operation in

@@ -8,7 +8,7 @@ We still print enough that parsing the text gives the TCP back within 1e-6 mm an
 - mm: 6 decimals, rounding <= 5e-7 mm per axis (<= 8.7e-7 mm in 3D);
 - deg: 7 decimals, <= 5e-8 deg per angle (<= 1.5e-7 deg for three Euler angles);
 - quaternion components: 9 decimals (<= 1e-7 deg);
-- m and rad (UR): 10 decimals (<= 8.7e-8 mm, <= 1e-8 deg).
+- m and rad (format `ur`): 10 decimals (<= 8.7e-8 mm, <= 1e-8 deg).
 """
 
 from __future__ import annotations

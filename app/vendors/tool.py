@@ -3,8 +3,8 @@ and read and written by the connectors.
 
 The frame is the tool's TCP in the flange frame: a position in mm and a unit quaternion
 w, x, y, z (tcpcal's convention; each maker's package converts to its own). The load, the
-tool's number (slot), its name and its ABB symbol are there where the text, the file or the
-controller uses them; a connector's read gives the frame and the load only.
+tool's number (slot), its name and its controller symbol are there where the text, the file
+or the controller uses them; a connector's read gives the frame and the load only.
 """
 
 from __future__ import annotations
@@ -39,8 +39,8 @@ def _floats(values: Iterable[float], count: int) -> list[float]:
 @dataclass(frozen=True)
 class ToolLoad:
     """The tool's mass (kg) and its centre of gravity in the flange frame (mm); `cog_mm` None
-    where it is not known (an ABB text then says to set it, a connector writes the flange's
-    origin, as a deployment does)."""
+    where it is not known (a text that holds the load then says to set it, a connector writes
+    the flange's origin, as a deployment does)."""
 
     mass_kg: float
     cog_mm: Vec3 | None = None
@@ -60,9 +60,9 @@ class ToolLoad:
 class ToolData:
     """A tool frame in the flange frame (position mm, unit quaternion w, x, y, z), its load
     where known, and what names it in a controller's text: its tool number (slot), its name,
-    and (ABB) its PERS tooldata "TASK/MODULE/SYMBOL" (validated where the tool is stored), so
-    that a file names the data the robot's programs use. Lists and arrays are stored as tuples
-    of floats (so two reads compare with ==)."""
+    and (under a protocol addressing tools by symbol) its symbol "TASK/MODULE/SYMBOL"
+    (validated where the tool is stored), so that a file names the data the robot's programs
+    use. Lists and arrays are stored as tuples of floats (so two reads compare with ==)."""
 
     position_mm: Vec3
     quaternion: Vec4

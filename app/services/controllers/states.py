@@ -105,7 +105,7 @@ def observe(
 
 
 def not_live(tool_id: str, robot_id: str, target: str | None, version: int | None) -> Observation:
-    """A tool of a robot with one live TCP (a `live` scope protocol, UR and Techman) that is
+    """A tool of a robot with one live TCP (a `live` scope protocol: `ur_rtde`, `techman`) that is
     not the one deployed to it last: not judged against what the controller holds."""
     return Observation(
         tool_id=tool_id,

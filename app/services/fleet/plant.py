@@ -1,5 +1,5 @@
 """What the plant is shown of each live tool (the OPC UA address space's values): its robot
-and name, the active version's TCP (also as KUKA A, B, C), its status and how it went live
+and name, the active version's TCP (also as kuka_abc), its status and how it went live
 (the activation's kind and reason), the controller's state, and when the tool last changed.
 
 Read through the fleet service (names, active version, controller state: one judge of

@@ -175,8 +175,8 @@ def put_controller(
 
 def _protocol_of_vendor(robot: Robot, protocol: ProtocolName) -> None:
     """422 naming body.protocol when the robot's vendor is a maker whose controllers do not
-    speak `protocol` (a KUKA connected with techman): every capture would then talk another
-    maker's protocol to it. A vendor no maker is known by takes any protocol."""
+    speak `protocol` (a robot of one maker given another's protocol): every capture would
+    then talk another maker's protocol to it. A vendor no maker is known by takes any protocol."""
     fitting = vendor_protocols(robot.vendor)
     if protocol in fitting:
         return
@@ -230,7 +230,7 @@ def _tools_addressable(session: Session, robot_id: str, protocol: ProtocolName) 
 
 def check_slot_for_controller(session: Session, *, robot_id: str, slot: int | None) -> None:
     """422 naming `slot` when the robot's controller numbers its tools and `slot` is not
-    one of its numbers (KUKA 1-16, FANUC 1-10)."""
+    one of its numbers (its maker's tool numbers, registry.SLOT_RANGES)."""
     if slot is None:
         return
     protocol = session.scalar(

@@ -324,7 +324,7 @@ def add_touch(
         with one_pose(("body", "pose"), number(len(row.poses))):
             return ctx.parse_poses(fmt, [pose], units, loc=("body", "pose"))[1]
 
-    # Out of range as the session reads it (a UR pendant's degrees read as radians, say) but
+    # Out of range as the session reads it (a pendant's degrees read as radians, say) but
     # plausible under one other reading: a mix-up, refused as one from the first touch on.
     with refusing_mix_ups(row.format, _units(row), one_touch_fits, flange, poses_field="pose"):
         flange(row.format, _units(row))

@@ -144,8 +144,9 @@ def served_tcp(
 
 
 def tool_table(session: Session, *, robot_id: str, fmt: ControllerFormat | None) -> ToolTable:
-    """Every live tool's active TCP. A tool the format cannot express (no slot for KUKA, no
-    load for ABB) carries its own controller_error instead of failing the whole table."""
+    """Every live tool's active TCP. A tool the format cannot express (no slot where it
+    numbers tools, no load where it holds one) carries its own controller_error instead of
+    failing the whole table."""
     get_robot(session, robot_id)
     tools = session.scalars(
         select(Tool)

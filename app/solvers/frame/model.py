@@ -85,7 +85,7 @@ class FrameEstimate:
 
     @property
     def quaternion_wxyz(self) -> FloatArray:
-        """The frame's rotation as a unit quaternion, w first (ABB's order), w >= 0."""
+        """The frame's rotation as a unit quaternion, w first (tcpcal's order), w >= 0."""
         x, y, z, w = Rotation.from_matrix(self.rotation).as_quat()
         q = np.array([w, x, y, z])
         return q if w >= 0 else -q

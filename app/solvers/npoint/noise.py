@@ -168,8 +168,8 @@ def reml_touch_variance(
     B2, B3 = B[:, :6], B[:, 6:]
     tr_q = m * (2.0 * x + 1.0) - float(np.trace(B2))  # theta tr Q
     tr_qq = m * (2.0 * x * x + 1.0) - 2.0 * float(np.trace(B3)) + float(np.sum(B2 * B2.T))
-    ur = np.einsum("ij,ij->i", u, res)
-    quad = x * x * float(np.sum(res * res)) + (1.0 - x * x) * float(ur @ ur)  # theta^2 r'S^-2 r
+    u_r = np.einsum("ij,ij->i", u, res)
+    quad = x * x * float(np.sum(res * res)) + (1.0 - x * x) * float(u_r @ u_r)  # theta^2 r'S^-2 r
     if not (tr_qq > 0.0 and math.isfinite(quad)):
         return theta, float(max(3 * m - 6, 1))
     new = (quad + theta * (tr_qq - tr_q)) / tr_qq

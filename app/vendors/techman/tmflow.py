@@ -12,7 +12,7 @@ the header to the comma after DATA in two hexadecimal digits.
 What is written where: the robot's one current TCP, by value. ``$TMSCT`` to the Listen Node
 (TCP 5890, a server the running project's Listen node opens) carries the script
 ``ChangeTCP({X,Y,Z,RX,RY,RZ},mass,{Ixx,Iyy,Izz,X,Y,Z,RX,RY,RZ})`` and ``QueueTag(15,0)``:
-X Y Z mm and RX RY RZ deg about the fixed axes, R = Rz(RZ) Ry(RY) Rx(RX) (as FANUC's W P R;
+X Y Z mm and RX RY RZ deg about the fixed axes, R = Rz(RZ) Ry(RY) Rx(RX) (as `fanuc_wpr`;
 tm_driver composes them with ``setRPY``); the mass in kg and, when tcpcal knows the tool's
 load, its centre of gravity as the mass centre frame's X Y Z (inertia moments 0, a point
 mass). Without a load in tcpcal the mass the controller holds (``TCP_Mass``) is written back,

@@ -1,7 +1,7 @@
 """Yaskawa's text: ``TOOL[n]: X Y Z Rx Ry Rz`` (mm, deg) and, with a load, ``W Xg Yg Zg``
 (kg, mm), and its reader. Rx Ry Rz are the fixed-axis angles of app.vendors.wpr.
 
-VERIFIED: Rx Ry Rz are the same fixed-axis angles as Fanuc's W P R (robodk.py
+VERIFIED: Rx Ry Rz are the same fixed-axis angles as `fanuc_wpr` (robodk.py
 ``Pose_2_Motoman`` is ``pose_2_xyzrpw``); the tool file holds X Y Z (mm), Rx Ry Rz (deg),
 the load W (kg) and its centre of gravity Xg Yg Zg (mm, flange frame) (Yaskawa manual text
 "Tool Load Information ... registered in the tool file", mirrored at
