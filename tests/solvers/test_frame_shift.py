@@ -86,6 +86,13 @@ def test_a_touch_far_from_its_fiducial_is_refused_naming_the_one_it_is_near() ->
     check_near(["a", "b", "d"], stored, names, touched, max_distance_mm=7.0)  # near: passes
 
 
+def test_a_fiducial_the_frame_does_not_have_is_refused_naming_those_it_has() -> None:
+    with pytest.raises(InvalidInput) as caught:
+        check_near(["a", "z"], FIXTURE_MM[:2], ["a", "b"], FIXTURE_MM[:2], max_distance_mm=7.0)
+    assert caught.value.loc == ("touches", 1, "fiducial")
+    assert "'z', which this frame does not have: its fiducials are 'a', 'b'" in caught.value.detail
+
+
 def test_fewer_than_three_fiducials_are_refused() -> None:
     with pytest.raises(InvalidInput) as caught:
         shift_from_fiducials(

@@ -74,8 +74,16 @@ def check_near(
 ) -> None:
     """Refuse a touch farther than `max_distance_mm` from the fiducial it names, naming the
     stored fiducial it is nearest (loc ("touches", i, "fiducial"))."""
+    known = list(stored_names)
     for i, (name, p) in enumerate(zip(names, points_mm, strict=True)):
-        distance = float(np.linalg.norm(p - stored_mm[list(stored_names).index(name)]))
+        if name not in known:
+            raise InvalidInput(
+                "unknown-reference",
+                f"touch {i + 1} names fiducial {name!r}, which this frame does not have: its "
+                f"fiducials are {', '.join(repr(n) for n in known)}",
+                loc=("touches", i, "fiducial"),
+            )
+        distance = float(np.linalg.norm(p - stored_mm[known.index(name)]))
         if distance <= max_distance_mm:
             continue
         gaps = np.linalg.norm(stored_mm - p, axis=1)
