@@ -19,6 +19,7 @@ from __future__ import annotations
 import re
 
 from app.arrays import FloatArray
+from app.errors import InvalidInput
 from app.vendors.fanuc import TOOL_NUMBERS
 from app.vendors.names import ascii_text
 from app.vendors.text import NUMBER, ControllerExport
@@ -40,14 +41,46 @@ def export(tool: ToolData) -> ControllerExport:
 # ``PR[n,1]=x ; .. PR[n,6]=r ; UTOOL[t]=PR[n] ;`` (ros-industrial-attic/robodk_postprocessors
 # Fanuc_R30iA.py ``setTool``). A negative constant may be stored in parentheses, ``(-2.5)``.
 _PR_ELEMENT = re.compile(rf"PR\[\s*(\d+)\s*,\s*([1-6])\s*\]\s*=\s*\(?\s*({NUMBER})\s*\)?")
-_UTOOL_FROM_PR = re.compile(r"UTOOL\[\s*\d+\s*\]\s*=\s*PR\[\s*(\d+)\s*(?::[^\]]*)?\]")
+_UTOOL_FROM_PR = re.compile(r"UTOOL\[\s*(\d+)\s*\]\s*=\s*PR\[\s*(\d+)\s*(?::[^\]]*)?\]")
 
 
-def _parse_tp(text: str) -> tuple[FloatArray, FloatArray] | None:
-    assign = _UTOOL_FROM_PR.search(text)
+def _assignment(text: str, tool: int | None) -> re.Match[str] | None:
+    """The last ``UTOOL[t]=PR[n]`` of `tool` (of the one tool the text loads when None);
+    None when the text loads no tool frame from a register. Several tool numbers and none
+    asked for, or a tool asked for that the text does not load: 422 naming those it does."""
+    assigns = list(_UTOOL_FROM_PR.finditer(text))
+    if not assigns:
+        return None
+    numbers = sorted({int(a.group(1)) for a in assigns})
+    found = " and ".join(f"UTOOL[{n}]" for n in numbers)
+    if tool is None and len(numbers) > 1:
+        raise InvalidInput(
+            "invalid-pose",
+            f"cannot read fanuc tool data: the program loads {found} from position registers "
+            "and the text's one TCP would be one of them under no number; read it for one "
+            "tool number, or keep only that tool's lines",
+            loc=("text",),
+        )
+    wanted = numbers[0] if tool is None else tool
+    mine = [a for a in assigns if int(a.group(1)) == wanted]
+    if not mine:
+        raise InvalidInput(
+            "invalid-pose",
+            f"cannot read fanuc tool data: the program loads no UTOOL[{wanted}] from a "
+            f"position register, only {found}",
+            loc=("text",),
+        )
+    return mine[-1]
+
+
+def _parse_tp(text: str, tool: int | None) -> tuple[FloatArray, FloatArray] | None:
+    """The tool frame a TP program leaves in `tool` once it has run: its last
+    ``UTOOL[t]=PR[n]``, with each element of PR[n] as last set before that line (a later
+    assignment overwrites an earlier one; an element set after it is not copied)."""
+    assign = _assignment(text, tool)
     if assign is None:
         return None
-    register = assign.group(1)
+    register = assign.group(2)
     elements: dict[int, float] = {}
     for match in _PR_ELEMENT.finditer(text[: assign.start()]):
         if match.group(1) == register:
@@ -57,8 +90,16 @@ def _parse_tp(text: str) -> tuple[FloatArray, FloatArray] | None:
     return tcp_from_numbers([elements[i] for i in range(1, 7)])
 
 
-def parse(text: str) -> tuple[FloatArray, FloatArray]:
+def parse(text: str, tool: int | None = None) -> tuple[FloatArray, FloatArray]:
     """``X .. Y .. Z .. W .. P .. R ..``, or TP ``PR[n,1..6]=.. ; UTOOL[t]=PR[n]`` ->
-    (position (3,) mm, quaternion wxyz (4,))."""
-    tp = _parse_tp(text)
+    (position (3,) mm, quaternion wxyz (4,)).
+
+    A TP program is read as the controller holds tool frame `tool` after running it: the
+    last ``UTOOL[tool]=PR[n]``, with PR[n]'s elements as they stand at that line. With
+    `tool` None the program must load one tool number only (as often as it likes): one
+    that loads UTOOL[1] and UTOOL[2] leaves both frames held, and the last assignment is
+    not the selected tool (``UTOOL_NUM`` selects, ``UTOOL[t]=`` only writes frame t), so
+    reading it would hand back one of two frames as the text's TCP with no number to say
+    which; that is a 422 naming the numbers found instead."""
+    tp = _parse_tp(text, tool)
     return tp if tp is not None else parse_labelled(FORMAT, LABELS, text)
