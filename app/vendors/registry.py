@@ -248,6 +248,13 @@ def vendor_protocols(vendor: str | None) -> tuple[str, ...]:
     return tuple(wire.name for wire in BY_FORMAT[formats[0]].protocols)
 
 
+def vendor_speaks(vendor: str | None, protocol: str) -> bool:
+    """Whether a robot of `vendor`'s controller speaks `protocol` (any protocol when the
+    vendor names no maker known here): the one test of a controller's protocol against its
+    robot's vendor, on PUT of the controller and on PATCH of the vendor."""
+    return protocol in vendor_protocols(vendor)
+
+
 def vendor_pose_format(vendor: str | None) -> PoseFormat | None:
     """The pose format the pendant of a robot of `vendor` shows (its maker's, as
     `vendor_formats` finds the maker); None when the vendor names no maker known here."""

@@ -315,6 +315,57 @@ def test_a_robot_of_no_known_vendor_takes_any_protocol(api: Api) -> None:
         assert _put(api, robot["id"], protocol="techman", host="10.0.0.7").status_code == 200
 
 
+@pytest.mark.parametrize(
+    ("before", "protocol", "vendor", "fitting"),
+    [
+        (None, "techman", "KUKA", "kuka_kvp"),
+        ("KUKA", "kuka_kvp", "TM5", "techman"),
+    ],
+)
+def test_a_vendor_whose_controllers_do_not_speak_the_controllers_protocol_is_refused(
+    api: Api, before: str | None, protocol: str, vendor: str, fitting: str
+) -> None:
+    """Issue 51 #8 through PATCH: a robot connected with techman and then patched to vendor
+    KUKA was 200, its controller still techman, so every capture talked Techman to a KRC."""
+    robot = api.robot("r-patch", **({} if before is None else {"vendor": before}))
+    assert _put(api, robot["id"], protocol=protocol, host="10.0.0.7").status_code == 200
+    controller = api.get(f"/v1/robots/{robot['id']}/controller").json()
+    with get_engine().connect() as conn:
+        audited = conn.execute(text("SELECT count(*) FROM audit_events")).scalar_one()
+    r = api.patch(f"/v1/robots/{robot['id']}", {"vendor": vendor, "model": "new"})
+    assert r.status_code == 422, r.text
+    problem = r.json()
+    assert problem["errors"][0]["loc"] == ["body", "vendor"]
+    detail = problem["detail"]
+    assert f"controller speaks {protocol}" in detail, detail
+    assert f"{vendor!r} robot's controllers speak {fitting}" in detail, detail
+    assert f"tcpcal connect r-patch --protocol {fitting} --host HOST" in detail, detail
+    first = "PUT" if before is None else "DELETE"  # a KUKA robot's PUT refuses techman
+    assert f"{first} /v1/robots/{robot['id']}/controller" in detail, detail
+    got = api.get(f"/v1/robots/{robot['id']}").json()
+    assert (got["vendor"], got["model"]) == (before, robot["model"])
+    assert api.get(f"/v1/robots/{robot['id']}/controller").json() == controller
+    with get_engine().connect() as conn:
+        assert conn.execute(text("SELECT count(*) FROM audit_events")).scalar_one() == audited
+    if before is None:  # as the 422 says: the controller first, then the vendor
+        assert _put(api, robot["id"], protocol=fitting, host="10.0.0.7").status_code == 200
+        assert api.patch(f"/v1/robots/{robot['id']}", {"vendor": vendor}).status_code == 200
+    else:  # the controller out, the vendor, the controller again
+        assert _put(api, robot["id"], protocol=fitting, host="10.0.0.7").status_code == 422
+        assert api.delete(f"/v1/robots/{robot['id']}/controller").status_code == 204
+        assert api.patch(f"/v1/robots/{robot['id']}", {"vendor": vendor}).status_code == 200
+        assert _put(api, robot["id"], protocol=fitting, host="10.0.0.7").status_code == 200
+
+
+def test_a_robot_patched_to_a_vendor_of_no_known_maker_keeps_any_controller(api: Api) -> None:
+    robot = api.robot("r-any", vendor="KUKA")
+    assert _put(api, robot["id"], protocol="kuka_kvp", host="10.0.0.7").status_code == 200
+    for vendor in ("Acme Robotics", None):
+        r = api.patch(f"/v1/robots/{robot['id']}", {"vendor": vendor})
+        assert r.status_code == 200, r.text
+        assert r.json()["vendor"] == vendor
+
+
 def test_a_robot_says_which_pose_format_its_makers_pendant_shows(api: Api) -> None:
     """A robot's `pose_format` (issue 46): its maker's, found by its vendor as the registry
     finds it, so the console types a robot without a controller in it with no copy of the

@@ -35,6 +35,7 @@ from app.vendors.registry import (
     pose_format_of,
     scope_of,
     vendor_protocols,
+    vendor_speaks,
 )
 from app.words import ProtocolName
 
@@ -177,9 +178,9 @@ def _protocol_of_vendor(robot: Robot, protocol: ProtocolName) -> None:
     """422 naming body.protocol when the robot's vendor is a maker whose controllers do not
     speak `protocol` (a robot of one maker given another's protocol): every capture would
     then talk another maker's protocol to it. A vendor no maker is known by takes any protocol."""
-    fitting = vendor_protocols(robot.vendor)
-    if protocol in fitting:
+    if vendor_speaks(robot.vendor, protocol):
         return
+    fitting = vendor_protocols(robot.vendor)
     raise InvalidInput(
         "validation",
         f"protocol {protocol} is not its robot's: robot {robot.name}'s vendor is "

@@ -16,7 +16,8 @@ from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.robots.slots import check_vendor_change
 from app.services.visible import get_live, in_scope
-from app.storage.models import Robot, Tool, new_id, utcnow
+from app.storage.models import Robot, RobotController, Tool, new_id, utcnow
+from app.vendors.registry import vendor_protocols, vendor_speaks
 
 
 def get_robot(session: Session, robot_id: str, *, for_update: bool = False) -> Robot:
@@ -100,6 +101,8 @@ def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: P
             )
         )
         check_vendor_change(changes["vendor"], ((n, s) for n, s in live), loc=("body", "vendor"))
+    if "vendor" in changes and changes["vendor"] != robot.vendor:
+        _controller_speaks(session, robot, changes["vendor"])
     details = audit.changes(robot, changes, values_of=("name", "vendor", "model", "serial", "cell"))
     for key, value in changes.items():
         setattr(robot, key, value)
@@ -114,6 +117,34 @@ def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: P
         details=details,
     )
     return robot
+
+
+def _controller_speaks(session: Session, robot: Robot, vendor: str | None) -> None:
+    """422 naming body.vendor when the robot has a controller whose protocol none of the new
+    vendor's maker's controllers speak (the PUT of the controller refuses the same pair):
+    every capture would then talk one maker's protocol to another's controller."""
+    protocol = session.scalar(
+        select(RobotController.protocol).where(RobotController.robot_id == robot.id)
+    )
+    if protocol is None or vendor_speaks(vendor, protocol):
+        return
+    fitting = vendor_protocols(vendor)
+    connect = f"tcpcal connect {robot.name} --protocol {fitting[0]} --host HOST"
+    if vendor_speaks(robot.vendor, fitting[0]):
+        todo = f"set the controller first (PUT /v1/robots/{robot.id}/controller, or {connect})"
+    else:  # its present vendor refuses the new protocol: the controller has to go first
+        todo = (
+            f"remove the controller first (DELETE /v1/robots/{robot.id}/controller, or "
+            f"tcpcal disconnect {robot.name}), then change the vendor and connect it again "
+            f"({connect})"
+        )
+    raise InvalidInput(
+        "validation",
+        f"robot {robot.name}'s controller speaks {protocol}, and a {vendor!r} robot's "
+        f"controllers speak {', '.join(fitting)}: {todo}; nothing was changed",
+        loc=("body", "vendor"),
+        context={"protocol": protocol, "vendor": vendor, "protocols": list(fitting)},
+    )
 
 
 def archive_robot(session: Session, *, robot_id: str, actor: Principal) -> None:
