@@ -62,7 +62,7 @@ from app.metrics import (
 )
 from app.schemas.controllers import Reconciliation
 from app.security.auth import Principal
-from app.services.controllers.leases import Leases
+from app.services.controllers.leases import Leases, Tick
 from app.services.controllers.reconcile import (
     RoundRead,
     reconcile_robot,
@@ -410,12 +410,25 @@ class Overrun:
     concurrency: int
     interval_needed_s: float
     concurrency_needed: int
+    #: the instances sharing the fleet (PostgreSQL's leases): `robots` and `unread` are the
+    #: fleet's, `concurrency` and `concurrency_needed` each instance's
+    watchers: int = 1
 
     def words(self) -> str:
-        return (
+        where = "" if self.watchers == 1 else f" on each of {self.watchers} instances"
+        said = (
             f"{self.unread} of {self.robots} robots not yet read when the {self.interval_s} s "
             f"interval ended (reads take {self.median_read_s:.3f} s, {self.concurrency} at "
-            f"once): set TCPCAL_RECONCILE_INTERVAL_S to at least {self.interval_needed_s} or "
+            f"once{where})"
+        )
+        if self.interval_needed_s <= self.interval_s:
+            return (
+                f"{said}: reads of that length fit the interval at that concurrency, so the "
+                "robots unread waited on reads that stalled (reads_stalled in /ready) or on "
+                "the leases of an instance that stopped; a longer interval would not help"
+            )
+        return (
+            f"{said}: set TCPCAL_RECONCILE_INTERVAL_S to at least {self.interval_needed_s} or "
             f"TCPCAL_RECONCILE_CONCURRENCY to at least {self.concurrency_needed}"
         )
 
@@ -548,7 +561,6 @@ class Watcher:
         self.holder = leases.holder
         claims: deque[tuple[float, int]] = deque()
         round_began = time.monotonic()
-        robots = 0
         while not self._stop.is_set():
             now = time.monotonic()
             try:
@@ -557,9 +569,8 @@ class Watcher:
                 tick = leases.tick(self._pool.in_flight_ids(), capacity, now)
                 self._pool.offer(tick.claimed)
                 claims.append((now, len(tick.claimed)))
-                robots = math.ceil(tick.robots / max(1, tick.watchers))
                 if now - round_began >= self.status.interval_s or self.status.rounds == 0:
-                    self._lease_round(claims, robots, tick.overdue, now - round_began)
+                    self._lease_round(claims, tick, now - round_began)
                     round_began = now
             except Exception as exc:  # a database outage must not end the loop
                 self.status.last_error = f"{type(exc).__name__}: {exc}"
@@ -568,11 +579,12 @@ class Watcher:
         with suppress(Exception):  # the database may be gone: the leases lapse on their own
             leases.leave()
 
-    def _lease_round(
-        self, claims: deque[tuple[float, int]], share: int, overdue: int, took_s: float
-    ) -> None:
+    def _lease_round(self, claims: deque[tuple[float, int]], tick: Tick, took_s: float) -> None:
         """A round's end on PostgreSQL: the robots this instance claimed in the last interval
-        are the ones it watches; the pool is sized for its share of the fleet."""
+        are the ones it watches; the pool is sized for its share of the fleet. An overrun is
+        said of the fleet (its robots, the ones overdue, every instance's pool), as the
+        leases count it."""
+        share = math.ceil(tick.robots / max(1, tick.watchers))
         now = time.monotonic()
         while claims and claims[0][0] < now - self.status.interval_s:
             claims.popleft()
@@ -580,8 +592,8 @@ class Watcher:
         watched = sum(n for _, n in claims)
         self.status.robots = watched
         WATCHED_ROBOTS.set(watched)
-        if overdue > 0 and self.status.rounds > 0:
-            self._overrun(share, overdue)
+        if tick.overdue > 0 and self.status.rounds > 0:
+            self._overrun(tick.robots, tick.overdue, watchers=max(1, tick.watchers))
         self._finish_round(took_s)
 
     def round(self) -> None:
@@ -624,9 +636,10 @@ class Watcher:
         self.status.last_round_s = round(took_s, 3)
         WATCHER_ROUND_SECONDS.set(took_s)
 
-    def _overrun(self, robots: int, unread: int) -> None:
+    def _overrun(self, robots: int, unread: int, *, watchers: int = 1) -> None:
         """The round's interval ended before every robot's read began: say so, with the
-        interval and the pool size that would have fitted it."""
+        interval and the pool size that would have fitted it. `robots` and `unread` are
+        counted over the `watchers` instances that share them, each with a pool this size."""
         if unread == 0:
             return  # only reads that began and have not ended (a hung controller's)
         interval = self.status.interval_s
@@ -638,8 +651,9 @@ class Watcher:
             interval_s=interval,
             median_read_s=read_s,
             concurrency=size,
-            interval_needed_s=math.ceil(10 * 2 * robots * read_s / size) / 10,
-            concurrency_needed=math.ceil(robots * read_s / max(interval / 2, 1e-3)),
+            interval_needed_s=math.ceil(10 * 2 * robots * read_s / (size * watchers)) / 10,
+            concurrency_needed=math.ceil(robots * read_s / max(interval / 2, 1e-3) / watchers),
+            watchers=watchers,
         )
         self.status.overruns += 1
         self.status.last_overrun = overrun
@@ -652,6 +666,7 @@ class Watcher:
             interval_s=interval,
             median_read_s=round(read_s, 4),
             concurrency=size,
+            watchers=watchers,
             interval_needed_s=overrun.interval_needed_s,
             concurrency_needed=overrun.concurrency_needed,
             detail=overrun.words(),
