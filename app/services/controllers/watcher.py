@@ -312,6 +312,8 @@ class ReadPool:
         while robot_id is not None:
             try:
                 self._work(robot_id)
+            except BaseException:  # a pool strands no robot: the next is taken all the same
+                log.exception("reading robot %s failed", robot_id)
             finally:
                 with self._changed:
                     began = self._reading.pop(robot_id)
@@ -321,7 +323,8 @@ class ReadPool:
                     self._in_flight.discard(robot_id)
                     self._idle += 1
                     self._changed.notify_all()
-                    robot_id = self._take()
+            with self._changed:
+                robot_id = self._take()
         with self._changed:
             self._threads -= 1
             self._idle -= 1

@@ -343,6 +343,38 @@ def test_the_read_pool_keeps_to_its_size_and_reads_a_robot_once_at_a_time() -> N
         pool.stop()
 
 
+def test_a_read_that_raises_strands_no_robot_of_the_pool() -> None:
+    """A read that raised took the next robot inside its finally: the exception ended the
+    thread with that robot taken, in flight for ever and never read again (on SQLite the
+    fleet lock held by it). The pool logs the error and reads the next robot."""
+    import threading
+
+    from app.services.controllers.watcher import ReadPool
+
+    read: list[str] = []
+
+    def work(robot_id: str) -> None:
+        read.append(robot_id)
+        if robot_id == "a":
+            raise RuntimeError("a's read failed")
+
+    before = {t for t in threading.enumerate() if t.name.startswith("tcpcal-reconcile")}
+    pool = ReadPool(1, work)
+    try:
+        assert pool.offer(["a", "b"]) == {"a", "b"}
+        assert pool.wait({"a", "b"}, 2.0)
+        assert pool.in_flight() == 0
+        assert read == ["a", "b"]
+        assert pool.offer(["b"]) == {"b"}  # read again once its read ended
+        assert pool.wait({"b"}, 2.0)
+        assert read == ["a", "b", "b"]
+    finally:
+        pool.stop()
+    pool.join(time.monotonic() + 2.0)
+    assert pool.threads() == 0
+    assert not {t for t in threading.enumerate() if t.name.startswith("tcpcal-reconcile")} - before
+
+
 def test_a_stalled_read_hands_its_place_on_and_the_pool_is_sized_from_the_fleet() -> None:
     """A read still going stall_s after it began no longer holds a place: the robot behind
     it is read although the pool has one place; a pool is sized to read its fleet in half
