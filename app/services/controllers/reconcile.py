@@ -300,15 +300,22 @@ def store_rounds(
                 store_rounds([read], actor, trigger, final=[last])[0]
                 for read, last in zip(reads, final, strict=True)
             ]
-        return [
-            StoredRound(_answer(r, w, trigger), None) for r, w in zip(reads, stored, strict=True)
-        ]
+        return [_answered(r, w, trigger) for r, w in zip(reads, stored, strict=True)]
     try:
         with transaction_for(actor, write=True) as session:
             one = _write_round(session, reads[0], actor, final=final[0])
     except Exception as exc:  # handed to the caller by result()
         return [StoredRound(None, exc)]
-    return [StoredRound(_answer(reads[0], one, trigger), None)]
+    return [_answered(reads[0], one, trigger)]
+
+
+def _answered(read: RoundRead, stored: _Stored, trigger: str) -> StoredRound:
+    """A stored round's answer, or the error building it raised: built after the commit,
+    each in its own try, so one robot's failing answer is no other robot's error."""
+    try:
+        return StoredRound(_answer(read, stored, trigger), None)
+    except Exception as exc:  # its round is stored; its reader hears what failed
+        return StoredRound(None, exc)
 
 
 def _write_round(session: Session, read: RoundRead, actor: Principal, *, final: bool) -> _Stored:

@@ -375,29 +375,43 @@ class StoreBatches:
             thread.join(max(0.0, until - time.monotonic()))
 
     def _run(self) -> None:
-        while True:
+        batch: list[tuple[RoundRead, bool, Future[Reconciliation]]] = []
+        try:
+            while True:
+                with self._changed:
+                    self._changed.wait_for(lambda: self._pending or self._stopped)
+                    batch = self._pending[:STORE_BATCH]
+                    self._pending = self._pending[STORE_BATCH:]
+                    if not batch and self._stopped:
+                        return
+                self._store(batch)
+        except BaseException as exc:  # no reader waits for ever on a store thread gone
+            log.exception("the watcher's store failed")
             with self._changed:
-                self._changed.wait_for(lambda: self._pending or self._stopped)
-                batch, self._pending = self._pending[:STORE_BATCH], self._pending[STORE_BATCH:]
-                if not batch and self._stopped:
-                    return
-            self.sizes.append(len(batch))
+                failed, self._pending = [*batch, *self._pending], []
+                self._thread = None  # the next store starts another
+            for _, _, done in failed:
+                if not done.done():
+                    done.set_exception(exc)
+
+    def _store(self, batch: list[tuple[RoundRead, bool, Future[Reconciliation]]]) -> None:
+        self.sizes.append(len(batch))
+        try:
+            stored = store_rounds(
+                [read for read, _, _ in batch],
+                self._actor,
+                self._trigger,
+                final=[final for _, final, _ in batch],
+            )
+        except BaseException as exc:  # the database down: every reader hears it
+            for _, _, done in batch:
+                done.set_exception(exc)
+            return
+        for (_, _, done), one in zip(batch, stored, strict=True):
             try:
-                stored = store_rounds(
-                    [read for read, _, _ in batch],
-                    self._actor,
-                    self._trigger,
-                    final=[final for _, final, _ in batch],
-                )
-            except BaseException as exc:  # the database down: every reader hears it
-                for _, _, done in batch:
-                    done.set_exception(exc)
-                continue
-            for (_, _, done), one in zip(batch, stored, strict=True):
-                try:
-                    done.set_result(one.result())
-                except BaseException as exc:  # that robot's own error, raised in its reader
-                    done.set_exception(exc)
+                done.set_result(one.result())
+            except BaseException as exc:  # that robot's own error, raised in its reader
+                done.set_exception(exc)
 
 
 @dataclass(frozen=True)

@@ -473,6 +473,99 @@ def test_the_reads_that_end_while_a_store_runs_are_stored_together_in_one_transa
     assert isinstance(answers["bad"], ValueError)
 
 
+def test_a_robots_answer_that_fails_after_the_commit_is_its_own_error_alone(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A batch's answers are built after its transaction committed: one that raised made
+    store_rounds raise, and every reader of the batch heard it though its round was
+    stored. Each answer is built in its own try: the others are answered."""
+    from contextlib import nullcontext
+
+    from app.services.controllers import reconcile as rounds
+    from app.services.controllers.watcher import WATCHER
+
+    written: list[str] = []
+
+    @dataclass(frozen=True)
+    class Read:
+        robot_id: str
+
+    def write_round(session: Any, read: Any, actor: Any, *, final: bool) -> str:
+        written.append(read.robot_id)
+        return str(read.robot_id)
+
+    def answer(read: Any, stored: Any, trigger: str) -> str:
+        if read.robot_id == "bad":
+            raise KeyError("bad's answer")
+        return str(stored)
+
+    monkeypatch.setattr(rounds, "transaction_for", lambda actor, write: nullcontext(None))
+    monkeypatch.setattr(rounds, "_write_round", write_round)
+    monkeypatch.setattr(rounds, "_answer", answer)
+    reads: Any = [Read("a"), Read("bad"), Read("c")]
+    stored = rounds.store_rounds(reads, WATCHER, "watcher", final=[True] * 3)
+    assert written == ["a", "bad", "c"]  # one transaction, each written once
+    assert [stored[0].result(), stored[2].result()] == ["a", "c"]  # type: ignore[comparison-overlap]
+    with pytest.raises(KeyError):
+        stored[1].result()
+    (alone,) = rounds.store_rounds(reads[1:2], WATCHER, "watcher", final=[True])
+    with pytest.raises(KeyError):
+        alone.result()
+
+
+def test_a_store_thread_that_fails_answers_every_reader_and_the_next_store_runs(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """An error escaping the store thread's loop (a batch answered short: zip strict) ended
+    that thread with its readers' futures unset, and every reader after waited for ever on
+    done.result(). Every pending reader now hears the error, and a later store is stored."""
+    import threading
+
+    from app.services.controllers import watcher as watching_module
+
+    class Stored:
+        def __init__(self, robot_id: str) -> None:
+            self.robot_id = robot_id
+
+        def result(self) -> str:
+            return self.robot_id
+
+    short = [True]
+
+    def store_rounds(reads: list[Any], actor: Any, trigger: str, *, final: list[bool]) -> Any:
+        if short[0]:
+            short[0] = False
+            return []  # one answer short of the batch
+        return [Stored(read.robot_id) for read in reads]
+
+    @dataclass(frozen=True)
+    class Read:
+        robot_id: str
+
+    monkeypatch.setattr(watching_module, "store_rounds", store_rounds)
+    stores = watching_module.StoreBatches(watching_module.WATCHER, "watcher")
+    answers: dict[str, object] = {}
+
+    def read_and_store(robot_id: str) -> None:
+        try:
+            answers[robot_id] = stores.store(Read(robot_id), True)  # type: ignore[arg-type]
+        except ValueError as exc:
+            answers[robot_id] = exc
+
+    try:
+        first = threading.Thread(target=read_and_store, args=("first",), daemon=True)
+        first.start()
+        first.join(2.0)
+        assert isinstance(answers.get("first"), ValueError), answers
+        later = threading.Thread(target=read_and_store, args=("later",), daemon=True)
+        later.start()
+        later.join(2.0)
+        assert answers.get("later") == "later", answers
+    finally:
+        stores.stop()
+        stores.join(time.monotonic() + 2)
+
+
 def test_a_round_that_cannot_finish_within_its_interval_says_so_with_the_figure_that_fits(
     api: Api, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
