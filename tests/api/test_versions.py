@@ -135,6 +135,24 @@ def test_archive_tool_stops_serving_and_keeps_history(api: Api) -> None:
     assert (kept["tool_id"], kept["version"]) == (tool["id"], 1)
 
 
+def test_a_version_of_an_archived_or_out_of_cell_tool_is_404(api: Api) -> None:
+    made = api.post("/v1/keys", {"name": "c12", "scope": "read", "cells": ["cell-12"]})
+    assert made.status_code == 201, made.text
+    api.keys["c12"] = made.json()["key"]
+    other = api.tool(api.robot("r7", cell="cell-7")["id"])["id"]
+    api.manual(other, [0, 0, 150])
+    assert api.get(f"/v1/tools/{other}/versions/1").status_code == 200
+    for number in (1, 9):  # another cell's tool: as if absent, whatever the version
+        hidden = api.get(f"/v1/tools/{other}/versions/{number}", scope="c12")
+        assert hidden.status_code == 404, hidden.text
+        assert hidden.json()["detail"] == f"no tool with id {other}", (number, hidden.json())
+    assert api.delete(f"/v1/tools/{other}").status_code == 204
+    for number in (1, 9):  # a version it had and one it never had: the tool is archived
+        gone = api.get(f"/v1/tools/{other}/versions/{number}")
+        assert gone.status_code == 404, gone.text
+        assert gone.json()["type"].endswith("/archived"), (number, gone.json())
+
+
 def test_archive_robot_archives_its_tools(api: Api) -> None:
     robot, tool = _setup(api)
     api.manual(tool["id"], [0, 0, 150])

@@ -5,11 +5,16 @@ be broken with no test failing)."""
 
 from __future__ import annotations
 
+from app.methods.requests import CALIBRATION_REQUESTS
+from app.security.auth import Principal
+from app.services.calibrations import writes
 from app.services.tools import versions
 from app.services.tools.drift import refresh_drift
 from app.services.tools.tools import get_tool
 from app.storage.db import session_scope
 from tests.conftest import Api
+
+ACTOR = Principal(key_id="test", name="test", scope="admin")
 
 
 def test_served_tcp_is_the_active_version_of_that_tool(api: Api) -> None:
@@ -68,3 +73,28 @@ def test_a_new_version_and_an_activation_refresh_the_stored_drift(api: Api) -> N
     back = api.post(f"/v1/tools/{tool_id}/versions/1/activate", scope="calibrate")
     assert back.status_code == 200, back.text
     assert api.get(f"/v1/tools/{tool_id}/drift").json()["active_version"] == 1
+
+
+def test_a_tool_read_in_the_calibrations_transaction_reads_its_new_counters_back(
+    api: Api,
+) -> None:
+    """A calibration writes the tool's counters once, after its version and its activation
+    (save_deferred): a Tool the transaction already holds (submit loads one itself to solve,
+    a caller may hold another) must read them back, not keep the counters it loaded."""
+    tool_id = api.tool(api.robot("kr16", vendor="KUKA")["id"])["id"]
+    api.manual(tool_id, [0, 0, 150])
+    body: dict[str, object] = {"method": "manual", "tcp": {"position_mm": [0, 0, 151]}}
+    with session_scope(write=True) as session:
+        held = get_tool(session, tool_id)
+        assert (held.active_version, held.last_version) == (1, 1)
+        stored, _ = writes.submit(
+            session,
+            tool_id=tool_id,
+            request=CALIBRATION_REQUESTS.validate_python(body),
+            raw_body=body,
+            idempotency_key=None,
+            actor=ACTOR,
+        )
+        assert (stored.version, stored.active) == (2, True)
+        assert (held.active_version, held.last_version) == (2, 2)
+        assert get_tool(session, tool_id).active_version == 2
