@@ -8,6 +8,8 @@ shared by the project's construction and its pose conventions cannot pass."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 import pytest
@@ -34,7 +36,13 @@ from app.solvers.frame import (
     point_covariance,
     touch_points,
 )
-from testbed.sim.cell_frames import FIXTURE_MM, flange_rotations, random_frame, touch_frame
+from testbed.sim.cell_frames import (
+    FIXTURE_MM,
+    FrameTouches,
+    flange_rotations,
+    random_frame,
+    touch_frame,
+)
 
 #: Role points of a three-point teach in the frame's own coordinates (mm).
 ROLE_NOMINAL = {
@@ -56,44 +64,37 @@ def _solve_construction(touches, construction, sigma: float = 0.05, tcp_sigma: f
     return construct(construction, list(construction.roles), points, C, touch_noise_mm=sigma)
 
 
-@pytest.mark.parametrize("convention", list(THREE_POINT))
-def test_three_point_recovers_200_frames_noise_free(convention: str) -> None:
-    rng = np.random.default_rng(47)
-    construction = THREE_POINT[convention]  # type: ignore[index]
-    worst_mm = worst_deg = 0.0
-    for _ in range(200):
-        touches = touch_frame(rng, np.array(ROLE_NOMINAL[convention]))
-        est = _solve_construction(touches, construction)
-        worst_mm = max(worst_mm, float(np.abs(est.origin_mm - touches.frame_origin_mm).max()))
-        worst_deg = max(worst_deg, _angle_deg(est.rotation, touches.frame_rotation))
-    assert worst_mm < 1e-9
-    assert worst_deg < 1e-9
+def _fit_fixture(touches: FrameTouches) -> FrameEstimate:
+    points = touch_points(touches.rotations, touches.positions_mm, touches.tcp_mm)
+    est = fit_points(FIXTURE_MM, points, touches.rotations, np.zeros((3, 3)), touch_noise_mm=0.05)
+    assert est.outliers == ()
+    return est
 
 
-def test_four_point_recovers_200_frames_noise_free() -> None:
-    rng = np.random.default_rng(48)
-    worst_mm = worst_deg = 0.0
-    for _ in range(200):
-        touches = touch_frame(rng, np.array(FOUR_NOMINAL))
-        est = _solve_construction(touches, FOUR_POINT)
-        worst_mm = max(worst_mm, float(np.abs(est.origin_mm - touches.frame_origin_mm).max()))
-        worst_deg = max(worst_deg, _angle_deg(est.rotation, touches.frame_rotation))
-    assert worst_mm < 1e-9
-    assert worst_deg < 1e-9
-
-
-def test_fit_points_recovers_200_frames_noise_free() -> None:
-    rng = np.random.default_rng(49)
-    worst_mm = worst_deg = 0.0
-    for _ in range(200):
-        touches = touch_frame(rng, FIXTURE_MM)
-        points = touch_points(touches.rotations, touches.positions_mm, touches.tcp_mm)
-        est = fit_points(
-            FIXTURE_MM, points, touches.rotations, np.zeros((3, 3)), touch_noise_mm=0.05
+#: Each method with the points its touches reach (frame coordinates) and how it is solved.
+NOISE_FREE: dict[str, tuple[FloatArray, Callable[[FrameTouches], FrameEstimate]]] = {
+    **{
+        f"three_point/{name}": (
+            np.array(ROLE_NOMINAL[name]),
+            partial(_solve_construction, construction=construction),
         )
+        for name, construction in THREE_POINT.items()
+    },
+    "four_point": (np.array(FOUR_NOMINAL), partial(_solve_construction, construction=FOUR_POINT)),
+    "fit_points": (FIXTURE_MM, _fit_fixture),
+}
+
+
+@pytest.mark.parametrize("method", list(NOISE_FREE))
+def test_each_method_recovers_200_frames_noise_free(method: str) -> None:
+    nominal, solve = NOISE_FREE[method]
+    rng = np.random.default_rng(47)
+    worst_mm = worst_deg = 0.0
+    for _ in range(200):
+        touches = touch_frame(rng, nominal)
+        est = solve(touches)
         worst_mm = max(worst_mm, float(np.abs(est.origin_mm - touches.frame_origin_mm).max()))
         worst_deg = max(worst_deg, _angle_deg(est.rotation, touches.frame_rotation))
-        assert est.outliers == ()
     assert worst_mm < 1e-9
     assert worst_deg < 1e-9
 
