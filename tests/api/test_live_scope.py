@@ -315,23 +315,12 @@ def test_metrics_count_not_live_tools(api: Api, live: LiveController) -> None:
 def test_the_cli_says_what_live_means(
     api: Api, live: LiveController, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import httpx
-    from typer.testing import CliRunner
 
     from app.cli import cli
-    from app.cli import http as client_http
     from app.cli.controllers import EXIT_CONTROLLER_UNREACHABLE
+    from tests.cli.in_process import cli_as
 
-    def http() -> httpx.Client:
-        return httpx.Client(
-            transport=api.client._transport,
-            base_url="http://testserver",
-            headers=api.headers("calibrate"),
-        )
-
-    monkeypatch.setattr(client_http, "connect", http)
-    monkeypatch.setenv("COLUMNS", "250")
-    runner = CliRunner()
+    runner = cli_as("calibrate", api, monkeypatch)
     cell = _cell(api)
     done = runner.invoke(cli, ["deploy", cell.torch["id"]])
     assert done.exit_code == 0, done.output

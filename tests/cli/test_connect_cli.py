@@ -4,14 +4,13 @@ option to change, and a password that never reaches the output."""
 
 from __future__ import annotations
 
-import httpx
 import pytest
 from typer.testing import CliRunner
 
 from app.cli import cli
-from app.cli import http as client_http
 from app.cli.controllers import LIVE_SCOPE
 from tests.api.controller_rigs import secret_key as secret_key  # the passwords' key, autouse
+from tests.cli.in_process import cli_as
 from tests.conftest import Api
 
 PASSWORD = "tm5-s3cret-pw"
@@ -21,16 +20,7 @@ PASSWORD = "tm5-s3cret-pw"
 def runner(api: Api, monkeypatch: pytest.MonkeyPatch) -> CliRunner:
     """The commands talk to the in-process app with an admin key (connections are admin's)."""
 
-    def http() -> httpx.Client:
-        return httpx.Client(
-            transport=api.client._transport,
-            base_url="http://testserver",
-            headers=api.headers("admin"),
-        )
-
-    monkeypatch.setattr(client_http, "connect", http)
-    monkeypatch.setenv("COLUMNS", "250")
-    return CliRunner()
+    return cli_as("admin", api, monkeypatch)
 
 
 def test_a_techman_connection_with_ports_by_robot_name(api: Api, runner: CliRunner) -> None:
@@ -165,14 +155,7 @@ def test_changing_a_connection_needs_admin(
 ) -> None:
     api.robot("cell1-kr6")
 
-    def http() -> httpx.Client:
-        return httpx.Client(
-            transport=api.client._transport,
-            base_url="http://testserver",
-            headers=api.headers("calibrate"),
-        )
-
-    monkeypatch.setattr(client_http, "connect", http)
+    runner = cli_as("calibrate", api, monkeypatch)
     refused = runner.invoke(
         cli, ["connect", "cell1-kr6", "--protocol", "kuka_kvp", "--host", "127.0.0.1"]
     )

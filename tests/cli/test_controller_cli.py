@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import re
 
-import httpx
 import pytest
 from typer.testing import CliRunner
 
@@ -17,6 +16,7 @@ from app.cli.http import EXIT_BAD_USE, EXIT_NOT_FOUND, EXIT_REFUSED, EXIT_UNREAC
 from tests.api.controller_rigs import SLOT, rig
 from tests.api.test_deployments import ACTIVE_POSITION, ACTIVE_Q, WRITE_REQUEST, _setup
 from tests.api.test_deployments import secret_key as secret_key  # ABB's password, autouse
+from tests.cli.in_process import cli_as
 from tests.conftest import Api
 from tests.controllers.simbase import go_silent
 
@@ -25,16 +25,7 @@ from tests.controllers.simbase import go_silent
 def runner(api: Api, monkeypatch: pytest.MonkeyPatch) -> CliRunner:
     """The commands talk to the in-process app (its test transport) with a calibrate key."""
 
-    def http() -> httpx.Client:
-        return httpx.Client(
-            transport=api.client._transport,
-            base_url="http://testserver",
-            headers=api.headers("calibrate"),
-        )
-
-    monkeypatch.setattr(client_http, "connect", http)
-    monkeypatch.setenv("COLUMNS", "250")
-    return CliRunner()
+    return cli_as("calibrate", api, monkeypatch)
 
 
 def test_deploy_and_reconcile_exit_codes(api: Api, runner: CliRunner) -> None:

@@ -4,13 +4,11 @@ names the version it compared and when, not "in sync" with the active one."""
 
 from __future__ import annotations
 
-import httpx
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from app.cli import cli
-from app.cli import http as client_http
 from tests.api.controller_rigs import rig
 from tests.api.test_capture_controllers import SETUPS
 from tests.api.test_capture_controllers import secret_key as secret_key  # autouse
@@ -22,6 +20,7 @@ from tests.api.test_recheck_controllers import (
     stand_at_reference,
     tool_at_reference,
 )
+from tests.cli.in_process import cli_as
 from tests.conftest import Api
 
 
@@ -29,16 +28,7 @@ from tests.conftest import Api
 def runner(api: Api, monkeypatch: pytest.MonkeyPatch) -> CliRunner:
     """The commands talk to the in-process app (its test transport) with a read key."""
 
-    def http() -> httpx.Client:
-        return httpx.Client(
-            transport=api.client._transport,
-            base_url="http://testserver",
-            headers=api.headers("read"),
-        )
-
-    monkeypatch.setattr(client_http, "connect", http)
-    monkeypatch.setenv("COLUMNS", "250")
-    return CliRunner()
+    return cli_as("read", api, monkeypatch)
 
 
 def test_tools_says_a_correction_and_which_version_the_controller_was_compared_with(
