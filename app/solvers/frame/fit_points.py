@@ -73,12 +73,9 @@ def kabsch(nominal: FloatArray, points: FloatArray) -> tuple[FloatArray, FloatAr
 def _design(R: FloatArray, nominal: FloatArray) -> FloatArray:
     """A (3N, 6): d r_i / d [delta o, delta theta] with R' = R exp([delta theta]x)."""
     n = nominal.shape[0]
-    S = np.zeros((n, 3, 3))
-    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -nominal[:, 2], nominal[:, 1], -nominal[:, 0]
-    S -= S.transpose(0, 2, 1)
     A = np.empty((n, 3, 6))
     A[:, :, :3] = np.eye(3)
-    A[:, :, 3:] = -np.einsum("ij,njk->nik", R, S)
+    A[:, :, 3:] = -np.einsum("ij,njk->nik", R, skew(nominal))
     out: FloatArray = A.reshape(3 * n, 6)
     return out
 

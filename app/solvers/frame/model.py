@@ -108,7 +108,7 @@ class FrameEstimate:
     def point_covariance_mm2(self, nominal_mm: ArrayLike) -> FloatArray:
         """Covariance (3, 3) mm^2 in base axes of the frame point with frame coordinates n."""
         n = np.asarray(nominal_mm, dtype=np.float64)
-        J = np.hstack([np.eye(3), -self.rotation @ _skew(n)])
+        J = np.hstack([np.eye(3), -self.rotation @ skew(n)])
         cov: FloatArray = J @ self.covariance @ J.T
         return cov
 
@@ -134,16 +134,11 @@ class FrameEstimate:
         return out
 
 
-def _skew(v: FloatArray) -> FloatArray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
 def skew(v: ArrayLike) -> FloatArray:
-    """[v]x, the (3, 3) matrix of the cross product with v."""
-    return _skew(np.asarray(v, dtype=np.float64))
-
-
-def rotation_delta(R0: FloatArray, R1: FloatArray) -> FloatArray:
-    """The small rotation theta (3,) rad about R0's own axes with R1 = R0 exp([theta]x)."""
-    out: FloatArray = Rotation.from_matrix(R0.T @ R1).as_rotvec()
+    """[v]x, the (3, 3) matrix of the cross product with v; for vectors (..., 3), one such
+    matrix each (..., 3, 3)."""
+    a = np.asarray(v, dtype=np.float64)
+    out: FloatArray = np.zeros((*a.shape[:-1], 3, 3))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -a[..., 2], a[..., 1], -a[..., 0]
+    out -= np.swapaxes(out, -1, -2)
     return out
