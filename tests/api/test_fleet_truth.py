@@ -129,7 +129,9 @@ def _stand_at_the_flange(r: Rig) -> None:
         r.set_behind_back([0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0])
 
 
-@pytest.mark.parametrize("protocol", ["kuka_kvp", "fanuc_rmi", "yaskawa_hses", *LIVE_PROTOCOLS])
+@pytest.mark.parametrize(
+    "protocol", ["kuka_kvp", "fanuc_rmi", "yaskawa_hses", *sorted(LIVE_PROTOCOLS)]
+)
 def test_a_robot_at_its_bare_flange_has_no_tool_selected_not_an_unknown_tcp(
     api: Api, protocol: str
 ) -> None:
