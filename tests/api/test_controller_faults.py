@@ -323,6 +323,9 @@ def test_a_port_that_accepts_and_never_answers_is_named_as_such(api: Api, protoc
     assert f"check that the robot's controller speaks {protocol} and that the port is its" in (
         detail
     )
+    # the fix said both ways: the HTTP call and the CLI's command (printed by tcpcal deploy)
+    assert "set the protocol and port with PUT /v1/robots/" in detail
+    assert "or tcpcal connect ROBOT --protocol P --port N)" in detail
     assert detail.endswith("nothing was kept"), detail
 
 

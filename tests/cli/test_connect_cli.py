@@ -148,6 +148,33 @@ def test_a_protocol_of_another_maker_is_refused_naming_the_option(
     assert "422: --protocol: protocol techman is not its robot's" in said, said
     assert "its controllers speak kuka_kvp" in said
     assert api.get(f"/v1/robots/{robot['id']}/controller").status_code == 404
+    patch = f"PATCH /v1/robots/{robot['id']}"
+    assert f"if the vendor is wrong, correct the robot's vendor ({patch})" in said
+
+
+def test_a_wrong_vendor_with_a_controller_is_advised_to_disconnect_first(
+    api: Api, runner: CliRunner
+) -> None:
+    """The vendor's PATCH is refused while the robot has a controller another maker's
+    controllers do not speak: the advice for a wrong vendor names the disconnect first, and
+    followed step by step it connects."""
+    robot = api.robot("cell3-kr16", vendor="KUKA")
+    first = ["connect", "cell3-kr16", "--protocol", "kuka_kvp", "--host", "127.0.0.1"]
+    assert runner.invoke(cli, first).exit_code == 0
+    techman = ["connect", "cell3-kr16", "--protocol", "techman", "--host", "127.0.0.1"]
+    refused = runner.invoke(cli, techman)
+    assert refused.exit_code == 4, refused.output
+    said = " ".join(refused.output.split())
+    assert (
+        "remove its controller first (DELETE /v1/robots/"
+        f"{robot['id']}/controller, or tcpcal disconnect cell3-kr16), then correct the robot's "
+        f"vendor (PATCH /v1/robots/{robot['id']}) and connect it again"
+    ) in said, said
+    patched_first = api.patch(f"/v1/robots/{robot['id']}", json={"vendor": "Techman"})
+    assert patched_first.status_code == 422  # what the advice steers around
+    assert runner.invoke(cli, ["disconnect", "cell3-kr16"]).exit_code == 0
+    assert api.patch(f"/v1/robots/{robot['id']}", json={"vendor": "Techman"}).status_code == 200
+    assert runner.invoke(cli, techman).exit_code == 0
 
 
 def test_changing_a_connection_needs_admin(

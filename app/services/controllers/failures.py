@@ -57,8 +57,9 @@ def controller_problem(
             "(the TCP connection was accepted) and sent nothing back: check that the robot's "
             f"controller speaks {settings.protocol} and that the port is its "
             f"{settings.protocol} port (another maker's controller, or another of its "
-            f"services, accepts and stays silent so; PUT /v1/robots/{robot_id}/controller "
-            f"sets them); {left}",
+            "services, accepts and stays silent so; set the protocol and port with "
+            f"PUT /v1/robots/{robot_id}/controller, or "
+            f"tcpcal connect ROBOT --protocol P --port N); {left}",
             members=told,
         )
     if isinstance(exc, ControllerUnreachable):

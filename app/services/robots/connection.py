@@ -136,10 +136,10 @@ def put_controller(
     null removes it. Its live tools must be addressable under the protocol (422 otherwise)."""
     robot = get_robot(session, robot_id, for_update=True)
     check_host(data.host)
-    _protocol_of_vendor(robot, data.protocol)
+    controller = session.get(RobotController, robot_id)
+    _protocol_of_vendor(robot, data.protocol, has_controller=controller is not None)
     port, ports = ports_in_use(data)
     _tools_addressable(session, robot_id, data.protocol)
-    controller = session.get(RobotController, robot_id)
     created = controller is None
     if controller is None:
         controller = RobotController(robot_id=robot_id, created_at=utcnow())
@@ -174,19 +174,27 @@ def put_controller(
     return controller
 
 
-def _protocol_of_vendor(robot: Robot, protocol: ProtocolName) -> None:
+def _protocol_of_vendor(robot: Robot, protocol: ProtocolName, *, has_controller: bool) -> None:
     """422 naming body.protocol when the robot's vendor is a maker whose controllers do not
     speak `protocol` (a robot of one maker given another's protocol): every capture would
-    then talk another maker's protocol to it. A vendor no maker is known by takes any protocol."""
+    then talk another maker's protocol to it. A vendor no maker is known by takes any protocol.
+    The advice for a wrong vendor: correct it; with a controller already set (whose protocol
+    the other maker's controllers do not speak, so the vendor's PATCH is refused), remove the
+    controller first."""
     if vendor_speaks(robot.vendor, protocol):
         return
     fitting = vendor_protocols(robot.vendor)
+    correct = f"correct the robot's vendor (PATCH /v1/robots/{robot.id})"
+    if has_controller:
+        correct = (
+            f"remove its controller first (DELETE /v1/robots/{robot.id}/controller, or "
+            f"tcpcal disconnect {robot.name}), then {correct} and connect it again"
+        )
     raise InvalidInput(
         "validation",
         f"protocol {protocol} is not its robot's: robot {robot.name}'s vendor is "
         f"{robot.vendor!r}, and its controllers speak {', '.join(fitting)}: give one of those, "
-        f"or correct the robot's vendor first (PATCH /v1/robots/{robot.id}) if it is wrong; "
-        "nothing was stored",
+        f"or, if the vendor is wrong, {correct}; nothing was stored",
         loc=("body", "protocol"),
         context={"vendor": robot.vendor, "protocols": list(fitting)},
     )
