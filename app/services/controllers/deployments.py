@@ -40,6 +40,7 @@ from app.services.controllers import states as controller_states
 from app.services.controllers.failures import controller_problem
 from app.services.robots.connection import get_controller, settings_of
 from app.services.robots.live_tool import LiveRead, record_live
+from app.services.tools.subject import tool_data
 from app.services.tools.tools import get_tool
 from app.storage.models import Deployment, Robot, TcpVersion, ToolControllerState, utcnow
 from app.vendors.connector import (
@@ -58,7 +59,7 @@ from app.vendors.registry import (
     scope_of,
     target_problem,
 )
-from app.vendors.tool import ToolData, ToolLoad
+from app.vendors.tool import ToolData
 from app.words import DeploymentStatus, FailedDeploymentStatus, ProtocolName
 
 
@@ -118,15 +119,7 @@ def plan_deployment(session: Session, tool_id: str) -> Plan:
             TcpVersion.tool_id == tool.id, TcpVersion.version == tool.active_version
         )
     ).one()
-    load = None
-    if tool.load is not None:
-        cog = tool.load.get("cog_mm") or [0.0, 0.0, 0.0]
-        load = ToolLoad(mass_kg=float(tool.load["mass_kg"]), cog_mm=_vec3(cog))
-    data = ToolData(
-        position_mm=_vec3(version.position_mm),
-        quaternion=_vec4(version.quaternion),
-        load=load,
-    )
+    data = tool_data(tool, version)
     state = session.get(ToolControllerState, tool.id)
     held_version = None
     if state is not None and state.state == "in_sync" and state.active_version != version.version:
@@ -141,16 +134,6 @@ def plan_deployment(session: Session, tool_id: str) -> Plan:
         settings=settings_of(controller),
         held_version=held_version,
     )
-
-
-def _vec3(values: object) -> tuple[float, float, float]:
-    x, y, z = (float(v) for v in values)  # type: ignore[attr-defined]
-    return x, y, z
-
-
-def _vec4(values: object) -> tuple[float, float, float, float]:
-    w, x, y, z = (float(v) for v in values)  # type: ignore[attr-defined]
-    return w, x, y, z
 
 
 @dataclass

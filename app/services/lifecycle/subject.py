@@ -12,10 +12,20 @@ the drift trend `drift`, `drift_crosses_at`; a version's `<key>`, `version`, `po
 activation's `<key>`, `version`, `previous_version`, `reason`, `reason_text`,
 `activated_at`, `activated_by`. `key` ("tool_id") names the subject in its versions, its
 activations, the audit trail and the outbox alike.
+
+At the controller (a subject that declares its `controller` side: app.services.controllers
+deploys, reconciles and settles it): its deployments' table, a row an attempt, `id`,
+`<key>`, `robot_id`, `version`, `protocol`, `target`, `status`, `scope`, `previous`,
+`read_back`, `deviation_mm`, `deviation_deg`, `error`, `reason`, `settled`, `actor`,
+`created_at`; its controller states' table, a row a subject (`<key>` its primary key),
+`robot_id`, `state`, `since`, `checked_at`, `target`, `deviation_mm`, `deviation_deg`,
+`controller`, `active_version`, `error`. Its place in a controller is read from its row's
+`slot` and `controller_symbol`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any, Generic, Protocol, TypeVar
@@ -24,7 +34,8 @@ from sqlalchemy import Column, Table
 
 from app.jsontypes import JsonArray, JsonObject
 from app.storage.models import AuditEvent, Base, table_of
-from app.words import AuditAction, MethodName, ResourceType, Status
+from app.vendors.connector import Connector
+from app.words import AuditAction, DeploymentScope, MethodName, ResourceType, Status
 
 
 class Owned(Protocol):
@@ -104,6 +115,48 @@ class Locked:
         return self.last_version + 1
 
 
+class Held(Protocol):
+    """What a controller holds of a subject, as its connector reads and writes it: a frame,
+    and whatever the subject adds to it (a tool's load: app.vendors.tool.ToolData)."""
+
+    @property
+    def position_mm(self) -> tuple[float, float, float]: ...
+    @property
+    def quaternion(self) -> tuple[float, float, float, float]: ...
+
+
+TargetT = TypeVar("TargetT")
+HeldT = TypeVar("HeldT", bound=Held)
+
+
+@dataclass(frozen=True)
+class ControllerSide(Generic[TargetT, HeldT]):
+    """How a subject lives in its robot's controller, declared with the subject:
+
+    - `target`: its place there, from its row's `slot` and `controller_symbol`;
+    - `problem`: why that place cannot address it under a protocol, in a sentence (None
+      when it can); `field`: the field of its row a person sets about it under a protocol
+      ("slot" or "controller_symbol");
+    - `describe`: the place as the protocol's controllers name it ("$TOOL_DATA[3]"), read
+      off the protocol's declaration, no session needed;
+    - `read` and `write`: what the open session does with it (a connector's read and
+      write of that subject);
+    - `held`: what deploying writes, from the subject's row and its active version;
+    - `scope`: where a deployment holds under a protocol (contract v1.3 `scope`);
+    - `deploy_action`: the audit action of a deployment.
+    """
+
+    target: Callable[[int | None, str | None], TargetT]
+    problem: Callable[[str, TargetT], str | None]
+    field: Callable[[str], str]
+    describe: Callable[[str, TargetT], str]
+    read: Callable[[Connector, TargetT], HeldT]
+    write: Callable[[Connector, TargetT, HeldT], None]
+    held: Callable[[Any, Valued], HeldT]
+    scope: Callable[[str], DeploymentScope]
+    deploy_action: AuditAction
+
+
 Row = TypeVar("Row", bound=SubjectRow)
 VersionT = TypeVar("VersionT", bound=VersionRow)
 ActivationT = TypeVar("ActivationT", bound=Base)
@@ -127,7 +180,10 @@ class Subject(Generic[Row, VersionT, ActivationT]):
     - `check_action`: the audit action of a check of its active version, which the drift
       trend reads back;
     - `served_detail`: the one JSON column of its own that its hot read serves (a tool's
-      `load`; app.services.lifecycle.hot_read).
+      `load`; app.services.lifecycle.hot_read);
+    - at the controller (None for a subject not deployed yet): `deployment_model`, a
+      deployment's ORM model, `state_model`, its controller state's, and `controller`, how
+      it is addressed, read and written there (`ControllerSide`).
     """
 
     kind: ResourceType
@@ -142,10 +198,16 @@ class Subject(Generic[Row, VersionT, ActivationT]):
     folder: str
     check_action: AuditAction
     served_detail: str | None = None
+    deployment_model: type[Base] | None = None
+    state_model: type[Base] | None = None
+    controller: ControllerSide[Any, Any] | None = None
     table: Table = field(init=False)
     versions: Table = field(init=False)
     activations: Table = field(init=False)
     calibrations: Table = field(init=False)
+    #: its deployments' and its controller states' tables (None: not deployed)
+    deployments: Table | None = field(init=False)
+    states: Table | None = field(init=False)
 
     def __post_init__(self) -> None:
         tables = Base.metadata.tables
@@ -153,6 +215,11 @@ class Subject(Generic[Row, VersionT, ActivationT]):
         object.__setattr__(self, "versions", tables[self.version_model.__tablename__])
         object.__setattr__(self, "activations", table_of(self.activation_model))
         object.__setattr__(self, "calibrations", table_of(self.calibration_model))
+        deployment, state = self.deployment_model, self.state_model
+        object.__setattr__(
+            self, "deployments", None if deployment is None else table_of(deployment)
+        )
+        object.__setattr__(self, "states", None if state is None else table_of(state))
 
     @property
     def path(self) -> str:

@@ -29,6 +29,16 @@ ACTIVATION_COLUMNS = {
     "id", "version", "previous_version", "reason", "reason_text", "activated_at",
     "activated_by",
 }  # fmt: skip
+DEPLOYMENT_COLUMNS = {
+    "id", "robot_id", "version", "protocol", "target", "status", "scope", "previous",
+    "read_back", "deviation_mm", "deviation_deg", "error", "reason", "settled", "actor",
+    "created_at",
+}  # fmt: skip
+STATE_COLUMNS = {
+    "robot_id", "state", "since", "checked_at", "target", "deviation_mm", "deviation_deg",
+    "controller", "active_version", "error",
+}  # fmt: skip
+DEPLOYED = [s for s in subjects.SUBJECTS if s.controller is not None]
 
 
 @pytest.mark.parametrize("subject", subjects.SUBJECTS, ids=lambda s: s.kind)
@@ -42,6 +52,26 @@ def test_each_subjects_tables_have_the_lifecycles_columns(subject: AnySubject) -
     # The key names the subject in the audit trail and the outbox as well.
     assert subject.key in table_of(AuditEvent).c
     assert subject.key in table_of(OutboxMessage).c
+
+
+@pytest.mark.parametrize("subject", DEPLOYED, ids=lambda s: s.kind)
+def test_each_deployed_subjects_controller_tables_have_the_columns_read(
+    subject: AnySubject,
+) -> None:
+    """A subject deployed to controllers declares its deployments' and its controller
+    states' tables, each of the one shape app.services.controllers reads, and names the
+    subject in each by its key (the state's primary key)."""
+    assert subject.deployments is not None
+    assert subject.states is not None
+    assert (DEPLOYMENT_COLUMNS | {subject.key}) - set(subject.deployments.c.keys()) == set()
+    assert (STATE_COLUMNS | {subject.key}) - set(subject.states.c.keys()) == set()
+    assert [c.name for c in subject.states.primary_key] == [subject.key]
+    assert subject.deployments.c[subject.key].references(subject.table.c.id)
+    assert subject.states.c[subject.key].references(subject.table.c.id)
+
+
+def test_the_tool_is_deployed() -> None:
+    assert [s.kind for s in DEPLOYED][:1] == ["tool"]
 
 
 def test_the_subjects_are_one_each_by_kind_and_key() -> None:
