@@ -121,6 +121,27 @@ MethodName = Literal[
     Manual,
 ]
 
+#: What a frame is (a frame's `kind`): a base the robot works in (KUKA base, ABB work object,
+#: FANUC and Yaskawa user frame, UR feature), or a tool standing in the cell that the robot
+#: brings the part to (a stationary TCP).
+FrameKind = Literal["base", "fixed_tool"]
+
+#: Each frame calibration method's word, written once (app.methods.frame; `manual` is the
+#: tools' `Manual`, one word for numbers entered by hand): its request's `method` names it.
+ThreePoint = Literal["three_point"]
+FourPoint = Literal["four_point"]
+#: A frame calibration method (a frame calibration's `method`), the frame registry's names
+#: in its order (app.methods.frame.FRAME_METHOD_NAMES; tests/test_one_definition.py holds
+#: the two equal).
+FrameMethodName = Literal[ThreePoint, FourPoint, Manual]
+
+#: The roles of frame touches, as app.solvers.frame.construction names them (each
+#: construction's `roles`; tests/methods/frame holds the two equal): origin, +X and the XY
+#: plane; ABB's user method's X1, X2, Y1; the start of the X axis of the four-point frame.
+OriginXXy = Literal["origin", "x", "xy"]
+UserMethodRole = Literal["x1", "x2", "y1"]
+FrameRole = Literal[OriginXXy, UserMethodRole, "x_start"]
+
 #: The kind of an activation (activations.reason): a version activated by name
 #: (`explicit`), by name out of tolerance with `force` (`forced`), by a rollback, by the
 #: calibration that made it (`calibration:<its activate option>`), or by a re-check's

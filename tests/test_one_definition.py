@@ -18,6 +18,7 @@ from app.api.methods import describe
 from app.kinematics.poses import POSE_FORMATS
 from app.methods import METHOD_NAMES, METHODS
 from app.methods.base import MethodRequest
+from app.methods.frame import FRAME_METHOD_NAMES
 from app.methods.guided import GUIDED, SessionCreate
 from app.methods.npoint import NPointOptions
 from app.methods.requests import SOLVE_MODELS, CalibrationRequest
@@ -37,6 +38,7 @@ from app.words import (
     ControllerFormat,
     DeploymentScope,
     DeploymentStatus,
+    FrameMethodName,
     LaserDeviceSource,
     MethodName,
     PoseFormat,
@@ -80,6 +82,8 @@ def test_the_request_unions_are_the_registry() -> None:
     # The stored method names are the registry's, in its order (each request's own
     # `Literal[name]` is checked by mypy against MethodRequest's MethodName).
     assert get_args(MethodName) == METHOD_NAMES
+    # and the frames' theirs (app.methods.frame, FrameMethodRequest's FrameMethodName)
+    assert get_args(FrameMethodName) == FRAME_METHOD_NAMES
 
 
 def _literal_of(annotation: object) -> object:
@@ -387,7 +391,7 @@ def test_each_method_name_is_written_once() -> None:
     request's Literal, the list in app/words.py, the CLI's and the console's defaults): the
     requests, the registry and GET /v1/methods name it through its Literal, the services
     through its registry entry, the CLI and the console read it from GET /v1/methods."""
-    names = set(METHOD_NAMES)
+    names = set(METHOD_NAMES) | set(FRAME_METHOD_NAMES)
     spelled = [
         f"{path.relative_to(APP.parent)}:{node.lineno} {node.value}"
         for path in sorted(APP.rglob("*.py"))

@@ -43,9 +43,13 @@ def input_error(kind: InputKind, template: str, context: JsonObject) -> Pydantic
     return PydanticCustomError(kind, template, context)
 
 
+Item = TypeVar("Item")
+
+
 @dataclass(frozen=True)
 class PoseCount:
-    """How many poses a method takes; checked by the schema, shown in /v1/methods.
+    """How many poses (or frame touches: `noun`) a method takes; checked by the schema, shown
+    in /v1/methods.
 
     Too few is answered as `too-few-poses`, too many (for a method that takes an exact
     number) as `invalid-pose`, each with the method's own sentence saying what to send.
@@ -54,23 +58,30 @@ class PoseCount:
     min: int
     max: int = MAX_POSES
     hint: str = ""
+    noun: str = "poses"
 
-    def _check(self, poses: list[Pose]) -> list[Pose]:
+    def _check(self, poses: list[Item]) -> list[Item]:
         n = len(poses)
         wanted = f"exactly {self.min}" if self.min == self.max else f"at least {self.min}"
         if n < self.min:
             raise input_error(
                 "too-few-poses",
-                "{wanted} poses needed, got {n}{hint}",
-                {"wanted": wanted, "n": n, "hint": f": {self.hint}" if self.hint else ""},
+                "{wanted} {noun} needed, got {n}{hint}",
+                {
+                    "wanted": wanted,
+                    "noun": self.noun,
+                    "n": n,
+                    "hint": f": {self.hint}" if self.hint else "",
+                },
             )
         if n > self.max:
             kind: InputKind = "invalid-pose" if self.min == self.max else "validation"
             raise input_error(
                 kind,
-                "{wanted} poses allowed, got {n}{hint}",
+                "{wanted} {noun} allowed, got {n}{hint}",
                 {
                     "wanted": wanted if self.min == self.max else f"at most {self.max}",
+                    "noun": self.noun,
                     "n": n,
                     "hint": f": {self.hint}" if self.hint else "",
                 },
@@ -128,13 +139,9 @@ class StoredPoint:
     covariance_mm2: FloatArray | None
 
 
-class MethodContext(Protocol):
-    """Lookups a method may need; the stateless context refuses those that need storage."""
-
-    @property
-    def tolerance(self) -> Tolerance: ...
-
-    def active_frame(self) -> ActiveFrame | None: ...
+class ReadsPoses(Protocol):
+    """A context that reads poses in the body's format (with the robot's kinematics for
+    `joints`): a tool's method context, and a frame's."""
 
     def parse_poses(
         self,
@@ -143,7 +150,18 @@ class MethodContext(Protocol):
         units: Units | None,
         *,
         loc: Sequence[str | int],
-    ) -> tuple[FloatArray, FloatArray]: ...
+    ) -> tuple[FloatArray, FloatArray]:
+        """Poses -> flange rotations (N, 3, 3), positions (N, 3) mm."""
+        ...
+
+
+class MethodContext(ReadsPoses, Protocol):
+    """Lookups a method may need; the stateless context refuses those that need storage."""
+
+    @property
+    def tolerance(self) -> Tolerance: ...
+
+    def active_frame(self) -> ActiveFrame | None: ...
 
     def reference_point(self, reference_point_id: str) -> StoredPoint: ...
 
@@ -168,21 +186,12 @@ class Solved:
 
 
 # ---- the registry entry ---------------------------------------------------------------------
-R = TypeVar("R", bound=MethodRequest)
+class RegistryEntry:
+    """What a registry entry reads off its request model (`method: Literal[name]`, `options`)
+    and its example body: shared by the tools' methods and the frames' (app.methods.frame)."""
 
-
-@dataclass(frozen=True)
-class Method(Generic[R]):
-    """One calibration method: its request schema, its runner and what /v1/methods says."""
-
-    request: type[R]
-    run: Callable[[R, MethodContext], Solved]
-    description: str
-    #: a body that solves, but its `method` (the name, added by `example`)
+    request: type[BaseModel]
     example_body: JsonObject
-    #: False for a TCP entered by hand: nothing was touched, so its summary says so and the
-    #: drift trend leaves it out
-    measured: bool = True
 
     @property
     def name(self) -> str:
@@ -196,22 +205,34 @@ class Method(Generic[R]):
         return {"method": self.name, **self.example_body}
 
     @property
-    def pose_count(self) -> PoseCount:
-        """How many poses the request's schema accepts (min 0 where poses are optional)."""
-        field = self.request.model_fields["poses"]
-        metadata = list(field.metadata)
-        for member in typing.get_args(field.annotation):  # `Annotated[...] | None`
-            metadata += getattr(member, "__metadata__", ())
-        count = next((m for m in metadata if isinstance(m, PoseCount)), PoseCount(0))
-        return count if field.is_required() else PoseCount(0, count.max, count.hint)
-
-    @property
     def options(self) -> type[BaseModel] | None:
         """The model of `options`, when the method has options."""
         annotation = self.request.model_fields["options"].annotation
         if isinstance(annotation, type) and issubclass(annotation, BaseModel):
             return annotation
         return None
+
+
+R = TypeVar("R", bound=MethodRequest)
+
+
+@dataclass(frozen=True)
+class Method(RegistryEntry, Generic[R]):
+    """One calibration method: its request schema, its runner and what /v1/methods says."""
+
+    request: type[R]
+    run: Callable[[R, MethodContext], Solved]
+    description: str
+    #: a body that solves, but its `method` (the name, added by `example`)
+    example_body: JsonObject
+    #: False for a TCP entered by hand: nothing was touched, so its summary says so and the
+    #: drift trend leaves it out
+    measured: bool = True
+
+    @property
+    def pose_count(self) -> PoseCount:
+        """How many poses the request's schema accepts (min 0 where poses are optional)."""
+        return declared_count(self.request, "poses")
 
     def solve(self, request: MethodRequest, ctx: MethodContext) -> Solved:
         """Run this method on a request validated by its schema."""
@@ -220,14 +241,11 @@ class Method(Generic[R]):
         return self.run(request, ctx)
 
 
-class RegisteredMethod(Protocol):
-    """A registry entry seen from outside: any Method, whatever its own request model."""
+class Listed(Protocol):
+    """What /v1/methods says of any registry entry, a tool's method or a frame's."""
 
     @property
     def name(self) -> str: ...
-
-    @property
-    def request(self) -> type[MethodRequest]: ...
 
     @property
     def description(self) -> str: ...
@@ -239,12 +257,29 @@ class RegisteredMethod(Protocol):
     def measured(self) -> bool: ...
 
     @property
-    def pose_count(self) -> PoseCount: ...
-
-    @property
     def options(self) -> type[BaseModel] | None: ...
 
+
+class RegisteredMethod(Listed, Protocol):
+    """A registry entry seen from outside: any Method, whatever its own request model."""
+
+    @property
+    def request(self) -> type[MethodRequest]: ...
+
+    @property
+    def pose_count(self) -> PoseCount: ...
+
     def solve(self, request: MethodRequest, ctx: MethodContext) -> Solved: ...
+
+
+def declared_count(request: type[BaseModel], field_name: str) -> PoseCount:
+    """The PoseCount a request declares on a list field (min 0 where the list is optional)."""
+    field = request.model_fields[field_name]
+    metadata = list(field.metadata)
+    for member in typing.get_args(field.annotation):  # `Annotated[...] | None`
+        metadata += getattr(member, "__metadata__", ())
+    count = next((m for m in metadata if isinstance(m, PoseCount)), PoseCount(0))
+    return count if field.is_required() else PoseCount(0, count.max, count.hint, count.noun)
 
 
 # ---- small helpers the methods share ---------------------------------------------------------

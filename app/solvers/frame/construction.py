@@ -167,8 +167,16 @@ def ordered_points(
     return np.array([points[seen[r]] for r in construction.roles], dtype=np.float64)
 
 
-def check_geometry(construction: Construction, p: FloatArray) -> None:
-    """Refuse coincident or collinear role points, naming the touch to move."""
+def _touch_loc(touch_of: Mapping[str, int] | None, role: str) -> tuple[str | int, ...]:
+    """The loc of the touch with `role` (its index in the body), or of the touches."""
+    return ("touches",) if touch_of is None else ("touches", touch_of[role])
+
+
+def check_geometry(
+    construction: Construction, p: FloatArray, touch_of: Mapping[str, int] | None = None
+) -> None:
+    """Refuse coincident or collinear role points, naming the touch to move (its loc when
+    `touch_of` gives each role's touch index)."""
     by_role = dict(zip(construction.roles, p, strict=True))
     start, x, plane = (
         by_role[construction.axis_from],
@@ -182,7 +190,7 @@ def check_geometry(construction: Construction, p: FloatArray) -> None:
             f"the {construction.x_role!r} touch is {length:.3f} mm from the "
             f"{construction.axis_from!r} touch: they are one point and give no X axis; touch "
             f"{construction.words[construction.x_role]} well away from it",
-            loc=("touches",),
+            loc=_touch_loc(touch_of, construction.x_role),
         )
     ex = (x - start) / length
     off_axis = float(np.linalg.norm(np.cross(ex, plane - start)))
@@ -192,7 +200,7 @@ def check_geometry(construction: Construction, p: FloatArray) -> None:
             f"the {construction.plane_role!r} touch is {off_axis:.3f} mm from the X axis: the "
             f"three points are on one line and give no plane; touch "
             f"{construction.words[construction.plane_role]}, away from the X axis",
-            loc=("touches",),
+            loc=_touch_loc(touch_of, construction.plane_role),
         )
 
 
@@ -219,7 +227,11 @@ def _small_angle(R0: FloatArray, R1: FloatArray) -> FloatArray:
 
 
 def check_angle_sigma(
-    construction: Construction, p: FloatArray, angle_sigma_deg: FloatArray, limit_deg: float
+    construction: Construction,
+    p: FloatArray,
+    angle_sigma_deg: FloatArray,
+    limit_deg: float,
+    touch_of: Mapping[str, int] | None = None,
 ) -> None:
     """Refuse a set whose predicted angle 1-sigma exceeds `limit_deg`, saying how far the
     touch that sets it must be. The error scales as 1/distance (METHODS.md 7)."""
@@ -238,7 +250,7 @@ def check_angle_sigma(
             f"{construction.x_role!r} touch is {length:.1f} mm from the {construction.axis_from!r} "
             f"touch; touch {construction.words[construction.x_role]} at least "
             f"{math.ceil(need)} mm from it",
-            loc=("touches",),
+            loc=_touch_loc(touch_of, construction.x_role),
             context={"angle_sigma_deg": x_sigma, "distance_mm": length, "needed_mm": need},
         )
     if about_x > limit_deg:
@@ -249,7 +261,7 @@ def check_angle_sigma(
             f"{limit_deg:g}): the {construction.plane_role!r} touch is {off_axis:.1f} mm from the "
             f"X axis; touch {construction.words[construction.plane_role]} at least "
             f"{math.ceil(need)} mm from the X axis",
-            loc=("touches",),
+            loc=_touch_loc(touch_of, construction.plane_role),
             context={"angle_sigma_deg": about_x, "distance_mm": off_axis, "needed_mm": need},
         )
 
@@ -267,7 +279,8 @@ def construct(
     touch order, their (3N, 3N) covariance in the same order."""
     p = ordered_points(construction, roles, points_mm)
     order = [list(roles).index(r) for r in construction.roles]
-    check_geometry(construction, p)
+    touch_of = dict(zip(construction.roles, order, strict=True))
+    check_geometry(construction, p, touch_of)
     R, origin = construction.build(p)
     index = np.array([[3 * i + a for a in range(3)] for i in order]).ravel()
     C = point_covariance_mm2[np.ix_(index, index)]
@@ -275,7 +288,7 @@ def construct(
     cov = J @ C @ J.T
     cov = 0.5 * (cov + cov.T)
     sigma_deg = np.degrees(np.sqrt(np.clip(np.diag(cov)[3:], 0.0, None)))
-    check_angle_sigma(construction, p, sigma_deg, max_angle_sigma_deg)
+    check_angle_sigma(construction, p, sigma_deg, max_angle_sigma_deg, touch_of)
     nominal = (points_mm - origin) @ R
     return FrameEstimate(
         rotation=R,
