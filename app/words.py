@@ -130,10 +130,12 @@ FrameKind = Literal["base", "fixed_tool"]
 #: tools' `Manual`, one word for numbers entered by hand): its request's `method` names it.
 ThreePoint = Literal["three_point"]
 FourPoint = Literal["four_point"]
+FitPoints = Literal["fit_points"]
+FixedNpoint = Literal["fixed_npoint"]
 #: A frame calibration method (a frame calibration's `method`), the frame registry's names
 #: in its order (app.methods.frame.FRAME_METHOD_NAMES; tests/test_one_definition.py holds
 #: the two equal).
-FrameMethodName = Literal[ThreePoint, FourPoint, Manual]
+FrameMethodName = Literal[ThreePoint, FourPoint, FitPoints, FixedNpoint, Manual]
 
 #: The roles of frame touches, as app.solvers.frame.construction names them (each
 #: construction's `roles`; tests/methods/frame holds the two equal): origin, +X and the XY

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from functools import partial
+from typing import Any
 
 import numpy as np
 import pytest
@@ -283,7 +284,7 @@ def test_the_worst_point_over_the_extent_grows_with_the_distance() -> None:
 # ---------------------------------------------------------------------------------------
 
 
-def _refusal(roles: list[str], points: list[list[float]], **kw: float) -> InvalidInput:
+def _refusal(roles: list[str], points: list[list[float]], **kw: Any) -> InvalidInput:
     n = len(points)
     with pytest.raises(InvalidInput) as caught:
         construct(

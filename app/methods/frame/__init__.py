@@ -11,13 +11,15 @@ from typing import TYPE_CHECKING, Annotated, Union
 
 from pydantic import Field, TypeAdapter
 
-from app.methods.frame import four_point, manual, three_point
+from app.methods.frame import fit_points, fixed_npoint, four_point, manual, three_point
 from app.methods.frame.base import FrameMethodRequest, RegisteredFrameMethod
 
 #: Every frame calibration method this server runs, in the order /v1/methods lists them.
 FRAME_METHODS: tuple[RegisteredFrameMethod, ...] = (
     three_point.THREE_POINT_FRAME,
     four_point.FOUR_POINT_FRAME,
+    fit_points.FIT_POINTS_FRAME,
+    fixed_npoint.FIXED_NPOINT_FRAME,
     manual.MANUAL_FRAME,
 )
 FRAME_METHODS_BY_NAME: dict[str, RegisteredFrameMethod] = {m.name: m for m in FRAME_METHODS}

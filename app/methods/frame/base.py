@@ -145,14 +145,12 @@ def touched_with(request: TouchedFrameRequest, ctx: FrameContext) -> PointerTcp:
 
 
 def parse_touches(
-    ctx: FrameContext, request: TouchedFrameRequest, touches: Sequence[FrameTouch]
+    ctx: FrameContext, fmt: PoseFormat, units: Units | None, touches: Sequence[FrameTouch]
 ) -> tuple[FloatArray, FloatArray]:
     """The touches' flange poses: rotations (N, 3, 3), positions (N, 3) mm. A pose that cannot
     be read is refused at its own loc ("touches", i, "pose")."""
     try:
-        return ctx.parse_poses(
-            request.format, [t.pose for t in touches], request.units, loc=("touches",)
-        )
+        return ctx.parse_poses(fmt, [t.pose for t in touches], units, loc=("touches",))
     except InvalidInput as exc:
         loc = tuple(exc.loc)
         if len(loc) >= 2 and loc[0] == "touches" and isinstance(loc[1], int):

@@ -84,7 +84,7 @@ def solve_roles(
     constructed; `what` says which construction in the summary."""
     pointer = touched_with(request, ctx)
     noise = configured_noise(request.options.touch_noise_mm, ctx, request.method)
-    rotations, positions = parse_touches(ctx, request, request.touches)
+    rotations, positions = parse_touches(ctx, request.format, request.units, request.touches)
     roles = [t.role for t in request.touches]
     estimate = construct_frame(
         construction,

@@ -136,12 +136,18 @@ FOUR_POINT: Final = Construction(
 
 
 def ordered_points(
-    construction: Construction, roles: Sequence[str], points: FloatArray
+    construction: Construction,
+    roles: Sequence[str],
+    points: FloatArray,
+    touch_index: Sequence[int] | None = None,
 ) -> FloatArray:
     """The touches' points (N, 3) put in the construction's role order; refuses a role
-    missing, repeated or unknown, naming the touch (loc ("touches", i, "role"))."""
+    missing, repeated or unknown, naming the touch (loc ("touches", i, "role"), i the
+    touch's index in the body: `touch_index[k]` for the k-th role given, else k)."""
     seen: dict[str, int] = {}
-    for i, role in enumerate(roles):
+    index = list(range(len(roles))) if touch_index is None else list(touch_index)
+    for k, role in enumerate(roles):
+        i = index[k]
         if role not in construction.roles:
             raise InvalidInput(
                 "missing-role",
@@ -164,7 +170,8 @@ def ordered_points(
             f"no touch has role {missing[0]!r} ({construction.words[missing[0]]}): add it",
             loc=("touches",),
         )
-    return np.array([points[seen[r]] for r in construction.roles], dtype=np.float64)
+    where = {r: index.index(i) for r, i in seen.items()}
+    return np.array([points[where[r]] for r in construction.roles], dtype=np.float64)
 
 
 def _touch_loc(touch_of: Mapping[str, int] | None, role: str) -> tuple[str | int, ...]:
@@ -274,12 +281,15 @@ def construct(
     *,
     touch_noise_mm: float,
     max_angle_sigma_deg: float = MAX_ANGLE_SIGMA_DEG,
+    touch_index: Sequence[int] | None = None,
 ) -> FrameEstimate:
     """The frame of a construction from role touches: points (N, 3) mm in the base frame in
-    touch order, their (3N, 3N) covariance in the same order."""
-    p = ordered_points(construction, roles, points_mm)
+    touch order, their (3N, 3N) covariance in the same order; `touch_index` the body index
+    of each touch, for the refusals' loc (default: 0..N-1)."""
+    p = ordered_points(construction, roles, points_mm, touch_index)
     order = [list(roles).index(r) for r in construction.roles]
-    touch_of = dict(zip(construction.roles, order, strict=True))
+    body = list(range(len(roles))) if touch_index is None else list(touch_index)
+    touch_of = {role: body[k] for role, k in zip(construction.roles, order, strict=True)}
     check_geometry(construction, p, touch_of)
     R, origin = construction.build(p)
     index = np.array([[3 * i + a for a in range(3)] for i in order]).ravel()

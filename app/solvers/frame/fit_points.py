@@ -208,9 +208,10 @@ def fit_points(
     if touch_noise_mm is None and t.nominal.shape[0] * 3 - 6 <= 0:
         raise InvalidInput(
             "invalid-options",
-            "three touches leave no residual to estimate the touch noise from: set the frame's "
-            "tolerance.touch_noise_mm, or add a fourth touch",
-            loc=("tolerance", "touch_noise_mm"),
+            "three touches leave no residual to estimate the touch noise from: give "
+            "options.touch_noise_mm, set the frame's tolerance.touch_noise_mm, or add a fourth "
+            "touch",
+            loc=("options", "touch_noise_mm"),
         )
     limit = misfit_limit(touch_noise_mm)
     if _rigid_rms(t.nominal, t.points) > limit:  # a unit or order mix-up misfits every touch

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from app.errors import InvalidInput
-from app.solvers.frame import FOUR_POINT, THREE_POINT, interval_scale
+from app.solvers.frame import FOUR_POINT, THREE_POINT
 from app.words import OriginXXy, UserMethodRole
 from testbed.sim.cell_frames import touch_frame
-from tests.methods.frame.bodies import angle_deg, context, role_body, solve
+from tests.methods.frame.bodies import angle_deg, context, coverage, refused, role_body, solve
 from tests.solvers.test_frame import FOUR_NOMINAL, ROLE_NOMINAL
 
 #: (method, convention, the roles' points in the frame) of every role construction.
@@ -78,28 +78,15 @@ def test_touches_in_any_order_give_the_same_frame() -> None:
 
 
 def test_the_reported_sigma_covers_the_truth() -> None:
-    """0.05 mm touches and a pointer TCP off by 0.02 mm (1-sigma, common to every touch):
-    each coordinate of the origin and each small angle within its 95 % interval 93-97 % of
-    the time over 400 sets."""
-    rng = np.random.default_rng(4747)
-    k = interval_scale(None, 1)
-    inside, total = 0, 0
-    for _ in range(400):
-        touches = touch_frame(
-            rng, np.array(ROLE_NOMINAL["origin_x_xy"]), touch_noise_mm=0.05, tcp_sigma_mm=0.02
-        )
-        solved = solve(_body("three_point", "origin_x_xy", touches), context(touches, 0.02))
-        assert solved.quality.interval95_scale == pytest.approx(k)
-        sigma = np.array(solved.quality.position_sigma_mm)
-        inside += int(np.sum(np.abs(solved.position_mm - touches.frame_origin_mm) <= k * sigma))
-        total += 3
-    assert 0.93 <= inside / total <= 0.97
+    """0.05 mm touches and a pointer TCP off by 0.02 mm (common to every touch): each origin
+    coordinate and small angle within its 95 % interval 93-97 % of the time (400 sets)."""
+    nominal = np.array(ROLE_NOMINAL["origin_x_xy"])
+    share = coverage(4747, nominal, lambda t: _body("three_point", "origin_x_xy", t))
+    assert 0.93 <= share <= 0.97
 
 
 def _refused(body, touches) -> InvalidInput:  # type: ignore[no-untyped-def]
-    with pytest.raises(InvalidInput) as caught:
-        solve(body, context(touches))
-    return caught.value
+    return refused(body, context(touches))
 
 
 def test_a_repeated_role_names_the_touch() -> None:
