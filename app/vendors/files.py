@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
+from typing import Any, Protocol, TypeVar
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
@@ -83,20 +84,44 @@ class ParsedTool:
     cog_mm: FloatArray | None = field(default=None)
 
 
+class _Named(Protocol):
+    """What a header says of a held item's data: its name and number (a ToolData, a
+    FrameData)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def slot(self) -> int | None: ...
+
+
+class Held(Protocol):
+    """An item a file holds: its data (named, numbered) and its provenance (a FileTool, a
+    FileFrame)."""
+
+    @property
+    def data(self) -> _Named: ...
+    @property
+    def provenance(self) -> Provenance | None: ...
+
+
+HeldT = TypeVar("HeldT", bound=Held)
+
+
 def as_utc(moment: datetime) -> datetime:
     """`moment` in UTC (a naive time is taken to be UTC, as the database stores it)."""
     return moment.replace(tzinfo=UTC) if moment.tzinfo is None else moment.astimezone(UTC)
 
 
-def header_lines(tools: Sequence[FileTool], context: FileContext) -> list[str]:
-    """The header's sentences, plain ASCII (each format adds its comment syntax and wraps)."""
+def header_lines(tools: Sequence[Held], context: FileContext, noun: str = "tool") -> list[str]:
+    """The header's sentences, plain ASCII (each format adds its comment syntax and wraps);
+    `noun` names what the file holds ("tool", "frame")."""
     if context.table:
         subject = f"robot {ascii_text(context.robot or '?', HEADER_NAME_CHARS) or '?'}"
-        lines = [f"tcpcal tool table of {subject}: {len(tools)} tool(s)"]
+        lines = [f"tcpcal {noun} table of {subject}: {len(tools)} {noun}(s)"]
     else:
-        lines = ["tcpcal tool data"]
+        lines = [f"tcpcal {noun} data"]
     for item in tools:
-        lines.extend(_tool_lines(item))
+        lines.extend(_held_lines(item, noun))
     if context.without_version:
         names = ", ".join(ascii_text(n, HEADER_NAME_CHARS) or "?" for n in context.without_version)
         lines.append(f"not in this file, no active version yet: {names}")
@@ -105,16 +130,16 @@ def header_lines(tools: Sequence[FileTool], context: FileContext) -> list[str]:
     return lines
 
 
-def _tool_lines(item: FileTool) -> list[str]:
+def _held_lines(item: Held, noun: str) -> list[str]:
     tool, origin = item.data, item.provenance
     name = ascii_text(tool.name, HEADER_NAME_CHARS) or "(name not ASCII)"
-    slot = f" (tool {tool.slot})" if tool.slot is not None else ""
+    slot = f" ({noun} {tool.slot})" if tool.slot is not None else ""
     if origin is None:
-        return [f"tool {name}{slot}"]
+        return [f"{noun} {name}{slot}"]
     when = as_utc(origin.calibrated_at).strftime("%Y-%m-%d %H:%M UTC")
     who = ascii_text(origin.calibrated_by or "?", HEADER_NAME_CHARS) or "?"
     lines = [
-        f"tool {name}{slot} version {origin.version}",
+        f"{noun} {name}{slot} version {origin.version}",
         f"calibrated {when} by {who} ({origin.method})",
     ]
     if origin.url:
@@ -131,17 +156,18 @@ def left_out_lines(left_out: Sequence[LeftOut]) -> list[str]:
 
 
 def header_comments(
-    tools: Sequence[FileTool],
+    tools: Sequence[Held],
     left_out: Sequence[LeftOut],
     context: FileContext,
     how: Sequence[str],
     mark: str,
     width: int,
+    noun: str = "tool",
 ) -> list[str]:
     """A file's header as comment lines of at most `width` characters, each starting with
     the format's comment `mark` ("; ", "# ", "  ! "): `header_lines`, `left_out_lines`, then
     the format's own sentences on what the file changes (`how`)."""
-    sentences = [*header_lines(tools, context), *left_out_lines(left_out), *how]
+    sentences = [*header_lines(tools, context, noun), *left_out_lines(left_out), *how]
     return [f"{mark}{piece}" for s in sentences for piece in wrap(s, width - len(mark))]
 
 
@@ -160,14 +186,14 @@ def wrap(line: str, width: int) -> list[str]:
 
 
 def split_fitting(
-    tools: Sequence[FileTool], check: Callable[[ToolData], object], context: FileContext
-) -> tuple[list[FileTool], list[LeftOut]]:
-    """(the tools `check` accepts, the others with the reason it gave). A single tool the
-    format cannot hold, outside a robot's table, is refused with that reason (a 422 naming the
-    field to set)."""
-    kept: list[FileTool] = []
+    tools: Sequence[HeldT], check: Callable[[Any], object], context: FileContext
+) -> tuple[list[HeldT], list[LeftOut]]:
+    """(the items `check` accepts, the others with the reason it gave): `check` takes an
+    item's data (a ToolData, a FrameData). A single item the format cannot hold, outside a
+    robot's table, is refused with that reason (a 422 naming the field to set)."""
+    kept: list[HeldT] = []
     left: list[LeftOut] = []
-    left_tools: list[ToolData] = []
+    left_tools: list[_Named] = []
     for item in tools:
         try:
             check(item.data)

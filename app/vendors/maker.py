@@ -17,6 +17,7 @@ from typing import Literal, Protocol
 from app.arrays import FloatArray
 from app.vendors.connector import Connector, ControllerSettings, ToolTarget
 from app.vendors.files import ControllerFile, FileContext, FileTool, ParsedTool
+from app.vendors.frame import FileFrame, FrameData, ParsedFrame
 from app.vendors.text import ControllerExport
 from app.vendors.tool import ToolData
 from app.words import DeploymentScope, PoseFormat
@@ -43,6 +44,27 @@ class FileModule(Protocol):
 
     def read(self, text: str) -> list[ParsedTool]:
         """Every tool of such a file (as `write` writes it, or the controller saves it)."""
+        ...
+
+
+class FrameModule(Protocol):
+    """A maker's ``frame`` module: a frame (a base, a fixed tool) as its text and as the file
+    its controller loads, and their readers."""
+
+    def export(self, frame: FrameData) -> ControllerExport:
+        """The frame as the maker's text."""
+        ...
+
+    def parse(self, text: str) -> tuple[FloatArray, FloatArray]:
+        """The text -> (position (3,) mm, quaternion w, x, y, z (4,))."""
+        ...
+
+    def write(self, frames: list[FileFrame], context: FileContext) -> ControllerFile:
+        """The file for one frame, or (context.table) for a robot's frames."""
+        ...
+
+    def read(self, text: str) -> list[ParsedFrame]:
+        """Every frame of such a file (as `write` writes it, or the controller saves it)."""
         ...
 
 
@@ -196,5 +218,7 @@ class Maker:
     tool_numbers: tuple[int, int] | None
     text: Callable[[], TextModule]
     file: Callable[[], FileModule]
+    #: its frame module: a frame's text and file (contract v1.4 "Frame touches and methods")
+    frame: Callable[[], FrameModule]
     protocols: tuple[WireProtocol, ...] = ()
     vendor_initials: tuple[str, ...] = ()

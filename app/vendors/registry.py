@@ -3,7 +3,8 @@
 Each maker is one package under app/vendors/ declaring its `Maker` (app.vendors.maker): its
 format and text, its file, its tool numbers, the protocols its connectors speak. This module
 lists them and answers by format (`export_tool`, `parse_controller_text`, `controller_file`,
-`parse_controller_file`), by robot vendor (`vendor_formats`, `vendor_protocols`) and by
+`parse_controller_file`, and a frame's `export_frame`, `parse_frame_text`, `frame_file`,
+`parse_frame_file`), by robot vendor (`vendor_formats`, `vendor_protocols`) and by
 protocol (`connect`, `has_connector`, `pose_format_of`, `target_problem`, `describe_target`,
 `where`, `DEFAULT_PORTS`, `SERVICE_PORTS`, `SLOT_RANGES`, `TARGET_FIELD`).
 
@@ -42,6 +43,7 @@ from app.errors import InvalidInput
 from app.vendors import abb, fanuc, kuka, techman, ur, yaskawa
 from app.vendors.connector import Connector, ControllerSettings, ToolTarget
 from app.vendors.files import ControllerFile, FileContext, FileTool, ParsedTool
+from app.vendors.frame import FileFrame, FrameData, ParsedFrame
 from app.vendors.maker import BySlot, Maker, WireProtocol
 from app.vendors.text import ControllerExport
 from app.vendors.tool import ToolData
@@ -222,6 +224,33 @@ def parse_controller_file(fmt: str, text: str) -> list[ParsedTool]:
     if not isinstance(text, str):
         raise InvalidInput("invalid-pose", "controller file must be text", loc=("text",))
     return _maker(fmt).file().read(text)
+
+
+def export_frame(fmt: str, frame: FrameData) -> ControllerExport:
+    """The frame (a base, a fixed tool) as controller `fmt`'s text."""
+    return _maker(fmt).frame().export(frame)
+
+
+def parse_frame_text(fmt: str, text: str) -> tuple[FloatArray, FloatArray]:
+    """Read controller `fmt`'s frame text -> (position (3,) mm, quaternion [w, x, y, z])."""
+    if not isinstance(text, str):
+        raise InvalidInput("invalid-pose", "controller text must be a string", loc=("text",))
+    return _maker(fmt).frame().parse(text)
+
+
+def frame_file(
+    fmt: str, frames: Sequence[FileFrame], context: FileContext | None = None
+) -> ControllerFile:
+    """The file controller `fmt` loads for one frame, or (context.table) a robot's frames."""
+    return _maker(fmt).frame().write(list(frames), context or FileContext())
+
+
+def parse_frame_file(fmt: str, text: str) -> list[ParsedFrame]:
+    """Every frame of a controller `fmt` frame file, as `frame_file` writes it (or the
+    controller saves it)."""
+    if not isinstance(text, str):
+        raise InvalidInput("invalid-pose", "controller file must be text", loc=("text",))
+    return _maker(fmt).frame().read(text)
 
 
 def vendor_formats(vendor: str | None) -> tuple[str, ...]:

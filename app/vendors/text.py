@@ -23,7 +23,7 @@ from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.jsontypes import JsonObject
 from app.solvers.validation import check_positions_mm, normalised_quaternions
-from app.vendors.tool import ToolData
+from app.vendors.tool import Posed
 
 MM_DECIMALS = 6
 DEG_DECIMALS = 7
@@ -42,8 +42,9 @@ class ControllerExport:
     values: JsonObject
 
 
-def checked_tcp(tool: ToolData) -> tuple[FloatArray, FloatArray]:
-    """The tool's (position (3,) mm, unit quaternion wxyz (4,)), checked like any pose."""
+def checked_tcp(tool: Posed) -> tuple[FloatArray, FloatArray]:
+    """The tool's (or frame's) (position (3,) mm, unit quaternion wxyz (4,)), checked like
+    any pose."""
     try:
         position = check_positions_mm(np.asarray([tool.position_mm]), loc=("tcp",))[0]
     except InvalidInput as err:

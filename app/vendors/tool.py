@@ -12,9 +12,20 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Protocol
 
 Vec3 = tuple[float, float, float]
 Vec4 = tuple[float, float, float, float]
+
+
+class Posed(Protocol):
+    """What carries a pose a controller's text prints: a position (mm) and a unit quaternion
+    w, x, y, z (a ToolData's TCP, a FrameData's frame)."""
+
+    @property
+    def position_mm(self) -> Vec3: ...
+    @property
+    def quaternion(self) -> Vec4: ...
 
 
 def vec3(values: Iterable[float]) -> Vec3:

@@ -31,14 +31,15 @@ from app.vendors.text import (
     parse_error,
     rounded,
 )
-from app.vendors.tool import ToolData
+from app.vendors.tool import Posed, ToolData
 
 #: Printed places of X, Y, Z (mm) and the three angles (deg).
 DECIMALS = (MM_DECIMALS,) * 3 + (DEG_DECIMALS,) * 3
 
 
-def xyz_wpr(tool: ToolData) -> FloatArray:
-    """The tool's X, Y, Z (mm) and the three fixed-axis angles (deg), checked like any pose."""
+def xyz_wpr(tool: Posed) -> FloatArray:
+    """The tool's (or frame's) X, Y, Z (mm) and the three fixed-axis angles (deg), checked
+    like any pose."""
     position, quaternion = checked_tcp(tool)
     wpr = fanuc_wpr_from_matrix(matrix_from_quaternion_wxyz(quaternion))
     numbers: FloatArray = np.concatenate([position, wpr])

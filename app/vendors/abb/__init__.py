@@ -4,6 +4,7 @@
 |---|---|
 | text.py | RAPID ``tooldata`` values (read and written once) and ``PERS tooldata name:=[...];`` |
 | file.py | a RAPID module that assigns each tool's tooldata |
+| frame.py | a frame (base, fixed tool) as text and as the file its controller loads |
 | symbol.py | "TASK/MODULE/SYMBOL", where a tool's tooldata lives (its ``controller_symbol``) |
 | rws.py | the connector: Robot Web Services 1.0 (RobotWare 6) and 2.0 (RobotWare 7) |
 
@@ -13,7 +14,15 @@ No tool numbers: a tooldata is a named RAPID variable.
 from __future__ import annotations
 
 from app.vendors.abb.symbol import symbol_problem
-from app.vendors.maker import BySymbol, FileModule, Maker, OpenSession, TextModule, WireProtocol
+from app.vendors.maker import (
+    BySymbol,
+    FileModule,
+    FrameModule,
+    Maker,
+    OpenSession,
+    TextModule,
+    WireProtocol,
+)
 
 
 def _text() -> TextModule:
@@ -26,6 +35,12 @@ def _file() -> FileModule:
     from app.vendors.abb import file
 
     return file
+
+
+def _frame() -> FrameModule:
+    from app.vendors.abb import frame
+
+    return frame
 
 
 def _rws() -> OpenSession:
@@ -53,5 +68,6 @@ MAKER = Maker(
     tool_numbers=None,
     text=_text,
     file=_file,
+    frame=_frame,
     protocols=(RWS1, RWS2),
 )

@@ -23,7 +23,7 @@ import math
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import TypeAlias
+from typing import Protocol, TypeAlias
 
 import numpy as np
 
@@ -97,9 +97,14 @@ def parse_tooldata(text: str) -> RapidTool:
     return tooldata_of(parse_value(text), text)
 
 
+def value_at(text: str, start: int) -> RapidValue:
+    """The RAPID value that starts at ``text[start]``, whatever follows it."""
+    return _Parser(text, start).value()
+
+
 def tooldata_at(text: str, start: int) -> RapidTool:
     """The tooldata aggregate that starts at ``text[start]`` (a "["), whatever follows it."""
-    return tooldata_of(_Parser(text, start).value(), text)
+    return tooldata_of(value_at(text, start), text)
 
 
 def tooldata_of(value: RapidValue, text: str) -> RapidTool:
@@ -209,9 +214,19 @@ def rapid_identifier(name: str) -> str:
     return identifier(name, MAX_IDENTIFIER, fallback="t", reserved=_RESERVED)
 
 
-def rapid_name(tool: ToolData) -> str:
-    """The tooldata's data name: SYMBOL of the tool's controller_symbol "TASK/MODULE/SYMBOL"
-    (the persistent the robot's programs move by), else the tool's name made an identifier."""
+class Symbolled(Protocol):
+    """What a RAPID data name is made from: a name and a controller symbol (a ToolData, a
+    FrameData)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def controller_symbol(self) -> str | None: ...
+
+
+def rapid_name(tool: Symbolled) -> str:
+    """The data's name: SYMBOL of the controller_symbol "TASK/MODULE/SYMBOL" (the persistent
+    the robot's programs move by), else the tool's (frame's) name made an identifier."""
     if tool.controller_symbol:
         return rapid_identifier(tool.controller_symbol.rsplit("/", 1)[-1])
     return rapid_identifier(tool.name)

@@ -4,6 +4,7 @@
 |---|---|
 | text.py | ``UTOOL[n]: X .. W .. P .. R ..`` and its reader (also a TP program's PR form) |
 | file.py | an ASCII TP program (.LS) that sets each tool frame when run |
+| frame.py | a frame (base, fixed tool) as text and as the file its controller loads |
 | rmi.py | the connector: Remote Motion Interface (B-84184EN), TCP 16001 |
 
 Tool numbers: ``UTOOL[1..10]`` (R-30iB default; the count is a system setting). X Y Z W P R
@@ -12,7 +13,15 @@ are app.vendors.wpr's fixed-axis convention.
 
 from __future__ import annotations
 
-from app.vendors.maker import BySlot, FileModule, Maker, OpenSession, TextModule, WireProtocol
+from app.vendors.maker import (
+    BySlot,
+    FileModule,
+    FrameModule,
+    Maker,
+    OpenSession,
+    TextModule,
+    WireProtocol,
+)
 
 #: (first, last) tool number: UTOOL[1..10].
 TOOL_NUMBERS = (1, 10)
@@ -28,6 +37,12 @@ def _file() -> FileModule:
     from app.vendors.fanuc import file
 
     return file
+
+
+def _frame() -> FrameModule:
+    from app.vendors.fanuc import frame
+
+    return frame
 
 
 def _rmi() -> OpenSession:
@@ -48,5 +63,6 @@ MAKER = Maker(
     tool_numbers=TOOL_NUMBERS,
     text=_text,
     file=_file,
+    frame=_frame,
     protocols=(RMI,),
 )

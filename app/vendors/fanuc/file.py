@@ -29,8 +29,10 @@ from __future__ import annotations
 import re
 from datetime import datetime
 
+from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.vendors.fanuc import TOOL_NUMBERS
+from app.vendors.fanuc.text import FROM_PR
 from app.vendors.files import (
     ControllerFile,
     FileContext,
@@ -67,8 +69,9 @@ _ATTR_TAIL = (
     "CONTROL_CODE\t= 00000000 00000000;",
 )
 _PR_ELEMENT = re.compile(rf"PR\[\s*(\d+)\s*,\s*([1-6])\s*\]\s*=\s*\(?\s*({NUMBER})\s*\)?")
-_UTOOL = re.compile(r"UTOOL\[\s*(\d+)\s*\]\s*=\s*PR\[\s*(\d+)\s*(?::[^\]]*)?\]")
-_REMARK_NAME = re.compile(r"!\s*UTOOL\[(\d+)\]\s+(.*?)\s*;\s*$")
+_REMARK_NAME = {
+    word: re.compile(rf"!\s*{word}\[(\d+)\]\s+(.*?)\s*;\s*$") for word in ("UTOOL", "UFRAME")
+}
 
 
 def check_tool(tool: ToolData) -> None:
@@ -113,16 +116,23 @@ def write(tools: list[FileTool], context: FileContext) -> ControllerFile:
     if kept:
         body.append(f"PR[{SCRATCH_PR}]=LPOS    ;")
     for item in sorted(kept, key=lambda t: t.data.slot or 0):
-        body += _frame_lines(item.data)
+        body += frame_lines("UTOOL", item.data.slot, item.data.name, xyz_wpr(item.data))
     stamps = [as_utc(t.provenance.calibrated_at) for t in kept if t.provenance is not None]
     comment = "tcpcal tools" if context.table else f"tcpcal UTOOL {kept[0].data.slot}"
+    text = ls_program(name, comment, body, max(stamps) if stamps else None)
+    return ControllerFile(FORMAT, f"{name}.LS", text, tuple(left))
+
+
+def ls_program(name: str, comment: str, body: list[str], stamp: datetime | None) -> str:
+    """The LS text of a program `name` whose /MN lines are `body`: /PROG, /ATTR (COMMENT,
+    CREATE and MODIFIED at `stamp` when given), /MN numbered, /POS, /END."""
     lines = [f"/PROG  {name}", "/ATTR", "OWNER\t\t= MNEDITOR;", f'COMMENT\t\t= "{comment}";']
-    if stamps:
-        lines += _dates(max(stamps))
+    if stamp is not None:
+        lines += _dates(stamp)
     lines += [f"LINE_COUNT\t= {len(body)};", *_ATTR_TAIL, "/MN"]
     lines += [f"{n:4d}:  {line}" for n, line in enumerate(body, start=1)]
     lines += ["/POS", "/END"]
-    return ControllerFile(FORMAT, f"{name}.LS", "\n".join(lines) + "\n", tuple(left))
+    return "\n".join(lines) + "\n"
 
 
 def _how(kept: list[FileTool]) -> list[str]:
@@ -143,30 +153,41 @@ def _dates(moment: datetime) -> list[str]:
     return [f"CREATE\t\t= {stamp};", f"MODIFIED\t= {stamp};"]
 
 
-def _frame_lines(tool: ToolData) -> list[str]:
-    numbers = xyz_wpr(tool)
-    lines = [remark(f"UTOOL[{tool.slot}] {ascii_text(tool.name, 40, drop=';')}")]
+def frame_lines(word: str, slot: int | None, name: str, numbers: FloatArray) -> list[str]:
+    """A remark naming frame `slot` of `word` (UTOOL, UFRAME), PR[100]'s six elements, and
+    ``UTOOL[n]=PR[100]``."""
+    lines = [remark(f"{word}[{slot}] {ascii_text(name, 40, drop=';')}")]
     lines += [f"PR[{SCRATCH_PR},{i}]={constant(v)} ;" for i, v in enumerate(numbers, start=1)]
-    lines.append(f"UTOOL[{tool.slot}]=PR[{SCRATCH_PR}] ;")
+    lines.append(f"{word}[{slot}]=PR[{SCRATCH_PR}] ;")
     return lines
 
 
 def read(text: str) -> list[ParsedTool]:
     """Every ``UTOOL[n]=PR[m]`` of a TP program, with the six PR[m,i] set before it."""
+    return [
+        ParsedTool(slot, name, position, quaternion)
+        for slot, name, position, quaternion in frames_of_program(text, "UTOOL")
+    ]
+
+
+def frames_of_program(text: str, word: str) -> list[tuple[int, str | None, FloatArray, FloatArray]]:
+    """(number, name, position, quaternion) of every ``UTOOL[n]=PR[m]`` (`word` UTOOL, or
+    UFRAME) of a TP program, with the six PR[m,i] set before it and the name its remark
+    gives."""
     if "/MN" not in text:
         raise parse_error(FORMAT, "a TP program (/PROG, /ATTR, /MN ... /POS, /END)", text)
     elements: dict[int, dict[int, float]] = {}
     names: dict[int, str] = {}
-    tools = []
+    found = []
     for line in text.splitlines():
-        named = _REMARK_NAME.search(line)
+        named = _REMARK_NAME[word].search(line)
         if named is not None:
             names[int(named.group(1))] = named.group(2)
             continue
         for match in _PR_ELEMENT.finditer(line):
             register = elements.setdefault(int(match.group(1)), {})
             register[int(match.group(2))] = float(match.group(3))
-        assign = _UTOOL.search(line)
+        assign = FROM_PR[word].search(line)
         if assign is None:
             continue
         register = elements.get(int(assign.group(2)), {})
@@ -174,5 +195,5 @@ def read(text: str) -> list[ParsedTool]:
             raise parse_error(FORMAT, f"PR[{assign.group(2)},1..6] set before {line.strip()}", text)
         slot = int(assign.group(1))
         position, quaternion = tcp_from_numbers([register[i] for i in range(1, 7)])
-        tools.append(ParsedTool(slot, names.get(slot), position, quaternion))
-    return tools
+        found.append((slot, names.get(slot), position, quaternion))
+    return found

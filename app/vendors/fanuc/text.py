@@ -41,24 +41,27 @@ def export(tool: ToolData) -> ControllerExport:
 # ``PR[n,1]=x ; .. PR[n,6]=r ; UTOOL[t]=PR[n] ;`` (ros-industrial-attic/robodk_postprocessors
 # Fanuc_R30iA.py ``setTool``). A negative constant may be stored in parentheses, ``(-2.5)``.
 _PR_ELEMENT = re.compile(rf"PR\[\s*(\d+)\s*,\s*([1-6])\s*\]\s*=\s*\(?\s*({NUMBER})\s*\)?")
-_UTOOL_FROM_PR = re.compile(r"UTOOL\[\s*(\d+)\s*\]\s*=\s*PR\[\s*(\d+)\s*(?::[^\]]*)?\]")
+_FROM_PR = r"\[\s*(\d+)\s*\]\s*=\s*PR\[\s*(\d+)\s*(?::[^\]]*)?\]"
+#: ``UTOOL[t]=PR[n]`` (and a user frame's ``UFRAME[u]=PR[n]``): a frame loaded from a register.
+FROM_PR = {word: re.compile(word + _FROM_PR) for word in ("UTOOL", "UFRAME")}
 
 
-def _assignment(text: str, tool: int | None) -> re.Match[str] | None:
-    """The last ``UTOOL[t]=PR[n]`` of `tool` (of the one tool the text loads when None);
-    None when the text loads no tool frame from a register. Several tool numbers and none
-    asked for, or a tool asked for that the text does not load: 422 naming those it does."""
-    assigns = list(_UTOOL_FROM_PR.finditer(text))
+def _assignment(text: str, tool: int | None, word: str) -> re.Match[str] | None:
+    """The last ``UTOOL[t]=PR[n]`` (`word` UTOOL, or UFRAME) of `tool` (of the one frame the
+    text loads when None); None when the text loads no such frame from a register. Several
+    numbers and none asked for, or one asked for that the text does not load: 422 naming
+    those it does."""
+    assigns = list(FROM_PR[word].finditer(text))
     if not assigns:
         return None
     numbers = sorted({int(a.group(1)) for a in assigns})
-    found = " and ".join(f"UTOOL[{n}]" for n in numbers)
+    found = " and ".join(f"{word}[{n}]" for n in numbers)
     if tool is None and len(numbers) > 1:
         raise InvalidInput(
             "invalid-pose",
-            f"cannot read fanuc tool data: the program loads {found} from position registers "
-            "and the text's one TCP would be one of them under no number; read it for one "
-            "tool number, or keep only that tool's lines",
+            f"cannot read fanuc {word} data: the program loads {found} from position "
+            "registers and the text's one frame would be one of them under no number; read "
+            "it for one number, or keep only that frame's lines",
             loc=("text",),
         )
     wanted = numbers[0] if tool is None else tool
@@ -66,18 +69,20 @@ def _assignment(text: str, tool: int | None) -> re.Match[str] | None:
     if not mine:
         raise InvalidInput(
             "invalid-pose",
-            f"cannot read fanuc tool data: the program loads no UTOOL[{wanted}] from a "
+            f"cannot read fanuc {word} data: the program loads no {word}[{wanted}] from a "
             f"position register, only {found}",
             loc=("text",),
         )
     return mine[-1]
 
 
-def _parse_tp(text: str, tool: int | None) -> tuple[FloatArray, FloatArray] | None:
-    """The tool frame a TP program leaves in `tool` once it has run: its last
-    ``UTOOL[t]=PR[n]``, with each element of PR[n] as last set before that line (a later
-    assignment overwrites an earlier one; an element set after it is not copied)."""
-    assign = _assignment(text, tool)
+def parse_tp(
+    text: str, tool: int | None, word: str = "UTOOL"
+) -> tuple[FloatArray, FloatArray] | None:
+    """The frame a TP program leaves in `tool` (of `word`, UTOOL or UFRAME) once it has run:
+    its last ``UTOOL[t]=PR[n]``, with each element of PR[n] as last set before that line (a
+    later assignment overwrites an earlier one; an element set after it is not copied)."""
+    assign = _assignment(text, tool, word)
     if assign is None:
         return None
     register = assign.group(2)
@@ -101,5 +106,5 @@ def parse(text: str, tool: int | None = None) -> tuple[FloatArray, FloatArray]:
     not the selected tool (``UTOOL_NUM`` selects, ``UTOOL[t]=`` only writes frame t), so
     reading it would hand back one of two frames as the text's TCP with no number to say
     which; that is a 422 naming the numbers found instead."""
-    tp = _parse_tp(text, tool)
+    tp = parse_tp(text, tool)
     return tp if tp is not None else parse_labelled(FORMAT, LABELS, text)

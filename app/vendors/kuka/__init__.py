@@ -4,6 +4,7 @@
 |---|---|
 | text.py | KRL structure values (read and written once) and ``$TOOL_DATA[n]={X,Y,Z,A,B,C}`` |
 | file.py | the tool's lines of ``$config.dat`` (TOOL_DATA, TOOL_NAME, LOAD_DATA) |
+| frame.py | a frame (base, fixed tool) as text and as the file its controller loads |
 | kvp.py | the connector: KUKAVARPROXY (OpenShowVar), TCP 7000 |
 
 Tool numbers: ``$TOOL_DATA[1..16]`` (KSS 8.x, $config.dat ``DECL FRAME TOOL_DATA[16]``).
@@ -11,7 +12,15 @@ Tool numbers: ``$TOOL_DATA[1..16]`` (KSS 8.x, $config.dat ``DECL FRAME TOOL_DATA
 
 from __future__ import annotations
 
-from app.vendors.maker import BySlot, FileModule, Maker, OpenSession, TextModule, WireProtocol
+from app.vendors.maker import (
+    BySlot,
+    FileModule,
+    FrameModule,
+    Maker,
+    OpenSession,
+    TextModule,
+    WireProtocol,
+)
 
 #: (first, last) tool number: $TOOL_DATA[1..16].
 TOOL_NUMBERS = (1, 16)
@@ -27,6 +36,12 @@ def _file() -> FileModule:
     from app.vendors.kuka import file
 
     return file
+
+
+def _frame() -> FrameModule:
+    from app.vendors.kuka import frame
+
+    return frame
 
 
 def _kvp() -> OpenSession:
@@ -46,5 +61,6 @@ MAKER = Maker(
     tool_numbers=TOOL_NUMBERS,
     text=_text,
     file=_file,
+    frame=_frame,
     protocols=(KVP,),
 )

@@ -64,6 +64,10 @@ class KrlSyntaxError(ValueError):
     """The text is not a KRL structure value."""
 
 
+class KrlNotFinite(KrlSyntaxError):
+    """A FRAME value holds a number that is not finite."""
+
+
 def parse_struct(text: str) -> KrlStruct:
     """``{FRAME: X 1.0,Y 2.0,...}`` -> {"X": 1.0, "Y": 2.0, ...}; nested structures as dicts.
 
@@ -108,6 +112,26 @@ def numbers(struct: KrlStruct, names: tuple[str, ...], *, what: str) -> tuple[fl
     return tuple(values)
 
 
+def krl_frame(position: FloatArray, quaternion: FloatArray) -> tuple[dict[str, float], str]:
+    """({X..C rounded as printed}, ``{X ..,Y ..,Z ..,A ..,B ..,C ..}``) of a pose: mm and
+    KUKA's A B C (deg), the fewest digits that keep the text's precision."""
+    abc = kuka_abc_from_matrix(matrix_from_quaternion_wxyz(quaternion))
+    decimals = (MM_DECIMALS,) * 3 + (DEG_DECIMALS,) * 3
+    members = list(zip(FRAME_MEMBERS, np.concatenate([position, abc]), decimals, strict=True))
+    values = {name: rounded(v, d) for name, v, d in members}
+    return values, format_struct({name: fmt_number(v, d) for name, v, d in members})
+
+
+def pose_of_frame(value: str) -> tuple[FloatArray, FloatArray]:
+    """A FRAME value ``{X,Y,Z,A,B,C}`` -> (position (3,) mm, quaternion wxyz (4,));
+    KrlSyntaxError when it is not one of finite numbers."""
+    frame = np.array(numbers(parse_struct(value), FRAME_MEMBERS, what="the frame"))
+    if not np.isfinite(frame).all():
+        raise KrlNotFinite(f"the frame holds a number that is not finite: {value!r}")
+    position: FloatArray = frame[:3]
+    return position, quaternion_wxyz_from_matrix(matrix_from_kuka_abc(frame[3:]))
+
+
 def export(tool: ToolData) -> ControllerExport:
     """``$TOOL_DATA[slot]={X,Y,Z (mm),A,B,C (deg)}``; InvalidInput if the slot is missing."""
     if tool.slot is None or not FIRST_SLOT <= tool.slot <= MAX_SLOT:
@@ -120,12 +144,8 @@ def export(tool: ToolData) -> ControllerExport:
             loc=("slot",),
         )
     position, quaternion = checked_tcp(tool)
-    abc = kuka_abc_from_matrix(matrix_from_quaternion_wxyz(quaternion))
-    decimals = (MM_DECIMALS,) * 3 + (DEG_DECIMALS,) * 3
-    members = list(zip(FRAME_MEMBERS, np.concatenate([position, abc]), decimals, strict=True))
-    values: dict[str, object] = {"slot": tool.slot}
-    values.update({name: rounded(v, d) for name, v, d in members})
-    frame = format_struct({name: fmt_number(v, d) for name, v, d in members})
+    members, frame = krl_frame(position, quaternion)
+    values: dict[str, object] = {"slot": tool.slot, **members}
     return ControllerExport(format=FORMAT, text=f"$TOOL_DATA[{tool.slot}]={frame}", values=values)
 
 
@@ -136,13 +156,11 @@ def parse(text: str) -> tuple[FloatArray, FloatArray]:
     try:
         if match is None:
             raise KrlSyntaxError("no $TOOL_DATA[n]= assignment")
-        frame = np.array(numbers(parse_struct(match.group(2)), FRAME_MEMBERS, what="the frame"))
+        return pose_of_frame(match.group(2))
+    except KrlNotFinite as err:
+        raise parse_error(FORMAT, "finite numbers in $TOOL_DATA[n]={X x,...,C c}", text) from err
     except KrlSyntaxError as err:
         raise parse_error(FORMAT, "$TOOL_DATA[n]={X x,Y y,Z z,A a,B b,C c}", text) from err
-    if not np.isfinite(frame).all():
-        raise parse_error(FORMAT, "finite numbers in $TOOL_DATA[n]={X x,...,C c}", text)
-    position: FloatArray = frame[:3]
-    return position, quaternion_wxyz_from_matrix(matrix_from_kuka_abc(frame[3:]))
 
 
 class _Parser(Scanner):

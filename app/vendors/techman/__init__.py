@@ -4,6 +4,7 @@
 |---|---|
 | text.py | TMscript ``ChangeTCP({X,Y,Z,RX,RY,RZ},mass)`` and its reader |
 | file.py | TMscript lines, one ChangeTCP per tool, for a Script or SET node |
+| frame.py | a frame (base, fixed tool) as text and as the file its controller loads |
 | tmflow.py | the connector: the Listen Node (ChangeTCP) and the Ethernet Slave (the data table) |
 
 No tool numbers (TCPs are named in TMflow's TCP list). X Y Z RX RY RZ are taken as
@@ -16,7 +17,15 @@ sets its own TCP).
 
 from __future__ import annotations
 
-from app.vendors.maker import FileModule, LiveTcp, Maker, OpenSession, TextModule, WireProtocol
+from app.vendors.maker import (
+    FileModule,
+    FrameModule,
+    LiveTcp,
+    Maker,
+    OpenSession,
+    TextModule,
+    WireProtocol,
+)
 
 
 def _text() -> TextModule:
@@ -29,6 +38,12 @@ def _file() -> FileModule:
     from app.vendors.techman import file
 
     return file
+
+
+def _frame() -> FrameModule:
+    from app.vendors.techman import frame
+
+    return frame
 
 
 def _tmflow() -> OpenSession:
@@ -55,5 +70,6 @@ MAKER = Maker(
     tool_numbers=None,
     text=_text,
     file=_file,
+    frame=_frame,
     protocols=(TMFLOW,),
 )

@@ -4,6 +4,7 @@
 |---|---|
 | text.py | URScript ``set_tcp(p[x,y,z,rx,ry,rz])`` (m, rad) and ``set_payload``, and its reader |
 | file.py | a URScript file with a function per tool that sets its TCP and payload |
+| frame.py | a frame (base, fixed tool) as text and as the file its controller loads |
 | rtde.py | the connector: tcp_offset over RTDE (30004), set_tcp on the secondary (30002) |
 
 No tool numbers (one TCP at a time, named in the installation).
@@ -15,7 +16,15 @@ TCP); the file is what a program keeps.
 
 from __future__ import annotations
 
-from app.vendors.maker import FileModule, LiveTcp, Maker, OpenSession, TextModule, WireProtocol
+from app.vendors.maker import (
+    FileModule,
+    FrameModule,
+    LiveTcp,
+    Maker,
+    OpenSession,
+    TextModule,
+    WireProtocol,
+)
 
 
 def _text() -> TextModule:
@@ -28,6 +37,12 @@ def _file() -> FileModule:
     from app.vendors.ur import file
 
     return file
+
+
+def _frame() -> FrameModule:
+    from app.vendors.ur import frame
+
+    return frame
 
 
 def _rtde() -> OpenSession:
@@ -54,5 +69,6 @@ MAKER = Maker(
     tool_numbers=None,
     text=_text,
     file=_file,
+    frame=_frame,
     protocols=(RTDE,),
 )

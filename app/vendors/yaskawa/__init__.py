@@ -4,6 +4,7 @@
 |---|---|
 | text.py | ``TOOL[n]: X Y Z Rx Ry Rz W Xg Yg Zg`` and its reader |
 | file.py | TOOL.CND, the tool file as the controller saves and loads it, and `merge` |
+| frame.py | a frame (base, fixed tool) as text and as the file its controller loads |
 | hses.py | the connector: High Speed Ethernet Server (HSES manual, FS100 160766-1CD), UDP |
 | hses_wire.py | HSES packets over UDP under one deadline, and the status codes in words |
 
@@ -16,7 +17,15 @@ position read) and file control (UDP 10041: TOOL.CND saved and loaded).
 
 from __future__ import annotations
 
-from app.vendors.maker import BySlot, FileModule, Maker, OpenSession, TextModule, WireProtocol
+from app.vendors.maker import (
+    BySlot,
+    FileModule,
+    FrameModule,
+    Maker,
+    OpenSession,
+    TextModule,
+    WireProtocol,
+)
 
 #: (first, last) tool number: tool files 0..63.
 TOOL_NUMBERS = (0, 63)
@@ -32,6 +41,12 @@ def _file() -> FileModule:
     from app.vendors.yaskawa import file
 
     return file
+
+
+def _frame() -> FrameModule:
+    from app.vendors.yaskawa import frame
+
+    return frame
 
 
 def _hses() -> OpenSession:
@@ -58,5 +73,6 @@ MAKER = Maker(
     tool_numbers=TOOL_NUMBERS,
     text=_text,
     file=_file,
+    frame=_frame,
     protocols=(HSES,),
 )
