@@ -22,7 +22,7 @@ class FrameValue(BaseModel):
 class FrameQuality(BaseModel):
     """How well the touches determine the frame."""
 
-    n_touches: int
+    n_touches: int = Field(description="how many touches the calibration was given")
     rms_mm: float | None = Field(
         description="rms of the residuals of the touches used (0 for an exact construction)"
     )

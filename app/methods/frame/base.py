@@ -40,11 +40,7 @@ from app.solvers.frame.fit_points import rms
 from app.words import FrameKind, FrameMethodName, PoseFormat
 
 #: A TCP version number, as the tools' versions count them (1, 2, ...).
-TcpVersionNumber = Annotated[
-    int,
-    Field(ge=1, description="the pointer's TCP version to use (default: its active one)"),
-    BeforeValidator(json_integer),
-]
+TcpVersionNumber = Annotated[int, Field(ge=1), BeforeValidator(json_integer)]
 
 
 # ---- the request ----------------------------------------------------------------------------
@@ -62,7 +58,9 @@ class FrameMethodRequest(StrictModel):
     tool_id: ResourceId | None = Field(
         default=None, description="the pointer tool whose TCP touched the points"
     )
-    tcp_version: TcpVersionNumber | None = None
+    tcp_version: TcpVersionNumber | None = Field(
+        default=None, description="the pointer's TCP version to use (default: its active one)"
+    )
     format: PoseFormat | None = None
     units: Units | None = None
     activate: Activate = "auto"

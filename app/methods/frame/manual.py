@@ -40,7 +40,9 @@ class ManualFrameCalibration(FrameMethodRequest):
     poses: (
         Annotated[list[Pose], PoseCount(1, 1, hint="the frame, in the robot's base frame")] | None
     ) = None
-    frame: ManualFrameIn | None = None
+    frame: ManualFrameIn | None = Field(
+        default=None, description="the frame as numbers (or give format + poses instead)"
+    )
     options: NoOptions = Field(default_factory=NoOptions)
 
     @model_validator(mode="after")

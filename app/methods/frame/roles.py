@@ -30,7 +30,9 @@ from app.words import FrameRole
 class RoleTouch(FrameTouch):
     """A touch of the point a role names."""
 
-    role: FrameRole
+    role: FrameRole = Field(
+        description="which point this touch is (GET /v1/methods lists each method's roles)"
+    )
 
 
 class RoleOptions(NoiseOption):

@@ -76,9 +76,10 @@ def test_no_align_and_no_roles_is_the_base_frames_axes() -> None:
 
 def test_role_touches_give_the_tool_frames_axes() -> None:
     """Three more touches, of the tool frame's origin, +X and XY points, read with the TCP
-    the tip touches found: the frame's axes to 1e-9 deg, its position the tip."""
+    the tip touches found: over 200 seeded tool frames, the position (the tip) and the
+    pointer's TCP to 1e-9 mm, the axes to 1e-9 deg."""
     rng = np.random.default_rng(62)
-    for _ in range(20):
+    for _ in range(200):
         frame_R, tip = random_frame(rng)
         tcp = ACTIVE_TCP + rng.normal(0, 3, size=3)
         R, f = _tip_touches(rng, tip, tcp)
@@ -89,8 +90,10 @@ def test_role_touches_give_the_tool_frames_axes() -> None:
         rows = poses(np.concatenate([Rr[:1], R, Rr[1:]]), np.concatenate([fr[:1], f, fr[1:]]))
         roles: list[str | None] = ["origin", *[None] * 8, "x", "xy"]
         solved = solve(_body(rows, roles, options={"touch_noise_mm": 0.05}), _ctx())
-        assert np.abs(solved.position_mm - tip).max() < 1e-6
+        assert np.abs(solved.position_mm - tip).max() < 1e-9
         assert angle_deg(solved.quaternion, frame_R) < 1e-9
+        assert solved.tool is not None
+        assert np.abs(np.array(solved.tool.tcp_found_mm) - tcp).max() < 1e-9
         assert solved.quality.outliers == []
         assert solved.quality.angle_sigma_deg is not None
         assert max(solved.quality.angle_sigma_deg) > 0

@@ -9,6 +9,8 @@ from scipy.spatial.transform import Rotation
 
 from app.methods.frame import FRAME_CALIBRATION_REQUESTS, FRAME_METHODS_BY_NAME
 from app.solvers.frame import Pointer
+from testbed.sim.cell_frames import random_frame
+from tests.methods.frame.bodies import angle_deg
 from tests.methods.frame.given import GivenPointer
 
 CTX = GivenPointer.of(Pointer.of([0.0, 0.0, 150.0]))
@@ -50,3 +52,14 @@ def test_one_pose_is_the_frame() -> None:
 def test_numbers_or_one_pose_and_no_pointer(body: dict[str, object]) -> None:
     with pytest.raises(ValidationError):
         FRAME_CALIBRATION_REQUESTS.validate_python({"method": "manual", **body})
+
+
+def test_200_frames_entered_as_one_kuka_pose_to_1e_9() -> None:
+    """A frame pasted as X Y Z A B C (the kuka_abc format) is the frame: 200 seeded frames."""
+    rng = np.random.default_rng(47)
+    for _ in range(200):
+        R, o = random_frame(rng)
+        a, b, c = Rotation.from_matrix(R).as_euler("ZYX", degrees=True)
+        solved = _solve({"format": "kuka_abc", "poses": [[*map(float, o), a, b, c]]})
+        assert np.abs(solved.position_mm - o).max() < 1e-9
+        assert angle_deg(solved.quaternion, R) < 1e-9
