@@ -6,14 +6,14 @@
 | maker.py | what a maker's package declares (`Maker`, `WireProtocol`) |
 | tool.py | `ToolData` and `ToolLoad`: a tool as a controller holds it |
 | frame.py | `FrameData`, `FileFrame`, `ParsedFrame`: a frame (a base, a fixed tool) likewise |
-| connector.py | the connector (tools, frames): `Connector`, settings, errors, `Deadline` |
+| connector.py | the connector interface: `Connector`, `ControllerSettings`, errors, `Deadline` |
 | text.py | a maker's text: `ControllerExport`, the checked TCP, printing and reading numbers |
 | files.py | a maker's file: `ControllerFile`, `FileContext`, `FileTool`, `ParsedTool`, headers |
 | names.py | tool names made safe for a controller (ASCII, identifiers, file stems) |
 | wpr.py | X Y Z and fixed-axis angles (Rz Ry Rx): FANUC's, Yaskawa's and Techman's convention |
 | scanner.py | a cursor over a controller's value text (KRL, RAPID) |
 | sockets.py | blocking TCP I/O under one deadline (KUKA, FANUC) |
-| kuka/, abb/, fanuc/, yaskawa/, techman/, ur/ | a maker each: text, file, frame.py, connector |
+| kuka/, abb/, fanuc/, yaskawa/, techman/, ur/ | one maker each: text.py, file.py, frame.py, its connector |
 
 No web framework, database or pydantic here (import contracts in pyproject.toml), and no
 maker imports another. Importing the package imports nothing.

@@ -286,13 +286,14 @@ def test_a_deployment_during_a_round_makes_the_round_judge_the_new_live_tool(
     torch (which the controller no longer holds because it is not the live one)."""
     from app.security.auth import Principal
     from app.services.controllers import deployments
+    from app.services.tools.subject import TOOL
 
     cell = _cell(api)
     assert _deploy(api, cell.torch["id"]).status_code == 201
 
     def deploy_the_gripper() -> None:
         actor = Principal(key_id="test", name="bob", scope="calibrate")
-        done = deployments.attempt(tool_id=cell.gripper["id"], actor=actor, reason=None)
+        done = deployments.attempt(TOOL, subject_id=cell.gripper["id"], actor=actor, reason=None)
         assert done.error is None
 
     live.during_pose_read = deploy_the_gripper

@@ -32,6 +32,7 @@ from sqlalchemy.orm import Session
 from app.errors import ControllerUnreachableError, InvalidInput
 from app.helpers.tolerance import effective_tolerance
 from app.methods.reference import XYZ_REFERENCE, XyzReferenceCalibration
+from app.schemas.controllers import Deployment
 from app.schemas.references import CheckCreate, CheckResult, Correction
 from app.security.auth import Principal, transaction_for
 from app.services import idempotency
@@ -152,7 +153,7 @@ def _refuse_undeployable(session: Session, tool_id: str) -> None:
     written: 409 without a controller, 422 naming the tool field its controller needs."""
     tool = get_tool(session, tool_id)
     controller = get_controller(session, tool.robot_id)
-    deployments.tool_target(controller.protocol, tool.slot, tool.controller_symbol)
+    deployments.subject_target(TOOL, controller.protocol, tool)
 
 
 def _replay(
@@ -295,8 +296,8 @@ def _deploy(
     version staying active. The answer kept for the key becomes this one."""
     correction = result.correction
     assert correction is not None
-    attempt = deployments.attempt(tool_id=result.tool_id, actor=actor, reason=reason)
-    correction.deployment = attempt.document
+    attempt = deployments.attempt(TOOL, subject_id=result.tool_id, actor=actor, reason=reason)
+    correction.deployment = _deployment(attempt)
     if attempt.error is not None:
         result.verdict = "deployment_failed"
     tolerance = None
@@ -315,12 +316,19 @@ def _deploy(
     return result
 
 
+def _deployment(attempt: deployments.Attempt) -> Deployment:
+    """A tool's deployment as served (the tool's deployment schema)."""
+    document = attempt.document
+    assert isinstance(document, Deployment)
+    return document
+
+
 def _flag(
     session: Session, tool_id: str, robot_id: str, attempt: deployments.Attempt, actor: Principal
 ) -> None:
     """The tool's controller state after a failed deployment of its new active version: the
     controller does not hold it (drifted), or could not be reached (unreachable)."""
-    document = attempt.document
+    document = _deployment(attempt)
     error = attempt.error
     assert error is not None
     unreachable = isinstance(error, ControllerUnreachableError)
@@ -328,7 +336,8 @@ def _flag(
     controller_states.observe(
         session,
         controller_states.Observation(
-            tool_id=tool_id,
+            subject=TOOL,
+            subject_id=tool_id,
             robot_id=robot_id,
             state="unreachable" if unreachable else "drifted",
             target=document.target,

@@ -1,4 +1,5 @@
-"""Deploy a tool's active version to its robot's controller: write it, read it back,
+"""Deploy a subject's active version to its robot's controller (any declared subject with a
+controller side: app.services.lifecycle.subject.ControllerSide): write it, read it back,
 compare, and record the attempt whatever became of it.
 
 Three steps, and no database transaction is open during the controller's I/O (which may
@@ -13,7 +14,10 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from datetime import datetime
+from typing import Protocol, cast
 
+from pydantic import BaseModel
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
@@ -32,17 +36,17 @@ from app.helpers.frame_deviation import (
 from app.helpers.pagination import paginate_newest_first
 from app.jsontypes import JsonObject
 from app.metrics import DEPLOYMENTS
-from app.schemas.controllers import Deployment as DeploymentOut
 from app.security.auth import Principal, transaction_for
 from app.services import idempotency
 from app.services.audit import writes as audit
 from app.services.controllers import states as controller_states
 from app.services.controllers.failures import controller_problem
+from app.services.controllers.states import StateRow
+from app.services.lifecycle.subject import AnySide, AnySubject, Held
+from app.services.lifecycle.versions import get_live
 from app.services.robots.connection import get_controller, settings_of
 from app.services.robots.live_tool import LiveRead, record_live
-from app.services.tools.subject import tool_data
-from app.services.tools.tools import get_tool
-from app.storage.models import Deployment, Robot, TcpVersion, ToolControllerState, utcnow
+from app.storage.models import Base, Robot, utcnow
 from app.vendors.connector import (
     Connector,
     ControllerError,
@@ -50,16 +54,8 @@ from app.vendors.connector import (
     ControllerSettings,
     Frame,
     LiveTool,
-    ToolTarget,
 )
-from app.vendors.registry import (
-    TARGET_FIELD,
-    connect,
-    describe_target,
-    scope_of,
-    target_problem,
-)
-from app.vendors.tool import ToolData
+from app.vendors.registry import connect
 from app.words import DeploymentStatus, FailedDeploymentStatus, ProtocolName
 
 
@@ -67,15 +63,20 @@ from app.words import DeploymentStatus, FailedDeploymentStatus, ProtocolName
 class Plan:
     """What to write where, read in one transaction before any I/O."""
 
-    tool_id: str
+    subject: AnySubject
+    subject_id: str
     robot_id: str
     version: int
-    target: ToolTarget
+    target: object
     target_name: str
-    data: ToolData
+    data: Held
     settings: ControllerSettings
     #: the version the controller held in sync at the last look, if another one
     held_version: int | None = None
+
+    @property
+    def side(self) -> AnySide:
+        return side_of(self.subject)
 
 
 @dataclass(frozen=True)
@@ -83,57 +84,92 @@ class Outcome:
     """What the controller did with it."""
 
     status: DeploymentStatus
-    previous: ToolData | None = None
-    read_back: ToolData | None = None
+    previous: Held | None = None
+    read_back: Held | None = None
     deviation: tuple[float, float] | None = None
     error: DomainError | None = None
     controller_message: str | None = None
 
 
-def tool_target(protocol: ProtocolName, slot: int | None, symbol: str | None) -> ToolTarget:
-    """Where the tool lives in its controller; 422 naming the tool's field to set."""
-    target = ToolTarget(slot=slot, symbol=symbol)
-    problem = target_problem(protocol, target)
+def side_of(subject: AnySubject) -> AnySide:
+    """The subject's controller side; it is deployed only when it declares one."""
+    side = subject.controller
+    assert side is not None, f"the {subject.kind} declares no controller side"
+    return side
+
+
+def subject_target(subject: AnySubject, protocol: ProtocolName, row: object) -> object:
+    """Where the subject (its row) lives in its controller; 422 naming the subject's field
+    to set."""
+    side = side_of(subject)
+    target = side.target(row)
+    problem = side.problem(protocol, target)
     if problem is not None:
-        field = "slot" if TARGET_FIELD.get(protocol) == "slot" else "controller_symbol"
+        field = side.field(protocol)
         raise InvalidInput(
             "controller-target",
-            f"{problem} (PATCH /v1/tools/{{tool_id}} with {field!r})",
+            f"{problem} (PATCH {subject.path}/{{{subject.key}}} with {field!r})",
             members={"field": field},
         )
     return target
 
 
-def plan_deployment(session: Session, tool_id: str) -> Plan:
-    """What deploying the tool now means; 409 without an active version or a controller,
-    422 when the tool has no place in the controller."""
-    tool = get_tool(session, tool_id)
-    if tool.active_version is None:
+def plan_deployment(session: Session, subject: AnySubject, subject_id: str) -> Plan:
+    """What deploying the subject now means; 409 without an active version or a
+    controller, 422 when the subject has no place in the controller."""
+    row = get_live(session, subject, subject_id)
+    if row.active_version is None:
         raise NothingToDeploy(
-            f"tool {tool_id} has no active version to deploy: activate a version first"
+            f"{subject.kind} {subject_id} has no active version to deploy: activate a version first"
         )
-    controller = get_controller(session, tool.robot_id)
-    target = tool_target(controller.protocol, tool.slot, tool.controller_symbol)
+    controller = get_controller(session, row.robot_id)
+    target = subject_target(subject, controller.protocol, row)
     version = session.scalars(
-        select(TcpVersion).where(
-            TcpVersion.tool_id == tool.id, TcpVersion.version == tool.active_version
+        select(subject.version_model).where(
+            subject.version_key() == row.id, subject.versions.c.version == row.active_version
         )
     ).one()
-    data = tool_data(tool, version)
-    state = session.get(ToolControllerState, tool.id)
+    state = cast(StateRow | None, session.get(_model(subject.state_model), row.id))
     held_version = None
     if state is not None and state.state == "in_sync" and state.active_version != version.version:
         held_version = state.active_version
     return Plan(
-        tool_id=tool.id,
-        robot_id=tool.robot_id,
+        subject=subject,
+        subject_id=row.id,
+        robot_id=row.robot_id,
         version=version.version,
         target=target,
-        target_name=describe_target(controller.protocol, target),
-        data=data,
+        target_name=side_of(subject).describe(controller.protocol, target),
+        data=side_of(subject).held(row, version),
         settings=settings_of(controller),
         held_version=held_version,
     )
+
+
+def _model(model: type[Base] | None) -> type[Base]:
+    assert model is not None, "a deployed subject declares its controller tables"
+    return model
+
+
+class DeploymentRow(Protocol):
+    """What is read of a deployment's ORM row (a models.Deployment)."""
+
+    id: int
+    robot_id: str
+    version: int
+    protocol: str
+    target: str
+    scope: str
+    status: str
+    previous: JsonObject | None
+    read_back: JsonObject | None
+    deviation_mm: float | None
+    deviation_deg: float | None
+    error: JsonObject | None
+    reason: str | None
+    settled: JsonObject | None
+    actor: str
+    created_at: datetime
 
 
 @dataclass
@@ -141,9 +177,9 @@ class _Attempt:
     """How far an attempt got: what was read before, whether the write may have reached
     the controller, what was read after."""
 
-    previous: ToolData | None = None
+    previous: Held | None = None
     sent: bool = False
-    read_back: ToolData | None = None
+    read_back: Held | None = None
 
 
 def write_and_read_back(plan: Plan) -> Outcome:
@@ -152,9 +188,9 @@ def write_and_read_back(plan: Plan) -> Outcome:
     attempt = _Attempt()
     try:
         with connect(plan.settings) as conn:
-            attempt.previous = conn.read_tool(plan.target)
+            attempt.previous = plan.side.read(conn, plan.target)
             _write(conn, plan, attempt)
-            attempt.read_back = conn.read_tool(plan.target)
+            attempt.read_back = plan.side.read(conn, plan.target)
     except ControllerError as exc:
         return _failure(plan, attempt, exc)
     read_back = attempt.read_back
@@ -177,12 +213,12 @@ def _write(conn: Connector, plan: Plan, attempt: _Attempt) -> None:
     the write was sent (the controller still answers) is followed by one read: the
     controller may show it kept what it held."""
     try:
-        conn.write_tool(plan.target, plan.data)
+        plan.side.write(conn, plan.target, plan.data)
     except ControllerRefused as exc:
         attempt.sent = exc.write_sent
         if exc.write_sent:
             with contextlib.suppress(ControllerError):
-                attempt.read_back = conn.read_tool(plan.target)
+                attempt.read_back = plan.side.read(conn, plan.target)
         raise
     except ControllerError as exc:
         attempt.sent = exc.write_sent
@@ -190,7 +226,7 @@ def _write(conn: Connector, plan: Plan, attempt: _Attempt) -> None:
     attempt.sent = True
 
 
-def _same_frame(a: ToolData, b: ToolData) -> bool:
+def _same_frame(a: Held, b: Held) -> bool:
     deviation = frame_deviation(a.position_mm, a.quaternion, b.position_mm, b.quaternion)
     return within(deviation, mm=DEPLOY_TOLERANCE_MM, deg=DEPLOY_TOLERANCE_DEG)
 
@@ -245,16 +281,18 @@ def _failure(plan: Plan, attempt: _Attempt, exc: ControllerError) -> Outcome:
 
 
 def deploy(
+    subject: AnySubject,
     *,
-    tool_id: str,
+    subject_id: str,
     actor: Principal,
     idempotency_key: str | None,
     raw_body: JsonObject,
     reason: str | None = None,
 ) -> tuple[JsonObject, bool]:
-    """Deploy the tool's active version: (the Deployment, whether it is a replay). A failed
-    or mismatched attempt is recorded and then raised as its 502 with `deployment_id`."""
-    fingerprint = idempotency.request_fingerprint(f"deploy:{tool_id}", raw_body)
+    """Deploy the subject's active version: (the deployment, whether it is a replay). A
+    failed or mismatched attempt is recorded and then raised as its 502 with
+    `deployment_id`."""
+    fingerprint = idempotency.request_fingerprint(f"deploy:{subject_id}", raw_body)
     if idempotency_key is not None:
         with transaction_for(actor, write=False) as session:
             replayed = idempotency.replay(
@@ -273,7 +311,7 @@ def deploy(
                 response=document,
             )
 
-    done = attempt(tool_id=tool_id, actor=actor, reason=reason, keep=keep)
+    done = attempt(subject, subject_id=subject_id, actor=actor, reason=reason, keep=keep)
     if done.error is not None:
         raise done.error
     return done.document.model_dump(mode="json"), False
@@ -281,30 +319,32 @@ def deploy(
 
 @dataclass(frozen=True)
 class Attempt:
-    """A recorded deployment as served, and its failure (None when verified) as the 502 a
-    client gets, `deployment_id` and `deployment_status` among its members."""
+    """A recorded deployment as served (the subject's deployment schema), and its failure
+    (None when verified) as the 502 a client gets, `deployment_id` and `deployment_status`
+    among its members."""
 
-    document: DeploymentOut
+    document: BaseModel
     error: DomainError | None
 
 
 def attempt(
+    subject: AnySubject,
     *,
-    tool_id: str,
+    subject_id: str,
     actor: Principal,
     reason: str | None,
     keep: Callable[[Session, JsonObject], None] | None = None,
 ) -> Attempt:
-    """Deploy the tool's active version and record the attempt whatever became of it;
+    """Deploy the subject's active version and record the attempt whatever became of it;
     refusals before any I/O (no active version, controller or address) are raised.
     `keep`: called with the verified deployment's document in the transaction recording it
     (an Idempotency-Key's answer)."""
     with transaction_for(actor, write=False) as session:
-        plan = plan_deployment(session, tool_id)
+        plan = plan_deployment(session, subject, subject_id)
     outcome = write_and_read_back(plan)
     with transaction_for(actor, write=True) as session:
         row = _record(session, plan, outcome, actor, reason)
-        document = deployment_document(row)
+        document = deployment_document(subject, row)
         if keep is not None and outcome.status == "verified":
             keep(session, document.model_dump(mode="json"))
     DEPLOYMENTS.labels(plan.settings.protocol, outcome.status).inc()
@@ -315,8 +355,8 @@ def attempt(
 
 def _record(
     session: Session, plan: Plan, outcome: Outcome, actor: Principal, reason: str | None
-) -> Deployment:
-    """The attempt, its audit event and, when verified, the tool's state in sync."""
+) -> DeploymentRow:
+    """The attempt, its audit event and, when verified, the subject's state in sync."""
     error = None
     if outcome.error is not None:
         error = {
@@ -325,14 +365,15 @@ def _record(
             "controller_message": outcome.controller_message,
         }
     dev_mm, dev_deg = outcome.deviation if outcome.deviation is not None else (None, None)
-    row = Deployment(
-        tool_id=plan.tool_id,
+    subject = plan.subject
+    new = _model(subject.deployment_model)(
+        **{subject.key: plan.subject_id},
         robot_id=plan.robot_id,
         version=plan.version,
         protocol=plan.settings.protocol,
         target=plan.target_name,
         status=outcome.status,
-        scope=scope_of(plan.settings.protocol),
+        scope=plan.side.scope(plan.settings.protocol),
         previous=controller_states.frame_json(outcome.previous),
         read_back=controller_states.frame_json(outcome.read_back),
         deviation_mm=dev_mm,
@@ -342,14 +383,15 @@ def _record(
         actor=actor.name,
         created_at=utcnow(),
     )
+    row = cast(DeploymentRow, new)
     audit.add_created(
         session,
         row,
         actor=actor,
-        action="tool.deploy",
+        action=plan.side.deploy_action,
         resource_type="deployment",
         robot_id=plan.robot_id,
-        tool_id=plan.tool_id,
+        about={subject.key: plan.subject_id},
         details={
             "status": outcome.status,
             "version": plan.version,
@@ -361,39 +403,49 @@ def _record(
             "reason": reason,
         },
     )
-    if row.scope == "live":
+    if row.scope == "live" and plan.side.moved_by:
         _record_live_tcp(session, plan, outcome, row, actor)
     if outcome.status == "verified":
-        controller_states.observe(
-            session,
-            controller_states.Observation(
-                tool_id=plan.tool_id,
-                robot_id=plan.robot_id,
-                state="in_sync",
-                target=plan.target_name,
-                controller=controller_states.frame_json(outcome.read_back),
-                active_version=plan.version,
-                deviation_mm=dev_mm,
-                deviation_deg=dev_deg,
-                error=None,
-            ),
-            at=row.created_at,
-            actor=actor,
-        )
-        if row.scope == "live":
-            controller_states.others_not_live(
-                session,
-                robot_id=plan.robot_id,
-                live_tool_id=plan.tool_id,
-                target=plan.target_name,
-                at=row.created_at,
-                actor=actor,
-            )
+        _in_sync(session, plan, outcome, row, actor)
     return row
 
 
+def _in_sync(
+    session: Session, plan: Plan, outcome: Outcome, row: DeploymentRow, actor: Principal
+) -> None:
+    """A verified deployment's subject is in sync; on a `live` scope robot, its other ones of
+    the kind are not live from then on."""
+    controller_states.observe(
+        session,
+        controller_states.Observation(
+            subject=plan.subject,
+            subject_id=plan.subject_id,
+            robot_id=plan.robot_id,
+            state="in_sync",
+            target=plan.target_name,
+            controller=controller_states.frame_json(outcome.read_back),
+            active_version=plan.version,
+            deviation_mm=row.deviation_mm,
+            deviation_deg=row.deviation_deg,
+            error=None,
+        ),
+        at=row.created_at,
+        actor=actor,
+    )
+    if row.scope == "live":
+        controller_states.others_not_live(
+            session,
+            subject=plan.subject,
+            robot_id=plan.robot_id,
+            live_id=plan.subject_id,
+            target=plan.target_name,
+            at=row.created_at,
+            actor=actor,
+        )
+
+
 def _record_live_tcp(
-    session: Session, plan: Plan, outcome: Outcome, row: Deployment, actor: Principal
+    session: Session, plan: Plan, outcome: Outcome, row: DeploymentRow, actor: Principal
 ) -> None:
     """The robot's one live TCP as the deployment left it (`live_after`); the robot's row is
     locked first, as every writer of its tools' states locks it."""
@@ -426,12 +478,12 @@ def live_after(outcome: Outcome) -> LiveRead | None:
     return LiveRead(LiveTool(number=None, frame=Frame(held.position_mm, held.quaternion)), None)
 
 
-def deployment_document(row: Deployment) -> DeploymentOut:
-    """A deployment as served."""
-    return DeploymentOut.model_validate(
+def deployment_document(subject: AnySubject, row: DeploymentRow) -> BaseModel:
+    """A deployment as served (the subject's deployment schema)."""
+    return side_of(subject).deployment_schema.model_validate(
         {
             "id": str(row.id),
-            "tool_id": row.tool_id,
+            subject.key: getattr(row, subject.key),
             "robot_id": row.robot_id,
             "version": row.version,
             "protocol": row.protocol,
@@ -452,12 +504,17 @@ def deployment_document(row: Deployment) -> DeploymentOut:
 
 
 def list_deployments(
-    session: Session, *, tool_id: str, limit: int, cursor: str | None
-) -> tuple[Sequence[DeploymentOut], str | None]:
-    """A tool's deployments, newest first."""
-    tool = get_tool(session, tool_id)
-    stmt = select(Deployment).where(Deployment.tool_id == tool.id)
+    session: Session, subject: AnySubject, *, subject_id: str, limit: int, cursor: str | None
+) -> tuple[Sequence[BaseModel], str | None]:
+    """A subject's deployments, newest first."""
+    found = get_live(session, subject, subject_id)
+    model = _model(subject.deployment_model)
+    stmt = select(model).where(getattr(model, subject.key) == found.id)
     rows, next_cursor = paginate_newest_first(
-        session, stmt, id_col=Deployment.id, limit=limit, cursor=cursor
+        session,
+        stmt,
+        id_col=getattr(model, "id"),  # noqa: B009 (a model of any subject)
+        limit=limit,
+        cursor=cursor,
     )
-    return [deployment_document(r) for r in rows], next_cursor
+    return [deployment_document(subject, cast(DeploymentRow, r)) for r in rows], next_cursor

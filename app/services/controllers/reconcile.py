@@ -1,13 +1,14 @@
-"""Reconcile a robot: read every live tool's frame from its controller and compare it with
-the tool's active version (in sync within 0.01 mm and 0.01 deg).
+"""Reconcile a robot: read, over one connection, every live subject's frame (each subject
+that declares a controller side: its tools, then the others) from its controller and compare
+it with the subject's active version (in sync within 0.01 mm and 0.01 deg).
 
-A robot whose protocol writes its one live TCP (a `live` scope, UR and Techman: contract
-v1.3) holds one tool at a time: the round judges the tool deployed to it last (in sync or
-drifted against that tool's active version) and reports its other tools `not_live`; when
-the controller cannot be reached, every tool is `unreachable`, as a stored-scope robot's.
+A robot whose protocol writes its one live one of a kind (a `live` scope, a tool of UR and
+Techman: contract v1.3) holds one at a time: the round judges the one deployed to it last (in
+sync or drifted against its active version) and reports the others of its kind `not_live`;
+when the controller cannot be reached, every one is `unreachable`, as a stored-scope robot's.
 
 As for deployments, the controller is read with no database transaction open; the states
-found are then stored in one write transaction, each change of a tool's state an audit event.
+found are then stored in one write transaction, each change of a state an audit event.
 """
 
 from __future__ import annotations
@@ -30,22 +31,24 @@ from app.schemas.controllers import LiveToolMatch, Reconciliation
 from app.security.auth import Principal, transaction_for
 from app.services.controllers import settling
 from app.services.controllers import states as controller_states
+from app.services.controllers.deployments import side_of
 from app.services.controllers.states import SEVERITY, Observation
+from app.services.lifecycle.subject import AnySubject, Held
 from app.services.robots.connection import get_controller, refusal_words, settings_of
 from app.services.robots.live_tool import LiveRead, live_tool_out, read_live, record_live
 from app.services.robots.robots import get_robot
+from app.services.subjects import SUBJECTS
 from app.storage.db import session_scope
-from app.storage.models import Deployment, Robot, RobotController, TcpVersion, Tool, utcnow
+from app.storage.models import Robot, RobotController, utcnow
 from app.vendors.connector import (
+    Connector,
     ControllerError,
     ControllerRefused,
     ControllerSettings,
     ControllerUnreachable,
-    ToolTarget,
 )
-from app.vendors.registry import connect, describe_target, scope_of, target_problem
+from app.vendors.registry import connect, scope_of
 from app.vendors.registry import where as controller_address
-from app.vendors.tool import ToolData
 from app.words import ROBOT_STATES, DeploymentScope, ProtocolName, RobotState, ToolState
 
 #: Rounds a reconcile reads at most when a deployment to a robot with one live TCP keeps
@@ -54,139 +57,175 @@ _ROUNDS = 3
 
 
 @dataclass(frozen=True)
-class ToolToCheck:
-    """A live tool, where it lives in the controller and its active frame (if any)."""
+class ToCheck:
+    """A live subject, where it lives in the controller and its active frame (if any)."""
 
-    tool_id: str
-    target: ToolTarget | None  # None: the tool has no place in this controller
+    subject: AnySubject
+    subject_id: str
+    target: object  # None: the subject has no place in this controller
     target_name: str | None
     problem: str | None
     version: int | None
     position_mm: list[float] | None
     quaternion: list[float] | None
 
+    @property
+    def ref(self) -> tuple[str, str]:
+        """The subject's kind and id: what its reading is found by."""
+        return self.subject.kind, self.subject_id
+
 
 @dataclass(frozen=True)
 class Reading:
-    """What the controller held for a tool, or why it could not be read."""
+    """What the controller held for a subject, or why it could not be read."""
 
-    data: ToolData | None
+    data: Held | None
     error: str | None
 
 
-def _tools_to_check(session: Session, robot_id: str, protocol: ProtocolName) -> list[ToolToCheck]:
+#: Every subject reconciled with a controller, tools first.
+DEPLOYED: tuple[AnySubject, ...] = tuple(s for s in SUBJECTS if s.controller is not None)
+
+
+def _to_check(
+    session: Session, subject: AnySubject, robot_id: str, protocol: ProtocolName
+) -> list[ToCheck]:
+    side = side_of(subject)
+    table, versions = subject.table, subject.versions
     rows = session.execute(
-        select(Tool.id, Tool.slot, Tool.controller_symbol, TcpVersion)
-        .outerjoin(
-            TcpVersion,
-            (TcpVersion.tool_id == Tool.id) & (TcpVersion.version == Tool.active_version),
+        select(
+            table,
+            versions.c.version.label("active_number"),
+            versions.c.position_mm.label("active_position_mm"),
+            versions.c.quaternion.label("active_quaternion"),
         )
-        .where(Tool.robot_id == robot_id, Tool.archived_at.is_(None))
-        .order_by(Tool.created_at, Tool.id)
+        .outerjoin(
+            versions,
+            (subject.version_key() == table.c.id) & (versions.c.version == table.c.active_version),
+        )
+        .where(table.c.robot_id == robot_id, table.c.archived_at.is_(None))
+        .order_by(table.c.created_at, table.c.id)
     )
-    tools = []
-    for tool_id, slot, symbol, version in rows:
-        target = ToolTarget(slot=slot, symbol=symbol)
-        problem = target_problem(protocol, target)
-        tools.append(
-            ToolToCheck(
-                tool_id=tool_id,
+    found = []
+    for row in rows:
+        target = side.target(row)
+        version = row.active_number
+        problem = side.problem(protocol, target)
+        found.append(
+            ToCheck(
+                subject=subject,
+                subject_id=row.id,
                 target=None if problem else target,
-                target_name=None if problem else describe_target(protocol, target),
+                target_name=None if problem else side.describe(protocol, target),
                 problem=problem,
-                version=None if version is None else version.version,
-                position_mm=None if version is None else list(version.position_mm),
-                quaternion=None if version is None else list(version.quaternion),
+                version=version,
+                position_mm=None if version is None else list(row.active_position_mm),
+                quaternion=None if version is None else list(row.active_quaternion),
             )
         )
-    return tools
+    return found
 
 
 def read_controller(
-    settings: ControllerSettings, tools: list[ToolToCheck], *, robot_id: str
-) -> tuple[dict[str, Reading], LiveRead]:
-    """Each addressable tool's frame as the controller holds it, then the tool the robot
-    moves by (one session; no database). A tool the controller refuses to read is
-    unreachable with its words; a connection that fails makes every tool not yet read
-    unreachable and the live tool unread."""
-    readings: dict[str, Reading] = {}
-    todo = [t for t in tools if t.target is not None]
+    settings: ControllerSettings, checks: list[ToCheck], *, robot_id: str
+) -> tuple[dict[tuple[str, str], Reading], LiveRead]:
+    """Each addressable subject's frame as the controller holds it, then the tool the robot
+    moves by (one session; no database). One the controller refuses to read is unreachable
+    with its words; a connection that fails makes every one not yet read unreachable and
+    the live tool unread."""
+    readings: dict[tuple[str, str], Reading] = {}
+    todo = [c for c in checks if c.target is not None]
     live = LiveRead(None, None)
     try:
         with connect(settings) as conn:
-            for tool in todo:
-                assert tool.target is not None
-                try:
-                    readings[tool.tool_id] = Reading(conn.read_tool(tool.target), None)
-                except ControllerRefused as exc:
-                    words = refusal_words(exc, robot_id)
-                    readings[tool.tool_id] = Reading(None, f"refused: {words}")
+            for check in todo:
+                readings[check.ref] = _read_one(conn, check, robot_id)
             live = read_live(conn)
     except (ControllerUnreachable, ControllerRefused, ControllerError) as exc:
         words = refusal_words(exc, robot_id) if isinstance(exc, ControllerRefused) else str(exc)
         where = controller_address(settings)
-        for tool in todo:
-            readings.setdefault(tool.tool_id, Reading(None, f"{where}: {words}"))
+        for check in todo:
+            readings.setdefault(check.ref, Reading(None, f"{where}: {words}"))
         live = LiveRead(None, f"{where}: {words}", reached=False)
     return readings, live
 
 
+def _read_one(conn: Connector, check: ToCheck, robot_id: str) -> Reading:
+    try:
+        return Reading(side_of(check.subject).read(conn, check.target), None)
+    except ControllerRefused as exc:
+        return Reading(None, f"refused: {refusal_words(exc, robot_id)}")
+
+
 @dataclass(frozen=True)
 class LiveScope:
-    """Which tool a round judges on a robot with one live TCP: the tool of the last
-    deployment whose write may have reached it (None: none yet), and that deployment."""
+    """Which one of a kind a round judges on a robot with one live one of that kind (a tool
+    of a live-TCP robot): the one of the last deployment whose write may have reached it
+    (None: none yet), and that deployment."""
 
     judged: str | None
     deployment_id: int | None
 
-    def judges(self, tool_id: str) -> bool:
-        return tool_id == self.judged
+    def judges(self, subject_id: str) -> bool:
+        return subject_id == self.judged
 
 
-def live_scope(session: Session, robot_id: str, scope: DeploymentScope) -> LiveScope | None:
-    """None for a robot whose controller stores each tool (every tool judged); else the
-    tool deployed to it last (a `not_written` attempt left the live TCP as it was)."""
+def live_scope(
+    session: Session, subject: AnySubject, robot_id: str, scope: DeploymentScope
+) -> LiveScope | None:
+    """None for a robot whose controller stores each one of the kind (every one judged);
+    else the one deployed to it last (a `not_written` attempt left the live one as it was)."""
     if scope != "live":
         return None
+    table = subject.deployments
+    assert table is not None
     row = session.execute(
-        select(Deployment.id, Deployment.tool_id)
+        select(table.c.id, table.c[subject.key])
         .where(
-            Deployment.robot_id == robot_id,
-            Deployment.scope == "live",
-            Deployment.status != "not_written",
+            table.c.robot_id == robot_id,
+            table.c.scope == "live",
+            table.c.status != "not_written",
         )
-        .order_by(Deployment.id.desc())
+        .order_by(table.c.id.desc())
         .limit(1)
     ).first()
-    return LiveScope(None, None) if row is None else LiveScope(row.tool_id, row.id)
+    return LiveScope(None, None) if row is None else LiveScope(row[1], row[0])
+
+
+def _live_scopes(
+    session: Session, robot_id: str, protocol: ProtocolName
+) -> dict[str, LiveScope | None]:
+    """Each deployed subject's live scope on the robot, by kind."""
+    return {s.kind: live_scope(session, s, robot_id, side_of(s).scope(protocol)) for s in DEPLOYED}
 
 
 class _DeployedMeanwhile(Exception):
-    """A deployment changed the tool a live-TCP robot's round judges while it read."""
+    """A deployment changed the one a live-scope robot's round judges while it read."""
 
 
-def _observation(robot_id: str, tool: ToolToCheck, reading: Reading) -> Observation:
-    """The state of one tool from what the controller held."""
+def _observation(robot_id: str, check: ToCheck, reading: Reading) -> Observation:
+    """The state of one subject from what the controller held."""
     held = reading.data
     deviation = None
     state: ToolState
     if held is None:
         state = "unreachable"
-    elif tool.version is None or tool.position_mm is None or tool.quaternion is None:
+    elif check.version is None or check.position_mm is None or check.quaternion is None:
         state = "no_active_version"
     else:
         deviation = frame_deviation(
-            tool.position_mm, tool.quaternion, held.position_mm, held.quaternion
+            check.position_mm, check.quaternion, held.position_mm, held.quaternion
         )
         ok = within(deviation, mm=SYNC_TOLERANCE_MM, deg=SYNC_TOLERANCE_DEG)
         state = "in_sync" if ok else "drifted"
     return Observation(
-        tool_id=tool.tool_id,
+        subject=check.subject,
+        subject_id=check.subject_id,
         robot_id=robot_id,
         state=state,
-        target=tool.target_name,
+        target=check.target_name,
         controller=controller_states.frame_json(held),
-        active_version=tool.version,
+        active_version=check.version,
         deviation_mm=None if deviation is None else deviation[0],
         deviation_deg=None if deviation is None else deviation[1],
         error=reading.error,
@@ -199,10 +238,11 @@ class RoundRead:
     stored."""
 
     robot_id: str
+    protocol: ProtocolName
     scope: DeploymentScope
-    live_scope: LiveScope | None
-    tools: list[ToolToCheck]
-    readings: dict[str, Reading]
+    live_scopes: dict[str, LiveScope | None]
+    checks: list[ToCheck]
+    readings: dict[tuple[str, str], Reading]
     live: LiveRead
     read_from: datetime
 
@@ -244,13 +284,21 @@ def _read_round(robot_id: str, actor: Principal) -> RoundRead:
         get_robot(session, robot_id)
         controller = get_controller(session, robot_id)
         settings = settings_of(controller)
-        tools = _tools_to_check(session, robot_id, controller.protocol)
-        scope = scope_of(controller.protocol)
-        judging = live_scope(session, robot_id, scope)
+        protocol = controller.protocol
+        checks = [c for s in DEPLOYED for c in _to_check(session, s, robot_id, protocol)]
+        judging = _live_scopes(session, robot_id, protocol)
     read_from = utcnow()
-    judged = [t for t in tools if judging is None or judging.judges(t.tool_id)]
+    judged = [c for c in checks if _judged(judging, c)]
     readings, live = read_controller(settings, judged, robot_id=robot_id)
-    return RoundRead(robot_id, scope, judging, tools, readings, live, read_from)
+    scope = scope_of(protocol)
+    return RoundRead(robot_id, protocol, scope, judging, checks, readings, live, read_from)
+
+
+def _judged(judging: dict[str, LiveScope | None], check: ToCheck) -> bool:
+    """Whether the round judges the subject against what the controller holds (every one
+    but the ones of a live-scope kind not deployed last)."""
+    scope = judging[check.subject.kind]
+    return scope is None or scope.judges(check.subject_id)
 
 
 @dataclass
@@ -260,7 +308,8 @@ class _Stored:
     checked_at: datetime
     entered: list[ToolState]
     found: list[ToolState]
-    answer_tools: list[dict[str, object]]
+    #: each subject's answers by its plural ("tools")
+    answers: dict[str, list[dict[str, object]]]
     skipped: list[dict[str, object]]
     matches: list[LiveToolMatch]
 
@@ -319,29 +368,30 @@ def _answered(read: RoundRead, stored: _Stored, trigger: str) -> StoredRound:
 
 
 def _write_round(session: Session, read: RoundRead, actor: Principal, *, final: bool) -> _Stored:
-    """Write one round's tool states and live tool in the open write transaction.
-    _DeployedMeanwhile (nothing written of it) when a deployment made another tool a
-    live-TCP robot's live one while the round read, unless `final`."""
+    """Write one round's states and live tool in the open write transaction.
+    _DeployedMeanwhile (nothing written of it) when a deployment made another one a
+    live-scope robot's live one while the round read, unless `final`."""
     robot_id = read.robot_id
     checked_at = utcnow()
-    stored = _Stored(checked_at, [], [], [], [], [])
-    # first: it locks the robot's row before the tools' (the order every writer keeps),
-    # and the round's tool states and live tool commit together
+    stored = _Stored(checked_at, [], [], {s.plural: [] for s in DEPLOYED}, [], [])
+    # first: it locks the robot's row before the subjects' (the order every writer keeps),
+    # and the round's states and live tool commit together
     live = read.live
     stored.matches = record_live(session, robot_id=robot_id, live=live, at=checked_at, actor=actor)
-    if not final and read.live_scope != live_scope(session, robot_id, read.scope):
+    if not final and read.live_scopes != _live_scopes(session, robot_id, read.protocol):
         raise _DeployedMeanwhile  # rolls the round back
-    for tool in read.tools:
-        if tool.target is None:
-            stored.skipped.append({"tool_id": tool.tool_id, "reason": tool.problem})
+    for check in read.checks:
+        subject = check.subject
+        if check.target is None:
+            stored.skipped.append({subject.key: check.subject_id, "reason": check.problem})
             continue
-        seen = _seen(robot_id, tool, read)
+        seen = _seen(robot_id, check, read)
         row, changed = controller_states.observe(session, seen, at=checked_at, actor=actor)
         settling.settle(session, seen, read_from=read.read_from, at=checked_at, actor=actor)
         stored.found.append(seen.state)
         if changed:
             stored.entered.append(seen.state)
-        stored.answer_tools.append(_tool_answer(tool, seen, row.since))
+        stored.answers[subject.plural].append(_subject_answer(check, seen, row.since))
     return stored
 
 
@@ -358,7 +408,7 @@ def _answer(read: RoundRead, stored: _Stored, trigger: str) -> Reconciliation:
             "checked_at": stored.checked_at,
             "state": robot_state,
             "scope": read.scope,
-            "tools": stored.answer_tools,
+            **stored.answers,
             "not_addressable": stored.skipped,
             "live_tool": None if live.tool is None else live_tool_out(live.tool, stored.matches),
             "live_tool_error": live.error,
@@ -366,16 +416,18 @@ def _answer(read: RoundRead, stored: _Stored, trigger: str) -> Reconciliation:
     )
 
 
-def _seen(robot_id: str, tool: ToolToCheck, read: RoundRead) -> Observation:
-    """The tool's state this round: judged from what the controller held, or `not_live`.
-    A controller not reached makes every tool unreachable, a live-TCP robot's not judged
-    too: nothing then says which tool it moves by, and `not_live` would leave the fleet
+def _seen(robot_id: str, check: ToCheck, read: RoundRead) -> Observation:
+    """The subject's state this round: judged from what the controller held, or `not_live`.
+    A controller not reached makes every one unreachable, a live-scope robot's not judged
+    too: nothing then says which one it moves by, and `not_live` would leave the fleet
     flagging no row of a robot nothing was deployed to yet."""
-    if read.live_scope is not None and not read.live_scope.judges(tool.tool_id):
+    if not _judged(read.live_scopes, check):
         if not read.live.reached:
-            return _observation(robot_id, tool, Reading(None, read.live.error))
-        return controller_states.not_live(tool.tool_id, robot_id, tool.target_name, tool.version)
-    return _observation(robot_id, tool, read.readings[tool.tool_id])
+            return _observation(robot_id, check, Reading(None, read.live.error))
+        return controller_states.not_live(
+            check.subject, check.subject_id, robot_id, check.target_name, check.version
+        )
+    return _observation(robot_id, check, read.readings[check.ref])
 
 
 def _robot_state(found: list[ToolState], *, reached: bool) -> RobotState:
@@ -387,17 +439,17 @@ def _robot_state(found: list[ToolState], *, reached: bool) -> RobotState:
     return ROBOT_STATES[worst]
 
 
-def _tool_answer(tool: ToolToCheck, seen: Observation, since: object) -> dict[str, object]:
+def _subject_answer(check: ToCheck, seen: Observation, since: object) -> dict[str, object]:
     active = None
-    if tool.version is not None:
+    if check.version is not None:
         active = {
-            "version": tool.version,
-            "position_mm": tool.position_mm,
-            "quaternion": tool.quaternion,
+            "version": check.version,
+            "position_mm": check.position_mm,
+            "quaternion": check.quaternion,
         }
     return {
-        "tool_id": tool.tool_id,
-        "target": tool.target_name,
+        check.subject.key: check.subject_id,
+        "target": check.target_name,
         "state": seen.state,
         "controller": seen.controller,
         "active": active,

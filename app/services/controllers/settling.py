@@ -2,7 +2,7 @@
 controller holds (the written version, the frame it held before, or something else) on the
 deployment and as an audit event `deployment.settled`.
 
-Only a tool's newest deployment is settled, and only by a reading that began after it was
+Only a subject's newest deployment is settled, and only by a reading that began after it was
 recorded: what a controller holds now says nothing about an attempt a later one followed,
 and a reading taken while the attempt ran could show the frame from before its write.
 """
@@ -24,32 +24,33 @@ from app.jsontypes import JsonObject
 from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.controllers.states import Observation
-from app.storage.models import Deployment, TcpVersion
 from app.words import SettledHolds
 
 
 def settle(
     session: Session, seen: Observation, *, read_from: datetime, at: datetime, actor: Principal
 ) -> None:
-    """Settle the tool's newest deployment with what the round saw (at `at`), when it is
+    """Settle the subject's newest deployment with what the round saw (at `at`), when it is
     `unverified`, not settled yet and was recorded before the round began reading
     (`read_from`)."""
     held = seen.controller
     if held is None:
         return  # not read this round: the next one will tell
-    row = session.scalars(
-        select(Deployment)
-        .where(Deployment.tool_id == seen.tool_id)
-        .order_by(Deployment.id.desc())
-        .limit(1)
+    subject = seen.subject
+    deployments = subject.deployments
+    assert deployments is not None
+    key = deployments.c[subject.key]
+    row = session.execute(
+        select(deployments).where(key == seen.subject_id).order_by(deployments.c.id.desc()).limit(1)
     ).first()
     if row is None or row.status != "unverified" or row.settled is not None:
         return
     if row.created_at >= read_from:
         return
-    written = session.scalars(
-        select(TcpVersion).where(
-            TcpVersion.tool_id == row.tool_id, TcpVersion.version == row.version
+    versions = subject.versions
+    written = session.execute(
+        select(versions.c.position_mm, versions.c.quaternion).where(
+            subject.version_key() == seen.subject_id, versions.c.version == row.version
         )
     ).one()
     holds: SettledHolds = "other"
@@ -57,7 +58,8 @@ def settle(
         holds = "written"
     elif row.previous is not None and _same(held, row.previous):
         holds = "previous"
-    row.settled = {"at": at.isoformat(), "holds": holds, "frame": held}
+    settled = {"at": at.isoformat(), "holds": holds, "frame": held}
+    session.execute(deployments.update().where(deployments.c.id == row.id).values(settled=settled))
     audit.record(
         session,
         actor=actor,
@@ -65,8 +67,8 @@ def settle(
         resource_type="deployment",
         resource_id=str(row.id),
         robot_id=row.robot_id,
-        tool_id=row.tool_id,
         version=row.version,
+        about={subject.key: seen.subject_id},
         details={
             "deployment_id": str(row.id),
             "holds": holds,

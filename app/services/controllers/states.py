@@ -1,10 +1,13 @@
-"""Each tool's controller state (in sync, drifted, unreachable, no active version, not live)
-as the last reconcile or deployment saw it; a change of state is an audit event, once."""
+"""Each subject's controller state (in sync, drifted, unreachable, no active version, not
+live) as the last reconcile or deployment saw it, in the subject's states table
+(app.services.lifecycle.subject.Subject.state_model); a change of state is an audit event,
+once."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime
+from typing import Protocol, cast
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -12,8 +15,8 @@ from sqlalchemy.orm import Session
 from app.jsontypes import JsonObject
 from app.security.auth import Principal
 from app.services.audit import writes as audit
-from app.storage.models import Tool, ToolControllerState
-from app.vendors.tool import ToolData
+from app.services.lifecycle.subject import AnySubject, Held
+from app.storage.models import Base
 from app.words import AuditAction, ToolState
 
 #: States whose start is an audit event `controller.<state>` (and counted in /metrics), with
@@ -34,7 +37,23 @@ SEVERITY: dict[ToolState, int] = {
 }
 
 
-def frame_json(data: ToolData | None) -> JsonObject | None:
+class StateRow(Protocol):
+    """A subject's controller state row as the controller code reads and writes it (a
+    models.ToolControllerState)."""
+
+    robot_id: str
+    state: ToolState
+    since: datetime
+    checked_at: datetime
+    target: str | None
+    controller: JsonObject | None
+    active_version: int | None
+    deviation_mm: float | None
+    deviation_deg: float | None
+    error: str | None
+
+
+def frame_json(data: Held | None) -> JsonObject | None:
     """A frame as stored and served: {"position_mm", "quaternion"}."""
     if data is None:
         return None
@@ -43,9 +62,10 @@ def frame_json(data: ToolData | None) -> JsonObject | None:
 
 @dataclass(frozen=True)
 class Observation:
-    """What one look at the controller found for one tool."""
+    """What one look at the controller found for one subject (`subject_id` of `subject`)."""
 
-    tool_id: str
+    subject: AnySubject
+    subject_id: str
     robot_id: str
     state: ToolState
     target: str | None
@@ -56,18 +76,28 @@ class Observation:
     error: str | None
 
 
+def _state_model(subject: AnySubject) -> type[Base]:
+    model = subject.state_model
+    assert model is not None, f"the {subject.kind} declares no controller states"
+    return model
+
+
 def observe(
     session: Session, seen: Observation, *, at: datetime, actor: Principal
-) -> tuple[ToolControllerState, bool]:
-    """Store what was seen; (the state row, whether the state changed). The tool's row is
+) -> tuple[StateRow, bool]:
+    """Store what was seen; (the state row, whether the state changed). The subject's row is
     locked first, so two instances looking at once record one change, not two."""
-    session.execute(select(Tool.id).where(Tool.id == seen.tool_id).with_for_update())
-    row = session.get(ToolControllerState, seen.tool_id)
+    subject = seen.subject
+    table = subject.table
+    session.execute(select(table.c.id).where(table.c.id == seen.subject_id).with_for_update())
+    model = _state_model(subject)
+    row = cast(StateRow | None, session.get(model, seen.subject_id))
     changed = row is None or row.state != seen.state
     previous = None if row is None else row.state
     if row is None:
-        row = ToolControllerState(tool_id=seen.tool_id, robot_id=seen.robot_id)
-        session.add(row)
+        new = model(**{subject.key: seen.subject_id}, robot_id=seen.robot_id)
+        session.add(new)
+        row = cast(StateRow, new)
     if changed:
         row.state = seen.state
         row.since = at
@@ -81,34 +111,49 @@ def observe(
     row.error = seen.error
     action = EVENT_ACTIONS.get(seen.state) if changed else None
     if action is not None:
-        audit.record(
-            session,
-            actor=actor,
-            action=action,
-            resource_type="tool",
-            resource_id=seen.tool_id,
-            robot_id=seen.robot_id,
-            tool_id=seen.tool_id,
-            version=seen.active_version,
-            details={
-                "previous_state": previous,
-                "target": seen.target,
-                "version": seen.active_version,
-                "controller": seen.controller,
-                "deviation_mm": seen.deviation_mm,
-                "deviation_deg": seen.deviation_deg,
-                "error": seen.error,
-            },
-        )
+        _record_change(session, seen, previous, action, actor)
     session.flush()
     return row, action is not None
 
 
-def not_live(tool_id: str, robot_id: str, target: str | None, version: int | None) -> Observation:
-    """A tool of a robot with one live TCP (a `live` scope protocol: `ur_rtde`, `techman`) that is
-    not the one deployed to it last: not judged against what the controller holds."""
+def _record_change(
+    session: Session,
+    seen: Observation,
+    previous: ToolState | None,
+    action: AuditAction,
+    actor: Principal,
+) -> None:
+    subject = seen.subject
+    audit.record(
+        session,
+        actor=actor,
+        action=action,
+        resource_type=subject.kind,
+        resource_id=seen.subject_id,
+        robot_id=seen.robot_id,
+        version=seen.active_version,
+        about={subject.key: seen.subject_id},
+        details={
+            "previous_state": previous,
+            "target": seen.target,
+            "version": seen.active_version,
+            "controller": seen.controller,
+            "deviation_mm": seen.deviation_mm,
+            "deviation_deg": seen.deviation_deg,
+            "error": seen.error,
+        },
+    )
+
+
+def not_live(
+    subject: AnySubject, subject_id: str, robot_id: str, target: str | None, version: int | None
+) -> Observation:
+    """A subject of a robot with one live one of its kind (a `live` scope protocol: a tool of
+    `ur_rtde`, `techman`) that is not the one deployed to it last: not judged against what
+    the controller holds."""
     return Observation(
-        tool_id=tool_id,
+        subject=subject,
+        subject_id=subject_id,
         robot_id=robot_id,
         state="not_live",
         target=target,
@@ -123,18 +168,22 @@ def not_live(tool_id: str, robot_id: str, target: str | None, version: int | Non
 def others_not_live(
     session: Session,
     *,
+    subject: AnySubject,
     robot_id: str,
-    live_tool_id: str,
+    live_id: str,
     target: str,
     at: datetime,
     actor: Principal,
 ) -> None:
-    """A `live` scope deployment made `live_tool_id` the robot's one live TCP: its other live
-    tools are `not_live` from then on (the reconcile rounds judge the tool deployed last)."""
+    """A `live` scope deployment made `live_id` the robot's one live subject of its kind: its
+    other live ones are `not_live` from then on (the reconcile rounds judge the one deployed
+    last)."""
+    table = subject.table
     others = session.execute(
-        select(Tool.id, Tool.active_version)
-        .where(Tool.robot_id == robot_id, Tool.archived_at.is_(None), Tool.id != live_tool_id)
-        .order_by(Tool.id)
+        select(table.c.id, table.c.active_version)
+        .where(table.c.robot_id == robot_id, table.c.archived_at.is_(None), table.c.id != live_id)
+        .order_by(table.c.id)
     ).all()
-    for tool_id, version in others:
-        observe(session, not_live(tool_id, robot_id, target, version), at=at, actor=actor)
+    for other_id, version in others:
+        seen = not_live(subject, other_id, robot_id, target, version)
+        observe(session, seen, at=at, actor=actor)

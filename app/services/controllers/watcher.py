@@ -9,8 +9,10 @@ watcher lock without waiting, an flock of `<database>-watcher.lock` next to the 
 app.storage.db queues SQLite's writers); whoever does not get it skips the round (`round()`,
 which takes PostgreSQL's `pg_try_advisory_lock` there, is what a direct call runs).
 
-The states a round finds are stored under each tool's row lock
-(app.services.controllers.states), so a change is recorded once even if two rounds met.
+A robot's round reads every deployed subject of it (its tools, then the other subjects that
+declare a controller side) over one connection (app.services.controllers.reconcile). The
+states it finds are stored under each subject's row lock (app.services.controllers.states),
+so a change is recorded once even if two rounds met.
 
 A round reads its robots' controllers concurrently (a ReadPool of daemon threads), as many
 at once as its robots need for their reads to end within half the interval and at least

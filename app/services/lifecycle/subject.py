@@ -19,8 +19,8 @@ deploys, reconciles and settles it): its deployments' table, a row an attempt, `
 `read_back`, `deviation_mm`, `deviation_deg`, `error`, `reason`, `settled`, `actor`,
 `created_at`; its controller states' table, a row a subject (`<key>` its primary key),
 `robot_id`, `state`, `since`, `checked_at`, `target`, `deviation_mm`, `deviation_deg`,
-`controller`, `active_version`, `error`. Its place in a controller is read from its row's
-`slot` and `controller_symbol`.
+`controller`, `active_version`, `error`. Its place in a controller is read from its row
+(`ControllerSide.target`).
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any, Generic, Protocol, TypeVar
 
+from pydantic import BaseModel
 from sqlalchemy import Column, Table
 
 from app.jsontypes import JsonArray, JsonObject
@@ -133,7 +134,8 @@ HeldT = TypeVar("HeldT", bound=Held)
 class ControllerSide(Generic[TargetT, HeldT]):
     """How a subject lives in its robot's controller, declared with the subject:
 
-    - `target`: its place there, from its row's `slot` and `controller_symbol`;
+    - `target`: its place there, read from its row (an ORM row or a row of its table's
+      columns: a tool's `slot` and `controller_symbol`);
     - `problem`: why that place cannot address it under a protocol, in a sentence (None
       when it can); `field`: the field of its row a person sets about it under a protocol
       ("slot" or "controller_symbol");
@@ -143,10 +145,15 @@ class ControllerSide(Generic[TargetT, HeldT]):
       write of that subject);
     - `held`: what deploying writes, from the subject's row and its active version;
     - `scope`: where a deployment holds under a protocol (contract v1.3 `scope`);
-    - `deploy_action`: the audit action of a deployment.
+    - `deploy_action`: the audit action of a deployment;
+    - `deployment_schema`: a deployment as served (its routes' schema, the subject named by
+      its key); `reconciled_schema`: the subject as a reconcile answers it;
+    - `moved_by`: the robot moves by the one of its kind a `live` scope deployment writes
+      (a tool's TCP): that deployment tells the robot's live one
+      (app.services.robots.live_tool).
     """
 
-    target: Callable[[int | None, str | None], TargetT]
+    target: Callable[[Any], TargetT]
     problem: Callable[[str, TargetT], str | None]
     field: Callable[[str], str]
     describe: Callable[[str, TargetT], str]
@@ -155,7 +162,13 @@ class ControllerSide(Generic[TargetT, HeldT]):
     held: Callable[[Any, Valued], HeldT]
     scope: Callable[[str], DeploymentScope]
     deploy_action: AuditAction
+    deployment_schema: type[BaseModel]
+    reconciled_schema: type[BaseModel]
+    moved_by: bool = False
 
+
+#: A controller side of any target and held value, for the code that reads neither's type.
+AnySide = ControllerSide[Any, Any]
 
 Row = TypeVar("Row", bound=SubjectRow)
 VersionT = TypeVar("VersionT", bound=VersionRow)
@@ -200,7 +213,7 @@ class Subject(Generic[Row, VersionT, ActivationT]):
     served_detail: str | None = None
     deployment_model: type[Base] | None = None
     state_model: type[Base] | None = None
-    controller: ControllerSide[Any, Any] | None = None
+    controller: AnySide | None = None
     table: Table = field(init=False)
     versions: Table = field(init=False)
     activations: Table = field(init=False)

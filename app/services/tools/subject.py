@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from typing import Final
 
+from app.schemas.controllers import Deployment as DeploymentOut
+from app.schemas.controllers import ReconciledTool
 from app.services.lifecycle.subject import ControllerSide, Subject, Valued
 from app.storage.models import (
     Activation,
@@ -22,8 +24,8 @@ from app.vendors.tool import ToolData, ToolLoad
 from app.words import CHECK_ACTION
 
 
-def _target(slot: int | None, symbol: str | None) -> ToolTarget:
-    return ToolTarget(slot=slot, symbol=symbol)
+def _target(tool: Tool) -> ToolTarget:
+    return ToolTarget(slot=tool.slot, symbol=tool.controller_symbol)
 
 
 def _field(protocol: str) -> str:
@@ -72,6 +74,9 @@ TOOL_CONTROLLER: Final = ControllerSide(
     held=tool_data,
     scope=scope_of,
     deploy_action="tool.deploy",
+    deployment_schema=DeploymentOut,
+    reconciled_schema=ReconciledTool,
+    moved_by=True,
 )
 
 TOOL: Final = Subject(

@@ -51,13 +51,8 @@ def _rmi() -> OpenSession:
     return FanucRmiConnector
 
 
-#: (first, last) user frame number: UFRAME[1..9] (B-84184EN 2.3.9 FRC_WriteUFrameData: 1-9;
-#: UFRAME 0 is the world frame, which no program writes).
-FRAME_NUMBERS = (1, 9)
-
-#: Remote Motion Interface, FRC_Connect on 16001: UTOOL[n] and UFRAME[n] by number.
-_UTOOLS, _UFRAMES = BySlot(TOOL_NUMBERS, "UTOOL[{}]"), BySlot(FRAME_NUMBERS, "UFRAME[{}]")
-RMI = WireProtocol("fanuc_rmi", _UTOOLS, _rmi, default_port=16001, frames=_UFRAMES)
+#: Remote Motion Interface, FRC_Connect on 16001.
+RMI = WireProtocol("fanuc_rmi", BySlot(TOOL_NUMBERS, "UTOOL[{}]"), _rmi, default_port=16001)
 
 MAKER = Maker(
     format="fanuc",

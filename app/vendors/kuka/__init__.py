@@ -50,12 +50,7 @@ def _kvp() -> OpenSession:
     return KukaKvpConnector
 
 
-#: (first, last) base number: BASE_DATA[1..32] ($config.dat ``DECL FRAME BASE_DATA[32]``).
-FRAME_NUMBERS = (1, 32)
-
-#: $TOOL_DATA[n] and BASE_DATA[n] by number.
-_TOOLS, _BASES = BySlot(TOOL_NUMBERS, "$TOOL_DATA[{}]"), BySlot(FRAME_NUMBERS, "BASE_DATA[{}]")
-KVP = WireProtocol("kuka_kvp", _TOOLS, _kvp, default_port=7000, frames=_BASES)
+KVP = WireProtocol("kuka_kvp", BySlot(TOOL_NUMBERS, "$TOOL_DATA[{}]"), _kvp, default_port=7000)
 
 MAKER = Maker(
     format="kuka",

@@ -17,7 +17,6 @@ TCP); the file is what a program keeps.
 from __future__ import annotations
 
 from app.vendors.maker import (
-    ByValue,
     FileModule,
     FrameModule,
     LiveTcp,
@@ -58,7 +57,6 @@ RTDE = WireProtocol(
     LiveTcp("tcp_offset"),
     _rtde,
     services=(("rtde", 30004), ("secondary", 30002)),
-    frames=ByValue("installation feature", live=False),
 )
 
 MAKER = Maker(

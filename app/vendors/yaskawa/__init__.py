@@ -29,8 +29,6 @@ from app.vendors.maker import (
 
 #: (first, last) tool number: tool files 0..63.
 TOOL_NUMBERS = (0, 63)
-#: (first, last) user frame number: UFRAME.CND's user frames 1..63 (YRC1000, DX200).
-FRAME_NUMBERS = (1, 63)
 
 
 def _text() -> TextModule:
@@ -64,7 +62,6 @@ HSES = WireProtocol(
     _hses,
     services=(("robot", 10040), ("file", 10041)),
     udp=True,
-    frames=BySlot(FRAME_NUMBERS, "UFRAME.CND user frame {}"),
 )
 
 MAKER = Maker(
