@@ -144,6 +144,9 @@ OriginXXy = Literal["origin", "x", "xy"]
 UserMethodRole = Literal["x1", "x2", "y1"]
 FrameRole = Literal[OriginXXy, UserMethodRole, "x_start"]
 
+#: What made a version of any calibrated subject (app.services.lifecycle.subject.Valued).
+VersionSource = MethodName | FrameMethodName
+
 #: The kind of an activation (activations.reason): a version activated by name
 #: (`explicit`), by name out of tolerance with `force` (`forced`), by a rollback, by the
 #: calibration that made it (`calibration:<its activate option>`), or by a re-check's
@@ -176,6 +179,9 @@ AuditAction = Literal[
     "tool.archive",
     "tool.check",
     "tool.deploy",
+    "frame.create",
+    "frame.update",
+    "frame.archive",
     "version.create",
     "version.activate",
     "version.rollback",
@@ -200,6 +206,7 @@ AuditAction = Literal[
 ResourceType = Literal[
     "robot",
     "tool",
+    "frame",
     "calibration",
     "deployment",
     "reference_point",

@@ -22,7 +22,17 @@ from app.methods.frame import FRAME_METHOD_NAMES
 from app.methods.guided import GUIDED, SessionCreate
 from app.methods.npoint import NPointOptions
 from app.methods.requests import SOLVE_MODELS, CalibrationRequest
-from app.schemas import audit, controllers, fleet, keys, references, results, sessions, tools
+from app.schemas import (
+    audit,
+    controllers,
+    fleet,
+    frames,
+    keys,
+    references,
+    results,
+    sessions,
+    tools,
+)
 from app.schemas.formats import FormatList
 from app.scopes import Scope
 from app.services.controllers.states import EVENT_ACTIONS, SEVERITY
@@ -38,6 +48,7 @@ from app.words import (
     ControllerFormat,
     DeploymentScope,
     DeploymentStatus,
+    FrameKind,
     FrameMethodName,
     LaserDeviceSource,
     MethodName,
@@ -145,6 +156,18 @@ WORD_COLUMNS: dict[
         DeploymentScope,
         [(controllers.Deployment, "scope"), (controllers.Controller, "scope")],
     ),
+    (models.Frame, "kind"): (
+        FrameKind,
+        [(frames.RobotFrame, "kind"), (frames.FrameCreate, "kind")],
+    ),
+    (models.FrameVersion, "source"): (
+        FrameMethodName,
+        [(frames.FrameVersion, "source"), (frames.ActiveRobotFrame, "method")],
+    ),
+    (models.FrameVersion, "status"): (Status, [(frames.FrameVersion, "status")]),
+    (models.FrameActivation, "reason"): (ActivationKind, [(tools.ActivationOut, "reason")]),
+    (models.FrameCalibration, "method"): (FrameMethodName, []),
+    (models.FrameCalibration, "status"): (Status, []),
     (models.ToolControllerState, "state"): (
         ToolState,
         [(controllers.ReconciledTool, "state"), (fleet.FleetController, "state")],
@@ -177,12 +200,23 @@ def test_each_word_column_and_its_documents_name_one_literal() -> None:
 FREE_TEXT: dict[tuple[str, str], str] = {
     **{
         (table, "name"): "a name a person gives"
-        for table in ("robots", "tools", "reference_points", "laser_devices", "api_keys")
+        for table in (
+            "robots",
+            "tools",
+            "frames",
+            "reference_points",
+            "laser_devices",
+            "api_keys",
+            "frame_fiducials",
+        )
     },
     **dict.fromkeys(
         (
             ("calibrations", "created_by"),
             ("tcp_versions", "created_by"),
+            ("frame_calibrations", "created_by"),
+            ("frame_versions", "created_by"),
+            ("frame_activations", "activated_by"),
             ("reference_points", "created_by"),
             ("laser_devices", "created_by"),
             ("api_keys", "created_by"),
@@ -201,6 +235,9 @@ FREE_TEXT: dict[tuple[str, str], str] = {
             ("robots", "cell"),
             ("tools", "serial"),
             ("tools", "description"),
+            ("frames", "description"),
+            ("frame_versions", "note"),
+            ("frame_activations", "reason_text"),
             ("tcp_versions", "note"),
             ("activations", "reason_text"),
             ("deployments", "reason"),
@@ -209,6 +246,7 @@ FREE_TEXT: dict[tuple[str, str], str] = {
     ),
     ("reference_points", "source"): '"numeric", a method, or "touch:<tool id>:v<version>"',
     ("tools", "controller_symbol"): "an ABB PERS tooldata, TASK/MODULE/SYMBOL",
+    ("frames", "controller_symbol"): "an ABB wobjdata or fixed tooldata, TASK/MODULE/SYMBOL",
     ("robot_controllers", "host"): "a host name or address",
     ("robot_controllers", "username"): "a controller's user",
     ("robot_controllers", "password_encrypted"): "a secret, encrypted",

@@ -28,6 +28,7 @@ def list_audit(
     session: SessionDep,
     key: AdminKey,
     tool_id: Annotated[str | None, Query(pattern=ID_PATTERN)] = None,
+    frame_id: Annotated[str | None, Query(pattern=ID_PATTERN)] = None,
     robot_id: Annotated[str | None, Query(pattern=ID_PATTERN)] = None,
     action: Annotated[
         str | None,
@@ -47,13 +48,20 @@ def list_audit(
     limit: Limit = DEFAULT_LIMIT,
     cursor: Cursor = None,
 ) -> Page[AuditEvent]:
-    """Every change (robots, tools and their tolerances, calibrations, versions, activations,
-    checks, keys, guided sessions, reference points, laser devices), newest first, with who
-    made it, when, in which request (`request_id`, as in the access log) and what changed.
-    Unknown query parameters and a cursor from another query (other filters) are refused
-    with 422. A key limited to cells sees its cells' events only."""
+    """Every change (robots, tools, frames and their tolerances, calibrations, versions,
+    activations, checks, keys, guided sessions, reference points, laser devices), newest
+    first, with who made it, when, in which request (`request_id`, as in the access log)
+    and what changed. Unknown query parameters and a cursor from another query (other
+    filters) are refused with 422. A key limited to cells sees its cells' events only;
+    `frame_id` filters a frame's events as `tool_id` a tool's."""
     query = trail.AuditQuery(
-        tool_id=tool_id, robot_id=robot_id, action=action, actor=actor, since=since, until=until
+        tool_id=tool_id,
+        frame_id=frame_id,
+        robot_id=robot_id,
+        action=action,
+        actor=actor,
+        since=since,
+        until=until,
     )
     items, next_cursor = trail.list_events(session, query=query, limit=limit, cursor=cursor)
     return page(AuditEvent, items, next_cursor)

@@ -150,6 +150,23 @@ GLOSSARY: dict[str, str] = {
     # model-specific meanings
     "Version.source": "the method (or manual) that made the version",
     "ActiveTcp.method": "the method that made the active version",
+    "FrameCreate.kind": "base: a frame the robot's points are taught in; fixed_tool: a tool "
+    "standing in the cell, its TCP in the base frame",
+    "RobotFrame.kind": "base (a frame points are taught in) or fixed_tool (a stationary TCP)",
+    "FrameVersion.frame": "the frame in the robot's base frame: origin (mm) and unit "
+    "quaternion [w, x, y, z]",
+    "FrameVersion.source": "the method (or manual) that made the version",
+    "ActiveRobotFrame.frame": "the active frame in the robot's base frame: origin (mm) and "
+    "unit quaternion [w, x, y, z]",
+    "ActiveRobotFrame.method": "the method that made the active version",
+    "ActiveRobotFrame.frame_id": "id of the frame",
+    "ActiveRobotFrame.frame_name": "the frame's name",
+    "RobotFrame.slot": "the controller's frame number (unique per robot)",
+    "ActiveRobotFrame.slot": "the controller's frame number",
+    **{
+        f"{model}.description": "free text about the frame"
+        for model in ("RobotFrame", "FrameCreate", "FrameUpdate")
+    },
     "ReferencePoint.source": "numeric, the calibration's method, or touch:<tool>:v<version>",
     "LaserDevice.source": "numeric or taught",
     "LaserDevice.details": "the teaching fit: residuals, sigma, widths, warnings",

@@ -10,7 +10,7 @@ from fastapi import Header, Path, Query, Request
 from fastapi.dependencies.models import Dependant
 
 from app.errors import InvalidInput
-from app.helpers.etags import IF_MATCH_PATTERN
+from app.helpers.etags import IF_MATCH_PATTERN, IF_NONE_MATCH_PATTERN
 from app.helpers.pagination import CURSOR_PATTERN, DEFAULT_LIMIT, MAX_LIMIT
 from app.schemas.common import ID_PATTERN
 
@@ -115,3 +115,14 @@ class RawParam:
                 "validation", f"{self.where} {self.title}: {self.rule}", loc=(self.where, self.name)
             )
         return value
+
+
+#: A hot read's If-None-Match, read by hand (a tool's /tcp, a frame's /frame).
+IF_NONE_MATCH = RawParam(
+    "header",
+    "if-none-match",
+    "If-None-Match",
+    'the ETag of an earlier answer (a quoted hex string, e.g. "3f2a...") or *; '
+    "send back the ETag header you were given",
+    pattern=IF_NONE_MATCH_PATTERN,
+)

@@ -1,4 +1,5 @@
-"""HTTP for versions, activation and the served TCP (JSON or controller text)."""
+"""HTTP for a tool's versions, activation and the served TCP (JSON or controller text): the
+versions' routes are every subject's (app.api.subject_routes), with the tool's documents."""
 
 from __future__ import annotations
 
@@ -7,20 +8,13 @@ from typing import Annotated, cast
 from fastapi import APIRouter, Header, Query, Request, Response
 from fastapi.responses import PlainTextResponse
 
-from app.api.deps import CalibrateKey, ReadKey, SessionDep, label_request
-from app.api.params import IfMatch, PathId, RawParam, VersionNumber
-from app.helpers.etags import IF_NONE_MATCH_PATTERN
+from app.api.deps import ReadKey, SessionDep, label_request
+from app.api.params import IF_NONE_MATCH, PathId, RawParam
+from app.api.subject_routes import SubjectRoutes, version_routes
 from app.schemas.common import ID_PATTERN
-from app.schemas.tools import (
-    ActivationRequest,
-    ActiveTcp,
-    RollbackRequest,
-    Tool,
-    ToolTable,
-    Version,
-    VersionList,
-)
-from app.services.tools import activation, active_tcp, controller_files, tools, versions
+from app.schemas.tools import ActiveTcp, Tool, ToolTable, Version, VersionList
+from app.services.tools import active_tcp, controller_files, versions
+from app.services.tools.subject import TOOL
 from app.words import CONTROLLER_FORMATS, ControllerFormat
 
 router = APIRouter(tags=["versions"])
@@ -41,14 +35,6 @@ FORMAT = RawParam(
     f"one of {', '.join(CONTROLLER_FORMATS)}, or leave it out for JSON alone",
     description="controller text format",
     choices=CONTROLLER_FORMATS,
-)
-IF_NONE_MATCH = RawParam(
-    "header",
-    "if-none-match",
-    "If-None-Match",
-    'the ETag of an earlier answer (a quoted hex string, e.g. "3f2a...") or *; '
-    "send back the ETag header you were given",
-    pattern=IF_NONE_MATCH_PATTERN,
 )
 ACCEPT = RawParam(
     "header", "accept", "Accept", "at most 1000 characters (e.g. text/plain)", max_length=1000
@@ -103,90 +89,18 @@ async def get_active_tcp(request: Request) -> Response:
     return Response(status_code=304, headers=headers)
 
 
-@router.get("/v1/tools/{tool_id}/versions", response_model=VersionList)
-def list_versions(tool_id: PathId, session: SessionDep, key: ReadKey) -> VersionList:
-    """Every version of a tool's TCP with who made it and why, and the history of activations."""
-    tool, rows, history = versions.list_versions(session, tool_id=tool_id)
-    return VersionList.model_validate(
-        {
-            "items": [versions.version_document(r, tool) for r in rows],
-            "activations": history,
-        },
-        from_attributes=True,
+router.include_router(
+    version_routes(
+        SubjectRoutes(
+            subject=TOOL,
+            document=Tool,
+            version=Version,
+            version_list=VersionList,
+            version_document=versions.version_document,
+            names="",
+        )
     )
-
-
-@router.get("/v1/tools/{tool_id}/versions/{version}", response_model=Version)
-def get_version(
-    tool_id: PathId, version: VersionNumber, session: SessionDep, key: ReadKey
-) -> Version:
-    """One version of a tool's TCP."""
-    row = versions.get_version(session, tool_id=tool_id, version=version)
-    return versions.version_document(row, tools.get_tool(session, tool_id))
-
-
-_ACTIVATION_PROBLEMS: dict[int | str, dict[str, object]] = {
-    409: {"description": "out of tolerance without force (/out-of-tolerance)"},
-    412: {"description": "If-Match names an older ETag of the tool"},
-}
-
-
-@router.post(
-    "/v1/tools/{tool_id}/versions/{version}/activate",
-    response_model=Tool,
-    responses=_ACTIVATION_PROBLEMS,
 )
-def activate_version(
-    tool_id: PathId,
-    version: VersionNumber,
-    response: Response,
-    session: SessionDep,
-    key: CalibrateKey,
-    if_match: IfMatch = None,
-    body: ActivationRequest | None = None,
-) -> Tool:
-    """Make a stored version the active TCP, with an optional `reason` kept in the activation
-    history and the audit trail. A version stored as out_of_tolerance needs `{"force": true,
-    "reason": ...}` (409 /out-of-tolerance otherwise, nothing changed). To go back to the
-    version active before, use POST /v1/tools/{tool_id}/rollback. Honours If-Match with the
-    tool's ETag, 412 when stale."""
-    tool = activation.activate_version(
-        session,
-        tool_id=tool_id,
-        version=version,
-        body=body or ActivationRequest(),
-        if_match=if_match,
-        actor=key,
-    )
-    response.headers["ETag"] = tools.tool_etag(tool)
-    return Tool.model_validate(tool, from_attributes=True)
-
-
-@router.post(
-    "/v1/tools/{tool_id}/rollback",
-    response_model=Tool,
-    responses={
-        409: {"description": "no earlier activation to return to (/nothing-to-roll-back)"},
-        412: {"description": "If-Match names an older ETag of the tool"},
-    },
-)
-def rollback(
-    tool_id: PathId,
-    response: Response,
-    session: SessionDep,
-    key: CalibrateKey,
-    if_match: IfMatch = None,
-    body: RollbackRequest | None = None,
-) -> Tool:
-    """Return to the version that was active before the current one, read from the activation
-    history (never by number, never a version that was not active). Rolling back again walks
-    further back; 409 /nothing-to-roll-back when no earlier activation is left. Optional
-    `reason`; honours If-Match with the tool's ETag, 412 when stale."""
-    tool = activation.rollback(
-        session, tool_id=tool_id, body=body or RollbackRequest(), if_match=if_match, actor=key
-    )
-    response.headers["ETag"] = tools.tool_etag(tool)
-    return Tool.model_validate(tool, from_attributes=True)
 
 
 @router.get(

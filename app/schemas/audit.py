@@ -29,7 +29,10 @@ class AuditEvent(BaseModel):
     resource_id: str = Field(description="the id of the thing changed")
     robot_id: str | None
     tool_id: str | None
-    version: int | None = Field(description="the TCP version the change concerns, if any")
+    frame_id: str | None = Field(default=None, description="the frame the change concerns")
+    version: int | None = Field(
+        description="the version (of the tool's TCP, of the frame) the change concerns, if any"
+    )
     detail: JsonObject | None = Field(
         description="what changed: old and new values of an update, an activation's reason, "
         "a calibration's status and note, a check's figures (never a key or its hash)"

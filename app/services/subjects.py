@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from pydantic import BaseModel
 from sqlalchemy.orm import Session
 
+from app.services.frames.subject import FRAME
+from app.services.frames.versions import served_frame
 from app.services.lifecycle.subject import AnySubject
 from app.services.tools.subject import TOOL
 from app.services.tools.versions import served_tcp
@@ -36,8 +38,12 @@ def _tool_document(session: Session, tool_id: str) -> tuple[BaseModel | None, st
     return served_tcp(session, tool_id=tool_id, fmt=None, if_none_match=None)
 
 
+def _frame_document(session: Session, frame_id: str) -> tuple[BaseModel | None, str]:
+    return served_frame(session, frame_id=frame_id, if_none_match=None)
+
+
 #: Every calibrated subject with what it serves, tools first.
-SERVED: tuple[Served, ...] = (Served(TOOL, _tool_document),)
+SERVED: tuple[Served, ...] = (Served(TOOL, _tool_document), Served(FRAME, _frame_document))
 #: Every calibrated subject, tools first.
 SUBJECTS: tuple[AnySubject, ...] = tuple(served.subject for served in SERVED)
 #: The subjects by kind (their audit resource type).

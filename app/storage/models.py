@@ -41,6 +41,8 @@ from app.words import (
     AuditAction,
     DeploymentScope,
     DeploymentStatus,
+    FrameKind,
+    FrameMethodName,
     LaserDeviceSource,
     MethodName,
     PoseFormat,
@@ -260,6 +262,149 @@ class Activation(Base):
     activated_by: Mapped[str] = mapped_column(String(200))
 
 
+class Frame(Base):
+    """A frame of a robot's cell: a base (work object, user frame) the robot's points are
+    taught in, or a fixed tool standing in the cell (`kind`). Its value is a pose in the
+    robot's base frame, versioned and activated by the lifecycle as a tool's TCP is
+    (app.services.frames.subject)."""
+
+    __tablename__ = "frames"
+    __table_args__ = (
+        Index(
+            "uq_frames_live_name",
+            "robot_id",
+            "name",
+            unique=True,
+            sqlite_where=text("archived_at IS NULL"),
+            postgresql_where=text("archived_at IS NULL"),
+        ),
+        Index(
+            "uq_frames_live_slot",
+            "robot_id",
+            "slot",
+            unique=True,
+            sqlite_where=text("archived_at IS NULL AND slot IS NOT NULL"),
+            postgresql_where=text("archived_at IS NULL AND slot IS NOT NULL"),
+        ),
+        Index("ix_frames_robot_created", "robot_id", "created_at", "id"),
+        Index(
+            "ix_frames_live_created",
+            "created_at",
+            "id",
+            sqlite_where=text("archived_at IS NULL"),
+            postgresql_where=text("archived_at IS NULL"),
+        ),
+    )
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"))
+    name: Mapped[str] = mapped_column(String(200))
+    kind: Mapped[FrameKind] = mapped_column(String(20))
+    #: The controller's frame number (app.vendors.maker.Maker.frame_numbers), where it has one.
+    slot: Mapped[int | None] = mapped_column(Integer)
+    #: Under a maker addressing frames by symbol: its RAPID variable, "TASK/MODULE/SYMBOL".
+    controller_symbol: Mapped[str | None] = mapped_column(String(100))
+    description: Mapped[str | None] = mapped_column(Text)
+    tolerance: Mapped[JsonObject] = mapped_column(JSON)
+    active_version: Mapped[int | None] = mapped_column(Integer)
+    last_version: Mapped[int] = mapped_column(Integer, default=0)
+    revision: Mapped[int] = mapped_column(Integer, default=1)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
+    archived_at: Mapped[datetime | None] = mapped_column()
+    #: The drift trend (app.services.lifecycle.drift), as a tool's.
+    drift: Mapped[JsonObject | None] = mapped_column(JSON)
+    drift_crosses_at: Mapped[datetime | None] = mapped_column()
+
+
+class FrameCalibration(Base):
+    """One frame calibration as received and what its method made of it (also when out of
+    tolerance): the touches, their points in the base frame, the pointer tool and its
+    version, and the fiducials it kept."""
+
+    __tablename__ = "frame_calibrations"
+    __table_args__ = (Index("ix_frame_calibrations_frame_created", "frame_id", "created_at", "id"),)
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    frame_id: Mapped[str] = mapped_column(ForeignKey("frames.id"))
+    method: Mapped[FrameMethodName] = mapped_column(String(40))
+    status: Mapped[Status] = mapped_column(String(40))
+    request: Mapped[JsonObject] = mapped_column(JSON)
+    result: Mapped[JsonObject] = mapped_column(JSON)
+    version: Mapped[int | None] = mapped_column(Integer)
+    #: Where each touch came from (a guided session's, as a tool calibration's); null else.
+    touches: Mapped[JsonArray | None] = mapped_column(JSON)
+    #: Each touch's point in the base frame (mm), in the order touched.
+    points_mm: Mapped[JsonArray] = mapped_column(JSON)
+    #: The pointer tool and the TCP version its touches were computed with (null: none used).
+    pointer_tool_id: Mapped[str | None] = mapped_column(ForeignKey("tools.id"))
+    pointer_version: Mapped[int | None] = mapped_column(Integer)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by: Mapped[str] = mapped_column(String(200))
+
+
+class FrameVersion(Base):
+    """Version n of a frame: immutable once written."""
+
+    __tablename__ = "frame_versions"
+    __table_args__ = (
+        UniqueConstraint("frame_id", "version", name="uq_frame_versions_frame_version"),
+    )
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    frame_id: Mapped[str] = mapped_column(ForeignKey("frames.id"))
+    version: Mapped[int] = mapped_column(Integer)
+    position_mm: Mapped[JsonArray] = mapped_column(JSON)
+    quaternion: Mapped[JsonArray] = mapped_column(JSON)
+    #: the method that made the version (`manual` for a frame entered by hand)
+    source: Mapped[FrameMethodName] = mapped_column(String(40))
+    status: Mapped[Status] = mapped_column(String(40))
+    calibration_id: Mapped[str | None] = mapped_column(ForeignKey("frame_calibrations.id"))
+    note: Mapped[str | None] = mapped_column(Text)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by: Mapped[str] = mapped_column(String(200))
+
+
+class FrameActivation(Base):
+    """One activation of a frame's version: the history behind its `active_version`."""
+
+    __tablename__ = "frame_activations"
+    __table_args__ = (Index("ix_frame_activations_frame_seq", "frame_id", "id"),)
+
+    id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
+    frame_id: Mapped[str] = mapped_column(ForeignKey("frames.id"))
+    version: Mapped[int] = mapped_column(Integer)
+    previous_version: Mapped[int | None] = mapped_column(Integer)
+    #: the kind (app.words.ActivationKind)
+    reason: Mapped[ActivationKind] = mapped_column(String(40))
+    #: the person's own words, when given
+    reason_text: Mapped[str | None] = mapped_column(String(500))
+    activated_at: Mapped[datetime] = mapped_column(default=utcnow)
+    activated_by: Mapped[str] = mapped_column(String(200))
+
+
+class FrameFiducial(Base):
+    """A point a frame calibration touched, kept with its coordinates in the frame
+    (`nominal_mm`) to be touched again after a move; `name` is given by the method (a role,
+    "p3") and can be renamed (PUT /v1/frames/{frame_id}/fiducials)."""
+
+    __tablename__ = "frame_fiducials"
+    __table_args__ = (
+        UniqueConstraint("calibration_id", "name", name="uq_frame_fiducials_calibration_name"),
+        Index("ix_frame_fiducials_frame", "frame_id", "calibration_id", "seq"),
+    )
+
+    id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
+    frame_id: Mapped[str] = mapped_column(ForeignKey("frames.id"))
+    calibration_id: Mapped[str] = mapped_column(ForeignKey("frame_calibrations.id"))
+    #: the touch's place among the calibration's touches
+    seq: Mapped[int] = mapped_column(Integer)
+    name: Mapped[str] = mapped_column(String(100))
+    nominal_mm: Mapped[JsonArray] = mapped_column(JSON)
+    #: the touched point in the base frame when it was kept (mm)
+    point_mm: Mapped[JsonArray] = mapped_column(JSON)
+
+
 class ReferencePoint(Base):
     __tablename__ = "reference_points"
     __table_args__ = (
@@ -333,7 +478,7 @@ class IdempotencyRecord(Base):
 
 #: The columns of audit_events and outbox that name a calibrated subject, one per subject
 #: (app.services.lifecycle.subject.Subject.key; tests/services/lifecycle holds them equal).
-SUBJECT_KEYS: tuple[str, ...] = ("tool_id",)
+SUBJECT_KEYS: tuple[str, ...] = ("tool_id", "frame_id")
 
 
 class AuditEvent(Base):
@@ -348,6 +493,8 @@ class AuditEvent(Base):
         Index("ix_audit_events_resource", "resource_type", "resource_id"),
         Index("ix_audit_events_tool_action", "tool_id", "action", "id"),
         Index("ix_audit_events_tool", "tool_id", "id"),
+        Index("ix_audit_events_frame_action", "frame_id", "action", "id"),
+        Index("ix_audit_events_frame", "frame_id", "id"),
         Index("ix_audit_events_robot", "robot_id", "id"),
         Index("ix_audit_events_action", "action", "id"),
         Index("ix_audit_events_actor", "actor", "id"),
@@ -363,6 +510,7 @@ class AuditEvent(Base):
     resource_id: Mapped[str] = mapped_column(String(36))
     robot_id: Mapped[str | None] = mapped_column(String(36))
     tool_id: Mapped[str | None] = mapped_column(String(36))
+    frame_id: Mapped[str | None] = mapped_column(String(36))
     #: The TCP version the change concerns (a calibration's, an activation's, a check's).
     version: Mapped[int | None] = mapped_column(Integer)
     #: The X-Request-ID of the request that made the change (null from the command line).
@@ -555,6 +703,7 @@ class OutboxMessage(Base):
     action: Mapped[AuditAction] = mapped_column(String(60))
     robot_id: Mapped[str | None] = mapped_column(String(36))
     tool_id: Mapped[str | None] = mapped_column(String(36))
+    frame_id: Mapped[str | None] = mapped_column(String(36))
     #: The event as published: action, tool_id, robot_id, version, actor, at, request_id.
     payload: Mapped[JsonObject] = mapped_column(JSON)
     delivered_at: Mapped[datetime | None] = mapped_column()

@@ -207,7 +207,9 @@ class Maker:
       `vendor_initials`: whole words that name it alone ("ur", "tm");
     - `file_kind`: what its file is, in a few words (the console's download buttons);
     - `tool_numbers`: (first, last) when its controllers number their tools, else None;
-    - `text`, `file`: its text and file modules; `protocols`: what its connectors speak.
+    - `text`, `file`: its text and file modules; `protocols`: what its connectors speak;
+    - `frame_address`: how its controllers name a frame (a base, a fixed tool): by number
+      (`BySlot`), by a symbol (`BySymbol`), or None when a frame is given by its values.
     """
 
     format: str
@@ -222,3 +224,19 @@ class Maker:
     frame: Callable[[], FrameModule]
     protocols: tuple[WireProtocol, ...] = ()
     vendor_initials: tuple[str, ...] = ()
+    frame_address: BySlot | BySymbol | None = None
+
+    def frame_problem(self, slot: int | None, symbol: str | None) -> str | None:
+        """Why a frame's `slot` or `symbol` cannot name a frame of this maker's controllers,
+        in a sentence; None when it can (or when neither is given yet)."""
+        if isinstance(self.frame_address, BySlot) and slot is not None:
+            low, high = self.frame_address.numbers
+            if not low <= slot <= high:
+                return (
+                    f"slot {slot} is not a {self.name} frame number: a {self.name} controller "
+                    f"numbers its frames {self.frame_address.name.format(f'{low}..{high}')}; "
+                    f"give a slot from {low} to {high}"
+                )
+        if isinstance(self.frame_address, BySymbol) and symbol is not None:
+            return self.frame_address.problem(symbol)
+        return None

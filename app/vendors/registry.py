@@ -284,6 +284,13 @@ def vendor_speaks(vendor: str | None, protocol: str) -> bool:
     return protocol in vendor_protocols(vendor)
 
 
+def vendor_maker(vendor: str | None) -> Maker | None:
+    """The maker of a robot of `vendor` (as `vendor_formats` finds it); None when the vendor
+    names no maker known here."""
+    formats = vendor_formats(vendor)
+    return None if formats == CONTROLLER_FORMATS else BY_FORMAT[formats[0]]
+
+
 def vendor_pose_format(vendor: str | None) -> PoseFormat | None:
     """The pose format the pendant of a robot of `vendor` shows (its maker's, as
     `vendor_formats` finds the maker); None when the vendor names no maker known here."""

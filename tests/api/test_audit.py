@@ -72,9 +72,11 @@ def test_newest_first_with_who_what_and_which_version(api: Api, history: dict[st
         "resource_id",
         "robot_id",
         "tool_id",
+        "frame_id",
         "version",
         "detail",
     }
+    assert items[0]["frame_id"] is None  # a tool's event names no frame
     rollback = items[0]
     assert rollback["actor"] == "test-calibrate"
     assert rollback["version"] == 1

@@ -24,6 +24,7 @@ from app.kinematics.poses import pose_to_format
 from app.words import AuditAction, ResourceType
 from testbed.sim.touches import simulate_touches
 from tests.api.controller_rigs import Rig, rig
+from tests.api.frame_versions import add_frame_version
 from tests.api.touches import as_poses
 from tests.conftest import Api
 
@@ -115,6 +116,24 @@ def _rollback(api: Api, _rig: Rig) -> Call:
     return Call(f"/v1/tools/{tool['id']}/rollback", scope="calibrate")
 
 
+def _frame(api: Api, *, versions: int = 0) -> str:
+    """A frame of a new robot, with `versions` stored versions (the first active)."""
+    made = api.post(f"/v1/robots/{_robot(api)}/frames", {"name": "fixture", "kind": "base"})
+    assert made.status_code == 201, made.text
+    fid = str(made.json()["id"])
+    for n in range(1, versions + 1):
+        add_frame_version(fid, [500.0 + n, 0.0, 0.0])
+        activated = api.post(f"/v1/frames/{fid}/versions/{n}/activate", scope="calibrate")
+        assert activated.status_code == 200, activated.text
+    return fid
+
+
+def _frame_activate(api: Api, _rig: Rig) -> Call:
+    fid = _frame(api, versions=1)
+    add_frame_version(fid, [510.0, 0.0, 0.0])
+    return Call(f"/v1/frames/{fid}/versions/2/activate", {"reason": "taught"}, scope="calibrate")
+
+
 def _on_controller(api: Api, rig: Rig, *, active: bool = True) -> dict[str, Any]:
     """A tool of a robot whose controller is the rig's simulator."""
     tool = api.tool(_robot(api), "torch", **rig.tool_fields)
@@ -191,6 +210,17 @@ CALLS: dict[tuple[str, str], Callable[[Api, Rig], Call]] = {
     ("POST", "/v1/sessions/{session_id}/finish"): lambda api, _rig: Call(
         f"/v1/sessions/{_session(api, 6)}/finish", {}, scope="calibrate"
     ),
+    ("POST", "/v1/robots/{robot_id}/frames"): lambda api, _rig: Call(
+        f"/v1/robots/{_robot(api)}/frames", {"name": "fixture-a", "kind": "base"}
+    ),
+    ("PATCH", "/v1/frames/{frame_id}"): lambda api, _rig: Call(
+        f"/v1/frames/{_frame(api)}", {"tolerance": {"max_change_mm": 2.0}}
+    ),
+    ("DELETE", "/v1/frames/{frame_id}"): lambda api, _rig: Call(f"/v1/frames/{_frame(api)}"),
+    ("POST", "/v1/frames/{frame_id}/versions/{version}/activate"): _frame_activate,
+    ("POST", "/v1/frames/{frame_id}/rollback"): lambda api, _rig: Call(
+        f"/v1/frames/{_frame(api, versions=2)}/rollback", scope="calibrate"
+    ),
     # POSTs that compute and store nothing: called too, and must leave no event.
     ("POST", "/v1/plan"): lambda api, _rig: Call(
         "/v1/plan",
@@ -258,6 +288,13 @@ EVENTS: dict[tuple[str, str], tuple[tuple[str, str, str], ...]] = {
         ("calibration.create", "calibration", "id"),
         ("session.finish", "session", "{session_id}"),
     ),
+    ("POST", "/v1/robots/{robot_id}/frames"): (("frame.create", "frame", "id"),),
+    ("PATCH", "/v1/frames/{frame_id}"): (("frame.update", "frame", "{frame_id}"),),
+    ("DELETE", "/v1/frames/{frame_id}"): (("frame.archive", "frame", "{frame_id}"),),
+    ("POST", "/v1/frames/{frame_id}/versions/{version}/activate"): (
+        ("version.activate", "frame", "{frame_id}"),
+    ),
+    ("POST", "/v1/frames/{frame_id}/rollback"): (("version.rollback", "frame", "{frame_id}"),),
 }
 
 
@@ -367,7 +404,7 @@ def _leaves_its_events(api: Api, route: tuple[str, str], call: Call) -> None:
         assert event["actor"] == f"test-{call.scope}", event
         assert event["request_id"] == request_id, event
         assert event["at"] is not None
-        for column in ("robot_id", "tool_id"):  # the robot or tool the path names
+        for column in ("robot_id", "tool_id", "frame_id"):  # the robot or subject the path names
             if column in params:
                 assert event[column] == params[column], (column, event)
     # And readable through the API, with the same request id.

@@ -26,11 +26,6 @@ from tests.publish.plant_changes import force, out_of_tolerance_version, rollbac
 pytestmark = [needs_mosquitto, pytest.mark.live]
 
 
-EVENT_FIELDS = (
-    "action", "tool_id", "robot_id", "version", "actor", "at", "request_id", "kind", "reason",
-)  # fmt: skip
-
-
 @pytest.fixture
 def publishers(tmp_path: Path) -> Iterator[list[Publisher]]:
     started: list[Publisher] = []
@@ -159,6 +154,7 @@ def test_activation_is_retained_within_a_second_and_equals_get_tcp(
     assert set(events[0]) == {
         "action",
         "tool_id",
+        "frame_id",  # every subject's key (app.storage.models.SUBJECT_KEYS): null here
         "robot_id",
         "version",
         "actor",

@@ -61,9 +61,10 @@ def test_each_change_writes_one_row_with_the_event(api: Api) -> None:
     assert activation.tool_id == tool["id"]
     assert activation.robot_id == robot["id"]
     assert set(activation.payload) == {
-        "action", "tool_id", "robot_id", "version", "actor", "at", "request_id", "kind",
-        "reason",
+        "action", "tool_id", "frame_id", "robot_id", "version", "actor", "at", "request_id",
+        "kind", "reason",
     }  # fmt: skip
+    assert activation.payload["frame_id"] is None  # every subject's key, a tool's event
     assert activation.payload["version"] == 1
     assert (activation.payload["kind"], activation.payload["reason"]) == ("explicit", None)
     archive = [r for r in rows if r.action == "tool.archive"][-1]

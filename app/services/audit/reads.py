@@ -26,6 +26,7 @@ class AuditQuery:
     """The filters of GET /v1/audit (None: not filtered); `since` <= at < `until`."""
 
     tool_id: str | None = None
+    frame_id: str | None = None
     robot_id: str | None = None
     action: str | None = None
     actor: str | None = None
@@ -42,6 +43,7 @@ class AuditQuery:
                 self.actor,
                 None if self.since is None else self.since.isoformat(),
                 None if self.until is None else self.until.isoformat(),
+                self.frame_id,
             )
         )
 
@@ -61,6 +63,7 @@ def list_events(
     stmt = in_scope(session, select(AuditEvent), AuditEvent.robot_id)
     for column, value in (
         (AuditEvent.tool_id, query.tool_id),
+        (AuditEvent.frame_id, query.frame_id),
         (AuditEvent.robot_id, query.robot_id),
         (AuditEvent.action, query.action),
         (AuditEvent.actor, query.actor),
@@ -89,6 +92,7 @@ def event_out(row: AuditEvent) -> AuditEventOut:
         resource_id=row.resource_id,
         robot_id=row.robot_id,
         tool_id=row.tool_id,
+        frame_id=row.frame_id,
         version=row.version,
         detail=row.details,
     )

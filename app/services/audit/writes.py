@@ -15,7 +15,7 @@ from app.logs import REQUEST_ID, events_logger
 from app.security.auth import Principal
 from app.services.audit import outbox
 from app.storage.db import DriverWrite
-from app.storage.models import AuditEvent, table_of, utcnow
+from app.storage.models import SUBJECT_KEYS, AuditEvent, table_of, utcnow
 from app.words import AuditAction, ResourceType
 
 
@@ -55,6 +55,8 @@ def record(
                 request_id=request_id,
                 details=details,
             ),
+            # every subject's column, so that the transaction's rows insert as one executemany
+            **dict.fromkeys(SUBJECT_KEYS),
             **ids,
         }
     )

@@ -109,7 +109,7 @@ def compute_drift(
     reads = _reads(subject)
     positions = _version_points(session, reads, subject_id)
     active_mm = _active_position(session, reads, subject_id, active_version)
-    checks = _check_points(session, reads, subject_id, active_version)
+    checks = _check_points(session, subject, reads, subject_id, active_version)
     if pending_check is not None:
         checks.append(pending_check)
     versions_trend = _series(positions, active_mm, check_mm)
@@ -263,12 +263,16 @@ def _active_position(
 
 
 def _check_points(
-    session: Session, reads: _Reads, subject_id: str, active_version: int | None
+    session: Session,
+    subject: AnySubject,
+    reads: _Reads,
+    subject_id: str,
+    active_version: int | None,
 ) -> list[Point]:
     """The newest checks of the active version (seek in the (key, action, id) index): each
     one's deviation, t_real - t_active, in the flange frame (the base frame for checks
     recorded before the flange deviation was)."""
-    if active_version is None:
+    if active_version is None or subject.check_action is None:
         return []
     points = []
     for at, details in reads.checks.all_in(session, subject_id=subject_id):

@@ -27,7 +27,7 @@ from app.security.auth import Principal, admit, digest_of
 from app.services.lifecycle.subject import AnySubject
 from app.storage.db import HeldRead
 from app.storage.models import ApiKey, Robot, table_of
-from app.words import MethodName
+from app.words import VersionSource
 
 
 class HotRow(NamedTuple):
@@ -52,7 +52,7 @@ class HotRow(NamedTuple):
     version: int | None
     position_mm: JsonArray | None
     quaternion: JsonArray | None
-    source: MethodName | None
+    source: VersionSource | None
     created_at: datetime | None
     created_by: str | None
 
@@ -113,7 +113,7 @@ class HotVersion:
     version: int
     position_mm: JsonArray
     quaternion: JsonArray
-    source: MethodName
+    source: VersionSource
     created_at: datetime
     created_by: str
 

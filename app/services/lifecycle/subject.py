@@ -36,7 +36,7 @@ from sqlalchemy import Column, Table
 from app.jsontypes import JsonArray, JsonObject
 from app.storage.models import AuditEvent, Base, table_of
 from app.vendors.connector import Connector
-from app.words import AuditAction, DeploymentScope, MethodName, ResourceType, Status
+from app.words import AuditAction, DeploymentScope, ResourceType, Status, VersionSource
 
 
 class Owned(Protocol):
@@ -78,7 +78,7 @@ class Valued(Protocol):
     @property
     def quaternion(self) -> JsonArray: ...
     @property
-    def source(self) -> MethodName: ...
+    def source(self) -> VersionSource: ...
     @property
     def created_at(self) -> datetime: ...
 
@@ -191,7 +191,7 @@ class Subject(Generic[Row, VersionT, ActivationT]):
       retained topic that serve its active version ("tcp"); `folder`: the OPC UA folder of a
       robot that holds them ("Tools");
     - `check_action`: the audit action of a check of its active version, which the drift
-      trend reads back;
+      trend reads back (None while it has no checks: its trend is its versions');
     - `served_detail`: the one JSON column of its own that its hot read serves (a tool's
       `load`; app.services.lifecycle.hot_read);
     - at the controller (None for a subject not deployed yet): `deployment_model`, a
@@ -209,7 +209,7 @@ class Subject(Generic[Row, VersionT, ActivationT]):
     plural: str
     leaf: str
     folder: str
-    check_action: AuditAction
+    check_action: AuditAction | None
     served_detail: str | None = None
     deployment_model: type[Base] | None = None
     state_model: type[Base] | None = None

@@ -58,6 +58,13 @@ _BY_SYMBOL = BySymbol(
 RWS1 = WireProtocol("abb_rws1", _BY_SYMBOL, _rws, default_port=80)
 #: RobotWare 7 Robot Web Services 2.0, HTTPS + Basic.
 RWS2 = WireProtocol("abb_rws2", _BY_SYMBOL, _rws, default_port=443)
+#: A frame is a RAPID variable: a wobjdata (a base) or a tooldata with robhold FALSE (a
+#: fixed tool), by its controller_symbol.
+_FRAME_BY_SYMBOL = BySymbol(
+    'RAPID symbol: set the frame\'s controller_symbol as "TASK/MODULE/SYMBOL", a wobjdata '
+    'for a base, a tooldata with robhold FALSE for a fixed tool, e.g. "T_ROB1/user/wobjFixA"',
+    symbol_problem,
+)
 
 MAKER = Maker(
     format="abb",
@@ -70,4 +77,5 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(RWS1, RWS2),
+    frame_address=_FRAME_BY_SYMBOL,
 )

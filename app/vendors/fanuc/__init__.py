@@ -25,6 +25,8 @@ from app.vendors.maker import (
 
 #: (first, last) tool number: UTOOL[1..10].
 TOOL_NUMBERS = (1, 10)
+#: (first, last) user frame number: UFRAME[1..9] (UFRAME[0] is the world frame).
+FRAME_NUMBERS = (1, 9)
 
 
 def _text() -> TextModule:
@@ -65,4 +67,5 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(RMI,),
+    frame_address=BySlot(FRAME_NUMBERS, "UFRAME[{}]"),
 )

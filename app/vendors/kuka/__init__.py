@@ -8,6 +8,8 @@
 | kvp.py | the connector: KUKAVARPROXY (OpenShowVar), TCP 7000 |
 
 Tool numbers: ``$TOOL_DATA[1..16]`` (KSS 8.x, $config.dat ``DECL FRAME TOOL_DATA[16]``).
+Frame numbers: ``BASE_DATA[1..32]`` (``DECL FRAME BASE_DATA[32]``); a fixed tool is a base
+used with ``$IPO_MODE #TCP``.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ from app.vendors.maker import (
 
 #: (first, last) tool number: $TOOL_DATA[1..16].
 TOOL_NUMBERS = (1, 16)
+#: (first, last) frame number: BASE_DATA[1..32].
+FRAME_NUMBERS = (1, 32)
 
 
 def _text() -> TextModule:
@@ -63,4 +67,5 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(KVP,),
+    frame_address=BySlot(FRAME_NUMBERS, "BASE_DATA[{}]"),
 )

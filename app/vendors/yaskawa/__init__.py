@@ -29,6 +29,8 @@ from app.vendors.maker import (
 
 #: (first, last) tool number: tool files 0..63.
 TOOL_NUMBERS = (0, 63)
+#: (first, last) user frame number: user frames 1..63 (UFRAME.CND).
+FRAME_NUMBERS = (1, 63)
 
 
 def _text() -> TextModule:
@@ -75,4 +77,5 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(HSES,),
+    frame_address=BySlot(FRAME_NUMBERS, "UFRAME.CND user frame {}"),
 )

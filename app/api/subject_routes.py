@@ -1,0 +1,220 @@
+"""The routes of every calibrated subject's versions, from one definition: its versions listed
+and read, a version activated (reason, force) and a rollback, each as a subject's route under
+its path (/v1/tools/{tool_id}/versions, /v1/frames/{frame_id}/versions), its path parameter
+named by the subject's key. A subject's router module includes `version_routes(...)` with its
+declaration (app.services.lifecycle.subject) and its documents.
+
+A route's words (its description, its parameters') are the subject's: written here once with
+the subject's kind, value and path in them, so that the tool's read as they always did.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Annotated, Generic, TypeVar
+
+from fastapi import APIRouter, Header, Response
+from pydantic import BaseModel
+
+from app.api.deps import CalibrateKey, ReadKey, SessionDep
+from app.api.params import PathId, VersionNumber
+from app.helpers.etags import IF_MATCH_PATTERN
+from app.schemas.tools import ActivationRequest, RollbackRequest
+from app.services.lifecycle import activation
+from app.services.lifecycle import versions as lifecycle
+from app.services.lifecycle.subject import ActivationT, AnySubject, Row, Subject, VersionT
+
+Document = TypeVar("Document", bound=BaseModel)
+VersionDocument = TypeVar("VersionDocument", bound=BaseModel)
+ListDocument = TypeVar("ListDocument", bound=BaseModel)
+
+
+@dataclass(frozen=True)
+class SubjectRoutes(Generic[Row, VersionT, ActivationT, Document, VersionDocument, ListDocument]):
+    """A subject's version routes: its declaration, the document of the subject (a Tool, a
+    Frame: what an activation answers), of a version and of the version list, and how a
+    stored version becomes its document; `names` prefixes the routes' names (their
+    operationIds) after the first word: "" for the tool's (list_versions), "frame_" for the
+    frame's (list_frame_versions). The routes take the tags of the router including them."""
+
+    subject: Subject[Row, VersionT, ActivationT]
+    document: type[Document]
+    version: type[VersionDocument]
+    version_list: type[ListDocument]
+    version_document: Callable[[VersionT, Row], VersionDocument]
+    names: str
+
+
+def version_routes(
+    spec: SubjectRoutes[Row, VersionT, ActivationT, Document, VersionDocument, ListDocument],
+) -> APIRouter:
+    """The subject's routes: GET {path}/{{key}}/versions, GET {path}/{{key}}/versions/{{version}},
+    POST {path}/{{key}}/versions/{{version}}/activate, POST {path}/{{key}}/rollback."""
+    router = APIRouter()
+    _read_routes(router, spec)
+    _write_routes(router, spec)
+    return router
+
+
+def _at(subject: AnySubject) -> str:
+    """Where a subject's own routes start: "/v1/tools/{tool_id}"."""
+    return f"{subject.path}/{{{subject.key}}}"
+
+
+def _read_routes(
+    router: APIRouter,
+    spec: SubjectRoutes[Row, VersionT, ActivationT, Document, VersionDocument, ListDocument],
+) -> None:
+    subject = spec.subject
+    kind, value, at = subject.kind, subject.value, _at(subject)
+
+    def list_versions(subject_id: PathId, session: SessionDep, key: ReadKey) -> ListDocument:
+        row, rows, history = lifecycle.list_versions(session, subject, subject_id=subject_id)
+        return spec.version_list.model_validate(
+            {"items": [spec.version_document(r, row) for r in rows], "activations": history},
+            from_attributes=True,
+        )
+
+    def get_version(
+        subject_id: PathId, version: VersionNumber, session: SessionDep, key: ReadKey
+    ) -> VersionDocument:
+        row = lifecycle.get_version(session, subject, subject_id=subject_id, version=version)
+        return spec.version_document(row, lifecycle.get_live(session, subject, subject_id))
+
+    router.add_api_route(
+        f"{at}/versions",
+        _keyed(list_versions, subject),
+        methods=["GET"],
+        name=f"list_{spec.names}versions",
+        response_model=spec.version_list,
+        description=f"Every version of a {kind}'s {value} with who made it and why, and the "
+        "history of activations.",
+    )
+    router.add_api_route(
+        f"{at}/versions/{{version}}",
+        _keyed(get_version, subject),
+        methods=["GET"],
+        name=f"get_{spec.names}version",
+        response_model=spec.version,
+        description=f"One version of a {kind}'s {value}.",
+    )
+
+
+def _write_routes(
+    router: APIRouter,
+    spec: SubjectRoutes[Row, VersionT, ActivationT, Document, VersionDocument, ListDocument],
+) -> None:
+    subject = spec.subject
+    kind, value, at = subject.kind, subject.value, _at(subject)
+
+    def activate_version(
+        subject_id: PathId,
+        version: VersionNumber,
+        response: Response,
+        session: SessionDep,
+        key: CalibrateKey,
+        if_match: str | None = None,
+        body: ActivationRequest | None = None,
+    ) -> Document:
+        row = activation.activate_version(
+            session,
+            subject,
+            subject_id=subject_id,
+            version=version,
+            body=body or ActivationRequest(),
+            if_match=if_match,
+            actor=key,
+        )
+        response.headers["ETag"] = lifecycle.etag(row)
+        return spec.document.model_validate(row, from_attributes=True)
+
+    def rollback(
+        subject_id: PathId,
+        response: Response,
+        session: SessionDep,
+        key: CalibrateKey,
+        if_match: str | None = None,
+        body: RollbackRequest | None = None,
+    ) -> Document:
+        row = activation.rollback(
+            session,
+            subject,
+            subject_id=subject_id,
+            body=body or RollbackRequest(),
+            if_match=if_match,
+            actor=key,
+        )
+        response.headers["ETag"] = lifecycle.etag(row)
+        return spec.document.model_validate(row, from_attributes=True)
+
+    stale = {"description": f"If-Match names an older ETag of the {kind}"}
+    router.add_api_route(
+        f"{at}/versions/{{version}}/activate",
+        _keyed(activate_version, subject),
+        methods=["POST"],
+        name=f"activate_{spec.names}version",
+        response_model=spec.document,
+        responses={
+            409: {"description": "out of tolerance without force (/out-of-tolerance)"},
+            412: stale,
+        },
+        description=f"Make a stored version the active {value}, with an optional `reason` "
+        "kept in the activation\nhistory and the audit trail. A version stored as "
+        'out_of_tolerance needs `{"force": true,\n"reason": ...}` (409 /out-of-tolerance '
+        "otherwise, nothing changed). To go back to the\nversion active before, use POST "
+        f"{at}/rollback. Honours If-Match with the\n{kind}'s ETag, 412 when stale.",
+    )
+    router.add_api_route(
+        f"{at}/rollback",
+        _keyed(rollback, subject),
+        methods=["POST"],
+        name=f"{spec.names}rollback",
+        response_model=spec.document,
+        responses={
+            409: {"description": "no earlier activation to return to (/nothing-to-roll-back)"},
+            412: stale,
+        },
+        description="Return to the version that was active before the current one, read "
+        "from the activation\nhistory (never by number, never a version that was not "
+        "active). Rolling back again walks\nfurther back; 409 /nothing-to-roll-back when no "
+        "earlier activation is left. Optional\n`reason`; honours If-Match with the "
+        f"{kind}'s ETag, 412 when stale.",
+    )
+
+
+def if_match_of(subject: AnySubject) -> object:
+    """The If-Match header of a subject's writes, described with its kind."""
+    return Annotated[
+        str | None,
+        Header(
+            pattern=IF_MATCH_PATTERN,
+            description=f"the {subject.kind}'s ETag (or *); 412 when stale",
+        ),
+    ]
+
+
+Endpoint = TypeVar("Endpoint", bound=BaseModel)
+
+
+def _keyed(endpoint: Callable[..., Endpoint], subject: AnySubject) -> Callable[..., Endpoint]:
+    """The endpoint as FastAPI reads it: its `subject_id` named by the subject's key
+    ("tool_id"), its `if_match` header described with the subject's words."""
+    key, if_match = subject.key, if_match_of(subject)
+    signature = inspect.signature(endpoint, eval_str=True)
+    parameters = []
+    for parameter in signature.parameters.values():
+        if parameter.name == "subject_id":
+            parameter = parameter.replace(name=key)
+        elif parameter.name == "if_match":
+            parameter = parameter.replace(annotation=if_match)
+        parameters.append(parameter)
+
+    def call(**values: object) -> Endpoint:
+        values["subject_id"] = values.pop(key)
+        return endpoint(**values)
+
+    call.__signature__ = signature.replace(parameters=parameters)  # type: ignore[attr-defined]
+    call.__name__ = endpoint.__name__
+    return call

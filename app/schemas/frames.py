@@ -1,0 +1,99 @@
+"""Frames (contract v1.4 "Frames"): a robot's bases and fixed tools, their versions and the
+served active frame. A frame's value is a pose in the robot's base (world) frame."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import BaseModel, BeforeValidator, Field
+
+from app.schemas.common import (
+    LongText,
+    Name,
+    Quaternion,
+    StoredWord,
+    StrictModel,
+    Timestamp,
+    Vec3,
+    json_integer,
+)
+from app.schemas.controllers import ControllerSymbol
+from app.schemas.tools import ActivationOut, Tolerance
+from app.words import FrameKind, FrameMethodName, Status
+
+FrameSlot = Annotated[
+    int,
+    Field(ge=0, le=10_000, description="the controller's frame number"),
+    BeforeValidator(json_integer),
+]
+_SYMBOL = (
+    "where a controller naming frames by symbol keeps this frame: its RAPID wobjdata (a base) "
+    'or tooldata with robhold FALSE (a fixed tool), "TASK/MODULE/SYMBOL"'
+)
+
+
+class FrameCreate(StrictModel):
+    name: Name
+    kind: FrameKind
+    slot: FrameSlot | None = None
+    controller_symbol: ControllerSymbol | None = Field(default=None, description=_SYMBOL)
+    description: LongText | None = None
+    tolerance: Tolerance = Field(default_factory=Tolerance)
+
+
+class FrameUpdate(StrictModel):
+    name: Name | None = None
+    slot: FrameSlot | None = None
+    controller_symbol: ControllerSymbol | None = Field(default=None, description=_SYMBOL)
+    description: LongText | None = None
+    tolerance: Tolerance | None = None
+
+
+class RobotFrame(BaseModel):
+    id: str
+    robot_id: str
+    name: str
+    kind: StoredWord[FrameKind]
+    slot: int | None
+    controller_symbol: str | None = Field(default=None, description=_SYMBOL)
+    description: str | None
+    tolerance: Tolerance
+    active_version: int | None
+    created_at: Timestamp
+    updated_at: Timestamp
+
+
+class FramePose(BaseModel):
+    """A frame in the robot's base frame: its origin (mm) and orientation [w, x, y, z]; for a
+    fixed tool, the stationary TCP."""
+
+    position_mm: Vec3
+    quaternion: Quaternion = Field(default_factory=lambda: [1.0, 0.0, 0.0, 0.0])
+
+
+class FrameVersion(BaseModel):
+    version: int
+    frame: FramePose
+    source: StoredWord[FrameMethodName]
+    status: StoredWord[Status]
+    calibration_id: str | None
+    note: str | None
+    created_at: Timestamp
+    created_by: str
+    active: bool
+
+
+class FrameVersionList(BaseModel):
+    items: list[FrameVersion]
+    activations: list[ActivationOut] = Field(default_factory=list)
+
+
+class ActiveRobotFrame(BaseModel):
+    frame_id: str
+    robot_id: str
+    frame_name: str
+    slot: int | None
+    version: int
+    frame: FramePose
+    calibrated_at: Timestamp
+    method: StoredWord[FrameMethodName]
