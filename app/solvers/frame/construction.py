@@ -233,6 +233,16 @@ def _small_angle(R0: FloatArray, R1: FloatArray) -> FloatArray:
     return 0.5 * np.array([D[2, 1] - D[1, 2], D[0, 2] - D[2, 0], D[1, 0] - D[0, 1]])
 
 
+def distance_for_angle_mm(touch_noise_mm: float, max_angle_sigma_deg: float) -> float:
+    """How far a touch must be from the one it sets a direction from (the x touch from the
+    origin, the xy touch from the X axis) for that direction's angle 1-sigma to stay within
+    `max_angle_sigma_deg`: two touches made in one orientation, each with `touch_noise_mm` per
+    axis, differ by sqrt(2) x the noise across the line between them (the pointer's TCP
+    error, common to both, moves them together), and the angle is that over the distance:
+    the distance check_angle_sigma's refusal asks for, told before the touch."""
+    return math.sqrt(2.0) * touch_noise_mm / math.radians(max_angle_sigma_deg)
+
+
 def check_angle_sigma(
     construction: Construction,
     p: FloatArray,
