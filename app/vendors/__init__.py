@@ -13,7 +13,7 @@
 | wpr.py | X Y Z and fixed-axis angles (Rz Ry Rx): FANUC's, Yaskawa's and Techman's convention |
 | scanner.py | a cursor over a controller's value text (KRL, RAPID) |
 | sockets.py | blocking TCP I/O under one deadline (KUKA, FANUC) |
-| kuka/, abb/, fanuc/, yaskawa/, techman/, ur/ | one maker each: text.py, file.py, frame.py, its connector |
+| kuka/ abb/ fanuc/ yaskawa/ techman/ ur/ | one maker each: text.py, file.py, frame.py, connector |
 
 No web framework, database or pydantic here (import contracts in pyproject.toml), and no
 maker imports another. Importing the package imports nothing.
