@@ -197,6 +197,22 @@ class Robot(TypedDict):
     vendor: str | None
 
 
+class RobotFrame(TypedDict):
+    id: str
+    name: str
+    kind: str
+    slot: int | None
+    controller_symbol: str | None
+    active_version: int | None
+
+
+class ActiveRobotFrame(TypedDict):
+    version: int
+    frame: Frame
+    method: str
+    calibrated_at: str
+
+
 class AuditEvent(TypedDict):
     at: str
     actor: str

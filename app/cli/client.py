@@ -128,7 +128,7 @@ def resolve_robot(ref: str) -> str:
             return ref
         if found.status_code not in (404, 422):
             refused(found)
-    for robot in _robots():
+    for robot in fleet_robots():
         if robot["name"] == ref:
             return robot["id"]
     fail(EXIT_NOT_FOUND, f"no robot with id or name {ref!r}; tcpcal tools lists them")
@@ -699,7 +699,8 @@ def _file_name(response: httpx.Response) -> str | None:
     return Path(disposition.split('filename="')[-1].rstrip('"')).name or None
 
 
-def _robots() -> list[Robot]:
+def fleet_robots() -> list[Robot]:
+    """Every robot of the fleet (GET /v1/robots), page after page."""
     robots: list[Robot] = []
     cursor: str | None = None
     while True:
@@ -718,7 +719,7 @@ def _export_all(directory: Path, fmt: str | None) -> None:
     from app.vendors.names import file_stem
     from app.vendors.registry import vendor_formats
 
-    robots = _robots()
+    robots = fleet_robots()
     used: set[str] = set()
     for robot in robots:
         folder_name = file_stem(robot["name"], 80)
