@@ -49,6 +49,7 @@ from sqlalchemy import Engine, event, insert, select, text
 from app.security.auth import hash_key
 from app.services.audit.writes import row as audit_row
 from app.services.fleet import fleet
+from app.services.subjects import SERVED
 from app.services.tools import hot_read, versions
 from app.storage.db import make_engine, session_scope
 from app.storage.models import Activation, AuditEvent, Calibration, Robot, TcpVersion, Tool
@@ -363,7 +364,14 @@ def service_reads(db: Seeded) -> dict[str, Callable[[], object]]:
         def read() -> object:
             with session_scope(write=False, engine=db.engine) as s:
                 return fleet.list_fleet(
-                    s, cell=None, robot_id=None, q=None, status=None, limit=50, cursor=cursor
+                    s,
+                    SERVED[0],
+                    cell=None,
+                    robot_id=None,
+                    q=None,
+                    status=None,
+                    limit=50,
+                    cursor=cursor,
                 )
 
         return read

@@ -497,7 +497,7 @@ MAKER_MENTIONS: dict[str, tuple[int, str]] = {
     "services/robots/live_tool.py": (11, "the live-TCP protocols' reading, by their maker"),
     "services/robots/slots.py": (11, "the tool numbers' examples, by their maker"),
     "services/tools/controller_text.py": (7, "each format's text, by its maker"),
-    "services/fleet/live.py": (6, "the live reading's examples"),
+    "services/tools/live.py": (6, "the live reading's examples"),
     "storage/models.py": (4, "the columns' comments (ABB's symbol, each bare flange)"),
     "cli/client.py": (8, "the CLI's help and examples, by maker"),
     "console/console.js": (12, "the console's hints, by maker"),

@@ -9,7 +9,7 @@ from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime, timedelta
 from typing import TypeVar, TypeVarTuple
 
-from sqlalchemy import Row, Select, literal, tuple_
+from sqlalchemy import Column, Row, Select, literal, tuple_
 from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from app.errors import InvalidInput
@@ -57,8 +57,8 @@ def decode_cursor(cursor: str) -> tuple[datetime, str]:
 
 def _after(
     stmt: Select[*Ts],
-    created_col: InstrumentedAttribute[datetime],
-    id_col: InstrumentedAttribute[str],
+    created_col: InstrumentedAttribute[datetime] | Column[datetime],
+    id_col: InstrumentedAttribute[str] | Column[str],
     cursor: str | None,
     *,
     newest_first: bool = False,
@@ -106,8 +106,8 @@ def paginate_rows(
     session: Session,
     stmt: Select[*Ts],
     *,
-    created_col: InstrumentedAttribute[datetime],
-    id_col: InstrumentedAttribute[str],
+    created_col: InstrumentedAttribute[datetime] | Column[datetime],
+    id_col: InstrumentedAttribute[str] | Column[str],
     limit: int,
     cursor: str | None,
     params: Mapping[str, object] | None = None,

@@ -1,16 +1,18 @@
-"""The plant's OPC UA server: each live tool's active TCP as read-only variables.
+"""The plant's OPC UA server: each live subject's active version (a tool's TCP, a frame) as
+read-only variables.
 
 Address space (API.md v1.2, "Publishing to the plant"), namespace URI `urn:tcpcal`:
-`Objects/Robots/<robot name>/Tools/<tool name>/` with the variables `ActiveVersion` (Int32,
-0: no active version), `PositionMm` (Double[3], mm), `Quaternion` (Double[4], w x y z),
-`KukaABC` (Double[3], deg), and (API.md v1.3) `Status`, `ActivationKind` and
+`Objects/Robots/<robot name>/<folder>/<name>/`, a folder per subject of a robot
+(app.services.subjects: `Subject.folder`, "Tools", "Frames"), with the variables
+`ActiveVersion` (Int32, 0: no active version), `PositionMm` (Double[3], mm), `Quaternion`
+(Double[4], w x y z), `KukaABC` (Double[3], deg), and (API.md v1.3) `Status`, `ActivationKind` and
 `ActivationReason` (String: the active version's status and how it went live),
 `ControllerState` (String) and `UpdatedAt` (DateTime); the arrays are empty and the strings
-of the activation empty while the tool has no active version. Every variable has a
+of the activation empty while it has no active version. Every variable has a
 Description; those with a unit are BaseAnalogType with an EngineeringUnits property (Part 8,
-UNECE codes). Node ids are stable strings made of the
-robot's and tool's ids, so a client that stored one keeps reading the same tool when it is
-renamed (its browse name changes).
+UNECE codes); their descriptions are said in the subject's words. Node ids are stable
+strings made of the robot's and the subject's ids ("tools/<id>/PositionMm"), so a client that
+stored one keeps reading the same tool when it is renamed (its browse name changes).
 
 Built on asyncua (https://github.com/FreeOpcUa/opcua-asyncio), following OPC UA Part 3
 (address space: Folders, Variables with ValueRank 1 and ArrayDimensions for fixed-length
@@ -46,8 +48,8 @@ from app.publish.endpoint import Endpoint as Endpoint
 from app.publish.endpoint import OpcUaStartError as OpcUaStartError
 from app.publish.endpoint import parse_endpoint as parse_endpoint
 from app.publish.opcua_certs import APPLICATION_URI, ServerCertificate
-from app.services.fleet.plant import PlantRobot, PlantTool
-from app.services.tools.subject import TOOL
+from app.services.fleet.plant import PlantItem, PlantRobot
+from app.services.subjects import IN_FLEET, Served
 
 if TYPE_CHECKING:
     from asyncua.server.internal_server import InternalServer
@@ -120,39 +122,45 @@ DEGREE = Unit("DD", "°", "degree [unit of angle]")
 
 @dataclass(frozen=True)
 class Variable:
-    """One variable of a tool: its type, array length (None: a scalar), what it says (its
-    Description attribute) and its unit (an EngineeringUnits property; the variable is then
-    a BaseAnalogType, Part 8 5.3.2)."""
+    """One variable of a subject: its type, array length (None: a scalar), what it says (its
+    Description attribute, in the subject's words: `description`) and its unit (an
+    EngineeringUnits property; the variable is then a BaseAnalogType, Part 8 5.3.2)."""
 
     vtype: ua.VariantType
     length: int | None
-    description: str
+    #: `description` with the subject's words as {kind}, {value} and {within}
+    text: str
     unit: Unit | None = None
+
+    def description(self, served: Served) -> str:
+        """What it says of a subject's item ("The number of the tool's active TCP version")."""
+        subject = served.subject
+        return self.text.format(kind=subject.kind, value=subject.value, within=served.value_in)
 
 
 VARIABLES: dict[str, Variable] = {
     "ActiveVersion": Variable(
         ua.VariantType.Int32,
         None,
-        "The number of the tool's active TCP version; 0 while the tool has none.",
+        "The number of the {kind}'s active {value} version; 0 while the {kind} has none.",
     ),
     "PositionMm": Variable(
         ua.VariantType.Double,
         3,
-        "The active TCP's position x, y, z in the flange frame, in millimetres (empty "
+        "The active {value}'s position x, y, z in {within}, in millimetres (empty "
         "without an active version).",
         MILLIMETRE,
     ),
     "Quaternion": Variable(
         ua.VariantType.Double,
         4,
-        "The active TCP's orientation in the flange frame as a unit quaternion w, x, y, z "
+        "The active {value}'s orientation in {within} as a unit quaternion w, x, y, z "
         "(empty without an active version).",
     ),
     "KukaABC": Variable(
         ua.VariantType.Double,
         3,
-        "The active TCP's orientation as KUKA's A, B, C (rotations about z, y', x''), in "
+        "The active {value}'s orientation as KUKA's A, B, C (rotations about z, y', x''), in "
         "degrees (empty without an active version).",
         DEGREE,
     ),
@@ -180,25 +188,25 @@ VARIABLES: dict[str, Variable] = {
         "unreachable, ...; none when it was never looked at.",
     ),
     "UpdatedAt": Variable(
-        ua.VariantType.DateTime, None, "When the tool last changed in tcpcal (UTC)."
+        ua.VariantType.DateTime, None, "When the {kind} last changed in tcpcal (UTC)."
     ),
 }
 
 
-def variable_values(tool: PlantTool) -> dict[str, object]:
-    """The variables' values for a tool (0, empty arrays and empty strings without an
-    active version)."""
-    activation = tool.activation
+def variable_values(item: PlantItem) -> dict[str, object]:
+    """The variables' values for a subject's item (0, empty arrays and empty strings without
+    an active version)."""
+    activation = item.activation
     return {
-        "ActiveVersion": tool.active_version or 0,
-        "PositionMm": list(tool.position_mm or ()),
-        "Quaternion": list(tool.quaternion or ()),
-        "KukaABC": list(tool.kuka_abc or ()),
-        "Status": tool.status or "",
+        "ActiveVersion": item.active_version or 0,
+        "PositionMm": list(item.position_mm or ()),
+        "Quaternion": list(item.quaternion or ()),
+        "KukaABC": list(item.kuka_abc or ()),
+        "Status": item.status or "",
         "ActivationKind": "" if activation is None else activation.kind,
         "ActivationReason": "" if activation is None else activation.reason or "",
-        "ControllerState": tool.controller_state,
-        "UpdatedAt": tool.updated_at.astimezone(UTC),
+        "ControllerState": item.controller_state,
+        "UpdatedAt": item.updated_at.astimezone(UTC),
     }
 
 
@@ -211,12 +219,19 @@ def _standard(identifier: int) -> ua.NodeId:
 class _RobotNodes:
     name: str
     folder: Node
-    tools_folder: Node
-    tools: dict[str, _ToolNodes]
+    #: each subject's folder of the robot, by subject kind
+    groups: dict[str, _GroupNodes]
 
 
 @dataclass
-class _ToolNodes:
+class _GroupNodes:
+    served: Served
+    folder: Node
+    items: dict[str, _ItemNodes]
+
+
+@dataclass
+class _ItemNodes:
     name: str
     folder: Node
     variables: dict[str, Node]
@@ -284,7 +299,7 @@ class PlantOpcUaServer:
         await self._server.stop()
 
     async def replace_all(self, robots: Sequence[PlantRobot]) -> None:
-        """Make the address space show exactly these robots and tools."""
+        """Make the address space show exactly these robots and what they hold."""
         async with self._lock:
             wanted = {r.robot_id for r in robots}
             for robot_id in [r for r in self._robots if r not in wanted]:
@@ -307,24 +322,28 @@ class PlantOpcUaServer:
             nodes = None
         if nodes is None:
             nodes = await self._add_robot(robot)
-        wanted = {t.tool_id: t for t in robot.tools}
-        for tool_id in [t for t in nodes.tools if t not in wanted]:
-            await self._delete_subtree(nodes.tools_folder, nodes.tools.pop(tool_id).folder)
-        for tool in robot.tools:
-            await self._apply_tool(nodes, tool)
+        for kind, group in nodes.groups.items():
+            wanted = {item.subject_id: item for item in robot.items.get(kind, [])}
+            for item_id in [i for i in group.items if i not in wanted]:
+                await self._delete_subtree(group.folder, group.items.pop(item_id).folder)
+            for item in wanted.values():
+                await self._apply_item(group, item)
 
     async def _add_robot(self, robot: PlantRobot) -> _RobotNodes:
         assert self._root is not None, "start() first"
         folder = await self._root.add_folder(
             self._nid(f"robots/{robot.robot_id}"), ua.QualifiedName(robot.name, self._ns)
         )
-        # The folder and the node ids are named by the tool's declaration (Subject.folder,
-        # Subject.plural): a robot's "Tools" folder, a tool's node ids "tools/<id>/...".
-        tools = await folder.add_folder(
-            self._nid(f"robots/{robot.robot_id}/{TOOL.folder}"),
-            ua.QualifiedName(TOOL.folder, self._ns),
-        )
-        nodes = _RobotNodes(name=robot.name, folder=folder, tools_folder=tools, tools={})
+        # A folder per subject, named by its declaration (Subject.folder: a robot's "Tools"),
+        # every robot having each (empty while it has none of them).
+        groups: dict[str, _GroupNodes] = {}
+        for served in IN_FLEET:
+            name = served.subject.folder
+            group = await folder.add_folder(
+                self._nid(f"robots/{robot.robot_id}/{name}"), ua.QualifiedName(name, self._ns)
+            )
+            groups[served.subject.kind] = _GroupNodes(served=served, folder=group, items={})
+        nodes = _RobotNodes(name=robot.name, folder=folder, groups=groups)
         self._robots[robot.robot_id] = nodes
         return nodes
 
@@ -335,10 +354,10 @@ class PlantOpcUaServer:
             await self._delete_subtree(self._root, nodes.folder)
 
     async def _delete_subtree(self, parent: Node, folder: Node) -> None:
-        """Delete `folder` (a robot's or a tool's, organized by `parent`) and all below it.
+        """Delete `folder` (a robot's or an item's, organized by `parent`) and all below it.
         asyncua's delete with its target references scans the whole address space (the
-        standard nodes, some thousands) for every node it deletes: 0.2 s a tool, a renamed
-        robot with ten tools 2.3 s, past the second docs/publishing.md promises. Nothing
+        standard nodes, some thousands) for every node it deletes: 0.2 s an item, a renamed
+        robot with ten items 2.3 s, past the second docs/publishing.md promises. Nothing
         outside a subtree refers into it but its parent (asyncua gives a new node's forward
         reference to its parent alone; the type definition reference is the node's own), so
         that reference goes first (it must name a node that still is), then the nodes go
@@ -358,41 +377,50 @@ class PlantOpcUaServer:
         status.check()
         await delete_nodes(session, [folder], recursive=True, delete_target_references=False)
 
-    async def _apply_tool(self, robot: _RobotNodes, tool: PlantTool) -> None:
-        nodes = robot.tools.get(tool.tool_id)
-        if nodes is not None and nodes.name != tool.tool_name:
-            await self._delete_subtree(robot.tools_folder, robot.tools.pop(tool.tool_id).folder)
+    async def _apply_item(self, group: _GroupNodes, item: PlantItem) -> None:
+        nodes = group.items.get(item.subject_id)
+        if nodes is not None and nodes.name != item.name:
+            await self._delete_subtree(group.folder, group.items.pop(item.subject_id).folder)
             nodes = None
-        values = variable_values(tool)
+        values = variable_values(item)
         if nodes is None:
-            robot.tools[tool.tool_id] = await self._add_tool(robot, tool, values)
+            group.items[item.subject_id] = await self._add_item(group, item, values)
             return
         for name, value in values.items():
             if nodes.values.get(name) != value:
                 await self._write(nodes.variables[name], name, value)
         nodes.values = values
 
-    async def _add_tool(
-        self, robot: _RobotNodes, tool: PlantTool, values: dict[str, object]
-    ) -> _ToolNodes:
-        base = f"{TOOL.plural}/{tool.tool_id}"
-        folder = await robot.tools_folder.add_folder(
-            self._nid(base), ua.QualifiedName(tool.tool_name, self._ns)
+    async def _add_item(
+        self, group: _GroupNodes, item: PlantItem, values: dict[str, object]
+    ) -> _ItemNodes:
+        # Node ids named by the subject's declaration (Subject.plural): "tools/<id>/...".
+        base = f"{group.served.subject.plural}/{item.subject_id}"
+        folder = await group.folder.add_folder(
+            self._nid(base), ua.QualifiedName(item.name, self._ns)
         )
         variables: dict[str, Node] = {}
         for name, spec in VARIABLES.items():
-            variables[name] = await self._add_variable(folder, f"{base}/{name}", name, spec, values)
-        return _ToolNodes(name=tool.tool_name, folder=folder, variables=variables, values=values)
+            text = spec.description(group.served)
+            nid = f"{base}/{name}"
+            variables[name] = await self._add_variable(folder, nid, name, spec, text, values)
+        return _ItemNodes(name=item.name, folder=folder, variables=variables, values=values)
 
     async def _add_variable(
-        self, folder: Node, nid: str, name: str, spec: Variable, values: dict[str, object]
+        self,
+        folder: Node,
+        nid: str,
+        name: str,
+        spec: Variable,
+        description: str,
+        values: dict[str, object],
     ) -> Node:
         """A read-only variable with its Description, its array's dimensions and, with a
         unit, the type BaseAnalogType and an EngineeringUnits property (asyncua's
         add_variable sets the browse name as the description and takes no type)."""
         attrs = ua.VariableAttributes(
             DisplayName=ua.LocalizedText(name),
-            Description=ua.LocalizedText(spec.description, "en"),
+            Description=ua.LocalizedText(description, "en"),
             Value=ua.Variant(values[name], spec.vtype),
             DataType=_standard(spec.vtype.value),
             ValueRank=ua.ValueRank.Scalar,

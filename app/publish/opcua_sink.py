@@ -5,7 +5,7 @@ database within the runner's poll interval.
 A batch only says which robots to read again, never what to show: the values are read by
 one path (app.services.fleet.plant) at start-up and after every batch, so a message delivered
 twice, late or out of order still leaves the address space equal to the database, and
-ControllerState, UpdatedAt and a robot that has no tool yet are shown as well.
+ControllerState, UpdatedAt and a robot that has no tool or frame yet are shown as well.
 
 asyncua is asyncio; the runner is a thread that calls `deliver` and waits for the answer.
 The server runs on an event loop in a thread of its own (so sessions, subscriptions and
@@ -30,9 +30,8 @@ from app.publish.opcua import KeyCheck, PlantOpcUaServer, parse_endpoint
 from app.publish.opcua_certs import ServerCertificate, server_certificate
 from app.security.auth import authenticate_key
 from app.services.fleet.plant import PlantRobot, plant_robots
-from app.services.tools.subject import TOOL
+from app.services.subjects import SUBJECTS
 from app.storage.db import session_scope
-from app.storage.models import Tool
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -44,15 +43,6 @@ UPDATE_TIMEOUT_S = 10.0
 #: then ends with the process (the operating system closes its socket).
 STOP_TIMEOUT_S = 0.4
 START_TIMEOUT_S = 30.0
-
-
-class Concerns(Protocol):
-    """What the sink reads of a message or a tool state: the robot and tool it concerns."""
-
-    @property
-    def robot_id(self) -> str | None: ...
-    @property
-    def tool_id(self) -> str | None: ...
 
 
 class _Named(Protocol):
@@ -83,11 +73,11 @@ class BatchLike(Protocol):
 
 
 @dataclass(frozen=True, slots=True)
-class _Tool:
-    """A message's robot and tool (the address space shows the tools of each robot)."""
+class _Robot:
+    """A state's robot (a state names its robot always)."""
 
-    robot_id: str | None
-    tool_id: str | None
+    robot_id: str
+    ids: Mapping[str, str | None]
 
 
 def key_may_read(username: str, password: str) -> bool:
@@ -107,19 +97,25 @@ def key_may_read(username: str, password: str) -> bool:
 
 
 def read_fleet() -> list[PlantRobot]:
-    """Every live robot and tool as the plant sees them."""
+    """Every live robot and what it holds as the plant sees them."""
     with session_scope(write=False) as session:
         return plant_robots(session)
 
 
-def read_robots(robot_ids: Iterable[str], tool_ids: Iterable[str]) -> dict[str, PlantRobot | None]:
-    """The robots named, and those of the tools named, as the plant sees them now (None:
+#: Subject ids given without their robot, by the subject's key ("tool_id").
+ByKey = dict[str, set[str]]
+
+
+def read_robots(robot_ids: Iterable[str], by_key: ByKey) -> dict[str, PlantRobot | None]:
+    """The robots named, and those of the subjects named, as the plant sees them now (None:
     archived or unknown)."""
     with session_scope(write=False) as session:
         ids = set(robot_ids)
-        tools = set(tool_ids)
-        if tools:
-            ids.update(session.scalars(select(Tool.robot_id).where(Tool.id.in_(tools))))
+        for subject in SUBJECTS:
+            named = by_key.get(subject.key)
+            if named:
+                table = subject.table
+                ids.update(session.scalars(select(table.c.robot_id).where(table.c.id.in_(named))))
         found: dict[str, PlantRobot | None] = {}
         for robot_id in sorted(ids):
             robots = plant_robots(session, robot_id=robot_id)
@@ -127,16 +123,19 @@ def read_robots(robot_ids: Iterable[str], tool_ids: Iterable[str]) -> dict[str, 
         return found
 
 
-def robots_concerned(items: Iterable[Concerns]) -> tuple[set[str], set[str]]:
-    """(robot ids, ids of tools given without their robot) of messages and states."""
+def robots_concerned(items: Iterable[_Named]) -> tuple[set[str], ByKey]:
+    """(robot ids, ids of subjects given without their robot, by key) of messages and
+    states."""
     robots: set[str] = set()
-    tools: set[str] = set()
+    by_key: ByKey = {}
     for item in items:
         if item.robot_id:
             robots.add(item.robot_id)
-        elif item.tool_id:
-            tools.add(item.tool_id)
-    return robots, tools
+            continue
+        for key, subject_id in item.ids.items():
+            if subject_id:
+                by_key.setdefault(key, set()).add(subject_id)
+    return robots, by_key
 
 
 class OpcUaPlantSink:
@@ -153,7 +152,7 @@ class OpcUaPlantSink:
         certificate: ServerCertificate | None = None,
         check: KeyCheck = key_may_read,
         fleet: Callable[[], list[PlantRobot]] = read_fleet,
-        robots: Callable[[set[str], set[str]], dict[str, PlantRobot | None]] = read_robots,
+        robots: Callable[[set[str], ByKey], dict[str, PlantRobot | None]] = read_robots,
     ) -> None:
         self.server = PlantOpcUaServer(
             endpoint, check=check, anonymous=anonymous, certificate=certificate
@@ -188,13 +187,12 @@ class OpcUaPlantSink:
             # The whole fleet was read when the sink opened, and every change since is an
             # undelivered outbox row (rows are marked only once this sink accepted them).
             return True
-        named = [_Tool(m.robot_id, m.ids.get(TOOL.key)) for m in batch.messages]
-        located = [_Tool(s.robot_id, None) for s in batch.states]
-        robot_ids, tool_ids = robots_concerned([*named, *located])
-        if not robot_ids and not tool_ids:
+        located = [_Robot(s.robot_id, {}) for s in batch.states]
+        robot_ids, by_key = robots_concerned([*batch.messages, *located])
+        if not robot_ids and not by_key:
             return True
         try:
-            robots = self._robots(robot_ids, tool_ids)
+            robots = self._robots(robot_ids, by_key)
             for robot_id, robot in robots.items():
                 self._call(self.server.replace_robot(robot_id, robot), UPDATE_TIMEOUT_S)
         except Exception:  # any failure of one update: the runner retries the batch

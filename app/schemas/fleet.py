@@ -14,7 +14,7 @@ from app.words import Status, ToolState
 CalibrationStatus = Status
 
 #: Why a fleet row needs a person's attention: every code, in the order rows list them (the
-#: one list of them; each has its rule in app.services.fleet.fleet.RULES).
+#: one list of them; each has its rule in app.services.fleet.fleet, `Fleet.rules`).
 AttentionCode = Literal[
     "active_out_of_tolerance",
     "last_calibration_out_of_tolerance",
@@ -193,38 +193,3 @@ class CheckRecord(BaseModel):
     )
     checked_at: Timestamp
     checked_by: str
-
-
-#: The CSV columns of GET /v1/tools with Accept: text/csv, in order.
-CSV_COLUMNS = (
-    "tool_id",
-    "tool",
-    "slot",
-    "robot",
-    "cell",
-    "active_version",
-    "last_calibration_status",
-    "last_calibration_rms_mm",
-    "last_calibration_at",
-    "last_check_within_tolerance",
-    "last_check_distance_mm",
-    "last_check_at",
-    "attention",
-    "active_x_mm",
-    "active_y_mm",
-    "active_z_mm",
-    "active_qw",
-    "active_qx",
-    "active_qy",
-    "active_qz",
-    "controller_state",
-    "controller_checked_at",
-    "controller_deviation_mm",
-    "controller_deviation_deg",
-    "drift_rate_mm_per_month",
-    "drift_sigma_mm_per_month",
-    "drift_crosses_check_at",
-    "live_state",
-    "live_version",
-    "live_checked_at",
-)

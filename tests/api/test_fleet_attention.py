@@ -12,7 +12,8 @@ from typing import Any
 import pytest
 
 from app.schemas.fleet import AttentionCode
-from app.services.fleet.fleet import RULES
+from app.services.fleet.fleet import fleet_of
+from app.services.subjects import SERVED
 from app.storage.models import clock_at
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses
@@ -87,7 +88,7 @@ def _rows(api: Api, query: str = "") -> dict[str, dict[str, Any]]:
 
 def test_every_attention_code_has_its_rule() -> None:
     codes = typing.get_args(AttentionCode)
-    assert list(RULES) == list(codes)
+    assert list(fleet_of(SERVED[0]).rules) == list(codes)  # the tool's: every code
 
 
 def test_attention_codes_judge_the_active_version_the_last_calibration_and_check(

@@ -23,7 +23,7 @@ from app.publish.opcua import (
 from app.publish.opcua_certs import server_certificate
 from app.publish.opcua_sink import robots_concerned
 from app.publish.sink import SinkError
-from app.services.fleet.plant import LastActivation, PlantTool
+from app.services.fleet.plant import LastActivation, PlantItem
 
 
 @pytest.mark.parametrize(
@@ -57,13 +57,13 @@ def test_bad_endpoints_say_why_and_what_to_set(url: str, why: str) -> None:
     assert "opc.tcp://0.0.0.0:4840/tcpcal/" in str(err.value)
 
 
-def _tool(**kw: object) -> PlantTool:
+def _tool(**kw: object) -> PlantItem:
     s = math.sqrt(0.5)
     fields: dict[str, object] = {
-        "tool_id": "t",
+        "subject_id": "t",
         "robot_id": "r",
         "robot_name": "kr16",
-        "tool_name": "torch",
+        "name": "torch",
         "active_version": 4,
         "position_mm": (1.0, 2.0, 3.0),
         "quaternion": (s, 0.0, 0.0, s),
@@ -72,7 +72,7 @@ def _tool(**kw: object) -> PlantTool:
         "updated_at": datetime(2026, 11, 24, 5, 0, tzinfo=UTC),
     }
     fields.update(kw)
-    return PlantTool(**fields)  # type: ignore[arg-type]
+    return PlantItem(**fields)  # type: ignore[arg-type]
 
 
 def test_variable_values_of_a_tool_and_of_one_without_an_active_version() -> None:
@@ -134,12 +134,18 @@ def test_no_test_reads_the_server_with_its_own_library() -> None:
 @dataclass
 class _Item:
     robot_id: str | None
-    tool_id: str | None
+    ids: dict[str, str | None]
 
 
-def test_a_batch_names_each_robot_once_and_tools_without_a_robot() -> None:
-    items = [_Item("r1", "t1"), _Item("r1", "t2"), _Item("r2", None), _Item(None, "t9")]
-    assert robots_concerned(items) == ({"r1", "r2"}, {"t9"})
+def test_a_batch_names_each_robot_once_and_subjects_without_a_robot() -> None:
+    items = [
+        _Item("r1", {"tool_id": "t1"}),
+        _Item("r1", {"tool_id": "t2"}),
+        _Item("r2", {"tool_id": None}),
+        _Item(None, {"tool_id": "t9"}),
+        _Item(None, {"frame_id": "f3", "tool_id": None}),
+    ]
+    assert robots_concerned(items) == ({"r1", "r2"}, {"tool_id": {"t9"}, "frame_id": {"f3"}})
 
 
 def test_certificate_settings_both_or_neither_and_readable(tmp_path: Path) -> None:
@@ -203,22 +209,23 @@ def test_a_rename_or_an_archive_rebuilds_a_robot_of_ten_tools_well_within_a_seco
 
     from app.publish.opcua import PlantOpcUaServer
     from app.services.fleet.plant import PlantRobot
+    from app.services.subjects import IN_FLEET
     from tests.publish.mqtt_harness import free_port
 
-    tools = [_tool(tool_id=f"t{i}", tool_name=f"tool{i}") for i in range(10)]
+    tools = [_tool(subject_id=f"t{i}", name=f"tool{i}") for i in range(10)]
 
     async def scenario() -> tuple[list[float], list[str], int]:
         server = PlantOpcUaServer(
             f"opc.tcp://127.0.0.1:{free_port()}", check=lambda user, key: False, anonymous=True
         )
-        await server.start([PlantRobot("r", "kr16", tools)])
+        await server.start([PlantRobot("r", "kr16", {"tool": tools})])
         aspace = server._server.iserver.aspace
         nodes_before = len(aspace.keys())
         took = []
         try:
             for change in (
-                PlantRobot("r", "kr16-b", tools),  # renamed: the subtree rebuilt
-                PlantRobot("r", "kr16-b", tools[:1]),  # nine tools archived
+                PlantRobot("r", "kr16-b", {"tool": tools}),  # renamed: the subtree rebuilt
+                PlantRobot("r", "kr16-b", {"tool": tools[:1]}),  # nine tools archived
                 None,  # the robot archived
             ):
                 gc.collect()  # the pytest worker's heap, not the server's work
@@ -235,7 +242,9 @@ def test_a_rename_or_an_archive_rebuilds_a_robot_of_ten_tools_well_within_a_seco
             ]
             keys = list(aspace.keys())  # an AddressSpace, not a dict: no iteration of its own
             dangling = sum(ref.NodeId not in aspace for k in keys for ref in aspace[k].references)
-            assert nodes_before - len(keys) == 2 + 10 * (1 + len(VARIABLES) + 2)
+            # the robot's folder, a folder per subject, each tool's and its variables' nodes
+            folders = 1 + len(IN_FLEET)
+            assert nodes_before - len(keys) == folders + 10 * (1 + len(VARIABLES) + 2)
         finally:
             await server.stop()
         return took, left, dangling

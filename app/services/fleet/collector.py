@@ -16,12 +16,10 @@ from prometheus_client.core import GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 from sqlalchemy.exc import SQLAlchemyError
 
-from app.services.fleet.gauges import FleetGauges, read_fleet_gauges
+from app.services.fleet.gauges import FleetGauges, SubjectGauges, read_fleet_gauges
 from app.storage.db import session_scope
 
 log = logging.getLogger(__name__)
-
-TOOL_LABELS = ("tool_id", "robot", "tool")
 
 
 class FleetCollector(Collector):
@@ -51,10 +49,20 @@ class FleetCollector(Collector):
 
 
 def fleet_families(gauges: FleetGauges) -> Iterator[Metric]:
-    """The metric families of one reading of the fleet."""
+    """The metric families of one reading of the fleet: each subject's, then the
+    publisher's."""
+    for subject in gauges.subjects:
+        yield from _subject_families(subject)
+    yield from _publisher_families(gauges)
+
+
+def _subject_families(gauges: SubjectGauges) -> Iterator[Metric]:
+    """A subject's families, named by its declaration (a tool's: tcpcal_fleet_tools_attention,
+    tcpcal_tool_last_check_age_seconds with labels tool_id, robot, tool)."""
+    kind, plural = gauges.served.subject.kind, gauges.served.subject.plural
     attention = GaugeMetricFamily(
-        "tcpcal_fleet_tools_attention",
-        "Live tools having each attention code (a tool with two codes counts in both).",
+        f"tcpcal_fleet_{plural}_attention",
+        f"Live {plural} having each attention code (a {kind} with two codes counts in both).",
         labels=["code"],
     )
     for code, n in sorted(gauges.attention.items()):
@@ -62,16 +70,14 @@ def fleet_families(gauges: FleetGauges) -> Iterator[Metric]:
     yield attention
 
     controller = GaugeMetricFamily(
-        "tcpcal_fleet_tools_controller_state",
-        "Live tools by the state of their controller's copy (none: no controller).",
+        f"tcpcal_fleet_{plural}_controller_state",
+        f"Live {plural} by the state of their controller's copy (none: no controller).",
         labels=["state"],
     )
     for state, n in sorted(gauges.controller.items()):
         controller.add_metric([state], float(n))
     yield controller
-
-    yield from _tool_families(gauges)
-    yield from _publisher_families(gauges)
+    yield from _age_families(gauges)
 
 
 def _publisher_families(gauges: FleetGauges) -> Iterator[Metric]:
@@ -94,33 +100,36 @@ def _publisher_families(gauges: FleetGauges) -> Iterator[Metric]:
     yield running
 
 
-def _tool_families(gauges: FleetGauges) -> Iterator[Metric]:
-    total = GaugeMetricFamily("tcpcal_fleet_tools", "Live tools (of live robots).")
-    total.add_metric([], float(len(gauges.tools)))
+def _age_families(gauges: SubjectGauges) -> Iterator[Metric]:
+    kind, plural = gauges.served.subject.kind, gauges.served.subject.plural
+    labels = [f"{kind}_id", "robot", kind]
+    total = GaugeMetricFamily(f"tcpcal_fleet_{plural}", f"Live {plural} (of live robots).")
+    total.add_metric([], float(len(gauges.items)))
     yield total
     calibration = GaugeMetricFamily(
-        "tcpcal_tool_last_calibration_age_seconds",
-        "Seconds since the tool's newest calibration (no series: never calibrated).",
-        labels=list(TOOL_LABELS),
+        f"tcpcal_{kind}_last_calibration_age_seconds",
+        f"Seconds since the {kind}'s newest calibration (no series: never calibrated).",
+        labels=labels,
     )
     check = GaugeMetricFamily(
-        "tcpcal_tool_last_check_age_seconds",
-        "Seconds since the tool's newest check (no series: never checked).",
-        labels=list(TOOL_LABELS),
+        f"tcpcal_{kind}_last_check_age_seconds",
+        f"Seconds since the {kind}'s newest check (no series: never checked).",
+        labels=labels,
     )
     flagged = GaugeMetricFamily(
-        "tcpcal_tool_attention",
-        "1 for each attention code a tool has (only tools that have one: alerts name the tool).",
-        labels=[*TOOL_LABELS, "code"],
+        f"tcpcal_{kind}_attention",
+        f"1 for each attention code a {kind} has (only {plural} that have one: alerts name "
+        f"the {kind}).",
+        labels=[*labels, "code"],
     )
-    for t in gauges.tools:
-        labels = [t.tool_id, t.robot, t.tool]
+    for t in gauges.items:
+        values = [t.subject_id, t.robot, t.name]
         if t.calibration_age_s is not None:
-            calibration.add_metric(labels, t.calibration_age_s)
+            calibration.add_metric(values, t.calibration_age_s)
         if t.check_age_s is not None:
-            check.add_metric(labels, t.check_age_s)
+            check.add_metric(values, t.check_age_s)
         for code in t.attention:
-            flagged.add_metric([*labels, code], 1.0)
+            flagged.add_metric([*values, code], 1.0)
     yield calibration
     yield check
     yield flagged

@@ -3,6 +3,7 @@ states its rows declare, each present (0 when no tool has it)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 from typing import Any, Literal
 
@@ -13,6 +14,7 @@ from app.schemas.fleet import FleetTool, LastCalibration
 from app.services.audit import outbox
 from app.services.fleet import gauges as fleet_gauges
 from app.services.fleet.gauges import declared_values, read_fleet_gauges
+from app.services.subjects import IN_FLEET, SERVED, Served
 
 NOW = datetime(2026, 11, 24, 6, 0, tzinfo=UTC)
 
@@ -62,12 +64,17 @@ def test_counts_ages_and_zeros_over_pages(monkeypatch: pytest.MonkeyPatch) -> No
     ]  # fmt: skip
     pages = {None: (rows[:2], "next"), "next": (rows[2:], None)}  # two pages
 
-    def fake_list_fleet(session: object, **kw: Any) -> tuple[list[_Row], str | None]:
+    tool = SERVED[0]
+    assert tool.fleet is not None
+    # The tool's fleet rows of the schema above (the gauges read the codes off its row).
+    served = replace(tool, fleet=replace(tool.fleet, row=_Row))
+
+    def fake_list_fleet(session: object, of: Served, **kw: Any) -> tuple[list[_Row], str | None]:
         assert kw["limit"] == fleet_gauges.PAGE
-        return pages[kw["cursor"]]
+        return pages[kw["cursor"]] if of is served else ([], None)
 
     monkeypatch.setattr(fleet_gauges, "list_fleet", fake_list_fleet)
-    monkeypatch.setattr(fleet_gauges, "FleetTool", _Row)
+    monkeypatch.setattr(fleet_gauges, "IN_FLEET", (served, *IN_FLEET[1:]))
     monkeypatch.setattr(outbox, "oldest_undelivered_age", lambda s: 12.5)
     monkeypatch.setattr(outbox, "undelivered_count", lambda s: 3)
     monkeypatch.setattr(outbox, "publisher_running", lambda e: True)
@@ -76,12 +83,14 @@ def test_counts_ages_and_zeros_over_pages(monkeypatch: pytest.MonkeyPatch) -> No
         def get_bind(self) -> Any:
             return type("B", (), {"engine": None})()
 
-    gauges = read_fleet_gauges(_Session(), now=NOW)  # type: ignore[arg-type]
+    fleet = read_fleet_gauges(_Session(), now=NOW)  # type: ignore[arg-type]
+    gauges = fleet.subjects[0]
+    assert gauges.served is served
     assert gauges.attention == {"check_failed": 1, "stale": 2, "no_active_version": 0}
     assert gauges.controller == {"none": 1, "in_sync": 0, "drifted": 2, "unreachable": 0}
-    assert [t.tool_id for t in gauges.tools] == ["t1", "t2", "t3"]
-    assert gauges.tools[0].calibration_age_s == pytest.approx(2 * 86400)
-    assert gauges.tools[1].calibration_age_s is None
-    assert gauges.tools[0].attention == ("check_failed", "stale")
-    assert (gauges.outbox_oldest_age_s, gauges.outbox_undelivered) == (12.5, 3)
-    assert gauges.publisher_running is True
+    assert [t.subject_id for t in gauges.items] == ["t1", "t2", "t3"]
+    assert gauges.items[0].calibration_age_s == pytest.approx(2 * 86400)
+    assert gauges.items[1].calibration_age_s is None
+    assert gauges.items[0].attention == ("check_failed", "stale")
+    assert (fleet.outbox_oldest_age_s, fleet.outbox_undelivered) == (12.5, 3)
+    assert fleet.publisher_running is True

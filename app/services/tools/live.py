@@ -12,11 +12,25 @@ version); `stale_version` (a match is another version of this tool: the newest s
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TypeVar
 
-from sqlalchemy import ColumnElement, Exists, ScalarSelect, case, exists, null, or_, select, true
+from sqlalchemy import (
+    ColumnElement,
+    Exists,
+    ScalarSelect,
+    and_,
+    case,
+    exists,
+    null,
+    or_,
+    select,
+    true,
+)
 from sqlalchemy.orm import InstrumentedAttribute, aliased
 
+from app.schemas.fleet import FleetLive
+from app.services.lifecycle.fleet import RowPart
 from app.storage.models import RobotLiveMatch, RobotLiveTool, Tool
 
 T = TypeVar("T")
@@ -104,4 +118,49 @@ UNKNOWN_TCP_HERE = or_(
         )
         .correlate(Tool)
     ),
+)
+
+
+def _fleet_live(values: Sequence[object]) -> FleetLive:
+    state, version, tool_id, checked_at, number, flange = values
+    return FleetLive.model_validate(
+        {
+            "state": state,
+            "version": version,
+            "tool_id": tool_id,
+            "checked_at": checked_at,
+            "number": None if state == "unread" else number,
+            "no_tool": state == "unknown" and bool(flange),
+        }
+    )
+
+
+def _live_cells(live: object) -> list[str]:
+    assert isinstance(live, FleetLive), live
+    at = live.checked_at
+    version = "" if live.version is None else str(live.version)
+    return [live.state, version, "" if at is None else at.isoformat()]
+
+
+#: A tool's fleet rows' `live` (app.services.lifecycle.fleet.RowPart): which TCP its robot
+#: moves by, and the two attention codes read from it.
+TOOL_LIVE = RowPart(
+    field="live",
+    columns=(
+        LIVE_STATE.label("live_state"),
+        LIVE_VERSION.label("live_version"),
+        LIVE_TOOL_ID.label("live_tool_id"),
+        LIVE_CHECKED_AT.label("live_checked_at"),
+        LIVE_NUMBER.label("live_number"),
+        AT_FLANGE.label("live_flange"),
+    ),
+    read=_fleet_live,
+    rules={
+        # What the last reconcile round read of the TCP the robot moves by.
+        "moving_by_stale_version": LIVE_STATE == "stale_version",
+        # (a robot at its bare flange has no tool selected: no unknown TCP)
+        "moving_by_unknown_tcp": and_(LIVE_STATE == "unknown", UNKNOWN_TCP_HERE, ~AT_FLANGE),
+    },
+    csv_names=("live_state", "live_version", "live_checked_at"),
+    csv_cells=_live_cells,
 )
