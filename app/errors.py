@@ -116,6 +116,14 @@ class ConnectorMissing(DomainError):
     status, kind, title = 501, "no-connector", "No connector for the protocol"
 
 
+class NoFrameWriter(DomainError):
+    """A frame deployment to a controller no remote interface of which writes (or reads) the
+    frame (contract v1.4 "Frames at the controller"): nothing is sent; `reason` says why and
+    `file` what to load by hand."""
+
+    status, kind, title = 501, "no-frame-writer", "No remote frame writer"
+
+
 class ControllerUnreachableError(DomainError):
     status, kind, title = 502, "controller-unreachable", "Controller unreachable"
 

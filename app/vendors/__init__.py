@@ -6,7 +6,7 @@
 | maker.py | what a maker's package declares (`Maker`, `WireProtocol`) |
 | tool.py | `ToolData` and `ToolLoad`: a tool as a controller holds it |
 | frame.py | `FrameData`, `FileFrame`, `ParsedFrame`: a frame (a base, a fixed tool) likewise |
-| connector.py | the connector interface: `Connector`, `ControllerSettings`, errors, `Deadline` |
+| connector.py | the connector (tools, frames): `Connector`, settings, errors, `Deadline` |
 | text.py | a maker's text: `ControllerExport`, the checked TCP, printing and reading numbers |
 | files.py | a maker's file: `ControllerFile`, `FileContext`, `FileTool`, `ParsedTool`, headers |
 | names.py | tool names made safe for a controller (ASCII, identifiers, file stems) |

@@ -1,8 +1,11 @@
 """What every controller connector offers: the session, its deadline, its errors, what it reads.
 
 A connector reads and writes one tool's frame (the TCP: where the tool's working point is
-and how it is oriented in the flange frame) in a robot controller, over the controller's
-own wire protocol. No database and no HTTP framework here: the service that deploys or
+and how it is oriented in the flange frame) and one of the robot's frames (contract v1.4
+"Frames at the controller": a base or a fixed tool, a pose in the robot's base frame) in a
+robot controller, over the controller's own wire protocol. A controller no remote interface
+of which writes frames raises `FrameWriterMissing` saying why and which file to load by
+hand. No database and no HTTP framework here: the service that deploys or
 reconciles runs a connector in a worker thread and owns everything else.
 
 Every connector converts through `app.kinematics.poses` (scipy Rotation), so the values a
@@ -17,6 +20,7 @@ then has at most `CLEANUP_S` more, so a caller hears back within ``timeout_s + C
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -25,7 +29,7 @@ from types import TracebackType
 from typing import Protocol, Self
 
 from app.vendors.tool import ToolData
-from app.words import ProtocolName
+from app.words import FrameKind, ProtocolName
 
 
 @dataclass(frozen=True)
@@ -34,6 +38,13 @@ class Frame:
 
     position_mm: tuple[float, float, float]
     quaternion: tuple[float, float, float, float]
+
+
+def finite_frame(frame: Frame) -> None:
+    """ValueError when a position or quaternion value is not a finite number."""
+    values = [*frame.position_mm, *frame.quaternion]
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"the frame holds a value that is not a finite number: {values}")
 
 
 @dataclass(frozen=True)
@@ -49,15 +60,34 @@ class LiveTool:
 
 
 @dataclass(frozen=True)
+class LiveFrame:
+    """The frame the robot moves in right now, as its controller reports it (contract v1.4,
+    "a robot's live base is named where the controller says"): its frame number, its name
+    and its value in the robot's base frame, each None where the controller does not say
+    (each connector's module says which it reads)."""
+
+    number: int | None
+    name: str | None
+    frame: Frame | None
+
+
+#: A controller that says nothing of the frame its robot moves in.
+UNREAD_FRAME = LiveFrame(None, None, None)
+
+
+@dataclass(frozen=True)
 class PoseReading:
     """One read of where the robot stands: its flange in the robot's base frame (converted
-    per protocol through app.kinematics.frames), its joints, the tool it moves by, and every
-    value read, as the controller printed it (kept with a captured touch, for the audit)."""
+    per protocol through app.kinematics.frames), its joints, the tool it moves by, the frame
+    it moves in, and every value read, as the controller printed it (kept with a captured
+    touch, for the audit). The live frame comes with the same read (the watcher reads every
+    robot each interval: one read a robot, not two)."""
 
     flange: Frame
     joints_deg: tuple[float, ...] | None
     live_tool: LiveTool
     readings: dict[str, str]
+    live_frame: LiveFrame = UNREAD_FRAME
 
 
 @dataclass(frozen=True)
@@ -66,6 +96,21 @@ class ToolTarget:
 
     slot: int | None = None  # KUKA $TOOL_DATA[slot] 1-16, FANUC UTOOL[slot] 1-10
     symbol: str | None = None  # ABB "TASK/MODULE/SYMBOL", e.g. "T_ROB1/user/tTorch"
+
+
+@dataclass(frozen=True)
+class FrameTarget:
+    """Where a frame lives in the controller, and what it is: a frame number, or a symbol
+    ("TASK/MODULE/SYMBOL"), or neither (a frame named by its values), as the protocol's
+    `WireProtocol.frames` says; `kind` "base" or "fixed_tool" (a connector writes what the
+    controller keeps of it: a base's type, the data type of the symbol)."""
+
+    kind: FrameKind = "base"
+    slot: int | None = None
+    symbol: str | None = None
+    #: the frame's name, written where the controller keeps one beside the frame; None
+    #: leaves the controller's name as it is
+    name: str | None = None
 
 
 @dataclass(frozen=True)
@@ -138,6 +183,17 @@ class ControllerProtocolError(ControllerError):
     """The controller answered something this connector cannot read (not the protocol)."""
 
 
+class FrameWriterMissing(ControllerError):
+    """No remote interface of this controller writes a frame (contract v1.4: 501
+    /no-frame-writer): `reason` says why, in the vendor's documents' words where they have
+    them, and `file` names the file a person loads by hand instead. Nothing was sent."""
+
+    def __init__(self, reason: str, *, file: str) -> None:
+        super().__init__(f"{reason}; load {file} by hand instead")
+        self.reason = reason
+        self.file = file
+
+
 class Connector(Protocol):
     """One controller session: read and write tool frames, read the robot's pose. Use it as
     a context manager."""
@@ -158,7 +214,23 @@ class Connector(Protocol):
 
     def read_pose(self) -> PoseReading:
         """Where the robot stands: its flange in the robot's base frame, its joints, the tool
-        it moves by and every value read as the controller printed it (contract v1.3)."""
+        it moves by, the frame it moves in (`live_frame`) and every value read as the
+        controller printed it (contract v1.3, v1.4)."""
+        ...
+
+    def describe_frame(self, target: FrameTarget) -> str:
+        """The frame as the controller names it (`WireProtocol.describe_frame`); ValueError
+        saying what to set when it cannot address one."""
+        ...
+
+    def read_frame(self, target: FrameTarget) -> Frame:
+        """The frame the controller holds, in the robot's base frame; FrameWriterMissing
+        where the controller keeps frames no remote interface reads."""
+        ...
+
+    def write_frame(self, target: FrameTarget, frame: Frame) -> None:
+        """Write the frame (a pose in the robot's base frame) into the controller;
+        FrameWriterMissing (nothing sent) where no remote interface writes one."""
         ...
 
     def close(self) -> None:
@@ -191,6 +263,29 @@ class ClosingSession:
         tb: TracebackType | None,
     ) -> None:
         self.close()
+
+
+class FramesByHand:
+    """The frame half of a Connector for a controller no remote interface of which writes or
+    reads a frame: after `describe_frame` checked the target, `read_frame` and `write_frame`
+    raise FrameWriterMissing with the class's `frame_reason` and `frame_file`, sending
+    nothing."""
+
+    frame_reason: str
+    frame_file: str
+
+    def describe_frame(self, target: FrameTarget) -> str:
+        raise NotImplementedError
+
+    def read_frame(self, target: FrameTarget) -> Frame:
+        """FrameWriterMissing: no remote interface serves the frame."""
+        self.describe_frame(target)
+        raise FrameWriterMissing(self.frame_reason, file=self.frame_file)
+
+    def write_frame(self, target: FrameTarget, frame: Frame) -> None:
+        """FrameWriterMissing, nothing sent: no remote interface writes the frame."""
+        self.describe_frame(target)
+        raise FrameWriterMissing(self.frame_reason, file=self.frame_file)
 
 
 @contextmanager

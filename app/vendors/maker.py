@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Literal, Protocol
 
 from app.arrays import FloatArray
-from app.vendors.connector import Connector, ControllerSettings, ToolTarget
+from app.vendors.connector import Connector, ControllerSettings, FrameTarget, ToolTarget
 from app.vendors.files import ControllerFile, FileContext, FileTool, ParsedTool
 from app.vendors.frame import FileFrame, FrameData, ParsedFrame
 from app.vendors.text import ControllerExport
@@ -101,6 +101,21 @@ class LiveTcp:
 
 
 @dataclass(frozen=True)
+class ByValue:
+    """Frames named by their values, not by a number (contract v1.4, "Frames": a frame
+    named by values, no slot): `name` is how the controller names the frame it holds
+    ("current base"), `live` True where writing it changes the running program's frame
+    only (scope live)."""
+
+    name: str
+    live: bool
+
+
+#: How a protocol addresses a robot's frames.
+FrameAddress = BySlot | BySymbol | ByValue
+
+
+@dataclass(frozen=True)
 class WireProtocol:
     """A protocol a maker's controllers speak: its name (``controller.protocol``), how it
     addresses a tool, its connector (None until this tcpcal has one: the connection is
@@ -114,6 +129,9 @@ class WireProtocol:
     default_port: int | None = None
     services: tuple[tuple[str, int], ...] = ()
     udp: bool = False
+    #: how it addresses a robot's frames (contract v1.4 "Frames"): frame numbers and their
+    #: names, symbols, or values
+    frames: FrameAddress | None = None
 
     @property
     def target_field(self) -> Literal["slot", "symbol", "live"]:
@@ -158,25 +176,58 @@ class WireProtocol:
 
     def target_problem(self, target: ToolTarget) -> str | None:
         """Why `target` cannot address a tool here, in a sentence; None when it can."""
-        address = self.address
-        if isinstance(address, LiveTcp):
+        if isinstance(self.address, LiveTcp):
             return None  # any tool: written by its values into the robot's one live TCP
+        return self._place_problem(self.address, target.slot, target.symbol, "tool")
+
+    def _place_problem(
+        self, address: BySlot | BySymbol, slot: int | None, symbol: str | None, what: str
+    ) -> str | None:
+        """Why a `what` (tool, frame) at `slot` or `symbol` has no place at `address`."""
         if isinstance(address, BySymbol):
-            if target.symbol is None:
-                return f"an {self.name} controller addresses tools by {address.how}"
-            return address.problem(target.symbol)
+            if symbol is None:
+                return f"an {self.name} controller addresses {what}s by {address.how}"
+            return address.problem(symbol)
         low, high = address.numbers
-        if target.slot is None:
+        if slot is None:
             return (
-                f"a {self.name} controller addresses tools by number: "
-                f"set the tool's slot ({low}-{high})"
+                f"a {self.name} controller addresses {what}s by number: "
+                f"set the {what}'s slot ({low}-{high})"
             )
-        if not low <= target.slot <= high:
+        if not low <= slot <= high:
             return (
-                f"slot {target.slot} is outside {low}-{high}, "
-                f"the tool numbers of a {self.name} controller"
+                f"slot {slot} is outside {low}-{high}, "
+                f"the {what} numbers of a {self.name} controller"
             )
         return None
+
+    @property
+    def frame_scope(self) -> DeploymentScope:
+        """Where a frame deployment holds: "live" where the frame is written into the running
+        program's, "stored" where the controller keeps it."""
+        return "live" if isinstance(self.frames, ByValue) and self.frames.live else "stored"
+
+    def frame_problem(self, target: FrameTarget) -> str | None:
+        """Why `target` cannot address a frame here, in a sentence; None when it can."""
+        address = self.frames
+        if address is None:
+            return f"a {self.name} controller has no frames tcpcal can address"
+        if isinstance(address, ByValue):
+            return None  # named by its values: any frame
+        return self._place_problem(address, target.slot, target.symbol, "frame")
+
+    def describe_frame(self, target: FrameTarget) -> str:
+        """The frame as the controller names it: "BASE_DATA[3]", a symbol, "current base";
+        ValueError saying what to set when it cannot address one."""
+        problem = self.frame_problem(target)
+        if problem is not None:
+            raise ValueError(problem)
+        address = self.frames
+        if isinstance(address, BySlot):
+            return address.name.format(target.slot)
+        if isinstance(address, ByValue):
+            return address.name
+        return str(target.symbol)
 
     def check(self, target: ToolTarget) -> None:
         """ValueError saying what to set when `target` cannot address a tool here."""

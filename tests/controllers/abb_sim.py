@@ -108,6 +108,7 @@ V2 = ";v=2.0"
 _V1_PATH = re.compile(r"^/rw/rapid/symbol/data/RAPID/([^/]+)/([^/]+)/([^/?]+)$")
 _V2_PATH = re.compile(r"^/rw/rapid/symbol/RAPID/([^/]+)/([^/]+)/([^/]+)/data$")
 _MOTION_PATH = re.compile(r"^/rw/motionsystem/mechunits/([^/]+)/(robtarget|jointtarget)/?$")
+_MECHUNIT_PATH = re.compile(r"^/rw/motionsystem/mechunits/([^/]+)/?$")
 #: what RobotWare prints for an external axis that is not there (the manual's example)
 NO_AXIS = "8.999999e+009"
 #: a frame: position mm, quaternion q1..q4 (w, x, y, z)
@@ -527,6 +528,30 @@ class AbbRwsSimulator(Faults):
         path = f"/rw/motionsystem/mechunits/{mechunit}/robtarget"
         return 200, self._state_body(path, item)
 
+    def mechunit_state(self, mechunit: str) -> tuple[int, dict[str, object]]:
+        """The mechanical unit's resource: one ``ms-mechunit`` item naming the tool and work
+        object it moves by (``tool-name``, ``wobj-name``), its payloads, mode, status, jog
+        mode and coordinate system, as ros-industrial/abb_librws
+        (``RWSInterface::getMechanicalUnitDynamicInfo``) reads it."""
+        if mechunit != self.mechunit:
+            return 400, _error(NOT_FOUND_CODE, f"Mechanical unit not found: {mechunit}")
+        with self._lock:
+            item = {
+                "_type": "ms-mechunit",
+                "_title": mechunit,
+                "type": "TCPRobot",
+                "task-name": "T_ROB" + mechunit.rsplit("_", 1)[-1],
+                "tool-name": self.active_tool,
+                "wobj-name": self.active_wobj,
+                "payload-name": "load0",
+                "total-payload-name": "load0",
+                "mode": "Activated",
+                "status": "Stopped",
+                "jog-mode": "Linear",
+                "coord-system": "Base",
+            }
+        return 200, self._state_body(f"/rw/motionsystem/mechunits/{mechunit}", item)
+
     def jointtarget(self, mechunit: str) -> tuple[int, dict[str, object]]:
         """Get Joint target: rax_1..rax_6 in degrees."""
         if mechunit != self.mechunit:
@@ -882,6 +907,9 @@ def _handler_for(sim: AbbRwsSimulator) -> type[BaseHTTPRequestHandler]:
             )
         ):
             return sim.mastership(path.rsplit("/", 1)[1], session)
+        unit = _MECHUNIT_PATH.match(path)
+        if unit is not None and method == "GET":
+            return sim.mechunit_state(unit.group(1))
         motion = _MOTION_PATH.match(path)
         if motion is not None and method == "GET":
             mechunit, resource = motion.groups()

@@ -1,10 +1,12 @@
-"""Shared checks for the connector tests: random tool data, timing, secrets in text."""
+"""Shared checks for the connector tests: random tool data and frames, timing, secrets in
+text."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from app.vendors.connector import Frame
 from app.vendors.tool import ToolData, ToolLoad
 
 
@@ -22,6 +24,14 @@ def random_tool(seed: int, *, load: bool = True) -> ToolData:
         if load
         else None,
     )
+
+
+def random_frame(seed: int) -> Frame:
+    """A plausible base or fixed tool: within 2 m of the robot's base, any orientation."""
+    rng = np.random.default_rng(seed)
+    xyzw = Rotation.random(random_state=rng).as_quat(canonical=True)
+    x, y, z = (float(v) for v in rng.uniform(-2000, 2000, 3))
+    return Frame((x, y, z), (float(xyzw[3]), float(xyzw[0]), float(xyzw[1]), float(xyzw[2])))
 
 
 def angle_between_deg(q_a: tuple[float, ...], q_b: tuple[float, ...]) -> float:

@@ -12,7 +12,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Literal
 
-from app.errors import ControllerRefusedError, ControllerUnreachableError, DomainError
+from app.errors import (
+    ControllerRefusedError,
+    ControllerUnreachableError,
+    DomainError,
+    NoFrameWriter,
+)
 from app.services.robots.connection import refusal_words
 from app.vendors.connector import (
     ControllerCredentialsRefused,
@@ -21,6 +26,7 @@ from app.vendors.connector import (
     ControllerSettings,
     ControllerSilent,
     ControllerUnreachable,
+    FrameWriterMissing,
 )
 from app.vendors.registry import where as controller_address
 
@@ -44,10 +50,20 @@ def controller_problem(
 ) -> DomainError:
     """The 502 for `exc`: /controller-refused with the controller's words as
     `controller_message`, else /controller-unreachable (unreachable, or an answer not in its
-    protocol). `sent`: the write had been sent, so an unreachable controller stopped
-    answering after it; `members`: the caller's own (a deployment's status)."""
+    protocol); the 501 /no-frame-writer for a frame no remote interface of the controller
+    writes, with its `reason` and the `file` to load by hand. `sent`: the write had been
+    sent, so an unreachable controller stopped answering after it; `members`: the caller's
+    own (a deployment's status)."""
     where = controller_address(settings)
     told = dict(members or {})
+    if isinstance(exc, FrameWriterMissing):
+        told |= {"reason": exc.reason, "file": exc.file}
+        return NoFrameWriter(
+            f"tcpcal cannot write this frame into the {settings.protocol} controller at "
+            f"{where}: {exc.reason}; load {exc.file} by hand instead (nothing was sent); "
+            f"{left}",
+            members=told,
+        )
     if isinstance(exc, ControllerRefused):
         told["controller_message"] = exc.controller_message
         return ControllerRefusedError(f"{_refused(exc, robot_id, refusal)}; {left}", members=told)

@@ -54,17 +54,16 @@ _BY_SYMBOL = BySymbol(
     'e.g. "T_ROB1/user/tTorch"',
     symbol_problem,
 )
-#: RobotWare 6 Robot Web Services, HTTP + Digest.
-RWS1 = WireProtocol("abb_rws1", _BY_SYMBOL, _rws, default_port=80)
-#: RobotWare 7 Robot Web Services 2.0, HTTPS + Basic.
-RWS2 = WireProtocol("abb_rws2", _BY_SYMBOL, _rws, default_port=443)
-#: A frame is a RAPID variable: a wobjdata (a base) or a tooldata with robhold FALSE (a
-#: fixed tool), by its controller_symbol.
+#: A frame: a PERS wobjdata (a base) or a stationary tooldata (a fixed tool) by its symbol.
 _FRAME_BY_SYMBOL = BySymbol(
-    'RAPID symbol: set the frame\'s controller_symbol as "TASK/MODULE/SYMBOL", a wobjdata '
-    'for a base, a tooldata with robhold FALSE for a fixed tool, e.g. "T_ROB1/user/wobjFixA"',
+    'RAPID symbol: set the frame\'s controller_symbol as "TASK/MODULE/SYMBOL" of its '
+    'wobjdata (a base) or stationary tooldata (a fixed tool), e.g. "T_ROB1/user/wobjFixA"',
     symbol_problem,
 )
+#: RobotWare 6 Robot Web Services, HTTP + Digest.
+RWS1 = WireProtocol("abb_rws1", _BY_SYMBOL, _rws, default_port=80, frames=_FRAME_BY_SYMBOL)
+#: RobotWare 7 Robot Web Services 2.0, HTTPS + Basic.
+RWS2 = WireProtocol("abb_rws2", _BY_SYMBOL, _rws, default_port=443, frames=_FRAME_BY_SYMBOL)
 
 MAKER = Maker(
     format="abb",

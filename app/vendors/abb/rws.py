@@ -39,6 +39,19 @@ answer even that, the session's cookies are kept (`_ORPHANS`, in this process) a
 session with the same controller releases and logs it out before anything else; otherwise
 the next write would meet "Mastership is held by another client" from tcpcal's own session.
 
+Frames (contract v1.4 "Frames at the controller"): a base is a PERS ``wobjdata`` (RAPID
+manual 3HAC050917-001, "wobjdata": ``[robhold, ufprog, ufmec, uframe, oframe]``), a fixed
+tool a PERS ``tooldata`` with robhold FALSE (the same manual, "tooldata": a stationary tool,
+tframe the TCP in the world frame), each by its symbol, read and set as a tool's tooldata is
+(edit mastership around the set on RWS 2.0). A work object's frame is its uframe: the write
+sets uframe and keeps robhold, ufprog, ufmec and the oframe as read; a fixed tool's write
+sets tframe and keeps tload. Both are in the world frame, which tcpcal takes as the robot's
+base frame (the base frame's default; RWS's ``.../baseframe`` is not read). The work object
+the robot moves in: the mechanical unit's resource (``GET /rw/motionsystem/mechunits/ROB_1``,
+its ``ms-mechunit`` item's ``wobj-name``, as ros-industrial/abb_librws
+``RWSInterface::getMechanicalUnitDynamicInfo`` reads it beside ``tool-name``), a name only:
+RWS gives neither its module nor its value there, so the live frame is that name.
+
 A write keeps the controller's ``robhold`` and, when tcpcal has no load for the tool, its
 whole ``tload``; with a load it writes mass and centre of gravity and keeps the axes of
 moment and the inertia. Both sessions end with ``GET /logout`` (RobotWare keeps a small
@@ -61,7 +74,15 @@ from app.jsontypes import JsonObject
 from app.kinematics.frames import flange_from_tcp
 from app.vendors.abb import RWS1, RWS2
 from app.vendors.abb.symbol import split_symbol
-from app.vendors.abb.text import RapidSyntaxError, RapidTool, format_tooldata, parse_tooldata
+from app.vendors.abb.text import (
+    RapidSyntaxError,
+    RapidTool,
+    RapidWobj,
+    format_tooldata,
+    format_wobjdata,
+    parse_tooldata,
+    parse_wobjdata,
+)
 from app.vendors.connector import (
     CLEANUP_S,
     ClosingSession,
@@ -73,9 +94,12 @@ from app.vendors.connector import (
     ControllerUnreachable,
     Deadline,
     Frame,
+    FrameTarget,
+    LiveFrame,
     LiveTool,
     PoseReading,
     ToolTarget,
+    finite_frame,
     write_sent,
 )
 from app.vendors.tool import ToolData, ToolLoad, finite_tool_data
@@ -169,17 +193,22 @@ class AbbRwsConnector(ClosingSession):
         tool = replace(held, position_mm=data.position_mm, quaternion=data.quaternion)
         if data.load is not None:
             tool = replace(tool, mass_kg=data.load.mass_kg, cog_mm=data.load.cog_or_origin)
-        value = format_tooldata(tool)
+        assert target.symbol is not None  # checked above
+        self._set(target.symbol, format_tooldata(tool), deadline)
+
+    def _set(self, symbol: str, value: str, deadline: Deadline) -> None:
+        """Set the PERS `symbol` to the RAPID text `value` (RWS 2.0: under edit mastership,
+        released whatever the set's outcome)."""
         if not self._v2:
-            # From the set's POST on the controller may hold the new tooldata.
+            # From the set's POST on the controller may hold the new value.
             with write_sent():
                 self._send(
                     "POST",
-                    self._data_path(target),
+                    self._data_path(symbol),
                     deadline,
                     params={"action": "set", "json": "1"},
                     data={"value": value},
-                    what=f"set {target.symbol}",
+                    what=f"set {symbol}",
                 )
             return
         self._send(
@@ -189,28 +218,89 @@ class AbbRwsConnector(ClosingSession):
             form=True,
             what="request edit mastership",
         )
-        # From the set's POST on the controller may hold the new tooldata, and the release
+        # From the set's POST on the controller may hold the new value, and the release
         # after it changes nothing of that.
         with write_sent():
             try:
                 self._send(
                     "POST",
-                    self._data_path(target),
+                    self._data_path(symbol),
                     deadline,
                     data={"value": value},
                     form=True,
-                    what=f"set {target.symbol}",
+                    what=f"set {symbol}",
                 )
             finally:
                 self._release_mastership(deadline)
 
+    def describe_frame(self, target: FrameTarget) -> str:
+        """``T_ROB1/user/wobjFixA``."""
+        return self._wire.describe_frame(target)
+
+    def read_frame(self, target: FrameTarget) -> Frame:
+        """A base: the uframe of the wobjdata `target.symbol`; a fixed tool: the tframe of
+        the stationary tooldata `target.symbol`."""
+        symbol = self.describe_frame(target)
+        if target.kind == "fixed_tool":
+            tool = self._fixed_tool(symbol, self._deadline)
+            return Frame(tool.position_mm, tool.quaternion)
+        position, quaternion = self._wobj(symbol, self._deadline).uframe
+        return Frame(position, quaternion)
+
+    def write_frame(self, target: FrameTarget, frame: Frame) -> None:
+        """Write the frame into the wobjdata's uframe (robhold, ufprog, ufmec and oframe as
+        read) or the stationary tooldata's tframe (robhold FALSE and tload as read)."""
+        symbol = self.describe_frame(target)
+        finite_frame(frame)
+        deadline = self._deadline
+        if target.kind == "fixed_tool":
+            tool = replace(
+                self._fixed_tool(symbol, deadline),
+                position_mm=frame.position_mm,
+                quaternion=frame.quaternion,
+            )
+            value = format_tooldata(tool)
+        else:
+            wobj = replace(
+                self._wobj(symbol, deadline), uframe=(frame.position_mm, frame.quaternion)
+            )
+            value = format_wobjdata(wobj)
+        self._set(symbol, value, deadline)
+
+    def _fixed_tool(self, symbol: str, deadline: Deadline) -> RapidTool:
+        """The stationary tooldata `symbol`; ControllerRefused when the robot holds it."""
+        tool = self._read(ToolTarget(symbol=symbol), deadline)
+        if tool.robhold:
+            raise ControllerRefused(
+                f"{symbol} on the controller is a tooldata the robot holds (robhold TRUE), not "
+                "a stationary tool: a fixed tool's tooldata has robhold FALSE (RAPID manual, "
+                "tooldata); set the frame's controller_symbol to the stationary tooldata, or "
+                "make this frame a base with its wobjdata",
+                controller_message=f"{symbol}: robhold TRUE",
+            )
+        return tool
+
+    def _wobj(self, symbol: str, deadline: Deadline) -> RapidWobj:
+        value = self._read_value(symbol, deadline)
+        try:
+            return parse_wobjdata(value)
+        except RapidSyntaxError as err:
+            raise ControllerRefused(
+                f"{symbol} on the controller is not a wobjdata: {err}; a base's "
+                "controller_symbol names its work object (PERS wobjdata), a fixed tool's its "
+                "stationary tooldata",
+                controller_message=f"{symbol} = {value[:_WORDS_LIMIT]}",
+            ) from err
+
     def read_pose(self) -> PoseReading:
         """The flange in the robot's base frame (the robtarget of tool0 in wobj0, Base
         coordinates), rax_1..rax_6 of the jointtarget, and every value both answers held, as
-        printed; both reads within one deadline. The live tool is unknown (RWS does not say)."""
+        printed; the work object the robot moves in by name (the mechunit's ``wobj-name``);
+        the three reads within one deadline. The live tool is unknown (RWS does not say)."""
         deadline = self._deadline
         robtarget = self._motion_state("robtarget", "ms-robtargets", deadline)
         jointtarget = self._motion_state("jointtarget", "ms-jointtarget", deadline)
+        mechunit = self._motion_state("", "ms-mechunit", deadline)
         x, y, z, q1, q2, q3, q4 = self._numbers(robtarget, _ROBTARGET, "robtarget")
         norm = math.sqrt(q1 * q1 + q2 * q2 + q3 * q3 + q4 * q4)
         if abs(norm - 1.0) > _UNIT_SLACK:
@@ -223,11 +313,14 @@ class AbbRwsConnector(ClosingSession):
         position, quaternion = flange_from_tcp(((x, y, z), (q1, q2, q3, q4)))
         readings = {f"robtarget.{k}": v for k, v in robtarget.items()}
         readings |= {f"jointtarget.{k}": v for k, v in jointtarget.items()}
+        wobj = mechunit.get("wobj-name")
+        readings["mechunit.wobj-name"] = wobj or ""
         return PoseReading(
             flange=Frame(position, quaternion),
             joints_deg=self._numbers(jointtarget, _JOINTS, "jointtarget"),
             live_tool=LiveTool(None, None),
             readings=readings,
+            live_frame=LiveFrame(number=None, name=wobj or None, frame=None),
         )
 
     def close(self) -> None:
@@ -251,26 +344,29 @@ class AbbRwsConnector(ClosingSession):
 
     # --- requests --------------------------------------------------------------------------
 
-    def _data_path(self, target: ToolTarget) -> str:
-        assert target.symbol is not None
-        task, module, name = split_symbol(target.symbol)
+    def _data_path(self, symbol: str) -> str:
+        task, module, name = split_symbol(symbol)
         if self._v2:
             return f"/rw/rapid/symbol/RAPID/{task}/{module}/{name}/data"
         return f"/rw/rapid/symbol/data/RAPID/{task}/{module}/{name}"
 
-    def _read(self, target: ToolTarget, deadline: Deadline) -> RapidTool:
+    def _read_value(self, symbol: str, deadline: Deadline) -> str:
+        """The RAPID text the controller holds in the PERS `symbol`."""
         response = self._send(
             "GET",
-            self._data_path(target),
+            self._data_path(symbol),
             deadline,
             params=None if self._v2 else {"json": "1"},
-            what=f"read {target.symbol}",
+            what=f"read {symbol}",
         )
         value = _state_value(_json(response, self._peer))
         if value is None:
-            raise ControllerProtocolError(
-                f"{self._peer}: no value in the answer for {target.symbol}"
-            )
+            raise ControllerProtocolError(f"{self._peer}: no value in the answer for {symbol}")
+        return value
+
+    def _read(self, target: ToolTarget, deadline: Deadline) -> RapidTool:
+        assert target.symbol is not None
+        value = self._read_value(target.symbol, deadline)
         try:
             return parse_tooldata(value)
         except RapidSyntaxError as err:
@@ -280,16 +376,18 @@ class AbbRwsConnector(ClosingSession):
             ) from err
 
     def _motion_state(self, resource: str, kind: str, deadline: Deadline) -> dict[str, str]:
-        """The string values of the `kind` state item of mechunit ROB_1's `resource`."""
+        """The string values of the `kind` state item of mechunit ROB_1's `resource` (""
+        for the mechanical unit itself)."""
         params = dict(ROBTARGET_QUERY) if resource == "robtarget" else {}
         if not self._v2:
             params["json"] = "1"
+        path = f"/rw/motionsystem/mechunits/{MECHUNIT}"
         response = self._send(
             "GET",
-            f"/rw/motionsystem/mechunits/{MECHUNIT}/{resource}",
+            f"{path}/{resource}" if resource else path,
             deadline,
             params=params,
-            what=f"read the {resource} of {MECHUNIT}",
+            what=f"read the {resource or 'state'} of {MECHUNIT}",
         )
         item = _state_item(_json(response, self._peer), kind)
         if item is None:

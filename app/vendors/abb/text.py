@@ -1,6 +1,7 @@
-"""ABB's text: RAPID ``tooldata`` values, read and written once, for the tool's line
-``PERS tooldata name:=[TRUE,[[x,y,z],[q1,q2,q3,q4]],[load]];``, the RAPID module of the file
-(app.vendors.abb.file) and what Robot Web Services reads and writes (app.vendors.abb.rws).
+"""ABB's text: RAPID ``tooldata`` and ``wobjdata`` values, read and written once, for the
+tool's line ``PERS tooldata name:=[TRUE,[[x,y,z],[q1,q2,q3,q4]],[load]];``, the RAPID module
+of the file (app.vendors.abb.file) and what Robot Web Services reads and writes
+(app.vendors.abb.rws).
 
 ABB *Technical reference manual - RAPID Instructions, Functions and Data types*,
 "tooldata": ``[robhold, tframe, tload]`` with tframe a ``pose`` ``[[x, y, z], [q1, q2, q3,
@@ -154,6 +155,58 @@ def format_tooldata(
     )
 
 
+@dataclass(frozen=True)
+class RapidWobj:
+    """A RAPID wobjdata (the same manual, "wobjdata": ``[robhold, ufprog, ufmec, uframe,
+    oframe]``), every member kept: robhold TRUE when the robot holds the work object, ufprog
+    TRUE for a fixed user frame, ufmec the mechanical unit moving it (a string literal, kept
+    as printed), uframe the user frame in the world and oframe the object frame in it."""
+
+    robhold: bool
+    ufprog: bool
+    ufmec: str
+    uframe: tuple[tuple[float, float, float], tuple[float, float, float, float]]
+    oframe: tuple[tuple[float, float, float], tuple[float, float, float, float]]
+
+
+def parse_wobjdata(text: str) -> RapidWobj:
+    """``[FALSE,TRUE,"",[[300,600,200],[1,0,0,0]],[[0,200,30],[1,0,0,0]]]`` (the manual's
+    example) -> RapidWobj; RapidSyntaxError naming the member that is not one."""
+    value = parse_value(text)
+    if not isinstance(value, list) or len(value) != 5:
+        raise RapidSyntaxError(f"not a wobjdata [robhold, ufprog, ufmec, uframe, oframe]: {text!r}")
+    robhold, ufprog, ufmec, uframe, oframe = value
+    if not isinstance(robhold, bool) or not isinstance(ufprog, bool):
+        raise RapidSyntaxError(f"wobjdata robhold or ufprog is not TRUE or FALSE: {text!r}")
+    if not isinstance(ufmec, str) or not (ufmec.startswith('"') and ufmec.endswith('"')):
+        raise RapidSyntaxError(f"wobjdata ufmec is not a string: {text!r}")
+    return RapidWobj(
+        robhold, ufprog, ufmec, _pose(uframe, "uframe", text), _pose(oframe, "oframe", text)
+    )
+
+
+def _pose(
+    value: RapidValue, what: str, text: str
+) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
+    if not isinstance(value, list) or len(value) != 2:
+        raise RapidSyntaxError(f"wobjdata {what} is not a pose [trans, rot]: {text!r}")
+    trans = _numbers(value[0], 3, f"{what}.trans", text, data="wobjdata")
+    rot = _numbers(value[1], 4, f"{what}.rot", text, data="wobjdata")
+    return (trans[0], trans[1], trans[2]), (rot[0], rot[1], rot[2], rot[3])
+
+
+def format_wobjdata(wobj: RapidWobj) -> str:
+    """RapidWobj -> RAPID text, what RWS's ``value`` takes (numbers as `rapid_num`)."""
+
+    def pose(frame: tuple[tuple[float, ...], tuple[float, ...]]) -> str:
+        return f"[{_list(frame[0], 6)},{_list(frame[1], 9)}]"
+
+    return (
+        f"[{'TRUE' if wobj.robhold else 'FALSE'},{'TRUE' if wobj.ufprog else 'FALSE'},"
+        f"{wobj.ufmec},{pose(wobj.uframe)},{pose(wobj.oframe)}]"
+    )
+
+
 def rapid_num(value: float, decimals: int) -> str:
     """A num as RAPID prints it: at most `decimals` places, no trailing zeros ("150", "0")."""
     if not math.isfinite(value):
@@ -166,13 +219,15 @@ def _list(values: tuple[float, ...], decimals: int) -> str:
     return "[" + ",".join(rapid_num(v, decimals) for v in values) + "]"
 
 
-def _numbers(value: RapidValue, count: int, what: str, text: str) -> list[float]:
+def _numbers(
+    value: RapidValue, count: int, what: str, text: str, *, data: str = "tooldata"
+) -> list[float]:
     if (
         not isinstance(value, list)
         or len(value) != count
         or not all(isinstance(v, float) and math.isfinite(v) for v in value)
     ):
-        raise RapidSyntaxError(f"tooldata {what} is not {count} finite numbers: {text!r}")
+        raise RapidSyntaxError(f"{data} {what} is not {count} finite numbers: {text!r}")
     return [float(v) for v in value if isinstance(v, float)]
 
 

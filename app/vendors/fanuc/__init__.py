@@ -25,7 +25,8 @@ from app.vendors.maker import (
 
 #: (first, last) tool number: UTOOL[1..10].
 TOOL_NUMBERS = (1, 10)
-#: (first, last) user frame number: UFRAME[1..9] (UFRAME[0] is the world frame).
+#: (first, last) user frame number: UFRAME[1..9] (B-84184EN 2.3.9 FRC_WriteUFrameData: 1-9;
+#: UFRAME 0 is the world frame, which no program writes).
 FRAME_NUMBERS = (1, 9)
 
 
@@ -53,8 +54,9 @@ def _rmi() -> OpenSession:
     return FanucRmiConnector
 
 
-#: Remote Motion Interface, FRC_Connect on 16001.
-RMI = WireProtocol("fanuc_rmi", BySlot(TOOL_NUMBERS, "UTOOL[{}]"), _rmi, default_port=16001)
+#: Remote Motion Interface, FRC_Connect on 16001: UTOOL[n] and UFRAME[n] by number.
+_UTOOLS, _UFRAMES = BySlot(TOOL_NUMBERS, "UTOOL[{}]"), BySlot(FRAME_NUMBERS, "UFRAME[{}]")
+RMI = WireProtocol("fanuc_rmi", _UTOOLS, _rmi, default_port=16001, frames=_UFRAMES)
 
 MAKER = Maker(
     format="fanuc",
@@ -67,5 +69,5 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(RMI,),
-    frame_address=BySlot(FRAME_NUMBERS, "UFRAME[{}]"),
+    frame_address=_UFRAMES,
 )

@@ -24,6 +24,15 @@ axes, stay in the readings). All four are commands that need only a connection (
 8-9) and are sent one after the other, each answered before the next (2.3: "make sure the
 previously sent command packet is returned"), within one deadline.
 
+User frames (contract v1.4 "Frames at the controller"): FRC_WriteUFrameData (2.3.9 "Packet
+To Set User Frame Data", pages 15-16: ``FrameNumber`` 1-9, ``Frame`` {X, Y, Z, W, P, R},
+``Group``) writes UFRAME[n] and FRC_ReadUFrameData (2.3.8) reads it back; both need only a
+connection (2.3, page 9). UFRAME[n] is in the robot's world frame, as tcpcal holds a frame; a
+fixed tool is a user frame too (contract v1.4 "Frames"). The frame the robot moves in is the
+active UFRAME: ``Configuration.UFrameNumber`` of the pose read's FRC_ReadCartesianPosition
+(2.3.14), the number FRC_GetUFrameUTool (2.3.17) answers, taken from the read that already
+carries it (one packet less a watcher round) with UFRAME[m] read as above.
+
 W, P, R are fixed-axis X-Y-Z angles: R = Rz(R) Ry(P) Rx(W) (``fanuc_wpr`` in
 app.kinematics.poses). RMI reads and writes only the frame of a UTOOL: the payload lives in
 PAYLOAD schedules that RMI cannot write, so a FANUC tool is read with ``load`` None and
@@ -74,9 +83,12 @@ from app.vendors.connector import (
     ControllerUnreachable,
     Deadline,
     Frame,
+    FrameTarget,
+    LiveFrame,
     LiveTool,
     PoseReading,
     ToolTarget,
+    finite_frame,
     write_sent,
 )
 from app.vendors.fanuc import RMI
@@ -256,7 +268,48 @@ class FanucRmiConnector(ClosingSession):
             joints_deg=self._numbers(joints, "JointAngle", JOINT_KEYS, "FRC_ReadJointAngles"),
             live_tool=LiveTool(number=utool or None, frame=tool),
             readings=readings,
+            live_frame=LiveFrame(number=uframe or None, name=None, frame=base),
         )
+
+    def describe_frame(self, target: FrameTarget) -> str:
+        """``UFRAME[2]``."""
+        return RMI.describe_frame(target)
+
+    def read_frame(self, target: FrameTarget) -> Frame:
+        """UFRAME[slot] (FRC_ReadUFrameData, group 1)."""
+        RMI.describe_frame(target)
+        assert target.slot is not None  # a frame-number-addressed protocol
+        frame, _line = self._read_frame(
+            "FRC_ReadUFrameData", "FrameNumber", target.slot, self._deadline
+        )
+        return frame
+
+    def write_frame(self, target: FrameTarget, frame: Frame) -> None:
+        """Write X, Y, Z, W, P, R into UFRAME[slot] (FRC_WriteUFrameData, group 1)."""
+        RMI.describe_frame(target)
+        finite_frame(frame)
+        w, p, r = (float(v) for v in fanuc_wpr_from_quaternion_wxyz(np.asarray(frame.quaternion)))
+        x, y, z = (float(v) for v in frame.position_mm)
+        packet: JsonObject = {
+            "Command": "FRC_WriteUFrameData",
+            "FrameNumber": target.slot,
+            "Frame": dict(zip(FRAME_KEYS, (x, y, z, w, p, r), strict=True)),
+            "Group": 1,
+        }
+        try:
+            with write_sent():
+                self._request(packet, self._deadline)
+        except ControllerRefused as err:
+            if err.controller_message != error_text(RMIT_BASE + 14):
+                raise
+            raise ControllerRefused(
+                f"the FANUC controller refused FRC_WriteUFrameData: {err.controller_message}",
+                controller_message=err.controller_message,
+                remedy=(
+                    "RMI rejects a user frame write while the robot moves (B-84184EN 2.3.9): "
+                    "deploy again when the robot stands still"
+                ),
+            ) from err
 
     def write_tool(self, target: ToolTarget, data: ToolData) -> None:
         """Write X, Y, Z, W, P, R into UTOOL[slot] (the load is not RMI's to write)."""

@@ -26,7 +26,7 @@ from app.vendors.maker import (
 
 #: (first, last) tool number: $TOOL_DATA[1..16].
 TOOL_NUMBERS = (1, 16)
-#: (first, last) frame number: BASE_DATA[1..32].
+#: (first, last) base number: BASE_DATA[1..32] ($config.dat ``DECL FRAME BASE_DATA[32]``).
 FRAME_NUMBERS = (1, 32)
 
 
@@ -54,7 +54,9 @@ def _kvp() -> OpenSession:
     return KukaKvpConnector
 
 
-KVP = WireProtocol("kuka_kvp", BySlot(TOOL_NUMBERS, "$TOOL_DATA[{}]"), _kvp, default_port=7000)
+#: $TOOL_DATA[n] and BASE_DATA[n] by number.
+_TOOLS, _BASES = BySlot(TOOL_NUMBERS, "$TOOL_DATA[{}]"), BySlot(FRAME_NUMBERS, "BASE_DATA[{}]")
+KVP = WireProtocol("kuka_kvp", _TOOLS, _kvp, default_port=7000, frames=_BASES)
 
 MAKER = Maker(
     format="kuka",
@@ -67,5 +69,5 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(KVP,),
-    frame_address=BySlot(FRAME_NUMBERS, "BASE_DATA[{}]"),
+    frame_address=_BASES,
 )

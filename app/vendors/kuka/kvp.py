@@ -36,6 +36,19 @@ Variables (KUKA System Software 8, Programming manual for system integrators, "$
 ``$LOAD_DATA[n]`` is a LOAD ``{M (kg), CM FRAME (centre of mass, mm), J INERTIA (kg m2)}``,
 M = -1 meaning "the default load" (no load data). A write sends only the members tcpcal
 owns; the load's CM orientation and inertia are written back as the controller held them.
+
+Frames (contract v1.4 "Frames at the controller"; KUKA System Software 8, *Programming
+manual for system integrators*, "Measuring a base" and "Fixed tool", whose data the KRC
+keeps in ``$config.dat``: ``DECL FRAME BASE_DATA[32]``, ``DECL CHAR BASE_NAME[32,24]``,
+``DECL BASIS_TYPE BASE_TYPE[32]``): ``BASE_DATA[n]`` is a FRAME ``{X, Y, Z, A, B, C}`` in
+``$WORLD``; ``BASE_TYPE[n]`` is ``#BASE`` for a base a tool on the flange moves through and
+``#TCP`` for a fixed tool (the frame is the stationary TCP, used with ``$IPO_MODE #TCP``);
+``BASE_NAME[n,]`` its name (CHAR[24], as TOOL_NAME). tcpcal holds a frame in the robot's
+base frame, which stands in ``$WORLD`` at ``$ROBROOT_C`` (as for the pose read above), so
+BASE_DATA[n] = $ROBROOT_C * frame, ``$ROBROOT_C`` read in the same session before the write
+and with every read. The live frame is ``$ACT_BASE`` (the base number selected; -1 when a
+program set ``$BASE`` itself) and ``$BASE`` (in ``$WORLD``), read in the pose read's one
+send.
 """
 
 from __future__ import annotations
@@ -57,12 +70,16 @@ from app.vendors.connector import (
     ControllerUnreachable,
     Deadline,
     Frame,
+    FrameTarget,
+    LiveFrame,
     LiveTool,
     PoseReading,
     ToolTarget,
+    finite_frame,
     write_sent,
 )
-from app.vendors.kuka import KVP, TOOL_NUMBERS
+from app.vendors.kuka import FRAME_NUMBERS, KVP, TOOL_NUMBERS
+from app.vendors.kuka.file import tool_name
 from app.vendors.kuka.text import KrlStruct, KrlSyntaxError, format_struct, numbers, parse_struct
 from app.vendors.sockets import close_quietly, open_connection, recv_exactly, send_all
 from app.vendors.tool import ToolData, ToolLoad, finite_tool_data
@@ -82,6 +99,7 @@ POSE_VARIABLES = (
     "$ROBROOT_C",
     "$POS_ACT",
     "$AXIS_ACT",
+    "$ACT_BASE",
 )
 _FRAME = ("X", "Y", "Z", "A", "B", "C")
 _ROBOT_AXES = ("A1", "A2", "A3", "A4", "A5", "A6")
@@ -184,7 +202,47 @@ class KukaKvpConnector(ClosingSession):
             joints_deg=self._numbers_of(readings, "$AXIS_ACT", _ROBOT_AXES),
             live_tool=LiveTool(number=self._tool_number(readings["$ACT_TOOL"]), frame=Frame(*tool)),
             readings=readings,
+            live_frame=LiveFrame(
+                number=self._number(readings["$ACT_BASE"], "$ACT_BASE", FRAME_NUMBERS),
+                name=None,
+                frame=Frame(*base),
+            ),
         )
+
+    def describe_frame(self, target: FrameTarget) -> str:
+        """``BASE_DATA[3]``."""
+        return KVP.describe_frame(target)
+
+    def read_frame(self, target: FrameTarget) -> Frame:
+        """BASE_DATA[slot] in the robot's base frame (``inverse($ROBROOT_C) * BASE_DATA``),
+        the two read in one send."""
+        name = self.describe_frame(target)
+        readings = self.read_variables((name, "$ROBROOT_C"), self._deadline)
+        robroot = _kuka_frame(self._numbers_of(readings, "$ROBROOT_C", _FRAME))
+        world = _kuka_frame(self._numbers_of(readings, name, _FRAME))
+        return Frame(*compose(inverse(*robroot), world))
+
+    def write_frame(self, target: FrameTarget, frame: Frame) -> None:
+        """Write ``BASE_DATA[slot]`` ($ROBROOT_C * frame), then ``BASE_TYPE[slot]`` (#BASE,
+        or #TCP for a fixed tool) and, when the target names it, ``BASE_NAME[slot,]``."""
+        name = self.describe_frame(target)
+        finite_frame(frame)
+        deadline = self._deadline
+        robroot = _kuka_frame(
+            self._numbers_of(self.read_variables(("$ROBROOT_C",), deadline), "$ROBROOT_C", _FRAME)
+        )
+        position, quaternion = compose(robroot, (frame.position_mm, frame.quaternion))
+        a, b, c = (float(v) for v in kuka_abc_from_quaternion_wxyz(np.asarray(quaternion)))
+        x, y, z = position
+        value = format_struct({"X": x, "Y": y, "Z": z, "A": a, "B": b, "C": c})
+        kind = "#TCP" if target.kind == "fixed_tool" else "#BASE"
+        # From here on the KRC may hold the new base whatever fails.
+        with write_sent():
+            self.write_variable(name, value, deadline)
+            self.write_variable(f"BASE_TYPE[{target.slot}]", kind, deadline)
+            if target.name is not None:
+                label = tool_name(target.name)
+                self.write_variable(f"BASE_NAME[{target.slot},]", f'"{label}"', deadline)
 
     def _numbers_of(
         self, readings: dict[str, str], name: str, members: tuple[str, ...]
@@ -202,13 +260,17 @@ class KukaKvpConnector(ClosingSession):
 
     def _tool_number(self, text: str) -> int | None:
         """$ACT_TOOL as a tool number 1-16; None when no $TOOL_DATA entry is selected (-1)."""
+        return self._number(text, "$ACT_TOOL", TOOL_NUMBERS)
+
+    def _number(self, text: str, name: str, numbers: tuple[int, int]) -> int | None:
+        """$ACT_TOOL or $ACT_BASE as a number of `numbers`; None when none is selected (-1)."""
         try:
             number = int(text)
         except ValueError as err:
             raise ControllerProtocolError(
-                f"{self._peer}: $ACT_TOOL = {text!r} is not an integer"
+                f"{self._peer}: {name} = {text!r} is not an integer"
             ) from err
-        low, high = TOOL_NUMBERS
+        low, high = numbers
         return number if low <= number <= high else None
 
     def close(self) -> None:
@@ -307,6 +369,11 @@ def _missing_remedy(name: str) -> str:
     """What to check when the KRC shows no value for `name` (KUKAVARPROXY answers an empty
     value for a name the KRC does not resolve: not declared, or an index past its array)."""
     missing = f"the KRC has no variable {name}"
+    if name.upper().startswith(("BASE_DATA[", "BASE_TYPE[", "BASE_NAME[")):
+        return (
+            f"{missing}: check the frame's slot (a base number the KRC declares, 1-32 on "
+            f"KSS 8) and that {name.split('[', 1)[0]} is declared in the KRC's $config.dat"
+        )
     if name.upper().startswith(("$TOOL_DATA[", "$LOAD_DATA[")):
         return (
             f"{missing}: check the tool's slot (a tool number the KRC declares, 1-16 on "

@@ -18,6 +18,7 @@ sets its own TCP).
 from __future__ import annotations
 
 from app.vendors.maker import (
+    ByValue,
     FileModule,
     FrameModule,
     LiveTcp,
@@ -58,6 +59,7 @@ TMFLOW = WireProtocol(
     LiveTcp("current TCP"),
     _tmflow,
     services=(("listen_node", 5890), ("ethernet_slave", 5891)),
+    frames=ByValue("current base", live=True),
 )
 
 MAKER = Maker(

@@ -37,6 +37,18 @@ What persists (contract v1.3, scope "live"): the TCP holds for the running proje
 TCP list stored on the robot is untouched, and the next start of a project sets the TCP the
 project was written with; the reconcile rounds then show what the robot moves by.
 
+Frames (contract v1.4 "Frames at the controller"): the robot's current base, by value,
+written as the TCP is: ``ChangeBase({X,Y,Z,RX,RY,RZ})`` (the Listen Node manual's function
+list: the base in the robot base, X Y Z mm, RX RY RZ deg as for ChangeTCP) and the queue tag,
+waited for the same way, then read back from the Ethernet Slave's ``Base_Value`` (the current
+base in the robot base, read-only) with ``Base_Name`` (its name in the base list, empty when
+set by values). Like the TCP it holds for the running project only (scope "live": a project
+start sets its own base); the base list is untouched. A fixed tool has no place here: the
+Listen Node's functions change the current base and the TCP on the flange, none a
+stationary tool. The pose read asks for ``Base_Name`` and ``Base_Value`` in its one request
+(the frame the robot moves in); an Ethernet Slave whose data table has not the two is asked
+again without them, and the live frame is then unread.
+
 A session keeps to one deadline from `connect` (the Ethernet Slave's connection, the Listen
 Node's, each request and answer, the wait for the queue tag). The Listen Node is connected to
 only when a write needs it, so reading needs no project running. A Listen node serves its
@@ -56,6 +68,7 @@ import numpy as np
 
 from app.kinematics.poses import fanuc_wpr_from_quaternion_wxyz, quaternion_wxyz_from_fanuc_wpr
 from app.vendors.connector import (
+    UNREAD_FRAME,
     ClosingSession,
     ControllerProtocolError,
     ControllerRefused,
@@ -63,9 +76,12 @@ from app.vendors.connector import (
     ControllerUnreachable,
     Deadline,
     Frame,
+    FrameTarget,
+    LiveFrame,
     LiveTool,
     PoseReading,
     ToolTarget,
+    finite_frame,
     write_sent,
 )
 from app.vendors.sockets import close_quietly, open_connection, recv_some, send_all
@@ -77,6 +93,8 @@ LISTEN_NODE, ETHERNET_SLAVE = "listen_node", "ethernet_slave"
 QUEUE_TAG = 15
 #: What read_pose asks for, in one request.
 POSE_ITEMS = ("Coord_Robot_Flange", "Joint_Angle", "TCP_Value", "TCP_Name", "TCP_Mass")
+#: The current base, asked for with the pose where the data table has it.
+BASE_ITEMS = ("Base_Name", "Base_Value")
 #: $CPERR codes (the Listen Node manual's table).
 CPERR_WORDS = {
     "01": "packet error",
@@ -131,8 +149,8 @@ def number_text(value: float) -> str:
     return "0.000000" if text == "-0.000000" else text
 
 
-def tm_values(data: ToolData) -> tuple[float, ...]:
-    """X, Y, Z (mm), RX, RY, RZ (deg) of a tool frame."""
+def tm_values(data: ToolData | Frame) -> tuple[float, ...]:
+    """X, Y, Z (mm), RX, RY, RZ (deg) of a tool frame or a base."""
     rx, ry, rz = (float(v) for v in fanuc_wpr_from_quaternion_wxyz(np.asarray(data.quaternion)))
     return (*(float(v) for v in data.position_mm), rx, ry, rz)
 
@@ -153,6 +171,12 @@ def change_tcp_script(values: tuple[float, ...], mass: float, cog: tuple[float, 
         inertia = ",".join(number_text(v) for v in (0.0, 0.0, 0.0, *cog, 0.0, 0.0, 0.0))
         call += f",{{{inertia}}}"
     return f"{call})\r\nQueueTag({QUEUE_TAG},0)"
+
+
+def change_base_script(values: tuple[float, ...]) -> str:
+    """``ChangeBase({X,Y,Z,RX,RY,RZ})`` then the queue tag."""
+    frame = ",".join(number_text(v) for v in values)
+    return f"ChangeBase({{{frame}}})\r\nQueueTag({QUEUE_TAG},0)"
 
 
 def parse_value(text: str) -> float | str | bool | tuple[float, ...]:
@@ -258,7 +282,10 @@ class TechmanConnector(ClosingSession):
         else:
             items, _ = self._read_items(("TCP_Mass",))
             mass, cog = self._number(items, "TCP_Mass"), None
-        script = change_tcp_script(tm_values(data), mass, cog)
+        self._run_queued(change_tcp_script(tm_values(data), mass, cog))
+
+    def _run_queued(self, script: str) -> None:
+        """Send `script` to the Listen Node, then wait until the queue ran it."""
         node = self._listen_node()
         script_id = f"tcpcal{next(self._ids)}"
         # From here the script may reach the robot, whether or not its answer does.
@@ -267,10 +294,49 @@ class TechmanConnector(ClosingSession):
             self._await_script(node, script_id, script)
             self._await_tag(node)
 
+    def describe_frame(self, target: FrameTarget) -> str:
+        """``current base``: every base of the robot is written to its one current base."""
+        self._check_frame(target)
+        return TMFLOW.describe_frame(target)
+
+    def read_frame(self, target: FrameTarget) -> Frame:
+        """The current base (``Base_Value``, in the robot base)."""
+        self._check_frame(target)
+        items, _ = self._read_items(("Base_Value",))
+        return tm_frame(self._six(items, "Base_Value"))
+
+    def write_frame(self, target: FrameTarget, frame: Frame) -> None:
+        """ChangeBase through the Listen Node, then wait until the queue ran it."""
+        self._check_frame(target)
+        finite_frame(frame)
+        self._run_queued(change_base_script(tm_values(frame)))
+
+    def _check_frame(self, target: FrameTarget) -> None:
+        if target.kind == "fixed_tool":
+            raise ValueError(
+                "a techman controller has no stationary tool tcpcal can write: the Listen "
+                "Node's functions change the current base (ChangeBase) and the TCP on the "
+                "flange (ChangeTCP); make the frame a base"
+            )
+
     def read_pose(self) -> PoseReading:
-        """The flange in the robot base (``Coord_Robot_Flange``), J1-J6 (``Joint_Angle``)
-        and the current TCP, read in one request; each item's text as the robot printed it."""
-        items, readings = self._read_items(POSE_ITEMS)
+        """The flange in the robot base (``Coord_Robot_Flange``), J1-J6 (``Joint_Angle``),
+        the current TCP and the current base (``Base_Name``, ``Base_Value``), read in one
+        request; each item's text as the robot printed it."""
+        live_frame = UNREAD_FRAME
+        try:
+            items, readings = self._read_items(POSE_ITEMS + BASE_ITEMS)
+        except ControllerRefused as err:
+            if not err.controller_message.endswith(tuple(f";{n}" for n in BASE_ITEMS)):
+                raise
+            items, readings = self._read_items(POSE_ITEMS)  # no base items in the table
+        else:
+            name = items["Base_Name"]
+            live_frame = LiveFrame(
+                number=None,
+                name=name if isinstance(name, str) and name else None,
+                frame=tm_frame(self._six(items, "Base_Value")),
+            )
         joints = items.get("Joint_Angle")
         if not isinstance(joints, tuple) or len(joints) < 6:
             raise ControllerProtocolError(f"{self._slave.peer}: Joint_Angle is {joints!r}")
@@ -279,6 +345,7 @@ class TechmanConnector(ClosingSession):
             joints_deg=joints[:6],
             live_tool=LiveTool(number=None, frame=tm_frame(self._six(items, "TCP_Value"))),
             readings=readings,
+            live_frame=live_frame,
         )
 
     def close(self) -> None:

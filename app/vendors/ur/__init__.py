@@ -17,6 +17,7 @@ TCP); the file is what a program keeps.
 from __future__ import annotations
 
 from app.vendors.maker import (
+    ByValue,
     FileModule,
     FrameModule,
     LiveTcp,
@@ -57,6 +58,7 @@ RTDE = WireProtocol(
     LiveTcp("tcp_offset"),
     _rtde,
     services=(("rtde", 30004), ("secondary", 30002)),
+    frames=ByValue("installation feature", live=False),
 )
 
 MAKER = Maker(

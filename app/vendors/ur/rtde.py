@@ -35,6 +35,19 @@ tcpcal does not change the installation; the reconcile rounds show what the robo
 The URScript file (app.vendors.ur.file) is the stored way: a program that calls its
 ``tcpcal_<tool>()`` sets the TCP at every start.
 
+Frames (contract v1.4: UR answers 501 /no-frame-writer): a UR frame is a feature of the
+installation (a point, line or plane taught in PolyScope's Installation > Features and saved
+with the installation file), and no remote interface writes or reads one: RTDE's outputs
+(the guide's list) carry the TCP (``actual_TCP_pose``, ``tcp_offset``) and no feature, the
+primary and secondary interfaces' robot state (the Client Library's package layouts:
+joint, Cartesian info with the TCP and its offset, kinematics, configuration, masterboard,
+tool data) carries none either, and a URScript program sent to the secondary interface runs
+beside the running one and changes no installation. So `write_frame` and `read_frame` raise
+`FrameWriterMissing` naming the URScript file a program loads instead (app.vendors.ur's
+frame text, a pose ``p[x, y, z, rx, ry, rz]`` in m and rad), sending nothing, and the pose
+read names no live frame (`UNREAD_FRAME`): the feature a program moves in is the program's
+own (a ``pose_trans`` in its script), which nothing serves.
+
 The flange (contract v1.3): ``actual_TCP_pose * inverse(tcp_offset)``, both from one data
 package, so they describe the same moment; the live tool is ``tcp_offset`` (UR has no tool
 numbers). A session keeps one deadline of ``timeout_s`` from `connect`; RTDE data is read
@@ -59,6 +72,7 @@ from app.kinematics.poses import (
     rotvec_from_matrix,
 )
 from app.vendors.connector import (
+    UNREAD_FRAME,
     ClosingSession,
     ControllerProtocolError,
     ControllerRefused,
@@ -66,6 +80,8 @@ from app.vendors.connector import (
     ControllerUnreachable,
     Deadline,
     Frame,
+    FramesByHand,
+    FrameTarget,
     LiveTool,
     PoseReading,
     ToolTarget,
@@ -74,6 +90,16 @@ from app.vendors.connector import (
 from app.vendors.sockets import close_quietly, open_connection, recv_exactly, send_all
 from app.vendors.tool import ToolData, ToolLoad, finite_tool_data
 from app.vendors.ur import RTDE
+
+#: Why tcpcal cannot deploy a frame to a UR, and what a person loads instead.
+NO_FEATURE_INTERFACE = (
+    "no remote interface of a UR controller writes or reads an installation feature: RTDE "
+    "serves the TCP and no feature, the primary and secondary interfaces' robot state "
+    "carries none, and a URScript program sent to the secondary interface changes no "
+    "installation (a feature is taught in PolyScope, Installation > Features, and saved with "
+    "the installation)"
+)
+FRAME_FILE = "the frame's URScript file (its pose p[x, y, z, rx, ry, rz], m and rad)"
 
 # RTDE package types (the guide; rtde.py Command)
 _VERSION = ord("V")
@@ -205,9 +231,12 @@ def _same_pose(a: tuple[float, ...], b: tuple[float, ...]) -> bool:
     return angle <= _SAME_RAD * 10
 
 
-class UrRtdeConnector(ClosingSession):
+class UrRtdeConnector(FramesByHand, ClosingSession):
     """One session with a UR controller: RTDE open from the start, the secondary interface
-    opened for a write."""
+    opened for a write; frames by hand (the module's "Frames")."""
+
+    frame_reason = NO_FEATURE_INTERFACE
+    frame_file = FRAME_FILE
 
     protocol = "ur_rtde"
 
@@ -262,6 +291,7 @@ class UrRtdeConnector(ClosingSession):
             flange=Frame(*flange),
             joints_deg=tuple(math.degrees(v) for v in sample.joints_rad),
             live_tool=LiveTool(number=None, frame=tool),
+            live_frame=UNREAD_FRAME,
             readings={
                 "actual_TCP_pose": _printed(sample.tcp_pose),
                 "tcp_offset": _printed(sample.tcp_offset),
@@ -269,6 +299,10 @@ class UrRtdeConnector(ClosingSession):
                 "timestamp": repr(sample.timestamp),
             },
         )
+
+    def describe_frame(self, target: FrameTarget) -> str:
+        """``installation feature``."""
+        return RTDE.describe_frame(target)
 
     def write_tool(self, target: ToolTarget, data: ToolData) -> None:
         """``set_tcp`` (and ``set_payload`` with a load) in a secondary program; returns once

@@ -64,6 +64,7 @@ HSES = WireProtocol(
     _hses,
     services=(("robot", 10040), ("file", 10041)),
     udp=True,
+    frames=BySlot(FRAME_NUMBERS, "UFRAME.CND user frame {}"),
 )
 
 MAKER = Maker(

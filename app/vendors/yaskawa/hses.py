@@ -26,6 +26,24 @@ flange is that TCP times the inverse of tool n's frame, read from TOOL.CND in th
 session. Joints: the pulse read (instance 1) is kept in the readings; degrees would need the
 controller's pulse-per-degree parameters, which HSES does not serve, so `joints_deg` is None.
 
+Frames (contract v1.4: Yaskawa's user frames live in UFRAME.CND, "where its documents show
+how a frame is written", else 501 /no-frame-writer): HSES has no user-frame command (the
+manual's robot control commands read status, positions, variables, alarms and I/O; MotoCom's
+BscPutUFrame has no HSES counterpart), only the file load that writes TOOL.CND here. UFRAME.CND
+keeps, per user frame, the three points it was taught at (``RORG``, ``RXX``, ``RXY``: the
+robot's axis positions in pulses, S L U R B T and the 7th-9th axes) beside the frame they
+define (``BUSER``: X Y Z Rx Ry Rz from the basic frame), and BUSER can be edited at the pendant
+apart from the points (Yaskawa Motoman knowledge base, "Information in UFRAME.CND": ROBOT -
+USER COORDINATE - DISPLAY; "as with all files modified after download, proceed with caution
+before uploading to the controller"). No Yaskawa document says what the controller does when
+it loads a UFRAME.CND whose BUSER no longer matches the pulses of its taught points (keep
+BUSER, compute the frame again from RORG/RXX/RXY, or refuse), nor which of the two a later
+touch-up on the pendant starts from, so tcpcal writes no user frame and reads none:
+`write_frame` and `read_frame` raise `FrameWriterMissing` naming UFRAME.CND, to be loaded
+and checked by hand, nothing sent. The position read names no live frame: instance 101
+answers "the base coordinate only" (data type 16), and its user coordinate number belongs to
+a position in user coordinates, not to the frame a job moves in, so the live frame is unread.
+
 Refusals: a load refused by the controller (teach mode 2080, remote OFF E2B2, the file in use
 2090, ...) is ControllerRefused naming its status and added status in words, with what to do
 at the controller; nothing was loaded. The load's data blocks are sent under `write_sent`:
@@ -54,6 +72,7 @@ import numpy as np
 from app.kinematics.frames import flange_from_tcp
 from app.kinematics.poses import fanuc_wpr_from_quaternion_wxyz, quaternion_wxyz_from_fanuc_wpr
 from app.vendors.connector import (
+    UNREAD_FRAME,
     ClosingSession,
     ControllerProtocolError,
     ControllerRefused,
@@ -61,6 +80,8 @@ from app.vendors.connector import (
     ControllerUnreachable,
     Deadline,
     Frame,
+    FramesByHand,
+    FrameTarget,
     LiveTool,
     PoseReading,
     ToolTarget,
@@ -85,6 +106,15 @@ from app.vendors.yaskawa.hses_wire import (
 )
 
 TOOL_FILE = "TOOL.CND"
+#: The user frame file, and why tcpcal writes it not (the module's "Frames").
+UFRAME_FILE = "UFRAME.CND"
+NO_UFRAME_WRITER = (
+    "HSES has no user-frame command, and no Yaskawa document says what the controller does "
+    "with a UFRAME.CND loaded over HSES file control whose frame (BUSER) no longer matches "
+    "the taught points it keeps in pulses (RORG, RXX, RXY): it may keep the frame or compute "
+    "it again from the points, so tcpcal writes no user frame (check a frame loaded by hand "
+    "under ROBOT - USER COORDINATE - DISPLAY on the pendant)"
+)
 STATUS_READ = 0x72
 POSITION_READ = 0x75
 #: 0x75 instances: R1's pulses, R1 in cartesian coordinates (the base frame)
@@ -199,10 +229,13 @@ def _frame(values: list[float]) -> Frame:
     )
 
 
-class YaskawaHsesConnector(ClosingSession):
-    """One session with a Yaskawa controller's High Speed Ethernet Server."""
+class YaskawaHsesConnector(FramesByHand, ClosingSession):
+    """One session with a Yaskawa controller's High Speed Ethernet Server; user frames by
+    hand (the module's "Frames")."""
 
     protocol = "yaskawa_hses"
+    frame_reason = NO_UFRAME_WRITER
+    frame_file = UFRAME_FILE
 
     def __init__(self, settings: ControllerSettings) -> None:
         self._deadline = Deadline(settings.timeout_s)
@@ -237,6 +270,10 @@ class YaskawaHsesConnector(ClosingSession):
         content = replace_tool(self.save(TOOL_FILE), target.slot, data)
         self.load(TOOL_FILE, content)
 
+    def describe_frame(self, target: FrameTarget) -> str:
+        """``UFRAME.CND user frame 3``."""
+        return HSES.describe_frame(target)
+
     def read_pose(self) -> PoseReading:
         """The flange in the base frame: the position read (the reported tool's TCP in the
         base frame) times the inverse of that tool's frame in TOOL.CND."""
@@ -263,6 +300,7 @@ class YaskawaHsesConnector(ClosingSession):
             joints_deg=None,
             live_tool=LiveTool(number=number, frame=Frame(tool.position_mm, tool.quaternion)),
             readings=readings,
+            live_frame=UNREAD_FRAME,
         )
 
     def close(self) -> None:

@@ -113,6 +113,8 @@ def test_the_pose_the_joints_and_the_live_tool_in_one_read(techman_sim: TechmanS
         "TCP_Value",
         "TCP_Name",
         "TCP_Mass",
+        "Base_Name",
+        "Base_Value",
     }
 
 
