@@ -4,12 +4,24 @@ controller reads (ETag, 304), and the versions' routes every subject has
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, cast
 
 from fastapi import APIRouter, Header, Request, Response
+from fastapi.responses import PlainTextResponse
 
 from app.api.deps import AdminKey, ReadKey, SessionDep, label_request
-from app.api.params import DEFAULT_PAGE, IF_NONE_MATCH, Cursor, Limit, PathId, RawParam
+from app.api.params import (
+    ACCEPT,
+    DEFAULT_PAGE,
+    FORMAT,
+    IF_NONE_MATCH,
+    AcceptHeader,
+    Cursor,
+    FormatQuery,
+    Limit,
+    PathId,
+    RawParam,
+)
 from app.api.shared import page
 from app.api.subject_routes import SubjectRoutes, version_routes
 from app.helpers.etags import IF_MATCH_PATTERN
@@ -17,14 +29,16 @@ from app.schemas.common import ID_PATTERN, Page
 from app.schemas.frames import (
     ActiveRobotFrame,
     FrameCreate,
+    FrameTable,
     FrameUpdate,
     FrameVersion,
     FrameVersionList,
     RobotFrame,
 )
-from app.services.frames import frames, versions
+from app.services.frames import controller_files, frames, versions
 from app.services.frames.subject import FRAME
 from app.services.lifecycle.versions import etag
+from app.words import ControllerFormat
 
 router = APIRouter(tags=["frames"])
 FrameIfMatch = Annotated[
@@ -47,25 +61,79 @@ FRAME_ID = RawParam(
 @router.get(
     "/v1/frames/{frame_id}/frame",
     response_model=ActiveRobotFrame,
-    responses={304: {"description": "not modified (If-None-Match)"}},
-    openapi_extra={"parameters": [p.openapi() for p in (FRAME_ID, IF_NONE_MATCH)]},
+    responses={
+        200: {"content": {"text/plain": {"schema": {"type": "string"}}}},
+        304: {"description": "not modified (If-None-Match)"},
+    },
+    openapi_extra={"parameters": [p.openapi() for p in (FRAME_ID, FORMAT, IF_NONE_MATCH, ACCEPT)]},
 )
 async def get_active_frame(request: Request) -> Response:
     """The active frame a cell controller reads (a pose in the robot's base frame; for a fixed
-    tool its stationary TCP), with a strong ETag (If-None-Match -> 304)."""
+    tool its stationary TCP), with a strong ETag (If-None-Match -> 304); `?format=` adds the
+    controller's own text. With `Accept: text/plain` (and `?format=`) the file the controller
+    loads ($config.dat lines, a RAPID module, a TP program, UFRAME.CND blocks, a URScript
+    function, a TMscript line) with a header saying which version, calibrated when and by
+    whom (Content-Disposition names it)."""
     frame_id = FRAME_ID.read(request)
     assert frame_id is not None  # a path parameter
-    # On the event loop: the key check and the read are one indexed statement.
-    key, document, tag = versions.served_frame_for_key(
-        authorization=request.headers.get("authorization"),
-        frame_id=frame_id,
-        if_none_match=IF_NONE_MATCH.read(request),
-    )
+    fmt = cast(ControllerFormat | None, FORMAT.read(request))
+    if_none_match = IF_NONE_MATCH.read(request)
+    as_text = "text/plain" in (ACCEPT.read(request) or "")
+    headers = {"Vary": "Accept"}
+    if fmt is None and not as_text:
+        # On the event loop: the key check and the read are one indexed statement.
+        key, document, tag = versions.served_frame_for_key(
+            authorization=request.headers.get("authorization"),
+            frame_id=frame_id,
+            if_none_match=if_none_match,
+        )
+    else:
+        served = controller_files.served_for_key(
+            authorization=request.headers.get("authorization"),
+            frame_id=frame_id,
+            fmt=fmt,
+            if_none_match=if_none_match,
+            file_base_url=str(request.base_url) if as_text else None,
+        )
+        key, document, tag = served.key, served.document, served.etag
+        if served.file is not None:
+            label_request(request, key)
+            headers |= {
+                "ETag": tag,
+                "Content-Disposition": f'attachment; filename="{served.file.name}"',
+            }
+            return PlainTextResponse(served.file.text, headers=headers)
     label_request(request, key)
-    headers = {"ETag": tag}
+    headers["ETag"] = tag
     if document is None:
         return Response(status_code=304, headers=headers)
     return Response(document.model_dump_json(), media_type="application/json", headers=headers)
+
+
+@router.get(
+    "/v1/robots/{robot_id}/frame-table",
+    response_model=FrameTable,
+    responses={200: {"content": {"text/plain": {"schema": {"type": "string"}}}}},
+)
+def frame_table(
+    robot_id: PathId,
+    request: Request,
+    session: SessionDep,
+    key: ReadKey,
+    format: FormatQuery = None,
+    accept: AcceptHeader = None,
+) -> FrameTable | PlainTextResponse:
+    """Every live frame of a robot with its active version, in one answer (`?format=` adds
+    each frame's controller text); frames without one are listed apart. With `Accept:
+    text/plain` (and `?format=`) one file holding all of the robot's frames, as the
+    controller loads it (Content-Disposition names it)."""
+    if "text/plain" in (accept or ""):
+        served = controller_files.robot_frame_file(
+            session, robot_id=robot_id, fmt=format, base_url=str(request.base_url)
+        )
+        headers = {"Content-Disposition": f'attachment; filename="{served.name}"', "Vary": "Accept"}
+        return PlainTextResponse(served.text, headers=headers)
+    return controller_files.frame_table(session, robot_id=robot_id, fmt=format)
 
 
 @router.post("/v1/robots/{robot_id}/frames", status_code=201, response_model=RobotFrame)

@@ -163,6 +163,9 @@ GLOSSARY: dict[str, str] = {
     "ActiveRobotFrame.frame_name": "the frame's name",
     "RobotFrame.slot": "the controller's frame number (unique per robot)",
     "ActiveRobotFrame.slot": "the controller's frame number",
+    "ActiveRobotFrame.controller": "the frame in the controller's own text (with ?format=)",
+    "FrameTable.robot_id": "id of the robot",
+    "FrameTable.items": "each live frame of the robot with an active version",
     **{
         f"{model}.description": "free text about the frame"
         for model in ("RobotFrame", "FrameCreate", "FrameUpdate")

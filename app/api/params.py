@@ -13,6 +13,7 @@ from app.errors import InvalidInput
 from app.helpers.etags import IF_MATCH_PATTERN, IF_NONE_MATCH_PATTERN
 from app.helpers.pagination import CURSOR_PATTERN, DEFAULT_LIMIT, MAX_LIMIT
 from app.schemas.common import ID_PATTERN
+from app.words import CONTROLLER_FORMATS, ControllerFormat
 
 Limit = Annotated[int, Query(ge=1, le=MAX_LIMIT, description="page size (max 500)")]
 Cursor = Annotated[
@@ -126,3 +127,23 @@ IF_NONE_MATCH = RawParam(
     "send back the ETag header you were given",
     pattern=IF_NONE_MATCH_PATTERN,
 )
+
+
+#: A served subject's controller format (?format=) and Accept, read by hand on the hot reads
+#: (GET /v1/tools/{id}/tcp, /v1/frames/{id}/frame) and as parameters on the tables.
+FORMAT = RawParam(
+    "query",
+    "format",
+    "Format",
+    f"one of {', '.join(CONTROLLER_FORMATS)}, or leave it out for JSON alone",
+    description="controller text format",
+    choices=CONTROLLER_FORMATS,
+)
+ACCEPT = RawParam(
+    "header", "accept", "Accept", "at most 1000 characters (e.g. text/plain)", max_length=1000
+)
+FormatQuery = Annotated[ControllerFormat | None, Query(description="controller text format")]
+AcceptHeader = Annotated[
+    str | None,
+    Header(max_length=1000, description="text/plain: the controller file (with ?format=)"),
+]

@@ -3,19 +3,27 @@ versions' routes are every subject's (app.api.subject_routes), with the tool's d
 
 from __future__ import annotations
 
-from typing import Annotated, cast
+from typing import cast
 
-from fastapi import APIRouter, Header, Query, Request, Response
+from fastapi import APIRouter, Request, Response
 from fastapi.responses import PlainTextResponse
 
 from app.api.deps import ReadKey, SessionDep, label_request
-from app.api.params import IF_NONE_MATCH, PathId, RawParam
+from app.api.params import (
+    ACCEPT,
+    FORMAT,
+    IF_NONE_MATCH,
+    AcceptHeader,
+    FormatQuery,
+    PathId,
+    RawParam,
+)
 from app.api.subject_routes import SubjectRoutes, version_routes
 from app.schemas.common import ID_PATTERN
 from app.schemas.tools import ActiveTcp, Tool, ToolTable, Version, VersionList
 from app.services.tools import active_tcp, controller_files, versions
 from app.services.tools.subject import TOOL
-from app.words import CONTROLLER_FORMATS, ControllerFormat
+from app.words import ControllerFormat
 
 router = APIRouter(tags=["versions"])
 
@@ -28,22 +36,6 @@ TOOL_ID = RawParam(
     description="resource id",
     pattern=ID_PATTERN,
 )
-FORMAT = RawParam(
-    "query",
-    "format",
-    "Format",
-    f"one of {', '.join(CONTROLLER_FORMATS)}, or leave it out for JSON alone",
-    description="controller text format",
-    choices=CONTROLLER_FORMATS,
-)
-ACCEPT = RawParam(
-    "header", "accept", "Accept", "at most 1000 characters (e.g. text/plain)", max_length=1000
-)
-FormatQuery = Annotated[ControllerFormat | None, Query(description="controller text format")]
-AcceptHeader = Annotated[
-    str | None,
-    Header(max_length=1000, description="text/plain: the controller file (with ?format=)"),
-]
 
 
 # First: the route cell controllers poll is matched before the others.

@@ -18,7 +18,7 @@ from app.schemas.common import (
     json_integer,
 )
 from app.schemas.controllers import ControllerSymbol
-from app.schemas.tools import ActivationOut, Tolerance
+from app.schemas.tools import ActivationOut, ControllerText, Tolerance
 from app.words import FrameKind, FrameMethodName, Status
 
 FrameSlot = Annotated[
@@ -97,3 +97,15 @@ class ActiveRobotFrame(BaseModel):
     frame: FramePose
     calibrated_at: Timestamp
     method: StoredWord[FrameMethodName]
+    controller: ControllerText | None = None
+    controller_error: dict[str, str] | None = Field(
+        default=None, description="why this frame has no text in the requested format"
+    )
+
+
+class FrameTable(BaseModel):
+    robot_id: str
+    items: list[ActiveRobotFrame]
+    without_active_version: list[str] = Field(
+        default_factory=list, description="ids of frames that have no active version"
+    )
