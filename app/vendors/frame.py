@@ -68,14 +68,24 @@ class ParsedFrame:
     fixed_tool: bool | None = None
 
 
-def frame_number(frame: FrameData, maker: str, named: str) -> int:
-    """The frame's number, which `named` (how the maker names frame n) needs; 422 at "slot"
-    naming the maker when the frame has none."""
+def frame_number(
+    frame: FrameData, maker: str, named: str, numbers: tuple[int, int] | None = None
+) -> int:
+    """The frame's number, which `named` (how the maker names frame n) needs, within the
+    maker's frame `numbers` (first, last) when given; 422 at "slot" naming the maker when the
+    frame has none or one outside them."""
     if frame.slot is None:
         raise InvalidInput(
             "invalid-options",
             f"a {maker} frame needs its number (slot) for {named}; frame {frame.name!r} has "
             "none: set the frame's slot",
+            loc=("slot",),
+        )
+    if numbers is not None and not numbers[0] <= frame.slot <= numbers[1]:
+        raise InvalidInput(
+            "invalid-options",
+            f"slot {frame.slot} of frame {frame.name!r} is not a {maker} frame number for "
+            f"{named}: set the frame's slot to one of {numbers[0]}..{numbers[1]}",
             loc=("slot",),
         )
     return frame.slot

@@ -328,3 +328,13 @@ def test_each_format_writes_the_angles_of_its_vendors_convention() -> None:
     assert values["ur"]["pose"] == pytest.approx(
         [0.01, -0.02, 0.15, *rotation.as_rotvec()], abs=1e-12
     )
+
+
+@pytest.mark.parametrize(("fmt", "slot"), [("kuka", 33), ("fanuc", 10), ("yaskawa", 64)])
+def test_a_numbered_format_refuses_a_number_its_controllers_do_not_have(
+    fmt: str, slot: int
+) -> None:
+    with pytest.raises(InvalidInput) as err:
+        export_frame(fmt, frame((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), slot=slot))
+    assert err.value.loc == ("slot",)
+    assert f"slot {slot} of frame 'fixture A' is not a" in err.value.detail

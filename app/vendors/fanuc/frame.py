@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
+from app.vendors.fanuc import FRAME_NUMBERS
 from app.vendors.fanuc.file import (
     REMARK_CHARS,
     SCRATCH_PR,
@@ -59,7 +60,7 @@ def user_frame(frame: FrameData) -> int:
             "frame's slot to its user frame number, from 1",
             loc=("slot",),
         )
-    return slot
+    return frame_number(frame, "FANUC", "UFRAME[n]", FRAME_NUMBERS)
 
 
 def export(frame: FrameData) -> ControllerExport:

@@ -31,6 +31,7 @@ import re
 from app.arrays import FloatArray
 from app.vendors.files import ControllerFile, FileContext, header_comments, split_fitting
 from app.vendors.frame import NOUN, FileFrame, FrameData, ParsedFrame, frame_number
+from app.vendors.kuka import FRAME_NUMBERS
 from app.vendors.kuka.file import LINE_WIDTH, tool_name
 from app.vendors.kuka.text import FORMAT, KrlSyntaxError, krl_frame, pose_of_frame
 from app.vendors.names import file_stem
@@ -56,7 +57,7 @@ def base_type(frame: FrameData) -> str:
 
 def export(frame: FrameData) -> ControllerExport:
     """``BASE_DATA[n]={X,Y,Z (mm),A,B,C (deg)}``; 422 at "slot" without a frame number."""
-    slot = frame_number(frame, "KUKA", "BASE_DATA[n]")
+    slot = frame_number(frame, "KUKA", "BASE_DATA[n]", FRAME_NUMBERS)
     position, quaternion = checked_tcp(frame)
     members, value = krl_frame(position, quaternion)
     values: dict[str, object] = {

@@ -35,6 +35,7 @@ from app.vendors.frame import FileFrame, FrameData, ParsedFrame, frame_number
 from app.vendors.names import ascii_text
 from app.vendors.text import NUMBER, ControllerExport, parse_error
 from app.vendors.wpr import fields_text, named_values, parse_labelled, tcp_from_numbers, xyz_wpr
+from app.vendors.yaskawa import FRAME_NUMBERS
 from app.vendors.yaskawa.file import DEG_DECIMALS, MM_DECIMALS, tool_name
 from app.vendors.yaskawa.text import FORMAT, LABELS
 
@@ -56,7 +57,7 @@ def _fixed(value: float, decimals: int) -> str:
 
 def export(frame: FrameData) -> ControllerExport:
     """``UFRAME[n]: X .. Y .. Z .. Rx .. Ry .. Rz ..  // name`` (mm, deg)."""
-    slot = frame_number(frame, "Yaskawa", "UFRAME.CND's //UFRAME n")
+    slot = frame_number(frame, "Yaskawa", "UFRAME.CND's //UFRAME n", FRAME_NUMBERS)
     six = xyz_wpr(frame)
     values: dict[str, object] = {"slot": slot, **named_values(LABELS, six)}
     text = f"UFRAME[{slot}]: {fields_text(LABELS, six)}  // {ascii_text(frame.name, 40)}"
