@@ -50,6 +50,9 @@ Where the robot stands (issue 39): "Get Robtarget" (rwsApi ``ms_mechunit_robtarg
 mechunit's active one when left out) and ``coordinate`` (``Base | World | Tool | Wobj``,
 required), answering one ``ms-robtargets`` item titled by the mechunit with x, y, z (mm),
 q1..q4 (q1 the scalar part), cf1, cf4, cf6, cfx and eax_a..eax_f (unused: 8.999999e+009);
+The mechanical unit itself (``GET /rw/motionsystem/mechunits/{mechunit}``) answers one
+``ms-mechunit`` item naming the tool and work object it moves by (``tool-name``,
+``wobj-name``: `active_tool`, `active_wobj`), as ros-industrial/abb_librws reads it.
 "Get Joint target" (``ms_mechunit_jointtarget_page``), ``.../jointtarget``, one
 ``ms-jointtarget`` item with rax_1..rax_6 (degrees) and eax_a..eax_f. The manual's examples
 are the XHTML form; JSON carries the same names and every value as a string: RWS 1.0

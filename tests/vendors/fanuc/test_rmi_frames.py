@@ -14,6 +14,7 @@ from app.vendors.registry import connect
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import fanuc_settings
 from tests.controllers.helpers import angle_between_deg, random_frame
+from tests.polling import wait_for
 
 UFRAME_4 = FrameTarget(slot=4)
 
@@ -123,3 +124,22 @@ def test_a_session_left_holding_rmi_move_stops_no_frame_write(fanuc_sim: FanucSi
     with connect(fanuc_settings(fanuc_sim)) as fanuc:
         fanuc.write_frame(UFRAME_4, Frame((1.0, 2.0, 3.0), (1.0, 0.0, 0.0, 0.0)))
         assert fanuc.read_frame(UFRAME_4).position_mm == (1.0, 2.0, 3.0)
+
+
+def test_fanuc_rmi_reads_the_user_frame_the_connector_wrote(fanuc_sim: FanucSimulator) -> None:
+    """fanuc-rmi's RobotClient (PyPI), written apart from this connector, reads UFRAME[6]
+    and the active frame numbers as the connector left and read them."""
+    from tests.controllers.test_fanuc_sim import rmi
+
+    fanuc_sim.select(uframe=6, utool=1)
+    with connect(fanuc_settings(fanuc_sim)) as fanuc:
+        fanuc.write_frame(
+            FrameTarget(slot=6), Frame((1250.5, -310.25, 80.125), (0.0, 0.0, 0.0, 1.0))
+        )
+        live = fanuc.read_pose().live_frame
+    wait_for(lambda: not fanuc_sim.session_open, timeout=10, what="the session to close")
+    with rmi(fanuc_sim) as client:
+        frame = client.read_uframe_data(6)
+        numbers = client.get_uframe_utool()
+    assert frame == {"X": 1250.5, "Y": -310.25, "Z": 80.125, "W": 0.0, "P": 0.0, "R": 180.0}
+    assert numbers["UFrameNumber"] == live.number == 6

@@ -4,6 +4,8 @@ tests/vendors/test_frame_cuts.py's."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -165,3 +167,26 @@ def test_a_pendant_edit_of_the_selected_base_is_what_the_next_read_sees(
     assert frame.position_mm[0] == pytest.approx(100.5)
     assert live.frame is not None
     assert live.frame.position_mm[0] == pytest.approx(100.5)
+
+
+def test_py_openshowvar_reads_the_base_the_connector_wrote(kuka_sim: KukaSimulator) -> None:
+    """py-openshowvar (PyPI), a client written apart from this connector, reads BASE_DATA,
+    BASE_TYPE and BASE_NAME as the connector left them."""
+    from py_openshowvar import openshowvar
+
+    with connect(kuka_settings(kuka_sim)) as kuka:
+        kuka.write_frame(
+            FrameTarget(kind="fixed_tool", slot=9, name="stand"),
+            Frame((1250.5, -310.25, 80.125), (math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5))),
+        )
+    client = openshowvar(kuka_sim.host, kuka_sim.port)
+    try:
+        data = client.read("BASE_DATA[9]", debug=False)
+        kind = client.read("BASE_TYPE[9]", debug=False)
+        name = client.read("BASE_NAME[9,]", debug=False)
+    finally:
+        client.close()
+    assert data.startswith(b"{FRAME: X 1250.5, Y -310.25, Z 80.125, A ")
+    members = dict(m.split(" ") for m in data.decode()[len("{FRAME: ") : -1].split(", "))
+    assert_allclose([float(members[k]) for k in "ABC"], [90.0, 0.0, 0.0], atol=1e-4)
+    assert (kind, name) == (b"#TCP", b'"stand"')
