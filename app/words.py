@@ -182,6 +182,7 @@ AuditAction = Literal[
     "frame.create",
     "frame.update",
     "frame.archive",
+    "frame.fiducials",
     "version.create",
     "version.activate",
     "version.rollback",

@@ -4,12 +4,13 @@ controller reads (ETag, 304), and the versions' routes every subject has
 
 from __future__ import annotations
 
+import json
 from typing import Annotated, cast
 
-from fastapi import APIRouter, Header, Request, Response
+from fastapi import APIRouter, Body, Header, Request, Response
 from fastapi.responses import PlainTextResponse
 
-from app.api.deps import AdminKey, ReadKey, SessionDep, label_request
+from app.api.deps import AdminKey, CalibrateKey, ReadKey, SessionDep, label_request
 from app.api.params import (
     ACCEPT,
     DEFAULT_PAGE,
@@ -18,6 +19,7 @@ from app.api.params import (
     AcceptHeader,
     Cursor,
     FormatQuery,
+    IdempotencyKey,
     Limit,
     PathId,
     RawParam,
@@ -25,9 +27,13 @@ from app.api.params import (
 from app.api.shared import page
 from app.api.subject_routes import SubjectRoutes, version_routes
 from app.helpers.etags import IF_MATCH_PATTERN
+from app.methods.frame import FrameCalibrationIn, frame_openapi_examples
 from app.schemas.common import ID_PATTERN, Page
 from app.schemas.frames import (
     ActiveRobotFrame,
+    FiducialList,
+    FiducialNames,
+    FrameCalibration,
     FrameCreate,
     FrameTable,
     FrameUpdate,
@@ -35,7 +41,7 @@ from app.schemas.frames import (
     FrameVersionList,
     RobotFrame,
 )
-from app.services.frames import controller_files, frames, versions
+from app.services.frames import calibrations, controller_files, fiducials, frames, versions
 from app.services.frames.subject import FRAME
 from app.services.lifecycle.versions import etag
 from app.words import ControllerFormat
@@ -195,6 +201,70 @@ def archive_frame(frame_id: PathId, session: SessionDep, key: AdminKey) -> Respo
     audit trail are kept."""
     frames.archive_frame(session, frame_id=frame_id, actor=key)
     return Response(status_code=204)
+
+
+@router.post(
+    "/v1/frames/{frame_id}/calibrations",
+    status_code=201,
+    response_model=FrameCalibration,
+    responses={409: {"description": "Idempotency-Key reused with another body"}},
+)
+def submit_frame_calibration(
+    frame_id: PathId,
+    body: Annotated[FrameCalibrationIn, Body(openapi_examples=frame_openapi_examples())],
+    session: SessionDep,
+    key: CalibrateKey,
+    idempotency_key: IdempotencyKey = None,
+) -> Response:
+    """Calibrate a frame from touches by a pointer tool (or enter it by hand: `manual`): its
+    method solves it, the frame's tolerance grades it and it is stored as the frame's next
+    version, activated when `activate` allows ("auto": within tolerance and within
+    max_change_mm of the active frame). Unsolvable input is a 422 naming the touch and what
+    to do, and writes nothing. Retry-safe with `Idempotency-Key`."""
+    answer, replayed = calibrations.submit(
+        session,
+        frame_id=frame_id,
+        request=body,
+        # the body as validated, what a retry must repeat (and what is stored as received)
+        raw_body=body.model_dump(mode="json", exclude_unset=True),
+        idempotency_key=idempotency_key,
+        actor=key,
+    )
+    headers = {"Idempotent-Replayed": "true"} if replayed else {}
+    return Response(
+        json.dumps(answer), status_code=201, media_type="application/json", headers=headers
+    )
+
+
+@router.get("/v1/frames/{frame_id}/calibrations", response_model=Page[FrameCalibration])
+def list_frame_calibrations(
+    frame_id: PathId,
+    session: SessionDep,
+    key: ReadKey,
+    limit: Limit = DEFAULT_PAGE,
+    cursor: Cursor = None,
+) -> Page[FrameCalibration]:
+    """A frame's calibrations, oldest first, each with its result, version and whether it is
+    active."""
+    items, next_cursor = calibrations.list_calibrations(
+        session, frame_id=frame_id, limit=limit, cursor=cursor
+    )
+    return page(FrameCalibration, items, next_cursor)
+
+
+@router.get("/v1/frames/{frame_id}/fiducials", response_model=FiducialList)
+def list_fiducials(frame_id: PathId, session: SessionDep, key: ReadKey) -> FiducialList:
+    """The points the calibration of the frame's active version kept, each with its name and
+    its coordinates in the frame, to be touched again after a move."""
+    return fiducials.list_fiducials(session, frame_id=frame_id)
+
+
+@router.put("/v1/frames/{frame_id}/fiducials", response_model=FiducialList)
+def name_fiducials(
+    frame_id: PathId, body: FiducialNames, session: SessionDep, key: CalibrateKey
+) -> FiducialList:
+    """Name the active version's fiducials: one name each, in their order (names unique)."""
+    return fiducials.name_fiducials(session, frame_id=frame_id, data=body, actor=key)
 
 
 router.include_router(

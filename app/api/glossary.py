@@ -12,6 +12,7 @@ GLOSSARY: dict[str, str] = {
     "id": "the resource's id",
     "robot_id": "id of the robot",
     "tool_id": "id of the tool",
+    "frame_id": "id of the frame",
     "calibration_id": "id of the calibration that produced this, null when entered otherwise",
     "reference_point_id": "id of a reference point stored on the tool's robot",
     "device_id": "id of a laser device stored on the robot",
@@ -159,7 +160,8 @@ GLOSSARY: dict[str, str] = {
     "ActiveRobotFrame.frame": "the active frame in the robot's base frame: origin (mm) and "
     "unit quaternion [w, x, y, z]",
     "ActiveRobotFrame.method": "the method that made the active version",
-    "ActiveRobotFrame.frame_id": "id of the frame",
+    "FrameCalibration.frame": "the frame found, in the robot's base frame: origin (mm) and "
+    "unit quaternion [w, x, y, z]",
     "ActiveRobotFrame.frame_name": "the frame's name",
     "RobotFrame.slot": "the controller's frame number (unique per robot)",
     "ActiveRobotFrame.slot": "the controller's frame number",

@@ -18,7 +18,9 @@ from app.schemas.common import (
     json_integer,
 )
 from app.schemas.controllers import ControllerSymbol
-from app.schemas.tools import ActivationOut, ControllerText, Tolerance
+from app.schemas.frame_results import Fiducial, FramePointer, FrameQuality, FrameValue
+from app.schemas.frame_tolerance import FrameTolerance
+from app.schemas.tools import ActivationOut, ControllerText
 from app.words import FrameKind, FrameMethodName, Status
 
 FrameSlot = Annotated[
@@ -38,7 +40,7 @@ class FrameCreate(StrictModel):
     slot: FrameSlot | None = None
     controller_symbol: ControllerSymbol | None = Field(default=None, description=_SYMBOL)
     description: LongText | None = None
-    tolerance: Tolerance = Field(default_factory=Tolerance)
+    tolerance: FrameTolerance = Field(default_factory=FrameTolerance)
 
 
 class FrameUpdate(StrictModel):
@@ -46,7 +48,7 @@ class FrameUpdate(StrictModel):
     slot: FrameSlot | None = None
     controller_symbol: ControllerSymbol | None = Field(default=None, description=_SYMBOL)
     description: LongText | None = None
-    tolerance: Tolerance | None = None
+    tolerance: FrameTolerance | None = None
 
 
 class RobotFrame(BaseModel):
@@ -57,7 +59,7 @@ class RobotFrame(BaseModel):
     slot: int | None
     controller_symbol: str | None = Field(default=None, description=_SYMBOL)
     description: str | None
-    tolerance: Tolerance
+    tolerance: FrameTolerance
     active_version: int | None
     created_at: Timestamp
     updated_at: Timestamp
@@ -109,3 +111,52 @@ class FrameTable(BaseModel):
     without_active_version: list[str] = Field(
         default_factory=list, description="ids of frames that have no active version"
     )
+
+
+class FrameCalibration(BaseModel):
+    """A frame calibration as stored: what its method made of the touches, graded against
+    the frame's tolerance, and the version it became."""
+
+    id: str
+    frame_id: str
+    method: StoredWord[FrameMethodName]
+    status: StoredWord[Status]
+    frame: FrameValue
+    quality: FrameQuality
+    points_mm: list[list[float]] = Field(description="each touch's point (mm, base frame)")
+    tool: FramePointer | None = Field(description="the pointer tool; null for manual")
+    warnings: list[str]
+    summary: str = Field(description="what was done and how well, in words")
+    fiducials: list[Fiducial] = Field(
+        description="the touched points kept, in the new frame's coordinates"
+    )
+    version: int | None = Field(description="the frame version it became")
+    active: bool = Field(description="whether that version is the frame's active one")
+    change_from_active_mm: float | None = Field(
+        description="the largest move of a fiducial (the origin, without any) from the frame "
+        "active before (mm); null when none was"
+    )
+    change_from_active_deg: float | None = Field(
+        description="the rotation from the frame active before (deg); null when none was"
+    )
+    created_at: Timestamp
+    created_by: str
+
+
+FiducialName = Annotated[str, Field(min_length=1, max_length=100, pattern=r"^[^\x00-\x1f\x7f]+$")]
+
+
+class FiducialNames(StrictModel):
+    """New names for the active calibration's fiducials, one per fiducial in its order."""
+
+    names: list[FiducialName] = Field(
+        min_length=1, max_length=1000, description="each fiducial's new name, in order"
+    )
+
+
+class FiducialList(BaseModel):
+    frame_id: str
+    calibration_id: str | None = Field(
+        description="the calibration of the active version they were kept by (null: none)"
+    )
+    items: list[Fiducial]

@@ -401,7 +401,7 @@ class FrameFiducial(Base):
     seq: Mapped[int] = mapped_column(Integer)
     name: Mapped[str] = mapped_column(String(100))
     nominal_mm: Mapped[JsonArray] = mapped_column(JSON)
-    #: the touched point in the base frame when it was kept (mm)
+    #: where the calibrated frame puts it in the base frame (mm)
     point_mm: Mapped[JsonArray] = mapped_column(JSON)
 
 

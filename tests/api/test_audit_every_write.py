@@ -128,6 +128,23 @@ def _frame(api: Api, *, versions: int = 0) -> str:
     return fid
 
 
+def _touched_frame(api: Api) -> str:
+    """A frame calibrated by three_point with a pointer tool: it keeps three fiducials."""
+    tool = _tool(api)  # TCP [0, 0, 150], pointing down in the poses below
+    made = api.post(f"/v1/robots/{tool['robot_id']}/frames", {"name": "f", "kind": "base"})
+    fid = str(made.json()["id"])
+    down = [0.0, 1.0, 0.0, 0.0]
+    touches = [
+        {"role": role, "pose": [*xyz, *down]}
+        for role, xyz in (("origin", [900, 0, 700]), ("x", [1300, 0, 700]), ("xy", [900, 300, 700]))
+    ]
+    body = {"method": "three_point", "tool_id": tool["id"], "format": "xyz_wxyz",
+            "touches": touches, "options": {"touch_noise_mm": 0.05}}  # fmt: skip
+    calibrated = api.post(f"/v1/frames/{fid}/calibrations", body, scope="calibrate")
+    assert calibrated.status_code == 201, calibrated.text
+    return fid
+
+
 def _frame_activate(api: Api, _rig: Rig) -> Call:
     fid = _frame(api, versions=1)
     add_frame_version(fid, [510.0, 0.0, 0.0])
@@ -218,6 +235,14 @@ CALLS: dict[tuple[str, str], Callable[[Api, Rig], Call]] = {
     ),
     ("DELETE", "/v1/frames/{frame_id}"): lambda api, _rig: Call(f"/v1/frames/{_frame(api)}"),
     ("POST", "/v1/frames/{frame_id}/versions/{version}/activate"): _frame_activate,
+    ("POST", "/v1/frames/{frame_id}/calibrations"): lambda api, _rig: Call(
+        f"/v1/frames/{_frame(api)}/calibrations",
+        {"method": "manual", "frame": {"position_mm": [500.0, 0.0, 0.0]}},
+        scope="calibrate",
+    ),
+    ("PUT", "/v1/frames/{frame_id}/fiducials"): lambda api, _rig: Call(
+        f"/v1/frames/{_touched_frame(api)}/fiducials", {"names": ["a", "b", "c"]}, scope="calibrate"
+    ),
     ("POST", "/v1/frames/{frame_id}/rollback"): lambda api, _rig: Call(
         f"/v1/frames/{_frame(api, versions=2)}/rollback", scope="calibrate"
     ),
@@ -295,6 +320,12 @@ EVENTS: dict[tuple[str, str], tuple[tuple[str, str, str], ...]] = {
         ("version.activate", "frame", "{frame_id}"),
     ),
     ("POST", "/v1/frames/{frame_id}/rollback"): (("version.rollback", "frame", "{frame_id}"),),
+    ("POST", "/v1/frames/{frame_id}/calibrations"): (
+        ("version.create", "frame", "{frame_id}"),
+        ("version.activate", "frame", "{frame_id}"),  # a manual frame is active at once
+        ("calibration.create", "calibration", "id"),
+    ),
+    ("PUT", "/v1/frames/{frame_id}/fiducials"): (("frame.fiducials", "frame", "{frame_id}"),),
 }
 
 

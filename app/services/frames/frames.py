@@ -4,14 +4,14 @@ tool's slot is; its ETag and If-Match are the lifecycle's."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.errors import Conflict, InvalidInput
 from app.helpers.pagination import paginate
-from app.helpers.tolerance import effective_tolerance
+from app.schemas.frame_tolerance import FrameTolerance
 from app.schemas.frames import FrameCreate, FrameUpdate
 from app.security.auth import Principal
 from app.services.audit import writes as audit
@@ -26,6 +26,11 @@ from app.vendors.registry import vendor_maker
 def get_frame(session: Session, frame_id: str) -> Frame:
     """A live frame of a robot the caller's key may see, or 404 (/not-found, /archived)."""
     return get_live(session, FRAME, frame_id)
+
+
+def frame_tolerance(stored: Mapping[str, object] | None) -> FrameTolerance:
+    """A frame's tolerance with the defaults filled in."""
+    return FrameTolerance.model_validate(stored or {})
 
 
 def _lock_frame(session: Session, frame_id: str) -> Frame:
@@ -139,14 +144,14 @@ def update_frame(
             changes.pop("tolerance")
         else:
             changes["tolerance"] = {
-                **effective_tolerance(frame.tolerance).model_dump(),
+                **frame_tolerance(frame.tolerance).model_dump(),
                 **changes["tolerance"],
             }
     details = audit.changes(
         frame,
         changes,
         values_of=_SHOWN_CHANGES,
-        before={"tolerance": effective_tolerance(frame.tolerance).model_dump()},
+        before={"tolerance": frame_tolerance(frame.tolerance).model_dump()},
     )
     for key, value in changes.items():
         setattr(frame, key, value)

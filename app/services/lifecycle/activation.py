@@ -9,7 +9,7 @@ version that was active before the current one, read from the activation history
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Final
+from typing import Final, Protocol
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 from app.errors import InvalidInput, NothingToRollBack, OutOfTolerance
 from app.jsontypes import JsonObject
 from app.schemas.common import Activate
-from app.schemas.tools import ActivationRequest, RollbackRequest, Tolerance
+from app.schemas.tools import ActivationRequest, RollbackRequest
 from app.security.auth import Principal
 from app.services.lifecycle.subject import (
     ActivationT,
@@ -39,14 +39,21 @@ ROLLBACK: Final[ActivationKind] = "rollback"
 CHECK_CORRECTION: Final[ActivationKind] = "check_correction"
 
 
-def held_for_change(change_mm: float | None, tolerance: Tolerance) -> bool:
+class ChangeLimit(Protocol):
+    """What deciding an auto-activation reads of a subject's tolerance (a tool's, a frame's)."""
+
+    @property
+    def max_change_mm(self) -> float: ...
+
+
+def held_for_change(change_mm: float | None, tolerance: ChangeLimit) -> bool:
     """Whether a new version moved the subject too far from the active one (more than the
     tolerance's max_change_mm) to activate it by "auto"."""
     return change_mm is not None and change_mm > tolerance.max_change_mm
 
 
 def activation_due(
-    activate: Activate, status: Status, change_mm: float | None, tolerance: Tolerance
+    activate: Activate, status: Status, change_mm: float | None, tolerance: ChangeLimit
 ) -> ActivationKind | None:
     """The kind of activation a calibration's new version gets as its request's `activate`
     asks (None: it is stored, not activated): "always" always; "auto" only when it is

@@ -36,7 +36,7 @@ from app.services.lifecycle.subject import (
 from app.services.visible import in_scope, live_or_404
 from app.storage.db import DriverWrite, HeldRead
 from app.storage.models import Robot, new_id, table_of, utcnow
-from app.words import ActivationKind, AuditAction, MethodName, Status
+from app.words import ActivationKind, AuditAction, Status, VersionSource
 
 _ROBOT = table_of(Robot)
 
@@ -203,7 +203,7 @@ def add_version(
     locked: Locked,
     position_mm: Sequence[float],
     quaternion: Sequence[float],
-    source: MethodName,
+    source: VersionSource,
     status: Status,
     calibration_id: str | None,
     note: str | None,
