@@ -342,3 +342,12 @@ def test_a_numbered_format_refuses_a_number_its_controllers_do_not_have(
         export_frame(fmt, frame((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), slot=slot))
     assert err.value.loc == ("slot",)
     assert f"slot {slot} of frame 'fixture A' is not a" in err.value.detail
+
+
+def test_abb_says_to_set_the_load_of_a_stationary_tool_it_declares() -> None:
+    """A stationary tooldata's tload is the load of the gripper holding the work object, which
+    tcpcal does not know: declared here (no controller_symbol) with tool0's, the header says so."""
+    tool = frame((1.0, 2.0, 3.0), (1.0, 0.0, 0.0, 0.0), fixed=True, slot=None, name="glue nozzle")
+    module = frame_file("abb", [FileFrame(tool)], FileContext()).text
+    assert "PERS tooldata glue_nozzle:=[FALSE," in module
+    assert "glue_nozzle is declared here with tool0's load: set its tload" in module
