@@ -7,12 +7,18 @@ each step in the audit trail."""
 from __future__ import annotations
 
 import threading
+from datetime import UTC, datetime, timedelta
 from typing import Any
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from sqlalchemy import select, update
 
+from app.services.frames.subject import FRAME
+from app.services.lifecycle import drift
+from app.storage.db import session_scope
+from app.storage.models import AuditEvent
 from tests.api.frame_fiducials import calibrated_frame, cell, touches
 from tests.conftest import Api
 
@@ -234,3 +240,41 @@ def test_a_repeated_key_sent_concurrently_makes_one_version(api: Api) -> None:
     assert sorted(a.headers.get("idempotent-replayed", "") for a in answers) == ["", "true", "true"]
     assert len({a.json()["id"] for a in answers}) == 1
     assert len(api.get(f"/v1/frames/{frame['id']}/versions").json()["items"]) == 2
+
+
+def test_the_frames_drift_trend_reads_its_checks(api: Api) -> None:
+    """A frame's checks are its drift trend's check series (FRAME.check_action): three checks
+    10 days apart, the fixture creeping 0.1 mm each time, give a trend of three points."""
+    robot, pointer = cell(api)
+    frame = calibrated_frame(
+        api, robot["id"], "fixture-a", R_FIXTURE, O_FIXTURE, pointer_id=pointer["id"]
+    )
+    for step in (1, 2, 3):
+        crept = O_FIXTURE + R_FIXTURE @ np.array([0.1 * step, 0.0, 0.0])
+        done = api.post(
+            f"/v1/frames/{frame['id']}/checks",
+            touches(pointer["id"], R_FIXTURE, crept, seed=step),
+            scope="calibrate",
+        )
+        assert done.json()["verdict"] == "within_tolerance", done.text
+    now = datetime.now(UTC)
+    with session_scope(write=True) as session:
+        ids = session.scalars(
+            select(AuditEvent.id)
+            .where(AuditEvent.frame_id == frame["id"], AuditEvent.action == "frame.check")
+            .order_by(AuditEvent.id)
+        ).all()
+        for age, event_id in zip((20, 10, 0), ids, strict=True):
+            session.execute(
+                update(AuditEvent)
+                .where(AuditEvent.id == event_id)
+                .values(at=now - timedelta(days=age))
+            )
+    with session_scope(write=False) as session:
+        trend = drift.compute_drift(
+            session, FRAME, subject_id=frame["id"], active_version=1, check_mm=0.5
+        )
+    checks = trend.drift["checks"]
+    assert isinstance(checks, dict)
+    assert checks["n"] == 3
+    assert checks["speed_mm_per_month"] == pytest.approx(0.3, rel=0.05)  # 0.1 mm / 10 days
