@@ -144,6 +144,13 @@ OriginXXy = Literal["origin", "x", "xy"]
 UserMethodRole = Literal["x1", "x2", "y1"]
 FrameRole = Literal[OriginXXy, UserMethodRole, "x_start"]
 
+#: What a guided frame session's next touch is sent with beside its pose
+#: (app.methods.frame.next_role): a role, a nominal_mm, or nothing (a fixed tool's tip).
+FrameTouchTakes = Literal["role", "nominal_mm", "tip"]
+
+#: A guided session's method (guided_sessions.method): a tool session's or a frame session's.
+SessionMethod = Literal[MethodName, FrameMethodName]
+
 #: What made a version of any calibrated subject (app.services.lifecycle.subject.Valued).
 VersionSource = MethodName | FrameMethodName
 
@@ -183,7 +190,6 @@ AuditAction = Literal[
     "frame.update",
     "frame.archive",
     "frame.fiducials",
-    "frame.check",
     "version.create",
     "version.activate",
     "version.rollback",
@@ -195,7 +201,6 @@ AuditAction = Literal[
     "controller.unreachable",
     "deployment.settled",
     "reference_point.create",
-    "reference_point.move",
     "laser_device.create",
     "key.create",
     "key.revoke",
@@ -220,5 +225,3 @@ ResourceType = Literal[
 
 #: The action of a TCP check, which the drift trend and the fleet read back.
 CHECK_ACTION: Final[AuditAction] = "tool.check"
-#: The action of a frame's re-check after a move, which its drift trend and the fleet read back.
-FRAME_CHECK_ACTION: Final[AuditAction] = "frame.check"

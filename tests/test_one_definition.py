@@ -34,6 +34,7 @@ from app.schemas import (
     tools,
 )
 from app.schemas.formats import FormatList
+from app.schemas.frame_sessions import FrameSession
 from app.scopes import Scope
 from app.services.controllers.states import EVENT_ACTIONS, SEVERITY
 from app.solvers.npoint import ALGORITHMS
@@ -56,6 +57,7 @@ from app.words import (
     ProtocolName,
     ResourceType,
     RobotState,
+    SessionMethod,
     SessionStatus,
     SettledHolds,
     Status,
@@ -140,7 +142,8 @@ WORD_COLUMNS: dict[
     (models.AuditEvent, "action"): (AuditAction, [(audit.AuditEvent, "action")]),
     (models.AuditEvent, "resource_type"): (ResourceType, [(audit.AuditEvent, "resource_type")]),
     (models.OutboxMessage, "action"): (AuditAction, []),
-    (models.GuidedSession, "method"): (MethodName, [(sessions.Session, "method")]),
+    # a tool session's (Session) or a frame session's (FrameSession): the two below
+    (models.GuidedSession, "method"): (SessionMethod, []),
     (models.GuidedSession, "format"): (
         PoseFormat,
         [(sessions.Session, "format"), (SessionCreate, "format")],
@@ -179,6 +182,16 @@ WORDS_IN_JSON: list[tuple[str, object, tuple[type[BaseModel], str]]] = [
     ("deployments.settled holds", SettledHolds, (controllers.DeploymentSettled, "holds")),
     ("guided_sessions.touches source", TouchOrigin, (results.TouchSource, "source")),
 ]
+
+
+def test_a_sessions_method_is_a_tools_or_a_frames() -> None:
+    """guided_sessions.method holds a tool session's method (Session.method) or a frame
+    session's (FrameSession.method), the two registries' Literals and no other word."""
+    assert _literal_of(_annotation(sessions.Session, "method")) is MethodName
+    assert _literal_of(_annotation(FrameSession, "method")) is FrameMethodName
+    assert set(get_args(SessionMethod)) == set(get_args(MethodName)) | set(
+        get_args(FrameMethodName)
+    )
 
 
 def test_each_word_column_and_its_documents_name_one_literal() -> None:

@@ -14,8 +14,13 @@ from fastapi.openapi.utils import get_openapi
 
 from app.api.glossary import GLOSSARY
 from app.jsontypes import JsonObject
+from app.schemas.frame_sessions import FrameTouchAdd
 from app.schemas.problems import Problem
+from app.schemas.sessions import TouchAdd
 
+#: Request bodies a route validates by hand, named in its openapi_extra: POST
+#: /v1/sessions/{id}/poses takes a tool session's touch or a frame session's by the session.
+BODIES_READ_BY_HAND = (TouchAdd, FrameTouchAdd)
 PROBLEM_REF = {"$ref": "#/components/schemas/Problem"}
 #: What FastAPI writes for a status nobody described: replaced by DESCRIPTIONS.
 _FASTAPIS_WORDS = frozenset({"Validation Error", "Additional Response"})
@@ -80,6 +85,17 @@ def _not_nullable(parameter: JsonObject) -> None:
         schema.update(rest[0])
 
 
+def _add_bodies_read_by_hand(schemas: JsonObject) -> None:
+    """The schemas of BODIES_READ_BY_HAND, written as FastAPI writes a body's."""
+    for model in BODIES_READ_BY_HAND:
+        schema = model.model_json_schema(ref_template="#/components/schemas/{model}")
+        schemas.update(schema.pop("$defs", {}))
+        for field in schema.get("properties", {}).values():
+            if field.get("default", ...) is None:
+                del field["default"]  # as FastAPI writes an optional body field
+        schemas[model.__name__] = schema
+
+
 def build_openapi(app: FastAPI) -> JsonObject:
     """The app's OpenAPI document with problem+json error responses."""
     if app.openapi_schema:
@@ -89,6 +105,7 @@ def build_openapi(app: FastAPI) -> JsonObject:
     problem = Problem.model_json_schema(ref_template="#/components/schemas/{model}")
     schemas.update(problem.pop("$defs", {}))
     schemas["Problem"] = problem
+    _add_bodies_read_by_hand(schemas)
     for path, item in spec.get("paths", {}).items():
         for method, operation in item.items():
             if path in {"/health", "/ready"}:

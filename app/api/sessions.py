@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Path, Response
+from fastapi import APIRouter, Path, Request, Response
+from fastapi.exceptions import RequestValidationError
+from pydantic import ValidationError
 
 from app.api.deps import CalibrateKey, HeldCalibrateKey, ReadKey, SessionDep, run_blocking
 from app.api.params import DEFAULT_PAGE, Cursor, IdempotencyKey, Limit, PathId
@@ -12,11 +14,29 @@ from app.api.shared import CONTROLLER_FAILURES, page
 from app.methods.guided import SessionCreate
 from app.metrics import CALIBRATIONS
 from app.schemas.common import Page
+from app.schemas.frame_sessions import FrameSession, FrameSessionCreate
+from app.schemas.frames import FrameCalibration
 from app.schemas.results import Calibration
-from app.schemas.sessions import Plan, PlanRequest, Session, SessionFinish, TouchAdd
-from app.services.sessions import sessions
+from app.schemas.sessions import Plan, PlanRequest, Session, SessionFinish
+from app.services.sessions import frame_sessions, sessions
 
 router = APIRouter(tags=["guided"])
+
+#: POST /v1/sessions/{id}/poses' body, read by hand: a tool session's or a frame session's.
+TOUCH_BODY = {
+    "required": True,
+    "content": {
+        "application/json": {
+            "schema": {
+                "anyOf": [
+                    {"$ref": "#/components/schemas/TouchAdd"},
+                    {"$ref": "#/components/schemas/FrameTouchAdd"},
+                ],
+                "title": "Body",
+            }
+        }
+    },
+}
 
 TouchIndex = Annotated[int, Path(ge=0, le=10_000, description="the touch's index, from 0")]
 
@@ -39,10 +59,11 @@ def create_session(
     return sessions.create_session(session, tool_id=tool_id, data=body, actor=key)
 
 
-@router.get("/v1/sessions/{session_id}", response_model=Session)
-def get_session(session_id: PathId, session: SessionDep, key: ReadKey) -> Session:
-    """The session: touches, estimate with its 1-sigma and rms, outliers, next pose, done."""
-    return sessions.view(session, sessions.get_session(session, session_id))
+@router.get("/v1/sessions/{session_id}", response_model=Session | FrameSession)
+def get_session(session_id: PathId, session: SessionDep, key: ReadKey) -> Session | FrameSession:
+    """The session: touches, estimate with its 1-sigma and rms, outliers, next pose, done (a
+    frame session's: its touches with their points, next_role, the frame so far)."""
+    return sessions.view_any(session, sessions.get_session(session, session_id))
 
 
 @router.get("/v1/tools/{tool_id}/sessions", response_model=Page[Session])
@@ -61,29 +82,55 @@ def list_sessions(
 
 
 @router.post(
-    "/v1/sessions/{session_id}/poses", response_model=Session, responses=CONTROLLER_FAILURES
+    "/v1/sessions/{session_id}/poses",
+    response_model=Session | FrameSession,
+    responses=CONTROLLER_FAILURES,
+    openapi_extra={"requestBody": TOUCH_BODY},
 )
-async def add_touch(session_id: PathId, body: TouchAdd, key: HeldCalibrateKey) -> Session:
+async def add_touch(
+    session_id: PathId, request: Request, key: HeldCalibrateKey
+) -> Session | FrameSession:
     """Add one touch: `pose`, typed in the session's format, or `{"capture": true}`: read
     from the tool's robot's controller (two reads 100 ms apart; 409 `/robot-moving` when
     they differ, 502 when the controller cannot be reached or refuses), converted to the
     session's format and added as a typed pose is. A touch that cannot be read, or that
     makes the set read as a unit or convention mix-up, is refused (422) and the session
-    stays as it was; 409 once finished. `touches` says where each came from."""
-    return await run_blocking(
-        sessions.add_touch_request, session_id=session_id, data=body, actor=key
-    )
+    stays as it was; 409 once finished. `touches` says where each came from. A frame
+    session's touch (FrameTouchAdd) carries the `role` or `nominal_mm` its method takes
+    (`next_role` says which comes next)."""
+    raw = await _json(request)
+    try:
+        data = await run_blocking(sessions.read_touch, session_id=session_id, raw=raw, actor=key)
+    except ValidationError as refused:
+        raise RequestValidationError(
+            [{**e, "loc": ("body", *e["loc"])} for e in refused.errors(include_url=False)]
+        ) from None
+    return await run_blocking(sessions.add_any_touch, session_id=session_id, data=data, actor=key)
 
 
-@router.delete("/v1/sessions/{session_id}/poses/{index}", response_model=Session)
+async def _json(request: Request) -> object:
+    """The request's JSON body (422 when it is not JSON)."""
+    try:
+        return await request.json()
+    except ValueError as exc:
+        raise RequestValidationError(
+            [{"type": "json_invalid", "loc": ("body",), "msg": f"JSON decode error: {exc}"}]
+        ) from None
+
+
+@router.delete("/v1/sessions/{session_id}/poses/{index}", response_model=Session | FrameSession)
 def delete_touch(
     session_id: PathId, index: TouchIndex, session: SessionDep, key: CalibrateKey
-) -> Session:
+) -> Session | FrameSession:
     """Remove a touch (a miss the session named); later touches move up one index."""
     return sessions.delete_touch(session, session_id=session_id, index=index, actor=key)
 
 
-@router.post("/v1/sessions/{session_id}/finish", status_code=201, response_model=Calibration)
+@router.post(
+    "/v1/sessions/{session_id}/finish",
+    status_code=201,
+    response_model=Calibration | FrameCalibration,
+)
 def finish_session(
     session_id: PathId,
     response: Response,
@@ -91,9 +138,10 @@ def finish_session(
     key: CalibrateKey,
     body: SessionFinish | None = None,
     idempotency_key: IdempotencyKey = None,
-) -> Calibration:
+) -> Calibration | FrameCalibration:
     """Store the kept touches as a calibration exactly as POST /calibrations would (grading,
-    versioning, activation, idempotency, audit). Retry-safe with `Idempotency-Key`."""
+    versioning, activation, idempotency, audit); a frame session's as POST /v1/frames/
+    {frame_id}/calibrations would (a FrameCalibration). Retry-safe with `Idempotency-Key`."""
     doc, replayed = sessions.finish(
         session,
         session_id=session_id,
@@ -103,6 +151,17 @@ def finish_session(
     )
     if replayed:
         response.headers["Idempotent-Replayed"] = "true"
-    else:
-        CALIBRATIONS.labels(doc.method, doc.status).inc()
-    return doc
+    out = doc if isinstance(doc, Calibration) else FrameCalibration.model_validate(doc)
+    if not replayed:
+        CALIBRATIONS.labels(out.method, out.status).inc()
+    return out
+
+
+@router.post("/v1/frames/{frame_id}/sessions", status_code=201, response_model=FrameSession)
+def create_frame_session(
+    frame_id: PathId, body: FrameSessionCreate, session: SessionDep, key: CalibrateKey
+) -> FrameSession:
+    """Start a guided frame calibration with a pointer tool: add touches one by one (typed,
+    or `capture`), each with the role or nominal_mm `next_role` asks for, until `done`, then
+    finish (POST /v1/sessions/{id}/finish: a FrameCalibration)."""
+    return frame_sessions.create(session, frame_id=frame_id, data=body, actor=key)

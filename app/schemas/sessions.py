@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Literal, Self
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -90,17 +90,15 @@ class Plan(BaseModel):
     touches: list[PlannedTouch] = Field(description="each pose as tilt, azimuth, spin")
 
 
-class TouchAdd(StrictModel):
+class PoseOrCapture(StrictModel):
+    """A touch's pose: typed, or read from the robot's controller (a tool session's touch
+    and a frame session's, app.schemas.frame_sessions)."""
+
     model_config = ConfigDict(
         json_schema_extra=one_of((("pose",), ("capture",)), (("capture",), ("pose",)))
     )
 
     pose: Pose | None = Field(default=None, description="the touch, in the session's format")
-    format: PoseFormat | None = Field(
-        default=None,
-        description="the format the client holds `pose` in, when it says so: it must be the "
-        "session's (422 at body.format otherwise; a touch is never converted)",
-    )
     capture: Literal[True] | None = Field(
         default=None,
         description="true: read the touch from the tool's robot's controller (two reads "
@@ -108,13 +106,21 @@ class TouchAdd(StrictModel):
     )
 
     @model_validator(mode="after")
-    def _pose_or_capture(self) -> TouchAdd:
+    def _pose_or_capture(self) -> Self:
         if (self.pose is None) == (self.capture is None):
             raise ValueError(
                 'give "pose" (a typed touch) or "capture": true (read it from the '
                 "controller), one of the two"
             )
         return self
+
+
+class TouchAdd(PoseOrCapture):
+    format: PoseFormat | None = Field(
+        default=None,
+        description="the format the client holds `pose` in, when it says so: it must be the "
+        "session's (422 at body.format otherwise; a touch is never converted)",
+    )
 
 
 class SessionFinish(StrictModel):

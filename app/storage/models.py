@@ -48,6 +48,7 @@ from app.words import (
     PoseFormat,
     ProtocolName,
     ResourceType,
+    SessionMethod,
     SessionStatus,
     Status,
     ToolState,
@@ -526,22 +527,31 @@ class GuidedSession(Base):
     """
 
     __tablename__ = "guided_sessions"
-    __table_args__ = (Index("ix_guided_sessions_tool_created", "tool_id", "created_at", "id"),)
+    __table_args__ = (
+        Index("ix_guided_sessions_tool_created", "tool_id", "created_at", "id"),
+        Index("ix_guided_sessions_frame_created", "frame_id", "created_at", "id"),
+    )
 
     id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
+    #: the tool a session calibrates, or the pointer a frame session touches with
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
-    method: Mapped[MethodName] = mapped_column(String(40))
+    #: the frame a frame session calibrates; null for a tool's session
+    frame_id: Mapped[str | None] = mapped_column(ForeignKey("frames.id"))
+    method: Mapped[SessionMethod] = mapped_column(String(40))
     format: Mapped[PoseFormat] = mapped_column(String(40))
     units: Mapped[JsonObject | None] = mapped_column(JSON)
     target_sigma_mm: Mapped[float | None] = mapped_column(Float)
-    max_tilt_deg: Mapped[float] = mapped_column(Float)
-    max_spin_deg: Mapped[float] = mapped_column(Float)
+    #: a tool session's reachable cone; null for a frame session
+    max_tilt_deg: Mapped[float | None] = mapped_column(Float)
+    max_spin_deg: Mapped[float | None] = mapped_column(Float)
     options: Mapped[JsonObject] = mapped_column(JSON)
     poses: Mapped[JsonArray] = mapped_column(JSON)
     #: One entry per pose, in order: {"source": app.words.TouchOrigin, "read_at", ...}.
     touches: Mapped[JsonArray] = mapped_column(JSON, default=list)
     status: Mapped[SessionStatus] = mapped_column(String(20), default="open")
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
+    #: the frame calibration a frame session's finish stored
+    frame_calibration_id: Mapped[str | None] = mapped_column(ForeignKey("frame_calibrations.id"))
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str] = mapped_column(String(200))

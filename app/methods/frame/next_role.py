@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
 
 from app.methods.frame.fit_points import FIT_POINTS_FRAME
 from app.methods.frame.fixed_npoint import FIXED_NPOINT_FRAME, ORIENTATION
@@ -24,10 +23,7 @@ from app.solvers.frame import FOUR_POINT, MAX_ANGLE_SIGMA_DEG, THREE_POINT, Cons
 from app.solvers.frame.construction import ThreePointConvention, distance_for_angle_mm
 from app.solvers.frame.fit_points import MIN_POINTS, TOUCHES_PER_OUTLIER
 from app.solvers.npoint import MIN_POSES
-from app.words import FrameMethodName
-
-#: What the next touch is sent with beside its pose.
-Takes = Literal["role", "nominal_mm", "tip"]
+from app.words import FrameMethodName, FrameTouchTakes
 
 
 @dataclass(frozen=True)
@@ -35,7 +31,7 @@ class NextRole:
     """What to touch next: the role to send (None for a touch with none), in words."""
 
     role: str | None
-    takes: Takes
+    takes: FrameTouchTakes
     words: str
     #: the touches so far can be finished (more may still help)
     enough: bool

@@ -33,6 +33,7 @@ from app.methods.base import MethodRequest
 from app.methods.guided import SessionCreate
 from app.methods.requests import CALIBRATION_REQUESTS
 from app.schemas.common import MAX_POSES, Pose, Units
+from app.schemas.frame_sessions import FrameSession, FrameTouchAdd
 from app.schemas.results import Calibration
 from app.schemas.sessions import (
     DEFAULT_PLAN_TOUCHES,
@@ -52,6 +53,8 @@ from app.services.calibrations import grading, writes
 from app.services.calibrations.contexts import DbContext
 from app.services.controllers import capture
 from app.services.robots.robots import get_robot
+from app.services.sessions import frame_sessions
+from app.services.sessions.rows import start as start_session
 from app.services.tools.tools import get_tool
 from app.services.touches.diagnosis import one_touch_fits, refusing_mix_ups
 from app.services.touches.tool_frames import active_frame, parse_poses_with
@@ -172,20 +175,8 @@ def create_session(
         max_tilt_deg=data.max_tilt_deg,
         max_spin_deg=data.max_spin_deg,
         options=data.options.model_dump(exclude_none=True),
-        poses=[],
-        status="open",
-        created_by=actor.name,
     )
-    audit.add_created(
-        session,
-        row,
-        actor=actor,
-        action="session.create",
-        resource_type="session",
-        robot_id=tool.robot_id,
-        tool_id=tool.id,
-        details={"method": data.method, "format": data.format},
-    )
+    start_session(session, row, actor=actor, robot_id=tool.robot_id)
     return view(session, row)
 
 
@@ -213,7 +204,9 @@ def list_sessions(
     tool = get_tool(session, tool_id)
     rows, next_cursor = paginate(
         session,
-        select(GuidedSession).where(GuidedSession.tool_id == tool.id),
+        select(GuidedSession).where(
+            GuidedSession.tool_id == tool.id, GuidedSession.frame_id.is_(None)
+        ),
         created_col=GuidedSession.created_at,
         id_col=GuidedSession.id,
         limit=limit,
@@ -234,7 +227,8 @@ def _open(session: Session, session_id: str, *, for_update: bool = True) -> Guid
     row = get_session(session, session_id, for_update=for_update)
     if row.status != "open":
         raise Conflict(
-            f"session {session_id} is finished (calibration {row.calibration_id}): "
+            f"session {session_id} is finished (calibration "
+            f"{row.calibration_id or row.frame_calibration_id}): "
             "start a new session to touch again"
         )
     return row
@@ -348,7 +342,9 @@ def _touch_records(row: GuidedSession) -> list[JsonObject]:
     return [dict(t) for t in row.touches]
 
 
-def delete_touch(session: Session, *, session_id: str, index: int, actor: Principal) -> SessionOut:
+def delete_touch(
+    session: Session, *, session_id: str, index: int, actor: Principal
+) -> SessionOut | FrameSession:
     row = _open(session, session_id)
     held = len(row.poses)
     if not row.poses:
@@ -359,6 +355,8 @@ def delete_touch(session: Session, *, session_id: str, index: int, actor: Princi
             f"session {session_id} has no touch at index {index}: it holds {held} ({which}; "
             "touch n is index n - 1)"
         )
+    if row.frame_id is not None:
+        return frame_sessions.delete_touch(session, row, index=index, actor=actor)
     removed = row.poses[index]
     row.poses = [p for i, p in enumerate(row.poses) if i != index]
     row.touches = [t for i, t in enumerate(_touch_records(row)) if i != index]
@@ -374,9 +372,14 @@ def finish(
     data: SessionFinish,
     idempotency_key: str | None,
     actor: Principal,
-) -> tuple[Calibration, bool]:
-    """Store the kept touches as a calibration, exactly as POST /calibrations would."""
+) -> tuple[Calibration | JsonObject, bool]:
+    """Store the kept touches as a calibration, exactly as POST /calibrations would (a frame
+    session's as POST /v1/frames/{id}/calibrations would: its document as JSON)."""
     row = get_session(session, session_id, for_update=True)
+    if row.frame_id is not None:
+        return frame_sessions.finish(
+            session, row, data=data, idempotency_key=idempotency_key, actor=actor
+        )
     body: JsonObject = {
         "method": row.method,
         "format": row.format,
@@ -428,6 +431,31 @@ def finish(
 
 
 # ---- what a session shows -------------------------------------------------------------------
+def view_any(session: Session, row: GuidedSession) -> SessionOut | FrameSession:
+    """A tool's session or a frame's, as a client sees it."""
+    return view(session, row) if row.frame_id is None else frame_sessions.view(session, row)
+
+
+def add_any_touch(
+    *, session_id: str, data: TouchAdd | FrameTouchAdd, actor: Principal
+) -> SessionOut | FrameSession:
+    """POST /v1/sessions/{id}/poses, a tool's session's touch or a frame's."""
+    if isinstance(data, FrameTouchAdd):
+        return frame_sessions.add_touch_request(
+            row_id=session_id, data=data, actor=actor, open_row=_open
+        )
+    return add_touch_request(session_id=session_id, data=data, actor=actor)
+
+
+def read_touch(*, session_id: str, raw: object, actor: Principal) -> TouchAdd | FrameTouchAdd:
+    """POST /v1/sessions/{id}/poses' body as its session reads one: a tool session's
+    TouchAdd, a frame session's FrameTouchAdd (404 for a session the key may not see;
+    pydantic's ValidationError when the body is not one)."""
+    with transaction_for(actor, write=False) as session:
+        frame = get_session(session, session_id).frame_id is not None
+    return (FrameTouchAdd if frame else TouchAdd).model_validate(raw)
+
+
 def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> SessionOut:
     """The session as a client sees it, computed from its stored touches."""
     if tool is None:
@@ -564,7 +592,7 @@ def _next_pose(
         target_point = flanges[0] + start.apply(tcp)
     kept = [i for i in range(len(poses)) if i not in set(outliers)]
     relative = np.einsum("ji,njk->nik", rotations[0], rotations[kept])
-    tilt, azimuth, spin = next_touch(relative, Cone(row.max_tilt_deg, row.max_spin_deg))
+    tilt, azimuth, spin = next_touch(relative, _cone(row))
     try:
         return _poses_towards(
             start,
@@ -586,6 +614,13 @@ def _in_words(ctx: DbContext, row: GuidedSession, first: Pose, suggested: Pose) 
     rotations, _ = ctx.parse_poses(row.format, [first, suggested], _units(row), loc=("poses",))
     tilt, lean, spin = tilt_lean_spin(rotations[0], rotations[1])
     return NextTouch(tilt_deg=tilt, lean_deg=lean, spin_deg=spin)
+
+
+def _cone(row: GuidedSession) -> Cone:
+    """A tool session's reachable cone (a frame session has none)."""
+    assert row.max_tilt_deg is not None
+    assert row.max_spin_deg is not None
+    return Cone(row.max_tilt_deg, row.max_spin_deg)
 
 
 def _units(row: GuidedSession) -> Units | None:
