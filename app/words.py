@@ -190,6 +190,7 @@ AuditAction = Literal[
     "frame.update",
     "frame.archive",
     "frame.fiducials",
+    "frame.check",
     "version.create",
     "version.activate",
     "version.rollback",
@@ -201,6 +202,7 @@ AuditAction = Literal[
     "controller.unreachable",
     "deployment.settled",
     "reference_point.create",
+    "reference_point.move",
     "laser_device.create",
     "key.create",
     "key.revoke",
@@ -225,3 +227,5 @@ ResourceType = Literal[
 
 #: The action of a TCP check, which the drift trend and the fleet read back.
 CHECK_ACTION: Final[AuditAction] = "tool.check"
+#: The action of a frame's re-check after a move, which its drift trend and the fleet read back.
+FRAME_CHECK_ACTION: Final[AuditAction] = "frame.check"

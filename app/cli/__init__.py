@@ -21,6 +21,7 @@ from app.cli import http as client_http
 from app.cli.client import register as register_client
 from app.cli.connection import register as register_connection_commands
 from app.cli.controllers import register as register_controller_commands
+from app.cli.frame_check import register as register_frame_check
 from app.cli.frames import register as register_frame_commands
 
 if TYPE_CHECKING:
@@ -373,3 +374,4 @@ register_client(cli)
 register_controller_commands(cli)
 register_connection_commands(cli)
 register_frame_commands(cli)
+register_frame_check(cli)

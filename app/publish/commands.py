@@ -10,6 +10,10 @@ Idempotency-Key, so the record is the same as the HTTP call's and a repeated req
 PLC that lost the reply and sends the command again) gets the first answer again and changes
 nothing. The problem documents are the HTTP layer's own (app.api.problems).
 
+`{prefix}/commands/recheck-frame` does the same for a frame's re-check after a move (issue
+49): `{"request_id", "frame_id"}` and the body of `POST /v1/frames/{frame_id}/checks`
+(app.services.frames.checks.check_frame), answered with its FrameCheck.
+
 The key is never logged, echoed or kept: the log names the key's name, as the access log
 does. Off unless TCPCAL_MQTT_COMMANDS=true (app.publish.mqtt subscribes only then).
 
@@ -42,9 +46,11 @@ from app.api.problems import (
 )
 from app.errors import DomainError, Unauthorized
 from app.jsontypes import JsonObject
+from app.schemas.frame_checks import FrameCheckCreate
 from app.schemas.references import CheckCreate
 from app.security.auth import Principal, authenticate_key
 from app.services.checks import recheck
+from app.services.frames import checks as frame_checks
 from app.storage.db import session_scope
 
 log = logging.getLogger(__name__)
@@ -64,9 +70,25 @@ NOT_IN_A_COMMAND = ("capture", "format", "poses", "units")
 WORKERS = 4
 
 
-def recheck_topic(prefix: str) -> str:
-    """The topic commands arrive on."""
-    return f"{prefix}/commands/recheck"
+#: The commands, by the last level of their topic: a tool's re-check after a collision, and
+#: a frame's after a move (issue 49: `{"request_id", "frame_id", ...}` and the body of POST
+#: /v1/frames/{frame_id}/checks, its touches typed: a frame's touches are not captured yet).
+RECHECK = "recheck"
+RECHECK_FRAME = "recheck-frame"
+COMMANDS = (RECHECK, RECHECK_FRAME)
+
+
+def recheck_topic(prefix: str, command: str = RECHECK) -> str:
+    """The topic a command arrives on."""
+    return f"{prefix}/commands/{command}"
+
+
+def command_of(prefix: str, topic: str) -> str:
+    """The command a topic carries (RECHECK for any topic not another command's)."""
+    for command in COMMANDS:
+        if topic == recheck_topic(prefix, command):
+            return command
+    return RECHECK
 
 
 def reply_topic(prefix: str, request_id: str) -> str:
@@ -89,7 +111,7 @@ class Reply:
         return "application/json" if self.status < 400 else "application/problem+json"
 
 
-def answer(prefix: str, payload: bytes, authorization: str | None) -> Reply:
+def answer(prefix: str, payload: bytes, authorization: str | None, command: str = RECHECK) -> Reply:
     """Run one command and say what to reply (never raises)."""
     try:
         document = _json_object(payload)
@@ -100,6 +122,8 @@ def answer(prefix: str, payload: bytes, authorization: str | None) -> Reply:
         return _problem(prefix, INVALID_REPLY, _invalid_request_id(request_id))
     try:
         actor = _authenticated(authorization)
+        if command == RECHECK_FRAME:
+            return _frame_answer(prefix, request_id, document, actor)
         tool_id, data = _command(document)
         done = recheck.recheck(tool_id=tool_id, data=data, actor=actor, idempotency_key=request_id)
     except _Refused as refused:
@@ -120,6 +144,35 @@ def answer(prefix: str, payload: bytes, authorization: str | None) -> Reply:
         done.check.verdict,
         " (replayed)" if done.replayed else "",
     )
+    return Reply(reply_topic(prefix, request_id), _compact(body), 201, done.replayed)
+
+
+def _frame_answer(prefix: str, request_id: str, document: JsonObject, actor: Principal) -> Reply:
+    """A frame's re-check after a move (raises what `answer` turns into a problem)."""
+    frame_id = document.get("frame_id")
+    fields = {k: v for k, v in document.items() if k not in ("request_id", "frame_id")}
+    errors: list[dict[str, object]] = []
+    if not isinstance(frame_id, str) or not frame_id:
+        errors.append({"type": "missing", "loc": ("body", "frame_id"), "msg": "Field required"})
+    data = None
+    try:
+        data = FrameCheckCreate.model_validate(fields)
+    except ValidationError as exc:
+        errors += [{**e, "loc": ("body", *e["loc"])} for e in exc.errors(include_input=False)]
+    if errors or data is None or not isinstance(frame_id, str):
+        raise _Refused(validation_response(RequestValidationError(errors), "application/json"))
+    done = frame_checks.check_frame(
+        frame_id=frame_id, data=data, actor=actor, idempotency_key=request_id
+    )
+    log.info(
+        "recheck-frame command %s on frame %s by key %r: %s%s",
+        request_id,
+        frame_id,
+        actor.name,
+        done.check.verdict,
+        " (replayed)" if done.replayed else "",
+    )
+    body = done.check.model_dump(mode="json")
     return Reply(reply_topic(prefix, request_id), _compact(body), 201, done.replayed)
 
 
@@ -210,7 +263,7 @@ class Workers:
     prefix: str
     send: Callable[[Reply], None]
     count: int = WORKERS
-    _queue: queue.Queue[tuple[bytes, str | None]] = field(default_factory=queue.Queue)
+    _queue: queue.Queue[tuple[bytes, str | None, str]] = field(default_factory=queue.Queue)
     _stopping: threading.Event = field(default_factory=threading.Event)
 
     def start(self) -> None:
@@ -218,9 +271,9 @@ class Workers:
             name = f"mqtt-command-{i + 1}"
             threading.Thread(target=self._work, name=name, daemon=True).start()
 
-    def submit(self, payload: bytes, authorization: str | None) -> None:
+    def submit(self, payload: bytes, authorization: str | None, command: str = RECHECK) -> None:
         """Queue a command (called on paho's network thread: returns at once)."""
-        self._queue.put((payload, authorization))
+        self._queue.put((payload, authorization, command))
 
     def stop(self) -> None:
         """Take no more commands; those under way end with the process."""
@@ -229,9 +282,9 @@ class Workers:
     def _work(self) -> None:
         while not self._stopping.is_set():
             try:
-                payload, authorization = self._queue.get(timeout=0.2)
+                payload, authorization, command = self._queue.get(timeout=0.2)
             except queue.Empty:
                 continue
-            reply = answer(self.prefix, payload, authorization)
+            reply = answer(self.prefix, payload, authorization, command)
             if not self._stopping.is_set():
                 self.send(reply)

@@ -15,9 +15,10 @@ Topics (API.md v1.2, prefix TCPCAL_MQTT_PREFIX, default `tcpcal`):
   `reason`: app.services.audit.outbox.event_of);
 - `{prefix}/status`, retained: `online` once connected, `offline` as the last will and on a
   clean stop;
-- with TCPCAL_MQTT_COMMANDS=true, it also subscribes to `{prefix}/commands/recheck` (QoS 1) and
-  answers on `{prefix}/replies/{request_id}` (app.publish.commands). The connection is then
-  MQTT 5 (its user properties carry the command's API key; MQTT 5.0, OASIS Standard,
+- with TCPCAL_MQTT_COMMANDS=true, it also subscribes to `{prefix}/commands/recheck` and
+  `{prefix}/commands/recheck-frame` (QoS 1) and answers on `{prefix}/replies/{request_id}`
+  (app.publish.commands). The connection is then MQTT 5 (its user properties carry the
+  command's API key; MQTT 5.0, OASIS Standard,
   https://docs.oasis-open.org/mqtt/mqtt/v5.0/mqtt-v5.0.html 3.3.2.3.7), otherwise 3.1.1, which
   every broker speaks. The subscription is made on every (re)connection, the session being
   clean.
@@ -220,9 +221,9 @@ class MqttSink:
             return
         client.publish(self.status_topic, b"online", qos=1, retain=True)
         if self._commands:  # a clean session forgets it: made again at every connection
-            from app.publish.commands import recheck_topic
+            from app.publish.commands import COMMANDS, recheck_topic
 
-            client.subscribe(recheck_topic(self.prefix), qos=1)
+            client.subscribe([(recheck_topic(self.prefix, c), 1) for c in COMMANDS])
         self._connection += 1
         self._connected.set()
         log.info("connected to %s", self.broker.where)
@@ -250,7 +251,10 @@ class MqttSink:
         if message.retain:
             log.warning("ignored a retained command on %s: send commands unretained", message.topic)
             return
-        self._workers.submit(bytes(message.payload), authorization_of(message.properties))
+        from app.publish.commands import command_of
+
+        command = command_of(self.prefix, message.topic)
+        self._workers.submit(bytes(message.payload), authorization_of(message.properties), command)
 
     def _reply(self, reply: Reply) -> None:
         """Publish a command's answer (a worker thread; paho's publish is thread-safe)."""

@@ -24,6 +24,7 @@ from app.kinematics.poses import pose_to_format
 from app.words import AuditAction, ResourceType
 from testbed.sim.touches import simulate_touches
 from tests.api.controller_rigs import Rig, rig
+from tests.api.frame_fiducials import calibrated_frame, cell, touches
 from tests.api.frame_versions import add_frame_version
 from tests.api.touches import as_poses
 from tests.conftest import Api
@@ -158,6 +159,16 @@ def _frame_activate(api: Api, _rig: Rig) -> Call:
     return Call(f"/v1/frames/{fid}/versions/2/activate", {"reason": "taught"}, scope="calibrate")
 
 
+def _frame_check(api: Api, _rig: Rig) -> Call:
+    """A robot-wide correction of a robot with one frame and one reference point."""
+    robot, pointer = cell(api)
+    R, o = np.eye(3), np.array([500.0, 0.0, 0.0])
+    fid = calibrated_frame(api, robot["id"], "fixture", R, o, pointer_id=pointer["id"])["id"]
+    _reference(api, robot["id"])
+    body = {**touches(pointer["id"], R, o + np.array([1.0, 0.0, 0.0])), "correct": "within_limits"}
+    return Call(f"/v1/frames/{fid}/checks", {**body, "scope": "robot"}, scope="calibrate")
+
+
 def _on_controller(api: Api, rig: Rig, *, active: bool = True) -> dict[str, Any]:
     """A tool of a robot whose controller is the rig's simulator."""
     tool = api.tool(_robot(api), "torch", **rig.tool_fields)
@@ -251,6 +262,7 @@ CALLS: dict[tuple[str, str], Callable[[Api, Rig], Call]] = {
     ("PUT", "/v1/frames/{frame_id}/fiducials"): lambda api, _rig: Call(
         f"/v1/frames/{_touched_frame(api)}/fiducials", {"names": ["a", "b", "c"]}, scope="calibrate"
     ),
+    ("POST", "/v1/frames/{frame_id}/checks"): _frame_check,
     ("POST", "/v1/frames/{frame_id}/rollback"): lambda api, _rig: Call(
         f"/v1/frames/{_frame(api, versions=2)}/rollback", scope="calibrate"
     ),
@@ -335,6 +347,12 @@ EVENTS: dict[tuple[str, str], tuple[tuple[str, str, str], ...]] = {
         ("calibration.create", "calibration", "id"),
     ),
     ("PUT", "/v1/frames/{frame_id}/fiducials"): (("frame.fiducials", "frame", "{frame_id}"),),
+    ("POST", "/v1/frames/{frame_id}/checks"): (
+        ("frame.check", "frame", "{frame_id}"),
+        ("version.create", "frame", "{frame_id}"),
+        ("version.activate", "frame", "{frame_id}"),
+        ("reference_point.move", "reference_point", "correction.moved.0.id"),
+    ),
 }
 
 

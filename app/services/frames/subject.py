@@ -8,6 +8,7 @@ from typing import Final
 
 from app.services.lifecycle.subject import Subject
 from app.storage.models import Frame, FrameActivation, FrameCalibration, FrameVersion
+from app.words import FRAME_CHECK_ACTION
 
 FRAME: Final = Subject(
     kind="frame",
@@ -20,5 +21,5 @@ FRAME: Final = Subject(
     plural="frames",
     leaf="frame",
     folder="Frames",
-    check_action=None,
+    check_action=FRAME_CHECK_ACTION,
 )
