@@ -84,8 +84,7 @@ WATCHER_ROUND_SECONDS = Gauge(
 )
 WATCHER_OVERRUNS = Counter(
     "tcpcal_watcher_rounds_overrun",
-    "Watcher rounds whose interval ended before every robot's read began (PostgreSQL: the "
-    "fleet's round, counted by one instance).",
+    "Watcher rounds whose interval ended before every robot's read began.",
 )
 WATCHER_INTERVAL_NEEDED = Gauge(
     "tcpcal_watcher_interval_needed_seconds",

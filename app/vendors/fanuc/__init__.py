@@ -69,4 +69,5 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(RMI,),
+    frame_address=_UFRAMES,
 )

@@ -69,4 +69,5 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(KVP,),
+    frame_address=_BASES,
 )

@@ -78,4 +78,5 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(HSES,),
+    frame_address=BySlot(FRAME_NUMBERS, "UFRAME.CND user frame {}"),
 )
