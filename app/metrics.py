@@ -84,7 +84,8 @@ WATCHER_ROUND_SECONDS = Gauge(
 )
 WATCHER_OVERRUNS = Counter(
     "tcpcal_watcher_rounds_overrun",
-    "Watcher rounds whose interval ended before every robot's read began.",
+    "Watcher rounds whose interval ended before every robot's read began (PostgreSQL: the "
+    "fleet's round, counted by one instance).",
 )
 WATCHER_INTERVAL_NEEDED = Gauge(
     "tcpcal_watcher_interval_needed_seconds",

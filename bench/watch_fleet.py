@@ -15,8 +15,10 @@ served by the code of `--tree` (default: this repository; another checkout measu
 `git worktree add /tmp/before <commit>`), `tcpcal serve --workers 1` per instance with
 TCPCAL_RECONCILE_INTERVAL_S; one robot, controller, tool and calibration made through the
 API, copied in bulk to the other robots (each its own simulator's port). Once every tool is
-in sync, the steady rounds are measured (CPU-seconds of the instances' processes per robot
-read, over two intervals), then every simulator's tool is edited at once and the database
+in sync and every robot's live tool read (simulators that serve fewer pose variables than
+the connector asks for stop the run there, with the error the rounds stored), the steady
+rounds are measured (CPU-seconds of the instances' processes per robot read, over
+`--steady-intervals`, 2), then every simulator's tool is edited at once and the database
 polled every 0.2 s until each tool is drifted (at most `--watch-intervals`, 6): the seconds
 from the edit to each flag, in intervals. `--kill` sends SIGKILL to one instance half an
 interval after the edit (mid-round). A robot read twice less than half an interval apart is
@@ -83,6 +85,7 @@ VARIABLES = {
     "E3 0.0, E4 0.0, E5 0.0, E6 0.0}",
     "$TOOL": "{FRAME: X 0.0, Y 0.0, Z 0.0, A 0.0, B 0.0, C 0.0}",
     "$BASE": "{FRAME: X 0.0, Y 0.0, Z 0.0, A 0.0, B 0.0, C 0.0}",
+    "$ROBROOT_C": "{FRAME: X 0.0, Y 0.0, Z 0.0, A 0.0, B 0.0, C 0.0}",
     "$ACT_TOOL": "-1",
     "$IPO_MODE": "#BASE",
 }
@@ -401,6 +404,14 @@ def states(engine: Engine) -> dict[str, str]:
         }
 
 
+def live_read(engine: Engine) -> dict[str, Any]:
+    """How many robots' live tool the last round read, and the first error stored."""
+    with engine.connect() as conn:
+        rows = conn.execute(text("SELECT read, error FROM robot_live_tools")).all()
+    errors = [r.error for r in rows if r.error]
+    return {"read": sum(1 for r in rows if r.read), "error": errors[0] if errors else None}
+
+
 def wait_all(engine: Engine, n: int, state: str, within_s: float) -> float | None:
     """Seconds until `n` tools are in `state` (None: not within `within_s`)."""
     start = time.monotonic()
@@ -446,9 +457,15 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         if synced is None:
             out["error"] = f"not every tool in sync: {_count(states(engine))}"
             return out
-        # the steady rounds: CPU per robot read over two intervals
+        out["live_tool_read"] = live_read(engine)
+        if out["live_tool_read"]["read"] < args.robots:
+            # a pose variable the simulators do not serve (the connector asks for more):
+            # every round would store an error instead of the tool the robot moves by
+            out["error"] = f"the live tool not read on every robot: {out['live_tool_read']}"
+            return out
+        # the steady rounds: CPU per robot read over `--steady-intervals` intervals
         cpu0, t0 = sum(i.cpu_s() for i in insts), time.monotonic()
-        time.sleep(2 * interval)
+        time.sleep(args.steady_intervals * interval)
         cpu1, t1 = sum(i.cpu_s() for i in insts), time.monotonic()
         reads = fleet.reads(t0, t1)
         out["steady"] = {
@@ -573,6 +590,12 @@ def main() -> None:
     parser.add_argument("--latency-ms", type=float, default=20.0)
     parser.add_argument("--interval", type=float, default=10.0)
     parser.add_argument("--watch-intervals", type=float, default=6.0)
+    parser.add_argument(
+        "--steady-intervals",
+        type=float,
+        default=2.0,
+        help="intervals the steady rounds' CPU per read is measured over",
+    )
     parser.add_argument("--kill", action="store_true", help="SIGKILL one instance mid-round")
     parser.add_argument("--tree", default=str(REPO), help="the checkout whose code serves")
     parser.add_argument("--commit", default=None, help="the tree's commit (default: its git)")

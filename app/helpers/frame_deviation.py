@@ -3,6 +3,7 @@ their rotations (what a deployment's read-back and a reconcile compare)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -32,3 +33,24 @@ def frame_deviation(
 def within(deviation: tuple[float, float], *, mm: float, deg: float) -> bool:
     """True when both parts of a frame_deviation are within the limits."""
     return deviation[0] <= mm and deviation[1] <= deg
+
+
+def frames_within(
+    position_a_mm: Sequence[float],
+    quaternion_a: Sequence[float],
+    position_b_mm: Sequence[float],
+    quaternion_b: Sequence[float],
+    *,
+    mm: float,
+    deg: float,
+) -> bool:
+    """True when frame a is within `mm` and `deg` of frame b, as within(frame_deviation(...))
+    says: a frame equal to the other in every number is, one whose point is further than `mm`
+    is not, and only otherwise is the rotation between them computed (the part of a
+    frame_deviation that costs: a reconcile round compares the frame a robot moves by with
+    the flange, its last read and each version of its tools)."""
+    if tuple(position_a_mm) == tuple(position_b_mm) and tuple(quaternion_a) == tuple(quaternion_b):
+        return True
+    if math.dist(position_a_mm, position_b_mm) > mm:
+        return False
+    return float(rotation_angle_deg(quaternion_a, quaternion_b)) <= deg

@@ -181,23 +181,36 @@ class WireProtocol:
         return self._place_problem(self.address, target.slot, target.symbol, "tool")
 
     def _place_problem(
-        self, address: BySlot | BySymbol, slot: int | None, symbol: str | None, what: str
+        self,
+        address: BySlot | BySymbol,
+        slot: int | None,
+        symbol: str | None,
+        what: str,
+        *,
+        given_only: bool = False,
     ) -> str | None:
-        """Why a `what` (tool, frame) at `slot` or `symbol` has no place at `address`."""
+        """Why a `what` (tool, frame) at `slot` or `symbol` has no place at `address`;
+        `given_only` checks only what is given (a frame registered may leave its slot or
+        symbol for later: the deployment asks for it)."""
         if isinstance(address, BySymbol):
-            if symbol is None:
-                return f"an {self.name} controller addresses {what}s by {address.how}"
-            return address.problem(symbol)
+            if symbol is not None:
+                return address.problem(symbol)
+            if given_only:
+                return None
+            return f"an {self.name} controller addresses {what}s by {address.how}"
         low, high = address.numbers
         if slot is None:
+            if given_only:
+                return None
             return (
                 f"a {self.name} controller addresses {what}s by number: "
                 f"set the {what}'s slot ({low}-{high})"
             )
         if not low <= slot <= high:
             return (
-                f"slot {slot} is outside {low}-{high}, "
-                f"the {what} numbers of a {self.name} controller"
+                f"slot {slot} is outside {low}-{high}, the {what} numbers of a {self.name} "
+                f"controller ({address.name.format(f'{low}..{high}')}): "
+                f"give a slot from {low} to {high}"
             )
         return None
 
@@ -207,14 +220,21 @@ class WireProtocol:
         program's, "stored" where the controller keeps it."""
         return "live" if isinstance(self.frames, ByValue) and self.frames.live else "stored"
 
-    def frame_problem(self, target: FrameTarget) -> str | None:
-        """Why `target` cannot address a frame here, in a sentence; None when it can."""
+    def frame_problem(self, target: FrameTarget, *, given_only: bool = False) -> str | None:
+        """Why `target` cannot address a frame here, in a sentence; None when it can. The one
+        check of a frame's place: at deployment (the connector's `describe_frame`), and with
+        `given_only` when a frame is registered on a robot of this protocol's maker (only its
+        slot or symbol as given: app.vendors.registry.vendor_frame_problem)."""
         address = self.frames
         if address is None:
+            if given_only:
+                return None
             return f"a {self.name} controller has no frames tcpcal can address"
         if isinstance(address, ByValue):
             return None  # named by its values: any frame
-        return self._place_problem(address, target.slot, target.symbol, "frame")
+        return self._place_problem(
+            address, target.slot, target.symbol, "frame", given_only=given_only
+        )
 
     def describe_frame(self, target: FrameTarget) -> str:
         """The frame as the controller names it: "BASE_DATA[3]", a symbol, "current base";
@@ -258,9 +278,9 @@ class Maker:
       `vendor_initials`: whole words that name it alone ("ur", "tm");
     - `file_kind`: what its file is, in a few words (the console's download buttons);
     - `tool_numbers`: (first, last) when its controllers number their tools, else None;
-    - `text`, `file`: its text and file modules; `protocols`: what its connectors speak;
-    - `frame_address`: how its controllers name a frame (a base, a fixed tool): by number
-      (`BySlot`), by a symbol (`BySymbol`), or None when a frame is given by its values.
+    - `text`, `file`: its text and file modules; `protocols`: what its connectors speak,
+      each with how it addresses a tool and a frame (`WireProtocol.frames`, the one
+      declaration of a frame's place, checked at registration and at deployment).
     """
 
     format: str
@@ -275,19 +295,3 @@ class Maker:
     frame: Callable[[], FrameModule]
     protocols: tuple[WireProtocol, ...] = ()
     vendor_initials: tuple[str, ...] = ()
-    frame_address: BySlot | BySymbol | None = None
-
-    def frame_problem(self, slot: int | None, symbol: str | None) -> str | None:
-        """Why a frame's `slot` or `symbol` cannot name a frame of this maker's controllers,
-        in a sentence; None when it can (or when neither is given yet)."""
-        if isinstance(self.frame_address, BySlot) and slot is not None:
-            low, high = self.frame_address.numbers
-            if not low <= slot <= high:
-                return (
-                    f"slot {slot} is not a {self.name} frame number: a {self.name} controller "
-                    f"numbers its frames {self.frame_address.name.format(f'{low}..{high}')}; "
-                    f"give a slot from {low} to {high}"
-                )
-        if isinstance(self.frame_address, BySymbol) and symbol is not None:
-            return self.frame_address.problem(symbol)
-        return None

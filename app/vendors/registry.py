@@ -41,7 +41,7 @@ from typing import Literal
 from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.vendors import abb, fanuc, kuka, techman, ur, yaskawa
-from app.vendors.connector import Connector, ControllerSettings, ToolTarget
+from app.vendors.connector import Connector, ControllerSettings, FrameTarget, ToolTarget
 from app.vendors.files import ControllerFile, FileContext, FileTool, ParsedTool
 from app.vendors.frame import FileFrame, FrameData, ParsedFrame
 from app.vendors.maker import BySlot, Maker, WireProtocol
@@ -289,6 +289,21 @@ def vendor_maker(vendor: str | None) -> Maker | None:
     names no maker known here."""
     formats = vendor_formats(vendor)
     return None if formats == CONTROLLER_FORMATS else BY_FORMAT[formats[0]]
+
+
+def vendor_frame_problem(vendor: str | None, target: FrameTarget) -> str | None:
+    """Why `target`, a frame being registered on a robot of `vendor` (its slot or symbol, as
+    given: either may be left for later), names no frame of that robot's controllers: the
+    check each protocol of its maker makes at deployment (`WireProtocol.frame_problem`);
+    None when it names one, or when the vendor names no maker known here."""
+    maker = vendor_maker(vendor)
+    if maker is None:
+        return None
+    for wire in maker.protocols:
+        problem = wire.frame_problem(target, given_only=True)
+        if problem is not None:
+            return problem
+    return None
 
 
 def vendor_pose_format(vendor: str | None) -> PoseFormat | None:

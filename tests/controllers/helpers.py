@@ -3,6 +3,8 @@ text."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -45,3 +47,18 @@ def float32_tolerance(values: tuple[float, ...] | list[float]) -> float:
     """What a 32-bit REAL may lose on these values: one unit in the last place of the
     largest, plus the connector's six written decimals."""
     return float(np.spacing(np.float32(max(abs(v) for v in values)))) + 1e-6
+
+
+def frame_number_refusal(
+    slot: int | None, protocol: str, numbers: tuple[int, int], name: str
+) -> str:
+    """The pattern of the one refusal of a frame number (WireProtocol.frame_problem, at
+    deployment as at registration): for a slot left out, what to set; else the range, the
+    controller's `name` of it and the remedy."""
+    low, high = numbers
+    if slot is None:
+        return re.escape(f"addresses frames by number: set the frame's slot ({low}-{high})")
+    return re.escape(
+        f"slot {slot} is outside {low}-{high}, the frame numbers of a {protocol} controller "
+        f"({name}): give a slot from {low} to {high}"
+    )

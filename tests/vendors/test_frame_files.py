@@ -36,6 +36,8 @@ FILE_PRECISION = {
     "yaskawa": (1e-3, 2e-4),
     "techman": (1e-6, 1e-6),
 }
+#: The formats whose controllers hold a stationary TCP (Techman's has none).
+HOLD_FIXED = ("kuka", "abb", "fanuc", "ur", "yaskawa")
 #: A frame number each numbered format takes.
 SLOT = 2
 
@@ -65,8 +67,15 @@ def close(fmt: str, position: np.ndarray, quaternion: np.ndarray, want: FrameDat
     assert angle_deg(quaternion, Rotation.from_quat(want.quaternion, scalar_first=True)) < deg
 
 
-@pytest.mark.parametrize("fixed", [False, True], ids=["base", "fixed_tool"])
-@pytest.mark.parametrize("fmt", CONTROLLER_FORMATS)
+@pytest.mark.parametrize(
+    ("fmt", "fixed"),
+    [
+        (fmt, fixed)
+        for fmt in CONTROLLER_FORMATS
+        for fixed in (False, True)
+        if fmt in HOLD_FIXED or not fixed
+    ],
+)
 @settings(
     max_examples=60, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
 )
@@ -97,7 +106,14 @@ def test_a_robots_frame_table_reads_back_each_frame(
     fmt: str, poses: list[tuple[tuple[float, float, float], tuple[float, ...], bool]]
 ) -> None:
     frames = [
-        frame(p, q, fixed, slot=n + 1, name=f"frame {n + 1}", symbol=f"T_ROB1/user/wf{n + 1}")
+        frame(
+            p,
+            q,
+            fixed and fmt in HOLD_FIXED,
+            slot=n + 1,
+            name=f"frame {n + 1}",
+            symbol=f"T_ROB1/user/wf{n + 1}",
+        )
         for n, (p, q, fixed) in enumerate(poses)
     ]
     origin = Provenance(3, WHEN, "alice", "three_point")
@@ -342,3 +358,27 @@ def test_a_numbered_format_refuses_a_number_its_controllers_do_not_have(
         export_frame(fmt, frame((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), slot=slot))
     assert err.value.loc == ("slot",)
     assert f"slot {slot} of frame 'fixture A' is not a" in err.value.detail
+
+
+def test_abb_says_to_set_the_load_of_a_stationary_tool_it_declares() -> None:
+    """A stationary tooldata's tload is the load of the gripper holding the work object, which
+    tcpcal does not know: declared here (no controller_symbol) with tool0's, the header says so."""
+    tool = frame((1.0, 2.0, 3.0), (1.0, 0.0, 0.0, 0.0), fixed=True, slot=None, name="glue nozzle")
+    module = frame_file("abb", [FileFrame(tool)], FileContext()).text
+    assert "PERS tooldata glue_nozzle:=[FALSE," in module
+    assert "glue_nozzle is declared here with tool0's load: set its tload" in module
+
+
+def test_techman_has_no_stationary_tcp_and_says_so() -> None:
+    """TMflow's ChangeBase sets a base and ChangeTCP the flange's TCP, none a stationary tool
+    (as the connector, app.vendors.techman.tmflow): a fixed tool's text is refused at its kind,
+    and a robot's table leaves it out naming why."""
+    nozzle = frame((900.0, 0.0, 400.0), (1.0, 0.0, 0.0, 0.0), fixed=True, name="nozzle")
+    with pytest.raises(InvalidInput) as err:
+        export_frame("techman", nozzle)
+    assert err.value.loc == ("kind",)
+    base = frame((1.0, 2.0, 3.0), (1.0, 0.0, 0.0, 0.0), name="jig")
+    table = frame_file("techman", [FileFrame(base), FileFrame(nozzle)], FileContext(table=True))
+    assert [item.name for item in table.left_out] == ["nozzle"]
+    assert "ChangeBase({1.0,2.0,3.0,0.0,0.0,0.0})" in table.text.splitlines()
+    assert "left out: nozzle: frame 'nozzle' is a fixed tool" in table.text

@@ -73,7 +73,7 @@ def printed(fmt: str, text: str) -> list[float]:
     if fmt == "kuka":
         return [float(v) for v in re.findall(r"[XYZABC] (-?[\d.]+)", text.split("=", 1)[1])]
     if fmt == "techman":
-        inner = re.search(r"ChangeBase\(([^)]*)\)", text)
+        inner = re.search(r"ChangeBase\(\{([^}]*)\}\)", text)
         assert inner is not None
         return [float(v) for v in inner.group(1).split(",")]
     return [float(v) for v in re.findall(r"(?:X|Y|Z|W|P|R|Rx|Ry|Rz) (-?[\d.]+)", text)]

@@ -6,12 +6,14 @@ Each robot with a controller has a row of `watch_leases`: when it is next due (`
 and who reads it until when (`holder`, `leased_until`). Every tick an instance says it is
 alive (`watchers`), renews the leases of its reads in flight, lets go of the others, and
 claims robots that are due and held by no live lease, `FOR UPDATE SKIP LOCKED`, at most its
-share (the due robots over the instances seen) and what its pool can start; a claim moves
-`due_at` one interval on (half an interval from now at least, for a robot overdue), so a
-robot is claimed once a round. An instance killed mid-round
-renews nothing: its reads' leases lapse within `lease_s` and its claimed robots are due
-again one interval after their claim, when another instance claims them. Times are the
-database's (`now()`), so the instances' clocks need not agree.
+share (the due robots over the instances seen within a lease) and what its pool can start;
+a claim moves `due_at` one interval on (half an interval from now at least, for a robot
+overdue), so a robot is claimed once a round. An instance killed mid-round renews nothing:
+its reads' leases lapse within `lease_s`, it takes no share of the others' claims after that,
+and its claimed robots are due again one interval after their claim, when another instance
+claims them. The first live instance by name says what is said once for the fleet (its
+round's overrun). Times are the database's (`now()`), so the instances' clocks need not
+agree. A tick is two statements (a third once an interval).
 """
 
 from __future__ import annotations
@@ -28,40 +30,46 @@ from sqlalchemy.types import String
 
 from app.storage.db import session_scope
 
-_SEEN = text(
-    "INSERT INTO watchers (holder, seen_at) VALUES (:me, now()) "
-    "ON CONFLICT (holder) DO UPDATE SET seen_at = now()"
-)
-_LIVE = text("SELECT count(*) FROM watchers WHERE seen_at > now() - make_interval(secs => :s)")
 _ROWS = text(
     "INSERT INTO watch_leases (robot_id, due_at) "
     "SELECT rc.robot_id, now() FROM robot_controllers rc "
     "JOIN robots r ON r.id = rc.robot_id WHERE r.archived_at IS NULL "
     "ON CONFLICT (robot_id) DO NOTHING"
 )
-_RENEW = text(
+#: This instance is alive, and its leases are renewed (its reads in flight) or let go: one
+#: statement (the INSERT a data-modifying WITH, run whether or not the UPDATE reads it).
+_ALIVE = text(
+    "WITH seen AS (INSERT INTO watchers (holder, seen_at) VALUES (:me, now()) "
+    "ON CONFLICT (holder) DO UPDATE SET seen_at = now() RETURNING holder) "
     "UPDATE watch_leases SET leased_until = CASE WHEN robot_id = ANY(:reading) "
     "THEN now() + make_interval(secs => :lease) ELSE NULL END "
     "WHERE holder = :me AND leased_until IS NOT NULL"
 ).bindparams(bindparam("reading", type_=ARRAY(String)))
-_DUE = (
-    "FROM watch_leases l JOIN robot_controllers rc ON rc.robot_id = l.robot_id "
-    "JOIN robots r ON r.id = l.robot_id WHERE r.archived_at IS NULL AND l.due_at <= now() "
-    "AND (l.leased_until IS NULL OR l.leased_until < now())"
-)
-_FREE = "(l.leased_until IS NULL OR l.leased_until < now())"
-_COUNT = text(
-    "SELECT count(*), count(*) FILTER (WHERE l.due_at <= now() AND " + _FREE + "), "
-    "count(*) FILTER (WHERE l.due_at < now() - make_interval(secs => :i) AND " + _FREE + ") "
+_FLEET = (
     "FROM watch_leases l JOIN robot_controllers rc ON rc.robot_id = l.robot_id "
     "JOIN robots r ON r.id = l.robot_id WHERE r.archived_at IS NULL"
 )
+_FREE = "(l.leased_until IS NULL OR l.leased_until < now())"
+#: What the tick sees and what it claims, in one statement: the live instances (seen within a
+#: lease: one whose leases would have lapsed is gone) and the first of them by name, the
+#: fleet's robots, the ones due and the ones overdue by an interval, and the claim of this
+#: instance's share of the due ones (at most :cap) with the count it was made from (the
+#: WITH queries share one snapshot: the claim is counted before it).
 _CLAIM = text(
-    "UPDATE watch_leases SET holder = :me, leased_until = now() + make_interval(secs => :lease), "
+    "WITH live AS (SELECT count(*) AS n, min(holder) AS first FROM watchers "
+    "WHERE seen_at > now() - make_interval(secs => :lease)), "
+    "fleet AS (SELECT count(*) AS robots, "
+    f"count(*) FILTER (WHERE l.due_at <= now() AND {_FREE}) AS due, "
+    f"count(*) FILTER (WHERE l.due_at < now() - make_interval(secs => :i) AND {_FREE}) "
+    f"AS overdue {_FLEET}), "
+    "claimed AS (UPDATE watch_leases SET holder = :me, "
+    "leased_until = now() + make_interval(secs => :lease), "
     "due_at = GREATEST(due_at + make_interval(secs => :i), now() + make_interval(secs => :h)) "
-    "WHERE robot_id IN ("
-    f"SELECT l.robot_id {_DUE} ORDER BY l.due_at LIMIT :n FOR UPDATE OF l SKIP LOCKED) "
-    "RETURNING robot_id"
+    f"WHERE robot_id IN (SELECT l.robot_id {_FLEET} AND l.due_at <= now() AND {_FREE} "
+    "ORDER BY l.due_at LIMIT (SELECT LEAST(:cap, CEIL(fleet.due / GREATEST(1, live.n)::numeric)) "
+    "FROM fleet, live)::bigint FOR UPDATE OF l SKIP LOCKED) RETURNING robot_id) "
+    "SELECT live.n, live.first, fleet.robots, fleet.due, fleet.overdue, "
+    "ARRAY(SELECT robot_id FROM claimed) AS claimed FROM live, fleet"
 )
 
 
@@ -79,6 +87,9 @@ class Tick:
     due: int
     overdue: int
     watchers: int
+    #: this instance is the first live one by name: it says what is said once for the
+    #: fleet (an overrun of the fleet's round counted and logged by one instance, not each)
+    reports: bool = True
 
 
 class Leases:
@@ -89,34 +100,38 @@ class Leases:
         self.interval_s = interval_s
         #: how often the watcher ticks (claims, renews): a tenth of the interval, 0.02-1 s
         self.tick_s = min(1.0, max(0.02, interval_s / 10))
-        #: a lease not renewed for this long lapses (an instance that died)
+        #: a lease not renewed for this long lapses, and an instance not seen for this long
+        #: is gone (one that died: it takes no share of a claim after)
         self.lease_s = max(3 * self.tick_s, 1.0)
         self._rows_at = -math.inf
 
     def tick(self, reading: set[str], capacity: int, now: float) -> Tick:
         """Say this instance is alive, renew the leases of `reading` (let go of the rest),
-        and claim up to this instance's share of the due robots, at most `capacity`."""
+        and claim up to this instance's share of the due robots, at most `capacity`: two
+        statements (a third once an interval, for robots given a controller since)."""
         with session_scope(write=True) as session:
-            session.execute(_SEEN, {"me": self.holder})
-            if now - self._rows_at >= self.interval_s:  # robots given a controller since
+            if now - self._rows_at >= self.interval_s:
                 session.execute(_ROWS)
                 self._rows_at = now
             session.execute(
-                _RENEW, {"me": self.holder, "reading": sorted(reading), "lease": self.lease_s}
+                _ALIVE, {"me": self.holder, "reading": sorted(reading), "lease": self.lease_s}
             )
-            watchers = int(session.execute(_LIVE, {"s": 3 * self.lease_s}).scalar_one())
-            robots, due, overdue = session.execute(_COUNT, {"i": self.interval_s}).one()
-            share = min(capacity, math.ceil(int(due) / max(1, watchers)))
-            claimed: list[str] = []
-            if share > 0:
-                params = {
-                    "me": self.holder,
-                    "lease": self.lease_s,
-                    "i": self.interval_s,
-                    "h": self.interval_s / 2,
-                }
-                claimed = list(session.scalars(_CLAIM, params | {"n": share}))
-        return Tick(claimed, int(robots), int(due), int(overdue), watchers)
+            params = {
+                "me": self.holder,
+                "lease": self.lease_s,
+                "i": self.interval_s,
+                "h": self.interval_s / 2,
+                "cap": max(0, capacity),
+            }
+            watchers, first, robots, due, overdue, claimed = session.execute(_CLAIM, params).one()
+        return Tick(
+            list(claimed),
+            int(robots),
+            int(due),
+            int(overdue),
+            int(watchers),
+            reports=first == self.holder,
+        )
 
     def leave(self) -> None:
         """Let go of every lease and say this instance is gone (a clean stop)."""

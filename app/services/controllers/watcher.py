@@ -611,7 +611,8 @@ class Watcher:
         watched = sum(n for _, n in claims)
         self.status.robots = watched
         WATCHED_ROBOTS.set(watched)
-        if tick.overdue > 0 and self.status.rounds > 0:
+        if tick.overdue > 0 and self.status.rounds > 0 and tick.reports:
+            # one instance says the fleet's overrun (counted, logged), not every one of them
             self._overrun(tick.robots, tick.overdue, watchers=max(1, tick.watchers))
         self._finish_round(took_s)
 

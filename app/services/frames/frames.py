@@ -1,6 +1,7 @@
 """Frames of a robot: register, list, update, archive (contract v1.4 "Frames"). A frame's
-number or symbol is checked against the robot's maker (app.vendors.maker.Maker.frames), as a
-tool's slot is; its ETag and If-Match are the lifecycle's."""
+number or symbol is checked against the protocols of the robot's maker (the one check a
+deployment makes, app.vendors.maker.WireProtocol.frame_problem), as a tool's slot is; its
+ETag and If-Match are the lifecycle's."""
 
 from __future__ import annotations
 
@@ -20,7 +21,8 @@ from app.services.lifecycle import drift
 from app.services.lifecycle.versions import check_if_match, get_live
 from app.services.robots.robots import get_robot
 from app.storage.models import Frame, Robot, new_id, utcnow
-from app.vendors.registry import vendor_maker
+from app.vendors.connector import FrameTarget
+from app.vendors.registry import vendor_frame_problem
 
 
 def get_frame(session: Session, frame_id: str) -> Frame:
@@ -43,13 +45,11 @@ def check_place(robot: Robot, *, slot: int | None, symbol: str | None) -> None:
     """422 at body.slot or body.controller_symbol when the robot's maker cannot name a frame
     by it (a number outside its frame numbers, a symbol not of its form); a maker naming
     frames by their values, or a vendor no maker is known by, keeps either."""
-    maker = vendor_maker(robot.vendor)
-    if maker is None:
-        return
-    for field, problem in (
-        ("slot", maker.frame_problem(slot, None)),
-        ("controller_symbol", maker.frame_problem(None, symbol)),
+    for field, target in (
+        ("slot", FrameTarget(slot=slot)),
+        ("controller_symbol", FrameTarget(symbol=symbol)),
     ):
+        problem = vendor_frame_problem(robot.vendor, target)
         if problem is not None:
             raise InvalidInput("out-of-range", problem, loc=("body", field))
 

@@ -76,5 +76,4 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(RWS1, RWS2),
-    frame_address=_FRAME_BY_SYMBOL,
 )

@@ -264,6 +264,12 @@ def _how(frames: list[FileFrame], names: list[str], routine: str) -> list[str]:
         "a stationary tool's tframe; robhold, ufprog, ufmec, tload and all other data stay",
         f"load it into the frames' task (Program Editor, Modules, Load Module), then run "
         f"{routine} once (PP to Routine): it assigns the values",
+        *(
+            f"{name} is declared here with tool0's load: set its tload to the load of the "
+            "gripper holding the work object"
+            for item, name in zip(frames, names, strict=True)
+            if item.data.fixed_tool and not item.data.controller_symbol
+        ),
     ]
 
 

@@ -69,5 +69,4 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(RMI,),
-    frame_address=_UFRAMES,
 )

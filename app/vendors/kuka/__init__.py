@@ -69,5 +69,4 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(KVP,),
-    frame_address=_BASES,
 )

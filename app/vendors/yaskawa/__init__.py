@@ -78,5 +78,4 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(HSES,),
-    frame_address=BySlot(FRAME_NUMBERS, "UFRAME.CND user frame {}"),
 )

@@ -651,6 +651,38 @@ def test_a_lease_rounds_overrun_is_said_of_the_fleet_with_advice_that_would_fix_
     assert "would not help" in words
 
 
+def test_a_fleet_rounds_overrun_is_counted_by_the_one_instance_that_reports(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Issue 50: every instance sees the fleet's overdue robots, and each counted and logged
+    the fleet's overrun (3 instances: tcpcal_watcher_rounds_overrun_total summed 3 for one
+    round); only the instance whose tick reports for the fleet says it now."""
+    import threading
+
+    from app.services.controllers import watcher as watching_module
+    from app.services.controllers.leases import Leases, Tick
+
+    ticks = [0]
+
+    def tick(self: Leases, reading: set[str], capacity: int, now: float) -> Tick:
+        ticks[0] += 1
+        return Tick(claimed=[], robots=12, due=4, overdue=4, watchers=3, reports=False)
+
+    monkeypatch.setattr(Leases, "tick", tick)
+    monkeypatch.setattr(Leases, "leave", lambda self: None)
+    watcher = watching_module.Watcher(0.2, concurrency=1)
+    loop = threading.Thread(target=watcher._lease_loop, daemon=True)
+    loop.start()
+    try:
+        wait_for(lambda: watcher.status.rounds >= 4, 5.0, "rounds")
+    finally:
+        watcher._stop.set()
+        loop.join(5)
+        watcher.stop()
+    assert watcher.status.overruns == 0
+    assert watcher.status.last_overrun is None
+
+
 def test_the_watcher_stops_within_a_second_while_a_controller_stalls(api: Api) -> None:
     """stop() returns within a second while a read waits on a stalled controller; that read
     ends at the controller's timeout (the rig's TIMEOUT_S) and stores nothing: no state of

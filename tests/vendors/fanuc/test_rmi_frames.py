@@ -13,7 +13,7 @@ from app.vendors.connector import ControllerRefused, Frame, FrameTarget
 from app.vendors.registry import connect
 from tests.controllers.fanuc_sim import FanucSimulator
 from tests.controllers.fixtures import fanuc_settings
-from tests.controllers.helpers import angle_between_deg, random_frame
+from tests.controllers.helpers import angle_between_deg, frame_number_refusal, random_frame
 from tests.polling import wait_for
 
 UFRAME_4 = FrameTarget(slot=4)
@@ -65,9 +65,10 @@ def test_a_frame_number_outside_1_to_9_never_reaches_the_wire(fanuc_sim: FanucSi
     with connect(fanuc_settings(fanuc_sim)) as fanuc:
         fanuc_sim.packets.clear()
         for slot in (0, 10, None):
-            with pytest.raises(ValueError, match=r"1-9|slot"):
+            refusal = frame_number_refusal(slot, "fanuc_rmi", (1, 9), "UFRAME[1..9]")
+            with pytest.raises(ValueError, match=refusal):
                 fanuc.write_frame(FrameTarget(slot=slot), random_frame(1))
-            with pytest.raises(ValueError, match=r"1-9|slot"):
+            with pytest.raises(ValueError, match=refusal):
                 fanuc.read_frame(FrameTarget(slot=slot))
         assert fanuc_sim.packets == []
 

@@ -19,7 +19,7 @@ from app.vendors.connector import (
 from app.vendors.registry import connect
 from tests.controllers import kuka_sim as kuka_sim_module
 from tests.controllers.fixtures import kuka_settings
-from tests.controllers.helpers import angle_between_deg, random_frame
+from tests.controllers.helpers import angle_between_deg, frame_number_refusal, random_frame
 from tests.controllers.kuka_sim import KukaSimulator
 
 BASE_3 = FrameTarget(kind="base", slot=3, name="Fixture A")
@@ -113,9 +113,10 @@ def test_a_frame_number_outside_1_to_32_is_refused_before_anything_is_sent(
 ) -> None:
     with connect(kuka_settings(kuka_sim)) as kuka:
         for slot in (0, 33, None):
-            with pytest.raises(ValueError, match=r"1-32|slot"):
+            refusal = frame_number_refusal(slot, "kuka_kvp", (1, 32), "BASE_DATA[1..32]")
+            with pytest.raises(ValueError, match=refusal):
                 kuka.write_frame(FrameTarget(slot=slot), random_frame(1))
-            with pytest.raises(ValueError, match=r"1-32|slot"):
+            with pytest.raises(ValueError, match=refusal):
                 kuka.read_frame(FrameTarget(slot=slot))
     assert kuka_sim.requests == []
 
