@@ -107,6 +107,7 @@ def _fleet_route(served: Served) -> None:
         served.subject.path,
         list_fleet,
         methods=["GET"],
+        name=side.operation,
         response_model=Page[row],  # type: ignore[valid-type]
         responses={200: {"content": {CSV: {"schema": {"type": "string"}}}}},
     )

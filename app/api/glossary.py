@@ -153,6 +153,7 @@ GLOSSARY: dict[str, str] = {
     "ActiveTcp.method": "the method that made the active version",
     "FrameCreate.kind": "base: a frame the robot's points are taught in; fixed_tool: a tool "
     "standing in the cell, its TCP in the base frame",
+    "FleetFrame.kind": "base (a frame points are taught in) or fixed_tool (a stationary TCP)",
     "RobotFrame.kind": "base (a frame points are taught in) or fixed_tool (a stationary TCP)",
     "FrameVersion.frame": "the frame in the robot's base frame: origin (mm) and unit "
     "quaternion [w, x, y, z]",

@@ -18,6 +18,8 @@ from app.schemas.common import (
     json_integer,
 )
 from app.schemas.controllers import ControllerSymbol
+from app.schemas.drift import FleetDrift
+from app.schemas.fleet import AttentionCode, FleetController, LastCalibration, LastCheck
 from app.schemas.frame_results import Fiducial, FramePointer, FrameQuality, FrameValue
 from app.schemas.frame_tolerance import FrameTolerance
 from app.schemas.tools import ActivationOut, ControllerText
@@ -160,3 +162,43 @@ class FiducialList(BaseModel):
         description="the calibration of the active version they were kept by (null: none)"
     )
     items: list[Fiducial]
+
+
+class FleetFrame(BaseModel):
+    """A frame as a fleet row (GET /v1/frames): every field the fleet fills for every subject
+    (app.services.lifecycle.fleet.FleetSide), and the frame's kind and slot."""
+
+    id: str
+    name: str
+    kind: StoredWord[FrameKind]
+    slot: int | None
+    robot_id: str
+    robot_name: str
+    cell: str | None
+    active_version: int | None
+    last_calibration: LastCalibration | None
+    last_check: LastCheck | None
+    position_mm: list[float] | None = Field(
+        default=None,
+        description="the active frame's origin (mm, base frame); null without an active version",
+    )
+    quaternion: list[float] | None = Field(
+        default=None,
+        description="the active frame's orientation [w, x, y, z]; null without an active version",
+    )
+    attention: list[AttentionCode] = Field(
+        default_factory=list,
+        description="why the frame needs attention, empty when all is well (the codes of a "
+        "tool's row that judge its versions and calibrations: active_out_of_tolerance, "
+        "last_calibration_out_of_tolerance, no_active_version, stale, drifting)",
+    )
+    controller: FleetController | None = Field(
+        default=None,
+        description="the frame's state in its robot's controller; null until frames are "
+        "deployed and reconciled",
+    )
+    drift: FleetDrift | None = Field(
+        default=None,
+        description="the frame's drift trend over its calibrated versions (docs/drift.md); "
+        "null until three points over a day",
+    )

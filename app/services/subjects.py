@@ -18,6 +18,7 @@ from pydantic import BaseModel
 from sqlalchemy.orm import Session
 
 from app.schemas.fleet import FleetTool
+from app.schemas.frames import FleetFrame
 from app.services.frames.subject import FRAME
 from app.services.frames.versions import served_frame
 from app.services.lifecycle.fleet import FleetSide
@@ -59,7 +60,12 @@ SERVED: tuple[Served, ...] = (
         FleetSide(FleetTool, "tcpcal-fleet.csv", ("slot",), (TOOL_LIVE,)),
         value_in="the flange frame",
     ),
-    Served(FRAME, _frame_document),
+    Served(
+        FRAME,
+        _frame_document,
+        FleetSide(FleetFrame, "tcpcal-frames.csv", ("kind", "slot"), operation="list_frame_fleet"),
+        value_in="the robot's base frame",
+    ),
 )
 #: Every calibrated subject, tools first.
 SUBJECTS: tuple[AnySubject, ...] = tuple(served.subject for served in SERVED)

@@ -198,3 +198,27 @@ def test_a_cell_key_calibrates_frames_of_its_cells_only(api: Api) -> None:
     refused = api.post(f"/v1/frames/{frame['id']}/calibrations", body, scope="c12")
     assert refused.status_code == 404
     assert api.get(f"/v1/frames/{frame['id']}/calibrations", scope="c12").status_code == 404
+
+
+def test_frames_are_fleet_rows_beside_tools(api: Api) -> None:
+    robot_id, fid, tool_id = _cell(api)
+    api.post(f"/v1/robots/{robot_id}/frames", {"name": "glue-nozzle", "kind": "fixed_tool"})
+    _calibrate(api, fid, _three_point(tool_id))
+    rows = api.get("/v1/frames").json()["items"]
+    assert [(r["name"], r["kind"], r["robot_name"]) for r in rows] == [
+        ("fixture-a", "base", "kr16"),
+        ("glue-nozzle", "fixed_tool", "kr16"),
+    ]
+    calibrated, bare = rows
+    assert (calibrated["active_version"], calibrated["attention"]) == (1, [])
+    assert calibrated["last_calibration"]["status"] == "accepted"
+    assert calibrated["position_mm"] == pytest.approx([1000.0, -200.0, 580.0], abs=1e-9)
+    assert (bare["active_version"], bare["attention"]) == (None, ["no_active_version"])
+    needing = api.get("/v1/frames", params={"attention": "true"}).json()["items"]
+    assert [r["name"] for r in needing] == ["glue-nozzle"]
+    csv = api.get("/v1/frames", headers={"Accept": "text/csv"})
+    assert csv.status_code == 200
+    assert csv.text.splitlines()[0].startswith("frame_id,frame,kind,slot,robot,cell")
+    assert len(csv.text.splitlines()) == 3
+    tools = api.get("/v1/tools").json()["items"]
+    assert [t["name"] for t in tools] == ["pointer"]  # frames are not tools' rows

@@ -48,9 +48,11 @@ class FleetSide:
     last_check, position_mm, quaternion, attention, controller, drift, each of `columns` and
     each part's field); `columns`, its own table's columns a row shows after its name (and
     the CSV after its name's cell); `parts`, what else it shows; `csv_file`, the name its
-    CSV is downloaded as."""
+    CSV is downloaded as; `operation`, its route's name (the OpenAPI operationId, one per
+    subject)."""
 
     row: type[BaseModel]
     csv_file: str
     columns: tuple[str, ...] = ()
     parts: tuple[RowPart, ...] = ()
+    operation: str = "list_fleet"
