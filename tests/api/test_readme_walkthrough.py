@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from testbed.sim.touches import simulate_touches
 from tests.api.controller_rigs import Rig, rig
@@ -37,6 +38,16 @@ POINT = np.array([900.0, 150.0, 320.0])
 #: The controller the README puts: a KRC's KUKAVARPROXY (replaced by the simulator's port).
 README_PORT = '"port": 7000'
 CAPTURE = '{"capture": true}'
+#: The fixture's base the frame session touches (robot base, mm): its origin, a point on its
+#: +X axis and one on its +Y side, each touched with the torch pointing down.
+FIXTURE_ORIGIN = np.array([1100.0, -300.0, 250.0])
+FIXTURE_TURN = Rotation.from_euler("z", 25, degrees=True)
+FIXTURE = {
+    "origin": FIXTURE_ORIGIN,
+    "x": FIXTURE_ORIGIN + FIXTURE_TURN.apply([400.0, 0.0, 0.0]),
+    "xy": FIXTURE_ORIGIN + FIXTURE_TURN.apply([50.0, 300.0, 0.0]),
+}
+DOWN = Rotation.from_euler("x", 180, degrees=True)
 
 
 @pytest.fixture
@@ -92,6 +103,9 @@ def _curl(api: Api, args: list[str], krc: Rig) -> Any:
         data = data.replace(README_PORT, f'"port": {krc.sim.port}')
     if data == CAPTURE:
         return _capture_each_touch(api, method, path, headers, krc)
+    role = json.loads(data).get("role") if data and '"capture": true' in data else None
+    if role is not None:  # the torch's tip jogged onto the fixture's point of that role
+        krc.sim.set_flange(tuple(FIXTURE[role] - DOWN.apply(TRUE_TCP)), DOWN.as_matrix())
     response = api.client.request(method, path, headers=headers, content=data)
     assert response.status_code < 400, response.text
     return response.json()
@@ -144,3 +158,7 @@ def test_readme_walkthrough(api: Api, krc: Rig) -> None:
     touches = api.get(f"/v1/calibrations/{captured['id']}").json()["touches"]
     assert [t["source"] for t in touches] == ["controller"] * 8
     assert np.linalg.norm(np.subtract(captured["tcp"]["position_mm"], TRUE_TCP)) <= 0.01
+    served = api.get(f"/v1/frames/{env['FRAME']}/frame").json()
+    assert np.linalg.norm(np.subtract(served["frame"]["position_mm"], FIXTURE_ORIGIN)) <= 0.01
+    turned = Rotation.from_quat(served["frame"]["quaternion"], scalar_first=True)
+    assert (turned * FIXTURE_TURN.inv()).magnitude() < np.radians(0.01)
