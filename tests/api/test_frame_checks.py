@@ -278,3 +278,31 @@ def test_the_frames_drift_trend_reads_its_checks(api: Api) -> None:
     assert isinstance(checks, dict)
     assert checks["n"] == 3
     assert checks["speed_mm_per_month"] == pytest.approx(0.3, rel=0.05)  # 0.1 mm / 10 days
+
+
+def test_the_fleet_says_check_failed_and_frequent_corrections_of_a_frame(api: Api) -> None:
+    """A frame moved beyond max_correction_mm is the fleet's check_failed until corrected; a
+    frame corrected by re-checks more than TCPCAL_CORRECTIONS_ALERT (3) times in 30 days is
+    its frequent_corrections, each count the lifecycle's check_correction activations."""
+    robot, pointer = cell(api)
+    frame = calibrated_frame(
+        api, robot["id"], "fixture-a", R_FIXTURE, O_FIXTURE, pointer_id=pointer["id"]
+    )
+
+    def attention() -> list[str]:
+        rows = api.get("/v1/frames").json()["items"]
+        return list(next(r for r in rows if r["id"] == frame["id"])["attention"])
+
+    far = O_FIXTURE + np.array([8.0, 0.0, 0.0])
+    body = {**touches(pointer["id"], R_FIXTURE, far), "correct": "within_limits"}
+    refused = api.post(f"/v1/frames/{frame['id']}/checks", body, scope="calibrate")
+    assert refused.json()["verdict"] == "needs_recalibration"
+    assert "check_failed" in attention()
+    origin = O_FIXTURE
+    for step in range(4):
+        origin = origin + np.array([1.0, 0.0, 0.0])
+        body = {**touches(pointer["id"], R_FIXTURE, origin, seed=step), "correct": "within_limits"}
+        done = api.post(f"/v1/frames/{frame['id']}/checks", body, scope="calibrate")
+        assert done.json()["verdict"] == "corrected", done.text
+        assert "check_failed" not in attention()
+        assert ("frequent_corrections" in attention()) == (step == 3)
