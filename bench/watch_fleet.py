@@ -87,6 +87,7 @@ VARIABLES = {
     "$BASE": "{FRAME: X 0.0, Y 0.0, Z 0.0, A 0.0, B 0.0, C 0.0}",
     "$ROBROOT_C": "{FRAME: X 0.0, Y 0.0, Z 0.0, A 0.0, B 0.0, C 0.0}",
     "$ACT_TOOL": "-1",
+    "$ACT_BASE": "-1",
     "$IPO_MODE": "#BASE",
 }
 
