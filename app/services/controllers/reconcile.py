@@ -36,7 +36,6 @@ from app.services.controllers.states import SEVERITY, Observation
 from app.services.lifecycle.subject import AnySubject, Held
 from app.services.robots.connection import get_controller, refusal_words, settings_of
 from app.services.robots.live_tool import LiveRead, live_tool_out, read_live, record_live
-from app.services.robots.robots import get_robot
 from app.services.subjects import SUBJECTS
 from app.storage.db import session_scope
 from app.storage.models import Robot, RobotController, utcnow
@@ -281,8 +280,7 @@ def reconcile_robot(
 def _read_round(robot_id: str, actor: Principal) -> RoundRead:
     """What to judge (read transaction), then the controller's values (no database)."""
     with transaction_for(actor, write=False) as session:
-        get_robot(session, robot_id)
-        controller = get_controller(session, robot_id)
+        controller = get_controller(session, robot_id)  # 404 for the robot, 409 for no controller
         settings = settings_of(controller)
         protocol = controller.protocol
         checks = [c for s in DEPLOYED for c in _to_check(session, s, robot_id, protocol)]

@@ -1,0 +1,37 @@
+"""Issue 50: what a reconcile round reads of the database before it talks to the controller
+(the read transaction every robot's round opens)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sqlalchemy import event
+
+from app.services.controllers import reconcile
+from app.services.controllers.watcher import WATCHER
+from app.storage.db import get_engine
+from tests.api.controller_rigs import rig
+from tests.api.test_deployments import _setup
+from tests.conftest import Api
+
+
+def test_a_rounds_read_transaction_reads_the_robot_once(api: Api) -> None:
+    """The robot's row is read once (by get_controller, which answers 404 for it): the round
+    read it a second time before, two of the read transaction's statements."""
+    with rig("kuka_kvp") as r:
+        robot_id = _setup(api, r)["robot"]["id"]
+        sent: list[str] = []
+
+        def record(*args: Any) -> None:
+            sent.append(str(args[2]))
+
+        engine = get_engine()
+        event.listen(engine, "before_cursor_execute", record)
+        try:
+            read = reconcile._read_round(robot_id, WATCHER)
+        finally:
+            event.remove(engine, "before_cursor_execute", record)
+    assert [c.subject_id for c in read.checks]  # the tool, and the controller read
+    assert read.live.error is None
+    from_robots = [sql for sql in sent if "\nFROM robots" in sql]
+    assert len(from_robots) == 1, from_robots
