@@ -552,8 +552,8 @@ def quaternion_wxyz_from_fanuc_wpr(wpr_deg: ArrayLike) -> FloatArray:
 
 
 def rotation_angle_deg(q_a: ArrayLike, q_b: ArrayLike) -> float:
-    """The angle in degrees of the rotation between two unit quaternions [w, x, y, z]."""
-    relative = Rotation.from_matrix(matrix_from_quaternion_wxyz(q_a)).inv() * Rotation.from_matrix(
-        matrix_from_quaternion_wxyz(q_b)
-    )
-    return float(np.degrees(relative.magnitude()))
+    """The angle in degrees of the rotation between two unit quaternions [w, x, y, z]. Both
+    made Rotations by one from_quat, not each from the matrix of its quaternion (every
+    reconcile round compares each tool's frame this way)."""
+    both = Rotation.from_quat(np.asarray([q_a, q_b], dtype=np.float64), scalar_first=True)
+    return float(np.degrees((both[0].inv() * both[1]).magnitude()))
