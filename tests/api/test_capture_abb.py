@@ -71,9 +71,12 @@ def _printed(sim: AbbRwsSimulator, query: dict[str, str] = FLANGE_QUERY) -> dict
     status, robtarget = sim.robtarget(sim.mechunit, query)
     assert status == 200, robtarget
     _, jointtarget = sim.jointtarget(sim.mechunit)
-    return {f"robtarget.{k}": v for k, v in _item(robtarget).items()} | {
-        f"jointtarget.{k}": v for k, v in _item(jointtarget).items()
-    }
+    return (
+        {f"robtarget.{k}": v for k, v in _item(robtarget).items()}
+        | {f"jointtarget.{k}": v for k, v in _item(jointtarget).items()}
+        # the work object the robot moves in (v1.4 "Frames at the controller")
+        | {"mechunit.wobj-name": sim.active_wobj}
+    )
 
 
 def _place(sim: AbbRwsSimulator, rotation: np.ndarray, position: np.ndarray) -> None:

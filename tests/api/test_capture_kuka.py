@@ -25,8 +25,11 @@ from tests.api.controller_rigs import Rig, kuka_rotation, rotation_of
 from tests.conftest import Api
 from tests.controllers.kuka_sim import KukaSimulator
 
-#: What a KUKA pose read prints (contract v1.3, "Touches straight from the controller").
-VARIABLES = ("$IPO_MODE", "$ACT_TOOL", "$TOOL", "$BASE", "$ROBROOT_C", "$POS_ACT", "$AXIS_ACT")
+#: What a KUKA pose read prints (contract v1.3, "Touches straight from the controller"), and
+#: the base selected, which names the frame the robot moves in (v1.4 "Frames at the controller").
+VARIABLES = (
+    "$IPO_MODE", "$ACT_TOOL", "$TOOL", "$ACT_BASE", "$BASE", "$ROBROOT_C", "$POS_ACT", "$AXIS_ACT"
+)  # fmt: skip
 #: What 32-bit REALs printed with nine digits leave of a flange 1-2 m from $BASE's origin.
 FLOAT32_MM, FLOAT32_DEG = 1e-3, 1e-3
 
