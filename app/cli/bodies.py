@@ -71,10 +71,16 @@ class MethodInfo(TypedDict):
     guided: bool
 
 
+class FrameMethodInfo(TypedDict):
+    name: str
+    kinds: list[str]
+
+
 class MethodList(TypedDict):
     """GET /v1/methods, the fields the CLI reads: each method's name and which one guides."""
 
     items: list[MethodInfo]
+    frame_methods: list[FrameMethodInfo]
 
 
 class Quality(TypedDict):
@@ -199,6 +205,7 @@ class Robot(TypedDict):
 
 class RobotFrame(TypedDict):
     id: str
+    robot_id: str
     name: str
     kind: str
     slot: int | None
@@ -211,6 +218,41 @@ class ActiveRobotFrame(TypedDict):
     frame: Frame
     method: str
     calibrated_at: str
+
+
+class FrameNext(TypedDict):
+    role: str | None
+    takes: str
+
+
+class FrameSessionTouch(TypedDict):
+    index: int
+    role: str | None
+    source: str
+    point_mm: list[float] | None
+
+
+class FrameSession(TypedDict):
+    id: str
+    n_touches: int
+    touches: list[FrameSessionTouch]
+    next_role: str | None
+    next: FrameNext | None
+    done: bool
+    messages: list[str]
+
+
+class FrameQuality(TypedDict):
+    position_sigma_mm: list[float] | None
+    angle_sigma_deg: list[float] | None
+
+
+class FrameCalibration(TypedDict):
+    version: int | None
+    status: str
+    frame: Frame
+    quality: FrameQuality
+    summary: str
 
 
 class AuditEvent(TypedDict):

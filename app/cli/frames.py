@@ -1,5 +1,6 @@
 """The frames a robot's points are taught in and the tools standing in its cell:
-`tcpcal frames [ROBOT]` lists a robot's frames, or the fleet's, each with its active origin.
+`tcpcal frames [ROBOT]` lists a robot's frames, or the fleet's, each with its active origin;
+`tcpcal calibrate-frame FRAME --pointer TOOL [--capture]` teaches one touch by touch.
 
 Talks to the server as the rest of the client does (app.cli.http); the exit codes are the
 client's (app.cli.client).
@@ -7,19 +8,43 @@ client's (app.cli.client).
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
-from app.cli.bodies import ActiveRobotFrame, Page, Robot, RobotFrame
+from app.cli.bodies import (
+    ActiveRobotFrame,
+    FrameCalibration,
+    FrameSession,
+    MethodList,
+    Page,
+    Robot,
+    RobotFrame,
+)
 from app.cli.client import fleet_robots, resolve_robot
-from app.cli.http import out, send
+from app.cli.guided import in_prompt_words, read_line, said
+from app.cli.http import (
+    EXIT_BAD_USE,
+    EXIT_OUT_OF_TOLERANCE,
+    err,
+    fail,
+    out,
+    refused,
+    request,
+    send,
+)
+from app.jsontypes import JsonObject
+
+if TYPE_CHECKING:
+    import httpx
 
 
 def register(cli: typer.Typer) -> None:
     """Add the frame commands to the `tcpcal` command."""
-    cli.command(rich_help_panel="Client (talks to a server)")(frames)
+    for command in (frames, calibrate_frame):
+        cli.command(rich_help_panel="Client (talks to a server)")(command)
 
 
 def frames(
@@ -71,3 +96,131 @@ def _cells(owner: Robot, frame: RobotFrame) -> list[str]:
         frame["name"], frame["kind"], place, owner["name"], active, origin, method, calibrated,
         frame["id"],
     ]  # fmt: skip
+
+
+def calibrate_frame(
+    frame_id: Annotated[
+        str, typer.Argument(metavar="FRAME", help="the frame's id (tcpcal frames)")
+    ],
+    pointer: Annotated[
+        str, typer.Option("--pointer", help="the tool the touches are made with (its id)")
+    ],
+    method: Annotated[
+        str | None,
+        typer.Option(help="a frame method that takes touches (default: GET /v1/methods' first)"),
+    ] = None,
+    fmt: Annotated[
+        str, typer.Option("--format", help="pose format (--capture: default the pendant's)")
+    ] = "",
+    capture: Annotated[
+        bool, typer.Option(help="Enter reads each touch from the robot's controller")
+    ] = False,
+    activate: Annotated[str, typer.Option(help="auto | always | never")] = "auto",
+    note: Annotated[str | None, typer.Option(help="why, for the frame's history")] = None,
+) -> None:
+    """Teach a frame touch by touch (a guided frame session): the role each touch takes is the
+    one the server names next, with how far it must be; Enter captures (--capture), a line
+    of numbers is a typed pose, 'd N' drops touch N, 'f' finishes, 'q' leaves it open. Exit
+    0 stored and accepted, 3 stored out of tolerance, 4 refused, 5 not found."""
+    frame: RobotFrame = send("GET", f"/v1/frames/{frame_id}").json()
+    if not fmt:
+        controller = request("GET", f"/v1/robots/{frame['robot_id']}/controller")
+        fmt = controller.json().get("pose_format", "") if controller.status_code == 200 else ""
+        if not fmt:
+            fail(EXIT_BAD_USE, "give --format, the pendant's pose format (e.g. kuka_abc)")
+    if method is None:
+        listed: MethodList = send("GET", "/v1/methods").json()
+        method = next(m["name"] for m in listed["frame_methods"] if frame["kind"] in m["kinds"])
+    body: JsonObject = {"method": method, "tool_id": pointer, "format": fmt}
+    state: FrameSession = send("POST", f"/v1/frames/{frame_id}/sessions", json=body).json()
+    how = "Enter captures, " if capture else ""
+    err.print(
+        f"frame session {state['id']} ({fmt}): {how}a line of numbers is a typed pose, "
+        "'d N' drops touch N, 'f' finishes, 'q' leaves it open",
+        highlight=False,
+    )
+    _print_frame_session(state)
+    finish: JsonObject = {"activate": activate, **({"note": note} if note else {})}
+    while (line := read_line(f"touch {state['n_touches'] + 1}> ")) is not None:
+        command = line.strip().lower()
+        if command == "q":
+            err.print(f"left open: session {state['id']}", highlight=False)
+            raise typer.Exit(0)
+        if command == "f":
+            response = request("POST", f"/v1/sessions/{state['id']}/finish", json=finish)
+            if response.status_code in (409, 422):
+                err.print(f"[red]not finished[/]: {said(response)}", highlight=False)
+                continue
+            _print_frame_calibration(response)
+        changed = _frame_answer(state, line, capture)
+        if changed is not None:
+            state = changed
+            _print_frame_session(state)
+    response = request("POST", f"/v1/sessions/{state['id']}/finish", json=finish)
+    _print_frame_calibration(response)
+
+
+def _frame_answer(state: FrameSession, line: str, capture: bool) -> FrameSession | None:
+    """The session after one line, or None when the line changed nothing (said why)."""
+    text = line.strip()
+    words = text.lower().split()
+    if words[:1] == ["d"] and len(words) == 2 and words[1].isdigit() and int(words[1]) >= 1:
+        response = request("DELETE", f"/v1/sessions/{state['id']}/poses/{int(words[1]) - 1}")
+    else:
+        touch: JsonObject = {}
+        if not text:
+            if not capture:
+                return None
+            touch["capture"] = True
+        else:
+            try:
+                touch["pose"] = [float(v) for v in text.replace(",", " ").split()]
+            except ValueError:
+                err.print(f"[red]not a pose[/]: {escape(repr(text))}", highlight=False)
+                return None
+        told = state["next"]
+        if told is not None and told["role"] is not None:
+            touch["role"] = told["role"]
+        response = request("POST", f"/v1/sessions/{state['id']}/poses", json=touch)
+    if response.status_code in (404, 409, 422, 502):
+        err.print(f"[red]touch refused[/]: {said(response)}", highlight=False)
+        return None
+    if response.status_code >= 400:
+        refused(response)
+    changed: FrameSession = response.json()
+    return changed
+
+
+def _print_frame_session(state: FrameSession) -> None:
+    """The touches with their role, source and point; the frame so far; the next touch."""
+    for touch in state["touches"]:
+        point = touch["point_mm"]
+        at = " ".join(f"{v:.3f}" for v in point) if point else "-"
+        out.print(
+            f"  {touch['index'] + 1:>2}  {touch['role'] or '':<8} {touch['source']:<10} {at}",
+            highlight=False,
+        )
+    for message in state["messages"]:
+        out.print(f"  {in_prompt_words(message)}", highlight=False)
+    if state["done"]:
+        err.print("[green]done[/]: type 'f' to store it")
+
+
+def _print_frame_calibration(response: httpx.Response) -> None:
+    """The stored frame, its sigmas and summary; exit 0 accepted, 3 out of tolerance."""
+    if response.status_code >= 400:
+        refused(response)
+    cal: FrameCalibration = response.json()
+    x, y, z = cal["frame"]["position_mm"]
+    out.print(f"frame v{cal['version']} {cal['status']}: origin {x:.3f} {y:.3f} {z:.3f} mm, "
+              f"quaternion {' '.join(f'{q:.6f}' for q in cal['frame']['quaternion'])}",
+              highlight=False)  # fmt: skip
+    quality = cal["quality"]
+    if quality["position_sigma_mm"] and quality["angle_sigma_deg"]:
+        ps = " ".join(f"{v:.3f}" for v in quality["position_sigma_mm"])
+        ags = " ".join(f"{v:.4f}" for v in quality["angle_sigma_deg"])
+        out.print(f"  1-sigma: position {ps} mm, angle {ags} deg", highlight=False)
+    out.print(f"  {cal['summary']}", highlight=False)
+    if cal["status"] != "accepted":
+        raise typer.Exit(EXIT_OUT_OF_TOLERANCE)
+    raise typer.Exit(0)

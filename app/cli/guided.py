@@ -237,6 +237,11 @@ def _prompt(state: Session, capture: bool) -> str:
     return f"touch {touch} (Enter captures)> " if capture else f"touch {touch}> "
 
 
+def read_line(prompt: str) -> str | None:
+    """The next line of stdin, asked for with `prompt` (another guided command's prompt)."""
+    return _read_line(prompt)
+
+
 def _read_line(prompt: str) -> str | None:
     """The next line of stdin, asked for with `prompt` (on stderr, so that stdout is the
     session's record); None at its end."""
@@ -287,7 +292,7 @@ def _drop(state: Session, args: list[str]) -> Session | None:
         return None
     response = request("DELETE", f"/v1/sessions/{state['id']}/poses/{number - 1}")
     if response.status_code in (404, 422):
-        err.print(f"[red]no touch {number}[/]: {_said(response)}", highlight=False)
+        err.print(f"[red]no touch {number}[/]: {said(response)}", highlight=False)
         return None
     return _body(response)
 
@@ -297,10 +302,10 @@ def _touch(state: Session, body: JsonObject) -> Session | None:
     response = request("POST", f"/v1/sessions/{state['id']}/poses", json=body)
     kind = _kind(response)
     if kind in _TOUCH_PROBLEMS:
-        err.print(f"[red]{_TOUCH_PROBLEMS[kind]}[/]: {_said(response)}", highlight=False)
+        err.print(f"[red]{_TOUCH_PROBLEMS[kind]}[/]: {said(response)}", highlight=False)
         return None
     if response.status_code == 422:
-        err.print(f"[red]touch refused[/]: {_said(response)}", highlight=False)
+        err.print(f"[red]touch refused[/]: {said(response)}", highlight=False)
         return None
     return _body(response)
 
@@ -311,7 +316,7 @@ def _finish(state: Session, body: JsonObject, *, strict: bool) -> Calibration | 
     response = request("POST", f"/v1/sessions/{state['id']}/finish", json=body)
     if not strict and response.status_code in (409, 422):
         err.print(
-            f"[red]not finished[/]: {_said(response)}; touch more, or 'q' leaves it open",
+            f"[red]not finished[/]: {said(response)}; touch more, or 'q' leaves it open",
             highlight=False,
         )
         return None
@@ -326,14 +331,14 @@ def _finish(state: Session, body: JsonObject, *, strict: bool) -> Calibration | 
 _HTTP_CALL = re.compile(r" ?\((?:GET|POST|PUT|PATCH|DELETE) /?[^)]*\)")
 
 
-def _in_prompt_words(sentence: str) -> str:
+def in_prompt_words(sentence: str) -> str:
     """A server's sentence without the HTTP calls it names for an API client, markup-safe."""
     return escape(_HTTP_CALL.sub("", sentence))
 
 
-def _said(response: httpx.Response) -> str:
+def said(response: httpx.Response) -> str:
     """What the server said of a refusal, in the prompt's words."""
-    return _in_prompt_words(str(problem(response).get("detail")))
+    return in_prompt_words(str(problem(response).get("detail")))
 
 
 def _body(response: httpx.Response) -> Session:
@@ -396,7 +401,7 @@ def _messages(state: Session) -> list[str]:
     for message in state["messages"]:
         index = next((i for head, i in misses.items() if message.startswith(head)), None)
         if index is None or index >= len(residuals):
-            said.append(_in_prompt_words(message))
+            said.append(in_prompt_words(message))
             continue
         n = index + 1
         said.append(
