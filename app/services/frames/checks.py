@@ -27,7 +27,6 @@ from sqlalchemy.orm import Session
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput, located_in
-from app.helpers.tolerance import effective_tolerance
 from app.jsontypes import JsonObject
 from app.schemas.frame_checks import (
     FiducialDeviation,
@@ -38,11 +37,12 @@ from app.schemas.frame_checks import (
     FrameShift,
 )
 from app.schemas.frame_results import FramePointer
-from app.schemas.tools import Tolerance
+from app.schemas.frame_tolerance import FrameTolerance
 from app.security.auth import Principal, transaction_for
 from app.services import idempotency
 from app.services.audit import writes as audit
 from app.services.frames.fiducials import list_fiducials
+from app.services.frames.frames import frame_tolerance
 from app.services.frames.moves import Pose, correct_frame, correct_robot, shift_details
 from app.services.frames.subject import FRAME
 from app.services.lifecycle import drift
@@ -177,7 +177,7 @@ def _pointer(
     return tool, frame.position_mm, np.asarray(cov, dtype=np.float64), frame.version
 
 
-def far_mm(tolerance: Tolerance) -> float:
+def far_mm(tolerance: FrameTolerance) -> float:
     """How far from its stored place a touch may be and still be the fiducial it names."""
     return FAR_FACTOR * tolerance.max_correction_mm + FAR_MARGIN_MM
 
@@ -195,7 +195,7 @@ class _Measured:
     stored_mm: FloatArray
     shift: Shift
     pointer: FramePointer
-    limits: Tolerance
+    limits: FrameTolerance
 
     @property
     def worst(self) -> int:
@@ -216,7 +216,7 @@ def _measure(session: Session, *, frame_id: str, data: FrameCheckCreate) -> _Mea
     pose = Pose.of(active.position_mm, active.quaternion)
     fiducials = stored_fiducials(session, frame_id)
     tool, tcp_mm, tcp_cov, tcp_version = _pointer(session, data.tool_id, robot.id)
-    limits = effective_tolerance(frame.tolerance)
+    limits = frame_tolerance(frame.tolerance)
     stored_base = fiducials.nominal_mm @ pose.rotation.T + pose.origin_mm
     names = [t.fiducial for t in data.touches]
     with located_in("body"):
@@ -318,7 +318,9 @@ def _document(
     )
 
 
-def _verdict(largest_mm: float, limits: Tolerance, data: FrameCheckCreate) -> FrameCheckVerdict:
+def _verdict(
+    largest_mm: float, limits: FrameTolerance, data: FrameCheckCreate
+) -> FrameCheckVerdict:
     """Judged at the fiducials: within check_mm it holds; past it, corrected when asked and
     none is past max_correction_mm; else it needs recalibrating (nothing changes)."""
     if largest_mm <= limits.check_mm:
@@ -406,7 +408,7 @@ def _differs_from(
     frame: Frame,
     shift: Shift,
     stored_mm: FloatArray,
-    limits: Tolerance,
+    limits: FrameTolerance,
 ) -> list[str]:
     """Other frames of the robot checked within the hour whose shift would move this frame's
     fiducials more than check_mm away from where this shift moves them."""
