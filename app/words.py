@@ -191,6 +191,7 @@ AuditAction = Literal[
     "frame.archive",
     "frame.fiducials",
     "frame.check",
+    "frame.deploy",
     "version.create",
     "version.activate",
     "version.rollback",

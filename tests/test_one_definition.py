@@ -175,6 +175,16 @@ WORD_COLUMNS: dict[
         ToolState,
         [(controllers.ReconciledTool, "state"), (fleet.FleetController, "state")],
     ),
+    (models.FrameControllerState, "state"): (ToolState, [(controllers.ReconciledFrame, "state")]),
+    (models.FrameDeployment, "protocol"): (
+        ProtocolName,
+        [(controllers.FrameDeployment, "protocol")],
+    ),
+    (models.FrameDeployment, "status"): (
+        DeploymentStatus,
+        [(controllers.FrameDeployment, "status")],
+    ),
+    (models.FrameDeployment, "scope"): (DeploymentScope, [(controllers.FrameDeployment, "scope")]),
 }
 
 #: Words stored inside a JSON column, and the document field that serves them.
@@ -237,6 +247,7 @@ FREE_TEXT: dict[tuple[str, str], str] = {
             ("activations", "activated_by"),
             ("audit_events", "actor"),
             ("deployments", "actor"),
+            ("frame_deployments", "actor"),
         ),
         "the name of the API key (or cli:<user>) that acted",
     ),
@@ -254,6 +265,7 @@ FREE_TEXT: dict[tuple[str, str], str] = {
             ("tcp_versions", "note"),
             ("activations", "reason_text"),
             ("deployments", "reason"),
+            ("frame_deployments", "reason"),
         ),
         "a person's own words",
     ),
@@ -270,6 +282,9 @@ FREE_TEXT: dict[tuple[str, str], str] = {
     ("deployments", "target"): "where in the controller: $TOOL_DATA[3], UTOOL[3], a symbol",
     ("tool_controller_states", "target"): "where in the controller",
     ("tool_controller_states", "error"): "what went wrong, in a sentence",
+    ("frame_deployments", "target"): "where in the controller: BASE_DATA[3], UFRAME[3], a symbol",
+    ("frame_controller_states", "target"): "where in the controller",
+    ("frame_controller_states", "error"): "what went wrong, in a sentence",
     ("robot_live_tools", "error"): "what went wrong, in a sentence",
     ("watch_leases", "holder"): "an instance's name: host:pid:random",
     ("watchers", "holder"): "an instance's name: host:pid:random",

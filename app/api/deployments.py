@@ -18,6 +18,7 @@ from app.api.shared import page, raw_json_body
 from app.schemas.common import Page
 from app.schemas.controllers import DeploymentIn
 from app.services.controllers import deployments
+from app.services.frames.subject import FRAME
 from app.services.lifecycle.subject import AnySubject
 from app.services.tools.subject import TOOL
 
@@ -43,6 +44,8 @@ class Words:
     deploy: str
     list_name: str
     list: str
+    #: the deploy route's failures beside its 502
+    failures: tuple[tuple[int, str], ...] = ()
 
 
 def _with_id(endpoint: Endpoint, key: str, name: str, doc: str) -> Endpoint:
@@ -107,7 +110,7 @@ def deployments_router(subject: AnySubject, words: Words) -> APIRouter:
         methods=["POST"],
         status_code=201,
         response_model=schema,
-        responses=_FAILURES,
+        responses={**_FAILURES, **{code: {"description": d} for code, d in words.failures}},
     )
     router.add_api_route(
         path,
@@ -143,5 +146,30 @@ TOOL_WORDS = Words(
     before and read back, and the reason given.""",
 )
 
+FRAME_WORDS = Words(
+    deploy_name="deploy_frame",
+    deploy="""Write the frame's active version (a pose in the robot's base frame: a base, or a fixed
+    tool) into its robot's controller, read it back and compare (within 0.001 mm and 0.001 deg:
+    `verified`, with what the controller held before as `previous`), as a tool's deployment:
+    every attempt is recorded; a failed one answers 502 with its `deployment_id` and
+    `deployment_status` (not_written, unverified, mismatch). 501 `/no-frame-writer` where no
+    remote interface of the controller writes a frame, with its `reason` and
+    the `file` to load by hand (nothing is sent). 409 `/no-active-version`; 422 naming the
+    frame's `slot` or `controller_symbol` when the controller cannot address it. Calibrate
+    scope; retry-safe with `Idempotency-Key`.""",
+    failures=(
+        (
+            501,
+            "no remote interface of the controller writes a frame (`/no-frame-writer`): "
+            "`reason` says why and `file` names the file to load by hand; nothing was sent",
+        ),
+    ),
+    list_name="list_frame_deployments",
+    list="""A frame's deployments, newest first: verified, not_written, unverified (with what the
+    next reconcile round found, `settled`) or mismatch, each with what the controller held
+    before and read back, and the reason given.""",
+)
+
 router = APIRouter()
 router.include_router(deployments_router(TOOL, TOOL_WORDS))
+router.include_router(deployments_router(FRAME, FRAME_WORDS))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, get_args
 
-from pydantic import BaseModel, BeforeValidator, Field, JsonValue, SecretStr
+from pydantic import BaseModel, BeforeValidator, Field, JsonValue, SecretStr, create_model
 
 from app.schemas.common import Reason, ShortText, StoredWord, StrictModel, Timestamp, json_integer
 from app.vendors.abb.symbol import SYMBOL_PATTERN
@@ -209,6 +209,18 @@ class Deployment(BaseModel):
     created_at: Timestamp
 
 
+#: A frame's deployment (POST /v1/frames/{frame_id}/deployments): a tool's `Deployment`, field
+#: for field, the frame named by `frame_id`; `previous`, `read_back` and `settled` hold poses in
+#: the robot's base frame.
+FrameDeployment: type[BaseModel] = create_model(
+    "FrameDeployment",
+    **{  # type: ignore[call-overload]
+        ("frame_id" if name == "tool_id" else name): (field.annotation, field)
+        for name, field in Deployment.model_fields.items()
+    },
+)
+
+
 class DeploymentIn(StrictModel):
     """Deploys the tool's active version (and its load); optionally says why."""
 
@@ -244,6 +256,32 @@ class NotAddressable(BaseModel):
     reason: str = Field(description="which field to set so the controller can address it")
 
 
+class ReconciledFrame(BaseModel):
+    frame_id: str
+    target: str | None = Field(description="where the frame lives in the controller")
+    state: ToolState = Field(
+        description="in_sync | drifted | no_active_version | unreachable | not_live (a robot "
+        "whose controller holds one live frame, a `live` scope: another frame was deployed "
+        "to it last, and only that one is judged)"
+    )
+    controller: Frame | None = Field(
+        description="what the controller holds, in the robot's base frame; null if unread"
+    )
+    active: ActiveFrame | None = Field(description="the active version; null without one")
+    deviation_mm: float | None = Field(description="controller vs active: distance, mm")
+    deviation_deg: float | None = Field(description="controller vs active: angle, deg")
+    since: Timestamp = Field(description="when the frame first entered its present state")
+    error: str | None = Field(default=None, description="why the controller could not be read")
+
+
+class FrameNotAddressable(BaseModel):
+    frame_id: str
+    reason: str = Field(
+        description="which field to set so the controller can address it, or why no remote "
+        "interface of the controller reads it"
+    )
+
+
 class Reconciliation(BaseModel):
     robot_id: str
     checked_at: Timestamp
@@ -262,6 +300,16 @@ class Reconciliation(BaseModel):
     not_addressable: list[NotAddressable] = Field(
         default_factory=list,
         description="live tools left out: no slot or controller_symbol this protocol can use",
+    )
+    frames: list[ReconciledFrame] = Field(
+        default_factory=list,
+        description="every live frame the controller addresses, read in the same round and "
+        "connection as the tools",
+    )
+    frames_not_addressable: list[FrameNotAddressable] = Field(
+        default_factory=list,
+        description="live frames left out: no slot or controller_symbol this protocol can "
+        "use, or a controller no remote interface of which reads frames",
     )
     live_tool: LiveToolOut | None = Field(
         default=None,

@@ -578,18 +578,12 @@ class RobotController(Base):
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
 
 
-class Deployment(Base):
-    """One attempt to write a tool's active version into its controller, verified or not."""
-
-    __tablename__ = "deployments"
-    __table_args__ = (
-        Index("ix_deployments_tool_seq", "tool_id", "id"),
-        # a live-TCP robot's last deployment (app.services.controllers.reconcile.live_scope)
-        Index("ix_deployments_robot_seq", "robot_id", "id"),
-    )
+class DeploymentColumns:
+    """A deployment's columns, for every subject's deployments table alike (the one shape
+    app.services.controllers reads: tests/services/lifecycle/test_subject.py); each table adds
+    the column naming its subject."""
 
     id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
-    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
     robot_id: Mapped[str] = mapped_column(String(36))
     version: Mapped[int] = mapped_column(Integer)
     protocol: Mapped[ProtocolName] = mapped_column(String(20))
@@ -611,12 +605,10 @@ class Deployment(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
 
 
-class ToolControllerState(Base):
-    """What the last reconcile found in the controller for a tool, and since when."""
+class StateColumns:
+    """A controller state's columns, for every subject's states table alike (the subject's
+    key, its primary key, is the table's own)."""
 
-    __tablename__ = "tool_controller_states"
-
-    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"), primary_key=True)
     robot_id: Mapped[str] = mapped_column(String(36), index=True)
     state: Mapped[ToolState] = mapped_column(String(20))
     since: Mapped[datetime] = mapped_column()
@@ -627,6 +619,47 @@ class ToolControllerState(Base):
     controller: Mapped[JsonObject | None] = mapped_column(JSON)
     active_version: Mapped[int | None] = mapped_column(Integer)
     error: Mapped[str | None] = mapped_column(Text)
+
+
+class Deployment(DeploymentColumns, Base):
+    """One attempt to write a tool's active version into its controller, verified or not."""
+
+    __tablename__ = "deployments"
+    __table_args__ = (
+        Index("ix_deployments_tool_seq", "tool_id", "id"),
+        # a live-TCP robot's last deployment (app.services.controllers.reconcile.live_scope)
+        Index("ix_deployments_robot_seq", "robot_id", "id"),
+    )
+
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
+
+
+class ToolControllerState(StateColumns, Base):
+    """What the last reconcile found in the controller for a tool, and since when."""
+
+    __tablename__ = "tool_controller_states"
+
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"), primary_key=True)
+
+
+class FrameDeployment(DeploymentColumns, Base):
+    """One attempt to write a frame's active version into its controller, verified or not."""
+
+    __tablename__ = "frame_deployments"
+    __table_args__ = (
+        Index("ix_frame_deployments_frame_seq", "frame_id", "id"),
+        Index("ix_frame_deployments_robot_seq", "robot_id", "id"),
+    )
+
+    frame_id: Mapped[str] = mapped_column(ForeignKey("frames.id"))
+
+
+class FrameControllerState(StateColumns, Base):
+    """What the last reconcile found in the controller for a frame, and since when."""
+
+    __tablename__ = "frame_controller_states"
+
+    frame_id: Mapped[str] = mapped_column(ForeignKey("frames.id"), primary_key=True)
 
 
 class RobotLiveTool(Base):

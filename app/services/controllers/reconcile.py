@@ -45,6 +45,7 @@ from app.vendors.connector import (
     ControllerRefused,
     ControllerSettings,
     ControllerUnreachable,
+    FrameWriterMissing,
 )
 from app.vendors.registry import connect, scope_of
 from app.vendors.registry import where as controller_address
@@ -76,10 +77,13 @@ class ToCheck:
 
 @dataclass(frozen=True)
 class Reading:
-    """What the controller held for a subject, or why it could not be read."""
+    """What the controller held for a subject, or why it could not be read; `unread`: no
+    remote interface of the controller reads it (left out of the round, as one it cannot
+    address, with `error` saying why)."""
 
     data: Held | None
     error: str | None
+    unread: bool = False
 
 
 #: Every subject reconciled with a controller, tools first.
@@ -152,6 +156,8 @@ def read_controller(
 def _read_one(conn: Connector, check: ToCheck, robot_id: str) -> Reading:
     try:
         return Reading(side_of(check.subject).read(conn, check.target), None)
+    except FrameWriterMissing as exc:
+        return Reading(None, f"{exc.reason}; load {exc.file} by hand", unread=True)
     except ControllerRefused as exc:
         return Reading(None, f"refused: {refusal_words(exc, robot_id)}")
 
@@ -306,9 +312,9 @@ class _Stored:
     checked_at: datetime
     entered: list[ToolState]
     found: list[ToolState]
-    #: each subject's answers by its plural ("tools")
+    #: each subject's answers by its plural ("tools"), and those left out by its
+    #: `unaddressed` key ("not_addressable")
     answers: dict[str, list[dict[str, object]]]
-    skipped: list[dict[str, object]]
     matches: list[LiveToolMatch]
 
 
@@ -371,7 +377,8 @@ def _write_round(session: Session, read: RoundRead, actor: Principal, *, final: 
     live-scope robot's live one while the round read, unless `final`."""
     robot_id = read.robot_id
     checked_at = utcnow()
-    stored = _Stored(checked_at, [], [], {s.plural: [] for s in DEPLOYED}, [], [])
+    lists = [key for s in DEPLOYED for key in (s.plural, side_of(s).unaddressed)]
+    stored = _Stored(checked_at, [], [], {key: [] for key in lists}, [])
     # first: it locks the robot's row before the subjects' (the order every writer keeps),
     # and the round's states and live tool commit together
     live = read.live
@@ -380,8 +387,10 @@ def _write_round(session: Session, read: RoundRead, actor: Principal, *, final: 
         raise _DeployedMeanwhile  # rolls the round back
     for check in read.checks:
         subject = check.subject
-        if check.target is None:
-            stored.skipped.append({subject.key: check.subject_id, "reason": check.problem})
+        reason = _left_out(check, read)
+        if reason is not None:
+            left_out: dict[str, object] = {subject.key: check.subject_id, "reason": reason}
+            stored.answers[side_of(subject).unaddressed].append(left_out)
             continue
         seen = _seen(robot_id, check, read)
         row, changed = controller_states.observe(session, seen, at=checked_at, actor=actor)
@@ -407,11 +416,19 @@ def _answer(read: RoundRead, stored: _Stored, trigger: str) -> Reconciliation:
             "state": robot_state,
             "scope": read.scope,
             **stored.answers,
-            "not_addressable": stored.skipped,
             "live_tool": None if live.tool is None else live_tool_out(live.tool, stored.matches),
             "live_tool_error": live.error,
         }
     )
+
+
+def _left_out(check: ToCheck, read: RoundRead) -> str | None:
+    """Why the round leaves the subject out: it has no place in the controller, or no
+    remote interface of the controller reads it; None when it is judged or not live."""
+    if check.target is None:
+        return check.problem
+    reading = read.readings.get(check.ref)
+    return reading.error if reading is not None and reading.unread else None
 
 
 def _seen(robot_id: str, check: ToCheck, read: RoundRead) -> Observation:

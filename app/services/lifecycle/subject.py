@@ -148,6 +148,8 @@ class ControllerSide(Generic[TargetT, HeldT]):
     - `deploy_action`: the audit action of a deployment;
     - `deployment_schema`: a deployment as served (its routes' schema, the subject named by
       its key); `reconciled_schema`: the subject as a reconcile answers it;
+    - `unaddressed`: the key its reconcile answer lists those it left out under
+      ("not_addressable");
     - `moved_by`: the robot moves by the one of its kind a `live` scope deployment writes
       (a tool's TCP): that deployment tells the robot's live one
       (app.services.robots.live_tool).
@@ -164,6 +166,7 @@ class ControllerSide(Generic[TargetT, HeldT]):
     deploy_action: AuditAction
     deployment_schema: type[BaseModel]
     reconciled_schema: type[BaseModel]
+    unaddressed: str = "not_addressable"
     moved_by: bool = False
 
 
