@@ -388,11 +388,15 @@ def summary(result: FrameCheck, m: _Measured, *, deploying: bool) -> str:
                 f"{points} reference point{'s' if points != 1 else ''} corrected by the same "
                 "shift"
             )
-        if deploying:
+        if deploying and FRAME.controller is None:
             said += (
-                "; not deployed: frames are not yet written to controllers by tcpcal "
-                "(POST /v1/frames/{frame_id}/deployments is to come): load the frame's file "
-                "(GET /v1/frames/{frame_id}/frame, Accept: text/plain)"
+                "; not deployed: frames are not yet written to controllers by tcpcal: load "
+                "the frame's file (GET /v1/frames/{frame_id}/frame, Accept: text/plain)"
+            )
+        elif deploying:
+            said += (
+                "; not deployed: a re-check does not deploy yet: deploy the new version "
+                "(POST /v1/frames/{frame_id}/deployments)"
             )
     if result.differs_from:
         said += (
