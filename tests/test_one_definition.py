@@ -286,6 +286,7 @@ FREE_TEXT: dict[tuple[str, str], str] = {
     ("frame_controller_states", "target"): "where in the controller",
     ("frame_controller_states", "error"): "what went wrong, in a sentence",
     ("robot_live_tools", "error"): "what went wrong, in a sentence",
+    ("robot_live_frames", "name"): "a frame's name as its controller keeps it",
     ("watch_leases", "holder"): "an instance's name: host:pid:random",
     ("watchers", "holder"): "an instance's name: host:pid:random",
 }

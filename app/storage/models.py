@@ -682,6 +682,26 @@ class RobotLiveTool(Base):
     flange: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
 
 
+class RobotLiveFrame(Base):
+    """The frame a robot moved in when the last reconcile round read it (contract v1.4,
+    "Frames at the controller": its number, name and value where the controller says, the
+    connector's LiveFrame), beside its live tool (robot_live_tools), and the version of one
+    of its frames that equals it (`frame_id`, `version`; none: an unknown frame). `read` is
+    False when the controller did not say or the read failed."""
+
+    __tablename__ = "robot_live_frames"
+
+    robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"), primary_key=True)
+    read: Mapped[bool] = mapped_column(Boolean)
+    number: Mapped[int | None] = mapped_column(Integer)
+    name: Mapped[str | None] = mapped_column(Text)
+    frame: Mapped[JsonObject | None] = mapped_column(JSON)
+    frame_id: Mapped[str | None] = mapped_column(String(36))
+    version: Mapped[int | None] = mapped_column(Integer)
+    since: Mapped[datetime] = mapped_column()
+    checked_at: Mapped[datetime] = mapped_column()
+
+
 class WatchLease(Base):
     """Which instance reads a robot's controller this round (PostgreSQL, several instances
     sharing the watcher: app.services.controllers.leases). A robot is claimed when `due_at`

@@ -35,6 +35,7 @@ from app.services.controllers.deployments import side_of
 from app.services.controllers.states import SEVERITY, Observation
 from app.services.lifecycle.subject import AnySubject, Held
 from app.services.robots.connection import get_controller, refusal_words, settings_of
+from app.services.robots.live_frame import record_live_frame
 from app.services.robots.live_tool import LiveRead, live_tool_out, read_live, record_live
 from app.services.subjects import SUBJECTS
 from app.storage.db import session_scope
@@ -383,6 +384,7 @@ def _write_round(session: Session, read: RoundRead, actor: Principal, *, final: 
     # and the round's states and live tool commit together
     live = read.live
     stored.matches = record_live(session, robot_id=robot_id, live=live, at=checked_at, actor=actor)
+    record_live_frame(session, robot_id=robot_id, live=live.frame, at=checked_at)
     if not final and read.live_scopes != _live_scopes(session, robot_id, read.protocol):
         raise _DeployedMeanwhile  # rolls the round back
     for check in read.checks:

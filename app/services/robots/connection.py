@@ -20,6 +20,7 @@ from app.security import secretbox
 from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.robots import live_tool
+from app.services.robots.live_frame import forget_live_frame
 from app.services.robots.robots import get_robot
 from app.storage.models import Robot, RobotController, Tool, ToolControllerState, utcnow
 from app.vendors.connector import (
@@ -265,6 +266,7 @@ def delete_controller(session: Session, *, robot_id: str, actor: Principal) -> N
     # Without a controller nothing is known of what it holds: the fleet stops saying so.
     session.execute(delete(ToolControllerState).where(ToolControllerState.robot_id == robot_id))
     live_tool.forget_live(session, robot_id)
+    forget_live_frame(session, robot_id)
     audit.record(
         session,
         actor=actor,

@@ -25,7 +25,15 @@ from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.storage.db import DriverWrite, HeldRead
 from app.storage.models import Robot, RobotLiveMatch, RobotLiveTool, TcpVersion, Tool, table_of
-from app.vendors.connector import Connector, ControllerError, ControllerRefused, Frame, LiveTool
+from app.vendors.connector import (
+    UNREAD_FRAME,
+    Connector,
+    ControllerError,
+    ControllerRefused,
+    Frame,
+    LiveFrame,
+    LiveTool,
+)
 
 _LIVE = table_of(RobotLiveTool)
 _MATCHES = table_of(RobotLiveMatch)
@@ -107,6 +115,8 @@ class LiveRead:
     error: str | None
     #: False when the round could not open a session with the controller (or lost it)
     reached: bool = True
+    #: the frame the robot moves in, from the same read (app.services.robots.live_frame)
+    frame: LiveFrame = UNREAD_FRAME
 
 
 def read_live(conn: Connector) -> LiveRead:
@@ -114,7 +124,8 @@ def read_live(conn: Connector) -> LiveRead:
     read (a KUKA in external-TCP mode refuses it) leaves it unread, saying why; it never
     fails the round's tool states."""
     try:
-        return LiveRead(conn.read_pose().live_tool, None)
+        reading = conn.read_pose()
+        return LiveRead(reading.live_tool, None, frame=reading.live_frame)
     except ControllerRefused as exc:
         return LiveRead(None, f"refused: {exc.controller_message}")
     except ControllerError as exc:

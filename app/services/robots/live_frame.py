@@ -1,0 +1,82 @@
+"""Which frame each robot moves in right now (contract v1.4, "Frames at the controller": "a
+robot's live base is named where the controller says"): what the round's pose read says
+of it (app.vendors.connector.LiveFrame, from the same read as the live tool) and the version
+of one of the robot's frames that equals it, one row a robot (robot_live_frames), beside
+its live tool (app.services.robots.live_tool).
+
+A version equals the live frame within SYNC_TOLERANCE_MM and SYNC_TOLERANCE_DEG, as a tool's
+version equals its live TCP. The match is a frame's active version when one is; else the
+newest version of the first frame (by creation) that equals it, an older one: the robot
+moves in a stale frame; none: in an unknown frame.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+from sqlalchemy import delete, select
+from sqlalchemy.orm import Session
+
+from app.helpers.frame_deviation import SYNC_TOLERANCE_DEG, SYNC_TOLERANCE_MM, frames_within
+from app.storage.models import Frame, FrameVersion, RobotLiveFrame
+from app.vendors.connector import Frame as Pose
+from app.vendors.connector import LiveFrame
+
+
+def live_frame_match(session: Session, robot_id: str, frame: Pose | None) -> tuple[str, int] | None:
+    """(frame_id, version) of the robot's live frames' version equal to `frame`: an active
+    version first, else the newest version of the oldest frame; None when none equals it
+    or the frame is not known."""
+    if frame is None:
+        return None
+    versions = (
+        select(FrameVersion.frame_id, FrameVersion.version, Frame.active_version)
+        .add_columns(FrameVersion.position_mm, FrameVersion.quaternion)
+        .join(Frame, Frame.id == FrameVersion.frame_id)
+        .where(Frame.robot_id == robot_id, Frame.archived_at.is_(None))
+        .order_by(Frame.created_at, Frame.id, FrameVersion.version.desc())
+    )
+    at = (frame.position_mm, frame.quaternion)
+    matches = [
+        (frame_id, version, version == active)
+        for frame_id, version, active, *value in session.execute(versions)
+        if frames_within(*at, *value, mm=SYNC_TOLERANCE_MM, deg=SYNC_TOLERANCE_DEG)
+    ]
+    if not matches:
+        return None
+    frame_id, version, _ = next((m for m in matches if m[2]), matches[0])
+    return frame_id, version
+
+
+def record_live_frame(
+    session: Session, *, robot_id: str, live: LiveFrame, at: datetime
+) -> RobotLiveFrame:
+    """Store what the round read of the frame the robot moves in and its match; `since`
+    moves when the number, name or match changes. The caller holds the robot's row locked
+    (record_live locks it first in the round's transaction)."""
+    match = live_frame_match(session, robot_id, live.frame)
+    frame_id, version = match if match is not None else (None, None)
+    value = None
+    if live.frame is not None:
+        value = {
+            "position_mm": list(live.frame.position_mm),
+            "quaternion": list(live.frame.quaternion),
+        }
+    read = live.frame is not None or live.number is not None or live.name is not None
+    row = session.get(RobotLiveFrame, robot_id)
+    now = (read, live.number, live.name, frame_id, version)
+    if row is None:
+        row = RobotLiveFrame(robot_id=robot_id, since=at)
+        session.add(row)
+    elif (row.read, row.number, row.name, row.frame_id, row.version) != now:
+        row.since = at
+    row.read, row.number, row.name, row.frame_id, row.version = now
+    row.frame, row.checked_at = value, at
+    session.flush()
+    return row
+
+
+def forget_live_frame(session: Session, robot_id: str) -> None:
+    """Drop what the rounds read of the frame the robot moves in (its controller is removed,
+    as its live tool is forgotten)."""
+    session.execute(delete(RobotLiveFrame).where(RobotLiveFrame.robot_id == robot_id))
