@@ -180,6 +180,21 @@ def _on_controller(api: Api, rig: Rig, *, active: bool = True) -> dict[str, Any]
     return tool
 
 
+def _frame_deploy(api: Api, rig: Rig) -> Call:
+    """A frame with an active version, at BASE_DATA[3] of a robot on the rig's controller."""
+    robot_id = _robot(api)
+    put = api.request("PUT", f"/v1/robots/{robot_id}/controller", "admin",
+                      json=rig.controller_body())  # fmt: skip
+    assert put.status_code == 200, put.text
+    made = api.post(f"/v1/robots/{robot_id}/frames", {"name": "table", "kind": "base", "slot": 3})
+    assert made.status_code == 201, made.text
+    fid = str(made.json()["id"])
+    add_frame_version(fid, [500.0, 0.0, 0.0])
+    activated = api.post(f"/v1/frames/{fid}/versions/1/activate", scope="calibrate")
+    assert activated.is_success, activated.text
+    return Call(f"/v1/frames/{fid}/deployments", {}, scope="calibrate")
+
+
 def _controller_delete(api: Api, rig: Rig) -> Call:
     return Call(f"/v1/robots/{_on_controller(api, rig, active=False)['robot_id']}/controller")
 
@@ -263,6 +278,7 @@ CALLS: dict[tuple[str, str], Callable[[Api, Rig], Call]] = {
         f"/v1/frames/{_touched_frame(api)}/fiducials", {"names": ["a", "b", "c"]}, scope="calibrate"
     ),
     ("POST", "/v1/frames/{frame_id}/checks"): _frame_check,
+    ("POST", "/v1/frames/{frame_id}/deployments"): _frame_deploy,
     ("POST", "/v1/frames/{frame_id}/rollback"): lambda api, _rig: Call(
         f"/v1/frames/{_frame(api, versions=2)}/rollback", scope="calibrate"
     ),
@@ -347,6 +363,10 @@ EVENTS: dict[tuple[str, str], tuple[tuple[str, str, str], ...]] = {
         ("calibration.create", "calibration", "id"),
     ),
     ("PUT", "/v1/frames/{frame_id}/fiducials"): (("frame.fiducials", "frame", "{frame_id}"),),
+    ("POST", "/v1/frames/{frame_id}/deployments"): (
+        ("frame.deploy", "deployment", "id"),
+        ("controller.in_sync", "frame", "{frame_id}"),  # read back: the controller holds it
+    ),
     ("POST", "/v1/frames/{frame_id}/checks"): (
         ("frame.check", "frame", "{frame_id}"),
         ("version.create", "frame", "{frame_id}"),
