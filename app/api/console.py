@@ -58,6 +58,12 @@ def calibrate_page(tool_id: str) -> FileResponse:
     return _shell()
 
 
+@router.get("/ui/frames/{frame_id}/calibrate")
+def frame_calibrate_page(frame_id: str) -> FileResponse:
+    """A frame taught at the cell: a guided frame session, its touches and axes in 3-D."""
+    return _shell()
+
+
 @router.get("/ui/calibrations/{calibration_id}")
 def report_page(calibration_id: str) -> FileResponse:
     """One calibration's report."""

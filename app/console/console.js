@@ -3,6 +3,7 @@
 // as a Bearer header; it never appears in a URL. Every figure is in mm to 3 decimals.
 
 import { calibratePage } from "./calibrate.js";
+import { frameCalibratePage } from "./frame_calibrate.js";
 
 const KEY_STORE = "tcpcal.api_key";
 const SCOPES = ["read", "calibrate", "admin"];
@@ -1270,7 +1271,12 @@ function plot3d(cal, geometry) {
 }
 
 // The helpers the calibrate page (calibrate.js) draws and talks to the API with.
-const pageHelpers = () => ({ h, show, api, json, everyPage, Problem, problemBox, confirmDialog, deployProblem, mm, vec, when, mayCalibrate });
+const pageHelpers = () => ({ h, show, api, json, everyPage, Problem, problemBox, confirmDialog, deployProblem, mm, vec, when, mayCalibrate, plot });
+
+// A plot of a page that draws as it goes (the frame page): Plotly loaded first.
+async function plot(id, traces, layout) {
+  await withPlotly(() => newPlot(id, traces, layout, { displaylogo: false, responsive: true }));
+}
 
 // ---- routing --------------------------------------------------------------------------------
 // main is aria-busy while a page is fetched and drawn: assistive technology waits for the
@@ -1280,9 +1286,10 @@ async function route() {
   const tool = path.match(/^\/ui\/tools\/([^/]+)$/);
   const report = path.match(/^\/ui\/calibrations\/([^/]+)$/);
   const calibrate = path.match(/^\/ui\/tools\/([^/]+)\/calibrate$/);
+  const teach = path.match(/^\/ui\/frames\/([^/]+)\/calibrate$/);
   // A page that plots fetches Plotly at once (while its key is typed, beside its data); it
   // awaits it, and shows its error, where it plots.
-  if (tool || report) plotly().catch(() => {});
+  if (tool || report || teach) plotly().catch(() => {});
   if (!sessionStorage.getItem(KEY_STORE)) return signIn(route);
   main.setAttribute("aria-busy", "true");
   document.getElementById("sign-out").hidden = false;
@@ -1291,6 +1298,7 @@ async function route() {
     document.getElementById("who").textContent = `${me.name} (${me.scope})`;
     if (tool) await toolPage(decodeURIComponent(tool[1]));
     else if (calibrate) await calibratePage(decodeURIComponent(calibrate[1]), pageHelpers());
+    else if (teach) await frameCalibratePage(decodeURIComponent(teach[1]), pageHelpers());
     else if (report) await reportPage(decodeURIComponent(report[1]));
     else await fleetPage();
   } catch (error) {

@@ -1,0 +1,129 @@
+// The frame page, /ui/frames/{id}/calibrate (API.md v1.4 "Sessions:"): a guided frame session at
+// the cell, on a tablet and by keyboard alone. The next touch is the server's words (next_role,
+// with how far it must be); each touch is captured from the robot's controller or typed, sent
+// with the role the server names next; a 3-D picture shows the touched points and, once the
+// touches give one, the frame's axes. Finish shows the stored frame, its sigmas and summary.
+// console.js passes its helpers in `ui` (one definition each).
+
+const AXIS_MM = 150; // length of each drawn axis
+const AXES = [["X", "#d62728"], ["Y", "#2ca02c"], ["Z", "#1f77b4"]];
+
+// The frame's axis k (a unit column of its rotation) from its quaternion [w, x, y, z].
+function axis(q, k) {
+  const [w, x, y, z] = q;
+  return [
+    [1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)],
+    [2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)],
+    [2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)],
+  ][k];
+}
+
+export async function frameCalibratePage(frameId, ui) {
+  const { h, show, json, problemBox } = ui;
+  const frame = await json(`/v1/frames/${frameId}`);
+  document.title = `Teach ${frame.name} · tcpcal`;
+  const [robot, tools, methods] = await Promise.all([
+    json(`/v1/robots/${frame.robot_id}`),
+    json(`/v1/robots/${frame.robot_id}/tools?limit=200`),
+    json("/v1/methods"),
+  ]);
+  // The first frame method of the frame's kind, as the server lists them (no copy here).
+  const method = methods.frame_methods.find((m) => m.kinds.includes(frame.kind)).name;
+  const body = h("div", { id: "frame-calibrate" });
+  show(h("h1", {}, `Teach ${frame.name} `, h("span", { class: "muted" }, `(${frame.kind}) on ${robot.name}`)), body);
+  if (!ui.mayCalibrate()) {
+    body.append(h("p", { class: "problem" }, "Teaching a frame needs a key of calibrate scope: sign in with one."));
+    return;
+  }
+  const pointer = h("select", { name: "pointer", "aria-label": "pointer tool" },
+    ...tools.items.map((t) => h("option", { value: t.id }, t.name)));
+  const format = h("input", { name: "format", value: robot.pose_format ?? "kuka_abc", "aria-label": "pose format" });
+  const problem = h("div", { id: "frame-problem" });
+  const start = h("form", { id: "frame-start", onsubmit: async (event) => {
+    event.preventDefault();
+    problem.replaceChildren();
+    try {
+      const session = await json(`/v1/frames/${frame.id}/sessions`, { method: "POST", body: { method, tool_id: pointer.value, format: format.value } });
+      drawSession(ui, body, frame, session);
+    } catch (error) {
+      problem.replaceChildren(problemBox(error));
+    }
+  } }, h("label", {}, "Pointer tool ", pointer), " ", h("label", {}, "Pose format ", format), " ",
+  h("button", { type: "submit" }, "Start teaching"));
+  body.replaceChildren(start, problem);
+}
+
+function drawSession(ui, body, frame, session) {
+  const { h, json, problemBox, mm } = ui;
+  const next = h("p", { id: "next-role", class: "next", role: "status" });
+  const touches = h("ol", { id: "frame-touches" });
+  const problem = h("div", { id: "frame-problem" });
+  const result = h("section", { id: "frame-result" });
+  const plotBox = h("div", { id: "frame-plot", class: "plot", role: "img", "aria-label": "touched points and the frame's axes" });
+  const typed = h("input", { name: "pose", "aria-label": "typed pose", placeholder: `a pose in ${session.format}` });
+  let state = session;
+  const send = async (touch) => {
+    problem.replaceChildren();
+    try {
+      if (state.next?.role) touch.role = state.next.role;
+      state = await json(`/v1/sessions/${state.id}/poses`, { method: "POST", body: touch });
+      redraw();
+    } catch (error) {
+      problem.replaceChildren(problemBox(error));
+    }
+  };
+  const capture = h("button", { id: "capture", type: "button", onclick: () => send({ capture: true }) }, "Capture");
+  const typeForm = h("form", { id: "type-touch", onsubmit: (event) => {
+    event.preventDefault();
+    const pose = typed.value.trim().split(/[\s,]+/).map(Number);
+    typed.value = "";
+    send({ pose });
+  } }, typed, " ", h("button", { type: "submit" }, "Add typed touch"));
+  const finish = h("button", { id: "finish", type: "button", onclick: async () => {
+    problem.replaceChildren();
+    try {
+      const cal = await json(`/v1/sessions/${state.id}/finish`, { method: "POST", body: { activate: "auto" } });
+      const q = cal.quality;
+      result.replaceChildren(
+        h("h2", {}, `Frame v${cal.version}: ${cal.status}`),
+        h("p", { id: "frame-origin" }, `Origin ${cal.frame.position_mm.map((v) => v.toFixed(3)).join("  ")} mm, quaternion ${cal.frame.quaternion.map((v) => v.toFixed(6)).join("  ")}`),
+        h("p", { id: "frame-sigmas" }, `1-sigma: position ${(q.position_sigma_mm ?? []).map((v) => v.toFixed(3)).join("  ")} mm, angle ${(q.angle_sigma_deg ?? []).map((v) => v.toFixed(4)).join("  ")} deg`),
+        h("p", { id: "frame-summary" }, cal.summary),
+      );
+      capture.disabled = finish.disabled = true;
+      result.focus();
+    } catch (error) {
+      problem.replaceChildren(problemBox(error));
+    }
+  } }, "Finish");
+  result.setAttribute("tabindex", "-1");
+  const redraw = () => {
+    next.textContent = state.next_role ? `Next: ${state.next_role}` : state.done ? "Done: finish to store the frame." : "";
+    touches.replaceChildren(...state.touches.map((t) => h("li", {}, `${t.role ?? "touch"} (${t.source}): ${t.point_mm ? t.point_mm.map((v) => v.toFixed(3)).join("  ") + " mm" : "no point: the pointer has no TCP"}`)));
+    for (const message of state.messages) touches.append(h("li", { class: "muted" }, message));
+    ui.plot("frame-plot", traces(state), { height: 420, margin: { l: 0, r: 0, t: 0, b: 0 }, scene: { aspectmode: "data" }, showlegend: true });
+  };
+  body.replaceChildren(next, h("div", { class: "actions" }, capture, " ", typeForm, " ", finish), problem, touches, plotBox, result);
+  redraw();
+  capture.focus();
+}
+
+// The touched points, and the frame's axes from its origin once the touches give a frame.
+function traces(state) {
+  const points = state.touches.filter((t) => t.point_mm);
+  const out = [{
+    type: "scatter3d", mode: "markers+text", name: "touches",
+    x: points.map((t) => t.point_mm[0]), y: points.map((t) => t.point_mm[1]), z: points.map((t) => t.point_mm[2]),
+    text: points.map((t) => t.role ?? ""), marker: { size: 5 },
+  }];
+  const estimate = state.estimate;
+  if (estimate) {
+    const o = estimate.position_mm;
+    AXES.forEach(([name, color], k) => {
+      const a = axis(estimate.quaternion, k);
+      out.push({ type: "scatter3d", mode: "lines", name: `frame ${name}`, line: { color, width: 6 },
+        x: [o[0], o[0] + AXIS_MM * a[0]], y: [o[1], o[1] + AXIS_MM * a[1]], z: [o[2], o[2] + AXIS_MM * a[2]] });
+    });
+  }
+  return out;
+}
