@@ -8,6 +8,7 @@
 // command a line on stdin and answers each with JSON lines on stdout, until stdin closes:
 //   {"op": "tree"}                -> {"event": "tree", "robots": {<robot>: {<tool>: {<variable>:
 //                                    value}}}, "namespace": i}
+//   {"op": "tree", "folder": "Frames"} -> the same of each robot's Frames folder (default Tools)
 //   {"op": "tree", "details": true} -> the same, with "variables": {"<robot>/<tool>/<variable>":
 //                                    {description, dataType, valueRank, arrayDimensions,
 //                                    typeDefinition, userAccessLevel, engineeringUnits:
@@ -112,13 +113,13 @@ async function details(session, nodeId) {
   };
 }
 
-async function readTree(session, withDetails) {
+async function readTree(session, withDetails, folder = "Tools") {
   const robotsFolder = await childNamed(session, "ns=0;i=85", "Robots");  // Objects/Robots
   const robots = {};
   const nodes = {};
   const variables = {};
   for (const robot of await children(session, robotsFolder.nodeId)) {
-    const tools = await childNamed(session, robot.nodeId, "Tools");
+    const tools = await childNamed(session, robot.nodeId, folder);
     robots[robot.name] = {};
     for (const tool of await children(session, tools.nodeId)) {
       const values = {};
@@ -175,7 +176,7 @@ async function watch(session, command) {
 
 async function run(session, command) {
   if (command.op === "tree") {
-    const tree = await readTree(session, Boolean(command.details));
+    const tree = await readTree(session, Boolean(command.details), command.folder || "Tools");
     const answer = { event: "tree", robots: tree.robots, namespace: tree.robotsFolder.ns };
     if (command.details) answer.variables = tree.variables;
     emit(answer);

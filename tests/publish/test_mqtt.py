@@ -18,6 +18,7 @@ from sqlalchemy import select
 
 from app.storage.db import session_scope
 from app.storage.models import AuditEvent, OutboxMessage
+from tests.api.frame_versions import add_frame_version
 from tests.conftest import Api, one_backend
 from tests.polling import wait_for
 from tests.publish.mqtt_harness import Broker, Publisher, Subscriber, needs_mosquitto
@@ -173,6 +174,59 @@ def test_activation_is_retained_within_a_second_and_equals_get_tcp(
     assert api.delete(f"/v1/tools/{tool['id']}").status_code == 204
     wait_for(lambda: sub.on(topic)[-1].payload == b"", 1.0, "the archive's empty message")
     assert _retained_now(broker, prefix, tool["id"]) is None  # cleared for late subscribers
+    sub.close()
+
+
+@one_backend
+def test_a_frames_activation_is_retained_on_its_topic_as_get_frame_serves_it(
+    api: Api, broker: Broker, prefix: str, tmp_path: Path, publishers: list[Publisher]
+) -> None:
+    """Contract v1.4: {prefix}/frames/{frame_id}/frame, retained, as the tools' topic."""
+    robot = api.robot("r-frames", vendor="KUKA")
+    made = api.post(
+        f"/v1/robots/{robot['id']}/frames", {"name": "fixture-a", "kind": "base", "slot": 2}
+    )
+    assert made.status_code == 201, made.text
+    frame_id = made.json()["id"]
+    assert add_frame_version(frame_id, [500.0, 10.0, 0.0]) == 1
+    sub = Subscriber(broker, prefix)
+    _publisher(publishers, tmp_path, api, broker, prefix)
+    wait_for(lambda: _online(sub), 30, "the publisher's status online")
+    topic = f"frames/{frame_id}/frame"
+    wait_for(lambda: _outbox_size() == 0, 10, "the changes made before it started sent")
+    wait_for(lambda: bool(sub.on(topic)), 5, "the frame's state sent")
+    assert sub.on(topic)[-1].payload == b""  # no active version yet: cleared
+
+    activated = api.post(
+        f"/v1/frames/{frame_id}/versions/1/activate",
+        {"reason": "taught on the pendant"},
+        scope="calibrate",
+    )
+    assert activated.status_code == 200, activated.text
+    at = time.monotonic()
+    wait_for(lambda: sub.on(topic)[-1].payload != b"", 1.0, "the retained message within 1 s")
+    message = sub.on(topic)[-1]
+    assert message.at - at < 1.0
+    served = api.get(f"/v1/frames/{frame_id}/frame")
+    assert {k: v for k, v in message.json().items() if k not in ("status", "activation")} == {
+        **served.json(),
+        "etag": served.headers["ETag"],
+    }
+    assert message.json()["status"] == "accepted"
+    assert (message.json()["activation"]["kind"], message.json()["activation"]["reason"]) == (
+        "explicit",
+        "taught on the pendant",
+    )
+    late = Subscriber(broker, prefix)
+    try:
+        wait_for(lambda: any(m.retain for m in late.on(topic)), 5, "the retained message")
+        assert [m for m in late.on(topic) if m.retain][-1].payload == message.payload
+    finally:
+        late.close()
+    events = [e for e in sub.events() if e.get("frame_id") == frame_id]
+    assert "version.activate" in [e["action"] for e in events]
+    assert api.delete(f"/v1/frames/{frame_id}").status_code == 204
+    wait_for(lambda: sub.on(topic)[-1].payload == b"", 1.0, "the archive's empty message")
     sub.close()
 
 

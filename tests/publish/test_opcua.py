@@ -30,6 +30,7 @@ from typing import Any
 import pytest
 from prometheus_client.parser import text_string_to_metric_families
 
+from tests.api.frame_versions import add_frame_version
 from tests.conftest import Api, Database, one_backend
 from tests.publish.plant_changes import force, out_of_tolerance_version, rollback
 
@@ -162,15 +163,16 @@ class NodeClient:
         assert line["event"] == event, line
         return at, line
 
-    def tree(self, *, details: bool = False) -> Line:
-        """Robots -> tools -> variable values as node-opcua reads them now (with `details`,
-        also each variable's attributes and engineering units under "variables")."""
-        self.send("tree", details=details)
+    def tree(self, *, details: bool = False, folder: str = "Tools") -> Line:
+        """Robots -> tools (or another folder's items: "Frames") -> variable values as
+        node-opcua reads them now (with `details`, also each variable's attributes and
+        engineering units under "variables")."""
+        self.send("tree", details=details, folder=folder)
         return self.next("tree")[1]
 
-    def values(self) -> dict[str, dict[str, dict[str, Any]]] | None:
+    def values(self, folder: str = "Tools") -> dict[str, dict[str, dict[str, Any]]] | None:
         """The tree's values now; None when a node went away while it was read."""
-        self.send("tree")
+        self.send("tree", folder=folder)
         _, line = self.answer("tree")
         return line["robots"] if line["event"] == "tree" else None
 
@@ -420,6 +422,56 @@ def test_robots_and_tools_appear_and_disappear_with_the_database(api: Api, db: D
         _until(lambda: (tree() or {}).get("r-second-b") == {})
         assert api.delete(f"/v1/robots/{first['id']}").status_code == 204
         _until(lambda: set(tree() or {}) == {"r-second-b"})
+
+
+def test_frames_are_shown_beside_the_tools_with_the_same_variables_and_units(
+    api: Api, db: Database
+) -> None:
+    """Contract v1.4: Objects/Robots/<robot>/Frames/<frame>/ with the tools' variables and
+    EngineeringUnits, following the database as the tools' do."""
+    robot = api.robot("kr16-f", vendor="KUKA")
+    made = api.post(
+        f"/v1/robots/{robot['id']}/frames", {"name": "fixture-a", "kind": "base", "slot": 2}
+    )
+    assert made.status_code == 201, made.text
+    frame = made.json()
+    assert add_frame_version(frame["id"], [500.0, 10.0, 0.0]) == 1
+    assert api.post(f"/v1/frames/{frame['id']}/versions/1/activate", scope="calibrate").is_success
+    with publisher(db) as endpoint, node_client(endpoint, "test-read", api.keys["read"]) as client:
+        tree = client.tree(details=True, folder="Frames")
+        values = tree["robots"]["kr16-f"]["fixture-a"]
+        assert values["ActiveVersion"] == 1
+        assert values["PositionMm"] == pytest.approx([500.0, 10.0, 0.0])
+        assert values["Quaternion"] == pytest.approx([1.0, 0.0, 0.0, 0.0])
+        assert values["KukaABC"] == pytest.approx([0.0, 0.0, 0.0], abs=1e-9)
+        assert (values["Status"], values["ActivationKind"]) == ("accepted", "explicit")
+        assert values["ControllerState"] == "none"
+        assert client.tree()["robots"]["kr16-f"] == {}  # its Tools folder, empty
+        variables = tree["variables"]
+        position = variables["kr16-f/fixture-a/PositionMm"]
+        assert position["description"]["text"].startswith(
+            "The active pose's position x, y, z in the robot's base frame"
+        )
+        assert (position["engineeringUnits"]["unitId"], position["typeDefinition"]) == (
+            MMT,
+            BASE_ANALOG_TYPE,
+        )
+        assert variables["kr16-f/fixture-a/KukaABC"]["engineeringUnits"]["unitId"] == DD
+        assert (
+            "frame's active pose version"
+            in (variables["kr16-f/fixture-a/ActiveVersion"]["description"]["text"])
+        )
+
+        def fixture() -> dict[str, Any]:
+            return ((client.values("Frames") or {}).get("kr16-f") or {}).get("fixture-a", {})
+
+        assert add_frame_version(frame["id"], [502.0, 10.0, 0.0]) == 2
+        activated = api.post(f"/v1/frames/{frame['id']}/versions/2/activate", scope="calibrate")
+        assert activated.is_success, activated.text
+        _until(lambda: fixture().get("ActiveVersion") == 2)
+        assert fixture()["PositionMm"] == pytest.approx([502.0, 10.0, 0.0])
+        assert api.delete(f"/v1/frames/{frame['id']}").status_code == 204
+        _until(lambda: (client.values("Frames") or {}).get("kr16-f") == {})
 
 
 @one_backend

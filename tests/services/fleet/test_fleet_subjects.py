@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from app.services.fleet.fleet import csv_columns
+from app.services.fleet.fleet import csv_columns, fleet_of
+from app.services.fleet.gauges import declared_values
 from app.services.subjects import IN_FLEET, SERVED, Served
 from app.services.tools.subject import TOOL
 from tests.services.lifecycle.test_subject import _code_words
@@ -47,3 +48,16 @@ def test_the_tool_fleet_csv_keeps_its_columns() -> None:
 def test_each_subject_in_the_fleet_says_where_its_values_are(served: Served) -> None:
     """The plant's address space says what frame the values are given in."""
     assert served.value_in.startswith("the ")
+
+
+@pytest.mark.parametrize("served", IN_FLEET, ids=lambda s: s.subject.kind)
+def test_each_subjects_rules_are_the_codes_its_rows_declare(served: Served) -> None:
+    """A rule whose code the row's schema does not declare would fail every row it holds
+    for; a declared code may have no rule yet (a frame's checks and controller states,
+    until its declaration has them), and the tool's every code has one."""
+    row = fleet_of(served).side.row
+    declared = declared_values(row, "attention")
+    rules = tuple(fleet_of(served).rules)
+    assert rules == tuple(code for code in declared if code in rules)
+    if served.subject is TOOL:
+        assert rules == declared
