@@ -662,6 +662,14 @@ class FrameControllerState(StateColumns, Base):
     frame_id: Mapped[str] = mapped_column(ForeignKey("frames.id"), primary_key=True)
 
 
+def controller_state_models() -> list[type[StateColumns]]:
+    """Every subject's controller-state model (each of StateColumns): what a controller was
+    found holding, which is forgotten with the controller."""
+    return [
+        mapper.class_ for mapper in Base.registry.mappers if issubclass(mapper.class_, StateColumns)
+    ]
+
+
 class RobotLiveTool(Base):
     """The tool frame a robot moved by when the last reconcile round read it (contract
     v1.3 LiveTool), and since when it moves by that one. `read` is False when the controller

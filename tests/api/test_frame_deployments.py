@@ -184,3 +184,27 @@ def test_the_round_reads_tools_and_frames_over_one_connection(api: Api) -> None:
         assert [t["state"] for t in answer["tools"]] == ["no_active_version"]
         assert [f["state"] for f in answer["frames"]] == ["drifted"]
         assert r.sim.connections_accepted == before + 1
+
+
+def test_a_removed_controller_takes_its_frames_states_with_it(api: Api) -> None:
+    """Without a controller nothing is known of what it holds: the frames' controller states
+    went with the tools' (they outlived the controller, and the fleet kept saying in_sync)."""
+    with rig("kuka_kvp") as r:
+        ids = _setup(api, r)
+        assert _deploy(api, ids["frame"]["id"]).status_code == 201
+        [seen] = _reconcile(api, ids["robot"]["id"])["frames"]
+        assert seen["state"] == "in_sync"
+    robot_id = ids["robot"]["id"]
+    row = _fleet_row(api, ids["frame"]["id"])
+    assert row["controller"] is not None
+    assert row["controller"]["state"] == "in_sync"
+    gone = api.request("DELETE", f"/v1/robots/{robot_id}/controller", "admin")
+    assert gone.status_code == 204, gone.text
+    assert _fleet_row(api, ids["frame"]["id"])["controller"] is None
+
+
+def _fleet_row(api: Api, frame_id: str) -> dict[str, Any]:
+    listed = api.get("/v1/frames")
+    assert listed.status_code == 200, listed.text
+    [row] = [item for item in listed.json()["items"] if item["id"] == frame_id]
+    return dict(row)

@@ -22,7 +22,7 @@ from app.services.audit import writes as audit
 from app.services.robots import live_tool
 from app.services.robots.live_frame import forget_live_frame
 from app.services.robots.robots import get_robot
-from app.storage.models import Robot, RobotController, Tool, ToolControllerState, utcnow
+from app.storage.models import Robot, RobotController, Tool, controller_state_models, utcnow
 from app.vendors.connector import (
     ControllerCredentialsRefused,
     ControllerRefused,
@@ -259,12 +259,13 @@ def check_slot_for_controller(session: Session, *, robot_id: str, slot: int | No
 
 
 def delete_controller(session: Session, *, robot_id: str, actor: Principal) -> None:
-    """Forget how to reach the robot's controller and what its tools' states were (their
-    deployments stay in the history)."""
+    """Forget how to reach the robot's controller and what it was found holding of each
+    subject (tools, frames; their deployments stay in the history)."""
     controller = get_controller(session, robot_id)
     session.delete(controller)
     # Without a controller nothing is known of what it holds: the fleet stops saying so.
-    session.execute(delete(ToolControllerState).where(ToolControllerState.robot_id == robot_id))
+    for state in controller_state_models():
+        session.execute(delete(state).where(state.robot_id == robot_id))
     live_tool.forget_live(session, robot_id)
     forget_live_frame(session, robot_id)
     audit.record(
