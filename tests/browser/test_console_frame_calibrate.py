@@ -8,20 +8,14 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-import numpy as np
 import pytest
 from playwright.sync_api import Page, expect
-from scipy.spatial.transform import Rotation
 
-from app.kinematics.poses import pose_to_format
 from testbed.live_server import LiveServer, fresh_database, live_server
 from tests.browser.conftest import sign_in_to
+from tests.live_frames import ORIGIN, X_TOUCH, XY_TOUCH, base_to_teach, typed
 
 pytestmark = [pytest.mark.live, pytest.mark.browser]
-
-TCP = np.array([0.0, 0.0, 150.0])
-DOWN = Rotation.from_euler("x", 180, degrees=True)
-ORIGIN = np.array([900.0, 100.0, 300.0])
 
 
 @pytest.fixture(scope="module")
@@ -31,27 +25,11 @@ def console_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSer
         yield srv
 
 
-def _typed(point: np.ndarray) -> str:
-    flange = point - DOWN.apply(TCP)
-    return " ".join(
-        f"{v:.6f}" for v in np.ravel(pose_to_format("kuka_abc", DOWN.as_matrix(), flange))
-    )
-
-
 def test_a_base_taught_by_keyboard_shows_its_touches_axes_and_result(
     page: Page, console_server: LiveServer
 ) -> None:
     expect.set_options(timeout=20_000)
-    with console_server.client() as http:
-        robot = http.post("/v1/robots", json={"name": "kr16", "vendor": "KUKA"}).json()
-        tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "pointer"}).json()
-        manual = {"method": "manual", "tcp": {"position_mm": TCP.tolist()}}
-        assert http.post(f"/v1/tools/{tool['id']}/calibrations", json=manual).is_success
-        frame = http.post(
-            f"/v1/robots/{robot['id']}/frames",
-            json={"name": "fixture-a", "kind": "base", "slot": 2,
-                  "tolerance": {"touch_noise_mm": 0.05}},
-        ).json()  # fmt: skip
+    frame, _pointer = base_to_teach(console_server)
     page.set_viewport_size({"width": 768, "height": 1024})  # a tablet, upright
     sign_in_to(page, console_server, f"/ui/frames/{frame['id']}/calibrate")
     expect(page.locator("h1")).to_contain_text("Teach fixture-a")
@@ -62,9 +40,9 @@ def test_a_base_taught_by_keyboard_shows_its_touches_axes_and_result(
     next_role = page.locator("#next-role")
     expect(next_role).to_have_text("Next: touch the frame's origin")
     expect(page.locator("#capture")).to_be_focused()
-    for point in (ORIGIN, ORIGIN + np.array([300.0, 0.0, 0.0])):
+    for point in (ORIGIN, X_TOUCH):
         page.keyboard.press("Tab")  # from Capture to the typed pose
-        page.keyboard.type(_typed(point))
+        page.keyboard.type(typed(point))
         page.keyboard.press("Enter")
         expect(page.locator("#frame-touches li").first).to_be_visible()
         page.locator("#capture").focus()
@@ -73,7 +51,7 @@ def test_a_base_taught_by_keyboard_shows_its_touches_axes_and_result(
                 "Next: touch a point on the frame's +X axis, at least 82 mm from the origin touch"
             )
     page.locator("input[name=pose]").focus()
-    page.keyboard.type(_typed(ORIGIN + np.array([0.0, 200.0, 0.0])))
+    page.keyboard.type(typed(XY_TOUCH))
     page.keyboard.press("Enter")
     expect(next_role).to_have_text("Done: finish to store the frame.")
     touches = page.locator("#frame-touches li")
