@@ -6,6 +6,7 @@
 // console.js passes its helpers in `ui` (one definition each).
 
 const AXIS_MM = 150; // length of each drawn axis
+const HTTP_CALL = / ?\((?:GET|POST|PUT|PATCH|DELETE) \/[^)]*\)/g;
 const AXES = [["X", "#d62728"], ["Y", "#2ca02c"], ["Z", "#1f77b4"]];
 
 // The frame's axis k (a unit column of its rotation) from its quaternion [w, x, y, z].
@@ -100,7 +101,8 @@ function drawSession(ui, body, frame, session) {
   const redraw = () => {
     next.textContent = state.next_role ? `Next: ${state.next_role}` : state.done ? "Done: finish to store the frame." : "";
     touches.replaceChildren(...state.touches.map((t) => h("li", {}, `${t.role ?? "touch"} (${t.source}): ${t.point_mm ? t.point_mm.map((v) => v.toFixed(3)).join("  ") + " mm" : "no point: the pointer has no TCP"}`)));
-    for (const message of state.messages) touches.append(h("li", { class: "muted" }, message));
+    // the server's words, less the HTTP call it names for an API client: the buttons say it here
+    for (const message of state.messages) touches.append(h("li", { class: "muted" }, message.replace(HTTP_CALL, "")));
     ui.plot("frame-plot", traces(state), { height: 420, margin: { l: 0, r: 0, t: 0, b: 0 }, scene: { aspectmode: "data" }, showlegend: true });
   };
   body.replaceChildren(next, h("div", { class: "actions" }, capture, " ", typeForm, " ", finish), problem, touches, plotBox, result);

@@ -57,6 +57,7 @@ def test_a_base_taught_by_keyboard_shows_its_touches_axes_and_result(
     touches = page.locator("#frame-touches li")
     expect(touches.nth(0)).to_contain_text("origin (typed): 900.000  100.000  300.000 mm")
     expect(touches.nth(2)).to_contain_text("xy (typed)")
+    expect(touches.nth(3)).to_have_text("the touches give a frame: finish to store it")
     plot = page.locator("#frame-plot")
     expect(plot.locator(".legend")).to_contain_text("frame X")
     expect(plot.locator(".legend")).to_contain_text("touches")
