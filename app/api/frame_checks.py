@@ -7,7 +7,7 @@ from fastapi import APIRouter, Response
 from app.api.deps import HeldCalibrateKey, run_blocking
 from app.api.params import IdempotencyKey, PathId
 from app.schemas.frame_checks import FrameCheck, FrameCheckCreate
-from app.services.frames import checks
+from app.services.checks import frame_recheck as checks
 
 router = APIRouter(tags=["frames"])
 

@@ -12,7 +12,7 @@ nothing. The problem documents are the HTTP layer's own (app.api.problems).
 
 `{prefix}/commands/recheck-frame` does the same for a frame's re-check after a move (issue
 49): `{"request_id", "frame_id"}` and the body of `POST /v1/frames/{frame_id}/checks`
-(app.services.frames.checks.check_frame), answered with its FrameCheck.
+(app.services.checks.frame_recheck.check_frame), answered with its FrameCheck.
 
 The key is never logged, echoed or kept: the log names the key's name, as the access log
 does. Off unless TCPCAL_MQTT_COMMANDS=true (app.publish.mqtt subscribes only then).
@@ -49,8 +49,8 @@ from app.jsontypes import JsonObject
 from app.schemas.frame_checks import FrameCheckCreate
 from app.schemas.references import CheckCreate
 from app.security.auth import Principal, authenticate_key
+from app.services.checks import frame_recheck as frame_checks
 from app.services.checks import recheck
-from app.services.frames import checks as frame_checks
 from app.storage.db import session_scope
 
 log = logging.getLogger(__name__)

@@ -90,6 +90,11 @@ class MovedSubject(BaseModel):
     name: str = Field(description="its name")
     version: int | None = Field(description="the frame's new version (null: a reference point)")
     moved_mm: float = Field(description="how far its origin (or the point) moved")
+    deployment: dict[str, object] | None = Field(
+        default=None,
+        description="the frame's new version's deployment (null: a reference point, or none "
+        "made; the summary says why)",
+    )
 
 
 class FrameCorrection(BaseModel):

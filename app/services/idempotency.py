@@ -84,3 +84,22 @@ def replace(session: Session, *, actor: Principal, key: str, response: JsonObjec
 
 def _aware(moment: datetime) -> datetime:
     return moment if moment.tzinfo is not None else moment.replace(tzinfo=UTC)
+
+
+def replay_keyed(
+    session: Session, *, actor: Principal, keyed: tuple[str, str] | None, purge: bool = True
+) -> JsonObject | None:
+    """`replay` for a request that may carry no key: keyed is (key, fingerprint) or None."""
+    if keyed is None:
+        return None
+    key, fingerprint = keyed
+    return replay(session, actor=actor, key=key, fingerprint=fingerprint, purge=purge)
+
+
+def remember_keyed(
+    session: Session, *, actor: Principal, keyed: tuple[str, str] | None, response: JsonObject
+) -> None:
+    """`remember` for a request that may carry no key: keyed is (key, fingerprint) or None."""
+    if keyed is not None:
+        key, fingerprint = keyed
+        remember(session, actor=actor, key=key, fingerprint=fingerprint, response=response)

@@ -25,14 +25,16 @@ def calibrated_frame(
     o: np.ndarray,
     *,
     pointer_id: str,
+    fields: dict[str, Any] | None = None,
     **tolerance: float,
 ) -> dict[str, Any]:
     """A frame registered and calibrated by fit_points at (R, o) from noise-free touches of
     the fixture's points (POST /v1/frames/{frame_id}/calibrations, activated), its fiducials
-    then named NAMES (PUT /v1/frames/{frame_id}/fiducials)."""
+    then named NAMES (PUT /v1/frames/{frame_id}/fiducials); `fields`: the frame's other
+    fields (where it lives in a controller)."""
     made = api.post(
         f"/v1/robots/{robot_id}/frames",
-        {"name": name, "kind": "base", "tolerance": {**LIMITS, **tolerance}},
+        {"name": name, "kind": "base", "tolerance": {**LIMITS, **tolerance}, **(fields or {})},
     )
     assert made.status_code == 201, made.text
     frame = dict(made.json())

@@ -19,8 +19,11 @@ from app.services.frames.subject import FRAME
 from app.services.lifecycle import drift
 from app.storage.db import session_scope
 from app.storage.models import AuditEvent
+from tests.api.controller_rigs import Rig, rig
 from tests.api.frame_fiducials import calibrated_frame, cell, touches
+from tests.api.test_frame_deployments import FIELDS
 from tests.conftest import Api
+from tests.vendors.test_frame_cuts import CASES
 
 
 def _frame_pose(api: Api, frame_id: str) -> tuple[np.ndarray, np.ndarray, int]:
@@ -84,6 +87,98 @@ def test_a_fixture_moved_1_5_mm_and_0_3_deg_is_corrected_to_within_0_01_mm(api: 
     assert chain[-4:] == ["frame.check", "version.create", "version.activate", "frame.check"]
 
 
+def _on_controller(api: Api, r: Rig) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+    """The cell's robot on the rig's controller, the fixture's frame where it addresses one."""
+    robot, pointer = cell(api)
+    put = api.request(
+        "PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=r.controller_body()
+    )
+    assert put.status_code == 200, put.text
+    frame = calibrated_frame(
+        api,
+        robot["id"],
+        "fixture-a",
+        R_FIXTURE,
+        O_FIXTURE,
+        pointer_id=pointer["id"],
+        fields=FIELDS[r.protocol],
+    )
+    return robot, pointer, frame
+
+
+def test_a_corrected_fixture_is_deployed_verified_once_and_the_controller_holds_it(
+    api: Api,
+) -> None:
+    with rig("kuka_kvp") as r:
+        _, pointer, frame = _on_controller(api, r)
+        along = R_FIXTURE @ (1.5 * np.array([-300.0, 500.0, 0.0]) / np.hypot(300.0, 500.0))
+        R1, o1 = _moved_in_frame(R_FIXTURE, O_FIXTURE, list(along), 0.3)
+        body = {**touches(pointer["id"], R1, o1), "correct": "within_limits", "reason": "unbolted"}
+        key = {**api.headers("calibrate"), "Idempotency-Key": "moved-1"}
+        path = f"/v1/frames/{frame['id']}/checks"
+        response = api.post(path, body, scope="calibrate", headers=key)
+        assert response.status_code == 201, response.text
+        check = response.json()
+        assert check["verdict"] == "corrected"
+        deployment = check["correction"]["deployment"]
+        assert (deployment["frame_id"], deployment["version"], deployment["status"]) == (
+            frame["id"],
+            2,
+            "verified",
+        )
+        np.testing.assert_allclose(deployment["read_back"]["position_mm"], o1, atol=1e-3)
+        assert CASES["kuka_kvp"].held_z(r.sim) == pytest.approx(o1[2], abs=1e-3)
+        assert "read back as written (verified)" in check["summary"]
+        assert "follows" not in check["summary"]
+        again = api.post(path, body, scope="calibrate", headers=key)
+        assert again.status_code == 201, again.text
+        assert again.headers["idempotent-replayed"] == "true"
+        assert again.json() == check
+        listed = api.get(f"/v1/frames/{frame['id']}/deployments").json()["items"]
+        assert [d["id"] for d in listed] == [deployment["id"]]
+
+
+def test_a_robot_moved_deploys_each_corrected_frame(api: Api) -> None:
+    with rig("kuka_kvp") as r:
+        robot, pointer, frame = _on_controller(api, r)
+        at_b = (np.eye(3), np.array([300.0, 400.0, 50.0]))
+        slot5 = {"slot": 5}
+        other = calibrated_frame(
+            api, robot["id"], "b", *at_b, pointer_id=pointer["id"], fields=slot5
+        )
+        dt = [2.0, -1.0, 0.5]
+        body = {
+            **touches(pointer["id"], R_FIXTURE, O_FIXTURE + np.asarray(dt)),
+            "correct": "within_limits",
+            "scope": "robot",
+        }
+        response = api.post(f"/v1/frames/{frame['id']}/checks", body, scope="calibrate")
+        assert response.status_code == 201, response.text
+        correction = response.json()["correction"]
+        assert correction["deployment"]["status"] == "verified"
+        [moved] = correction["moved"]
+        assert (moved["id"], moved["deployment"]["status"]) == (other["id"], "verified")
+        np.testing.assert_allclose(
+            moved["deployment"]["read_back"]["position_mm"], [302.0, 399.0, 50.5], atol=1e-3
+        )
+        for f in (frame, other):
+            assert len(api.get(f"/v1/frames/{f['id']}/deployments").json()["items"]) == 1
+
+
+def test_a_fixture_moved_8_mm_on_a_controller_deploys_nothing(api: Api) -> None:
+    with rig("kuka_kvp") as r:
+        _, pointer, frame = _on_controller(api, r)
+        held = CASES["kuka_kvp"].held_z(r.sim)
+        R1, o1 = _moved_in_frame(R_FIXTURE, O_FIXTURE, [8.0, 0.0, 0.0], 0.0)
+        body = {**touches(pointer["id"], R1, o1), "correct": "within_limits"}
+        response = api.post(f"/v1/frames/{frame['id']}/checks", body, scope="calibrate")
+        assert response.status_code == 201, response.text
+        assert response.json()["verdict"] == "needs_recalibration"
+        assert response.json()["correction"] is None
+        assert api.get(f"/v1/frames/{frame['id']}/deployments").json()["items"] == []
+        assert CASES["kuka_kvp"].held_z(r.sim) == held
+
+
 def test_a_fixture_moved_8_mm_is_refused_and_nothing_changes(api: Api) -> None:
     robot, pointer = cell(api)
     frame = calibrated_frame(
@@ -131,7 +226,6 @@ def test_a_robot_moved_is_corrected_at_every_frame_and_reference_point_by_one_ch
     api: Api,
 ) -> None:
     robot, pointer = cell(api)
-    limits = {"max_correction_mm": 10.0}
     poses = {
         "fixture-a": (R_FIXTURE, O_FIXTURE),
         "fixture-b": (np.eye(3), np.array([300.0, 400.0, 50.0])),
@@ -141,7 +235,9 @@ def test_a_robot_moved_is_corrected_at_every_frame_and_reference_point_by_one_ch
         ),
     }
     frames = {
-        n: calibrated_frame(api, robot["id"], n, R, o, **limits, pointer_id=pointer["id"])
+        n: calibrated_frame(
+            api, robot["id"], n, R, o, max_correction_mm=10.0, pointer_id=pointer["id"]
+        )
         for n, (R, o) in poses.items()
     }
     point = api.post(

@@ -86,7 +86,9 @@ def recheck(
             result = _check_and_correct(
                 session, tool_id=tool_id, data=typed, actor=actor, captured=captured
             )
-            _remember(session, actor, keyed, result)
+            idempotency.remember_keyed(
+                session, actor=actor, keyed=keyed, response=result.model_dump(mode="json")
+            )
     if first is not None:  # (its deployment may still be under way: waited for unlocked)
         return Rechecked(_as_it_ends(first, data, actor, keyed), replayed=True)
     if result.correction is not None and _deploys(data):
@@ -115,13 +117,6 @@ def _check_options(data: CheckCreate) -> None:
         )
 
 
-#: How long a repeated key waits for the first request's deployment to end: a deployment
-#: ends within its controller's timeout_s (at most 60 s, app.schemas.controllers) and the
-#: session's clean-up. Past it (the first request's process ended mid-deployment) the answer
-#: kept before the deployment is replayed, and the reconcile rounds settle the controller.
-DEPLOYMENT_WAIT_S = 65.0
-
-
 def _as_it_ends(
     first: CheckResult, data: CheckCreate, actor: Principal, keyed: tuple[str, str] | None
 ) -> CheckResult:
@@ -129,7 +124,7 @@ def _as_it_ends(
     deployment (so that a repeat waiting at the tool's lock replays it, not corrects again)
     and replaced after; a repeat arriving in between waits for the final one, so a PLC
     repeating its command gets what the first got, deployment included."""
-    deadline = time.monotonic() + DEPLOYMENT_WAIT_S
+    deadline = time.monotonic() + deployments.DEPLOYMENT_WAIT_S
     while _deploying(first, data) and time.monotonic() < deadline:
         time.sleep(0.1)
         with transaction_for(actor, write=False) as session:
@@ -159,25 +154,8 @@ def _refuse_undeployable(session: Session, tool_id: str) -> None:
 def _replay(
     session: Session, actor: Principal, keyed: tuple[str, str] | None, *, purge: bool
 ) -> CheckResult | None:
-    if keyed is None:
-        return None
-    key, fingerprint = keyed
-    first = idempotency.replay(session, actor=actor, key=key, fingerprint=fingerprint, purge=purge)
+    first = idempotency.replay_keyed(session, actor=actor, keyed=keyed, purge=purge)
     return None if first is None else CheckResult.model_validate(first)
-
-
-def _remember(
-    session: Session, actor: Principal, keyed: tuple[str, str] | None, result: CheckResult
-) -> None:
-    if keyed is not None:
-        key, fingerprint = keyed
-        idempotency.remember(
-            session,
-            actor=actor,
-            key=key,
-            fingerprint=fingerprint,
-            response=result.model_dump(mode="json"),
-        )
 
 
 def _check_and_correct(

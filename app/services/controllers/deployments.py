@@ -58,6 +58,12 @@ from app.vendors.connector import (
 from app.vendors.registry import connect
 from app.words import DeploymentStatus, FailedDeploymentStatus, ProtocolName
 
+#: How long a repeated key waits for the first request's deployment to end: a deployment
+#: ends within its controller's timeout_s (at most 60 s, app.schemas.controllers) and the
+#: session's clean-up. Past it (the first request's process ended mid-deployment) the answer
+#: kept before the deployment is replayed, and the reconcile rounds settle the controller.
+DEPLOYMENT_WAIT_S = 65.0
+
 
 @dataclass(frozen=True)
 class Plan:

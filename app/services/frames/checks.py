@@ -12,7 +12,8 @@ repeated Idempotency-Key waits for the first request and replays its answer (con
 sends: one version); in it, a touch far from the fiducial it names is refused naming the
 stored fiducial it is near before any shift is computed, then the check is recorded
 (`frame.check`, read back by the drift trend and the fleet), the correction stored and
-activated, and the answer kept for the key.
+activated, and the answer kept for the key. The correction's deployment, after that
+transaction, is app.services.checks.frame_recheck's (the entry point).
 """
 
 from __future__ import annotations
@@ -38,8 +39,7 @@ from app.schemas.frame_checks import (
 )
 from app.schemas.frame_results import FramePointer
 from app.schemas.frame_tolerance import FrameTolerance
-from app.security.auth import Principal, transaction_for
-from app.services import idempotency
+from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.frames.fiducials import list_fiducials
 from app.services.frames.frames import frame_tolerance
@@ -68,46 +68,12 @@ FAR_MARGIN_MM = 10.0
 #: Two frames of one robot checked within this long whose shifts differ tell that one
 #: fixture moved, not the robot: said, never averaged.
 SAME_MOVE_WITHIN = timedelta(hours=1)
+#: The check's sentence while its correction's deployment is under way (completed by
+#: app.services.checks.frame_recheck).
+DEPLOYMENT_FOLLOWS = "; its deployment to the controller follows"
 
 
-@dataclass(frozen=True)
-class Checked:
-    """The answer (the FrameCheck document), and whether it is the first answer replayed."""
-
-    check: FrameCheck
-    replayed: bool
-
-
-def check_frame(
-    *, frame_id: str, data: FrameCheckCreate, actor: Principal, idempotency_key: str | None
-) -> Checked:
-    """POST /v1/frames/{frame_id}/checks (and the MQTT command, and the CLI): check, and
-    correct when asked; the first answer again for a repeated Idempotency-Key."""
-    _check_options(data)
-    fingerprint = idempotency.request_fingerprint(
-        f"frame-check:{frame_id}", data.model_dump(mode="json", exclude_unset=True)
-    )
-    with transaction_for(actor, write=True) as session:
-        lifecycle.lock(session, FRAME, frame_id)  # a repeated key waits here for the first
-        if idempotency_key is not None:
-            first = idempotency.replay(
-                session, actor=actor, key=idempotency_key, fingerprint=fingerprint
-            )
-            if first is not None:
-                return Checked(FrameCheck.model_validate(first), replayed=True)
-        result = _check_and_correct(session, frame_id=frame_id, data=data, actor=actor)
-        if idempotency_key is not None:
-            idempotency.remember(
-                session,
-                actor=actor,
-                key=idempotency_key,
-                fingerprint=fingerprint,
-                response=result.model_dump(mode="json"),
-            )
-    return Checked(result, replayed=False)
-
-
-def _check_options(data: FrameCheckCreate) -> None:
+def check_options(data: FrameCheckCreate) -> None:
     """422 /invalid-options for `deploy` without a correction, or a robot-wide scope that
     would correct nothing."""
     if data.deploy is not None and data.correct == "never":
@@ -243,8 +209,8 @@ def _measure(session: Session, *, frame_id: str, data: FrameCheckCreate) -> _Mea
     )
 
 
-def _check_and_correct(
-    session: Session, *, frame_id: str, data: FrameCheckCreate, actor: Principal
+def check_and_correct(
+    session: Session, *, frame_id: str, data: FrameCheckCreate, actor: Principal, deploying: bool
 ) -> FrameCheck:
     """The check recorded and, when due, the correction stored and activated (the check's
     event first: check -> version -> activation in the trail)."""
@@ -256,7 +222,7 @@ def _check_and_correct(
         correction = FrameCorrection(version=next_version, previous_version=m.version)
     result = _document(m, data, verdict, correction, actor)
     result.differs_from = _differs_from(session, m.frame, m.shift, m.stored_mm, m.limits)
-    result.summary = summary(result, m, deploying=_deploys(data))
+    result.summary = summary(result, m, deploying=deploying, asked=deploys(data))
     _record(session, result, m, actor)
     if correction is None:
         return result
@@ -282,7 +248,7 @@ def _check_and_correct(
             actor=actor,
             check_id=result.id,
         )
-        result.summary = summary(result, m, deploying=_deploys(data))
+        result.summary = summary(result, m, deploying=deploying, asked=deploys(data))
     return result
 
 
@@ -330,7 +296,7 @@ def _verdict(
     return "needs_recalibration"
 
 
-def _deploys(data: FrameCheckCreate) -> bool:
+def deploys(data: FrameCheckCreate) -> bool:
     return data.correct == "within_limits" and data.deploy is not False
 
 
@@ -353,7 +319,7 @@ def _shift_out(shift: Shift) -> FrameShift:
     )
 
 
-def summary(result: FrameCheck, m: _Measured, *, deploying: bool) -> str:
+def summary(result: FrameCheck, m: _Measured, *, deploying: bool, asked: bool) -> str:
     """The check in a sentence or two: how far the fiducials moved, and what was done."""
     shift, limits, largest_mm, worst = result.shift, m.limits, m.largest_mm, m.names[m.worst]
     moved = (
@@ -388,15 +354,19 @@ def summary(result: FrameCheck, m: _Measured, *, deploying: bool) -> str:
                 f"{points} reference point{'s' if points != 1 else ''} corrected by the same "
                 "shift"
             )
-        if deploying and FRAME.controller is None:
+        if deploying:
+            said += DEPLOYMENT_FOLLOWS
+        elif asked:
             said += (
-                "; not deployed: frames are not yet written to controllers by tcpcal: load "
-                "the frame's file (GET /v1/frames/{frame_id}/frame, Accept: text/plain)"
+                "; not deployed: the robot has no controller: load the frame's file (GET "
+                "/v1/frames/{frame_id}/frame, Accept: text/plain), or connect it (PUT "
+                "/v1/robots/{robot_id}/controller) and deploy (POST "
+                "/v1/frames/{frame_id}/deployments)"
             )
-        elif deploying:
+        else:
             said += (
-                "; not deployed: a re-check does not deploy yet: deploy the new version "
-                "(POST /v1/frames/{frame_id}/deployments)"
+                '; not deployed ("deploy": false): deploy the new version (POST '
+                "/v1/frames/{frame_id}/deployments) before the robot runs with it"
             )
     if result.differs_from:
         said += (
