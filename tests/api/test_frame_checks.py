@@ -66,6 +66,10 @@ def test_a_fixture_moved_1_5_mm_and_0_3_deg_is_corrected_to_within_0_01_mm(api: 
     assert check["correction"]["previous_version"] == 1
     assert check["correction"]["deployment"] is None
     assert "not deployed" in check["summary"]
+    # the calls it names are this frame's and robot's, not templates
+    assert f"GET /v1/frames/{frame['id']}/frame, Accept: text/plain" in check["summary"]
+    assert f"PUT /v1/robots/{frame['robot_id']}/controller" in check["summary"]
+    assert "{" not in check["summary"]
     R, o, version = _frame_pose(api, frame["id"])
     assert version == 2
     np.testing.assert_allclose(R, R1, atol=1e-9)
@@ -193,6 +197,7 @@ def test_a_fixture_moved_8_mm_is_refused_and_nothing_changes(api: Api) -> None:
     assert check["correction"] is None
     assert [d["distance_mm"] for d in check["deviations"]] == pytest.approx([8.0] * 6, abs=1e-9)
     assert "beyond max_correction_mm 5 mm: nothing was changed" in check["summary"]
+    assert f"(POST /v1/frames/{frame['id']}/calibrations)" in check["summary"]
     _, o, version = _frame_pose(api, frame["id"])
     assert version == 1
     np.testing.assert_allclose(o, O_FIXTURE, atol=1e-9)

@@ -103,6 +103,9 @@ def test_name_and_slot_are_unique_among_the_robots_live_frames(api: Api) -> None
     same_name = api.post(f"/v1/robots/{robot['id']}/frames", {"name": "fixture-a", "kind": "base"})
     assert same_name.status_code == 409
     assert same_name.json()["errors"][0]["loc"] == ["body", "name"]
+    assert (
+        f"archive the other first (DELETE /v1/frames/{first['id']})" in same_name.json()["detail"]
+    )
     same_slot = api.post(
         f"/v1/robots/{robot['id']}/frames", {"name": "b", "kind": "fixed_tool", "slot": 2}
     )

@@ -332,7 +332,7 @@ def summary(result: FrameCheck, m: _Measured, *, deploying: bool, asked: bool) -
         if largest_mm > limits.max_correction_mm:
             said = (
                 f"{moved}, beyond max_correction_mm {limits.max_correction_mm:g} mm: nothing was "
-                "changed; recalibrate the frame (POST /v1/frames/{frame_id}/calibrations)"
+                f"changed; recalibrate the frame (POST /v1/frames/{result.frame_id}/calibrations)"
             )
         else:
             said = (
@@ -359,14 +359,14 @@ def summary(result: FrameCheck, m: _Measured, *, deploying: bool, asked: bool) -
         elif asked:
             said += (
                 "; not deployed: the robot has no controller: load the frame's file (GET "
-                "/v1/frames/{frame_id}/frame, Accept: text/plain), or connect it (PUT "
-                "/v1/robots/{robot_id}/controller) and deploy (POST "
-                "/v1/frames/{frame_id}/deployments)"
+                f"/v1/frames/{result.frame_id}/frame, Accept: text/plain), or connect it (PUT "
+                f"/v1/robots/{result.robot_id}/controller) and deploy (POST "
+                f"/v1/frames/{result.frame_id}/deployments)"
             )
         else:
             said += (
                 '; not deployed ("deploy": false): deploy the new version (POST '
-                "/v1/frames/{frame_id}/deployments) before the robot runs with it"
+                f"/v1/frames/{result.frame_id}/deployments) before the robot runs with it"
             )
     if result.differs_from:
         said += (

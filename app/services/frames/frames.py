@@ -65,10 +65,11 @@ def _frame_unique(
     live = select(Frame.id).where(Frame.robot_id == robot_id, Frame.archived_at.is_(None))
     if except_id:
         live = live.where(Frame.id != except_id)
-    if name is not None and session.scalars(live.where(Frame.name == name)).first():
+    other = None if name is None else session.scalars(live.where(Frame.name == name)).first()
+    if other is not None:
         raise Conflict(
             f"robot {robot_id} already has a frame named {name!r}; name this one otherwise, "
-            "or archive the other first (DELETE /v1/frames/{frame_id})",
+            f"or archive the other first (DELETE /v1/frames/{other})",
             loc=("body", "name"),
             msg="already taken",
         )
