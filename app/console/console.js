@@ -477,17 +477,18 @@ function deploymentRow(d, versions) {
     h("td", {}, d.actor, d.reason ? h("p", { class: "reason" }, `Why: ${d.reason}`) : null));
 }
 
+// Every deployment of a subject, newest first (`versions`: a tool's, to name what it held before).
+function deploymentsTable(deployments, versions) {
+  return deployments.length
+    ? h("table", { id: "deployments" }, h("thead", {}, h("tr", {}, ["When", "Version", "Target", "Outcome", "Held before", "Read back off by", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, deployments.map((d) => deploymentRow(d, versions))))
+    : h("p", { id: "no-deployments" }, "Never deployed from tcpcal.");
+}
+
 // The tool page's controller section: the state found at the last look, the connection, a
 // Deploy button that asks for confirmation first, and every deployment, newest first.
 async function controllerSection(tool, versions, onChange) {
   const section = h("section", { id: "controller" }, h("h2", {}, "Controller"));
-  let connection = null;
-  try {
-    connection = await json(`/v1/robots/${tool.robot_id}/controller`);
-  } catch (error) {
-    // /no-controller: 409 up to v1.2, 404 from contract v1.3 on.
-    if (!(error instanceof Problem) || !String(error.doc.type || "").endsWith("/no-controller")) throw error;
-  }
+  const connection = await controllerOf(tool.robot_id);
   const [rows, deployments, points] = await Promise.all([
     everyPage(`/v1/tools?robot_id=${tool.robot_id}`),
     everyPage(`/v1/tools/${tool.id}/deployments`),
@@ -499,12 +500,7 @@ async function controllerSection(tool, versions, onChange) {
       ? "This robot has no controller connection: connect it below to deploy and watch its TCPs."
       : "This robot has no controller connection: an admin connects it (on this page or with tcpcal connect) to deploy and watch its TCPs."));
   } else {
-    section.append(
-      h("p", { id: "controller-state" },
-        `${connection.protocol} at ${controllerAddress(connection)} · `,
-        state ? controllerBadge(state, { active: tool.active_version }) : "not looked at yet",
-        state ? ` · checked ${when(state.checked_at)}` : ""),
-    );
+    section.append(controllerStateLine(connection, state, tool.active_version));
     // A robot with one live TCP (UR, Techman) says what that means, and why a tool is not live.
     if (connection.scope === "live") section.append(h("p", { id: "controller-scope", class: "muted" }, LIVE_ROBOT));
     if (state?.state === "not_live") section.append(h("p", { id: "controller-not-live" }, `Not live: ${NOT_LIVE}.`));
@@ -515,15 +511,13 @@ async function controllerSection(tool, versions, onChange) {
         h("strong", {}, "The robot is "), moving, row.live.state === "unread" ? `: ${LIVE_UNREAD}` : "",
         h("span", { class: "muted" }, ` · read ${when(row.live.checked_at)}`)));
     }
-    section.append(deployControls(tool, connection, onChange));
+    section.append(deployControls(toolSubject(tool), connection, onChange));
     if (points.length && tool.active_version !== null) section.append(recheckControls(tool, points, versions));
   }
   if (mayAdminister()) section.append(connectionForm(tool, connection, onChange));
   section.append(
     h("h3", {}, "Deployments"),
-    deployments.length
-      ? h("table", { id: "deployments" }, h("thead", {}, h("tr", {}, ["When", "Version", "Target", "Outcome", "Held before", "Read back off by", "By"].map((c) => h("th", {}, c)))), h("tbody", {}, deployments.map((d) => deploymentRow(d, versions))))
-      : h("p", { id: "no-deployments" }, "Never deployed from tcpcal."),
+    deploymentsTable(deployments, versions),
   );
   return section;
 }
@@ -540,16 +534,50 @@ function deployProblem(error) {
     h("p", { class: "muted" }, `${error.status} ${error.doc.title || ""} · deployment ${error.doc.deployment_id ?? "not recorded"}`));
 }
 
-function deployControls(tool, connection, onChange) {
+// The robot's controller connection, or null where it has none.
+async function controllerOf(robotId) {
+  try {
+    return await json(`/v1/robots/${robotId}/controller`);
+  } catch (error) {
+    // /no-controller: 409 up to v1.2, 404 from contract v1.3 on.
+    if (!(error instanceof Problem) || !String(error.doc.type || "").endsWith("/no-controller")) throw error;
+    return null;
+  }
+}
+
+// What the last look found at the controller for a subject (a tool or a frame): the state, the
+// version it compared and when.
+function controllerStateLine(connection, state, active) {
+  return h("p", { id: "controller-state" },
+    `${connection.protocol} at ${controllerAddress(connection)} · `,
+    state ? controllerBadge(state, { active }) : "not compared yet",
+    state ? ` · checked ${when(state.checked_at)}${state.version === null || state.version === undefined ? "" : ` against v${state.version}`}` : "");
+}
+
+// What the Deploy button deploys: a tool's active TCP, or a frame's active frame (its
+// `moves`: what the robot does by it once written).
+const toolSubject = (tool) => ({ name: tool.name, active: tool.active_version, deployments: `/v1/tools/${tool.id}/deployments`, moves: "The robot moves by this TCP from then on." });
+const frameSubject = (frame) => ({ name: frame.name, active: frame.active_version, deployments: `/v1/frames/${frame.id}/deployments`, moves: "The robot moves in this frame from then on." });
+
+// A frame no remote interface of the controller writes (501 /no-frame-writer):
+// why, and the file to load by hand, in words.
+function noWriterBox(error) {
+  return h("div", { class: "problem", role: "alert", "data-status": "no_frame_writer" },
+    h("strong", { class: "status" }, "Not written: tcpcal cannot write this frame into this controller"),
+    h("p", { class: "reason" }, `Why: ${error.doc.reason}.`),
+    h("p", { class: "file" }, `Load ${error.doc.file} on the controller by hand instead; nothing was sent.`));
+}
+
+function deployControls(subject, connection, onChange) {
   const box = h("div", { id: "deploy" });
   const outcome = h("div", { id: "deploy-outcome" });
-  if (tool.active_version === null) {
+  if (subject.active === null) {
     box.append(h("p", { class: "muted" }, "No active version to deploy."));
     return box;
   }
-  const ask = h("button", { type: "button", id: "deploy-button" }, `Deploy version ${tool.active_version}`);
+  const ask = h("button", { type: "button", id: "deploy-button" }, `Deploy version ${subject.active}`);
   const confirmBox = h("div", { id: "deploy-confirm", class: "card", hidden: true },
-    h("p", {}, `Write version ${tool.active_version} of ${tool.name} into the controller at ${controllerAddress(connection)} (${connection.protocol}) and read it back? ${connection.scope === "live" ? LIVE_SCOPE : "The robot moves by this TCP from then on."}`));
+    h("p", {}, `Write version ${subject.active} of ${subject.name} into the controller at ${controllerAddress(connection)} (${connection.protocol}) and read it back? ${connection.scope === "live" ? LIVE_SCOPE : subject.moves}`));
   const yes = h("button", { type: "button", id: "deploy-yes" }, "Deploy now");
   const no = h("button", { type: "button", id: "deploy-no" }, "Cancel");
   confirmBox.append(h("div", { class: "actions" }, yes, no));
@@ -566,17 +594,42 @@ function deployControls(tool, connection, onChange) {
     no.disabled = true;
     outcome.replaceChildren(h("p", { class: "muted" }, "Deploying…"));
     try {
-      const d = await json(`/v1/tools/${tool.id}/deployments`, { method: "POST", body: {} });
+      const d = await json(subject.deployments, { method: "POST", body: {} });
       outcome.replaceChildren(h("p", { class: "summary accepted", role: "status" }, `Verified: ${d.target} holds version ${d.version} (read back within ${d.deviation_mm.toFixed(4)} mm, ${d.deviation_deg.toFixed(4)} deg).`),
         ...(d.scope === "live" ? [h("p", { id: "deploy-live", class: "muted" }, LIVE_SCOPE)] : []));
     } catch (error) {
-      outcome.replaceChildren(deployProblem(error));
+      const noWriter = error instanceof Problem && String(error.doc.type || "").endsWith("/no-frame-writer");
+      outcome.replaceChildren(noWriter ? noWriterBox(error) : deployProblem(error));
     }
     confirmBox.hidden = true;
     await onChange(outcome);
   });
   box.append(ask, confirmBox, outcome);
   return box;
+}
+
+// A frame's controller section (the frame page): the state found at the last look (the fleet's
+// frame row), the Deploy button as a tool's, and the frame's deployments, newest first.
+async function frameControllerSection(frame, onChange) {
+  const section = h("section", { id: "controller" }, h("h2", {}, "Controller"));
+  const connection = await controllerOf(frame.robot_id);
+  if (!connection) {
+    section.append(h("p", { id: "controller-none" }, "This robot has no controller connection: an admin connects it (on its tools' pages or with tcpcal connect) to deploy and watch its frames."));
+    return section;
+  }
+  const [rows, deployments] = await Promise.all([
+    everyPage(`/v1/frames?robot_id=${frame.robot_id}`),
+    everyPage(`/v1/frames/${frame.id}/deployments`),
+  ]);
+  const state = rows.find((r) => r.id === frame.id)?.controller ?? null;
+  section.append(controllerStateLine(connection, state, frame.active_version));
+  if (connection.scope === "live") section.append(h("p", { id: "controller-scope", class: "muted" }, LIVE_SCOPE));
+  if (mayCalibrate()) section.append(deployControls(frameSubject(frame), connection, onChange));
+  section.append(
+    h("h3", {}, "Deployments"),
+    deploymentsTable(deployments, []),
+  );
+  return section;
 }
 
 // ---- the controller connection (admin) -------------------------------------------------------
@@ -1271,7 +1324,7 @@ function plot3d(cal, geometry) {
 }
 
 // The helpers the calibrate page (calibrate.js) draws and talks to the API with.
-const pageHelpers = () => ({ h, show, api, json, everyPage, Problem, problemBox, confirmDialog, deployProblem, mm, vec, when, mayCalibrate, plot });
+const pageHelpers = () => ({ h, show, api, json, everyPage, Problem, problemBox, confirmDialog, deployProblem, frameControllerSection, mm, vec, when, mayCalibrate, plot });
 
 // A plot of a page that draws as it goes (the frame page): Plotly loaded first.
 async function plot(id, traces, layout) {

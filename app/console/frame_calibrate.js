@@ -31,7 +31,17 @@ export async function frameCalibratePage(frameId, ui) {
   // The first frame method of the frame's kind, as the server lists them (no copy here).
   const method = methods.frame_methods.find((m) => m.kinds.includes(frame.kind)).name;
   const body = h("div", { id: "frame-calibrate" });
-  show(h("h1", {}, `Teach ${frame.name} `, h("span", { class: "muted" }, `(${frame.kind}) on ${robot.name}`)), body);
+  // The frame's controller state and Deploy (console.js, as a tool's), drawn again after a
+  // deployment (keeping its outcome) and after Finish (a new active version).
+  const controllerSlot = h("div", { id: "controller-slot" });
+  const drawController = async (outcome) => {
+    const current = await json(`/v1/frames/${frameId}`);
+    const section = await ui.frameControllerSection(current, drawController);
+    if (outcome) section.querySelector("#deploy-outcome")?.replaceWith(outcome);
+    controllerSlot.replaceChildren(section);
+  };
+  show(h("h1", {}, `Teach ${frame.name} `, h("span", { class: "muted" }, `(${frame.kind}) on ${robot.name}`)), controllerSlot, body);
+  await drawController();
   if (!ui.mayCalibrate()) {
     body.append(h("p", { class: "problem" }, "Teaching a frame needs a key of calibrate scope: sign in with one."));
     return;
@@ -45,7 +55,7 @@ export async function frameCalibratePage(frameId, ui) {
     problem.replaceChildren();
     try {
       const session = await json(`/v1/frames/${frame.id}/sessions`, { method: "POST", body: { method, tool_id: pointer.value, format: format.value } });
-      drawSession(ui, body, frame, session);
+      drawSession(ui, body, frame, session, drawController);
     } catch (error) {
       problem.replaceChildren(problemBox(error));
     }
@@ -54,7 +64,7 @@ export async function frameCalibratePage(frameId, ui) {
   body.replaceChildren(start, problem);
 }
 
-function drawSession(ui, body, frame, session) {
+function drawSession(ui, body, frame, session, drawController) {
   const { h, json, problemBox, mm } = ui;
   const next = h("p", { id: "next-role", class: "next", role: "status" });
   const touches = h("ol", { id: "frame-touches" });
@@ -93,6 +103,7 @@ function drawSession(ui, body, frame, session) {
       );
       capture.disabled = finish.disabled = true;
       result.focus();
+      await drawController();
     } catch (error) {
       problem.replaceChildren(problemBox(error));
     }
