@@ -146,10 +146,15 @@ FrameRole = Literal[OriginXXy, UserMethodRole, "x_start"]
 
 #: What a guided frame session's next touch is sent with beside its pose
 #: (app.methods.frame.next_role): a role, a nominal_mm, or nothing (a fixed tool's tip).
-FrameTouchTakes = Literal["role", "nominal_mm", "tip"]
+FrameTouchTakes = Literal["role", "nominal_mm", "tip", "fiducial"]
+
+#: A frame session's method: a frame method that takes touches, or "recheck" (the frame's
+#: stored fiducials touched again, finished as its check, POST /v1/frames/{frame_id}/checks).
+Recheck = Literal["recheck"]
+FrameSessionMethod = Literal[FrameMethodName, Recheck]
 
 #: A guided session's method (guided_sessions.method): a tool session's or a frame session's.
-SessionMethod = Literal[MethodName, FrameMethodName]
+SessionMethod = Literal[MethodName, FrameSessionMethod]
 
 #: What made a version of any calibrated subject (app.services.lifecycle.subject.Valued).
 VersionSource = MethodName | FrameMethodName

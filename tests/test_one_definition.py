@@ -51,10 +51,12 @@ from app.words import (
     DeploymentStatus,
     FrameKind,
     FrameMethodName,
+    FrameSessionMethod,
     LaserDeviceSource,
     MethodName,
     PoseFormat,
     ProtocolName,
+    Recheck,
     ResourceType,
     RobotState,
     SessionMethod,
@@ -196,12 +198,13 @@ WORDS_IN_JSON: list[tuple[str, object, tuple[type[BaseModel], str]]] = [
 
 def test_a_sessions_method_is_a_tools_or_a_frames() -> None:
     """guided_sessions.method holds a tool session's method (Session.method) or a frame
-    session's (FrameSession.method), the two registries' Literals and no other word."""
+    session's (FrameSession.method: a frame method or "recheck"), the registries' Literals
+    and no other word."""
     assert _literal_of(_annotation(sessions.Session, "method")) is MethodName
-    assert _literal_of(_annotation(FrameSession, "method")) is FrameMethodName
+    assert _literal_of(_annotation(FrameSession, "method")) is FrameSessionMethod
     assert set(get_args(SessionMethod)) == set(get_args(MethodName)) | set(
         get_args(FrameMethodName)
-    )
+    ) | set(get_args(Recheck))
 
 
 def test_each_word_column_and_its_documents_name_one_literal() -> None:

@@ -14,6 +14,7 @@ from app.api.shared import CONTROLLER_FAILURES, page
 from app.methods.guided import SessionCreate
 from app.metrics import CALIBRATIONS
 from app.schemas.common import Page
+from app.schemas.frame_checks import FrameCheck
 from app.schemas.frame_sessions import FrameSession, FrameSessionCreate
 from app.schemas.frames import FrameCalibration
 from app.schemas.results import Calibration
@@ -129,21 +130,22 @@ def delete_touch(
 @router.post(
     "/v1/sessions/{session_id}/finish",
     status_code=201,
-    response_model=Calibration | FrameCalibration,
+    response_model=Calibration | FrameCalibration | FrameCheck,
 )
-def finish_session(
+async def finish_session(
     session_id: PathId,
     response: Response,
-    session: SessionDep,
-    key: CalibrateKey,
+    key: HeldCalibrateKey,
     body: SessionFinish | None = None,
     idempotency_key: IdempotencyKey = None,
-) -> Calibration | FrameCalibration:
+) -> Calibration | FrameCalibration | FrameCheck:
     """Store the kept touches as a calibration exactly as POST /calibrations would (grading,
     versioning, activation, idempotency, audit); a frame session's as POST /v1/frames/
-    {frame_id}/calibrations would (a FrameCalibration). Retry-safe with `Idempotency-Key`."""
-    doc, replayed = sessions.finish(
-        session,
+    {frame_id}/calibrations would (a FrameCalibration); a recheck session's as POST
+    /v1/frames/{frame_id}/checks would (a FrameCheck, its correction deployed as the check's
+    is). Retry-safe with `Idempotency-Key`."""
+    doc, replayed = await run_blocking(
+        sessions.finish_request,
         session_id=session_id,
         data=body or SessionFinish(),
         idempotency_key=idempotency_key,
@@ -151,6 +153,8 @@ def finish_session(
     )
     if replayed:
         response.headers["Idempotent-Replayed"] = "true"
+    if isinstance(doc, FrameCheck):
+        return doc
     out = doc if isinstance(doc, Calibration) else FrameCalibration.model_validate(doc)
     if not replayed:
         CALIBRATIONS.labels(out.method, out.status).inc()

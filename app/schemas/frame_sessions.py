@@ -3,11 +3,14 @@ touch typed or captured, the next one said in words, finished as a frame calibra
 
 from __future__ import annotations
 
+from typing import Annotated, Literal
+
 from pydantic import BaseModel, Field, model_validator
 
 from app.schemas.common import (
     Pose,
     PositiveFloat,
+    Reason,
     ResourceId,
     StoredWord,
     StrictModel,
@@ -16,10 +19,17 @@ from app.schemas.common import (
     Units,
     Vec3,
 )
+from app.schemas.frame_checks import FrameCheckScope
 from app.schemas.results import TouchSource
 from app.schemas.sessions import PoseOrCapture
 from app.solvers.frame.construction import ThreePointConvention
-from app.words import FrameMethodName, FrameRole, FrameTouchTakes, PoseFormat, SessionStatus
+from app.words import (
+    FrameRole,
+    FrameSessionMethod,
+    FrameTouchTakes,
+    PoseFormat,
+    SessionStatus,
+)
 
 
 class FrameSessionOptions(StrictModel):
@@ -36,10 +46,19 @@ class FrameSessionOptions(StrictModel):
     convention: ThreePointConvention | None = Field(
         default=None, description="three_point: whose three-point teach (default origin_x_xy)"
     )
+    correct: Literal["never", "within_limits"] | None = Field(
+        default=None, description="recheck: the check's `correct` (POST /v1/frames/{id}/checks)"
+    )
+    deploy: bool | None = Field(default=None, description="recheck: the check's `deploy`")
+    reason: Reason | None = Field(default=None, description="recheck: the check's `reason`")
+    scope: FrameCheckScope | None = Field(default=None, description="recheck: the check's `scope`")
 
 
 class FrameSessionCreate(StrictModel):
-    method: FrameMethodName = Field(description="a frame method that takes touches")
+    method: FrameSessionMethod = Field(
+        description='a frame method that takes touches, or "recheck": the frame\'s stored '
+        "fiducials touched again, finished as the frame's check"
+    )
     tool_id: ResourceId = Field(
         description="the pointer tool the touches are made with (a tool of the frame's robot)"
     )
@@ -58,16 +77,24 @@ class FrameTouchAdd(PoseOrCapture):
     nominal_mm: Vec3 | None = Field(
         default=None, description="fit_points: the touched point's coordinates in the frame"
     )
+    fiducial: Annotated[str, Field(min_length=1, max_length=100)] | None = Field(
+        default=None,
+        description="recheck: the stored fiducial touched (the session's next_role names the next)",
+    )
 
     @model_validator(mode="after")
     def _role_or_nominal(self) -> FrameTouchAdd:
-        if self.role is not None and self.nominal_mm is not None:
-            raise ValueError('give "role" or "nominal_mm" as the method takes, not both')
+        given = [self.role, self.nominal_mm, self.fiducial]
+        if sum(v is not None for v in given) > 1:
+            raise ValueError(
+                'give "role", "nominal_mm" or "fiducial" as the method takes, one of them'
+            )
         return self
 
 
 class FrameSessionTouch(TouchSource):
     role: FrameRole | None = Field(description="the role it was touched as; null: none")
+    fiducial: str | None = Field(default=None, description="recheck: the fiducial touched")
     nominal_mm: list[float] | None = Field(description="fit_points: its point in the frame")
     pose: Pose
     point_mm: list[float] | None = Field(
@@ -100,7 +127,7 @@ class FrameSession(BaseModel):
     frame_id: str
     tool_id: str = Field(description="the pointer tool")
     status: SessionStatus
-    method: StoredWord[FrameMethodName]
+    method: StoredWord[FrameSessionMethod]
     format: StoredWord[PoseFormat]
     units: Units | None
     options: FrameSessionOptions

@@ -41,10 +41,7 @@ def check_frame(
     transaction, no transaction open during the controller's I/O); the first answer again
     for a repeated Idempotency-Key, its deployment included."""
     frames.check_options(data)
-    fingerprint = idempotency.request_fingerprint(
-        f"frame-check:{frame_id}", data.model_dump(mode="json", exclude_unset=True)
-    )
-    keyed = None if idempotency_key is None else (idempotency_key, fingerprint)
+    keyed = None if idempotency_key is None else (idempotency_key, fingerprint(frame_id, data))
     with transaction_for(actor, write=False) as session:
         deploying = frames.deploys(data) and _controller_addresses(session, frame_id)
     with transaction_for(actor, write=True) as session:
@@ -62,6 +59,13 @@ def check_frame(
     if result.correction is not None and deploying:
         result = _deploy(result, data, actor=actor, keyed=keyed)
     return Checked(result, replayed=False)
+
+
+def fingerprint(frame_id: str, data: FrameCheckCreate) -> str:
+    """What a repeated Idempotency-Key's check must equal (a recheck session's finish too)."""
+    return idempotency.request_fingerprint(
+        f"frame-check:{frame_id}", data.model_dump(mode="json", exclude_unset=True)
+    )
 
 
 def _controller_addresses(session: Session, frame_id: str) -> bool:

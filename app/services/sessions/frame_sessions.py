@@ -44,6 +44,7 @@ from app.services.frames.context import FrameDbContext
 from app.services.frames.frames import frame_tolerance, get_frame
 from app.services.frames.subject import FRAME
 from app.services.robots.robots import get_robot
+from app.services.sessions import frame_rechecks
 from app.services.sessions.rows import start as start_session
 from app.solvers.frame import MAX_ANGLE_SIGMA_DEG
 from app.solvers.frame.model import touch_points
@@ -56,23 +57,13 @@ def create(
     session: Session, *, frame_id: str, data: FrameSessionCreate, actor: Principal
 ) -> FrameSession:
     """POST /v1/frames/{frame_id}/sessions: a session of a method that takes touches, for a
-    frame of its kinds, touched with a live tool of the frame's robot."""
+    frame of its kinds (or a recheck of a frame that keeps fiducials), touched with a live
+    tool of the frame's robot."""
     frame = get_frame(session, frame_id)
-    entry = FRAME_METHODS_BY_NAME[data.method]
-    if entry.touch_count.max == 0:
-        raise InvalidInput(
-            "unsupported",
-            f"{data.method} takes no touches: give the frame in one POST "
-            f"/v1/frames/{frame_id}/calibrations; a session guides touches",
-            loc=("body", "method"),
-        )
-    if frame.kind not in entry.kinds:
-        raise InvalidInput(
-            "unsupported",
-            f"{data.method} calibrates a frame of kind {' or '.join(entry.kinds)}, and frame "
-            f"{frame.name} is a {frame.kind}: choose another method (GET /v1/methods)",
-            loc=("body", "method"),
-        )
+    if data.method == frame_rechecks.RECHECK:
+        frame_rechecks.stored_names(session, frame)  # 422 when it keeps none to touch again
+    else:
+        _check_method(frame, data.method)
     with located_in("body"):
         _context(session, frame).pointer(data.tool_id, None)  # a live tool of the robot
     row = GuidedSession(
@@ -88,6 +79,25 @@ def create(
     )
     start_session(session, row, actor=actor, robot_id=frame.robot_id, about={FRAME.key: frame.id})
     return view(session, row)
+
+
+def _check_method(frame: Frame, method: FrameMethodName) -> None:
+    """The frame method takes touches and calibrates a frame of this one's kind."""
+    entry = FRAME_METHODS_BY_NAME[method]
+    if entry.touch_count.max == 0:
+        raise InvalidInput(
+            "unsupported",
+            f"{method} takes no touches: give the frame in one POST "
+            f"/v1/frames/{frame.id}/calibrations; a session guides touches",
+            loc=("body", "method"),
+        )
+    if frame.kind not in entry.kinds:
+        raise InvalidInput(
+            "unsupported",
+            f"{method} calibrates a frame of kind {' or '.join(entry.kinds)}, and frame "
+            f"{frame.name} is a {frame.kind}: choose another method (GET /v1/methods)",
+            loc=("body", "method"),
+        )
 
 
 def add_touch_request(
@@ -141,8 +151,13 @@ def add_touch(
     ctx = _context(session, frame)
     with one_pose(("body", "pose"), number(len(row.poses))):
         ctx.parse_poses(row.format, [pose], _units(row), loc=("body", "pose"))
-    _check_kind(row, frame, data)
+    if frame_rechecks.is_recheck(row):
+        frame_rechecks.check_touch(session, row, frame, data)
+    else:
+        _check_kind(row, frame, data)
     record: JsonObject = capture.typed_touch() if captured is None else captured.touch_record()
+    if data.fiducial is not None:
+        record["fiducial"] = data.fiducial
     if data.role is not None:
         record["role"] = data.role
     if data.nominal_mm is not None:
@@ -289,14 +304,13 @@ def view(session: Session, row: GuidedSession) -> FrameSession:
     records = _records(row)
     messages: list[str] = []
     points = _points(ctx, row, messages)
-    told = _next(row, frame) if row.status == "open" else None
-    estimate = None
-    if row.status == "open" and (told is None or told.enough):
-        estimate = _estimate(ctx, row, messages)
+    told, estimate, done = _progress(session, ctx, row, frame, messages)
     if told is not None:
         messages.insert(0, f"next: {told.words}")
-    done = estimate is not None
-    if done:
+    if done and estimate is None:
+        messages.append(f"the touches make a check: finish to check the frame (POST "
+                        f"/v1/sessions/{row.id}/finish)")  # fmt: skip
+    elif done:
         messages.append(f"the touches give a frame: finish to store it (POST /v1/sessions/"
                         f"{row.id}/finish)")  # fmt: skip
     return FrameSession(
@@ -317,6 +331,7 @@ def view(session: Session, row: GuidedSession) -> FrameSession:
                     "readings": r.get("readings"),
                     "index": i,
                     "role": r.get("role"),
+                    "fiducial": r.get("fiducial"),
                     "nominal_mm": r.get("nominal_mm"),
                     "pose": row.poses[i],
                     "point_mm": None if points is None else points[i],
@@ -335,6 +350,22 @@ def view(session: Session, row: GuidedSession) -> FrameSession:
     )
 
 
+def _progress(
+    session: Session, ctx: FrameDbContext, row: GuidedSession, frame: Frame, messages: list[str]
+) -> tuple[NextRole | None, FrameEstimate | None, bool]:
+    """(the next touch, the frame so far, whether it can be finished): a recheck's next
+    stored fiducial and at least three touched; a calibration's next role and its estimate."""
+    is_open = row.status == "open"
+    if frame_rechecks.is_recheck(row):
+        told = _next_fiducial(session, row, frame) if is_open else None
+        return told, None, is_open and len(row.poses) >= frame_rechecks.MIN_FIDUCIALS
+    told = _next(row, frame) if is_open else None
+    estimate = None
+    if is_open and (told is None or told.enough):
+        estimate = _estimate(ctx, row, messages)
+    return told, estimate, estimate is not None
+
+
 @dataclass(frozen=True)
 class _Noise:
     touch_noise_mm: float | None
@@ -349,6 +380,19 @@ def _noise(row: GuidedSession, frame: Frame) -> _Noise:
     if noise is None:
         noise = frame_tolerance(frame.tolerance).touch_noise_mm
     return _Noise(noise, options.max_angle_sigma_deg or MAX_ANGLE_SIGMA_DEG)
+
+
+def _next_fiducial(session: Session, row: GuidedSession, frame: Frame) -> NextRole | None:
+    """A recheck's next touch: the next stored fiducial not yet touched, in words."""
+    name = frame_rechecks.next_fiducial(session, row, frame)
+    if name is None:
+        return None
+    return NextRole(
+        role=name,
+        takes="fiducial",
+        words=f"touch fiducial {name!r} again",
+        enough=len(row.poses) >= frame_rechecks.MIN_FIDUCIALS,
+    )
 
 
 def _next(row: GuidedSession, frame: Frame) -> NextRole | None:

@@ -33,6 +33,7 @@ from app.methods.base import MethodRequest
 from app.methods.guided import SessionCreate
 from app.methods.requests import CALIBRATION_REQUESTS
 from app.schemas.common import MAX_POSES, Pose, Units
+from app.schemas.frame_checks import FrameCheck
 from app.schemas.frame_sessions import FrameSession, FrameTouchAdd
 from app.schemas.results import Calibration
 from app.schemas.sessions import (
@@ -53,7 +54,7 @@ from app.services.calibrations import grading, writes
 from app.services.calibrations.contexts import DbContext
 from app.services.controllers import capture
 from app.services.robots.robots import get_robot
-from app.services.sessions import frame_sessions
+from app.services.sessions import frame_rechecks, frame_sessions
 from app.services.sessions.rows import start as start_session
 from app.services.tools.tools import get_tool
 from app.services.touches.diagnosis import one_touch_fits, refusing_mix_ups
@@ -363,6 +364,28 @@ def delete_touch(
     row.updated_at = utcnow()
     _touch_event(session, row, "session.touch_delete", actor, {"index": index, "pose": removed})
     return view(session, row)
+
+
+def finish_request(
+    *, session_id: str, data: SessionFinish, idempotency_key: str | None, actor: Principal
+) -> tuple[Calibration | JsonObject | FrameCheck, bool]:
+    """POST /v1/sessions/{id}/finish: a recheck session's as the frame's check (its own
+    transactions, a deployment's I/O with none open); every other one's in one transaction."""
+    with transaction_for(actor, write=False) as session:
+        recheck = frame_rechecks.is_recheck(get_session(session, session_id))
+    if recheck:
+        done = frame_rechecks.finish_request(
+            row_id=session_id, idempotency_key=idempotency_key, actor=actor, get_row=get_session
+        )
+        return done.check, done.replayed
+    with transaction_for(actor, write=True) as session:
+        return finish(
+            session,
+            session_id=session_id,
+            data=data,
+            idempotency_key=idempotency_key,
+            actor=actor,
+        )
 
 
 def finish(
