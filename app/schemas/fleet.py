@@ -13,9 +13,9 @@ from app.words import Status, ToolState
 #: The status a fleet row can be filtered by: its last calibration's.
 CalibrationStatus = Status
 
-#: Why a fleet row needs a person's attention: every code, in the order rows list them (the
-#: one list of them; each has its rule in app.services.fleet.fleet, `Fleet.rules`).
-AttentionCode = Literal[
+#: The codes every subject's row has that judge its versions, calibrations, checks,
+#: controller and drift (first in every subject's codes, in this order).
+_JudgedCode = Literal[
     "active_out_of_tolerance",
     "last_calibration_out_of_tolerance",
     "check_failed",
@@ -24,10 +24,28 @@ AttentionCode = Literal[
     "controller_drifted",
     "controller_unreachable",
     "drifting",
+]
+
+#: Why a tool's fleet row needs a person's attention: its codes, in the order rows list them (the
+#: one list of them; each has its rule in app.services.fleet.fleet, `Fleet.rules`).
+AttentionCode = Literal[
+    _JudgedCode,
     "moving_by_stale_version",
     "moving_by_unknown_tcp",
     "frequent_corrections",
 ]
+
+#: Why a frame's fleet row needs attention (GET /v1/frames): the codes a frame has, in the
+#: order its rows list them; the frame's own `moving_in_*` are read from the frame its robot
+#: moves in (app.services.frames.live), as a tool's `moving_by_*` from its live TCP.
+FrameAttentionCode = Literal[
+    _JudgedCode,
+    "frequent_corrections",
+    "moving_in_stale_frame",
+    "moving_in_unknown_frame",
+]
+#: Any subject's attention code (a rule of app.services.fleet.fleet).
+AnyAttentionCode = AttentionCode | FrameAttentionCode
 
 #: What a fleet row's robot moves by, about the row's tool (contract v1.3).
 LiveState = Literal["active", "stale_version", "other_tool", "unknown", "unread"]

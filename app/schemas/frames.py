@@ -3,7 +3,7 @@ served active frame. A frame's value is a pose in the robot's base (world) frame
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, BeforeValidator, Field
 
@@ -19,7 +19,12 @@ from app.schemas.common import (
 )
 from app.schemas.controllers import ControllerSymbol
 from app.schemas.drift import FleetDrift
-from app.schemas.fleet import AttentionCode, FleetController, LastCalibration, LastCheck
+from app.schemas.fleet import (
+    FleetController,
+    FrameAttentionCode,
+    LastCalibration,
+    LastCheck,
+)
 from app.schemas.frame_results import Fiducial, FramePointer, FrameQuality, FrameValue
 from app.schemas.frame_tolerance import FrameTolerance
 from app.schemas.tools import ActivationOut, ControllerText
@@ -164,6 +169,25 @@ class FiducialList(BaseModel):
     items: list[Fiducial]
 
 
+#: What a frame's row says of the frame its robot moves in: `active` (this frame's active
+#: version), `stale_version` (an older version of this frame), `other_frame` (a version of
+#: another frame of the robot), `unknown` (no version of its frames), `unread` (no round read it).
+FrameLiveState = Literal["active", "stale_version", "other_frame", "unknown", "unread"]
+
+
+class FleetFrameLive(BaseModel):
+    state: FrameLiveState = Field(
+        description="active | stale_version (an older version of this frame) | other_frame "
+        "(a version of another frame of the robot) | unknown (no version of its frames) | "
+        "unread (no round read the frame it moves in)"
+    )
+    version: int | None = Field(description="the version the robot moves in, if one matches")
+    frame_id: str | None = Field(description="the frame whose version matches, if one does")
+    checked_at: Timestamp | None = Field(description="when the round read it")
+    number: int | None = Field(description="the frame number the controller reported")
+    name: str | None = Field(description="the frame name the controller reported")
+
+
 class FleetFrame(BaseModel):
     """A frame as a fleet row (GET /v1/frames): every field the fleet fills for every subject
     (app.services.lifecycle.fleet.FleetSide), and the frame's kind and slot."""
@@ -186,11 +210,18 @@ class FleetFrame(BaseModel):
         default=None,
         description="the active frame's orientation [w, x, y, z]; null without an active version",
     )
-    attention: list[AttentionCode] = Field(
+    attention: list[FrameAttentionCode] = Field(
         default_factory=list,
-        description="why the frame needs attention, empty when all is well (the codes of a "
-        "tool's row that judge its versions and calibrations: active_out_of_tolerance, "
-        "last_calibration_out_of_tolerance, no_active_version, stale, drifting)",
+        description="why the frame needs attention, empty when all is well: a tool's row's "
+        "codes that judge its versions, calibrations, checks and controller, and "
+        "moving_in_stale_frame (the robot moves in an older version of this frame) and "
+        "moving_in_unknown_frame (it moves in a frame no version of its frames has, at this "
+        "frame's slot)",
+    )
+    live: FleetFrameLive | None = Field(
+        default=None,
+        description="the frame the robot moves in, as the last reconcile round read it, "
+        "about this frame",
     )
     controller: FleetController | None = Field(
         default=None,

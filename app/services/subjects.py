@@ -19,6 +19,7 @@ from sqlalchemy.orm import Session
 
 from app.schemas.fleet import FleetTool
 from app.schemas.frames import FleetFrame
+from app.services.frames.live import FRAME_LIVE
 from app.services.frames.subject import FRAME
 from app.services.frames.versions import served_frame
 from app.services.lifecycle.fleet import FleetSide
@@ -63,7 +64,13 @@ SERVED: tuple[Served, ...] = (
     Served(
         FRAME,
         _frame_document,
-        FleetSide(FleetFrame, "tcpcal-frames.csv", ("kind", "slot"), operation="list_frame_fleet"),
+        FleetSide(
+            FleetFrame,
+            "tcpcal-frames.csv",
+            ("kind", "slot"),
+            (FRAME_LIVE,),
+            operation="list_frame_fleet",
+        ),
         value_in="the robot's base frame",
     ),
 )

@@ -71,7 +71,7 @@ def test_each_live_frame_is_a_fleet_row_with_its_robot_value_and_attention(api: 
     assert fixture["attention"] == []
     assert (fixture["last_calibration"], fixture["last_check"]) == (None, None)
     assert fixture["controller"] is None  # never looked at
-    assert "live" not in fixture  # a tool's part: what the robot moves by
+    assert fixture["live"]["state"] == "unread"  # the frame it moves in: never reconciled
     assert rows["nozzle"]["kind"] == "fixed_tool"
     assert rows["nozzle"]["attention"] == ["no_active_version"]
     assert rows["nozzle"]["position_mm"] is None
@@ -105,11 +105,14 @@ def test_frame_fleet_csv_has_one_row_per_frame(api: Api) -> None:
     assert [r["frame"] for r in rows] == ["fixture-a", "nozzle", "table"]  # all, not a page
     header = response.text.splitlines()[0].split(",")
     assert header[:6] == ["frame_id", "frame", "kind", "slot", "robot", "cell"]
-    assert header[-3:] == [
+    assert header[-6:] == [
         "drift_rate_mm_per_month",
         "drift_sigma_mm_per_month",
         "drift_crosses_check_at",
-    ]  # no live columns: a tool's
+        "live_state",
+        "live_version",
+        "live_checked_at",
+    ]  # the frame the robot moves in (app.services.frames.live), after the common columns
     fixture = rows[0]
     assert (fixture["kind"], fixture["slot"], fixture["robot"]) == ("base", "2", "kr16-a")
     assert (fixture["active_version"], fixture["active_x_mm"]) == ("1", "500.000")

@@ -62,3 +62,67 @@ def test_a_krc_switched_to_an_older_base_moves_in_its_older_version(api: Api, kr
     krc.sim.set_base(900.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # a program's own $BASE, $ACT_BASE -1
     _reconcile(api, robot["id"])
     assert _live_frame(robot["id"]) == (True, None, None, None)
+
+
+def _frame_row(api: Api, frame_id: str) -> dict[str, Any]:
+    answer = api.get("/v1/frames")
+    assert answer.status_code == 200, answer.text
+    rows = [row for row in answer.json()["items"] if row["id"] == frame_id]
+    assert len(rows) == 1, answer.text
+    return dict(rows[0])
+
+
+def test_the_fleet_flags_a_frame_moved_in_at_an_older_version_or_unknown(
+    api: Api, krc: Rig
+) -> None:
+    """GET /v1/frames says which frame the robot moves in after a reconcile round: an older
+    version of this frame is moving_in_stale_frame, a base no version of the robot's frames
+    has at this frame's slot moving_in_unknown_frame, its active version neither."""
+    robot = api.robot("kr16", vendor="KUKA")
+    put = api.request(
+        "PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=krc.controller_body()
+    )
+    assert put.status_code == 200, put.text
+    api.tool(robot["id"], "torch", **krc.tool_fields)
+    frames = {}
+    for name, slot in (("fixture-a", 2), ("fixture-b", 3)):
+        made = api.post(
+            f"/v1/robots/{robot['id']}/frames", {"name": name, "kind": "base", "slot": slot}
+        )
+        assert made.status_code == 201, made.text
+        frames[slot] = made.json()["id"]
+    frame_id, other_id = frames[2], frames[3]
+    assert add_frame_version(frame_id, OLD_BASE) == 1
+    assert add_frame_version(frame_id, NEW_BASE) == 2
+    activated = api.post(f"/v1/frames/{frame_id}/versions/2/activate", scope="calibrate")
+    assert activated.status_code == 200, activated.text
+    before = _frame_row(api, frame_id)
+    assert before["live"]["state"] == "unread", before
+
+    krc.sim.set_base_data(2, *OLD_BASE, 0.0, 0.0, 0.0)
+    krc.sim.select_base(2)
+    _reconcile(api, robot["id"])
+    row = _frame_row(api, frame_id)
+    assert "moving_in_stale_frame" in row["attention"], row
+    assert row["live"]["state"] == "stale_version", row
+    assert row["live"]["version"] == 1, row
+    assert row["live"]["number"] == 2, row
+    other = _frame_row(api, other_id)
+    assert other["live"]["state"] == "other_frame", other
+    assert not {"moving_in_stale_frame", "moving_in_unknown_frame"} & set(other["attention"])
+    flagged = api.get("/v1/frames", params={"attention": "true"}).json()["items"]
+    assert frame_id in [r["id"] for r in flagged]
+
+    krc.sim.set_base_data(2, *NEW_BASE, 0.0, 0.0, 0.0)
+    _reconcile(api, robot["id"])
+    row = _frame_row(api, frame_id)
+    assert row["live"]["state"] == "active", row
+    assert not {"moving_in_stale_frame", "moving_in_unknown_frame"} & set(row["attention"])
+
+    krc.sim.set_base_data(2, 950.0, 60.0, 410.0, 0.0, 0.0, 0.0)  # a base no version has
+    _reconcile(api, robot["id"])
+    row = _frame_row(api, frame_id)
+    assert row["live"]["state"] == "unknown", row
+    assert "moving_in_unknown_frame" in row["attention"], row
+    other = _frame_row(api, other_id)  # base 3 is not the one selected
+    assert "moving_in_unknown_frame" not in other["attention"], other

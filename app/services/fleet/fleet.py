@@ -39,9 +39,11 @@ from app.helpers.pagination import paginate_newest_first, paginate_rows
 from app.jsontypes import JsonObject
 from app.schemas.drift import FleetDrift
 from app.schemas.fleet import (
+    AnyAttentionCode,
     AttentionCode,
     CheckRecord,
     FleetController,
+    FrameAttentionCode,
     LastCalibration,
     LastCheck,
 )
@@ -60,8 +62,11 @@ OUT_OF_TOLERANCE = "out_of_tolerance"
 CORRECTIONS_WITHIN = timedelta(days=30)
 #: The verdicts of a check that corrected the active version (app.services.checks.recheck).
 CORRECTED = ("corrected", "deployment_failed")
-#: Every attention code in the order rows list them (app.schemas.fleet.AttentionCode).
-CODES: tuple[AttentionCode, ...] = get_args(AttentionCode)
+#: Every attention code in the order rows list them: a tool's (app.schemas.fleet.AttentionCode),
+#: then a frame's own (FrameAttentionCode lists them in the same order).
+CODES: tuple[AnyAttentionCode, ...] = tuple(
+    dict.fromkeys((*get_args(AttentionCode), *get_args(FrameAttentionCode)))
+)
 
 _AUDIT = table_of(AuditEvent)
 #: The page's subjects by id (an expanding parameter: the statements are built once).
@@ -114,7 +119,7 @@ class Fleet:
     side: FleetSide
     active: FromClause
     states: Table | None
-    rules: dict[AttentionCode, ColumnElement[bool]]
+    rules: dict[AnyAttentionCode, ColumnElement[bool]]
     columns: tuple[Column, ...]
     attention: Statement
     calibrations: Statement
@@ -128,7 +133,7 @@ class Fleet:
 #: A statement of any columns.
 Statement = Select[*tuple[Any, ...]]
 #: Attention codes' rules, each a condition on a fleet row.
-_Rules = dict[AttentionCode, ColumnElement[bool]]
+_Rules = dict[AnyAttentionCode, ColumnElement[bool]]
 
 
 def _newest_calibration(subject: AnySubject, column: str) -> ScalarSelect[object]:
@@ -314,7 +319,7 @@ _STATE_COLUMNS = (
 )
 
 
-def _any(rules: Mapping[AttentionCode, ColumnElement[bool]]) -> ColumnElement[bool]:
+def _any(rules: Mapping[AnyAttentionCode, ColumnElement[bool]]) -> ColumnElement[bool]:
     """True when any rule holds (a rule whose subquery finds nothing counts as false)."""
     return or_(*(func.coalesce(rule, false()) for rule in rules.values()))
 

@@ -9,15 +9,37 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from datetime import datetime
+from typing import Any, Protocol, runtime_checkable
 
 from pydantic import BaseModel
 from sqlalchemy import ColumnElement, SQLColumnExpression
 
-from app.schemas.fleet import AttentionCode
+from app.schemas.fleet import AnyAttentionCode
 
 #: A column of any type (of a subject's table, or a correlated subquery on it).
 Column = SQLColumnExpression[Any]
+
+
+@runtime_checkable
+class LiveRead(Protocol):
+    """What a `live` part says of what a round read (a tool's FleetLive, a frame's
+    FleetFrameLive): its state, the version it matched and when it was read."""
+
+    @property
+    def state(self) -> str: ...
+    @property
+    def version(self) -> int | None: ...
+    @property
+    def checked_at(self) -> datetime | None: ...
+
+
+def live_cells(live: object) -> list[str]:
+    """A `live` part's CSV cells (live_state, live_version, live_checked_at)."""
+    assert isinstance(live, LiveRead), live
+    at = live.checked_at
+    version = "" if live.version is None else str(live.version)
+    return [live.state, version, "" if at is None else at.isoformat()]
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,7 +58,7 @@ class RowPart:
     field: str
     columns: tuple[Column, ...]
     read: Callable[[Sequence[object]], BaseModel]
-    rules: Mapping[AttentionCode, ColumnElement[bool]]
+    rules: Mapping[AnyAttentionCode, ColumnElement[bool]]
     csv_names: tuple[str, ...]
     csv_cells: Callable[[object], list[str]]
 

@@ -30,7 +30,7 @@ from sqlalchemy import (
 from sqlalchemy.orm import InstrumentedAttribute, aliased
 
 from app.schemas.fleet import FleetLive
-from app.services.lifecycle.fleet import RowPart
+from app.services.lifecycle.fleet import RowPart, live_cells
 from app.storage.models import RobotLiveMatch, RobotLiveTool, Tool
 
 T = TypeVar("T")
@@ -135,13 +135,6 @@ def _fleet_live(values: Sequence[object]) -> FleetLive:
     )
 
 
-def _live_cells(live: object) -> list[str]:
-    assert isinstance(live, FleetLive), live
-    at = live.checked_at
-    version = "" if live.version is None else str(live.version)
-    return [live.state, version, "" if at is None else at.isoformat()]
-
-
 #: A tool's fleet rows' `live` (app.services.lifecycle.fleet.RowPart): which TCP its robot
 #: moves by, and the two attention codes read from it.
 TOOL_LIVE = RowPart(
@@ -162,5 +155,5 @@ TOOL_LIVE = RowPart(
         "moving_by_unknown_tcp": and_(LIVE_STATE == "unknown", UNKNOWN_TCP_HERE, ~AT_FLANGE),
     },
     csv_names=("live_state", "live_version", "live_checked_at"),
-    csv_cells=_live_cells,
+    csv_cells=live_cells,
 )
