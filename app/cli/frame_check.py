@@ -3,8 +3,11 @@ frame's re-check after a move (issue 49). TOUCHES is a JSON file of the stored f
 touched again, `[{"fiducial": name, "pose": ...}]` (names: GET /v1/frames/{id}/fiducials);
 the server finds the shift and, with --correct, corrects the frame (with --robot every frame
 and reference point of its robot) within max_correction_mm (POST /v1/frames/{id}/checks, the
-one service the MQTT command uses too). This module only says the answer and turns its
-verdict into an exit code, as `tcpcal check` does (app.cli.recheck).
+one service the MQTT command uses too). With --capture (no TOUCHES) each stored fiducial the
+server names next is read from the robot's controller on Enter, through a recheck session
+(POST /v1/frames/{id}/sessions, "method": "recheck"), whose finish is that same check. This
+module only says the answer and turns its verdict into an exit code, as `tcpcal check` does
+(app.cli.recheck).
 """
 
 from __future__ import annotations
@@ -14,12 +17,14 @@ import re
 from pathlib import Path
 from typing import Annotated, NoReturn
 
+import httpx
 import typer
 
 from app.cli.bodies import RobotFrame
 from app.cli.client import fleet_robots, resolve_tool
 from app.cli.frames import robot_frames
-from app.cli.http import EXIT_BAD_USE, EXIT_NOT_FOUND, fail, out, refused, request
+from app.cli.guided import read_line
+from app.cli.http import EXIT_BAD_USE, EXIT_NOT_FOUND, err, fail, out, refused, request
 from app.cli.recheck import EXIT_CORRECTED, EXIT_IN_TOLERANCE, EXIT_RECALIBRATE
 from app.jsontypes import JsonObject
 from app.schemas.common import ID_PATTERN
@@ -76,13 +81,25 @@ def check_frame(
         typer.Argument(metavar="FRAME", help="the frame: its id, its name, or robot/frame"),
     ],
     touches_file: Annotated[
-        Path,
-        typer.Argument(metavar="TOUCHES", help='JSON file: [{"fiducial": name, "pose": ...}, ...]'),
-    ],
+        Path | None,
+        typer.Argument(
+            metavar="TOUCHES",
+            help='JSON file: [{"fiducial": name, "pose": ...}, ...] (not with --capture)',
+        ),
+    ] = None,
+    *,
     pointer: Annotated[
         str, typer.Option(help="the pointer tool that touched them (its active TCP is used)")
     ],
     fmt: Annotated[str, typer.Option("--format", help="the poses' format, e.g. kuka_abc")],
+    capture: Annotated[
+        bool,
+        typer.Option(
+            "--capture",
+            help="read each fiducial the server names next from the robot's controller on "
+            "Enter (f finishes after three)",
+        ),
+    ] = False,
     correct: Annotated[
         bool,
         typer.Option(
@@ -107,24 +124,27 @@ def check_frame(
 ) -> NoReturn:
     """Touch a frame's stored fiducials again after a move: how far each moved, and, with
     --correct, the frame corrected within max_correction_mm."""
-    try:
-        touches = json.loads(touches_file.read_text())
-    except (OSError, ValueError) as exc:
-        fail(EXIT_BAD_USE, f"cannot read the touches from {touches_file}: {exc}")
     if robot and not correct:
         fail(EXIT_BAD_USE, "--robot corrects every frame of the robot: add --correct")
-    body: JsonObject = {
-        "tool_id": resolve_tool(pointer),
-        "format": fmt,
-        "touches": touches,
+    if (touches_file is None) != capture:
+        fail(EXIT_BAD_USE, "give TOUCHES (a file of typed touches) or --capture, one of the two")
+    options: JsonObject = {
         "correct": "within_limits" if correct else "never",
         "scope": "robot" if robot else "frame",
     }
     if reason:
-        body["reason"] = reason
-    frame_id = resolve_frame(frame)
+        options["reason"] = reason
+    tool_id, frame_id = resolve_tool(pointer), resolve_frame(frame)
     headers = {"Idempotency-Key": idempotency_key} if idempotency_key else {}
-    response = request("POST", f"/v1/frames/{frame_id}/checks", json=body, headers=headers)
+    if touches_file is None:
+        response = _captured(frame_id, tool_id, fmt, options, headers)
+    else:
+        try:
+            touches = json.loads(touches_file.read_text())
+        except (OSError, ValueError) as exc:
+            fail(EXIT_BAD_USE, f"cannot read the touches from {touches_file}: {exc}")
+        body: JsonObject = {"tool_id": tool_id, "format": fmt, "touches": touches, **options}
+        response = request("POST", f"/v1/frames/{frame_id}/checks", json=body, headers=headers)
     if response.status_code >= 400:
         refused(response)
     result = response.json()
@@ -132,3 +152,33 @@ def check_frame(
     for deviation in result["deviations"]:
         out.print(f"  {deviation['words']}", highlight=False, soft_wrap=True, markup=False)
     raise typer.Exit(VERDICT_EXITS.get(result["verdict"], EXIT_RECALIBRATE))
+
+
+def _captured(
+    frame_id: str, tool_id: str, fmt: str, options: JsonObject, headers: dict[str, str]
+) -> httpx.Response:
+    """A recheck session's touches, each fiducial the server names next captured on Enter
+    (a refused capture said and asked again), finished as the frame's check."""
+    body = {"method": "recheck", "tool_id": tool_id, "format": fmt, "options": options}
+    made = request("POST", f"/v1/frames/{frame_id}/sessions", json=body)
+    if made.status_code >= 400:
+        refused(made)
+    state = made.json()
+    err.print(
+        f"recheck session {state['id']}: press Enter to capture each fiducial from the "
+        "robot's controller, f to finish",
+        highlight=False,
+    )
+    while state["next"] is not None:
+        name = state["next"]["role"]
+        line = read_line(f"fiducial {name!r} (Enter captures)> ")
+        if line is None or line.strip() == "f":
+            break
+        added = request(
+            "POST", f"/v1/sessions/{state['id']}/poses", json={"fiducial": name, "capture": True}
+        )
+        if added.status_code >= 400:
+            err.print(added.json().get("detail", added.text), highlight=False, markup=False)
+            continue
+        state = added.json()
+    return request("POST", f"/v1/sessions/{state['id']}/finish", json={}, headers=headers)
