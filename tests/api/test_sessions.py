@@ -309,6 +309,7 @@ def test_a_touch_is_read_in_the_sessions_format_and_a_declared_other_one_is_refu
     problem = other.json()
     assert other.headers["content-type"].startswith("application/problem+json")
     assert problem["errors"][0]["loc"] == ["body", "format"]
+    assert problem["type"].endswith("/invalid-pose")  # the session refuses it, not the schema
     assert problem["detail"] == (
         f"session {sid} reads its poses as techman_rxyz, not kuka_abc: send the pose as "
         "techman_rxyz (a touch is never converted), or start a session in kuka_abc"

@@ -19,11 +19,12 @@ class RecordingClient:
     """What the sink's on_connect asks of paho's client."""
 
     def __init__(self) -> None:
-        self.subscribed: list[str] = []
+        self.subscribed: list[tuple[str, int]] = []
         self.published: list[str] = []
 
-    def subscribe(self, topic: str, qos: int = 0) -> None:
-        self.subscribed.append(topic)
+    def subscribe(self, topic: str | list[tuple[str, int]], qos: int = 0) -> None:
+        """paho's subscribe: one topic and its QoS, or a list of (topic, QoS) in one go."""
+        self.subscribed.extend([(topic, qos)] if isinstance(topic, str) else topic)
 
     def publish(self, topic: str, *_: Any, **__: Any) -> None:
         self.published.append(topic)
@@ -32,7 +33,7 @@ class RecordingClient:
         raise AssertionError("the sink is not closing")
 
 
-def _subscriptions_at_connect(monkeypatch: pytest.MonkeyPatch, **env: str) -> list[str]:
+def _subscriptions_at_connect(monkeypatch: pytest.MonkeyPatch, **env: str) -> list[tuple[str, int]]:
     monkeypatch.delenv("TCPCAL_MQTT_COMMANDS", raising=False)
     for name, value in env.items():
         monkeypatch.setenv(name, value)
@@ -55,6 +56,7 @@ def test_commands_stay_off_unless_set_true(monkeypatch: pytest.MonkeyPatch, valu
     assert _subscriptions_at_connect(monkeypatch, TCPCAL_MQTT_COMMANDS=value) == []
 
 
-def test_commands_on_subscribe_to_the_recheck_topic(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_commands_on_subscribe_to_the_recheck_topics(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A tool's re-check and a frame's (issue 49), in one SUBSCRIBE at QoS 1."""
     on = _subscriptions_at_connect(monkeypatch, TCPCAL_MQTT_COMMANDS="true")
-    assert on == ["cell4/commands/recheck"]
+    assert on == [("cell4/commands/recheck", 1), ("cell4/commands/recheck-frame", 1)]

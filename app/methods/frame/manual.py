@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import Annotated
 
 import numpy as np
-from pydantic import ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Field, field_validator, model_validator
 from scipy.spatial.transform import Rotation
 
 from app.methods.base import PoseCount
@@ -44,6 +44,21 @@ class ManualFrameCalibration(FrameMethodRequest):
         default=None, description="the frame as numbers (or give format + poses instead)"
     )
     options: NoOptions = Field(default_factory=NoOptions)
+    #: Nothing is touched: the schema says so (null only), and a pointer sent is refused at
+    #: its field in words (a schema allowing a string here that the model then refused is a
+    #: schema that lies: the contract test's schema_valid_is_not_refused_by_the_schema).
+    tool_id: None = Field(default=None, description="none: a frame entered by hand has no pointer")
+    tcp_version: None = Field(default=None, description="none: no pointer, so no TCP version")
+
+    @field_validator("tool_id", "tcp_version", mode="before")
+    @classmethod
+    def _no_pointer(cls, value: object) -> None:
+        if value is not None:
+            raise ValueError(
+                "a frame entered by hand is touched with no pointer: leave out tool_id and "
+                "tcp_version"
+            )
+        return None
 
     @model_validator(mode="after")
     def _frame_or_pose(self) -> ManualFrameCalibration:
@@ -52,11 +67,6 @@ class ManualFrameCalibration(FrameMethodRequest):
             raise ValueError("give either frame, or format + poses with exactly one pose")
         if has_pose and (self.format is None or self.poses is None):
             raise ValueError("manual with format + poses takes exactly one pose: the frame")
-        if self.tool_id is not None or self.tcp_version is not None:
-            raise ValueError(
-                "a frame entered by hand is touched with no pointer: leave out tool_id and "
-                "tcp_version"
-            )
         return self
 
 

@@ -283,10 +283,11 @@ def add_touch_request(*, session_id: str, data: TouchAdd, actor: Principal) -> S
 def _same_format(row: GuidedSession, fmt: PoseFormat) -> None:
     """Refuse a touch that says it is in another format than the session reads its poses in:
     read as the session's, its numbers would be another pose (issue 51: kuka_abc A B C
-    0 0 -155 read as techman_rxyz rx ry rz)."""
+    0 0 -155 read as techman_rxyz rx ry rz). /invalid-pose, not /validation: the body is
+    what the schema allows (any format), and the session's state refuses it."""
     if fmt != row.format:
         raise InvalidInput(
-            "validation",
+            "invalid-pose",
             f"session {row.id} reads its poses as {row.format}, not {fmt}: send the pose as "
             f"{row.format} (a touch is never converted), or start a session in {fmt}",
             loc=("body", "format"),
