@@ -56,8 +56,9 @@ def calibrated_frame(
     return frame
 
 
-def cell(api: Api) -> tuple[dict[str, Any], dict[str, Any]]:
-    robot = api.robot("kr16", vendor="KUKA")
+def cell(api: Api, vendor: str | None = "KUKA") -> tuple[dict[str, Any], dict[str, Any]]:
+    """A robot (`vendor` None: any protocol is its controller's) and its pointer, calibrated."""
+    robot = api.robot("kr16", **({"vendor": vendor} if vendor else {}))
     pointer = api.tool(robot["id"], "pointer")
     api.manual(pointer["id"], POINTER_TCP)
     return robot, pointer

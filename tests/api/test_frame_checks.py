@@ -91,11 +91,14 @@ def test_a_fixture_moved_1_5_mm_and_0_3_deg_is_corrected_to_within_0_01_mm(api: 
     assert chain[-4:] == ["frame.check", "version.create", "version.activate", "frame.check"]
 
 
-def _on_controller(api: Api, r: Rig) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
-    """The cell's robot on the rig's controller, the fixture's frame where it addresses one."""
-    robot, pointer = cell(api)
+def _on_controller(
+    api: Api, r: Rig, vendor: str | None = "KUKA", **controller: Any
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+    """The cell's robot on the rig's controller, the fixture's frame where it addresses one;
+    `controller`: more of the controller's body (a password)."""
+    robot, pointer = cell(api, vendor)
     put = api.request(
-        "PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=r.controller_body()
+        "PUT", f"/v1/robots/{robot['id']}/controller", "admin", json=r.controller_body(**controller)
     )
     assert put.status_code == 200, put.text
     frame = calibrated_frame(
