@@ -8,6 +8,7 @@ from app.services.frames.subject import FRAME
 from app.services.lifecycle import versions as lifecycle
 from app.storage.db import session_scope
 from app.words import Status
+from tests.conftest import Api
 
 ACTOR = Principal(key_id="test-calibrate", name="test-calibrate", scope="calibrate")
 
@@ -28,3 +29,20 @@ def add_frame_version(frame_id: str, position: list[float], status: Status = "ac
             note=None,
             actor=ACTOR,
         )
+
+
+def base_at_two_versions(
+    api: Api, robot_id: str, slot: int, v1: list[float], v2: list[float]
+) -> str:
+    """A base frame "fixture-a" of the robot at `slot`: v1 as first taught, v2 (active) as
+    calibrated since; its id."""
+    made = api.post(
+        f"/v1/robots/{robot_id}/frames", {"name": "fixture-a", "kind": "base", "slot": slot}
+    )
+    assert made.status_code == 201, made.text
+    frame_id = str(made.json()["id"])
+    assert add_frame_version(frame_id, v1) == 1
+    assert add_frame_version(frame_id, v2) == 2
+    activated = api.post(f"/v1/frames/{frame_id}/versions/2/activate", scope="calibrate")
+    assert activated.status_code == 200, activated.text
+    return frame_id

@@ -12,7 +12,7 @@ from app.storage.db import session_scope
 from app.storage.models import RobotLiveFrame
 from tests.api.capture_steps import krc as krc
 from tests.api.controller_rigs import Rig
-from tests.api.frame_versions import add_frame_version
+from tests.api.frame_versions import add_frame_version, base_at_two_versions
 from tests.conftest import Api
 
 #: BASE_DATA[2] as first taught (v1) and as calibrated since (v2, the active one), mm.
@@ -40,15 +40,7 @@ def test_a_krc_switched_to_an_older_base_moves_in_its_older_version(api: Api, kr
     )
     assert put.status_code == 200, put.text
     api.tool(robot["id"], "torch", **krc.tool_fields)
-    made = api.post(
-        f"/v1/robots/{robot['id']}/frames", {"name": "fixture-a", "kind": "base", "slot": 2}
-    )
-    assert made.status_code == 201, made.text
-    frame_id = made.json()["id"]
-    assert add_frame_version(frame_id, OLD_BASE) == 1
-    assert add_frame_version(frame_id, NEW_BASE) == 2
-    activated = api.post(f"/v1/frames/{frame_id}/versions/2/activate", scope="calibrate")
-    assert activated.status_code == 200, activated.text
+    frame_id = base_at_two_versions(api, robot["id"], 2, OLD_BASE, NEW_BASE)
 
     krc.sim.set_base_data(2, *OLD_BASE, 0.0, 0.0, 0.0)  # the pendant: the base as first taught
     krc.sim.select_base(2)
