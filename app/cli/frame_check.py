@@ -15,9 +15,8 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-from typing import Annotated, NoReturn
+from typing import TYPE_CHECKING, Annotated, NoReturn
 
-import httpx
 import typer
 
 from app.cli.bodies import RobotFrame
@@ -28,6 +27,9 @@ from app.cli.http import EXIT_BAD_USE, EXIT_NOT_FOUND, err, fail, out, refused, 
 from app.cli.recheck import EXIT_CORRECTED, EXIT_IN_TOLERANCE, EXIT_RECALIBRATE
 from app.jsontypes import JsonObject
 from app.schemas.common import ID_PATTERN
+
+if TYPE_CHECKING:  # the server's workers import app.cli's modules, never httpx
+    import httpx
 
 #: The exit code of each verdict (the server's FrameCheck.verdict), those of `tcpcal check`.
 VERDICT_EXITS = {

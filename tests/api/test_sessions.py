@@ -315,6 +315,13 @@ def test_a_touch_is_read_in_the_sessions_format_and_a_declared_other_one_is_refu
         "techman_rxyz (a touch is never converted), or start a session in kuka_abc"
     )
     assert api.get(f"/v1/sessions/{sid}").json()["n_poses"] == 0
+    # a frame touch's field on a tool session: refused by the session, named (the schema of
+    # the route takes either touch; schemathesis: schema_valid_is_not_refused_by_the_schema)
+    framed = api.post(f"/v1/sessions/{sid}/poses", json={"capture": True, "nominal_mm": None})
+    assert framed.status_code == 422, framed.text
+    assert framed.json()["type"].endswith("/invalid-pose"), framed.text
+    assert framed.json()["errors"][0]["loc"] == ["body", "nominal_mm"]
+    assert "belong to a frame's session's touches" in framed.json()["detail"]
     empty = api.delete(f"/v1/sessions/{sid}/poses/0")
     assert empty.status_code == 404
     assert empty.json()["detail"] == f"session {sid} holds no touches yet: there is none to delete"

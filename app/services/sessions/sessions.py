@@ -477,7 +477,35 @@ def read_touch(*, session_id: str, raw: object, actor: Principal) -> TouchAdd | 
     pydantic's ValidationError when the body is not one)."""
     with transaction_for(actor, write=False) as session:
         frame = get_session(session, session_id).frame_id is not None
-    return (FrameTouchAdd if frame else TouchAdd).model_validate(raw)
+    model, other = (FrameTouchAdd, TouchAdd) if frame else (TouchAdd, FrameTouchAdd)
+    _no_field_of_the_other_kind(session_id, raw, model, other, frame=frame)
+    return model.model_validate(raw)
+
+
+def _no_field_of_the_other_kind(
+    session_id: str,
+    raw: object,
+    model: type[TouchAdd | FrameTouchAdd],
+    other: type[TouchAdd | FrameTouchAdd],
+    *,
+    frame: bool,
+) -> None:
+    """422 /invalid-pose naming a field only the other kind of session's touch has (a tool
+    session sent `nominal_mm`): the body is one the route's schema allows (either touch),
+    so it is the session that refuses it, not the schema (/validation)."""
+    if not isinstance(raw, dict):
+        return
+    foreign = sorted(
+        name for name in raw if name in other.model_fields and name not in model.model_fields
+    )
+    if foreign:
+        kind, others = ("a frame's", "a tool's") if frame else ("a tool's", "a frame's")
+        raise InvalidInput(
+            "invalid-pose",
+            f"session {session_id} is {kind} session: {', '.join(foreign)} belong to "
+            f"{others} session's touches; leave them out",
+            loc=("body", foreign[0]),
+        )
 
 
 def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> SessionOut:
