@@ -908,12 +908,19 @@ function plotly() {
   return plotlyLoading;
 }
 
-// A plot, its div held at the plot's height: a responsive plot's container is 100 % of a div
-// whose height is its min-height, so narrowing the window let the residual chart's 300 px hang
-// 58 px out of its 242 px div, under the 3-D plot below it.
+// Each plot's height, written once: its div is drawn at it with the page and Plotly draws at it.
+// A responsive plot's container is 100 % of a div whose height is its min-height, so narrowing
+// the window let the residual chart's 300 px hang 58 px out of its 242 px div; and a div given
+// its height only when Plotly had loaded (seconds on a slow tablet) pushed everything below it
+// down by 240 px, under a finger already on its way to a button (the tool page's Activate).
+const PLOT_HEIGHT = { "plot-tcp": 480, "plot-checks": 280, "plot-residuals": 300, "plot-3d": 520, "frame-plot": 420 };
+function plotBox(id, attrs = {}) {
+  const box = h("div", { id, class: "plot", ...attrs });
+  box.style.minHeight = `${PLOT_HEIGHT[id]}px`;
+  return box;
+}
 function newPlot(id, traces, layout, config) {
-  document.getElementById(id).style.minHeight = `${layout.height}px`;
-  return Plotly.newPlot(id, traces, layout, config);
+  return Plotly.newPlot(id, traces, { ...layout, height: PLOT_HEIGHT[id] }, config);
 }
 
 // Draws a page's plots once Plotly is loaded; a page without plots never loads it. If it cannot
@@ -1034,15 +1041,18 @@ async function toolPage(toolId) {
     if (outcome) section.querySelector("#deploy-outcome")?.replaceWith(outcome);
     controllerSlot.replaceChildren(section);
   };
+  // Both sections above the versions are filled before the page is shown: drawn after it, they
+  // pushed the versions table down under a finger (or a click) already on its way to a button.
+  await Promise.all([drawController(null), tool.active_version === null ? null : fillControllers(tool, formats, controllerBox)]);
   show(
     h("h1", {}, `${tool.name} `, h("span", { class: "muted" }, `on ${robot.name}`)),
     writes ? h("p", {}, h("a", { id: "calibrate-link", class: "button-link", href: `/ui/tools/${tool.id}/calibrate` }, "Calibrate at the cell")) : null,
     h("p", {}, `Cell ${robot.cell ?? "—"} · slot ${tool.slot ?? "—"} · active version ${tool.active_version ?? "none"} · tolerance rms ${mm(tool.tolerance.max_rms_mm)} mm, residual ${mm(tool.tolerance.max_residual_mm)} mm, check ${mm(tool.tolerance.check_mm)} mm`),
     controllerSlot,
     h("section", {}, h("h2", {}, "Active TCP for the controllers"), tool.active_version === null ? h("p", {}, "No active TCP: calibrate or activate a version.") : controllerBox),
-    h("section", {}, h("h2", {}, "TCP over the versions"), versions.items.length ? h("div", { id: "plot-tcp", class: "plot" }) : h("p", { id: "no-versions" }, "No versions yet: calibrate the tool, or enter its TCP by hand (method manual)."),
+    h("section", {}, h("h2", {}, "TCP over the versions"), versions.items.length ? plotBox("plot-tcp") : h("p", { id: "no-versions" }, "No versions yet: calibrate the tool, or enter its TCP by hand (method manual)."),
       driftLine("drift-versions", drift.versions, "calibrated versions")),
-    h("section", {}, h("h2", {}, "Checks over time"), checks.length ? h("div", { id: "plot-checks", class: "plot" }) : h("p", {}, "No checks recorded yet."),
+    h("section", {}, h("h2", {}, "Checks over time"), checks.length ? plotBox("plot-checks") : h("p", {}, "No checks recorded yet."),
       driftLine("drift-checks", drift.checks, "checks of the active version")),
     h("section", {}, h("h2", {}, "Versions"),
       writes && rollbackTo !== null ? h("p", {}, h("button", { type: "button", id: "rollback", onclick: rollBack }, `Roll back to version ${rollbackTo}`)) : null,
@@ -1054,12 +1064,10 @@ async function toolPage(toolId) {
     await auditSection(toolId),
   );
 
-  await drawController(null);
   await withPlotly(() => {
     if (versions.items.length) plotTcp(versions.items, sigmaOf);
     if (checks.length) plotChecks(checks, tool.tolerance.check_mm, drift.checks);
   });
-  if (tool.active_version !== null) await fillControllers(tool, formats, controllerBox);
 }
 
 // ---- the audit trail (admin keys) ------------------------------------------------------------
@@ -1182,7 +1190,6 @@ function plotTcp(versions, sigmaOf) {
   newPlot("plot-tcp", traces, {
     grid: { rows: 3, columns: 1, shared_xaxes: true },
     xaxis: { type: "linear", range: [0.5, versions.length + 0.5], tickmode: "array", tickvals: ticks, ticktext: ticks.map((step) => `v${versions[step - 1].version}`), zeroline: false },
-    height: 480,
     margin: { t: 10, r: 10, b: 40, l: 70 },
     yaxis: { title: { text: "x mm" }, tickformat: ".3f", ...spanAtLeast(traces[0]) },
     yaxis2: { title: { text: "y mm" }, tickformat: ".3f", ...spanAtLeast(traces[1]) },
@@ -1237,7 +1244,7 @@ function plotChecks(checks, limit, trend) {
       marker: { color: ordered.map((c) => (c.within_tolerance ? "#2e7d32" : "#c62828")), size: 10 } },
     { type: "scatter", mode: "lines", name: "check_mm", x: range, y: [limit, limit], line: { dash: "dash", color: "#c62828" } },
     ...(trace ? [trace] : []),
-  ], { height: 280, margin: { t: 10, r: 10, b: 40, l: 70 }, xaxis: { type: "date", range }, yaxis: { title: { text: "distance mm" }, range: [0, top] } }, { displaylogo: false, responsive: true });
+  ], { margin: { t: 10, r: 10, b: 40, l: 70 }, xaxis: { type: "date", range }, yaxis: { title: { text: "distance mm" }, range: [0, top] } }, { displaylogo: false, responsive: true });
 }
 
 // ---- calibration report ---------------------------------------------------------------------
@@ -1276,8 +1283,8 @@ async function reportPage(calibrationId) {
     h("p", { id: "summary", class: `summary ${cal.status}` }, cal.summary),
     cal.warnings.length ? h("section", {}, h("h2", {}, "Warnings"), h("ul", { id: "warnings" }, cal.warnings.map((w) => h("li", {}, w)))) : null,
     h("section", {}, h("h2", {}, "Figures"), figures),
-    q.residuals_mm.length ? h("section", { class: "plot-section" }, h("h2", {}, "Residual per touch"), h("div", { id: "plot-residuals", class: "plot" })) : null,
-    geometry ? h("section", { class: "plot-section" }, h("h2", {}, "Touches in space (base frame, mm)"), h("div", { id: "plot-3d", class: "plot tall" })) : null,
+    q.residuals_mm.length ? h("section", { class: "plot-section" }, h("h2", {}, "Residual per touch"), plotBox("plot-residuals")) : null,
+    geometry ? h("section", { class: "plot-section" }, h("h2", {}, "Touches in space (base frame, mm)"), plotBox("plot-3d")) : null,
     h("section", {}, h("h2", {}, "Request as received"), h("pre", { id: "raw-request", class: "raw" }, JSON.stringify(cal.request, null, 2))),
   );
   await withPlotly(() => {
@@ -1296,7 +1303,7 @@ function plotResiduals(q, tolerance) {
       text: q.residuals_mm.map((v, i) => (outliers.has(i) ? `${mm(v)} outlier` : mm(v))), textposition: "outside",
       hovertemplate: "touch %{x}: %{y:.3f} mm<extra></extra>" },
     { type: "scatter", mode: "lines", name: "max_residual_mm", x: [0.5, n + 0.5], y: [tolerance.max_residual_mm, tolerance.max_residual_mm], line: { dash: "dash", color: "#c62828" } },
-  ], { height: 300, margin: { t: 20, r: 10, b: 40, l: 70 }, xaxis: { title: { text: "touch" }, tickmode: "linear", dtick: 1 }, yaxis: { title: { text: "mm" }, rangemode: "tozero" }, showlegend: false }, { displaylogo: false, responsive: true, staticPlot: false });
+  ], { margin: { t: 20, r: 10, b: 40, l: 70 }, xaxis: { title: { text: "touch" }, tickmode: "linear", dtick: 1 }, yaxis: { title: { text: "mm" }, rangemode: "tozero" }, showlegend: false }, { displaylogo: false, responsive: true, staticPlot: false });
 }
 
 function plot3d(cal, geometry) {
@@ -1320,11 +1327,11 @@ function plot3d(cal, geometry) {
     const [x, y, z] = cal.reference_point_mm;
     traces.push({ type: "scatter3d", mode: "markers", name: "touched point", x: [x], y: [y], z: [z], marker: { size: 6, symbol: "diamond", color: "#ff8f00" } });
   }
-  newPlot("plot-3d", traces, { height: 520, margin: { t: 0, r: 0, b: 0, l: 0 }, scene: { aspectmode: "data" }, legend: { x: 0, y: 1 } }, { displaylogo: false, responsive: true });
+  newPlot("plot-3d", traces, { margin: { t: 0, r: 0, b: 0, l: 0 }, scene: { aspectmode: "data" }, legend: { x: 0, y: 1 } }, { displaylogo: false, responsive: true });
 }
 
 // The helpers the calibrate page (calibrate.js) draws and talks to the API with.
-const pageHelpers = () => ({ h, show, api, json, everyPage, Problem, problemBox, confirmDialog, deployProblem, frameControllerSection, mm, vec, when, mayCalibrate, plot });
+const pageHelpers = () => ({ h, show, api, json, everyPage, Problem, problemBox, confirmDialog, deployProblem, frameControllerSection, mm, vec, when, mayCalibrate, plot, plotBox });
 
 // A plot of a page that draws as it goes (the frame page): Plotly loaded first.
 async function plot(id, traces, layout) {

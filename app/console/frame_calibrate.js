@@ -70,7 +70,7 @@ function drawSession(ui, body, frame, session, drawController) {
   const touches = h("ol", { id: "frame-touches" });
   const problem = h("div", { id: "frame-problem" });
   const result = h("section", { id: "frame-result" });
-  const plotBox = h("div", { id: "frame-plot", class: "plot", role: "img", "aria-label": "touched points and the frame's axes" });
+  const plotBox = ui.plotBox("frame-plot", { role: "img", "aria-label": "touched points and the frame's axes" });
   const typed = h("input", { name: "pose", "aria-label": "typed pose", placeholder: `a pose in ${session.format}` });
   let state = session;
   const send = async (touch) => {
@@ -114,7 +114,7 @@ function drawSession(ui, body, frame, session, drawController) {
     touches.replaceChildren(...state.touches.map((t) => h("li", {}, `${t.role ?? "touch"} (${t.source}): ${t.point_mm ? t.point_mm.map((v) => v.toFixed(3)).join("  ") + " mm" : "no point: the pointer has no TCP"}`)));
     // the server's words, less the HTTP call it names for an API client: the buttons say it here
     for (const message of state.messages) touches.append(h("li", { class: "muted" }, message.replace(HTTP_CALL, "")));
-    ui.plot("frame-plot", traces(state), { height: 420, margin: { l: 0, r: 0, t: 0, b: 0 }, scene: { aspectmode: "data" }, showlegend: true });
+    ui.plot("frame-plot", traces(state), { margin: { l: 0, r: 0, t: 0, b: 0 }, scene: { aspectmode: "data" }, showlegend: true });
   };
   body.replaceChildren(next, h("div", { class: "actions" }, capture, " ", typeForm, " ", finish), problem, touches, plotBox, result);
   redraw();

@@ -136,6 +136,35 @@ def test_fleet_tints_a_tool_whose_active_version_is_out_of_tolerance(
     expect(page.locator("#fleet tbody tr")).to_contain_text("torch")
 
 
+# Records where the versions table's top lies each time the page changes (a MutationObserver
+# runs after every change, before the next fetch answers), so a section or a plot drawn after the
+# table moved it is seen however fast the machine.
+_RECORD_VERSIONS_TOP = """
+window.versionsTops = [];
+new MutationObserver(() => {
+  const table = document.querySelector("#versions");
+  if (!table) return;
+  const top = Math.round(table.getBoundingClientRect().top + window.scrollY);
+  if (window.versionsTops.at(-1) !== top) window.versionsTops.push(top);
+}).observe(document, { childList: true, subtree: true, attributes: true });
+"""
+
+
+def test_the_tool_page_does_not_move_once_drawn(page: Page, setup: Setup) -> None:
+    """The sections above the versions (the controller, the controllers' texts) and the plots
+    between them are laid out when the table first appears: drawn after it, they pushed the
+    table down under a click on its way to Activate (the plot by 240 px once Plotly loaded,
+    seconds later on a busy machine), and the click landed elsewhere."""
+    page.add_init_script(_RECORD_VERSIONS_TOP)
+    _sign_in(page, setup, f"/ui/tools/{setup.tools['probe']}")
+    expect(page.locator("main")).to_have_attribute("aria-busy", "false")
+    expect(page.locator("#plot-tcp .main-svg").first).to_be_attached()
+    expect(page.locator("#controllers [data-format=kuka] pre")).to_contain_text("$TOOL_DATA[2]")
+    expect(page.locator("#controller-none")).to_be_visible()
+    tops = page.evaluate("window.versionsTops")
+    assert len(tops) == 1, f"the versions table moved after it was drawn: tops {tops} px"
+
+
 def test_activate_asks_for_a_reason_and_forces_an_out_of_tolerance_version(
     page: Page, setup: Setup
 ) -> None:
