@@ -225,34 +225,27 @@ class Calibration(Base):
     created_by: Mapped[str] = mapped_column(String(200))
 
 
-class TcpVersion(Base):
-    """Version n of a tool's TCP: immutable once written."""
-
-    __tablename__ = "tcp_versions"
-    __table_args__ = (UniqueConstraint("tool_id", "version", name="uq_tcp_versions_tool_version"),)
+class VersionColumns:
+    """A version's columns, for every subject's versions table alike; each table adds the
+    column naming its subject, the method that made the version (`source`, in the subject's
+    method names) and the calibration it came from (in the subject's calibrations table)."""
 
     id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
-    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
     version: Mapped[int] = mapped_column(Integer)
     position_mm: Mapped[JsonArray] = mapped_column(JSON)
     quaternion: Mapped[JsonArray] = mapped_column(JSON)
-    #: the method that made the version (`manual` for a TCP entered by hand)
-    source: Mapped[MethodName] = mapped_column(String(40))
     status: Mapped[Status] = mapped_column(String(40))
-    calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
     note: Mapped[str | None] = mapped_column(Text)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str] = mapped_column(String(200))
 
 
-class Activation(Base):
-    """One activation of a version: the history behind `active_version`, with who and when."""
-
-    __tablename__ = "activations"
-    __table_args__ = (Index("ix_activations_tool_seq", "tool_id", "id"),)
+class ActivationColumns:
+    """An activation's columns, for every subject's activations table alike (the history
+    behind the subject's `active_version`, with who and when); each table adds the column
+    naming its subject."""
 
     id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
-    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
     version: Mapped[int] = mapped_column(Integer)
     previous_version: Mapped[int | None] = mapped_column(Integer)
     #: the kind (app.words.ActivationKind)
@@ -261,6 +254,27 @@ class Activation(Base):
     reason_text: Mapped[str | None] = mapped_column(String(500))
     activated_at: Mapped[datetime] = mapped_column(default=utcnow)
     activated_by: Mapped[str] = mapped_column(String(200))
+
+
+class TcpVersion(VersionColumns, Base):
+    """Version n of a tool's TCP: immutable once written."""
+
+    __tablename__ = "tcp_versions"
+    __table_args__ = (UniqueConstraint("tool_id", "version", name="uq_tcp_versions_tool_version"),)
+
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
+    #: the method that made the version (`manual` for a TCP entered by hand)
+    source: Mapped[MethodName] = mapped_column(String(40))
+    calibration_id: Mapped[str | None] = mapped_column(ForeignKey("calibrations.id"))
+
+
+class Activation(ActivationColumns, Base):
+    """One activation of a tool's version."""
+
+    __tablename__ = "activations"
+    __table_args__ = (Index("ix_activations_tool_seq", "tool_id", "id"),)
+
+    tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
 
 
 class Frame(Base):
@@ -344,7 +358,7 @@ class FrameCalibration(Base):
     created_by: Mapped[str] = mapped_column(String(200))
 
 
-class FrameVersion(Base):
+class FrameVersion(VersionColumns, Base):
     """Version n of a frame: immutable once written."""
 
     __tablename__ = "frame_versions"
@@ -352,36 +366,19 @@ class FrameVersion(Base):
         UniqueConstraint("frame_id", "version", name="uq_frame_versions_frame_version"),
     )
 
-    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
     frame_id: Mapped[str] = mapped_column(ForeignKey("frames.id"))
-    version: Mapped[int] = mapped_column(Integer)
-    position_mm: Mapped[JsonArray] = mapped_column(JSON)
-    quaternion: Mapped[JsonArray] = mapped_column(JSON)
     #: the method that made the version (`manual` for a frame entered by hand)
     source: Mapped[FrameMethodName] = mapped_column(String(40))
-    status: Mapped[Status] = mapped_column(String(40))
     calibration_id: Mapped[str | None] = mapped_column(ForeignKey("frame_calibrations.id"))
-    note: Mapped[str | None] = mapped_column(Text)
-    created_at: Mapped[datetime] = mapped_column(default=utcnow)
-    created_by: Mapped[str] = mapped_column(String(200))
 
 
-class FrameActivation(Base):
-    """One activation of a frame's version: the history behind its `active_version`."""
+class FrameActivation(ActivationColumns, Base):
+    """One activation of a frame's version."""
 
     __tablename__ = "frame_activations"
     __table_args__ = (Index("ix_frame_activations_frame_seq", "frame_id", "id"),)
 
-    id: Mapped[int] = mapped_column(AutoId, primary_key=True, autoincrement=True)
     frame_id: Mapped[str] = mapped_column(ForeignKey("frames.id"))
-    version: Mapped[int] = mapped_column(Integer)
-    previous_version: Mapped[int | None] = mapped_column(Integer)
-    #: the kind (app.words.ActivationKind)
-    reason: Mapped[ActivationKind] = mapped_column(String(40))
-    #: the person's own words, when given
-    reason_text: Mapped[str | None] = mapped_column(String(500))
-    activated_at: Mapped[datetime] = mapped_column(default=utcnow)
-    activated_by: Mapped[str] = mapped_column(String(200))
 
 
 class FrameFiducial(Base):
