@@ -10,7 +10,7 @@ from collections.abc import Mapping, Sequence
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.errors import Conflict, InvalidInput
+from app.errors import InvalidInput
 from app.helpers.pagination import paginate
 from app.schemas.frame_tolerance import FrameTolerance
 from app.schemas.frames import FrameCreate, FrameUpdate
@@ -18,7 +18,7 @@ from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.frames.subject import FRAME
 from app.services.lifecycle import drift
-from app.services.lifecycle.versions import check_if_match, get_live
+from app.services.lifecycle.versions import check_if_match, check_unique, get_live
 from app.services.robots.robots import get_robot
 from app.storage.models import Frame, Robot, new_id, utcnow
 from app.vendors.connector import FrameTarget
@@ -62,24 +62,22 @@ def _frame_unique(
     slot: int | None,
     except_id: str | None = None,
 ) -> None:
-    live = select(Frame.id).where(Frame.robot_id == robot_id, Frame.archived_at.is_(None))
-    if except_id:
-        live = live.where(Frame.id != except_id)
-    other = None if name is None else session.scalars(live.where(Frame.name == name)).first()
-    if other is not None:
-        raise Conflict(
+    check_unique(
+        session,
+        FRAME,
+        robot_id=robot_id,
+        name=name,
+        slot=slot,
+        except_id=except_id,
+        name_taken=lambda other: (
             f"robot {robot_id} already has a frame named {name!r}; name this one otherwise, "
-            f"or archive the other first (DELETE /v1/frames/{other})",
-            loc=("body", "name"),
-            msg="already taken",
-        )
-    if slot is not None and session.scalars(live.where(Frame.slot == slot)).first():
-        raise Conflict(
+            f"or archive the other first (DELETE /v1/frames/{other})"
+        ),
+        slot_taken=(
             f"slot {slot} of robot {robot_id} is already taken by another of its frames; "
-            "give another slot, or archive that frame first",
-            loc=("body", "slot"),
-            msg="already taken",
-        )
+            "give another slot, or archive that frame first"
+        ),
+    )
 
 
 def create_frame(session: Session, *, robot_id: str, data: FrameCreate, actor: Principal) -> Frame:

@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import functools
 import hashlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import datetime
 from typing import NamedTuple, Protocol
 
 from sqlalchemy import BindParameter, bindparam, insert, select, update
 from sqlalchemy.orm import Session
 
-from app.errors import NoActiveVersion, NotFound, PreconditionFailed
+from app.errors import Conflict, NoActiveVersion, NotFound, PreconditionFailed
 from app.helpers.etags import if_match_ok
 from app.jsontypes import JsonObject
 from app.security.auth import Principal, cells_of
@@ -149,6 +149,31 @@ def check_if_match(subject: AnySubject, row: Revised, if_match: str | None) -> N
         "read it again and retry",
         headers={"ETag": etag(row)},
     )
+
+
+def check_unique(
+    session: Session,
+    subject: AnySubject,
+    *,
+    robot_id: str,
+    name: str | None,
+    slot: int | None,
+    except_id: str | None = None,
+    name_taken: Callable[[str], str],
+    slot_taken: str,
+) -> None:
+    """409 at body.name or body.slot when another live subject of the robot (not `except_id`)
+    has the name or the slot; the subject says it in its own words: `name_taken` given the
+    other's id, `slot_taken`."""
+    table = subject.table
+    live = select(table.c.id).where(table.c.robot_id == robot_id, table.c.archived_at.is_(None))
+    if except_id:
+        live = live.where(table.c.id != except_id)
+    other = None if name is None else session.scalars(live.where(table.c.name == name)).first()
+    if other is not None:
+        raise Conflict(name_taken(other), loc=("body", "name"), msg="already taken")
+    if slot is not None and session.scalars(live.where(table.c.slot == slot)).first():
+        raise Conflict(slot_taken, loc=("body", "slot"), msg="already taken")
 
 
 def get_live(

@@ -7,13 +7,13 @@ from collections.abc import Sequence
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.errors import Conflict, InvalidInput
+from app.errors import InvalidInput
 from app.helpers.pagination import paginate
 from app.helpers.tolerance import effective_tolerance
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.security.auth import Principal
 from app.services.audit import writes as audit
-from app.services.lifecycle.versions import Revised, etag
+from app.services.lifecycle.versions import Revised, check_unique, etag
 from app.services.lifecycle.versions import check_if_match as lifecycle_check_if_match
 from app.services.robots.connection import check_slot_for_controller
 from app.services.robots.robots import get_robot
@@ -62,21 +62,16 @@ def _tool_unique(
     slot: int | None,
     except_id: str | None = None,
 ) -> None:
-    live = select(Tool.id).where(Tool.robot_id == robot_id, Tool.archived_at.is_(None))
-    if except_id:
-        live = live.where(Tool.id != except_id)
-    if name is not None and session.scalars(live.where(Tool.name == name)).first():
-        raise Conflict(
-            f"robot {robot_id} already has a tool named {name!r}",
-            loc=("body", "name"),
-            msg="already taken",
-        )
-    if slot is not None and session.scalars(live.where(Tool.slot == slot)).first():
-        raise Conflict(
-            f"slot {slot} of robot {robot_id} is already taken by another tool",
-            loc=("body", "slot"),
-            msg="already taken",
-        )
+    check_unique(
+        session,
+        TOOL,
+        robot_id=robot_id,
+        name=name,
+        slot=slot,
+        except_id=except_id,
+        name_taken=lambda _other: f"robot {robot_id} already has a tool named {name!r}",
+        slot_taken=f"slot {slot} of robot {robot_id} is already taken by another tool",
+    )
 
 
 def create_tool(session: Session, *, robot_id: str, data: ToolCreate, actor: Principal) -> Tool:
