@@ -5,30 +5,26 @@ controller reads (ETag, 304), and the versions' routes every subject has
 from __future__ import annotations
 
 import json
-from typing import Annotated, cast
+from typing import Annotated
 
 from fastapi import APIRouter, Body, Header, Request, Response
 from fastapi.responses import PlainTextResponse
 
-from app.api.deps import AdminKey, CalibrateKey, ReadKey, SessionDep, label_request
+from app.api.deps import AdminKey, CalibrateKey, ReadKey, SessionDep
 from app.api.params import (
-    ACCEPT,
     DEFAULT_PAGE,
-    FORMAT,
-    IF_NONE_MATCH,
     AcceptHeader,
     Cursor,
     FormatQuery,
     IdempotencyKey,
     Limit,
     PathId,
-    RawParam,
 )
 from app.api.shared import page
-from app.api.subject_routes import SubjectRoutes, version_routes
+from app.api.subject_routes import SubjectRoutes, add_active_route, version_routes
 from app.helpers.etags import IF_MATCH_PATTERN
 from app.methods.frame import FrameCalibrationIn, frame_openapi_examples
-from app.schemas.common import ID_PATTERN, Page
+from app.schemas.common import Page
 from app.schemas.frames import (
     ActiveRobotFrame,
     FiducialList,
@@ -44,7 +40,6 @@ from app.schemas.frames import (
 from app.services.frames import calibrations, controller_files, fiducials, frames, versions
 from app.services.frames.subject import FRAME
 from app.services.lifecycle.versions import etag
-from app.words import ControllerFormat
 
 router = APIRouter(tags=["frames"])
 FrameIfMatch = Annotated[
@@ -52,68 +47,19 @@ FrameIfMatch = Annotated[
     Header(pattern=IF_MATCH_PATTERN, description="the frame's ETag (or *); 412 when stale"),
 ]
 
-#: The hot read's path parameter, read by hand (see RawParam).
-FRAME_ID = RawParam(
-    "path",
-    "frame_id",
-    "Frame Id",
-    "an id this service issued (1-64 of A-Za-z0-9_-); take it from GET /v1/frames",
-    description="resource id",
-    pattern=ID_PATTERN,
-)
-
-
 # First: the route cell controllers poll is matched before the others.
-@router.get(
-    "/v1/frames/{frame_id}/frame",
-    response_model=ActiveRobotFrame,
-    responses={
-        200: {"content": {"text/plain": {"schema": {"type": "string"}}}},
-        304: {"description": "not modified (If-None-Match)"},
-    },
-    openapi_extra={"parameters": [p.openapi() for p in (FRAME_ID, FORMAT, IF_NONE_MATCH, ACCEPT)]},
+add_active_route(
+    router,
+    FRAME,
+    document=ActiveRobotFrame,
+    serve=controller_files.served_active,
+    description="The active frame a cell controller reads (a pose in the robot's base frame; "
+    "for a fixed\ntool its stationary TCP), with a strong ETag (If-None-Match -> 304); "
+    "`?format=` adds the\ncontroller's own text. With `Accept: text/plain` (and `?format=`) "
+    "the file the controller\nloads ($config.dat lines, a RAPID module, a TP program, "
+    "UFRAME.CND blocks, a URScript\nfunction, a TMscript line) with a header saying which "
+    "version, calibrated when and by\nwhom (Content-Disposition names it).",
 )
-async def get_active_frame(request: Request) -> Response:
-    """The active frame a cell controller reads (a pose in the robot's base frame; for a fixed
-    tool its stationary TCP), with a strong ETag (If-None-Match -> 304); `?format=` adds the
-    controller's own text. With `Accept: text/plain` (and `?format=`) the file the controller
-    loads ($config.dat lines, a RAPID module, a TP program, UFRAME.CND blocks, a URScript
-    function, a TMscript line) with a header saying which version, calibrated when and by
-    whom (Content-Disposition names it)."""
-    frame_id = FRAME_ID.read(request)
-    assert frame_id is not None  # a path parameter
-    fmt = cast(ControllerFormat | None, FORMAT.read(request))
-    if_none_match = IF_NONE_MATCH.read(request)
-    as_text = "text/plain" in (ACCEPT.read(request) or "")
-    headers = {"Vary": "Accept"}
-    if fmt is None and not as_text:
-        # On the event loop: the key check and the read are one indexed statement.
-        key, document, tag = versions.served_frame_for_key(
-            authorization=request.headers.get("authorization"),
-            frame_id=frame_id,
-            if_none_match=if_none_match,
-        )
-    else:
-        served = controller_files.served_for_key(
-            authorization=request.headers.get("authorization"),
-            frame_id=frame_id,
-            fmt=fmt,
-            if_none_match=if_none_match,
-            file_base_url=str(request.base_url) if as_text else None,
-        )
-        key, document, tag = served.key, served.document, served.etag
-        if served.file is not None:
-            label_request(request, key)
-            headers |= {
-                "ETag": tag,
-                "Content-Disposition": f'attachment; filename="{served.file.name}"',
-            }
-            return PlainTextResponse(served.file.text, headers=headers)
-    label_request(request, key)
-    headers["ETag"] = tag
-    if document is None:
-        return Response(status_code=304, headers=headers)
-    return Response(document.model_dump_json(), media_type="application/json", headers=headers)
 
 
 @router.get(

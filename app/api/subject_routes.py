@@ -2,7 +2,8 @@
 and read, a version activated (reason, force) and a rollback, each as a subject's route under
 its path (/v1/tools/{tool_id}/versions, /v1/frames/{frame_id}/versions), its path parameter
 named by the subject's key. A subject's router module includes `version_routes(...)` with its
-declaration (app.services.lifecycle.subject) and its documents.
+declaration (app.services.lifecycle.subject) and its documents, and adds the hot read of its
+active version with `add_active_route` (GET /v1/tools/{tool_id}/tcp, /v1/frames/{frame_id}/frame).
 
 A route's words (its description, its parameters') are the subject's: written here once with
 the subject's kind, value and path in them, so that the tool's read as they always did.
@@ -13,18 +14,23 @@ from __future__ import annotations
 import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Annotated, Generic, TypeVar
+from typing import Annotated, Generic, Protocol, TypeVar, cast
 
-from fastapi import APIRouter, Header, Response
+from fastapi import APIRouter, Header, Request, Response
+from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel
 
-from app.api.deps import CalibrateKey, ReadKey, SessionDep
-from app.api.params import PathId, VersionNumber
+from app.api.deps import CalibrateKey, ReadKey, SessionDep, label_request
+from app.api.params import ACCEPT, FORMAT, IF_NONE_MATCH, PathId, RawParam, VersionNumber
 from app.helpers.etags import IF_MATCH_PATTERN
+from app.schemas.common import ID_PATTERN
 from app.schemas.tools import ActivationRequest, RollbackRequest
+from app.security.auth import Principal
 from app.services.lifecycle import activation
 from app.services.lifecycle import versions as lifecycle
 from app.services.lifecycle.subject import ActivationT, AnySubject, Row, Subject, VersionT
+from app.vendors.files import ControllerFile
+from app.words import ControllerFormat
 
 Document = TypeVar("Document", bound=BaseModel)
 VersionDocument = TypeVar("VersionDocument", bound=BaseModel)
@@ -56,6 +62,105 @@ def version_routes(
     _read_routes(router, spec)
     _write_routes(router, spec)
     return router
+
+
+class Served(Protocol):
+    """A hot read's answer (app.services.tools.active_tcp.ServedTcp, a frame's
+    ServedFrameAnswer): who asked, its ETag, and the JSON document or the controller's file,
+    neither when the client's copy is current (If-None-Match: 304)."""
+
+    @property
+    def key(self) -> Principal: ...
+    @property
+    def etag(self) -> str: ...
+    @property
+    def document(self) -> BaseModel | None: ...
+    @property
+    def file(self) -> ControllerFile | None: ...
+
+
+class ServeActive(Protocol):
+    """A subject's hot read: its active version for the caller behind `authorization`, as
+    JSON (in controller `fmt`'s text when given) or as the controller's file when
+    `file_base_url` (the server's base URL, which the file's header names) is given."""
+
+    def __call__(
+        self,
+        subject_id: str,
+        /,
+        *,
+        authorization: str | None,
+        fmt: ControllerFormat | None,
+        if_none_match: str | None,
+        file_base_url: str | None,
+    ) -> Served: ...
+
+
+def subject_id_param(subject: AnySubject) -> RawParam:
+    """The subject's id as its hot read's path parameter, read by hand (see RawParam)."""
+    return RawParam(
+        "path",
+        subject.key,
+        subject.key.replace("_", " ").title(),
+        f"an id this service issued (1-64 of A-Za-z0-9_-); take it from GET {subject.path}",
+        description="resource id",
+        pattern=ID_PATTERN,
+    )
+
+
+def add_active_route(
+    router: APIRouter,
+    subject: AnySubject,
+    *,
+    document: type[BaseModel],
+    serve: ServeActive,
+    description: str,
+) -> None:
+    """GET {path}/{{key}}/{leaf}, the route cell controllers poll (add it first: matched before
+    the others): the subject's active version with a strong ETag (If-None-Match -> 304),
+    `?format=` adding the controller's own text, `Accept: text/plain` (and `?format=`) the file
+    the controller loads (Content-Disposition names it). `document` is its JSON answer."""
+    subject_id_of = subject_id_param(subject)
+
+    async def get_active(request: Request) -> Response:
+        subject_id = subject_id_of.read(request)
+        assert subject_id is not None  # a path parameter
+        as_text = "text/plain" in (ACCEPT.read(request) or "")
+        # On the event loop, no dependency and no threadpool hop: the key check and the read
+        # are one indexed statement (app.services.lifecycle.hot_read).
+        served = serve(
+            subject_id,
+            authorization=request.headers.get("authorization"),
+            fmt=cast(ControllerFormat | None, FORMAT.read(request)),
+            if_none_match=IF_NONE_MATCH.read(request),
+            file_base_url=str(request.base_url) if as_text else None,
+        )
+        label_request(request, served.key)
+        headers = {"ETag": served.etag, "Vary": "Accept"}
+        if served.document is not None:
+            # Serialised by pydantic in one pass (no dict, no json.dumps); validated when built.
+            return Response(
+                served.document.model_dump_json(), media_type="application/json", headers=headers
+            )
+        if served.file is not None:
+            headers["Content-Disposition"] = f'attachment; filename="{served.file.name}"'
+            return PlainTextResponse(served.file.text, headers=headers)
+        return Response(status_code=304, headers=headers)
+
+    parameters = (subject_id_of, FORMAT, IF_NONE_MATCH, ACCEPT)
+    router.add_api_route(
+        f"{_at(subject)}/{subject.leaf}",
+        get_active,
+        methods=["GET"],
+        name=f"get_active_{subject.leaf}",
+        response_model=document,
+        responses={
+            200: {"content": {"text/plain": {"schema": {"type": "string"}}}},
+            304: {"description": "not modified (If-None-Match)"},
+        },
+        openapi_extra={"parameters": [p.openapi() for p in parameters]},
+        description=description,
+    )
 
 
 def _at(subject: AnySubject) -> str:

@@ -23,7 +23,7 @@ from app.schemas.frames import ActiveRobotFrame, FrameTable
 from app.security.auth import Principal
 from app.services.frames.controller_text import ServedFrame, controller_text, frame_data
 from app.services.frames.subject import FRAME
-from app.services.frames.versions import active_document
+from app.services.frames.versions import active_document, served_frame_for_key
 from app.services.lifecycle import hot_read
 from app.services.lifecycle.hot_read import HotVersion, served_etag
 from app.services.robots.robots import get_robot
@@ -77,6 +77,32 @@ def file_frame(
         url=f"{base_url}/ui/frames/{frame.id}",
     )
     return FileFrame(frame_data(frame, version), origin)
+
+
+def served_active(
+    frame_id: str,
+    /,
+    *,
+    authorization: str | None,
+    fmt: ControllerFormat | None,
+    if_none_match: str | None,
+    file_base_url: str | None,
+) -> ServedFrameAnswer:
+    """GET /v1/frames/{frame_id}/frame's use case: the active frame as JSON in one statement
+    (app.services.frames.versions.served_frame_for_key), or with controller `fmt`'s text, or
+    as its file (`served_for_key`)."""
+    if fmt is None and file_base_url is None:
+        key, document, etag = served_frame_for_key(
+            authorization=authorization, frame_id=frame_id, if_none_match=if_none_match
+        )
+        return ServedFrameAnswer(key, etag, document=document)
+    return served_for_key(
+        authorization=authorization,
+        frame_id=frame_id,
+        fmt=fmt,
+        if_none_match=if_none_match,
+        file_base_url=file_base_url,
+    )
 
 
 def served_for_key(

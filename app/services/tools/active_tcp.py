@@ -25,9 +25,10 @@ class ServedTcp(NamedTuple):
 
 
 def active_tcp(
+    tool_id: str,
+    /,
     *,
     authorization: str | None,
-    tool_id: str,
     fmt: ControllerFormat | None,
     if_none_match: str | None,
     file_base_url: str | None,
