@@ -24,7 +24,7 @@ from app.kinematics.poses import one_pose
 from app.methods.frame import FRAME_CALIBRATION_REQUESTS, FRAME_METHODS_BY_NAME
 from app.methods.frame.base import FrameSolved
 from app.methods.frame.next_role import NextRole, construction_of, next_role
-from app.schemas.common import MAX_POSES, Pose, Units
+from app.schemas.common import MAX_POSES, Pose
 from app.schemas.frame_sessions import (
     FrameEstimate,
     FrameSession,
@@ -45,6 +45,7 @@ from app.services.frames.frames import frame_tolerance, get_frame
 from app.services.frames.subject import FRAME
 from app.services.robots.robots import get_robot
 from app.services.sessions import frame_rechecks
+from app.services.sessions.rows import shown, units_of
 from app.services.sessions.rows import start as start_session
 from app.solvers.frame import MAX_ANGLE_SIGMA_DEG
 from app.solvers.frame.model import touch_points
@@ -112,7 +113,7 @@ def add_touch_request(
             row = open_row(session, row_id, for_update=False)  # refused before any I/O
             frame = _frame(session, row)
             settings = capture.settings_for_robot(session, frame.robot_id)
-            fmt, units = row.format, _units(row)
+            fmt, units = row.format, units_of(row)
         captured = capture.read_still(settings, robot_id=frame.robot_id)
         pose = capture.pose_in_format(captured, fmt, units, loc=("body", "capture"))
     assert pose is not None  # FrameTouchAdd holds a pose or capture
@@ -150,7 +151,7 @@ def add_touch(
     frame = _frame(session, row)
     ctx = _context(session, frame)
     with one_pose(("body", "pose"), number(len(row.poses))):
-        ctx.parse_poses(row.format, [pose], _units(row), loc=("body", "pose"))
+        ctx.parse_poses(row.format, [pose], units_of(row), loc=("body", "pose"))
     if frame_rechecks.is_recheck(row):
         frame_rechecks.check_touch(session, row, frame, data)
     else:
@@ -314,13 +315,8 @@ def view(session: Session, row: GuidedSession) -> FrameSession:
         messages.append(f"the touches give a frame: finish to store it (POST /v1/sessions/"
                         f"{row.id}/finish)")  # fmt: skip
     return FrameSession(
-        id=row.id,
+        **shown(row),
         frame_id=frame.id,
-        tool_id=row.tool_id,
-        status=row.status,
-        method=row.method,
-        format=row.format,
-        units=_units(row),
         options=_options(row),
         n_touches=len(row.poses),
         touches=[
@@ -345,8 +341,6 @@ def view(session: Session, row: GuidedSession) -> FrameSession:
         estimate=estimate,
         messages=messages,
         calibration_id=row.frame_calibration_id,
-        created_at=row.created_at,
-        updated_at=row.updated_at,
     )
 
 
@@ -420,7 +414,7 @@ def _points(
         return None
     if pointer is None:
         return None
-    rotations, positions = ctx.parse_poses(row.format, row.poses, _units(row), loc=("poses",))
+    rotations, positions = ctx.parse_poses(row.format, row.poses, units_of(row), loc=("poses",))
     points = touch_points(rotations, positions, pointer.pointer.tcp_mm)
     return [[float(v) for v in p] for p in points]
 
@@ -515,10 +509,6 @@ def _method(row: GuidedSession) -> FrameMethodName:
 
 def _options(row: GuidedSession) -> FrameSessionOptions:
     return FrameSessionOptions.model_validate(row.options)
-
-
-def _units(row: GuidedSession) -> Units | None:
-    return Units.model_validate(row.units) if row.units else None
 
 
 def _frame(session: Session, row: GuidedSession) -> Frame:

@@ -1,14 +1,19 @@
-"""What a tool's guided session and a frame's share in their rows: how one is started."""
+"""What a tool's guided session and a frame's share in their rows: how one is started, and
+the fields both show of it."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from datetime import datetime
+from typing import TypedDict
 
 from sqlalchemy.orm import Session
 
+from app.schemas.common import Units
 from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.storage.models import GuidedSession
+from app.words import PoseFormat, SessionMethod, SessionStatus
 
 
 def start(
@@ -32,3 +37,36 @@ def start(
         about=about,
         details={"method": row.method, "format": row.format},
     )
+
+
+class Shown(TypedDict):
+    """The fields a tool's session (app.schemas.sessions.Session) and a frame's
+    (app.schemas.frame_sessions.FrameSession) show alike, as their row holds them."""
+
+    id: str
+    tool_id: str
+    status: SessionStatus
+    method: SessionMethod
+    format: PoseFormat
+    units: Units | None
+    created_at: datetime
+    updated_at: datetime
+
+
+def shown(row: GuidedSession) -> Shown:
+    """What every session shows of its row (its touches and what they say are its kind's)."""
+    return Shown(
+        id=row.id,
+        tool_id=row.tool_id,
+        status=row.status,
+        method=row.method,
+        format=row.format,
+        units=units_of(row),
+        created_at=row.created_at,
+        updated_at=row.updated_at,
+    )
+
+
+def units_of(row: GuidedSession) -> Units | None:
+    """The units the session's poses are in, when it gave them."""
+    return Units.model_validate(row.units) if row.units else None

@@ -55,6 +55,7 @@ from app.services.calibrations.contexts import DbContext
 from app.services.controllers import capture
 from app.services.robots.robots import get_robot
 from app.services.sessions import frame_rechecks, frame_sessions
+from app.services.sessions.rows import shown, units_of
 from app.services.sessions.rows import start as start_session
 from app.services.tools.tools import get_tool
 from app.services.touches.diagnosis import one_touch_fits, refusing_mix_ups
@@ -272,7 +273,7 @@ def add_touch_request(*, session_id: str, data: TouchAdd, actor: Principal) -> S
             tool = session.get(Tool, row.tool_id)
             assert tool is not None
             settings = capture.settings_for_robot(session, tool.robot_id)
-            fmt, units = row.format, _units(row)
+            fmt, units = row.format, units_of(row)
         captured = capture.read_still(settings, robot_id=tool.robot_id)
         pose = capture.pose_in_format(captured, fmt, units, loc=("body", "capture"))
     assert pose is not None  # TouchAdd holds a pose or capture
@@ -322,8 +323,8 @@ def add_touch(
 
     # Out of range as the session reads it (a pendant's degrees read as radians, say) but
     # plausible under one other reading: a mix-up, refused as one from the first touch on.
-    with refusing_mix_ups(row.format, _units(row), one_touch_fits, flange, poses_field="pose"):
-        flange(row.format, _units(row))
+    with refusing_mix_ups(row.format, units_of(row), one_touch_fits, flange, poses_field="pose"):
+        flange(row.format, units_of(row))
     poses = [*row.poses, pose]
     if len(poses) >= MIN_SOLVE_TOUCHES:
         try:
@@ -524,12 +525,7 @@ def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> S
         next_pose = _next_pose(ctx, row, poses, outliers, estimate, reading.point, messages)
     next_words = None if next_pose is None else _in_words(ctx, row, poses[0], next_pose)
     return SessionOut(
-        id=row.id,
-        tool_id=row.tool_id,
-        status=row.status,
-        method=row.method,
-        format=row.format,
-        units=_units(row),
+        **shown(row),
         n_poses=len(poses),
         poses=poses,
         touches=capture.touch_sources(_touch_records(row)),
@@ -542,8 +538,6 @@ def view(session: Session, row: GuidedSession, *, tool: Tool | None = None) -> S
         target_sigma_mm=target,
         messages=messages,
         calibration_id=row.calibration_id,
-        created_at=row.created_at,
-        updated_at=row.updated_at,
     )
 
 
@@ -634,7 +628,7 @@ def _next_pose(
     point: Sequence[float] | None,
     messages: list[str],
 ) -> Pose | None:
-    rotations, flanges = ctx.parse_poses(row.format, poses, _units(row), loc=("poses",))
+    rotations, flanges = ctx.parse_poses(row.format, poses, units_of(row), loc=("poses",))
     start = Rotation.from_matrix(rotations[0])
     if estimate is not None and point is not None:
         tcp, target_point = np.asarray(estimate.tcp_mm), np.asarray(point)
@@ -654,7 +648,7 @@ def _next_pose(
             tcp,
             target_point,
             row.format,
-            _units(row),
+            units_of(row),
         )[0]
     except InvalidInput as refusal:  # joints: a pose cannot be written as joint angles
         messages.append(f"no suggested pose: {refusal.detail}")
@@ -663,7 +657,7 @@ def _next_pose(
 
 def _in_words(ctx: DbContext, row: GuidedSession, first: Pose, suggested: Pose) -> NextTouch:
     """The suggested pose against the first touch, both read as the session reads its poses."""
-    rotations, _ = ctx.parse_poses(row.format, [first, suggested], _units(row), loc=("poses",))
+    rotations, _ = ctx.parse_poses(row.format, [first, suggested], units_of(row), loc=("poses",))
     tilt, lean, spin = tilt_lean_spin(rotations[0], rotations[1])
     return NextTouch(tilt_deg=tilt, lean_deg=lean, spin_deg=spin)
 
@@ -673,10 +667,6 @@ def _cone(row: GuidedSession) -> Cone:
     assert row.max_tilt_deg is not None
     assert row.max_spin_deg is not None
     return Cone(row.max_tilt_deg, row.max_spin_deg)
-
-
-def _units(row: GuidedSession) -> Units | None:
-    return Units.model_validate(row.units) if row.units else None
 
 
 def _request(row: GuidedSession, poses: Sequence[Pose]) -> MethodRequest:
