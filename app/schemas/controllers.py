@@ -235,6 +235,21 @@ class ActiveFrame(Frame):
     version: int = Field(description="the active version")
 
 
+#: What a reconcile answer says alike of every subject it judged (ReconciledTool,
+#: ReconciledFrame), field by field: a shared base would put these fields first, and the
+#: subject's key is each answer's first (openapi.json's `required`, the answers' key order).
+ReconciledActive = Annotated[
+    ActiveFrame | None, Field(description="the active version; null without one")
+]
+ReconciledDeviationMm = Annotated[
+    float | None, Field(description="controller vs active: distance, mm")
+]
+ReconciledDeviationDeg = Annotated[
+    float | None, Field(description="controller vs active: angle, deg")
+]
+ReconciledError = Annotated[str | None, Field(description="why the controller could not be read")]
+
+
 class ReconciledTool(BaseModel):
     tool_id: str
     target: str | None = Field(description="where the tool lives in the controller")
@@ -244,11 +259,11 @@ class ReconciledTool(BaseModel):
         "that one is judged)"
     )
     controller: Frame | None = Field(description="what the controller holds; null if unread")
-    active: ActiveFrame | None = Field(description="the active version; null without one")
-    deviation_mm: float | None = Field(description="controller vs active: distance, mm")
-    deviation_deg: float | None = Field(description="controller vs active: angle, deg")
+    active: ReconciledActive
+    deviation_mm: ReconciledDeviationMm
+    deviation_deg: ReconciledDeviationDeg
     since: Timestamp = Field(description="when the tool first entered its present state")
-    error: str | None = Field(default=None, description="why the controller could not be read")
+    error: ReconciledError = None
 
 
 class NotAddressable(BaseModel):
@@ -267,11 +282,11 @@ class ReconciledFrame(BaseModel):
     controller: Frame | None = Field(
         description="what the controller holds, in the robot's base frame; null if unread"
     )
-    active: ActiveFrame | None = Field(description="the active version; null without one")
-    deviation_mm: float | None = Field(description="controller vs active: distance, mm")
-    deviation_deg: float | None = Field(description="controller vs active: angle, deg")
+    active: ReconciledActive
+    deviation_mm: ReconciledDeviationMm
+    deviation_deg: ReconciledDeviationDeg
     since: Timestamp = Field(description="when the frame first entered its present state")
-    error: str | None = Field(default=None, description="why the controller could not be read")
+    error: ReconciledError = None
 
 
 class FrameNotAddressable(BaseModel):
