@@ -18,7 +18,7 @@ from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.frames.subject import FRAME
 from app.services.lifecycle import drift
-from app.services.lifecycle.versions import check_if_match, check_unique, get_live
+from app.services.lifecycle.versions import Taken, check_if_match, check_unique, get_live
 from app.services.robots.robots import get_robot
 from app.storage.models import Frame, Robot, new_id, utcnow
 from app.vendors.connector import FrameTarget
@@ -54,37 +54,20 @@ def check_place(robot: Robot, *, slot: int | None, symbol: str | None) -> None:
             raise InvalidInput("out-of-range", problem, loc=("body", field))
 
 
-def _frame_unique(
-    session: Session,
-    *,
-    robot_id: str,
-    name: str | None,
-    slot: int | None,
-    except_id: str | None = None,
-) -> None:
-    check_unique(
-        session,
-        FRAME,
-        robot_id=robot_id,
-        name=name,
-        slot=slot,
-        except_id=except_id,
-        name_taken=lambda other: (
-            f"robot {robot_id} already has a frame named {name!r}; name this one otherwise, "
-            f"or archive the other first (DELETE /v1/frames/{other})"
-        ),
-        slot_taken=(
-            f"slot {slot} of robot {robot_id} is already taken by another of its frames; "
-            "give another slot, or archive that frame first"
-        ),
-    )
+#: A taken name or slot, in the frame's words (check_unique).
+_TAKEN = Taken(
+    name="robot {robot_id} already has a frame named {name!r}; name this one otherwise, "
+    "or archive the other first (DELETE /v1/frames/{other})",
+    slot="slot {slot} of robot {robot_id} is already taken by another of its frames; "
+    "give another slot, or archive that frame first",
+)
 
 
 def create_frame(session: Session, *, robot_id: str, data: FrameCreate, actor: Principal) -> Frame:
     """Register a frame on a robot (name and slot unique among the robot's live frames)."""
     robot = get_robot(session, robot_id, for_update=True)
     check_place(robot, slot=data.slot, symbol=data.controller_symbol)
-    _frame_unique(session, robot_id=robot_id, name=data.name, slot=data.slot)
+    check_unique(session, FRAME, _TAKEN, robot_id, {"name": data.name, "slot": data.slot})
     frame = Frame(id=new_id(), robot_id=robot_id, last_version=0, revision=1, **data.model_dump())
     return audit.add_created(
         session,
@@ -131,13 +114,7 @@ def update_frame(
         changes.pop("name")
     robot = get_robot(session, frame.robot_id)
     check_place(robot, slot=changes.get("slot"), symbol=changes.get("controller_symbol"))
-    _frame_unique(
-        session,
-        robot_id=frame.robot_id,
-        name=changes.get("name"),
-        slot=changes.get("slot"),
-        except_id=frame.id,
-    )
+    check_unique(session, FRAME, _TAKEN, frame.robot_id, changes, except_id=frame.id)
     if "tolerance" in changes:
         if changes["tolerance"] is None:
             changes.pop("tolerance")

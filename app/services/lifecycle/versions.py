@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import functools
 import hashlib
-from collections.abc import Callable, Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from datetime import datetime
 from typing import NamedTuple, Protocol
 
@@ -151,29 +152,39 @@ def check_if_match(subject: AnySubject, row: Revised, if_match: str | None) -> N
     )
 
 
+@dataclass(frozen=True)
+class Taken:
+    """A subject's words for a name (`name`) or a slot (`slot`) another of its robot's live
+    ones has (check_unique): str.format templates of robot_id, name, slot and other (the
+    other's id)."""
+
+    name: str
+    slot: str
+
+
 def check_unique(
     session: Session,
     subject: AnySubject,
-    *,
+    taken: Taken,
     robot_id: str,
-    name: str | None,
-    slot: int | None,
+    fields: Mapping[str, object],
+    *,
     except_id: str | None = None,
-    name_taken: Callable[[str], str],
-    slot_taken: str,
 ) -> None:
     """409 at body.name or body.slot when another live subject of the robot (not `except_id`)
-    has the name or the slot; the subject says it in its own words: `name_taken` given the
-    other's id, `slot_taken`."""
+    has the name or the slot `fields` give (a body, a PATCH's changes: absent or null is not
+    checked), said in the subject's words."""
+    name, slot = fields.get("name"), fields.get("slot")
     table = subject.table
     live = select(table.c.id).where(table.c.robot_id == robot_id, table.c.archived_at.is_(None))
     if except_id:
         live = live.where(table.c.id != except_id)
     other = None if name is None else session.scalars(live.where(table.c.name == name)).first()
+    words = {"robot_id": robot_id, "name": name, "slot": slot, "other": other}
     if other is not None:
-        raise Conflict(name_taken(other), loc=("body", "name"), msg="already taken")
+        raise Conflict(taken.name.format(**words), loc=("body", "name"), msg="already taken")
     if slot is not None and session.scalars(live.where(table.c.slot == slot)).first():
-        raise Conflict(slot_taken, loc=("body", "slot"), msg="already taken")
+        raise Conflict(taken.slot.format(**words), loc=("body", "slot"), msg="already taken")
 
 
 def get_live(

@@ -13,7 +13,7 @@ from app.helpers.tolerance import effective_tolerance
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.security.auth import Principal
 from app.services.audit import writes as audit
-from app.services.lifecycle.versions import Revised, check_unique, etag
+from app.services.lifecycle.versions import Revised, Taken, check_unique, etag
 from app.services.lifecycle.versions import check_if_match as lifecycle_check_if_match
 from app.services.robots.connection import check_slot_for_controller
 from app.services.robots.robots import get_robot
@@ -54,31 +54,18 @@ def check_if_match(tool: Revised, if_match: str | None) -> None:
     lifecycle_check_if_match(TOOL, tool, if_match)
 
 
-def _tool_unique(
-    session: Session,
-    *,
-    robot_id: str,
-    name: str | None,
-    slot: int | None,
-    except_id: str | None = None,
-) -> None:
-    check_unique(
-        session,
-        TOOL,
-        robot_id=robot_id,
-        name=name,
-        slot=slot,
-        except_id=except_id,
-        name_taken=lambda _other: f"robot {robot_id} already has a tool named {name!r}",
-        slot_taken=f"slot {slot} of robot {robot_id} is already taken by another tool",
-    )
+#: A taken name or slot, in the tool's words (check_unique).
+_TAKEN = Taken(
+    name="robot {robot_id} already has a tool named {name!r}",
+    slot="slot {slot} of robot {robot_id} is already taken by another tool",
+)
 
 
 def create_tool(session: Session, *, robot_id: str, data: ToolCreate, actor: Principal) -> Tool:
     """Register a tool on a robot (name and slot unique among the robot's live tools)."""
     robot = get_robot(session, robot_id, for_update=True)
     check_slot(robot.vendor, data.slot, loc=("body", "slot"))
-    _tool_unique(session, robot_id=robot_id, name=data.name, slot=data.slot)
+    check_unique(session, TOOL, _TAKEN, robot_id, {"name": data.name, "slot": data.slot})
     check_slot_for_controller(session, robot_id=robot_id, slot=data.slot)
     values = data.model_dump()
     tool = Tool(id=new_id(), robot_id=robot_id, last_version=0, revision=1, **values)
@@ -120,13 +107,7 @@ def update_tool(
         changes.pop("name")
     if changes.get("slot") is not None:
         check_slot(get_robot(session, tool.robot_id).vendor, changes["slot"], loc=("body", "slot"))
-    _tool_unique(
-        session,
-        robot_id=tool.robot_id,
-        name=changes.get("name"),
-        slot=changes.get("slot"),
-        except_id=tool.id,
-    )
+    check_unique(session, TOOL, _TAKEN, tool.robot_id, changes, except_id=tool.id)
     check_slot_for_controller(session, robot_id=tool.robot_id, slot=changes.get("slot"))
     # Nested objects merge (JSON merge patch): {"tolerance": {"max_rms_mm": 0.2}} changes that
     # one limit and keeps the others, rather than resetting them to the defaults.
