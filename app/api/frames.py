@@ -7,21 +7,18 @@ from __future__ import annotations
 import json
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Header, Request, Response
-from fastapi.responses import PlainTextResponse
+from fastapi import APIRouter, Body, Header, Response
 
 from app.api.deps import AdminKey, CalibrateKey, ReadKey, SessionDep
 from app.api.params import (
     DEFAULT_PAGE,
-    AcceptHeader,
     Cursor,
-    FormatQuery,
     IdempotencyKey,
     Limit,
     PathId,
 )
 from app.api.shared import page
-from app.api.subject_routes import SubjectRoutes, add_active_route, version_routes
+from app.api.subject_routes import SubjectRoutes, add_active_route, add_table_route, version_routes
 from app.helpers.etags import IF_MATCH_PATTERN
 from app.methods.frame import FrameCalibrationIn, frame_openapi_examples
 from app.schemas.common import Page
@@ -62,30 +59,17 @@ add_active_route(
 )
 
 
-@router.get(
-    "/v1/robots/{robot_id}/frame-table",
-    response_model=FrameTable,
-    responses={200: {"content": {"text/plain": {"schema": {"type": "string"}}}}},
+add_table_route(
+    router,
+    FRAME,
+    table=controller_files.frame_table,
+    document=FrameTable,
+    file=controller_files.robot_frame_file,
+    description="Every live frame of a robot with its active version, in one answer "
+    "(`?format=` adds\neach frame's controller text); frames without one are listed apart. "
+    "With `Accept:\ntext/plain` (and `?format=`) one file holding all of the robot's frames, "
+    "as the\ncontroller loads it (Content-Disposition names it).",
 )
-def frame_table(
-    robot_id: PathId,
-    request: Request,
-    session: SessionDep,
-    key: ReadKey,
-    format: FormatQuery = None,
-    accept: AcceptHeader = None,
-) -> FrameTable | PlainTextResponse:
-    """Every live frame of a robot with its active version, in one answer (`?format=` adds
-    each frame's controller text); frames without one are listed apart. With `Accept:
-    text/plain` (and `?format=`) one file holding all of the robot's frames, as the
-    controller loads it (Content-Disposition names it)."""
-    if "text/plain" in (accept or ""):
-        served = controller_files.robot_frame_file(
-            session, robot_id=robot_id, fmt=format, base_url=str(request.base_url)
-        )
-        headers = {"Content-Disposition": f'attachment; filename="{served.name}"', "Vary": "Accept"}
-        return PlainTextResponse(served.text, headers=headers)
-    return controller_files.frame_table(session, robot_id=robot_id, fmt=format)
 
 
 @router.post("/v1/robots/{robot_id}/frames", status_code=201, response_model=RobotFrame)

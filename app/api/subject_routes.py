@@ -3,7 +3,8 @@ and read, a version activated (reason, force) and a rollback, each as a subject'
 its path (/v1/tools/{tool_id}/versions, /v1/frames/{frame_id}/versions), its path parameter
 named by the subject's key. A subject's router module includes `version_routes(...)` with its
 declaration (app.services.lifecycle.subject) and its documents, and adds the hot read of its
-active version with `add_active_route` (GET /v1/tools/{tool_id}/tcp, /v1/frames/{frame_id}/frame).
+active version with `add_active_route` (GET /v1/tools/{tool_id}/tcp, /v1/frames/{frame_id}/frame)
+and its robot's table with `add_table_route` (GET /v1/robots/{robot_id}/tool-table, frame-table).
 
 A route's words (its description, its parameters') are the subject's: written here once with
 the subject's kind, value and path in them, so that the tool's read as they always did.
@@ -19,9 +20,19 @@ from typing import Annotated, Generic, Protocol, TypeVar, cast
 from fastapi import APIRouter, Header, Request, Response
 from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel
+from sqlalchemy.orm import Session
 
 from app.api.deps import CalibrateKey, ReadKey, SessionDep, label_request
-from app.api.params import ACCEPT, FORMAT, IF_NONE_MATCH, PathId, RawParam, VersionNumber
+from app.api.params import (
+    ACCEPT,
+    FORMAT,
+    IF_NONE_MATCH,
+    AcceptHeader,
+    FormatQuery,
+    PathId,
+    RawParam,
+    VersionNumber,
+)
 from app.helpers.etags import IF_MATCH_PATTERN
 from app.schemas.common import ID_PATTERN
 from app.schemas.tools import ActivationRequest, RollbackRequest
@@ -159,6 +170,57 @@ def add_active_route(
             304: {"description": "not modified (If-None-Match)"},
         },
         openapi_extra={"parameters": [p.openapi() for p in parameters]},
+        description=description,
+    )
+
+
+Table = TypeVar("Table", bound=BaseModel)
+
+
+class RobotFile(Protocol):
+    """A subject's robot file: every live one of a robot with an active version, in one file
+    of format `fmt` (app.services.tools.controller_files.robot_file)."""
+
+    def __call__(
+        self, session: Session, *, robot_id: str, fmt: ControllerFormat | None, base_url: str
+    ) -> ControllerFile: ...
+
+
+def add_table_route(
+    router: APIRouter,
+    subject: AnySubject,
+    *,
+    table: Callable[..., Table],
+    document: type[Table],
+    file: RobotFile,
+    description: str,
+) -> None:
+    """GET /v1/robots/{{robot_id}}/{kind}-table: every live one of a robot's subjects with its
+    active version in one answer, `table(session, robot_id=, fmt=)` (its `document`), or with
+    `Accept: text/plain` (and `?format=`) the robot's `file` (Content-Disposition names it)."""
+
+    def subject_table(
+        robot_id: PathId,
+        request: Request,
+        session: SessionDep,
+        key: ReadKey,
+        format: FormatQuery = None,
+        accept: AcceptHeader = None,
+    ) -> Table | PlainTextResponse:
+        if "text/plain" in (accept or ""):
+            served = file(session, robot_id=robot_id, fmt=format, base_url=str(request.base_url))
+            disposition = f'attachment; filename="{served.name}"'
+            headers = {"Content-Disposition": disposition, "Vary": "Accept"}
+            return PlainTextResponse(served.text, headers=headers)
+        return table(session, robot_id=robot_id, fmt=format)
+
+    router.add_api_route(
+        f"/v1/robots/{{robot_id}}/{subject.kind}-table",
+        subject_table,
+        methods=["GET"],
+        name=f"{subject.kind}_table",
+        response_model=document,
+        responses={200: {"content": {"text/plain": {"schema": {"type": "string"}}}}},
         description=description,
     )
 

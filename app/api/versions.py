@@ -3,16 +3,9 @@ versions' routes are every subject's (app.api.subject_routes), with the tool's d
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Request
-from fastapi.responses import PlainTextResponse
+from fastapi import APIRouter
 
-from app.api.deps import ReadKey, SessionDep
-from app.api.params import (
-    AcceptHeader,
-    FormatQuery,
-    PathId,
-)
-from app.api.subject_routes import SubjectRoutes, add_active_route, version_routes
+from app.api.subject_routes import SubjectRoutes, add_active_route, add_table_route, version_routes
 from app.schemas.tools import ActiveTcp, Tool, ToolTable, Version, VersionList
 from app.services.tools import active_tcp, controller_files, versions
 from app.services.tools.subject import TOOL
@@ -47,26 +40,13 @@ router.include_router(
 )
 
 
-@router.get(
-    "/v1/robots/{robot_id}/tool-table",
-    response_model=ToolTable,
-    responses={200: {"content": {"text/plain": {"schema": {"type": "string"}}}}},
+add_table_route(
+    router,
+    TOOL,
+    table=versions.tool_table,
+    document=ToolTable,
+    file=controller_files.robot_file,
+    description="Every live tool of a robot with its active TCP, in one answer; tools without "
+    "one are\nlisted apart. With `Accept: text/plain` (and `?format=`) one file holding all "
+    "of the\nrobot's tools, as the controller loads it (Content-Disposition names it).",
 )
-def tool_table(
-    robot_id: PathId,
-    request: Request,
-    session: SessionDep,
-    key: ReadKey,
-    format: FormatQuery = None,
-    accept: AcceptHeader = None,
-) -> ToolTable | PlainTextResponse:
-    """Every live tool of a robot with its active TCP, in one answer; tools without one are
-    listed apart. With `Accept: text/plain` (and `?format=`) one file holding all of the
-    robot's tools, as the controller loads it (Content-Disposition names it)."""
-    if "text/plain" in (accept or ""):
-        served = controller_files.robot_file(
-            session, robot_id=robot_id, fmt=format, base_url=str(request.base_url)
-        )
-        headers = {"Content-Disposition": f'attachment; filename="{served.name}"', "Vary": "Accept"}
-        return PlainTextResponse(served.text, headers=headers)
-    return versions.tool_table(session, robot_id=robot_id, fmt=format)
