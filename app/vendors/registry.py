@@ -5,8 +5,9 @@ format and text, its file, its tool numbers, the protocols its connectors speak.
 lists them and answers by format (`export_tool`, `parse_controller_text`, `controller_file`,
 `parse_controller_file`, and a frame's `export_frame`, `parse_frame_text`, `frame_file`,
 `parse_frame_file`), by robot vendor (`vendor_formats`, `vendor_protocols`) and by
-protocol (`connect`, `has_connector`, `pose_format_of`, `target_problem`, `describe_target`,
-`where`, `DEFAULT_PORTS`, `SERVICE_PORTS`, `SLOT_RANGES`, `TARGET_FIELD`).
+protocol (`connect`, `has_connector`, `frame_writer_missing`, `pose_format_of`,
+`target_problem`, `describe_target`, `where`, `DEFAULT_PORTS`, `SERVICE_PORTS`,
+`SLOT_RANGES`, `TARGET_FIELD`).
 
 | protocol | connector | vendor document followed |
 |---|---|---|
@@ -41,7 +42,14 @@ from typing import Literal
 from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.vendors import abb, fanuc, kuka, techman, ur, yaskawa
-from app.vendors.connector import Connector, ControllerSettings, FrameTarget, ToolTarget
+from app.vendors.connector import (
+    Connector,
+    ControllerSettings,
+    FramesByHand,
+    FrameTarget,
+    FrameWriterMissing,
+    ToolTarget,
+)
 from app.vendors.files import ControllerFile, FileContext, FileTool, ParsedTool
 from app.vendors.frame import FileFrame, FrameData, ParsedFrame
 from app.vendors.maker import BySlot, Maker, WireProtocol
@@ -141,6 +149,19 @@ def connect(settings: ControllerSettings) -> Connector:
             f"connected: {', '.join(sorted(CONNECTED_PROTOCOLS))}"
         )
     return wire.connector()(settings)
+
+
+def frame_writer_missing(protocol: str) -> FrameWriterMissing | None:
+    """What a frame write under `protocol` would raise, known without a session: the
+    FrameWriterMissing (its reason and the file to load by hand) of a connector no remote
+    interface of which writes a frame (Yaskawa HSES, UR); None where one may be written."""
+    wire = WIRE_PROTOCOLS.get(protocol)
+    if wire is None or wire.connector is None:
+        return None
+    opens = wire.connector()
+    if isinstance(opens, type) and issubclass(opens, FramesByHand):
+        return FrameWriterMissing(opens.frame_reason, file=opens.frame_file)
+    return None
 
 
 def _wire(protocol: str) -> WireProtocol:

@@ -108,7 +108,7 @@ def _on_controller(
         R_FIXTURE,
         O_FIXTURE,
         pointer_id=pointer["id"],
-        fields=FIELDS[r.protocol],
+        fields=FIELDS.get(r.protocol, {"slot": 3}),
     )
     return robot, pointer, frame
 
@@ -410,3 +410,30 @@ def test_the_fleet_says_check_failed_and_frequent_corrections_of_a_frame(api: Ap
         assert done.json()["verdict"] == "corrected", done.text
         assert "check_failed" not in attention()
         assert ("frequent_corrections" in attention()) == (step == 3)
+
+
+@pytest.mark.parametrize("protocol", ["yaskawa_hses", "ur_rtde"])
+def test_a_correction_on_a_controller_that_writes_no_frame_is_active_and_says_load_the_file(
+    api: Api, protocol: str
+) -> None:
+    """No deployment is attempted (it could only be 501 /no-frame-writer): the new version
+    is stored and active, and the answer says no deployment was made, why, and the file."""
+    with rig(protocol) as r:
+        _, pointer, frame = _on_controller(api, r, vendor=None)
+        along = R_FIXTURE @ (1.5 * np.array([-300.0, 500.0, 0.0]) / np.hypot(300.0, 500.0))
+        R1, o1 = _moved_in_frame(R_FIXTURE, O_FIXTURE, list(along), 0.3)
+        body = {**touches(pointer["id"], R1, o1), "correct": "within_limits"}
+        response = api.post(f"/v1/frames/{frame['id']}/checks", body, scope="calibrate")
+        assert response.status_code == 201, response.text
+        check = response.json()
+        assert check["verdict"] == "corrected"
+        assert check["correction"]["version"] == 2
+        assert check["correction"]["deployment"] is None
+        said = check["summary"]
+        assert "no deployment was made" in said, said
+        assert "failed" not in said, said
+        assert "by hand" in said, said
+        file = {"yaskawa_hses": "UFRAME.CND", "ur_rtde": "URScript file"}[protocol]
+        assert file in said, said
+        assert _frame_pose(api, frame["id"])[2] == 2
+        assert api.get(f"/v1/frames/{frame['id']}/deployments").json()["items"] == []

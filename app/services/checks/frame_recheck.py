@@ -19,10 +19,13 @@ from app.schemas.frame_checks import FrameCheck, FrameCheckCreate
 from app.security.auth import Principal, transaction_for
 from app.services import idempotency
 from app.services.controllers import deployments
+from app.services.controllers.failures import controller_problem
 from app.services.frames import checks as frames
 from app.services.frames.subject import FRAME
 from app.services.lifecycle import versions as lifecycle
+from app.services.robots.connection import settings_of
 from app.storage.models import RobotController
+from app.vendors.registry import frame_writer_missing
 
 
 @dataclass(frozen=True)
@@ -43,13 +46,19 @@ def check_frame(
     frames.check_options(data)
     keyed = None if idempotency_key is None else (idempotency_key, fingerprint(frame_id, data))
     with transaction_for(actor, write=False) as session:
-        deploying = frames.deploys(data) and _controller_addresses(session, frame_id)
+        plan = _deployment_plan(session, frame_id) if frames.deploys(data) else _NO_DEPLOYMENT
+    deploying = plan.deploying
     with transaction_for(actor, write=True) as session:
         lifecycle.lock(session, FRAME, frame_id)  # a repeated key waits here for the first
         first = _replay(session, actor, keyed)
         if first is None:
             result = frames.check_and_correct(
-                session, frame_id=frame_id, data=data, actor=actor, deploying=deploying
+                session,
+                frame_id=frame_id,
+                data=data,
+                actor=actor,
+                deploying=deploying,
+                by_hand=plan.by_hand,
             )
             idempotency.remember_keyed(
                 session, actor=actor, keyed=keyed, response=result.model_dump(mode="json")
@@ -68,17 +77,41 @@ def fingerprint(frame_id: str, data: FrameCheckCreate) -> str:
     )
 
 
-def _controller_addresses(session: Session, frame_id: str) -> bool:
+@dataclass(frozen=True)
+class _Plan:
+    """Whether a correction is deployed, and (`by_hand`) why none can be: the words of the
+    501 /no-frame-writer a deployment would get, the file to load by hand in them."""
+
+    deploying: bool
+    by_hand: str | None = None
+
+
+_NO_DEPLOYMENT = _Plan(deploying=False)
+
+
+def _deployment_plan(session: Session, frame_id: str) -> _Plan:
     """Whether a correction is deployed: the robot has a controller (none: nothing to deploy
     to, the summary says how to load the frame); one that cannot address the frame is
     refused before anything is written, 422 naming the frame field it needs, as a tool's
-    re-check is."""
+    re-check is; one no remote interface of which writes a frame
+    (registry.frame_writer_missing) is not sent anything, and the answer says so and which
+    file to load by hand (contract v1.4)."""
     frame = lifecycle.get_live(session, FRAME, frame_id)
     controller = session.get(RobotController, frame.robot_id)
     if controller is None:
-        return False
+        return _NO_DEPLOYMENT
     deployments.subject_target(FRAME, controller.protocol, frame)
-    return True
+    missing = frame_writer_missing(controller.protocol)
+    if missing is None:
+        return _Plan(deploying=True)
+    refused = controller_problem(
+        missing,
+        settings_of(controller),
+        robot_id=frame.robot_id,
+        left="the new version is active in tcpcal",
+        refusal="remedy",
+    )
+    return _Plan(deploying=False, by_hand=refused.detail)
 
 
 def _replay(session: Session, actor: Principal, keyed: tuple[str, str] | None) -> FrameCheck | None:

@@ -210,10 +210,17 @@ def _measure(session: Session, *, frame_id: str, data: FrameCheckCreate) -> _Mea
 
 
 def check_and_correct(
-    session: Session, *, frame_id: str, data: FrameCheckCreate, actor: Principal, deploying: bool
+    session: Session,
+    *,
+    frame_id: str,
+    data: FrameCheckCreate,
+    actor: Principal,
+    deploying: bool,
+    by_hand: str | None = None,
 ) -> FrameCheck:
     """The check recorded and, when due, the correction stored and activated (the check's
-    event first: check -> version -> activation in the trail)."""
+    event first: check -> version -> activation in the trail). `by_hand`: why no deployment
+    can be made to the robot's controller (it writes no frame), said in the summary."""
     m = _measure(session, frame_id=frame_id, data=data)
     verdict = _verdict(m.largest_mm, m.limits, data)
     correction = None
@@ -222,7 +229,7 @@ def check_and_correct(
         correction = FrameCorrection(version=next_version, previous_version=m.version)
     result = _document(m, data, verdict, correction, actor)
     result.differs_from = _differs_from(session, m.frame, m.shift, m.stored_mm, m.limits)
-    result.summary = summary(result, m, deploying=deploying, asked=deploys(data))
+    result.summary = summary(result, m, deploying=deploying, asked=deploys(data), by_hand=by_hand)
     _record(session, result, m, actor)
     if correction is None:
         return result
@@ -248,7 +255,9 @@ def check_and_correct(
             actor=actor,
             check_id=result.id,
         )
-        result.summary = summary(result, m, deploying=deploying, asked=deploys(data))
+        result.summary = summary(
+            result, m, deploying=deploying, asked=deploys(data), by_hand=by_hand
+        )
     return result
 
 
@@ -319,7 +328,9 @@ def _shift_out(shift: Shift) -> FrameShift:
     )
 
 
-def summary(result: FrameCheck, m: _Measured, *, deploying: bool, asked: bool) -> str:
+def summary(
+    result: FrameCheck, m: _Measured, *, deploying: bool, asked: bool, by_hand: str | None = None
+) -> str:
     """The check in a sentence or two: how far the fiducials moved, and what was done."""
     shift, limits, largest_mm, worst = result.shift, m.limits, m.largest_mm, m.names[m.worst]
     moved = (
@@ -356,6 +367,8 @@ def summary(result: FrameCheck, m: _Measured, *, deploying: bool, asked: bool) -
             )
         if deploying:
             said += DEPLOYMENT_FOLLOWS
+        elif asked and by_hand is not None:
+            said += f"; no deployment was made: {by_hand}"
         elif asked:
             said += (
                 "; not deployed: the robot has no controller: load the frame's file (GET "
