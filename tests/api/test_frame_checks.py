@@ -23,6 +23,7 @@ from tests.api.controller_rigs import Rig, rig
 from tests.api.frame_fiducials import calibrated_frame, cell, touches
 from tests.api.test_frame_deployments import FIELDS
 from tests.conftest import Api
+from tests.controllers.simbase import go_silent
 from tests.vendors.test_frame_cuts import CASES
 
 
@@ -437,3 +438,29 @@ def test_a_correction_on_a_controller_that_writes_no_frame_is_active_and_says_lo
         assert file in said, said
         assert _frame_pose(api, frame["id"])[2] == 2
         assert api.get(f"/v1/frames/{frame['id']}/deployments").json()["items"] == []
+
+
+def test_a_failed_deployment_of_a_correction_flags_the_frames_controller_state(
+    api: Api,
+) -> None:
+    """As a tool's re-check does: the controller stopped answering after the write, so the
+    frame's controller state is unreachable at the new version."""
+    with rig("kuka_kvp") as r:
+        robot, pointer, frame = _on_controller(api, r)
+        along = R_FIXTURE @ (1.5 * np.array([-300.0, 500.0, 0.0]) / np.hypot(300.0, 500.0))
+        R1, o1 = _moved_in_frame(R_FIXTURE, O_FIXTURE, list(along), 0.3)
+        body = {**touches(pointer["id"], R1, o1), "correct": "within_limits"}
+        r.sim.fault = go_silent("after", CASES["kuka_kvp"].write)
+        response = api.post(f"/v1/frames/{frame['id']}/checks", body, scope="calibrate")
+        assert response.status_code == 201, response.text
+        check = response.json()
+        assert check["correction"]["deployment"]["status"] == "unverified"
+        assert "its deployment failed" in check["summary"]
+        [row] = api.get(f"/v1/frames?robot_id={robot['id']}").json()["items"]
+        state = row["controller"]
+        assert state is not None, row
+        assert (state["state"], state["version"], state["target"]) == (
+            "unreachable",
+            2,
+            "BASE_DATA[3]",
+        ), state

@@ -146,17 +146,20 @@ def _deploy(
     keyed: tuple[str, str] | None,
 ) -> FrameCheck:
     """Each corrected frame deployed (the checked one, and with scope "robot" every other
-    one) by the frames' deployment code; a failure is recorded as any attempt is and said,
-    the new versions staying active. The answer kept for the key becomes this one."""
+    one) by the frames' deployment code; a failure is recorded as any attempt is, flags the
+    frame's controller state as a tool's re-check does and is said, the new versions
+    staying active. The answer kept for the key becomes this one."""
     correction = result.correction
     assert correction is not None
     failures: list[str] = []
+    failed: list[deployments.Attempt] = []
     attempted = deployments.attempt(
         FRAME, subject_id=result.frame_id, actor=actor, reason=data.reason
     )
     correction.deployment = attempted.document.model_dump(mode="json")
     if attempted.error is not None:
         failures.append(f"frame {result.frame_id}: {attempted.error.detail}")
+        failed.append(attempted)
     for moved in correction.moved:
         if moved.kind != "frame":
             continue
@@ -164,12 +167,16 @@ def _deploy(
         moved.deployment = other.document.model_dump(mode="json")
         if other.error is not None:
             failures.append(f"frame {moved.name!r}: {other.error.detail}")
+            failed.append(other)
     result.summary = _with_deployments(result, failures)
-    if keyed is not None:
+    if failed or keyed is not None:
         with transaction_for(actor, write=True) as session:
-            idempotency.replace(
-                session, actor=actor, key=keyed[0], response=result.model_dump(mode="json")
-            )
+            for each in failed:  # the controller does not hold the new version (as a tool's)
+                deployments.flag_failed(session, each, actor)
+            if keyed is not None:
+                idempotency.replace(
+                    session, actor=actor, key=keyed[0], response=result.model_dump(mode="json")
+                )
     return result
 
 

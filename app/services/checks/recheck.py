@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from sqlalchemy.orm import Session
 
-from app.errors import ControllerUnreachableError, InvalidInput
+from app.errors import InvalidInput
 from app.helpers.tolerance import effective_tolerance
 from app.methods.reference import XYZ_REFERENCE, XyzReferenceCalibration
 from app.schemas.controllers import Deployment
@@ -43,7 +43,6 @@ from app.services.calibrations.presolve import Presolved, Snapshot
 from app.services.calibrations.verdict import recheck_summary
 from app.services.checks import checks
 from app.services.controllers import deployments
-from app.services.controllers import states as controller_states
 from app.services.lifecycle.versions import activate
 from app.services.robots.connection import get_controller
 from app.services.robots.robots import get_robot
@@ -283,7 +282,7 @@ def _deploy(
         tool = get_tool(session, result.tool_id)
         tolerance = effective_tolerance(tool.tolerance)
         if attempt.error is not None:
-            _flag(session, tool.id, tool.robot_id, attempt, actor)
+            deployments.flag_failed(session, attempt, actor)
         result.summary = recheck_summary(
             result, max_correction_mm=tolerance.max_correction_mm, failure=attempt.error
         )
@@ -299,32 +298,3 @@ def _deployment(attempt: deployments.Attempt) -> Deployment:
     document = attempt.document
     assert isinstance(document, Deployment)
     return document
-
-
-def _flag(
-    session: Session, tool_id: str, robot_id: str, attempt: deployments.Attempt, actor: Principal
-) -> None:
-    """The tool's controller state after a failed deployment of its new active version: the
-    controller does not hold it (drifted), or could not be reached (unreachable)."""
-    document = _deployment(attempt)
-    error = attempt.error
-    assert error is not None
-    unreachable = isinstance(error, ControllerUnreachableError)
-    held = document.read_back or document.previous
-    controller_states.observe(
-        session,
-        controller_states.Observation(
-            subject=TOOL,
-            subject_id=tool_id,
-            robot_id=robot_id,
-            state="unreachable" if unreachable else "drifted",
-            target=document.target,
-            controller=None if held is None else held.model_dump(mode="json"),
-            active_version=document.version,
-            deviation_mm=None,
-            deviation_deg=None,
-            error=error.detail,
-        ),
-        at=document.created_at,
-        actor=actor,
-    )

@@ -23,6 +23,7 @@ from sqlalchemy.orm import Session
 
 from app.errors import (
     ControllerMismatch,
+    ControllerUnreachableError,
     DomainError,
     InvalidInput,
     NothingToDeploy,
@@ -331,6 +332,10 @@ class Attempt:
 
     document: BaseModel
     error: DomainError | None
+    subject: AnySubject
+    subject_id: str
+    robot_id: str
+    at: datetime
 
 
 def attempt(
@@ -356,7 +361,41 @@ def attempt(
     DEPLOYMENTS.labels(plan.settings.protocol, outcome.status).inc()
     if outcome.error is not None:
         outcome.error.members["deployment_id"] = str(row.id)
-    return Attempt(document, outcome.error)
+    return Attempt(
+        document,
+        outcome.error,
+        subject=subject,
+        subject_id=plan.subject_id,
+        robot_id=plan.robot_id,
+        at=row.created_at,
+    )
+
+
+def flag_failed(session: Session, attempt: Attempt, actor: Principal) -> None:
+    """The subject's controller state after a failed deployment of the version a re-check
+    just activated (a tool's or a frame's, one definition): the controller does not hold it
+    (drifted), or could not be reached (unreachable)."""
+    error = attempt.error
+    assert error is not None
+    document = attempt.document.model_dump(mode="json")
+    held = document.get("read_back") or document.get("previous")
+    controller_states.observe(
+        session,
+        controller_states.Observation(
+            subject=attempt.subject,
+            subject_id=attempt.subject_id,
+            robot_id=attempt.robot_id,
+            state="unreachable" if isinstance(error, ControllerUnreachableError) else "drifted",
+            target=cast(str | None, document.get("target")),
+            controller=cast(JsonObject | None, held),
+            active_version=cast(int, document["version"]),
+            deviation_mm=None,
+            deviation_deg=None,
+            error=error.detail,
+        ),
+        at=attempt.at,
+        actor=actor,
+    )
 
 
 def _record(
