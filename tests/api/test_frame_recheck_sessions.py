@@ -5,11 +5,17 @@ finished as the frame's check (POST /v1/frames/{frame_id}/checks' answer, a Fram
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 import numpy as np
 import pytest
+from sqlalchemy import select
 
+from app.errors import InvalidInput
+from app.services.checks import frame_recheck
+from app.storage.db import session_scope
+from app.storage.models import AuditEvent
 from testbed.sim.cell_frames import FIXTURE_MM, touch_frame
 from tests.api.controller_rigs import rig
 from tests.api.frame_fiducials import NAMES, POINTER_TCP, calibrated_frame, cell, touches
@@ -98,3 +104,101 @@ def test_captured_fiducial_touches_of_a_moved_fixture_correct_it(api: Api, proto
     distances = [d["distance_mm"] for d in check["deviations"]]
     assert max(distances) == pytest.approx(1.5 + np.radians(0.3) * np.hypot(500, 300), abs=0.01)
     assert check["shift"]["angle_deg"] == pytest.approx(0.3, abs=1e-3)
+
+
+def _touched_session(api: Api, **options: Any) -> tuple[dict[str, Any], str]:
+    """A frame and a recheck session of it holding every fiducial of the moved fixture."""
+    robot, pointer = cell(api)
+    frame = calibrated_frame(
+        api, robot["id"], "fixture-a", R_FIXTURE, O_FIXTURE, pointer_id=pointer["id"]
+    )
+    R1, o1 = _moved_in_frame(R_FIXTURE, O_FIXTURE, list(ALONG), 0.3)
+    sid = _recheck(api, frame["id"], pointer["id"], "matrix", **options)["id"]
+    for touch in touches(pointer["id"], R1, o1)["touches"]:
+        added = _touch(api, sid, fiducial=touch["fiducial"], pose=touch["pose"])
+        assert added.status_code == 200, added.text
+    return frame, sid
+
+
+def _finish_at_once(api: Api, sid: str, headers: list[dict[str, str]]) -> list[Any]:
+    answers: list[Any] = []
+    start = threading.Barrier(len(headers))
+
+    def finish(extra: dict[str, str]) -> None:
+        start.wait()
+        answers.append(
+            api.post(
+                f"/v1/sessions/{sid}/finish",
+                {},
+                scope="calibrate",
+                headers={**api.headers("calibrate"), **extra},
+            )
+        )
+
+    threads = [threading.Thread(target=finish, args=(h,)) for h in headers]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return answers
+
+
+def _checks_made(frame_id: str) -> int:
+    with session_scope(write=False) as s:
+        return len(
+            s.scalars(
+                select(AuditEvent.id).where(
+                    AuditEvent.frame_id == frame_id, AuditEvent.action == "frame.check"
+                )
+            ).all()
+        )
+
+
+def test_concurrent_finishes_without_a_key_make_one_check_and_the_others_are_409(
+    api: Api,
+) -> None:
+    frame, sid = _touched_session(api, correct="within_limits")
+    before = _checks_made(frame["id"])
+    answers = _finish_at_once(api, sid, [{}, {}, {}])
+    assert sorted(a.status_code for a in answers) == [201, 409, 409], [a.text for a in answers]
+    for refused in (a for a in answers if a.status_code == 409):
+        assert refused.headers["content-type"].startswith("application/problem+json")
+        problem = refused.json()
+        assert problem["type"].endswith("/conflict")
+        assert f"session {sid}" in problem["detail"]
+        assert (
+            "one finish makes one check" in problem["detail"]
+            or "already finished" in (problem["detail"])
+        )
+    assert _checks_made(frame["id"]) == before + 1
+    assert len(api.get(f"/v1/frames/{frame['id']}/versions").json()["items"]) == 2
+    assert api.get(f"/v1/sessions/{sid}").json()["status"] == "finished"
+
+
+def test_concurrent_finishes_with_one_key_make_one_check_and_answer_it_alike(api: Api) -> None:
+    frame, sid = _touched_session(api, correct="within_limits")
+    before = _checks_made(frame["id"])
+    answers = _finish_at_once(api, sid, [{"Idempotency-Key": "finish-1"}] * 3)
+    assert [a.status_code for a in answers] == [201, 201, 201], [a.text for a in answers]
+    assert len({a.json()["id"] for a in answers}) == 1
+    assert _checks_made(frame["id"]) == before + 1
+
+
+def test_a_refused_finish_leaves_the_session_open_to_finish_again(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A check refused before anything is made gives the claim back: the session is open
+    again, not finished without a check, and the next finish checks."""
+    frame, sid = _touched_session(api, correct="within_limits")
+
+    def refuse(**_: Any) -> Any:
+        raise InvalidInput("invalid-pose", "refused before anything was made")
+
+    with monkeypatch.context() as patched:
+        patched.setattr(frame_recheck, "check_frame", refuse)
+        refused = api.post(f"/v1/sessions/{sid}/finish", {}, scope="calibrate")
+    assert refused.status_code == 422, refused.text
+    assert api.get(f"/v1/sessions/{sid}").json()["status"] == "open"
+    done = api.post(f"/v1/sessions/{sid}/finish", {}, scope="calibrate")
+    assert done.status_code == 201, done.text
+    assert done.json()["frame_id"] == frame["id"]

@@ -8,8 +8,10 @@ one path POST /v1/frames/{frame_id}/checks takes, never a copy).
 
 from __future__ import annotations
 
-from typing import Protocol
+import time
+from typing import Any, Protocol, cast
 
+from sqlalchemy import CursorResult, select, update
 from sqlalchemy.orm import Session
 
 from app.errors import Conflict, InvalidInput
@@ -20,10 +22,11 @@ from app.security.auth import Principal, transaction_for
 from app.services import idempotency
 from app.services.audit import writes as audit
 from app.services.checks import frame_recheck
+from app.services.controllers.deployments import DEPLOYMENT_WAIT_S
 from app.services.frames import checks
 from app.services.frames.subject import FRAME
-from app.storage.models import Frame, GuidedSession, utcnow
-from app.words import Recheck
+from app.storage.models import AuditEvent, Frame, GuidedSession, utcnow
+from app.words import AuditAction, Recheck
 
 RECHECK: Recheck = "recheck"
 #: The check's options a recheck session keeps and hands to the check.
@@ -110,7 +113,9 @@ def finish_request(
 ) -> frame_recheck.Checked:
     """POST /v1/sessions/{id}/finish of a recheck session: the frame's check of its touches
     (its transactions and its deployment its own, none open meanwhile); a finished session
-    answers its check again for the same Idempotency-Key, else 409."""
+    answers its check again for the same Idempotency-Key, else 409. The session is claimed
+    first (a conditional update, `_claim`): of concurrent finishes one checks, and the others
+    answer 409, or with the same key the first one's check."""
     with transaction_for(actor, write=False) as session:
         row = get_row(session, row_id, for_update=False)
         assert row.frame_id is not None
@@ -124,26 +129,30 @@ def finish_request(
                 loc=("path", "session_id"),
             )
         data = check_body(row)
-        if row.status != "open":
-            keyed = (
-                None
-                if idempotency_key is None
-                else (idempotency_key, frame_recheck.fingerprint(frame_id, data))
-            )
-            first = idempotency.replay_keyed(session, actor=actor, keyed=keyed, purge=False)
-            if first is None:
-                raise Conflict(f"session {row.id} is already finished: its check was made")
-    done = frame_recheck.check_frame(
-        frame_id=frame_id, data=data, actor=actor, idempotency_key=idempotency_key
+    keyed = (
+        None
+        if idempotency_key is None
+        else (idempotency_key, frame_recheck.fingerprint(frame_id, data))
     )
-    if not done.replayed:
-        with transaction_for(actor, write=True) as session:
-            row = get_row(session, row_id, for_update=True)
-            row.status, row.updated_at = "finished", utcnow()
+    if not _claim(row_id, actor, keyed):
+        return frame_recheck.check_frame(  # the first answer for this key, replayed
+            frame_id=frame_id, data=data, actor=actor, idempotency_key=idempotency_key
+        )
+    try:
+        done = frame_recheck.check_frame(
+            frame_id=frame_id, data=data, actor=actor, idempotency_key=idempotency_key
+        )
+    except BaseException:
+        _unclaim(row_id, actor)  # no check was made: the session may be finished again
+        raise
+    with transaction_for(actor, write=True) as session:
+        row = get_row(session, row_id, for_update=True)
+        row.updated_at = utcnow()
+        if not done.replayed:
             audit.record(
                 session,
                 actor=actor,
-                action="session.finish",
+                action=FINISHED,
                 resource_type="session",
                 resource_id=row.id,
                 robot_id=done.check.robot_id,
@@ -158,3 +167,70 @@ def finish_request(
                 },
             )
     return done
+
+
+#: The session's audit action once its check is made (how a waiting finish knows it ended).
+FINISHED: AuditAction = "session.finish"
+#: How often a finish with the claimed session's key looks for the first one's answer.
+_POLL_S = 0.1
+
+
+def _claim(row_id: str, actor: Principal, keyed: tuple[str, str] | None) -> bool:
+    """Take the open session for this finish: one conditional UPDATE (open -> finished, the
+    same on SQLite and PostgreSQL: the database lets one of concurrent updates match), so
+    one finish checks. False when it is not open and this key's first answer is kept (to be
+    replayed); 409 when it is not open otherwise: finished by a check, or being finished by
+    another request (this one without a key). A keyed finish beside one still checking
+    waits for its key's answer, the check's end (409: another key's) or the session open
+    again (the other check refused: claimed again)."""
+    deadline = time.monotonic() + DEPLOYMENT_WAIT_S
+    while True:
+        with transaction_for(actor, write=True) as session:
+            taken = session.execute(
+                update(GuidedSession)
+                .where(GuidedSession.id == row_id, GuidedSession.status == "open")
+                .values(status="finished", updated_at=utcnow())
+                .execution_options(synchronize_session=False)
+            )
+            if cast(CursorResult[Any], taken).rowcount == 1:
+                return True
+            if idempotency.replay_keyed(session, actor=actor, keyed=keyed, purge=False):
+                return False
+            ended = _finish_recorded(session, row_id)
+            row = session.get(GuidedSession, row_id)
+            if row is not None and row.status == "open":
+                continue  # the other finish's check was refused: claim it again
+        if ended:
+            raise Conflict(f"session {row_id} is already finished: its check was made")
+        if keyed is None or time.monotonic() > deadline:
+            raise Conflict(
+                f"session {row_id} is being finished by another request: one finish makes "
+                f"one check; its answer is the frame's check (GET /v1/sessions/{row_id})"
+            )
+        time.sleep(_POLL_S)
+
+
+def _finish_recorded(session: Session, row_id: str) -> bool:
+    return (
+        session.scalar(
+            select(AuditEvent.id)
+            .where(
+                AuditEvent.resource_type == "session",
+                AuditEvent.resource_id == row_id,
+                AuditEvent.action == FINISHED,
+            )
+            .limit(1)
+        )
+        is not None
+    )
+
+
+def _unclaim(row_id: str, actor: Principal) -> None:
+    """The claim given back when the check was refused (nothing made): open again."""
+    with transaction_for(actor, write=True) as session:
+        session.execute(
+            update(GuidedSession)
+            .where(GuidedSession.id == row_id, GuidedSession.status == "finished")
+            .values(status="open", updated_at=utcnow())
+            .execution_options(synchronize_session=False)
+        )
