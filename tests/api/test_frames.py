@@ -298,3 +298,39 @@ def test_every_frame_write_is_in_the_audit_trail_under_its_frame(api: Api) -> No
     ]
     assert all(e["robot_id"] == robot["id"] and e["tool_id"] is None for e in mine)
     assert mine[3]["detail"]["reason"] == "taught"
+
+
+def test_a_vendor_change_that_would_strand_a_frame_is_refused_naming_it(api: Api) -> None:
+    """The robot's frames are held to the new vendor's frame numbers or symbols, by the check
+    their registration makes, as its tools' slots are (tests/api/test_slots.py)."""
+    robot = api.robot("kr16", vendor="KUKA")
+    fixture = _frame(api, robot["id"], "fixture-a", slot=20)
+    _frame(api, robot["id"], "fixture-b", slot=3)
+    refused = api.patch(f"/v1/robots/{robot['id']}", {"vendor": "FANUC"})
+    assert refused.status_code == 422, refused.text
+    assert refused.headers["content-type"].startswith("application/problem+json")
+    problem = refused.json()
+    assert problem["type"].endswith("/out-of-range")
+    assert problem["errors"][0]["loc"] == ["body", "vendor"]
+    assert f"frame 'fixture-a' ({fixture['id']}, slot 20)" in problem["detail"]
+    assert (
+        "slot 20 is outside 1-9, the frame numbers of a fanuc_rmi controller" in (problem["detail"])
+    )
+    assert "PATCH /v1/frames/{frame_id}" in problem["detail"]
+    assert "fixture-b" not in problem["detail"]
+    assert problem["context"]["frames"] == [fixture["id"]]
+    assert api.get(f"/v1/robots/{robot['id']}").json()["vendor"] == "KUKA"
+    # Yaskawa numbers user frames 1..63: slot 20 fits there
+    assert api.patch(f"/v1/robots/{robot['id']}", {"vendor": "Yaskawa"}).status_code == 200
+    # an ABB work object is named by its symbol; the number kept beside it is checked
+    # when the robot turns KUKA (BASE_DATA[1..32])
+    irb = api.robot("irb", vendor="ABB")
+    wobj = _frame(api, irb["id"], "wobj-a", controller_symbol="T_ROB1/user/wobjA", slot=40)
+    refused = api.patch(f"/v1/robots/{irb['id']}", {"vendor": "KUKA"})
+    assert refused.status_code == 422, refused.text
+    assert f"frame 'wobj-a' ({wobj['id']}, slot 40)" in refused.json()["detail"]
+    assert "BASE_DATA[1..32]" in refused.json()["detail"]
+    etag = api.get(f"/v1/frames/{wobj['id']}").headers["etag"]
+    fixed = api.patch(f"/v1/frames/{wobj['id']}", {"slot": 4}, headers={"If-Match": etag})
+    assert fixed.status_code == 200, fixed.text
+    assert api.patch(f"/v1/robots/{irb['id']}", {"vendor": "KUKA"}).status_code == 200

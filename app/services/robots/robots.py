@@ -16,8 +16,9 @@ from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.robots.slots import check_vendor_change
 from app.services.visible import get_live, in_scope
-from app.storage.models import Robot, RobotController, Tool, new_id, utcnow
-from app.vendors.registry import vendor_protocols, vendor_speaks
+from app.storage.models import Frame, Robot, RobotController, Tool, new_id, utcnow
+from app.vendors.connector import FrameTarget
+from app.vendors.registry import vendor_frame_problem, vendor_protocols, vendor_speaks
 
 
 def get_robot(session: Session, robot_id: str, *, for_update: bool = False) -> Robot:
@@ -101,6 +102,7 @@ def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: P
             )
         )
         check_vendor_change(changes["vendor"], ((n, s) for n, s in live), loc=("body", "vendor"))
+        _frames_fit(session, robot, changes["vendor"])
     if "vendor" in changes and changes["vendor"] != robot.vendor:
         _controller_speaks(session, robot, changes["vendor"])
     details = audit.changes(robot, changes, values_of=("name", "vendor", "model", "serial", "cell"))
@@ -117,6 +119,37 @@ def update_robot(session: Session, *, robot_id: str, data: RobotUpdate, actor: P
         details=details,
     )
     return robot
+
+
+def _frames_fit(session: Session, robot: Robot, vendor: str) -> None:
+    """422 naming body.vendor and each live frame of the robot whose number or symbol a
+    controller of the new vendor's maker cannot address: the check a frame's registration
+    makes (app.vendors.registry.vendor_frame_problem), so that a frame valid for the old vendor
+    is not left unaddressable for the new one."""
+    frames = session.execute(
+        select(Frame.id, Frame.name, Frame.slot, Frame.controller_symbol)
+        .where(Frame.robot_id == robot.id, Frame.archived_at.is_(None))
+        .order_by(Frame.name, Frame.id)
+    )
+    stranded: list[str] = []
+    ids: list[str] = []
+    for frame_id, name, slot, symbol in frames:
+        problem = vendor_frame_problem(vendor, FrameTarget(slot=slot, symbol=symbol))
+        if problem is None:
+            continue
+        place = f"slot {slot}" if slot is not None else f"controller_symbol {symbol!r}"
+        stranded.append(f"frame {name!r} ({frame_id}, {place}): {problem}")
+        ids.append(frame_id)
+    if stranded:
+        raise InvalidInput(
+            "out-of-range",
+            f"robot {robot.name}'s frames would not fit a {vendor!r} controller: "
+            f"{'; '.join(stranded)}. Change each one's slot or controller_symbol "
+            "(PATCH /v1/frames/{frame_id}) or archive it (DELETE /v1/frames/{frame_id}), "
+            "then the vendor",
+            loc=("body", "vendor"),
+            context={"vendor": vendor, "frames": ids},
+        )
 
 
 def _controller_speaks(session: Session, robot: Robot, vendor: str | None) -> None:
