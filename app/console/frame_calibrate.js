@@ -3,6 +3,12 @@
 // with how far it must be); each touch is captured from the robot's controller or typed, sent
 // with the role the server names next; a 3-D picture shows the touched points and, once the
 // touches give one, the frame's axes. Finish shows the stored frame, its sigmas and summary.
+// Re-check after a move (API.md v1.4 "After a move: re-register"): the same guided session with
+// "method": "recheck", each stored fiducial touched again (captured or typed, sent as the
+// fiducial the server names next), finished as the frame's check; the page says each
+// fiducial's deviation, the shift, and what became of the frame (corrected to vN and deployed,
+// or nothing changed). GET /v1/methods lists calibration methods; recheck is a session method
+// of a check, named by the contract, not one of them.
 // console.js passes its helpers in `ui` (one definition each).
 
 const AXIS_MM = 150; // length of each drawn axis
@@ -61,10 +67,114 @@ export async function frameCalibratePage(frameId, ui) {
     }
   } }, h("label", {}, "Pointer tool ", pointer), " ", h("label", {}, "Pose format ", format), " ",
   h("button", { type: "submit" }, "Start teaching"));
-  body.replaceChildren(start, problem);
+  body.replaceChildren(start, problem, await recheckStart(ui, body, frame, tools, robot, drawController));
 }
 
-function drawSession(ui, body, frame, session, drawController) {
+// The re-check's options (as POST /v1/frames/{id}/checks takes them) and its start; none when
+// the frame keeps no fiducials to touch again.
+async function recheckStart(ui, body, frame, tools, robot, drawController) {
+  const { h, json, problemBox } = ui;
+  const box = h("section", { id: "recheck-frame" }, h("h2", {}, "Re-check after a move"));
+  let fiducials = [];
+  try {
+    fiducials = (await json(`/v1/frames/${frame.id}/fiducials`)).items;
+  } catch (error) {
+    box.append(problemBox(error));
+    return box;
+  }
+  if (!fiducials.length) {
+    box.append(h("p", { class: "muted" }, "This frame keeps no fiducials to touch again: calibrate it from touches first."));
+    return box;
+  }
+  const pointer = h("select", { name: "recheck-pointer", "aria-label": "re-check pointer tool" },
+    ...tools.items.map((t) => h("option", { value: t.id }, t.name)));
+  const format = h("input", { name: "recheck-format", value: robot.pose_format ?? "kuka_abc", "aria-label": "re-check pose format" });
+  const correct = h("input", { type: "checkbox", name: "correct", checked: true });
+  const whole = h("input", { type: "checkbox", name: "scope-robot" });
+  const reason = h("input", { name: "reason", "aria-label": "reason", placeholder: "why (kept in the history)", maxlength: "500" });
+  const problem = h("div", { id: "recheck-problem" });
+  const limits = frame.tolerance ?? {};
+  const form = h("form", { id: "recheck-start", onsubmit: async (event) => {
+    event.preventDefault();
+    problem.replaceChildren();
+    const options = { correct: correct.checked ? "within_limits" : "never", scope: whole.checked ? "robot" : "frame" };
+    if (reason.value.trim()) options.reason = reason.value.trim();
+    try {
+      const session = await json(`/v1/frames/${frame.id}/sessions`, { method: "POST", body: { method: "recheck", tool_id: pointer.value, format: format.value, options } });
+      drawSession(ui, body, frame, session, drawController, RECHECK);
+    } catch (error) {
+      problem.replaceChildren(problemBox(error));
+    }
+  } },
+  h("p", {}, `Touch its stored fiducials again (at least 3 of ${fiducials.map((f) => f.name).join(", ")}): the shift they moved by is found and, when asked, the frame corrected.`),
+  h("p", {}, h("label", {}, "Pointer tool ", pointer), " ", h("label", {}, "Pose format ", format)),
+  h("p", {}, h("label", {}, correct, ` correct it within ${limits.max_correction_mm ?? "its"} mm and deploy`), " ",
+    h("label", {}, whole, " the robot moved: correct every frame and reference point of it")),
+  h("p", {}, h("label", {}, "Reason ", reason), " ", h("button", { type: "submit" }, "Start re-check")));
+  box.append(form, problem);
+  return box;
+}
+
+// What a session's touches name and how it is finished and said: a calibration's roles, or a
+// re-check's fiducials.
+const TEACH = {
+  key: "role",
+  done: "Done: finish to store the frame.",
+  finishBody: { activate: "auto" },
+  result: calibrationResult,
+};
+const RECHECK = {
+  key: "fiducial",
+  done: "Every fiducial touched: finish to check the frame.",
+  finishBody: {},
+  result: checkResult,
+};
+
+function calibrationResult(ui, cal) {
+  const { h } = ui;
+  const q = cal.quality;
+  return [
+    h("h2", {}, `Frame v${cal.version}: ${cal.status}`),
+    h("p", { id: "frame-origin" }, `Origin ${cal.frame.position_mm.map((v) => v.toFixed(3)).join("  ")} mm, quaternion ${cal.frame.quaternion.map((v) => v.toFixed(6)).join("  ")}`),
+    h("p", { id: "frame-sigmas" }, `1-sigma: position ${(q.position_sigma_mm ?? []).map((v) => v.toFixed(3)).join("  ")} mm, angle ${(q.angle_sigma_deg ?? []).map((v) => v.toFixed(4)).join("  ")} deg`),
+    h("p", { id: "frame-summary" }, cal.summary),
+  ];
+}
+
+// mm to 3 decimals with its sign, a value that rounds to nothing as +0.000 (never -0.000).
+function signed(v) {
+  const text = (Math.abs(v) < 0.0005 ? 0 : v).toFixed(3);
+  return text.startsWith("-") ? text : `+${text}`;
+}
+
+// A frame check in words: what became of the frame, each fiducial's deviation, the shift.
+function checkResult(ui, check) {
+  const { h } = ui;
+  const c = check.correction;
+  const d = c?.deployment;
+  let outcome;
+  if (c) {
+    const deployed = !d ? "not deployed (the summary says why)"
+      : d.status === "verified" ? `deployed to ${d.target} and read back as written (verified)`
+        : `its deployment ${d.status.replace("_", " ")}: ${d.error?.detail ?? "see the deployments"}`;
+    outcome = `Corrected to v${c.version} (was v${c.previous_version}), active; ${deployed}`;
+  } else if (check.verdict === "within_tolerance") {
+    outcome = `Within tolerance at v${check.version}: nothing changed`;
+  } else {
+    outcome = `Not corrected: nothing changed (v${check.version} stays active)`;
+  }
+  const s = check.shift;
+  const moved = Math.hypot(...s.position_mm);
+  return [
+    h("h2", { id: "check-outcome", "data-verdict": check.verdict }, outcome),
+    h("ul", { id: "check-deviations" }, ...check.deviations.map((dev) => h("li", {}, dev.words))),
+    h("p", { id: "check-shift" }, `Shift: ${s.position_mm.map(signed).join("  ")} mm (${moved.toFixed(3)} mm) and ${s.angle_deg.toFixed(3)} deg about ${s.axis.map((v) => v.toFixed(3)).join("  ")}`),
+    ...(c?.moved?.length ? [h("p", { id: "check-moved" }, `Also corrected by the same shift: ${c.moved.map((m) => `${m.name} v${m.version ?? "?"}`).join(", ")}`)] : []),
+    h("p", { id: "frame-summary" }, check.summary.replace(HTTP_CALL, "")),
+  ];
+}
+
+function drawSession(ui, body, frame, session, drawController, kind = TEACH) {
   const { h, json, problemBox, mm } = ui;
   const next = h("p", { id: "next-role", class: "next", role: "status" });
   const touches = h("ol", { id: "frame-touches" });
@@ -76,7 +186,7 @@ function drawSession(ui, body, frame, session, drawController) {
   const send = async (touch) => {
     problem.replaceChildren();
     try {
-      if (state.next?.role) touch.role = state.next.role;
+      if (state.next?.role) touch[kind.key] = state.next.role;
       state = await json(`/v1/sessions/${state.id}/poses`, { method: "POST", body: touch });
       redraw();
     } catch (error) {
@@ -93,14 +203,8 @@ function drawSession(ui, body, frame, session, drawController) {
   const finish = h("button", { id: "finish", type: "button", onclick: async () => {
     problem.replaceChildren();
     try {
-      const cal = await json(`/v1/sessions/${state.id}/finish`, { method: "POST", body: { activate: "auto" } });
-      const q = cal.quality;
-      result.replaceChildren(
-        h("h2", {}, `Frame v${cal.version}: ${cal.status}`),
-        h("p", { id: "frame-origin" }, `Origin ${cal.frame.position_mm.map((v) => v.toFixed(3)).join("  ")} mm, quaternion ${cal.frame.quaternion.map((v) => v.toFixed(6)).join("  ")}`),
-        h("p", { id: "frame-sigmas" }, `1-sigma: position ${(q.position_sigma_mm ?? []).map((v) => v.toFixed(3)).join("  ")} mm, angle ${(q.angle_sigma_deg ?? []).map((v) => v.toFixed(4)).join("  ")} deg`),
-        h("p", { id: "frame-summary" }, cal.summary),
-      );
+      const done = await json(`/v1/sessions/${state.id}/finish`, { method: "POST", body: kind.finishBody });
+      result.replaceChildren(...kind.result(ui, done));
       capture.disabled = finish.disabled = true;
       result.focus();
       await drawController();
@@ -110,8 +214,8 @@ function drawSession(ui, body, frame, session, drawController) {
   } }, "Finish");
   result.setAttribute("tabindex", "-1");
   const redraw = () => {
-    next.textContent = state.next_role ? `Next: ${state.next_role}` : state.done ? "Done: finish to store the frame." : "";
-    touches.replaceChildren(...state.touches.map((t) => h("li", {}, `${t.role ?? "touch"} (${t.source}): ${t.point_mm ? t.point_mm.map((v) => v.toFixed(3)).join("  ") + " mm" : "no point: the pointer has no TCP"}`)));
+    next.textContent = state.next_role ? `Next: ${state.next_role}${state.done && kind === RECHECK ? " (or finish: enough fiducials touched)" : ""}` : state.done ? kind.done : "";
+    touches.replaceChildren(...state.touches.map((t) => h("li", {}, `${t[kind.key] ?? t.role ?? "touch"} (${t.source}): ${t.point_mm ? t.point_mm.map((v) => v.toFixed(3)).join("  ") + " mm" : "no point: the pointer has no TCP"}`)));
     // the server's words, less the HTTP call it names for an API client: the buttons say it here
     for (const message of state.messages) touches.append(h("li", { class: "muted" }, message.replace(HTTP_CALL, "")));
     ui.plot("frame-plot", traces(state), { margin: { l: 0, r: 0, t: 0, b: 0 }, scene: { aspectmode: "data" }, showlegend: true });
