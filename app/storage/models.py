@@ -151,56 +151,78 @@ class Robot(Base):
     archived_at: Mapped[datetime | None] = mapped_column()
 
 
-class Tool(Base):
-    __tablename__ = "tools"
-    __table_args__ = (
+def subject_indexes(table: str) -> tuple[Index, ...]:
+    """A subject table's indexes, named after it (`uq_<table>_live_name`, ...): name and slot
+    unique among a robot's live ones, a robot's listed oldest first, and the live ones paged
+    through oldest first (the fleet list, bench/scale.py)."""
+    live = text("archived_at IS NULL")
+    return (
         Index(
-            "uq_tools_live_name",
+            f"uq_{table}_live_name",
             "robot_id",
             "name",
             unique=True,
-            sqlite_where=text("archived_at IS NULL"),
-            postgresql_where=text("archived_at IS NULL"),
+            sqlite_where=live,
+            postgresql_where=live,
         ),
         Index(
-            "uq_tools_live_slot",
+            f"uq_{table}_live_slot",
             "robot_id",
             "slot",
             unique=True,
             sqlite_where=text("archived_at IS NULL AND slot IS NOT NULL"),
             postgresql_where=text("archived_at IS NULL AND slot IS NOT NULL"),
         ),
-        Index("ix_tools_robot_created", "robot_id", "created_at", "id"),
-        # The fleet list pages through live tools oldest first (bench/scale.py).
+        Index(f"ix_{table}_robot_created", "robot_id", "created_at", "id"),
         Index(
-            "ix_tools_live_created",
+            f"ix_{table}_live_created",
             "created_at",
             "id",
-            sqlite_where=text("archived_at IS NULL"),
-            postgresql_where=text("archived_at IS NULL"),
+            sqlite_where=live,
+            postgresql_where=live,
         ),
     )
 
+
+class SubjectColumns:
+    """A calibrated subject's columns, for every subject's table alike (the row the lifecycle
+    reads: app.services.lifecycle.subject); each table adds what its subject is besides (a
+    tool's serial and load, a frame's kind) and takes its indexes from `subject_indexes`."""
+
+    __tablename__: str
     id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
     robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"))
     name: Mapped[str] = mapped_column(String(200))
+    #: The controller's number for it (a tool's slot; a frame's number,
+    #: app.vendors.maker.Maker.frame_numbers), where it has one.
     slot: Mapped[int | None] = mapped_column(Integer)
-    serial: Mapped[str | None] = mapped_column(String(200))
-    description: Mapped[str | None] = mapped_column(Text)
-    load: Mapped[JsonObject | None] = mapped_column(JSON)
-    tolerance: Mapped[JsonObject] = mapped_column(JSON)
-    #: Under a protocol addressing tools by symbol: its PERS tooldata, "TASK/MODULE/SYMBOL".
+    #: Under a protocol addressing it by symbol: its RAPID variable (a tool's PERS tooldata),
+    #: "TASK/MODULE/SYMBOL".
     controller_symbol: Mapped[str | None] = mapped_column(String(100))
+    description: Mapped[str | None] = mapped_column(Text)
+    tolerance: Mapped[JsonObject] = mapped_column(JSON)
     active_version: Mapped[int | None] = mapped_column(Integer)
     last_version: Mapped[int] = mapped_column(Integer, default=0)
     revision: Mapped[int] = mapped_column(Integer, default=1)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
     archived_at: Mapped[datetime | None] = mapped_column()
-    #: The drift trend (app.services.tools.drift), refreshed when a version or a check is written;
-    #: drift_crosses_at: when its projection leaves check_mm at 95 % confidence, if it does.
+    #: The drift trend (app.services.lifecycle.drift), refreshed when a version or a check is
+    #: written; drift_crosses_at: when its projection leaves check_mm at 95 % confidence, if it
+    #: does.
     drift: Mapped[JsonObject | None] = mapped_column(JSON)
     drift_crosses_at: Mapped[datetime | None] = mapped_column()
+
+
+class Tool(SubjectColumns, Base):
+    """A tool of a robot: its TCP versioned and activated by the lifecycle
+    (app.services.tools.subject)."""
+
+    __tablename__ = "tools"
+    __table_args__ = subject_indexes("tools")
+
+    serial: Mapped[str | None] = mapped_column(String(200))
+    load: Mapped[JsonObject | None] = mapped_column(JSON)
 
 
 class Calibration(Base):
@@ -277,59 +299,16 @@ class Activation(ActivationColumns, Base):
     tool_id: Mapped[str] = mapped_column(ForeignKey("tools.id"))
 
 
-class Frame(Base):
+class Frame(SubjectColumns, Base):
     """A frame of a robot's cell: a base (work object, user frame) the robot's points are
     taught in, or a fixed tool standing in the cell (`kind`). Its value is a pose in the
     robot's base frame, versioned and activated by the lifecycle as a tool's TCP is
     (app.services.frames.subject)."""
 
     __tablename__ = "frames"
-    __table_args__ = (
-        Index(
-            "uq_frames_live_name",
-            "robot_id",
-            "name",
-            unique=True,
-            sqlite_where=text("archived_at IS NULL"),
-            postgresql_where=text("archived_at IS NULL"),
-        ),
-        Index(
-            "uq_frames_live_slot",
-            "robot_id",
-            "slot",
-            unique=True,
-            sqlite_where=text("archived_at IS NULL AND slot IS NOT NULL"),
-            postgresql_where=text("archived_at IS NULL AND slot IS NOT NULL"),
-        ),
-        Index("ix_frames_robot_created", "robot_id", "created_at", "id"),
-        Index(
-            "ix_frames_live_created",
-            "created_at",
-            "id",
-            sqlite_where=text("archived_at IS NULL"),
-            postgresql_where=text("archived_at IS NULL"),
-        ),
-    )
+    __table_args__ = subject_indexes("frames")
 
-    id: Mapped[str] = mapped_column(String(36), primary_key=True, default=new_id)
-    robot_id: Mapped[str] = mapped_column(ForeignKey("robots.id"))
-    name: Mapped[str] = mapped_column(String(200))
     kind: Mapped[FrameKind] = mapped_column(String(20))
-    #: The controller's frame number (app.vendors.maker.Maker.frame_numbers), where it has one.
-    slot: Mapped[int | None] = mapped_column(Integer)
-    #: Under a maker addressing frames by symbol: its RAPID variable, "TASK/MODULE/SYMBOL".
-    controller_symbol: Mapped[str | None] = mapped_column(String(100))
-    description: Mapped[str | None] = mapped_column(Text)
-    tolerance: Mapped[JsonObject] = mapped_column(JSON)
-    active_version: Mapped[int | None] = mapped_column(Integer)
-    last_version: Mapped[int] = mapped_column(Integer, default=0)
-    revision: Mapped[int] = mapped_column(Integer, default=1)
-    created_at: Mapped[datetime] = mapped_column(default=utcnow)
-    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
-    archived_at: Mapped[datetime | None] = mapped_column()
-    #: The drift trend (app.services.lifecycle.drift), as a tool's.
-    drift: Mapped[JsonObject | None] = mapped_column(JSON)
-    drift_crosses_at: Mapped[datetime | None] = mapped_column()
 
 
 class FrameCalibration(Base):
