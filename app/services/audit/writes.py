@@ -72,6 +72,42 @@ def record(
     session.info.setdefault(_PENDING, []).append((action, event))
 
 
+class Named(Protocol):
+    """A calibrated subject as its audit events name it (app.services.lifecycle.subject.Subject):
+    its kind, their resource type, and its key, the column naming it ("tool_id")."""
+
+    @property
+    def kind(self) -> ResourceType: ...
+    @property
+    def key(self) -> str: ...
+
+
+def record_about(
+    session: Session,
+    subject: Named,
+    subject_id: str,
+    robot_id: str,
+    *,
+    actor: Principal,
+    action: AuditAction,
+    details: JsonObject,
+    version: int | None = None,
+) -> None:
+    """`record` an event about one subject of a robot: its kind the resource type, the subject
+    the resource, named by its key."""
+    record(
+        session,
+        actor=actor,
+        action=action,
+        resource_type=subject.kind,
+        resource_id=subject_id,
+        robot_id=robot_id,
+        about={subject.key: subject_id},
+        version=version,
+        details=details,
+    )
+
+
 class _Created(Protocol):
     """A new row with an id: made in Python (a uuid), or by the database (a deployment's
     sequence number, known once the row is flushed)."""

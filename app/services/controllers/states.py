@@ -123,16 +123,14 @@ def _record_change(
     action: AuditAction,
     actor: Principal,
 ) -> None:
-    subject = seen.subject
-    audit.record(
+    audit.record_about(
         session,
+        seen.subject,
+        seen.subject_id,
+        seen.robot_id,
         actor=actor,
         action=action,
-        resource_type=subject.kind,
-        resource_id=seen.subject_id,
-        robot_id=seen.robot_id,
         version=seen.active_version,
-        about={subject.key: seen.subject_id},
         details={
             "previous_state": previous,
             "target": seen.target,

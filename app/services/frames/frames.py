@@ -17,8 +17,14 @@ from app.schemas.frames import FrameCreate, FrameUpdate
 from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.frames.subject import FRAME
-from app.services.lifecycle import drift
-from app.services.lifecycle.versions import Taken, check_if_match, check_unique, get_live
+from app.services.lifecycle.versions import (
+    Taken,
+    apply_update,
+    check_if_match,
+    check_unique,
+    get_live,
+    patched,
+)
 from app.services.robots.robots import get_robot
 from app.storage.models import Frame, Robot, new_id, utcnow
 from app.vendors.connector import FrameTarget
@@ -109,41 +115,19 @@ def update_frame(
     what is stored)."""
     frame = _lock_frame(session, frame_id)
     check_if_match(FRAME, frame, if_match)
-    changes = data.model_dump(exclude_unset=True)
-    if changes.get("name", "") is None:
-        changes.pop("name")
+    changes = patched(data)
     robot = get_robot(session, frame.robot_id)
     check_place(robot, slot=changes.get("slot"), symbol=changes.get("controller_symbol"))
     check_unique(session, FRAME, _TAKEN, frame.robot_id, changes, except_id=frame.id)
-    if "tolerance" in changes:
-        if changes["tolerance"] is None:
-            changes.pop("tolerance")
-        else:
-            changes["tolerance"] = {
-                **frame_tolerance(frame.tolerance).model_dump(),
-                **changes["tolerance"],
-            }
-    details = audit.changes(
+    apply_update(
+        session,
+        FRAME,
         frame,
         changes,
-        values_of=_SHOWN_CHANGES,
-        before={"tolerance": frame_tolerance(frame.tolerance).model_dump()},
-    )
-    for key, value in changes.items():
-        setattr(frame, key, value)
-    if "tolerance" in changes:  # another check_mm, another projection
-        frame.drift, frame.drift_crosses_at = drift.fit_drift(session, FRAME, frame)
-    frame.updated_at = utcnow()
-    frame.revision += 1
-    audit.record(
-        session,
-        actor=actor,
+        tolerance=frame_tolerance,
+        shown=_SHOWN_CHANGES,
         action="frame.update",
-        resource_type=FRAME.kind,
-        resource_id=frame.id,
-        robot_id=frame.robot_id,
-        about={FRAME.key: frame.id},
-        details=details,
+        actor=actor,
     )
     return frame
 

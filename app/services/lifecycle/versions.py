@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import functools
 import hashlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from typing import NamedTuple, Protocol
 
+from pydantic import BaseModel
 from sqlalchemy import BindParameter, bindparam, insert, select, update
 from sqlalchemy.orm import Session
 
@@ -36,7 +37,7 @@ from app.services.lifecycle.subject import (
 )
 from app.services.visible import in_scope, live_or_404
 from app.storage.db import DriverWrite, HeldRead
-from app.storage.models import Robot, new_id, table_of, utcnow
+from app.storage.models import Robot, SubjectColumns, new_id, table_of, utcnow
 from app.words import ActivationKind, AuditAction, Status, VersionSource
 
 _ROBOT = table_of(Robot)
@@ -185,6 +186,55 @@ def check_unique(
         raise Conflict(taken.name.format(**words), loc=("body", "name"), msg="already taken")
     if slot is not None and session.scalars(live.where(table.c.slot == slot)).first():
         raise Conflict(taken.slot.format(**words), loc=("body", "slot"), msg="already taken")
+
+
+def patched(body: BaseModel) -> JsonObject:
+    """The fields a PATCH body gives (JSON merge patch); a null name is no change."""
+    changes = body.model_dump(exclude_unset=True)
+    if changes.get("name", "") is None:
+        changes.pop("name")
+    return changes
+
+
+def apply_update(
+    session: Session,
+    subject: AnySubject,
+    row: SubjectColumns,
+    changes: JsonObject,
+    *,
+    tolerance: Callable[[JsonObject | None], BaseModel],
+    shown: Collection[str],
+    action: AuditAction,
+    actor: Principal,
+) -> None:
+    """Write a PATCH's checked `changes` to a subject's row, with its audit event (`action`:
+    the old and new values of the fields `shown`, the others by name). The tolerance merges
+    with what is stored, its defaults filled in (`tolerance`): {"tolerance": {"max_rms_mm":
+    0.2}} changes that one limit and keeps the others, and a null one changes nothing; a
+    changed tolerance refits the drift trend (another check_mm, another projection)."""
+    if "tolerance" in changes:
+        if changes["tolerance"] is None:
+            changes.pop("tolerance")
+        else:
+            changes["tolerance"] = {
+                **tolerance(row.tolerance).model_dump(),
+                **changes["tolerance"],
+            }
+    details = audit.changes(
+        row,
+        changes,
+        values_of=shown,
+        before={"tolerance": tolerance(row.tolerance).model_dump()},
+    )
+    for key, value in changes.items():
+        setattr(row, key, value)
+    if "tolerance" in changes:
+        row.drift, row.drift_crosses_at = drift.fit_drift(session, subject, row)
+    row.updated_at = utcnow()
+    row.revision += 1
+    audit.record_about(
+        session, subject, row.id, row.robot_id, actor=actor, action=action, details=details
+    )
 
 
 def get_live(
@@ -342,14 +392,13 @@ def activate(
         "kind": reason,
         "reason": reason if reason_text is None else reason_text,
     }
-    audit.record(
+    audit.record_about(
         session,
+        subject,
+        locked.id,
+        locked.robot_id,
         actor=actor,
         action=action,
-        resource_type=subject.kind,
-        resource_id=locked.id,
-        robot_id=locked.robot_id,
-        about={subject.key: locked.id},
         version=version,
         details={**event, **(details or {})},
     )

@@ -13,7 +13,6 @@ from app.services.lifecycle import drift
 from app.services.lifecycle.drift import DRIFTING_WITHIN, Fitted, Point, fleet_drift
 from app.services.lifecycle.versions import get_live
 from app.services.tools.subject import TOOL
-from app.storage.models import Tool
 
 __all__ = ["DRIFTING_WITHIN", "Point", "crosses_by", "fleet_drift"]
 
@@ -27,11 +26,6 @@ def refresh_drift(session: Session, tool: Fitted, *, pending_check: Point | None
     """Fit a tool's trends and store them on the tool, in the caller's transaction
     (`pending_check`: a check recorded in this transaction)."""
     drift.store_drift(session, TOOL, tool.id, drift.fit_drift(session, TOOL, tool, pending_check))
-
-
-def restate_drift(session: Session, tool: Tool) -> None:
-    """Refit a tool (an ORM object being changed) after its tolerance changed."""
-    tool.drift, tool.drift_crosses_at = drift.fit_drift(session, TOOL, tool)
 
 
 def tool_drift(session: Session, tool_id: str) -> ToolDrift:

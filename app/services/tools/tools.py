@@ -13,12 +13,18 @@ from app.helpers.tolerance import effective_tolerance
 from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.security.auth import Principal
 from app.services.audit import writes as audit
-from app.services.lifecycle.versions import Revised, Taken, check_unique, etag
+from app.services.lifecycle.versions import (
+    Revised,
+    Taken,
+    apply_update,
+    check_unique,
+    etag,
+    patched,
+)
 from app.services.lifecycle.versions import check_if_match as lifecycle_check_if_match
 from app.services.robots.connection import check_slot_for_controller
 from app.services.robots.robots import get_robot
 from app.services.robots.slots import check_slot
-from app.services.tools.drift import restate_drift
 from app.services.tools.subject import TOOL
 from app.services.visible import get_live, visible_tool
 from app.storage.models import Tool, new_id, utcnow
@@ -102,46 +108,22 @@ def update_tool(
     """Change the fields given in the PATCH body (If-Match honoured)."""
     tool = get_tool(session, tool_id, for_update=True)
     check_if_match(tool, if_match)
-    changes = data.model_dump(exclude_unset=True)
-    if changes.get("name", "") is None:
-        changes.pop("name")
+    changes = patched(data)
     if changes.get("slot") is not None:
         check_slot(get_robot(session, tool.robot_id).vendor, changes["slot"], loc=("body", "slot"))
     check_unique(session, TOOL, _TAKEN, tool.robot_id, changes, except_id=tool.id)
     check_slot_for_controller(session, robot_id=tool.robot_id, slot=changes.get("slot"))
-    # Nested objects merge (JSON merge patch): {"tolerance": {"max_rms_mm": 0.2}} changes that
-    # one limit and keeps the others, rather than resetting them to the defaults.
-    if "tolerance" in changes:
-        if changes["tolerance"] is None:
-            changes.pop("tolerance")
-        else:
-            changes["tolerance"] = {
-                **effective_tolerance(tool.tolerance).model_dump(),
-                **changes["tolerance"],
-            }
-    if changes.get("load") is not None and tool.load is not None:
+    if changes.get("load") is not None and tool.load is not None:  # merges as the tolerance
         changes["load"] = Load.model_validate({**tool.load, **changes["load"]}).model_dump()
-    details = audit.changes(
+    apply_update(
+        session,
+        TOOL,
         tool,
         changes,
-        values_of=_SHOWN_CHANGES,
-        before={"tolerance": effective_tolerance(tool.tolerance).model_dump()},
-    )
-    for key, value in changes.items():
-        setattr(tool, key, value)
-    if "tolerance" in changes:  # another check_mm, another projection
-        restate_drift(session, tool)
-    tool.updated_at = utcnow()
-    tool.revision += 1
-    audit.record(
-        session,
-        actor=actor,
+        tolerance=effective_tolerance,
+        shown=_SHOWN_CHANGES,
         action="tool.update",
-        resource_type="tool",
-        resource_id=tool.id,
-        robot_id=tool.robot_id,
-        tool_id=tool.id,
-        details=details,
+        actor=actor,
     )
     return tool
 
