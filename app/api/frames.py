@@ -18,7 +18,13 @@ from app.api.params import (
     PathId,
 )
 from app.api.shared import page
-from app.api.subject_routes import SubjectRoutes, add_active_route, add_table_route, version_routes
+from app.api.subject_routes import (
+    SubjectRoutes,
+    add_active_route,
+    add_table_route,
+    version_routes,
+    with_etag,
+)
 from app.helpers.etags import IF_MATCH_PATTERN
 from app.methods.frame import FrameCalibrationIn, frame_openapi_examples
 from app.schemas.common import Page
@@ -36,7 +42,6 @@ from app.schemas.frames import (
 )
 from app.services.frames import calibrations, controller_files, fiducials, frames, versions
 from app.services.frames.subject import FRAME
-from app.services.lifecycle.versions import etag
 
 router = APIRouter(tags=["frames"])
 FrameIfMatch = Annotated[
@@ -81,8 +86,7 @@ def create_frame(
     `controller_symbol` against its form (name and slot unique among the robot's live
     frames); the answer carries the frame's ETag."""
     frame = frames.create_frame(session, robot_id=robot_id, data=body, actor=key)
-    response.headers["ETag"] = etag(frame)
-    return RobotFrame.model_validate(frame, from_attributes=True)
+    return with_etag(response, RobotFrame, frame)
 
 
 @router.get("/v1/robots/{robot_id}/frames", response_model=Page[RobotFrame])
@@ -105,8 +109,7 @@ def get_frame(
     """One live frame, with its ETag (it changes with every change to the frame, its versions
     or its activation)."""
     frame = frames.get_frame(session, frame_id)
-    response.headers["ETag"] = etag(frame)
-    return RobotFrame.model_validate(frame, from_attributes=True)
+    return with_etag(response, RobotFrame, frame)
 
 
 @router.patch("/v1/frames/{frame_id}", response_model=RobotFrame)
@@ -121,8 +124,7 @@ def update_frame(
     """Change a frame's fields (the tolerance merges with what is stored); honours If-Match
     with the frame's ETag."""
     frame = frames.update_frame(session, frame_id=frame_id, data=body, if_match=if_match, actor=key)
-    response.headers["ETag"] = etag(frame)
-    return RobotFrame.model_validate(frame, from_attributes=True)
+    return with_etag(response, RobotFrame, frame)
 
 
 @router.delete("/v1/frames/{frame_id}", status_code=204)

@@ -64,6 +64,13 @@ class SubjectRoutes(Generic[Row, VersionT, ActivationT, Document, VersionDocumen
     names: str
 
 
+def with_etag(response: Response, document: type[Document], row: lifecycle.Revised) -> Document:
+    """A subject's row as its document (a Tool, a RobotFrame), its ETag in the answer's
+    headers: what a subject's create, read, PATCH, activation and rollback answer."""
+    response.headers["ETag"] = lifecycle.etag(row)
+    return document.model_validate(row, from_attributes=True)
+
+
 def version_routes(
     spec: SubjectRoutes[Row, VersionT, ActivationT, Document, VersionDocument, ListDocument],
 ) -> APIRouter:
@@ -294,8 +301,7 @@ def _write_routes(
             if_match=if_match,
             actor=key,
         )
-        response.headers["ETag"] = lifecycle.etag(row)
-        return spec.document.model_validate(row, from_attributes=True)
+        return with_etag(response, spec.document, row)
 
     def rollback(
         subject_id: PathId,
@@ -313,8 +319,7 @@ def _write_routes(
             if_match=if_match,
             actor=key,
         )
-        response.headers["ETag"] = lifecycle.etag(row)
-        return spec.document.model_validate(row, from_attributes=True)
+        return with_etag(response, spec.document, row)
 
     stale = {"description": f"If-Match names an older ETag of the {kind}"}
     router.add_api_route(

@@ -7,6 +7,7 @@ from fastapi import APIRouter, Response
 from app.api.deps import AdminKey, ReadKey, SessionDep
 from app.api.params import DEFAULT_PAGE, Cursor, IfMatch, Limit, PathId
 from app.api.shared import page
+from app.api.subject_routes import with_etag
 from app.schemas.common import Page
 from app.schemas.tools import Tool, ToolCreate, ToolUpdate
 from app.services.tools import tools
@@ -21,8 +22,7 @@ def create_tool(
     """Register a tool on a robot (name and slot unique among the robot's live tools); the
     answer carries the tool's ETag."""
     tool = tools.create_tool(session, robot_id=robot_id, data=body, actor=key)
-    response.headers["ETag"] = tools.tool_etag(tool)
-    return Tool.model_validate(tool, from_attributes=True)
+    return with_etag(response, Tool, tool)
 
 
 @router.get("/v1/robots/{robot_id}/tools", response_model=Page[Tool])
@@ -43,8 +43,7 @@ def get_tool(tool_id: PathId, response: Response, session: SessionDep, key: Read
     """One live tool, with its ETag (it changes with every change to the tool, its versions or
     its activation)."""
     tool = tools.get_tool(session, tool_id)
-    response.headers["ETag"] = tools.tool_etag(tool)
-    return Tool.model_validate(tool, from_attributes=True)
+    return with_etag(response, Tool, tool)
 
 
 @router.patch("/v1/tools/{tool_id}", response_model=Tool)
@@ -59,8 +58,7 @@ def update_tool(
     """Change a tool's fields (tolerance and load merge with what is stored); honours If-Match
     with the tool's ETag."""
     tool = tools.update_tool(session, tool_id=tool_id, data=body, if_match=if_match, actor=key)
-    response.headers["ETag"] = tools.tool_etag(tool)
-    return Tool.model_validate(tool, from_attributes=True)
+    return with_etag(response, Tool, tool)
 
 
 @router.delete("/v1/tools/{tool_id}", status_code=204)
