@@ -526,18 +526,9 @@ MAKER_MENTIONS: dict[str, tuple[int, str]] = {
     "vendors/maker.py": (5, "the declaration's examples of a live TCP and a name"),
     "vendors/names.py": (2, "which pendants limit a name's character set"),
     # The services' and the console's prose about a controller's particulars.
-    "services/robots/live_tool.py": (11, "the live-TCP protocols' reading, by their maker"),
-    "services/robots/slots.py": (11, "the tool numbers' examples, by their maker"),
-    "services/tools/controller_text.py": (7, "each format's text, by its maker"),
-    "services/tools/live.py": (6, "the live reading's examples"),
     "storage/models.py": (4, "the columns' comments (ABB's symbol, each bare flange)"),
     "cli/client.py": (8, "the CLI's help and examples, by maker"),
     "console/console.js": (12, "the console's hints, by maker"),
-    # Being rewritten by other engineers now (the frame subject, the watcher, OPC UA).
-    "services/controllers/deployments.py": (2, "being rewritten for the frame subject"),
-    "services/controllers/reconcile.py": (2, "being rewritten for the frame subject"),
-    "services/controllers/failures.py": (1, "the failures' examples, beside the files rewritten"),
-    "publish/opcua.py": (1, "being rewritten for the frame subject"),
 }
 
 

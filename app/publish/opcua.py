@@ -160,8 +160,8 @@ VARIABLES: dict[str, Variable] = {
     "KukaABC": Variable(
         ua.VariantType.Double,
         3,
-        "The active {value}'s orientation as KUKA's A, B, C (rotations about z, y', x''), in "
-        "degrees (empty without an active version).",
+        "The active {value}'s orientation as A, B, C (the kuka_abc convention: rotations "
+        "about z, y', x''), in degrees (empty without an active version).",
         DEGREE,
     ),
     "Status": Variable(

@@ -508,11 +508,12 @@ LIVE_UNCONFIRMED = (
 
 
 def live_after(outcome: Outcome) -> LiveRead | None:
-    """What a deployment to a robot's one live TCP (a `live` scope, UR and Techman: the tool
-    read and written is the TCP the robot moves by) last read of it: the read-back, else what
-    it held before a write that was never sent; unread when a write was sent and nothing was
-    read after it. None when nothing was read and nothing changed (the round's read stands).
-    A stored-scope controller's read-back says nothing of which tool the robot moves by."""
+    """What a deployment to a robot's one live TCP (a `live` scope, its protocol's address a
+    LiveTcp: the tool read and written is the TCP the robot moves by) last read of it: the
+    read-back, else what it held before a write that was never sent; unread when a write was
+    sent and nothing was read after it. None when nothing was read and nothing changed (the
+    round's read stands). A stored-scope controller's read-back says nothing of which tool
+    the robot moves by."""
     held = outcome.read_back
     if held is None and outcome.status == "not_written":
         held = outcome.previous

@@ -33,7 +33,7 @@ from app.vendors.registry import where as controller_address
 #: What a refusal says besides the controller's own words. `remedy`: those words and what a
 #: person can do about them (a deployment, whose status words then say what the controller
 #: holds). `connector`: the connector's sentence after them, for it says why and what to do
-#: (a capture: KUKA's external-TCP mode, move with the tool on the flange) where the
+#: (a capture: a controller's external-TCP mode, move with the tool on the flange) where the
 #: controller's words alone do not.
 RefusalWords = Literal["remedy", "connector"]
 

@@ -2,10 +2,11 @@
 that declares a controller side: its tools, then the others) from its controller and compare
 it with the subject's active version (in sync within 0.01 mm and 0.01 deg).
 
-A robot whose protocol writes its one live one of a kind (a `live` scope, a tool of UR and
-Techman: contract v1.3) holds one at a time: the round judges the one deployed to it last (in
-sync or drifted against its active version) and reports the others of its kind `not_live`;
-when the controller cannot be reached, every one is `unreachable`, as a stored-scope robot's.
+A robot whose protocol writes its one live one of a kind (a `live` scope, a protocol whose
+declared address is a LiveTcp: contract v1.3) holds one at a time: the round judges the one
+deployed to it last (in sync or drifted against its active version) and reports the others
+of its kind `not_live`; when the controller cannot be reached, every one is `unreachable`, as
+a stored-scope robot's.
 
 As for deployments, the controller is read with no database transaction open; the states
 found are then stored in one write transaction, each change of a state an audit event.

@@ -121,8 +121,8 @@ class LiveRead:
 
 def read_live(conn: Connector) -> LiveRead:
     """The live tool through the connector's read_pose, in the round's session. A failed
-    read (a KUKA in external-TCP mode refuses it) leaves it unread, saying why; it never
-    fails the round's tool states."""
+    read (a controller in a mode that refuses it, as an external-TCP mode) leaves it unread,
+    saying why; it never fails the round's tool states."""
     try:
         reading = conn.read_pose()
         return LiveRead(reading.live_tool, None, frame=reading.live_frame)
@@ -132,16 +132,16 @@ def read_live(conn: Connector) -> LiveRead:
         return LiveRead(None, str(exc))
 
 
-#: The bare flange: the frame of tool 0 (KUKA $NULLFRAME, FANUC UTOOL 0, Yaskawa's tool 0 as
-#: shipped, a zero UR tcp_offset, Techman's NOTOOL).
+#: The bare flange: the frame of tool 0, or of no tool (each maker's null tool or zero TCP
+#: offset, as its declaration in app/vendors/<maker>/ describes it).
 FLANGE = Frame((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
 
 
 def bare_flange(tool: LiveTool | None) -> bool:
     """True when the robot moves by its bare flange (within 0.01 mm and 0.01 deg) with no
     tool selected, as robots stand between jobs: not an unknown TCP. No tool is tool 0 or no
-    number (KUKA $ACT_TOOL 0 and -1, FANUC UTOOL 0, UR, Techman); a job that selects tool 5
-    holding zeros (a Yaskawa TOOL.CND block never filled in) moves by an unknown TCP."""
+    number (a controller's tool 0, or one that numbers no tools); a job that selects tool 5
+    holding zeros (a tool block never filled in) moves by an unknown TCP."""
     if tool is None or tool.frame is None or tool.number not in (None, 0):
         return False
     frame = tool.frame

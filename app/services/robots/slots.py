@@ -1,13 +1,11 @@
 """Which tool numbers (slots) a robot's controller has, by the robot's vendor.
 
 The ranges are the controllers' own, and the exports' (one definition each: the `Maker` of
-app/vendors/<maker>/, citing the vendor documents): KUKA `$TOOL_DATA[1..16]` (KSS
-$config.dat), Fanuc `UTOOL[1..10]` (R-30iB default), Yaskawa tool files 0..63 (YRC1000 and
-DX200). ABB (a `tooldata` is a named RAPID variable) and Universal Robots (one TCP at a time,
-named in the installation) have no tool numbers: a slot on their tools is not checked and is
-kept as the tool's number in file names and tables, as before. The vendor is matched without
-regard to case, on its first word ("KUKA", "Kuka Roboter GmbH", "FANUC America",
-"Yaskawa Motoman"; "Motoman" alone counts as Yaskawa): the makers' vendor words.
+app/vendors/<maker>/, its `tool_numbers`, citing the vendor documents). A maker whose tools
+are not numbered (a named variable, or one TCP at a time) declares none: a slot on its tools
+is not checked and is kept as the tool's number in file names and tables, as before. The
+vendor is matched without regard to case, on its first word, against each maker's
+`vendor_words` (its name, its company's, a brand it sells under).
 """
 
 from __future__ import annotations
@@ -30,7 +28,7 @@ _ALIASES = {
 
 def numbered_vendor(vendor: str | None) -> str | None:
     """The key in SLOTS_BY_FORMAT of a robot's vendor, or None when its tools are not numbered
-    (ABB, UR) or the vendor is unknown or not given."""
+    (its maker declares no tool numbers) or the vendor is unknown or not given."""
     if not vendor:
         return None
     first = re.split(r"[^a-z0-9]+", vendor.strip().lower(), maxsplit=1)[0]

@@ -1,4 +1,4 @@
-"""Controller text for a served TCP (KUKA, ABB, Fanuc, UR, Yaskawa, Techman)."""
+"""Controller text for a served TCP, in each maker's format (app.vendors.registry.MAKERS)."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ class ServedVersion(Valued, Protocol):
 
 def tool_data(tool: ServedTool, version: ServedVersion) -> ToolData:
     """A tool's version as its controller holds it: the TCP, the load where its mass is
-    stored (the centre of gravity where that is), the slot, name and ABB symbol."""
+    stored (the centre of gravity where that is), the slot, name and controller symbol."""
     load = tool.load or {}
     mass, cog = load.get("mass_kg"), load.get("cog_mm")
     return ToolData(

@@ -3,11 +3,11 @@
 `?attention=` are the same conditions, each a seek in robot_live_tools or the primary key of
 robot_live_matches (robot_id, tool_id, version).
 
-The cases, first that holds: `unread` (no round read a frame: ABB, a connector without
-read_pose, a failed read, never reconciled); `active` (a match is this tool's active
-version); `stale_version` (a match is another version of this tool: the newest such);
-`other_tool` (a match is another tool's version); else `unknown` (no version has the frame:
-`no_tool` when it is the bare flange, no tool selected).
+The cases, first that holds: `unread` (no round read a frame: a controller that names no live
+TCP, a connector without read_pose, a failed read, never reconciled); `active` (a match is
+this tool's active version); `stale_version` (a match is another version of this tool: the
+newest such); `other_tool` (a match is another tool's version); else `unknown` (no version
+has the frame: `no_tool` when it is the bare flange, no tool selected).
 """
 
 from __future__ import annotations
@@ -99,14 +99,15 @@ LIVE_TOOL_ID = case(
 LIVE_CHECKED_AT = _robot_live(RobotLiveTool.checked_at)
 #: The tool number the controller reported (null where it names none).
 LIVE_NUMBER = _robot_live(RobotLiveTool.number)
-#: The robot moves by its bare flange: no tool selected (tool 0, KUKA $NULLFRAME, FANUC
-#: UTOOL 0, a zero UR tcp_offset), not an unknown TCP: it raises no moving_by_unknown_tcp.
+#: The robot moves by its bare flange: no tool selected (tool 0, a null tool, a zero TCP
+#: offset: app.services.robots.live_tool.bare_flange), not an unknown TCP: it raises no
+#: moving_by_unknown_tcp.
 AT_FLANGE = _robot_live(RobotLiveTool.flange).is_(true())
 
 _HOLDER = aliased(Tool, name="slot_holder")
-#: The tool an unknown TCP is blamed on: the one whose slot is the live tool number (KUKA,
-#: FANUC); when the controller names no number or no live tool has that slot, every tool of
-#: the robot (any of them may be the one it moves by).
+#: The tool an unknown TCP is blamed on: the one whose slot is the live tool number (a
+#: controller that numbers its tools); when the controller names no number or no live tool
+#: has that slot, every tool of the robot (any of them may be the one it moves by).
 UNKNOWN_TCP_HERE = or_(
     Tool.slot == _robot_live(RobotLiveTool.number),
     ~exists(
