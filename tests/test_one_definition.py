@@ -528,7 +528,6 @@ MAKER_MENTIONS: dict[str, tuple[int, str]] = {
     # The services' and the console's prose about a controller's particulars.
     "storage/models.py": (4, "the columns' comments (ABB's symbol, each bare flange)"),
     "cli/client.py": (8, "the CLI's help and examples, by maker"),
-    "console/console.js": (12, "the console's hints, by maker"),
 }
 
 

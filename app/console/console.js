@@ -340,7 +340,7 @@ function movingBy(row, fleet) {
   if (live.state === "unknown") return live.number === null || live.number === undefined ? "moving by a TCP no version has" : `moving by tool ${live.number}: a TCP no version has`;
   return live.checked_at ? "not known" : null;
 }
-// A robot at its bare flange (tool 0, KUKA $NULLFRAME, FANUC UTOOL 0), as robots idle between jobs.
+// A robot at its bare flange (tool 0, or its maker's null tool), as robots idle between jobs.
 // Read after "The robot is " on the tool page as well.
 const NO_TOOL = "at its bare flange: no tool selected";
 const liveTitle = (live) => {
@@ -350,12 +350,12 @@ const liveTitle = (live) => {
   return `${live.state === "unread" ? `${LIVE_UNREAD}; ` : ""}read ${when(live.checked_at)}`;
 };
 // Why a robot's live TCP is "not known", or not shown.
-const LIVE_UNREAD = "the controller does not say which TCP it moves by (ABB), or could not be read at the last look";
+const LIVE_UNREAD = "the controller does not say which TCP it moves by, or could not be read at the last look";
 const LIVE_NEVER = "no reconcile round has read this robot's controller yet";
 
 // ---- controllers ----------------------------------------------------------------------------
 // Where the controller is reached: host:port, or for a protocol of several services
-// (techman, yaskawa_hses, ur_rtde) each service's port, as the API answers them.
+// (its declared services, as `ports`) each service's port, as the API answers them.
 function controllerAddress(connection) {
   if (!connection.ports) return `${connection.host}:${connection.port}`;
   return `${connection.host} (${Object.entries(connection.ports).map(([name, port]) => `${name} ${port}`).join(", ")})`;
@@ -369,7 +369,7 @@ const CONTROLLER_LABELS = {
   not_live: "not live",
 };
 
-// What a `live` scope deployment means (UR, Techman: contract v1.3), for the person at the cell.
+// What a `live` scope deployment means (contract v1.3), for the person at the cell.
 const LIVE_SCOPE = "The robot holds this TCP only for the running program: the next program start sets its own TCP, and the reconcile rounds then show what the robot moves by.";
 // What a robot of live scope holds, on its tools' pages, before anything is deployed.
 const LIVE_ROBOT = "This robot moves by one live TCP: a deployment sets it for the running program only, the next program start sets its own TCP, and the reconcile rounds then show what the robot moves by.";
@@ -501,7 +501,7 @@ async function controllerSection(tool, versions, onChange) {
       : "This robot has no controller connection: an admin connects it (on this page or with tcpcal connect) to deploy and watch its TCPs."));
   } else {
     section.append(controllerStateLine(connection, state, tool.active_version));
-    // A robot with one live TCP (UR, Techman) says what that means, and why a tool is not live.
+    // A robot with one live TCP (a `live` scope) says what that means, and why a tool is not live.
     if (connection.scope === "live") section.append(h("p", { id: "controller-scope", class: "muted" }, LIVE_ROBOT));
     if (state?.state === "not_live") section.append(h("p", { id: "controller-not-live" }, `Not live: ${NOT_LIVE}.`));
     const row = rows.find((r) => r.id === tool.id);
@@ -640,8 +640,10 @@ async function controllerProtocols() {
   if (!connectionSchema) {
     const response = await fetch("/openapi.json", { headers: { Accept: "application/json" } });
     if (!response.ok) throw new Error(`the API's schema (/openapi.json) answered ${response.status}`);
-    const protocol = (await response.json()).components.schemas.ControllerIn.properties.protocol;
-    connectionSchema = { protocols: protocol.enum, defaults: protocol["x-default-ports"] ?? {} };
+    const fields = (await response.json()).components.schemas.ControllerIn.properties;
+    const protocol = fields.protocol;
+    // The user field's hint is the schema's own description (which protocol takes a user).
+    connectionSchema = { protocols: protocol.enum, defaults: protocol["x-default-ports"] ?? {}, userHint: fields.username?.description };
   }
   return connectionSchema;
 }
@@ -723,7 +725,7 @@ function connectionForm(tool, connection, onChange) {
   return details;
 }
 
-function connectionFields(tool, connection, onChange, { protocols, defaults }) {
+function connectionFields(tool, connection, onChange, { protocols, defaults, userHint }) {
   const protocolSelect = h("select", { name: "protocol", id: "connection-protocol" },
     protocols.map((p) => h("option", { value: p, selected: connection?.protocol === p }, p)));
   const portsBox = h("div", { id: "connection-ports", class: "pose-fields" });
@@ -756,7 +758,7 @@ function connectionFields(tool, connection, onChange, { protocols, defaults }) {
     connectionField("protocol", protocolSelect),
     connectionField("host", h("input", { name: "host", required: true, placeholder: "192.168.1.20", value: connection?.host ?? "" })),
     portsBox,
-    connectionField("user", h("input", { name: "username", autocomplete: "off", value: connection?.username ?? "" }), "ABB RWS"),
+    connectionField("user", h("input", { name: "username", autocomplete: "off", value: connection?.username ?? "" }), userHint),
     connectionField("password", passwordInput,
       connection?.has_password ? "a password is stored: left empty, it is kept" : "write-only: never shown again"),
     connection?.has_password ? connectionField("remove the stored password", forgetPassword, "on save; the controller is then reached without one") : null,
@@ -1112,12 +1114,12 @@ async function auditSection(toolId) {
       : h("p", {}, "No changes recorded for this tool."));
 }
 
-// A controller line may wrap after a comma as well as at a space (UR's set_tcp(p[...]) has no
-// space in 80 characters and ran out of its card); <wbr> adds no character to a selection.
+// A controller line may wrap after a comma as well as at a space (a script's set_tcp(p[...])
+// has no space in 80 characters and ran out of its card); <wbr> adds no character to a selection.
 const wrapAfterCommas = (text) => text.split(/(?<=,)/).flatMap((part, i) => (i ? [h("wbr"), part] : [part]));
 
-// A card's file download. A format whose file addresses the tool by its number (FANUC's
-// UTOOL[n] in a .LS, Yaskawa's TOOL.CND) has no file for a tool without a slot: the button is
+// A card's file download. A format whose file addresses the tool by its number (its maker
+// declares tool_numbers, served as /v1/formats' tool_numbers) has no file for a tool without a slot: the button is
 // off and says why (it did nothing when clicked). Any refusal on a click is shown in the card.
 function downloadButton(tool, name, kind, numbers) {
   const label = `Download ${kind}`;
