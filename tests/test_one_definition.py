@@ -527,7 +527,6 @@ MAKER_MENTIONS: dict[str, tuple[int, str]] = {
     "vendors/names.py": (2, "which pendants limit a name's character set"),
     # The services' and the console's prose about a controller's particulars.
     "storage/models.py": (4, "the columns' comments (ABB's symbol, each bare flange)"),
-    "cli/client.py": (8, "the CLI's help and examples, by maker"),
 }
 
 

@@ -637,7 +637,8 @@ def export(
         Path | None,
         typer.Option(
             "--merge-into",
-            help="yaskawa: the controller's own TOOL.CND, saved from it; the file written is "
+            help="the controller's own TOOL.CND (--format 'yaskawa'), saved from it; the file "
+            "written is "
             "that file with this tool's block replaced and every other tool kept (loading "
             "TOOL.CND loads the whole tool file)",
         ),
@@ -653,7 +654,7 @@ def export(
         _export_all(all_dir, fmt)
         return
     if merge_into is not None and fmt != "yaskawa":
-        fail(EXIT_BAD_USE, "--merge-into merges into a Yaskawa TOOL.CND: give --format yaskawa")
+        fail(EXIT_BAD_USE, "--merge-into merges into a saved TOOL.CND: give --format 'yaskawa'")
     if tool_id is None or fmt is None:
         fail(EXIT_BAD_USE, "give a tool id and --format, or --all DIR")
     tool_id = resolve_tool(tool_id)
@@ -668,7 +669,9 @@ def export(
     target.write_text(text)
     out.print(f"wrote {target}")
     if fmt == "yaskawa" and merge_into is None:
-        out.print(YASKAWA_WHOLE_FILE, highlight=False)
+        from app.vendors.yaskawa.file import WHOLE_FILE_NOTE
+
+        out.print(WHOLE_FILE_NOTE, highlight=False)
 
 
 def _merged_cnd(saved: Path, ours: str) -> str:
@@ -680,15 +683,6 @@ def _merged_cnd(saved: Path, ours: str) -> str:
         return merge(saved.read_text(encoding="ascii", errors="replace"), ours)
     except (OSError, InvalidInput) as exc:
         fail(EXIT_BAD_USE, f"--merge-into {saved}: {getattr(exc, 'detail', exc)}")
-
-
-#: What a Yaskawa TOOL.CND of tcpcal's tools changes: said beside it, as it has no comments.
-YASKAWA_WHOLE_FILE = (
-    "TOOL.CND holds only the tools tcpcal manages, and loading TOOL.CND loads the controller's "
-    "whole tool file: loaded as it is, it may clear the other tools. Save the controller's own "
-    "TOOL.CND, then `tcpcal export TOOL --format yaskawa --merge-into SAVED.CND` (or copy "
-    "these //TOOL n blocks over the same numbers' blocks) and load that."
-)
 
 
 def _file_name(response: httpx.Response) -> str | None:
@@ -737,8 +731,10 @@ def _export_all(directory: Path, fmt: str | None) -> None:
             target.write_text(response.text)
             out.print(f"wrote {target}", highlight=False)
             if each == "yaskawa":  # TOOL.CND cannot say it itself: no comment syntax
+                from app.vendors.yaskawa.file import WHOLE_FILE_NOTE
+
                 note = target.with_name(target.name + ".README.txt")
-                note.write_text(YASKAWA_WHOLE_FILE + "\n")
+                note.write_text(WHOLE_FILE_NOTE + "\n")
                 out.print(f"wrote {note}", highlight=False)
     out.print(f"{len(robots)} robot(s) written to {directory}", highlight=False)
 

@@ -54,6 +54,14 @@ FORMAT = "yaskawa"
 NAME_CHARS = 16
 MM_DECIMALS = 3
 DEG_DECIMALS = 4
+#: What a TOOL.CND of tcpcal's tools changes, said beside it as it has no comment syntax: the
+#: CLI prints it after an export and writes it beside a backup's TOOL.CND.
+WHOLE_FILE_NOTE = (
+    "TOOL.CND holds only the tools tcpcal manages, and loading TOOL.CND loads the controller's "
+    "whole tool file: loaded as it is, it may clear the other tools. Save the controller's own "
+    "TOOL.CND, then `tcpcal export TOOL --format yaskawa --merge-into SAVED.CND` (or copy "
+    "these //TOOL n blocks over the same numbers' blocks) and load that."
+)
 _UNKNOWN_LAST_LINE = "0.000,0,1"
 
 _N = rf"\s*({NUMBER})\s*"
