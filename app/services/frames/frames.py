@@ -18,6 +18,7 @@ from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.frames.subject import FRAME
 from app.services.lifecycle.versions import (
+    Patch,
     Taken,
     apply_update,
     check_if_match,
@@ -104,8 +105,13 @@ def list_frames(
     )
 
 
-#: The fields whose old and new values a frame's update event shows (all but the free text).
-_SHOWN_CHANGES = ("name", "slot", "controller_symbol", "tolerance")
+#: What a frame's PATCH writes: its event shows the old and new values of all its fields
+#: but the free text.
+_PATCH = Patch(
+    action="frame.update",
+    shown=("name", "slot", "controller_symbol", "tolerance"),
+    tolerance=frame_tolerance,
+)
 
 
 def update_frame(
@@ -119,16 +125,7 @@ def update_frame(
     robot = get_robot(session, frame.robot_id)
     check_place(robot, slot=changes.get("slot"), symbol=changes.get("controller_symbol"))
     check_unique(session, FRAME, _TAKEN, frame.robot_id, changes, except_id=frame.id)
-    apply_update(
-        session,
-        FRAME,
-        frame,
-        changes,
-        tolerance=frame_tolerance,
-        shown=_SHOWN_CHANGES,
-        action="frame.update",
-        actor=actor,
-    )
+    apply_update(session, FRAME, _PATCH, frame, changes, actor=actor)
     return frame
 
 

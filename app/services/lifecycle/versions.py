@@ -196,22 +196,32 @@ def patched(body: BaseModel) -> JsonObject:
     return changes
 
 
+@dataclass(frozen=True)
+class Patch:
+    """What a subject's PATCH writes (apply_update): its audit event's `action`, the fields
+    whose old and new values the event shows (`shown`: the others by name), and its stored
+    tolerance with the defaults filled in (`tolerance`)."""
+
+    action: AuditAction
+    shown: Collection[str]
+    tolerance: Callable[[JsonObject | None], BaseModel]
+
+
 def apply_update(
     session: Session,
     subject: AnySubject,
+    patch: Patch,
     row: SubjectColumns,
     changes: JsonObject,
     *,
-    tolerance: Callable[[JsonObject | None], BaseModel],
-    shown: Collection[str],
-    action: AuditAction,
     actor: Principal,
 ) -> None:
-    """Write a PATCH's checked `changes` to a subject's row, with its audit event (`action`:
-    the old and new values of the fields `shown`, the others by name). The tolerance merges
-    with what is stored, its defaults filled in (`tolerance`): {"tolerance": {"max_rms_mm":
-    0.2}} changes that one limit and keeps the others, and a null one changes nothing; a
-    changed tolerance refits the drift trend (another check_mm, another projection)."""
+    """Write a PATCH's checked `changes` to a subject's row, with its audit event. The
+    tolerance merges with what is stored, its defaults filled in: {"tolerance":
+    {"max_rms_mm": 0.2}} changes that one limit and keeps the others, and a null one changes
+    nothing; a changed tolerance refits the drift trend (another check_mm, another
+    projection)."""
+    tolerance = patch.tolerance
     if "tolerance" in changes:
         if changes["tolerance"] is None:
             changes.pop("tolerance")
@@ -223,7 +233,7 @@ def apply_update(
     details = audit.changes(
         row,
         changes,
-        values_of=shown,
+        values_of=patch.shown,
         before={"tolerance": tolerance(row.tolerance).model_dump()},
     )
     for key, value in changes.items():
@@ -233,7 +243,7 @@ def apply_update(
     row.updated_at = utcnow()
     row.revision += 1
     audit.record_about(
-        session, subject, row.id, row.robot_id, actor=actor, action=action, details=details
+        session, subject, row.id, row.robot_id, actor=actor, action=patch.action, details=details
     )
 
 

@@ -14,6 +14,7 @@ from app.schemas.tools import Load, ToolCreate, ToolUpdate
 from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.lifecycle.versions import (
+    Patch,
     Revised,
     Taken,
     apply_update,
@@ -98,8 +99,13 @@ def list_tools(
     )
 
 
-#: The fields whose old and new values a tool's update event shows (all but the free text).
-_SHOWN_CHANGES = ("name", "slot", "serial", "load", "tolerance", "controller_symbol")
+#: What a tool's PATCH writes: its event shows the old and new values of all its fields
+#: but the free text.
+_PATCH = Patch(
+    action="tool.update",
+    shown=("name", "slot", "serial", "load", "tolerance", "controller_symbol"),
+    tolerance=effective_tolerance,
+)
 
 
 def update_tool(
@@ -115,16 +121,7 @@ def update_tool(
     check_slot_for_controller(session, robot_id=tool.robot_id, slot=changes.get("slot"))
     if changes.get("load") is not None and tool.load is not None:  # merges as the tolerance
         changes["load"] = Load.model_validate({**tool.load, **changes["load"]}).model_dump()
-    apply_update(
-        session,
-        TOOL,
-        tool,
-        changes,
-        tolerance=effective_tolerance,
-        shown=_SHOWN_CHANGES,
-        action="tool.update",
-        actor=actor,
-    )
+    apply_update(session, TOOL, _PATCH, tool, changes, actor=actor)
     return tool
 
 
