@@ -27,10 +27,13 @@ def typed(point: np.ndarray) -> str:
     return " ".join(f"{v:.6f}" for v in pose)
 
 
-def base_to_teach(server: LiveServer) -> tuple[dict[str, Any], dict[str, Any]]:
-    """A KUKA robot's base 2 (touch noise 0.05 mm) and its pointer with an active TCP."""
+def base_to_teach(
+    server: LiveServer, robot_name: str = "kr16"
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """A KUKA robot's base 2 (touch noise 0.05 mm) and its pointer with an active TCP (one
+    robot of each name a server)."""
     with server.client() as http:
-        robot = http.post("/v1/robots", json={"name": "kr16", "vendor": "KUKA"}).json()
+        robot = http.post("/v1/robots", json={"name": robot_name, "vendor": "KUKA"}).json()
         tool = http.post(f"/v1/robots/{robot['id']}/tools", json={"name": "pointer"}).json()
         manual = {"method": "manual", "tcp": {"position_mm": TCP.tolist()}}
         assert http.post(f"/v1/tools/{tool['id']}/calibrations", json=manual).is_success

@@ -74,6 +74,7 @@ class MethodInfo(TypedDict):
 class FrameMethodInfo(TypedDict):
     name: str
     kinds: list[str]
+    touch_fields: dict[str, bool]
 
 
 class MethodList(TypedDict):
@@ -228,6 +229,7 @@ class FrameNext(TypedDict):
 class FrameSessionTouch(TypedDict):
     index: int
     role: str | None
+    nominal_mm: list[float] | None
     source: str
     point_mm: list[float] | None
 

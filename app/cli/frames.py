@@ -8,6 +8,7 @@ client's (app.cli.client).
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
@@ -115,22 +116,29 @@ def calibrate_frame(
     capture: Annotated[
         bool, typer.Option(help="Enter reads each touch from the robot's controller")
     ] = False,
+    nominals: Annotated[
+        Path | None,
+        typer.Option(
+            "--nominals",
+            help="fit_points: a file of the points to touch in the frame's coordinates (mm, "
+            "from the fixture's drawing or CAD), one a line: 'x y z' or 'name x y z' (commas "
+            "or spaces; '#' starts a comment); each touch takes the first point no kept touch "
+            "carries",
+            dir_okay=False,
+        ),
+    ] = None,
     activate: Annotated[str, typer.Option(help="auto | always | never")] = "auto",
     note: Annotated[str | None, typer.Option(help="why, for the frame's history")] = None,
 ) -> None:
     """Teach a frame touch by touch (a guided frame session): the role each touch takes is the
-    one the server names next, with how far it must be; Enter captures (--capture), a line
-    of numbers is a typed pose, 'd N' drops touch N, 'f' finishes, 'q' leaves it open. Exit
-    0 stored and accepted, 3 stored out of tolerance, 4 refused, 5 not found."""
+    one the server names next, with how far it must be (fit_points: the next point of
+    --nominals); Enter captures (--capture), a line of numbers is a typed pose, 'd N' drops
+    touch N, 'f' finishes, 'q' leaves it open. Exit 0 stored and accepted, 3 stored out of
+    tolerance, 4 refused, 5 not found."""
+    points = None if nominals is None else read_nominals(nominals)
     frame: RobotFrame = send("GET", f"/v1/frames/{frame_id}").json()
-    if not fmt:
-        controller = request("GET", f"/v1/robots/{frame['robot_id']}/controller")
-        fmt = controller.json().get("pose_format", "") if controller.status_code == 200 else ""
-        if not fmt:
-            fail(EXIT_BAD_USE, "give --format, the pendant's pose format (e.g. kuka_abc)")
-    if method is None:
-        listed: MethodList = send("GET", "/v1/methods").json()
-        method = next(m["name"] for m in listed["frame_methods"] if frame["kind"] in m["kinds"])
+    fmt = fmt or _pendant_format(frame)
+    method = _session_method(frame, method, points)
     body: JsonObject = {"method": method, "tool_id": pointer, "format": fmt}
     state: FrameSession = send("POST", f"/v1/frames/{frame_id}/sessions", json=body).json()
     how = "Enter captures, " if capture else ""
@@ -141,7 +149,7 @@ def calibrate_frame(
     )
     _print_frame_session(state)
     finish: JsonObject = {"activate": activate, **({"note": note} if note else {})}
-    while (line := read_line(f"touch {state['n_touches'] + 1}> ")) is not None:
+    while (line := read_line(_prompt(state, points))) is not None:
         command = line.strip().lower()
         if command == "q":
             err.print(f"left open: session {state['id']}", highlight=False)
@@ -152,7 +160,7 @@ def calibrate_frame(
                 err.print(f"[red]not finished[/]: {said(response)}", highlight=False)
                 continue
             _print_frame_calibration(response)
-        changed = _frame_answer(state, line, capture)
+        changed = _frame_answer(state, line, capture, points)
         if changed is not None:
             state = changed
             _print_frame_session(state)
@@ -160,7 +168,86 @@ def calibrate_frame(
     _print_frame_calibration(response)
 
 
-def _frame_answer(state: FrameSession, line: str, capture: bool) -> FrameSession | None:
+def _pendant_format(frame: RobotFrame) -> str:
+    """The pose format of the frame's robot's controller; exit 2 asking for --format."""
+    controller = request("GET", f"/v1/robots/{frame['robot_id']}/controller")
+    fmt = controller.json().get("pose_format", "") if controller.status_code == 200 else ""
+    if not fmt:
+        fail(EXIT_BAD_USE, "give --format, the pendant's pose format (e.g. kuka_abc)")
+    return str(fmt)
+
+
+def _session_method(frame: RobotFrame, method: str | None, points: list[Nominal] | None) -> str:
+    """The method asked for, else the first of the frame's kind (GET /v1/methods); exit 2
+    when its touches carry nominal_mm and --nominals is not given, or the other way round."""
+    listed: MethodList = send("GET", "/v1/methods").json()
+    if method is None:
+        method = next(m["name"] for m in listed["frame_methods"] if frame["kind"] in m["kinds"])
+    wants = next((m["touch_fields"] for m in listed["frame_methods"] if m["name"] == method), {})
+    if wants.get("nominal_mm") and points is None:
+        fail(EXIT_BAD_USE, f"{method} touches carry their point in the frame: give --nominals "
+             "FILE, one 'x y z' (mm) a line, in the order you will touch them")  # fmt: skip
+    if points is not None and "nominal_mm" not in wants:
+        fail(EXIT_BAD_USE, f"{method} touches carry no nominal point: leave out --nominals")
+    return method
+
+
+#: One point of a --nominals file: its name (may be empty) and its coordinates (mm).
+Nominal = tuple[str, list[float]]
+
+
+def read_nominals(path: Path) -> list[Nominal]:
+    """The points of a --nominals file, in order; exit 2 naming the line that is not one."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        fail(EXIT_BAD_USE, f"cannot read --nominals {path}: {exc.strerror}")
+    points: list[Nominal] = []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        words = raw.split("#", 1)[0].replace(",", " ").split()
+        if not words:
+            continue
+        name = words.pop(0) if len(words) == 4 else ""
+        try:
+            xyz = [float(w) for w in words]
+        except ValueError:
+            xyz = []
+        if len(xyz) != 3:
+            fail(EXIT_BAD_USE, f"{path} line {number}: {raw.strip()!r} is not 'x y z' or "
+                 "'name x y z' (mm)")  # fmt: skip
+        points.append((name, xyz))
+    if not points:
+        fail(EXIT_BAD_USE, f"{path} has no points: one 'x y z' (mm) a line")
+    return points
+
+
+def _next_nominal(state: FrameSession, points: list[Nominal] | None) -> Nominal | None:
+    """The first point of --nominals no kept touch carries (a dropped touch frees its own)."""
+    if points is None:
+        return None
+    carried = [t["nominal_mm"] for t in state["touches"] if t["nominal_mm"] is not None]
+    for point in points:
+        if point[1] in carried:
+            carried.remove(point[1])
+        else:
+            return point
+    return None
+
+
+def _prompt(state: FrameSession, points: list[Nominal] | None) -> str:
+    """`touch N> `, with the point of --nominals it takes: `touch 2 (P2 100 0 0 mm)> `."""
+    number = state["n_touches"] + 1
+    nominal = _next_nominal(state, points)
+    if nominal is None:
+        return f"touch {number}> "
+    name, xyz = nominal
+    at = " ".join(f"{v:g}" for v in xyz)
+    return f"touch {number} ({name + ' ' if name else ''}{at} mm)> "
+
+
+def _frame_answer(
+    state: FrameSession, line: str, capture: bool, points: list[Nominal] | None = None
+) -> FrameSession | None:
     """The session after one line, or None when the line changed nothing (said why)."""
     text = line.strip()
     words = text.lower().split()
@@ -181,6 +268,13 @@ def _frame_answer(state: FrameSession, line: str, capture: bool) -> FrameSession
         told = state["next"]
         if told is not None and told["role"] is not None:
             touch["role"] = told["role"]
+        if points is not None:
+            nominal = _next_nominal(state, points)
+            if nominal is None:
+                err.print("[red]no point left[/]: every point of --nominals has its touch; "
+                          "'d N' drops one, 'f' finishes", highlight=False)  # fmt: skip
+                return None
+            touch["nominal_mm"] = nominal[1]
         response = request("POST", f"/v1/sessions/{state['id']}/poses", json=touch)
     if response.status_code in (404, 409, 422, 502):
         err.print(f"[red]touch refused[/]: {said(response)}", highlight=False)
@@ -196,9 +290,10 @@ def _print_frame_session(state: FrameSession) -> None:
     for touch in state["touches"]:
         point = touch["point_mm"]
         at = " ".join(f"{v:.3f}" for v in point) if point else "-"
+        nominal = touch["nominal_mm"]
+        what = touch["role"] or ("" if nominal is None else " ".join(f"{v:g}" for v in nominal))
         out.print(
-            f"  {touch['index'] + 1:>2}  {touch['role'] or '':<8} {touch['source']:<10} {at}",
-            highlight=False,
+            f"  {touch['index'] + 1:>2}  {what:<8} {touch['source']:<10} {at}", highlight=False
         )
     for message in state["messages"]:
         out.print(f"  {in_prompt_words(message)}", highlight=False)

@@ -64,12 +64,13 @@ class Terminal:
         self.shown += ANSI.sub("", chunk.decode(errors="replace")).replace("\r", "")
         return bool(chunk)
 
-    def wait_for(self, text: str, timeout_s: float = 60.0) -> None:
-        """Read until `text` is shown (or the command ends)."""
+    def wait_for(self, text: str, timeout_s: float = 60.0, *, after: int = 0) -> None:
+        """Read until `text` is shown (or the command ends), past the first `after` characters
+        shown (len(shown) before a line is typed: a prompt shown again)."""
         deadline = time.monotonic() + timeout_s
-        while text not in self.shown and time.monotonic() < deadline and self._read(0.2):
+        while text not in self.shown[after:] and time.monotonic() < deadline and self._read(0.2):
             pass
-        assert text in self.shown, self.shown
+        assert text in self.shown[after:], self.shown
 
     def type(self, line: str) -> None:
         os.write(self.master, line.encode() + b"\r")  # Enter, as a keyboard sends it
