@@ -1,8 +1,12 @@
 // The frame page, /ui/frames/{id}/calibrate (API.md v1.4 "Sessions:"): a guided frame session at
 // the cell, on a tablet and by keyboard alone. The next touch is the server's words (next_role,
-// with how far it must be); each touch is captured from the robot's controller or typed, sent
-// with the role the server names next; a 3-D picture shows the touched points and, once the
-// touches give one, the frame's axes. Finish shows the stored frame, its sigmas and summary.
+// with how far it must be); the method is chosen among GET /v1/methods' frame methods of the
+// frame's kind that take touches; each touch is captured from the robot's controller or typed,
+// sent with the role the server names next (fit_points: with its point in the frame, typed in
+// the nominal field, as GET /v1/methods' touch_fields asks), and each can be deleted before
+// Finish (DELETE /v1/sessions/{id}/poses/{index}); a 3-D picture shows the touched points and,
+// once the touches give one, the frame's axes. Finish shows the stored frame, its sigmas and
+// summary. main is aria-busy while a touch is sent and drawn (as console.js's pages).
 // Re-check after a move (API.md v1.4 "After a move: re-register"): the same guided session with
 // "method": "recheck", each stored fiducial touched again (captured or typed, sent as the
 // fiducial the server names next), finished as the frame's check; the page says each
@@ -34,8 +38,9 @@ export async function frameCalibratePage(frameId, ui) {
     json(`/v1/robots/${frame.robot_id}/tools?limit=200`),
     json("/v1/methods"),
   ]);
-  // The first frame method of the frame's kind, as the server lists them (no copy here).
-  const method = methods.frame_methods.find((m) => m.kinds.includes(frame.kind)).name;
+  // The frame methods of the frame's kind that take touches, as the server lists them (no
+  // copy here); the first is the default.
+  const choices = methods.frame_methods.filter((m) => m.kinds.includes(frame.kind) && m.max_touches > 0);
   const body = h("div", { id: "frame-calibrate" });
   // The frame's controller state and Deploy (console.js, as a tool's), drawn again after a
   // deployment (keeping its outcome) and after Finish (a new active version).
@@ -52,6 +57,8 @@ export async function frameCalibratePage(frameId, ui) {
     body.append(h("p", { class: "problem" }, "Teaching a frame needs a key of calibrate scope: sign in with one."));
     return;
   }
+  const method = h("select", { name: "method", "aria-label": "method" },
+    ...choices.map((m) => h("option", { value: m.name, title: m.description }, m.name)));
   const pointer = h("select", { name: "pointer", "aria-label": "pointer tool" },
     ...tools.items.map((t) => h("option", { value: t.id }, t.name)));
   const format = h("input", { name: "format", value: robot.pose_format ?? "kuka_abc", "aria-label": "pose format" });
@@ -60,12 +67,13 @@ export async function frameCalibratePage(frameId, ui) {
     event.preventDefault();
     problem.replaceChildren();
     try {
-      const session = await json(`/v1/frames/${frame.id}/sessions`, { method: "POST", body: { method, tool_id: pointer.value, format: format.value } });
-      drawSession(ui, body, frame, session, drawController);
+      const session = await json(`/v1/frames/${frame.id}/sessions`, { method: "POST", body: { method: method.value, tool_id: pointer.value, format: format.value } });
+      const chosen = choices.find((m) => m.name === method.value);
+      drawSession(ui, body, frame, session, drawController, TEACH, "nominal_mm" in (chosen?.touch_fields ?? {}));
     } catch (error) {
       problem.replaceChildren(problemBox(error));
     }
-  } }, h("label", {}, "Pointer tool ", pointer), " ", h("label", {}, "Pose format ", format), " ",
+  } }, h("label", {}, "Method ", method), " ", h("label", {}, "Pointer tool ", pointer), " ", h("label", {}, "Pose format ", format), " ",
   h("button", { type: "submit" }, "Start teaching"));
   body.replaceChildren(start, problem, await recheckStart(ui, body, frame, tools, robot, drawController));
 }
@@ -174,7 +182,7 @@ function checkResult(ui, check) {
   ];
 }
 
-function drawSession(ui, body, frame, session, drawController, kind = TEACH) {
+function drawSession(ui, body, frame, session, drawController, kind = TEACH, takesNominal = false) {
   const { h, json, problemBox, mm } = ui;
   const next = h("p", { id: "next-role", class: "next", role: "status" });
   const touches = h("ol", { id: "frame-touches" });
@@ -182,23 +190,55 @@ function drawSession(ui, body, frame, session, drawController, kind = TEACH) {
   const result = h("section", { id: "frame-result" });
   const plotBox = ui.plotBox("frame-plot", { role: "img", "aria-label": "touched points and the frame's axes" });
   const typed = h("input", { name: "pose", "aria-label": "typed pose", placeholder: `a pose in ${session.format}` });
+  // fit_points: the next touch's point in the frame (mm, from the fixture's drawing), sent as
+  // its nominal_mm with a captured or a typed pose.
+  const nominal = takesNominal
+    ? h("input", { name: "nominal", id: "nominal", inputmode: "decimal", autocomplete: "off", "aria-label": "the touch's point in the frame: x y z mm", placeholder: "x y z mm in the frame" })
+    : null;
+  const main = document.querySelector("main");
   let state = session;
-  const send = async (touch) => {
+  // One change of the session (a touch added or deleted), main aria-busy until it is drawn.
+  const change = async (call) => {
     problem.replaceChildren();
+    main.setAttribute("aria-busy", "true");
     try {
-      if (state.next?.role) touch[kind.key] = state.next.role;
-      state = await json(`/v1/sessions/${state.id}/poses`, { method: "POST", body: touch });
+      state = await call();
       redraw();
+      return true;
     } catch (error) {
       problem.replaceChildren(problemBox(error));
+      return false;
+    } finally {
+      main.setAttribute("aria-busy", "false");
     }
   };
-  const capture = h("button", { id: "capture", type: "button", onclick: () => send({ capture: true }) }, "Capture");
-  const typeForm = h("form", { id: "type-touch", onsubmit: (event) => {
+  const send = async (touch) => {
+    if (state.next?.role) touch[kind.key] = state.next.role;
+    if (nominal) {
+      const xyz = nominal.value.trim().split(/[\s,]+/).filter((v) => v !== "").map(Number);
+      if (xyz.length !== 3 || xyz.some((v) => !Number.isFinite(v))) {
+        problem.replaceChildren(h("p", { class: "problem", role: "alert" }, "Give this touch's point in the frame first: three numbers, x y z in mm (the fixture's drawing)."));
+        nominal.focus();
+        return false;
+      }
+      touch.nominal_mm = xyz;
+    }
+    const sent = await change(() => json(`/v1/sessions/${state.id}/poses`, { method: "POST", body: touch }));
+    if (sent && nominal) nominal.value = "";
+    return sent;
+  };
+  // focus returns to where the next touch starts
+  const remove = async (index) => {
+    await change(() => json(`/v1/sessions/${state.id}/poses/${index}`, { method: "DELETE" }));
+    (nominal ?? capture).focus();
+  };
+  const capture = h("button", { id: "capture", type: "button", onclick: async () => {
+    if (await send({ capture: true })) (nominal ?? capture).focus();
+  } }, "Capture");
+  const typeForm = h("form", { id: "type-touch", onsubmit: async (event) => {
     event.preventDefault();
     const pose = typed.value.trim().split(/[\s,]+/).map(Number);
-    typed.value = "";
-    send({ pose });
+    if (await send({ pose })) typed.value = "";
   } }, typed, " ", h("button", { type: "submit" }, "Add typed touch"));
   const finish = h("button", { id: "finish", type: "button", onclick: async () => {
     problem.replaceChildren();
@@ -215,14 +255,17 @@ function drawSession(ui, body, frame, session, drawController, kind = TEACH) {
   result.setAttribute("tabindex", "-1");
   const redraw = () => {
     next.textContent = state.next_role ? `Next: ${state.next_role}${state.done && kind === RECHECK ? " (or finish: enough fiducials touched)" : ""}` : state.done ? kind.done : "";
-    touches.replaceChildren(...state.touches.map((t) => h("li", {}, `${t[kind.key] ?? t.role ?? "touch"} (${t.source}): ${t.point_mm ? t.point_mm.map((v) => v.toFixed(3)).join("  ") + " mm" : "no point: the pointer has no TCP"}`)));
+    touches.replaceChildren(...state.touches.map((t, i) => h("li", {},
+      `${t[kind.key] ?? t.role ?? (t.nominal_mm ? `at ${t.nominal_mm.join(" ")}` : "touch")} (${t.source}): ${t.point_mm ? t.point_mm.map((v) => v.toFixed(3)).join("  ") + " mm" : "no point: the pointer has no TCP"} `,
+      h("button", { type: "button", class: "delete", "aria-label": `Delete touch ${i + 1}`, onclick: () => remove(i) }, "Delete"))));
     // the server's words, less the HTTP call it names for an API client: the buttons say it here
     for (const message of state.messages) touches.append(h("li", { class: "muted" }, message.replace(HTTP_CALL, "")));
     ui.plot("frame-plot", traces(state), { margin: { l: 0, r: 0, t: 0, b: 0 }, scene: { aspectmode: "data" }, showlegend: true });
   };
-  body.replaceChildren(next, h("div", { class: "actions" }, capture, " ", typeForm, " ", finish), problem, touches, plotBox, result);
+  const nominalField = nominal ? [h("label", {}, "Point in the frame (mm) ", nominal), " "] : [];
+  body.replaceChildren(next, h("div", { class: "actions" }, ...nominalField, capture, " ", typeForm, " ", finish), problem, touches, plotBox, result);
   redraw();
-  capture.focus();
+  (nominal ?? capture).focus();
 }
 
 // The touched points, and the frame's axes from its origin once the touches give a frame.
