@@ -521,12 +521,7 @@ MAKER_MENTIONS: dict[str, tuple[int, str]] = {
     "api/controllers.py": (1, "the OpenAPI description of /controller-refused's example"),
     # The maker-shared modules of app/vendors say which makers a shared rule serves.
     "vendors/__init__.py": (11, "the package's map of the makers' packages"),
-    "vendors/connector.py": (17, "the connector contract's examples of each maker's target"),
     "vendors/wpr.py": (4, "the W P R convention FANUC and Yaskawa share"),
-    "vendors/maker.py": (5, "the declaration's examples of a live TCP and a name"),
-    "vendors/names.py": (2, "which pendants limit a name's character set"),
-    # The services' and the console's prose about a controller's particulars.
-    "storage/models.py": (4, "the columns' comments (ABB's symbol, each bare flange)"),
 }
 
 

@@ -649,7 +649,7 @@ def controller_state_models() -> list[type[StateColumns]]:
 class RobotLiveTool(Base):
     """The tool frame a robot moved by when the last reconcile round read it (contract
     v1.3 LiveTool), and since when it moves by that one. `read` is False when the controller
-    did not say (ABB RWS names no tooldata a program moves by), its connector cannot read a
+    did not say (its interface names no tool a program moves by), its connector cannot read a
     pose yet, or the read failed (`error`)."""
 
     __tablename__ = "robot_live_tools"
@@ -661,8 +661,8 @@ class RobotLiveTool(Base):
     since: Mapped[datetime] = mapped_column()
     checked_at: Mapped[datetime] = mapped_column()
     error: Mapped[str | None] = mapped_column(Text)
-    #: the frame is the bare flange (tool 0, KUKA $NULLFRAME, FANUC UTOOL 0, a zero UR
-    #: tcp_offset): no tool is selected, which is no unknown TCP
+    #: the frame is the bare flange (tool 0, a null tool, a zero TCP offset:
+    #: app.services.robots.live_tool.bare_flange): no tool is selected, which is no unknown TCP
     flange: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
 
 

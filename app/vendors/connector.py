@@ -9,7 +9,7 @@ hand. No database and no HTTP framework here: the service that deploys or
 reconciles runs a connector in a worker thread and owns everything else.
 
 Every connector converts through `app.kinematics.poses` (scipy Rotation), so the values a
-controller holds in its own convention (KUKA A B C, FANUC W P R, ABB quaternion) and the
+controller holds in its own convention (its maker's pose format: app.words.PoseFormat) and the
 quaternion tcpcal holds are one rotation. A session keeps to one deadline (`Deadline`),
 started when it is opened (`connect(settings)`) and shared by every wait after it: connect,
 login, mastership, each read and write, the read-back. A controller that stalls anywhere
@@ -50,10 +50,9 @@ def finite_frame(frame: Frame) -> None:
 @dataclass(frozen=True)
 class LiveTool:
     """The TCP the robot moves by right now, as its controller reports it (contract v1.3
-    LiveTool): the tool number where the controller has one (KUKA $ACT_TOOL, FANUC's active
-    UTOOL, Yaskawa's reported tool) and the frame (KUKA $TOOL, FANUC UTOOL[n], UR
-    tcp_offset, Techman's current TCP); both None where the controller does not say (ABB:
-    RWS does not say which tooldata a program moves by)."""
+    LiveTool): the tool number where the controller has one (its active tool) and the frame
+    (that tool's data, or the one live TCP); both None where the controller does not say
+    (its interface names no tool a program moves by)."""
 
     number: int | None
     frame: Frame | None
@@ -92,10 +91,11 @@ class PoseReading:
 
 @dataclass(frozen=True)
 class ToolTarget:
-    """Where a tool lives in the controller: a tool number, or an ABB RAPID symbol."""
+    """Where a tool lives in the controller: a tool number (a protocol addressed BySlot, in
+    its maker's tool_numbers), or a named symbol (BySymbol)."""
 
-    slot: int | None = None  # KUKA $TOOL_DATA[slot] 1-16, FANUC UTOOL[slot] 1-10
-    symbol: str | None = None  # ABB "TASK/MODULE/SYMBOL", e.g. "T_ROB1/user/tTorch"
+    slot: int | None = None  # the tool number, within the maker's tool_numbers
+    symbol: str | None = None  # a RAPID "TASK/MODULE/SYMBOL", e.g. "T_ROB1/user/tTorch"
 
 
 @dataclass(frozen=True)
@@ -299,8 +299,8 @@ def write_sent() -> Iterator[None]:
         raise
 
 
-#: What ending a session may take past its deadline: releasing ABB edit mastership, the RWS
-#: logout, FANUC's FRC_Disconnect. Short, because the caller is waiting for the answer.
+#: What ending a session may take past its deadline: releasing edit mastership, a logout, a
+#: disconnect call. Short, because the caller is waiting for the answer.
 CLEANUP_S = 0.5
 
 

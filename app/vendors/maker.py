@@ -93,8 +93,8 @@ class BySymbol:
 
 @dataclass(frozen=True)
 class LiveTcp:
-    """Every tool written by its values into the robot's one live TCP (Techman ChangeTCP, UR
-    set_tcp; contract v1.3 "a Techman or UR tool is named on the controller by values (no
+    """Every tool written by its values into the robot's one live TCP (a script's or a
+    command's set TCP; contract v1.3: such a tool "is named on the controller by values (no
     slot)"): `name` is how the controller names that TCP ("tcp_offset")."""
 
     name: str
@@ -273,7 +273,7 @@ class Maker:
     - `format`: its controller format (``?format=``), a word of app.words.ControllerFormat;
     - `pose_format`: the pose format its pendant shows a flange pose in ("kuka_abc"): what a
       touch captured from its controllers is typed in unless the person says otherwise;
-    - `name`: how a sentence names it ("KUKA");
+    - `name`: how a sentence names it (the maker as its own documents spell it);
     - `vendor_words`: what a robot's vendor contains when it is this maker's ("motoman"), and
       `vendor_initials`: whole words that name it alone ("ur", "tm");
     - `file_kind`: what its file is, in a few words (the console's download buttons);

@@ -1,8 +1,8 @@
 """Tool names made safe for a controller: its character set, its length, its reserved words.
 
 A tool's name is user input (any Unicode, up to 200 characters); each controller stores names
-and comments in a narrow character set (KSS and TP files are single-byte code pages, Yaskawa
-condition files and FANUC remarks are ASCII on the pendant) and a fixed length. What is kept:
+and comments in a narrow character set (KSS and TP files are single-byte code pages,
+condition files and TP remarks are ASCII on the pendant) and a fixed length. What is kept:
 letters with their accents taken off (NFKD, "Düse" -> "Duse"), printable ASCII; what is
 dropped: everything else (an emoji, a control character, a line break). Nothing here can start
 a new program line.
