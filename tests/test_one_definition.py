@@ -519,9 +519,6 @@ MAKER_MENTIONS: dict[str, tuple[int, str]] = {
     "schemas/tools.py": (3, "the OpenAPI description of controller_symbol (ABB's PERS)"),
     "api/glossary.py": (2, "the OpenAPI glossary's examples of a vendor and an axis"),
     "api/controllers.py": (1, "the OpenAPI description of /controller-refused's example"),
-    # The maker-shared modules of app/vendors say which makers a shared rule serves.
-    "vendors/__init__.py": (11, "the package's map of the makers' packages"),
-    "vendors/wpr.py": (4, "the W P R convention FANUC and Yaskawa share"),
 }
 
 

@@ -1,7 +1,8 @@
-"""Tool frames written as X Y Z and three fixed-axis angles: FANUC, Yaskawa, Techman.
+"""Tool frames written as X Y Z and three fixed-axis angles (fanuc_wpr, yaskawa_rxyz,
+techman_rxyz: the makers whose packages import this module).
 
 All three store a tool as X, Y, Z (mm) and rotations about the fixed flange X, Y, Z axes
-(deg), R = Rz(third) Ry(second) Rx(first) (the project's convention for all three; FANUC's
+(deg), R = Rz(third) Ry(second) Rx(first) (the project's convention for all three; fanuc_wpr's
 W P R). What public evidence backs it, and what it does not, is in each maker's text module
 (app.vendors.fanuc.text, app.vendors.yaskawa.text, app.vendors.techman.text): no vendor manual
 was available as a primary source, so "verified" there means "confirmed by independent public
