@@ -514,8 +514,8 @@ MAKER_MENTIONS: dict[str, tuple[int, str]] = {
     # The demo plant's robots are a KUKA, an ABB and a FANUC by their vendor field.
     "cli/demo.py": (4, "the demo plant's robots' vendor values"),
     # Schema and glossary descriptions are the OpenAPI document: reworded with it, apart.
-    "schemas/controllers.py": (21, "the OpenAPI descriptions of each protocol's settings"),
-    "schemas/fleet.py": (10, "the OpenAPI descriptions of the fleet's fields"),
+    "schemas/controllers.py": (9, "the OpenAPI descriptions of each protocol's settings"),
+    "schemas/fleet.py": (8, "the OpenAPI descriptions of the fleet's fields"),
     "schemas/tools.py": (3, "the OpenAPI description of controller_symbol (ABB's PERS)"),
     "api/glossary.py": (2, "the OpenAPI glossary's examples of a vendor and an axis"),
     "api/controllers.py": (1, "the OpenAPI description of /controller-refused's example"),

@@ -8,7 +8,15 @@ from pydantic import BaseModel, BeforeValidator, Field, JsonValue, SecretStr, cr
 
 from app.schemas.common import Reason, ShortText, StoredWord, StrictModel, Timestamp, json_integer
 from app.vendors.abb.symbol import SYMBOL_PATTERN
-from app.vendors.registry import DEFAULT_PORTS, PENDANT_FORMATS, SERVICE_PORTS, WIRE_PROTOCOLS
+from app.vendors.registry import (
+    DEFAULT_PORTS,
+    LIVE_MAKER_OR,
+    LIVE_MAKERS,
+    PENDANT_FORMATS,
+    SERVICE_PORTS,
+    STORED_MAKERS,
+    WIRE_PROTOCOLS,
+)
 from app.words import (
     DeploymentScope,
     DeploymentStatus,
@@ -135,7 +143,8 @@ class Controller(BaseModel):
     scope: DeploymentScope = Field(
         default="stored",
         description="where a deployment to it holds: stored (the controller keeps it) or live "
-        "(UR, Techman: only for the running program; the next program start sets its own TCP)",
+        f"({LIVE_MAKERS}: only for the running program; the next program start sets "
+        "its own TCP)",
     )
     has_password: bool = Field(description="whether a password is stored (never served)")
     pose_format: StoredWord[PoseFormat] | None = Field(
@@ -185,9 +194,9 @@ class Deployment(BaseModel):
     protocol: StoredWord[ProtocolName] = Field(description="the controller's protocol")
     target: str = Field(description='where it was written: "$TOOL_DATA[3]", "UTOOL[3]", a symbol')
     scope: DeploymentScope = Field(
-        description="stored: the controller keeps it (KUKA, FANUC, ABB, Yaskawa); live: it "
-        "holds only for the running program (UR, Techman): the next program start sets its "
-        "own TCP, and the reconcile rounds then show what the robot moves by"
+        description=f"stored: the controller keeps it ({STORED_MAKERS}); live: it "
+        f"holds only for the running program ({LIVE_MAKERS}): the next program start "
+        "sets its own TCP, and the reconcile rounds then show what the robot moves by"
     )
     status: DeploymentStatus = Field(
         description="verified (read back as written) | not_written (failed before the write "
@@ -255,8 +264,8 @@ class ReconciledTool(BaseModel):
     target: str | None = Field(description="where the tool lives in the controller")
     state: ToolState = Field(
         description="in_sync | drifted | no_active_version | unreachable | not_live (a robot "
-        "with one live TCP, UR or Techman: another tool was deployed to it last, and only "
-        "that one is judged)"
+        f"with one live TCP, {LIVE_MAKER_OR}: another tool was deployed to it last, and "
+        "only that one is judged)"
     )
     controller: Frame | None = Field(description="what the controller holds; null if unread")
     active: ReconciledActive
@@ -307,8 +316,8 @@ class Reconciliation(BaseModel):
     scope: DeploymentScope = Field(
         default="stored",
         description="stored: every tool is judged against what the controller keeps for it; "
-        "live (UR, Techman): the robot has one live TCP, the tool deployed to it last is "
-        "judged and its other tools are not_live (each unreachable when the controller "
+        f"live ({LIVE_MAKERS}): the robot has one live TCP, the tool deployed to it last "
+        "is judged and its other tools are not_live (each unreachable when the controller "
         "could not be reached)",
     )
     tools: list[ReconciledTool] = Field(description="every live tool the controller addresses")

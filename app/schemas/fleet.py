@@ -8,6 +8,7 @@ from pydantic import BaseModel, Field
 
 from app.schemas.common import StoredWord, Timestamp
 from app.schemas.drift import FleetDrift
+from app.vendors.registry import LIVE_MAKER_OR
 from app.words import Status, ToolState
 
 #: The status a fleet row can be filtered by: its last calibration's.
@@ -80,7 +81,7 @@ class FleetController(BaseModel):
 
     state: ToolState = Field(
         description="in_sync | drifted | no_active_version | unreachable | not_live (its "
-        "robot has one live TCP, UR or Techman, and another tool was deployed to it last)"
+        f"robot has one live TCP, {LIVE_MAKER_OR}, and another tool was deployed to it last)"
     )
     checked_at: Timestamp
     deviation_mm: float | None = Field(description="controller vs active TCP: distance, mm")

@@ -91,6 +91,11 @@ SERVICE_PORTS: dict[str, dict[str, int]] = {
 #: Where a deployment under each protocol holds: "stored" where the controller keeps it,
 #: "live" where it holds only for the running program (contract v1.3 Deployment `scope`).
 DEPLOYMENT_SCOPES: dict[str, DeploymentScope] = {n: w.scope for n, w in WIRE_PROTOCOLS.items()}
+#: The makers whose protocols deploy in each scope, as a sentence names them ("A, B"; "A or
+#: B"): the schemas' descriptions of `scope` and `not_live`.
+_LIVE = tuple(m.name for m in MAKERS if any(w.scope == "live" for w in m.protocols))
+LIVE_MAKERS, LIVE_MAKER_OR = ", ".join(_LIVE), " or ".join(_LIVE)
+STORED_MAKERS = ", ".join(m.name for m in MAKERS if any(w.scope == "stored" for w in m.protocols))
 #: The protocols `connect` has a connector for.
 CONNECTED_PROTOCOLS: frozenset[str] = frozenset(
     n for n, w in WIRE_PROTOCOLS.items() if w.connector is not None
