@@ -508,7 +508,6 @@ MAKER_MENTIONS: dict[str, tuple[int, str]] = {
     "solvers/orientation.py": (11, "the orientation conventions a working axis is read in"),
     "methods/orientation.py": (6, "the orientation conventions a working axis is read in"),
     "solvers/frame/construction.py": (18, "the user-frame constructions as each pendant teaches"),
-    "solvers/frame/fixed_tip.py": (1, "the ABC world alignment (KUKA's convention)"),
     # Robot models, not controllers: a preset is a published arm (a KUKA KR 16, a UR10e).
     "kinematics/presets.py": (23, "robot model presets, named as their datasheets"),
     # The demo plant's robots are a KUKA, an ABB and a FANUC by their vendor field.

@@ -3,10 +3,10 @@
 The N-point model R_i t + f_i = c, with both t (the pointer's TCP, flange frame) and c (the
 fixed tip, base frame) unknown, is the pivot fit `app.solvers.npoint` solves: c is the
 stationary TCP (METHODS.md 7), found with the same estimators, outlier handling and
-covariance. Its orientation: `options.align` read as KUKA's ABC world alignment with the
-base frame as the reference (tool axes named onto base directions), three more role touches
-of the tool's own frame (origin, x, xy: `construction`, touched with the TCP just found), or
-else the base frame's axes.
+covariance. Its orientation: `options.align` read as an ABC World alignment
+(orientation_from_world) with the base frame as the reference (tool axes named onto base
+directions), three more role touches of the tool's own frame (origin, x, xy: `construction`,
+touched with the TCP just found), or else the base frame's axes.
 """
 
 from __future__ import annotations
