@@ -39,6 +39,7 @@ from app.services.robots.connection import get_controller, refusal_words, settin
 from app.services.robots.live_frame import record_live_frame
 from app.services.robots.live_tool import LiveRead, live_tool_out, read_live, record_live
 from app.services.subjects import SUBJECTS
+from app.services.visible import in_scope
 from app.storage.db import session_scope
 from app.storage.models import Robot, RobotController, utcnow
 from app.vendors.connector import (
@@ -288,7 +289,7 @@ def reconcile_robot(
 def _read_round(robot_id: str, actor: Principal) -> RoundRead:
     """What to judge (read transaction), then the controller's values (no database)."""
     with transaction_for(actor, write=False) as session:
-        controller = get_controller(session, robot_id)  # 404 for the robot, 409 for no controller
+        controller = _controller(session, robot_id)
         settings = settings_of(controller)
         protocol = controller.protocol
         checks = [c for s in DEPLOYED for c in _to_check(session, s, robot_id, protocol)]
@@ -298,6 +299,18 @@ def _read_round(robot_id: str, actor: Principal) -> RoundRead:
     readings, live = read_controller(settings, judged, robot_id=robot_id)
     scope = scope_of(protocol)
     return RoundRead(robot_id, protocol, scope, judging, checks, readings, live, read_from)
+
+
+def _controller(session: Session, robot_id: str) -> RobotController:
+    """The live robot's controller in one statement (a round reads every robot's); else
+    get_controller's answer: 404 for the robot, 409 for no controller."""
+    stmt = (
+        select(RobotController)
+        .join(Robot, Robot.id == RobotController.robot_id)
+        .where(RobotController.robot_id == robot_id, Robot.archived_at.is_(None))
+    )
+    found = session.scalars(in_scope(session, stmt, Robot.id)).one_or_none()
+    return found if found is not None else get_controller(session, robot_id)
 
 
 def _judged(judging: dict[str, LiveScope | None], check: ToCheck) -> bool:
@@ -396,12 +409,12 @@ def _write_round(session: Session, read: RoundRead, actor: Principal, *, final: 
             stored.answers[side_of(subject).unaddressed].append(left_out)
             continue
         seen = _seen(robot_id, check, read)
-        row, changed = controller_states.observe(session, seen, at=checked_at, actor=actor)
+        since, changed = controller_states.observe(session, seen, at=checked_at, actor=actor)
         settling.settle(session, seen, read_from=read.read_from, at=checked_at, actor=actor)
         stored.found.append(seen.state)
         if changed:
             stored.entered.append(seen.state)
-        stored.answers[subject.plural].append(_subject_answer(check, seen, row.since))
+        stored.answers[subject.plural].append(_subject_answer(check, seen, since))
     return stored
 
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Protocol, cast
 
-from sqlalchemy import select
+from sqlalchemy import Table, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.jsontypes import JsonObject
@@ -84,36 +84,48 @@ def _state_model(subject: AnySubject) -> type[Base]:
 
 def observe(
     session: Session, seen: Observation, *, at: datetime, actor: Principal
-) -> tuple[StateRow, bool]:
-    """Store what was seen; (the state row, whether the state changed). The subject's row is
-    locked first, so two instances looking at once record one change, not two."""
+) -> tuple[datetime, bool]:
+    """Store what was seen; (since when the subject is in its state, whether the state
+    changed). The subject's row is locked as its state row is read (one statement), so two
+    instances looking at once record one change, not two. Core statements (a round stores
+    one a subject of every robot): an ORM copy of the row in the session is expired."""
     subject = seen.subject
     table = subject.table
-    session.execute(select(table.c.id).where(table.c.id == seen.subject_id).with_for_update())
     model = _state_model(subject)
-    row = cast(StateRow | None, session.get(model, seen.subject_id))
-    changed = row is None or row.state != seen.state
-    previous = None if row is None else row.state
-    if row is None:
-        new = model(**{subject.key: seen.subject_id}, robot_id=seen.robot_id)
-        session.add(new)
-        row = cast(StateRow, new)
-    if changed:
-        row.state = seen.state
-        row.since = at
-    row.robot_id = seen.robot_id
-    row.checked_at = at
-    row.target = seen.target
-    row.controller = seen.controller
-    row.active_version = seen.active_version
-    row.deviation_mm = seen.deviation_mm
-    row.deviation_deg = seen.deviation_deg
-    row.error = seen.error
+    states = cast(Table, model.__table__)
+    key = states.c[subject.key]
+    found = session.execute(
+        select(states.c.state, states.c.since)
+        .select_from(table.outerjoin(states, key == table.c.id))
+        .where(table.c.id == seen.subject_id)
+        .with_for_update(of=table)
+    ).first()
+    previous = None if found is None or found.since is None else cast(ToolState, found.state)
+    changed = previous is None or previous != seen.state
+    since = at if changed or found is None else cast(datetime, found.since)
+    values: dict[str, object] = {
+        "robot_id": seen.robot_id,
+        "state": seen.state,
+        "since": since,
+        "checked_at": at,
+        "target": seen.target,
+        "controller": seen.controller,
+        "active_version": seen.active_version,
+        "deviation_mm": seen.deviation_mm,
+        "deviation_deg": seen.deviation_deg,
+        "error": seen.error,
+    }
+    if previous is None:
+        session.execute(insert(states).values({subject.key: seen.subject_id, **values}))
+    else:
+        session.execute(update(states).where(key == seen.subject_id).values(values))
+    copy = session.identity_map.get(session.identity_key(model, seen.subject_id))
+    if copy is not None:
+        session.expire(copy)
     action = EVENT_ACTIONS.get(seen.state) if changed else None
     if action is not None:
         _record_change(session, seen, previous, action, actor)
-    session.flush()
-    return row, action is not None
+    return since, action is not None
 
 
 def _record_change(

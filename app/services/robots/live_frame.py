@@ -13,8 +13,9 @@ moves in a stale frame; none: in an unknown frame.
 from __future__ import annotations
 
 from datetime import datetime
+from typing import cast
 
-from sqlalchemy import delete, select
+from sqlalchemy import Table, delete, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.helpers.frame_deviation import SYNC_TOLERANCE_DEG, SYNC_TOLERANCE_MM, frames_within
@@ -48,12 +49,11 @@ def live_frame_match(session: Session, robot_id: str, frame: Pose | None) -> tup
     return frame_id, version
 
 
-def record_live_frame(
-    session: Session, *, robot_id: str, live: LiveFrame, at: datetime
-) -> RobotLiveFrame:
+def record_live_frame(session: Session, *, robot_id: str, live: LiveFrame, at: datetime) -> None:
     """Store what the round read of the frame the robot moves in and its match; `since`
     moves when the number, name or match changes. The caller holds the robot's row locked
-    (record_live locks it first in the round's transaction)."""
+    (record_live locks it first in the round's transaction). Core statements, as
+    record_live's (a round stores one a robot): an ORM copy of the row is expired."""
     match = live_frame_match(session, robot_id, live.frame)
     frame_id, version = match if match is not None else (None, None)
     value = None
@@ -63,17 +63,26 @@ def record_live_frame(
             "quaternion": list(live.frame.quaternion),
         }
     read = live.frame is not None or live.number is not None or live.name is not None
-    row = session.get(RobotLiveFrame, robot_id)
+    table = cast(Table, RobotLiveFrame.__table__)
+    last = session.execute(
+        select(table.c.read, table.c.number, table.c.name, table.c.frame_id, table.c.version).where(
+            table.c.robot_id == robot_id
+        )
+    ).first()
     now = (read, live.number, live.name, frame_id, version)
-    if row is None:
-        row = RobotLiveFrame(robot_id=robot_id, since=at)
-        session.add(row)
-    elif (row.read, row.number, row.name, row.frame_id, row.version) != now:
-        row.since = at
-    row.read, row.number, row.name, row.frame_id, row.version = now
-    row.frame, row.checked_at = value, at
-    session.flush()
-    return row
+    values: dict[str, object] = dict(
+        zip(("read", "number", "name", "frame_id", "version"), now, strict=True)
+    )
+    values |= {"frame": value, "checked_at": at}
+    if last is None:
+        session.execute(insert(table).values(robot_id=robot_id, since=at, **values))
+    else:
+        if tuple(last) != now:
+            values["since"] = at
+        session.execute(update(table).where(table.c.robot_id == robot_id).values(values))
+    copy = session.identity_map.get(session.identity_key(RobotLiveFrame, robot_id))
+    if copy is not None:
+        session.expire(copy)
 
 
 def forget_live_frame(session: Session, robot_id: str) -> None:

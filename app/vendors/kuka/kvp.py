@@ -53,6 +53,7 @@ send.
 
 from __future__ import annotations
 
+import functools
 import math
 import socket
 import struct
@@ -133,16 +134,11 @@ class KukaKvpConnector(ClosingSession):
         deadline = self._deadline
         frame = self._read_struct(f"$TOOL_DATA[{target.slot}]", deadline)
         x, y, z, a, b, c = numbers(frame, ("X", "Y", "Z", "A", "B", "C"), what="$TOOL_DATA")
-        quaternion = quaternion_wxyz_from_kuka_abc([a, b, c])
+        quaternion = _quaternion(a, b, c)
         load_struct = self._read_struct(f"$LOAD_DATA[{target.slot}]", deadline)
         return ToolData(
             position_mm=(x, y, z),
-            quaternion=(
-                float(quaternion[0]),
-                float(quaternion[1]),
-                float(quaternion[2]),
-                float(quaternion[3]),
-            ),
+            quaternion=quaternion,
             load=_load_from_struct(load_struct),
         )
 
@@ -361,8 +357,17 @@ def _no_value(name: str, ok: bool) -> ControllerRefused:
 def _kuka_frame(values: tuple[float, ...]) -> tuple[tuple[float, float, float], Wxyz]:
     """X, Y, Z, A, B, C (KUKA's R = Rz(A) Ry(B) Rx(C)) -> position and quaternion w, x, y, z."""
     x, y, z, a, b, c = values
+    return (x, y, z), _quaternion(a, b, c)
+
+
+@functools.lru_cache(maxsize=4096)
+def _quaternion(a: float, b: float, c: float) -> Wxyz:
+    """KUKA A, B, C (degrees) -> quaternion w, x, y, z, remembered: every reconcile round
+    reads each robot's tool, pose, $TOOL, $BASE and $ROBROOT_C, mostly the same angles as the
+    round before, and scipy's conversion was a fifth of the watcher's CPU (py-spy --gil,
+    bench.watch_fleet, 500 robots)."""
     w, qx, qy, qz = (float(v) for v in quaternion_wxyz_from_kuka_abc([a, b, c]))
-    return (x, y, z), (w, qx, qy, qz)
+    return w, qx, qy, qz
 
 
 def _missing_remedy(name: str) -> str:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from sqlalchemy import event
@@ -16,8 +17,10 @@ from tests.conftest import Api
 
 
 def test_a_rounds_read_transaction_reads_the_robot_once(api: Api) -> None:
-    """The robot's row is read once (by get_controller, which answers 404 for it): the round
-    read it a second time before, two of the read transaction's statements."""
+    """The robot's row is read once, with its controller, in one statement (get_controller,
+    which answers 404 for the robot and 409 for no controller, only when that finds none): the
+    round read it a second time before, then once beside a statement for the controller; the
+    read transaction is that statement and one for each subject's rows."""
     with rig("kuka_kvp") as r:
         robot_id = _setup(api, r)["robot"]["id"]
         sent: list[str] = []
@@ -33,5 +36,7 @@ def test_a_rounds_read_transaction_reads_the_robot_once(api: Api) -> None:
             event.remove(engine, "before_cursor_execute", record)
     assert [c.subject_id for c in read.checks]  # the tool, and the controller read
     assert read.live.error is None
-    from_robots = [sql for sql in sent if "\nFROM robots" in sql]
+    from_robots = [sql for sql in sent if re.search(r"\b(FROM|JOIN) robots\b", sql)]
     assert len(from_robots) == 1, from_robots
+    assert "FROM robot_controllers JOIN robots" in from_robots[0], from_robots
+    assert len([sql for sql in sent if sql.lstrip().startswith("SELECT")]) == 3, sent
