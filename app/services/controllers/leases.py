@@ -13,7 +13,8 @@ its reads' leases lapse within `lease_s`, it takes no share of the others' claim
 and its claimed robots are due again one interval after their claim, when another instance
 claims them. The first live instance by name says what is said once for the fleet (its
 round's overrun). Times are the database's (`now()`), so the instances' clocks need not
-agree. A tick is two statements (a third once an interval).
+agree. A tick is two statements (two more once an interval: robots given a controller since, and
+instances gone long enough to be forgotten).
 """
 
 from __future__ import annotations
@@ -36,6 +37,11 @@ _ROWS = text(
     "JOIN robots r ON r.id = rc.robot_id WHERE r.archived_at IS NULL "
     "ON CONFLICT (robot_id) DO NOTHING"
 )
+#: Instances not seen for `:gone` seconds are forgotten (an instance killed, or stopped without
+#: leave(), stayed listed for ever): counted by no tick since a lease after it was last seen,
+#: so no count of /ready or /metrics changes; one that comes back is listed again by its next
+#: tick.
+_GONE = text("DELETE FROM watchers WHERE seen_at < now() - make_interval(secs => :gone)")
 #: This instance is alive, and its leases are renewed (its reads in flight) or let go: one
 #: statement (the INSERT a data-modifying WITH, run whether or not the UPDATE reads it).
 _ALIVE = text(
@@ -103,15 +109,19 @@ class Leases:
         #: a lease not renewed for this long lapses, and an instance not seen for this long
         #: is gone (one that died: it takes no share of a claim after)
         self.lease_s = max(3 * self.tick_s, 1.0)
+        #: an instance not seen for this long is no longer listed in `watchers`
+        self.forget_s = max(10 * self.lease_s, interval_s)
         self._rows_at = -math.inf
 
     def tick(self, reading: set[str], capacity: int, now: float) -> Tick:
         """Say this instance is alive, renew the leases of `reading` (let go of the rest),
         and claim up to this instance's share of the due robots, at most `capacity`: two
-        statements (a third once an interval, for robots given a controller since)."""
+        statements (two more once an interval: robots given a controller since, and instances not
+        seen for `forget_s` forgotten)."""
         with session_scope(write=True) as session:
             if now - self._rows_at >= self.interval_s:
                 session.execute(_ROWS)
+                session.execute(_GONE, {"gone": self.forget_s})
                 self._rows_at = now
             session.execute(
                 _ALIVE, {"me": self.holder, "reading": sorted(reading), "lease": self.lease_s}

@@ -88,3 +88,43 @@ def test_every_robot_due_is_claimed_once_by_one_instance(api: Api, db: Database)
     claimed = [robot for tick in ticks for robot in tick.claimed]
     assert sorted(claimed) == robots  # each robot once
     assert ticks[-1].due == 0
+
+
+def _last_seen(holder: str, ago_s: float) -> None:
+    with get_engine().begin() as conn:
+        conn.execute(
+            text(
+                "UPDATE watchers SET seen_at = now() - make_interval(secs => :s) WHERE holder = :h"
+            ),
+            {"s": ago_s, "h": holder},
+        )
+
+
+def _listed() -> list[str]:
+    with get_engine().connect() as conn:
+        return sorted(conn.scalars(text("SELECT holder FROM watchers")))
+
+
+def test_an_instance_gone_long_is_no_longer_listed(api: Api, db: Database) -> None:
+    """An instance killed (no leave()) was listed in `watchers` for ever: once it has not been
+    seen for `forget_s` (10 leases, at least an interval), the next tick that looks for new
+    robots forgets it. Until then it is listed but counted by no tick after a lease, so what
+    /ready and /metrics say of the fleet's instances is the same either way; an instance
+    that comes back is listed again by its own tick."""
+    _fleet(api, db, 2)
+    alive, killed = Leases(INTERVAL_S, holder="a-alive"), Leases(INTERVAL_S, holder="b-killed")
+    now = time.monotonic()
+    killed.tick(set(), 0, now)
+    assert alive.tick(set(), 0, now).watchers == 2
+    assert _listed() == ["a-alive", "b-killed"]
+
+    _last_seen("b-killed", alive.lease_s + 0.5)  # not seen for a lease: not counted, still listed
+    assert alive.tick(set(), 0, now + INTERVAL_S).watchers == 1
+    assert _listed() == ["a-alive", "b-killed"]
+
+    _last_seen("b-killed", alive.forget_s + 0.5)  # not seen for forget_s: forgotten
+    assert alive.tick(set(), 0, now + 2 * INTERVAL_S).watchers == 1
+    assert _listed() == ["a-alive"]
+
+    assert killed.tick(set(), 0, now + 2 * INTERVAL_S).watchers == 2  # back: listed again
+    assert _listed() == ["a-alive", "b-killed"]
