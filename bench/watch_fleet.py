@@ -561,9 +561,9 @@ def markdown(runs: list[dict[str, Any]]) -> str:
         "`.venv/bin/python -m bench.watch_fleet` (bench/watch_fleet.py says what is measured).",
         "",
         "| run | commit | robots | inst | db | reply ms | interval s | kill | in sync s "
-        "| CPU ms/read | reads/robot/interval | flagged | last s (intervals) | within 1 / 2 "
-        "intervals | double reads | overrun lines | load |",
-        "|" + "---|" * 17,
+        "| CPU ms/read | server CPU s (steady) | reads/robot/interval | flagged "
+        "| last s (intervals) | within 1 / 2 intervals | double reads | overrun lines | load |",
+        "|" + "---|" * 18,
     ]
     for r in runs:
         s, e = r.get("steady", {}), r.get("edit", {})
@@ -572,7 +572,8 @@ def markdown(runs: list[dict[str, Any]]) -> str:
             f"| {r['label']} | {r['commit']} | {r['robots']} | {r['instances']} | {r['backend']} "
             f"| {r['latency_ms']} | {r['interval_s']} | {'yes' if r['kill'] else 'no'} "
             f"| {r.get('in_sync_after_s') and round(r['in_sync_after_s'], 1)} "
-            f"| {s.get('cpu_ms_per_read')} | {s.get('reads_per_robot_per_interval')} "
+            f"| {s.get('cpu_ms_per_read')} | {s.get('cpu_s')} "
+            f"| {s.get('reads_per_robot_per_interval')} "
             f"| {e.get('flagged')}/{r['robots']} | {last} "
             f"| {e.get('within_one_interval')} / {e.get('within_two_intervals')} "
             f"| {s.get('double_reads')} + {e.get('double_reads_after_edit')} "
