@@ -304,6 +304,44 @@ def test_yaskawa_writes_a_uframe_block_in_the_documented_order() -> None:
     assert back.name == "jig left"
 
 
+#: A YRC1000's UFRAME.CND as the controller saved it (three user frames taught on the pendant:
+#: pulses in RORG, RXX, RXY; BASICFRM and BASEP lines), tests/data/README.md names its source.
+UFRAME_CND = (DATA / "yaskawa_UFRAME.CND").read_text()
+_BUSER = re.compile(r"^////BUSER (.+)$", re.MULTILINE)
+
+
+def test_yaskawa_reads_every_user_frame_of_a_controllers_uframe_cnd() -> None:
+    """The controller's own file: each block's number, name and BUSER (X Y Z mm, Rx Ry Rz deg
+    about the fixed axes, R = Rz Ry Rx), the angles read as scipy reads the same numbers."""
+    frames = parse_frame_file("yaskawa", UFRAME_CND)
+    assert [(f.slot, f.name) for f in frames] == [(1, "REAMER"), (2, "S1"), (3, "S2")]
+    for parsed, line in zip(frames, _BUSER.findall(UFRAME_CND), strict=True):
+        x, y, z, rx, ry, rz = (float(v) for v in line.split(","))
+        assert np.asarray(parsed.position_mm) == pytest.approx([x, y, z], abs=1e-9)
+        assert angle_deg(np.asarray(parsed.quaternion_wxyz), fixed_xyz(rx, ry, rz)) < 1e-9
+
+
+def test_yaskawa_writes_a_controllers_frame_as_its_block_lines_byte_for_byte() -> None:
+    """Each frame of the controller's file, as tcpcal would serve it, gives back the file's own
+    //UFRAME, ///NAME, ///TOOL, ///GROUP and ////BUSER lines (3 decimals of mm, 4 of deg; a
+    tenth of a thousandth of a degree, so a swapped or negated angle fails). The controller's
+    block also holds ///BASICFRM and ///BASEP lines and the taught pulses, which tcpcal does
+    not know and does not write (app/vendors/yaskawa/frame.py says so)."""
+    blocks = UFRAME_CND.split("//UFRAME ")[1:]
+    for parsed, saved in zip(parse_frame_file("yaskawa", UFRAME_CND), blocks, strict=True):
+        data = frame(
+            tuple(parsed.position_mm),
+            tuple(parsed.quaternion_wxyz),
+            slot=parsed.slot,
+            name=parsed.name or "",
+        )
+        written = frame_file("yaskawa", [FileFrame(data)], FileContext()).text.splitlines()
+        saved_lines = ("//UFRAME " + saved).splitlines()
+        kept = [line for line in saved_lines if not line.startswith(("///BASICFRM", "///BASEP"))]
+        assert written[:5] == kept[:5]  # UFRAME, NAME, TOOL, GROUP, PULSE
+        assert written[-1] == kept[-1]  # BUSER
+
+
 # --- UR: a PolyScope program's feature variable ----------------------------------------------
 
 

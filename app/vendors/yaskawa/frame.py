@@ -16,8 +16,12 @@ programming posts write (a Visual Components Motoman post-processor's ``writeFra
 ``////RXX C001=...``, ``////RXY C002=...``, ``////BUSER x,y,z,rx,ry,rz``), and this file
 writes that shape, BUSER with TOOL.CND's decimals (3 for mm, 4 for deg).
 
-NOT VERIFIED (no controller-saved UFRAME.CND is public): that a controller loads a block
-without BASICFRM and BASEP, and what it does with taught points that do not match BUSER.
+Held against a YRC1000's own UFRAME.CND (tests/data/controller-files/yaskawa_UFRAME.CND): its
+blocks read, and written back as its UFRAME, NAME, TOOL, GROUP, PULSE and BUSER lines byte for
+byte; the controller's blocks also hold ``///BASICFRM 1,16,0`` and ``///BASEP`` (zeros) after
+GROUP, which no public document explains and this file does not write. NOT VERIFIED: that a
+controller loads a block without BASICFRM and BASEP, and what it does with taught points that
+do not match BUSER.
 tcpcal does not know the pulses a frame would be taught with, so RORG, RXX and RXY are
 written as zeros and BUSER carries the frame; re-teaching the frame on the pendant replaces
 both. Loading UFRAME.CND (EX. MEMORY - LOAD - USER COORDINATE DATA) replaces the
