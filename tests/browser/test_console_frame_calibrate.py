@@ -105,7 +105,9 @@ def test_fit_points_chosen_by_keyboard_takes_a_nominal_per_touch_and_deletes_a_w
     touches = page.locator("#frame-touches li")
     wrong = ("0 200 0", X_TOUCH)  # the +X point touched where the pin P3 was asked
     third = ORIGIN + np.array([0.0, 200.0, 0.0])
-    for at, point in [("0 0 0", ORIGIN), ("300 0 0", X_TOUCH), wrong]:
+
+    def touch(at: str, point: np.ndarray) -> None:
+        """The nominal point typed, then the touch's pose, sent; back to the nominal field."""
         expect(nominal).to_be_focused()
         page.keyboard.type(at)
         _tab_to(page, "input[name=pose]")
@@ -115,6 +117,9 @@ def test_fit_points_chosen_by_keyboard_takes_a_nominal_per_touch_and_deletes_a_w
         expect(page.locator("input[name=pose]")).to_have_value("")
         page.keyboard.press("Shift+Tab")  # back over Capture to the nominal field
         page.keyboard.press("Shift+Tab")
+
+    for at, point in [("0 0 0", ORIGIN), ("300 0 0", X_TOUCH), wrong]:
+        touch(at, point)
     expect(touches.nth(2)).to_contain_text("at 0 200 0 (typed): 1200.000  100.000  300.000 mm")
     _tab_to(page, "[aria-label='Delete touch 3']", most=20)
     page.keyboard.press("Enter")
@@ -122,14 +127,7 @@ def test_fit_points_chosen_by_keyboard_takes_a_nominal_per_touch_and_deletes_a_w
     expect(touches.filter(has_text="(typed)")).to_have_count(2)
     expect(nominal).to_be_focused()
     for at, point in [("0 200 0", third), ("150 100 40", ORIGIN + np.array([150.0, 100.0, 40.0]))]:
-        expect(nominal).to_be_focused()
-        page.keyboard.type(at)
-        _tab_to(page, "input[name=pose]")
-        page.keyboard.type(typed(point))
-        page.keyboard.press("Enter")
-        expect(busy).to_have_attribute("aria-busy", "false")
-        page.keyboard.press("Shift+Tab")
-        page.keyboard.press("Shift+Tab")
+        touch(at, point)
     expect(touches.nth(2)).to_contain_text("at 0 200 0 (typed): 900.000  300.000  300.000 mm")
     _tab_to(page, "#finish")
     page.keyboard.press("Enter")
