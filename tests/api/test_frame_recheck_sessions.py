@@ -202,3 +202,27 @@ def test_a_refused_finish_leaves_the_session_open_to_finish_again(
     done = api.post(f"/v1/sessions/{sid}/finish", {}, scope="calibrate")
     assert done.status_code == 201, done.text
     assert done.json()["frame_id"] == frame["id"]
+
+
+def test_a_finish_failing_after_its_check_was_made_leaves_the_session_finished(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A failure once the check's transaction has committed (its deployment, or anything after
+    it) does not give the claim back: the session stays finished, audited with the check it
+    made, and a second finish is 409 "already finished" rather than a second check."""
+    frame, sid = _touched_session(api, correct="within_limits")
+    before = _checks_made(frame["id"])
+
+    def fail_after_storing(check: Any, replayed: bool) -> Any:
+        raise OSError("the connection went away after the check was stored")
+
+    with monkeypatch.context() as patched:
+        patched.setattr(frame_recheck, "Checked", fail_after_storing)
+        failed = api.post(f"/v1/sessions/{sid}/finish", {}, scope="calibrate")
+    assert failed.status_code == 500, failed.text
+    assert _checks_made(frame["id"]) == before + 1
+    assert api.get(f"/v1/sessions/{sid}").json()["status"] == "finished"
+    again = api.post(f"/v1/sessions/{sid}/finish", {}, scope="calibrate")
+    assert again.status_code == 409, again.text
+    assert "already finished" in again.json()["detail"]
+    assert _checks_made(frame["id"]) == before + 1

@@ -11,6 +11,7 @@ false; a controller that cannot address the frame is refused before anything is 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from sqlalchemy.orm import Session
@@ -37,12 +38,19 @@ class Checked:
 
 
 def check_frame(
-    *, frame_id: str, data: FrameCheckCreate, actor: Principal, idempotency_key: str | None
+    *,
+    frame_id: str,
+    data: FrameCheckCreate,
+    actor: Principal,
+    idempotency_key: str | None,
+    on_stored: Callable[[FrameCheck], None] | None = None,
 ) -> Checked:
     """POST /v1/frames/{frame_id}/checks (and the MQTT command, and the CLI): check, correct
     when asked and deploy the correction where the robot has a controller (after the check's
     transaction, no transaction open during the controller's I/O); the first answer again
-    for a repeated Idempotency-Key, its deployment included."""
+    for a repeated Idempotency-Key, its deployment included. `on_stored` is told the check
+    once its transaction has committed, before any deployment (a recheck session's finish:
+    from then on the check is made, whatever the deployment does)."""
     frames.check_options(data)
     keyed = None if idempotency_key is None else (idempotency_key, fingerprint(frame_id, data))
     with transaction_for(actor, write=False) as session:
@@ -63,6 +71,8 @@ def check_frame(
             idempotency.remember_keyed(
                 session, actor=actor, keyed=keyed, response=result.model_dump(mode="json")
             )
+    if first is None and on_stored is not None:
+        on_stored(result)
     if first is not None:  # (its deployment may still be under way: waited for unlocked)
         return Checked(_as_it_ends(first, deploying, actor, keyed), replayed=True)
     if result.correction is not None and deploying:

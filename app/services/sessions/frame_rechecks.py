@@ -16,7 +16,7 @@ from sqlalchemy.orm import Session
 
 from app.errors import Conflict, InvalidInput
 from app.jsontypes import JsonObject
-from app.schemas.frame_checks import FrameCheckCreate
+from app.schemas.frame_checks import FrameCheck, FrameCheckCreate
 from app.schemas.frame_sessions import FrameTouchAdd
 from app.security.auth import Principal, transaction_for
 from app.services import idempotency
@@ -138,35 +138,48 @@ def finish_request(
         return frame_recheck.check_frame(  # the first answer for this key, replayed
             frame_id=frame_id, data=data, actor=actor, idempotency_key=idempotency_key
         )
+    stored: list[FrameCheck] = []
     try:
         done = frame_recheck.check_frame(
-            frame_id=frame_id, data=data, actor=actor, idempotency_key=idempotency_key
+            frame_id=frame_id,
+            data=data,
+            actor=actor,
+            idempotency_key=idempotency_key,
+            on_stored=stored.append,
         )
     except BaseException:
-        _unclaim(row_id, actor)  # no check was made: the session may be finished again
+        if stored:  # the check was made (its deployment failed): the session stays finished
+            _record_finish(row_id, actor, get_row, stored[0])
+        else:  # no check was made: the session may be finished again
+            _unclaim(row_id, actor)
         raise
+    if not done.replayed:
+        _record_finish(row_id, actor, get_row, done.check)
+    return done
+
+
+def _record_finish(row_id: str, actor: Principal, get_row: GetRow, check: FrameCheck) -> None:
+    """The session's finish audited with the check it made (what a waiting finish looks for)."""
     with transaction_for(actor, write=True) as session:
         row = get_row(session, row_id, for_update=True)
         row.updated_at = utcnow()
-        if not done.replayed:
-            audit.record(
-                session,
-                actor=actor,
-                action=FINISHED,
-                resource_type="session",
-                resource_id=row.id,
-                robot_id=done.check.robot_id,
-                tool_id=row.tool_id,
-                about={FRAME.key: frame_id},
-                version=done.check.version,
-                details={
-                    "check_id": done.check.id,
-                    "verdict": done.check.verdict,
-                    "touches": len(row.poses),
-                    "sources": list(row.touches),
-                },
-            )
-    return done
+        audit.record(
+            session,
+            actor=actor,
+            action=FINISHED,
+            resource_type="session",
+            resource_id=row.id,
+            robot_id=check.robot_id,
+            tool_id=row.tool_id,
+            about={FRAME.key: check.frame_id},
+            version=check.version,
+            details={
+                "check_id": check.id,
+                "verdict": check.verdict,
+                "touches": len(row.poses),
+                "sources": list(row.touches),
+            },
+        )
 
 
 #: The session's audit action once its check is made (how a waiting finish knows it ended).
