@@ -106,6 +106,14 @@ AbcWorld = Literal["abc_world"]
 LaserBeam = Literal["laser_beam"]
 Manual = Literal["manual"]
 
+
+def word(literal: object) -> str:
+    """The word a one-word Literal stands for (`word(TcpZX)`): how a declaration outside
+    app.methods (a maker's `teaches`) names a method without spelling it again."""
+    (value,) = get_args(literal)
+    return str(value)
+
+
 #: A calibration method (a calibration's `method`, a version's `source`, a guided session's
 #: `method`): the registry's names, in its order (app.methods.METHOD_NAMES is read off the
 #: registry; tests/test_one_definition.py holds the two equal and each word written here
@@ -143,6 +151,15 @@ FrameMethodName = Literal[ThreePoint, FourPoint, FitPoints, FixedNpoint, Manual]
 OriginXXy = Literal["origin", "x", "xy"]
 UserMethodRole = Literal["x1", "x2", "y1"]
 FrameRole = Literal[OriginXXy, UserMethodRole, "x_start"]
+
+#: How a three_point frame's touches make its axes (app.solvers.frame.construction, one
+#: construction each), named as the pendants teach them: the origin, +X and the XY plane (most
+#: makers'), ABB's user method (X1, X2 on X, Y1 on Y), PolyScope's Plane feature.
+ThreePointConvention = Literal["origin_x_xy", "abb_user", "ur_plane"]
+
+#: The tool axis the 2-point and world orientation methods take as the working axis
+#: (app.solvers.orientation; a maker's own, where it declares one: Maker.working_axis).
+WorkingAxis = Literal["x", "z"]
 
 #: What a guided frame session's next touch is sent with beside its pose
 #: (app.methods.frame.next_role): a role, a nominal_mm, or nothing (a fixed tool's tip).

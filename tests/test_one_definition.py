@@ -504,20 +504,7 @@ MAKER_MENTIONS: dict[str, tuple[int, str]] = {
     "kinematics/readings.py": (3, "the pose conventions a misread reading is tried in"),
     "kinematics/frames.py": (2, "a user frame as each pendant names it ($BASE, UFRAME)"),
     "kinematics/urdf.py": (2, "UR's published URDF link names (tool0, base)"),
-    "kinematics/dh.py": (1, "which robot models' datasheets use classic DH"),
-    "solvers/orientation.py": (11, "the orientation conventions a working axis is read in"),
-    "methods/orientation.py": (6, "the orientation conventions a working axis is read in"),
-    "solvers/frame/construction.py": (18, "the user-frame constructions as each pendant teaches"),
-    # Robot models, not controllers: a preset is a published arm (a KUKA KR 16, a UR10e).
-    "kinematics/presets.py": (23, "robot model presets, named as their datasheets"),
-    # The demo plant's robots are a KUKA, an ABB and a FANUC by their vendor field.
-    "cli/demo.py": (4, "the demo plant's robots' vendor values"),
-    # Schema and glossary descriptions are the OpenAPI document: reworded with it, apart.
-    "schemas/controllers.py": (9, "the OpenAPI descriptions of each protocol's settings"),
-    "schemas/fleet.py": (8, "the OpenAPI descriptions of the fleet's fields"),
-    "schemas/tools.py": (3, "the OpenAPI description of controller_symbol (ABB's PERS)"),
-    "api/glossary.py": (2, "the OpenAPI glossary's examples of a vendor and an axis"),
-    "api/controllers.py": (1, "the OpenAPI description of /controller-refused's example"),
+    "solvers/frame/construction.py": (8, "the user-frame constructions as each pendant teaches"),
 }
 
 

@@ -13,6 +13,7 @@ from app.errors import NoControllerSet
 from app.schemas.controllers import Controller, ControllerIn, ControllerPose, Reconciliation
 from app.services.controllers import capture, reconcile
 from app.services.robots import connection
+from app.vendors.registry import REFUSAL_EXAMPLES
 from app.words import PoseFormat
 
 router = APIRouter(tags=["controllers"])
@@ -50,22 +51,30 @@ def delete_controller(robot_id: PathId, session: SessionDep, key: AdminKey) -> R
     return Response(status_code=204)
 
 
+#: The pose read's description (its docstring but for the makers' example of a refusal,
+#: read from their declarations: app.vendors.registry.REFUSAL_EXAMPLES).
+_POSE_READ = (
+    "Where the robot's flange is now, in its base frame, read from its controller twice at\n"
+    "least 100 ms apart within its timeout_s: 409 `/robot-moving` when the reads differ by\n"
+    "more than 0.01 mm or 0.01 deg (nothing is kept), 502 `/controller-unreachable` or\n"
+    f"`/controller-refused` (the controller's words, e.g. {REFUSAL_EXAMPLES}). With\n"
+    "the joints, the tool the robot moves by (`live_tool`) and every value read as the\n"
+    "controller printed it. Calibrate scope (it is how a touch is captured)."
+)
+
+
 @router.get(
     "/v1/robots/{robot_id}/controller/pose",
     response_model=ControllerPose,
     responses=CONTROLLER_FAILURES,
+    description=_POSE_READ,
 )
 async def read_controller_pose(
     robot_id: PathId,
     key: HeldCalibrateKey,
     fmt: Annotated[PoseFormat, Query(alias="format")] = "matrix",
 ) -> ControllerPose:
-    """Where the robot's flange is now, in its base frame, read from its controller twice at
-    least 100 ms apart within its timeout_s: 409 `/robot-moving` when the reads differ by
-    more than 0.01 mm or 0.01 deg (nothing is kept), 502 `/controller-unreachable` or
-    `/controller-refused` (the controller's words, e.g. a KUKA in `$IPO_MODE #TCP`). With
-    the joints, the tool the robot moves by (`live_tool`) and every value read as the
-    controller printed it. Calibrate scope (it is how a touch is captured)."""
+    """Where the robot's flange is now, read twice from its controller (`_POSE_READ`)."""
     return await run_blocking(capture.controller_pose, robot_id=robot_id, fmt=fmt, actor=key)
 
 

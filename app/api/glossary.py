@@ -7,6 +7,8 @@ property of the spec described.
 
 from __future__ import annotations
 
+from app.vendors.registry import MAKERS, X_AXIS_MAKERS
+
 GLOSSARY: dict[str, str] = {
     # identity and bookkeeping
     "id": "the resource's id",
@@ -33,7 +35,7 @@ GLOSSARY: dict[str, str] = {
     "items": "the items of this page",
     "next_cursor": "pass as ?cursor= for the next page; null on the last page",
     # robots and tools
-    "vendor": "robot maker, e.g. KUKA",
+    "vendor": f"robot maker, e.g. {MAKERS[0].name}",
     "model": "robot model, e.g. KR 16 R1610-2",
     "serial": "serial number",
     "cell": "the robot cell the robot works in",
@@ -72,7 +74,7 @@ GLOSSARY: dict[str, str] = {
     "axis": "the tool axis the translation runs along",
     "from": "pose before the translation",
     "to": "pose after the translation",
-    "working_axis": "the tool's working axis: x (as KUKA) or z",
+    "working_axis": f"the tool's working axis: x (as {X_AXIS_MAKERS}) or z",
     "tcp_mm": "the TCP position (mm, flange frame); default: the tool's active TCP",
     "laser": "the laser device: a stored device_id or its three numbers",
     "beam_a_y_mm": "y of beam a (runs along base x) in the base frame (mm)",

@@ -34,6 +34,8 @@ from app.services.references import references
 from app.services.robots import robots
 from app.services.tools import tools
 from app.storage.models import Robot, clock_at
+from app.vendors.registry import BY_FORMAT
+from app.words import ControllerFormat, PoseFormat
 
 SEED = 20261123
 TOOL_DOWN = Rotation.from_euler("x", 180.0, degrees=True)
@@ -64,21 +66,30 @@ class DemoTool:
 
 @dataclass(frozen=True)
 class DemoRobot:
+    """A robot of the demo plant, by its maker's controller format: its vendor field is the
+    maker's name and its touches are typed in the maker's pendant format (the registry's)."""
+
     name: str
-    vendor: str
+    maker: ControllerFormat
     model: str
     cell: str
-    fmt: str
     tools: tuple[DemoTool, ...] = field(default_factory=tuple)
+
+    @property
+    def vendor(self) -> str:
+        return BY_FORMAT[self.maker].name
+
+    @property
+    def fmt(self) -> PoseFormat:
+        return BY_FORMAT[self.maker].pose_format
 
 
 FLEET = (
     DemoRobot(
         "weld12-kr16",
-        "KUKA",
+        "kuka",
         "KR 16 R1610-2",
         "weld-12",
-        "kuka_abc",
         (
             DemoTool(
                 "torch",
@@ -105,10 +116,9 @@ FLEET = (
     ),
     DemoRobot(
         "weld14-kr16",
-        "KUKA",
+        "kuka",
         "KR 16 R1610-2",
         "weld-14",
-        "kuka_abc",
         (
             DemoTool(
                 "torch",
@@ -126,10 +136,9 @@ FLEET = (
     ),
     DemoRobot(
         "assy3-irb2600",
-        "ABB",
+        "abb",
         "IRB 2600-20/1.65",
         "assy-3",
-        "xyz_wxyz",
         (
             DemoTool(
                 "gripper",
@@ -156,10 +165,9 @@ FLEET = (
     ),
     DemoRobot(
         "mach1-ur10e",
-        "Universal Robots",
+        "ur",
         "UR10e",
         "mach-1",
-        "ur_rotvec",
         (
             DemoTool(
                 "spindle",
@@ -186,10 +194,9 @@ FLEET = (
     ),
     DemoRobot(
         "pal2-m20id",
-        "FANUC",
+        "fanuc",
         "M-20iD/25",
         "pal-2",
-        "fanuc_wpr",
         (
             DemoTool(
                 "vacuum",

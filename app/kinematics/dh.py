@@ -2,7 +2,7 @@
 
 Two conventions, as robot vendors publish them:
 
-- ``"dh"`` (classic, distal; Universal Robots, Techman): link i is
+- ``"dh"`` (classic, distal; the tables of the makers' arms, app/vendors/*/arms.py): link i is
   ``Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``.
 - ``"mdh"`` (modified, proximal; Craig): link i is
   ``Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)``. Row i of a modified table carries
@@ -31,7 +31,6 @@ from app.kinematics.dh_table import MAX_LINKS as MAX_LINKS
 from app.kinematics.dh_table import Convention as Convention
 from app.kinematics.dh_table import DHLink as DHLink
 from app.kinematics.dh_table import Kinematics as Kinematics
-from app.kinematics.presets import PRESETS
 from app.kinematics.urdf import UrdfChain, chain_from_spec
 from app.solvers.validation import check_finite
 
@@ -60,9 +59,14 @@ def _dotted(loc: Sequence[str | int]) -> str:
     return ".".join(str(part) for part in loc)
 
 
-def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics | UrdfChain:
+def kinematics_from_spec(
+    spec: Mapping[str, object], *, presets: Mapping[str, Kinematics]
+) -> Kinematics | UrdfChain:
     """Read the API `kinematics` object: ``{"preset": name}``, ``{"convention", "links"}`` or
     ``{"urdf", "base_link"?, "tip_link"?}`` (app.kinematics.urdf).
+
+    A preset is one of `presets`, by name: the makers' arms, which the caller reads from
+    app.vendors.registry.PRESETS (the makers sit above app.kinematics).
 
     Links are ``[{a, alpha, d, theta_offset}]`` with a, d in mm and angles in degrees
     (``theta_offset`` may be omitted: 0). A defect raises InvalidInput("invalid-options")
@@ -81,7 +85,7 @@ def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics | UrdfChain:
     if "urdf" in spec:
         return chain_from_spec(spec)
     if "preset" in spec:
-        return _preset_from_spec(spec, base)
+        return _preset_from_spec(spec, base, presets)
     unknown = sorted(set(spec) - {"convention", "links", "name"})
     if unknown:
         raise InvalidInput(
@@ -105,8 +109,11 @@ def kinematics_from_spec(spec: Mapping[str, object]) -> Kinematics | UrdfChain:
     )
 
 
-def _preset_from_spec(spec: Mapping[str, object], base: tuple[str | int, ...]) -> Kinematics:
-    """The preset ``{"preset": name}`` names, refusing other fields and unknown names."""
+def _preset_from_spec(
+    spec: Mapping[str, object], base: tuple[str | int, ...], presets: Mapping[str, Kinematics]
+) -> Kinematics:
+    """The preset of `presets` ``{"preset": name}`` names, refusing other fields and unknown
+    names."""
     extra_keys = sorted(set(spec) - {"preset"})
     if extra_keys:
         raise InvalidInput(
@@ -115,13 +122,13 @@ def _preset_from_spec(spec: Mapping[str, object], base: tuple[str | int, ...]) -
             loc=(*base, extra_keys[0]),
         )
     name = spec["preset"]
-    if not isinstance(name, str) or name not in PRESETS:
+    if not isinstance(name, str) or name not in presets:
         raise InvalidInput(
             "invalid-options",
-            f"unknown kinematics preset {name!r}; known presets: {sorted(PRESETS)}",
+            f"unknown kinematics preset {name!r}; known presets: {sorted(presets)}",
             loc=(*base, "preset"),
         )
-    return PRESETS[name]
+    return presets[name]
 
 
 def _links_from_spec(links_in: object, base: tuple[str | int, ...]) -> tuple[DHLink, ...]:

@@ -1,7 +1,8 @@
 """The DH description of a serial arm: its links and convention, and the limits on them.
 
-Apart from the forward kinematics (app.kinematics.dh) so that the presets, which are such
-descriptions, and the spec reader, which returns them, depend on it and not on each other.
+Apart from the forward kinematics (app.kinematics.dh) so that the makers' arms
+(app/vendors/*/arms.py, the presets), which are such descriptions, and the spec reader, which
+returns them, depend on it and not on each other; and so that declaring an arm loads no scipy.
 """
 
 from __future__ import annotations

@@ -29,12 +29,12 @@ from app.solvers.orientation import (
     AxisDirection,
     Direction,
     OrientationResult,
-    WorkingAxis,
     orientation_from_touches,
     orientation_from_translations,
     orientation_from_world,
 )
-from app.words import Abc2Point, AbcWorld, TcpZX
+from app.vendors.registry import taught_as
+from app.words import Abc2Point, AbcWorld, TcpZX, WorkingAxis, word
 
 #: A tool axis an alignment names (the keys of `align`).
 ToolAxis = Literal["x", "y", "z"]
@@ -146,7 +146,7 @@ def run_tcp_z_x(request: TcpZxCalibration, ctx: MethodContext) -> Solved:
 
 
 def run_abc_2point(request: Abc2PointCalibration, ctx: MethodContext) -> Solved:
-    """Orientation from three touches of one point (KUKA ABC 2-point); position unchanged."""
+    """Orientation from three touches of one point; position unchanged."""
     tcp = _known_tcp(request.options.tcp_mm, ctx)
     rotations, positions = ctx.parse_poses(
         request.format, request.poses, request.units, loc=("poses",)
@@ -162,7 +162,7 @@ def run_abc_2point(request: Abc2PointCalibration, ctx: MethodContext) -> Solved:
 
 
 def run_abc_world(request: AbcWorldCalibration, ctx: MethodContext) -> Solved:
-    """Orientation from one pose aligned to base axes (KUKA ABC world 5D/6D)."""
+    """Orientation from one pose aligned to base axes."""
     tcp = _known_tcp(request.options.tcp_mm, ctx)
     rotations, _ = ctx.parse_poses(request.format, request.poses, request.units, loc=("poses",))
     result = orientation_from_world(
@@ -177,7 +177,7 @@ TCP_Z_X = Method(
     request=TcpZxCalibration,
     run=run_tcp_z_x,
     description="N-point touches plus pure translations along tool +-Z (and X) -> full "
-    "frame (ABB TCP&Z,X; Fanuc six-point)",
+    f"frame ({taught_as(word(TcpZX))})",
     example_body={
         "format": "kuka_abc",
         "poses": [
@@ -205,7 +205,7 @@ ABC_2POINT = Method(
     request=Abc2PointCalibration,
     run=run_abc_2point,
     description="TCP touch, a point behind it on the working axis, a point on +Y -> "
-    "orientation (KUKA ABC 2-point)",
+    f"orientation ({taught_as(word(Abc2Point))})",
     example_body={
         "format": "kuka_abc",
         "poses": [
@@ -219,7 +219,8 @@ ABC_2POINT = Method(
 ABC_WORLD = Method(
     request=AbcWorldCalibration,
     run=run_abc_world,
-    description="one pose with the tool aligned to base axes -> orientation (KUKA ABC world 5D/6D)",
+    description="one pose with the tool aligned to base axes -> orientation "
+    f"({taught_as(word(AbcWorld))})",
     example_body={
         "format": "kuka_abc",
         "poses": [[400.0, 0.0, 300.0, -16.102, 25.659, -23.69]],

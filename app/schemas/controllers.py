@@ -9,12 +9,18 @@ from pydantic import BaseModel, BeforeValidator, Field, JsonValue, SecretStr, cr
 from app.schemas.common import Reason, ShortText, StoredWord, StrictModel, Timestamp, json_integer
 from app.vendors.abb.symbol import SYMBOL_PATTERN
 from app.vendors.registry import (
+    ACTIVE_TOOLS,
     DEFAULT_PORTS,
     LIVE_MAKER_OR,
     LIVE_MAKERS,
+    LIVE_TOOL_UNSAID,
+    LIVE_TOOL_UNSAID_WHY,
     PENDANT_FORMATS,
     SERVICE_PORTS,
     STORED_MAKERS,
+    SYMBOL_MAKERS,
+    USERNAMES,
+    USERNAMES_SENT,
     WIRE_PROTOCOLS,
 )
 from app.words import (
@@ -41,12 +47,14 @@ Port = Annotated[
     Field(ge=1, le=65535, description="TCP port; default: the protocol's"),
     BeforeValidator(json_integer),
 ]
+#: What `controller_symbol` is (a tool's create, update and view, and the symbol's type).
+SYMBOL_DESCRIPTION = f'{SYMBOL_MAKERS}: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"'
 ControllerSymbol = Annotated[
     str,
     Field(
         max_length=100,
         pattern=SYMBOL_PATTERN.pattern,
-        description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"',
+        description=SYMBOL_DESCRIPTION,
         examples=["T_ROB1/user/tTorch"],
     ),
 ]
@@ -105,9 +113,7 @@ class ControllerIn(StrictModel):
     ports: Annotated[dict[ServiceName, Port], Field(max_length=8)] | None = Field(
         default=None, description=PORTS_DESCRIPTION
     )
-    username: ShortText | None = Field(
-        default=None, description="ABB: the RWS user (default: ABB's factory user)"
-    )
+    username: ShortText | None = Field(default=None, description=USERNAMES_SENT)
     password: Annotated[SecretStr | None, Field(max_length=200)] = Field(
         default=None,
         description="write-only, stored encrypted under TCPCAL_SECRET_KEY; left out: the "
@@ -139,7 +145,7 @@ class Controller(BaseModel):
         description="a protocol of several services: the port each service is reached on, "
         "defaults filled in; null for a single-service protocol",
     )
-    username: str | None = Field(description="ABB: the RWS user")
+    username: str | None = Field(description=USERNAMES)
     scope: DeploymentScope = Field(
         default="stored",
         description="where a deployment to it holds: stored (the controller keeps it) or live "
@@ -338,7 +344,8 @@ class Reconciliation(BaseModel):
     live_tool: LiveToolOut | None = Field(
         default=None,
         description="the TCP the robot moves by, as this reconcile read it (number and frame "
-        "null where the controller does not say, as ABB); null when it could not be read",
+        f"null where the controller does not say, as {LIVE_TOOL_UNSAID}); null when it could "
+        "not be read",
     )
     live_tool_error: str | None = Field(
         default=None, description="why the live tool could not be read"
@@ -355,12 +362,12 @@ class LiveToolOut(BaseModel):
     """The TCP the robot moves by right now, as its controller reports it."""
 
     number: int | None = Field(
-        description="the controller's tool number (KUKA $ACT_TOOL, FANUC's active UTOOL); "
-        "null where the controller does not say (ABB)"
+        description=f"the controller's tool number ({ACTIVE_TOOLS}); "
+        f"null where the controller does not say ({LIVE_TOOL_UNSAID})"
     )
     frame: Frame | None = Field(
         description="the live tool frame in the flange frame; null where the controller "
-        "does not say (ABB: RWS does not say which tooldata a program uses)"
+        f"does not say ({LIVE_TOOL_UNSAID_WHY})"
     )
     matches: list[LiveToolMatch] = Field(
         description="every version of this robot's tools equal to the live frame within "

@@ -8,7 +8,7 @@ from pydantic import BaseModel, Field
 
 from app.schemas.common import StoredWord, Timestamp
 from app.schemas.drift import FleetDrift
-from app.vendors.registry import LIVE_MAKER_OR
+from app.vendors.registry import ACTIVE_TOOLS, BARE_FLANGES, LIVE_MAKER_OR, LIVE_TOOL_UNSAID
 from app.words import Status, ToolState
 
 #: The status a fleet row can be filtered by: its last calibration's.
@@ -108,7 +108,8 @@ class FleetLive(BaseModel):
     state: LiveState = Field(
         description="active (this tool's active version), stale_version (an older version "
         "of this tool), other_tool (another tool's version), unknown (a frame no version "
-        "has), unread (the controller does not say, as ABB, or could not be read)"
+        f"has), unread (the controller does not say, as {LIVE_TOOL_UNSAID}, or could not be "
+        "read)"
     )
     version: int | None = Field(
         description="the version the robot moves by (of `tool_id`); null when unknown or unread"
@@ -122,15 +123,14 @@ class FleetLive(BaseModel):
     )
     number: int | None = Field(
         default=None,
-        description="the tool number the controller reported (KUKA $ACT_TOOL, FANUC's active "
-        "UTOOL, Yaskawa's tool); null where it names none or was not read",
+        description=f"the tool number the controller reported ({ACTIVE_TOOLS}); null where it "
+        "names none or was not read",
     )
     no_tool: bool = Field(
         default=False,
-        description="true when the robot moves by its bare flange (tool 0, KUKA $NULLFRAME, "
-        "FANUC UTOOL 0, a zero UR tcp_offset or Techman TCP): no tool is selected, as robots "
-        "idle between jobs; state is then unknown (no version has the flange's frame) and "
-        "raises no moving_by_unknown_tcp",
+        description=f"true when the robot moves by its bare flange ({BARE_FLANGES}): no tool "
+        "is selected, as robots idle between jobs; state is then unknown (no version has the "
+        "flange's frame) and raises no moving_by_unknown_tcp",
     )
 
 

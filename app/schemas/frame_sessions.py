@@ -22,13 +22,13 @@ from app.schemas.common import (
 from app.schemas.frame_checks import FrameCheckScope
 from app.schemas.results import TouchSource
 from app.schemas.sessions import PoseOrCapture
-from app.solvers.frame.construction import ThreePointConvention
 from app.words import (
     FrameRole,
     FrameSessionMethod,
     FrameTouchTakes,
     PoseFormat,
     SessionStatus,
+    ThreePointConvention,
 )
 
 

@@ -9,10 +9,9 @@ from pydantic_core import PydanticCustomError
 
 from app.kinematics.dh import MAX_LINK_DEG, MAX_LINK_MM
 from app.kinematics.dh_table import Convention
-from app.kinematics.presets import PRESETS
 from app.kinematics.urdf import MAX_URDF_CHARS
 from app.schemas.common import FiniteFloat, Name, ShortText, StoredWord, StrictModel, Timestamp
-from app.vendors.registry import vendor_pose_format
+from app.vendors.registry import PRESETS, vendor_pose_format
 from app.words import PoseFormat
 
 LinkMm = Annotated[FiniteFloat, Field(ge=-MAX_LINK_MM, le=MAX_LINK_MM)]

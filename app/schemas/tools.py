@@ -22,7 +22,7 @@ from app.schemas.common import (
     Vec3,
     json_integer,
 )
-from app.schemas.controllers import ControllerSymbol
+from app.schemas.controllers import SYMBOL_DESCRIPTION, ControllerSymbol
 from app.words import ActivationKind, MethodName, Status
 
 Slot = Annotated[
@@ -65,9 +65,7 @@ class ToolCreate(StrictModel):
     description: LongText | None = None
     load: Load | None = None
     tolerance: Tolerance = Field(default_factory=Tolerance)
-    controller_symbol: ControllerSymbol | None = Field(
-        default=None, description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"'
-    )
+    controller_symbol: ControllerSymbol | None = Field(default=None, description=SYMBOL_DESCRIPTION)
 
 
 class ToolUpdate(StrictModel):
@@ -77,9 +75,7 @@ class ToolUpdate(StrictModel):
     description: LongText | None = None
     load: Load | None = None
     tolerance: Tolerance | None = None
-    controller_symbol: ControllerSymbol | None = Field(
-        default=None, description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"'
-    )
+    controller_symbol: ControllerSymbol | None = Field(default=None, description=SYMBOL_DESCRIPTION)
 
 
 class Tool(BaseModel):
@@ -91,9 +87,7 @@ class Tool(BaseModel):
     description: str | None
     load: Load | None
     tolerance: Tolerance
-    controller_symbol: str | None = Field(
-        default=None, description='ABB: the PERS tooldata of this tool, "TASK/MODULE/SYMBOL"'
-    )
+    controller_symbol: str | None = Field(default=None, description=SYMBOL_DESCRIPTION)
     active_version: int | None
     created_at: Timestamp
     updated_at: Timestamp

@@ -4,11 +4,11 @@ Frames: a flange pose is (R, f), R the rotation flange -> base, f the flange pos
 (base). The TCP is t (mm, flange frame); the tool orientation is Q, the rotation
 tool frame -> flange frame, reported as a unit quaternion [w, x, y, z] with w >= 0.
 
-Three procedures:
-- `orientation_from_translations`: ABB "TCP and Z, X" / Fanuc six-point: pure translations
-  of the flange along tool axes.
-- `orientation_from_touches`: KUKA "ABC 2-point": three touches of one fixed point.
-- `orientation_from_world`: KUKA "ABC world" (5D and 6D): tool axes aligned with base axes.
+Three procedures, one per method (which pendants teach each, and by what name, is each
+maker's declaration, `Maker.teaches`; GET /v1/methods' descriptions name them):
+- `orientation_from_translations` (tcp_z_x): pure translations of the flange along tool axes.
+- `orientation_from_touches` (abc_2point): three touches of one fixed point.
+- `orientation_from_world` (abc_world, 5D and 6D): tool axes aligned with base axes.
 
 Uncertainty: each result carries `sigma_deg`, the 1-sigma of the small rotations about the
 tool x, y and z axes (the error rotation Q_true^T Q_est as a rotation vector, in degrees),
@@ -32,11 +32,10 @@ from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.solvers.quality import SigmaSource
 from app.solvers.validation import check_finite, check_positions_mm, check_rotation_matrices
+from app.words import WorkingAxis
 
 #: A tool axis and the sign the TCP moved along it (a pure translation's `axis`).
 AxisDirection = Literal["+z", "-z", "+x", "-x"]
-#: The tool axis the 2-point and world methods take as the working axis.
-WorkingAxis = Literal["x", "z"]
 #: Where an orientation's (or a laser result's) sigma came from (app.solvers.quality's
 #: SigmaSource), or "none": no noise was given, so no sigma was estimated.
 SigmaEstimate = Literal[SigmaSource, "none"]
@@ -253,7 +252,7 @@ def _checked_position(p: ArrayLike, loc: tuple[str | int, ...], what: str) -> Fl
 
 
 # --------------------------------------------------------------------------------------
-# Pure translations (ABB TCP&Z,X; Fanuc six-point)
+# Pure translations (tcp_z_x)
 # --------------------------------------------------------------------------------------
 
 
@@ -435,7 +434,7 @@ def _x_against_z(x: FloatArray | None, z: FloatArray, i_x: int) -> list[str]:
 
 
 # --------------------------------------------------------------------------------------
-# Touches (KUKA ABC 2-point)
+# Touches (abc_2point)
 # --------------------------------------------------------------------------------------
 
 
@@ -468,13 +467,14 @@ def orientation_from_touches(
     working_axis: WorkingAxis = "x",
     touch_noise_mm: float | None = None,
 ) -> OrientationResult:
-    """Tool frame from three touches of one fixed point (KUKA "ABC 2-point").
+    """Tool frame from three touches of one fixed point (abc_2point).
 
     rotations (3, 3, 3) and positions_mm (3, 3): the flange poses of
     0: the TCP touching the point (r = R0 t + f0);
     1: a point on the working axis behind the TCP (nearer the flange) touching r;
     2: a point in the plane of the working axis and tool +Y, on the +Y side, touching r
-       (for the KUKA working axis X: the tool XY plane).
+       (for working axis x, as the pendants of registry.X_AXIS_MAKERS take it: the tool
+       XY plane).
     The working axis is (t - p2)/|t - p2|; Y comes from p3 - t made orthogonal to it.
     `touch_noise_mm`: 1-sigma per coordinate of each touch (flange position).
     The solution is exactly determined: the residuals are zeros.
@@ -554,7 +554,7 @@ def _check_levers(w: FloatArray, y: FloatArray, working_axis: WorkingAxis) -> li
 
 
 # --------------------------------------------------------------------------------------
-# World alignment (KUKA ABC world, 5D and 6D)
+# World alignment (abc_world, 5D and 6D)
 # --------------------------------------------------------------------------------------
 
 
@@ -579,7 +579,7 @@ def orientation_from_world(
     align: Mapping[str, str],
     working_axis: WorkingAxis = "x",
 ) -> OrientationResult:
-    """Tool frame from one flange pose with tool axes aligned to base axes (KUKA ABC world).
+    """Tool frame from one flange pose with tool axes aligned to base axes (abc_world).
 
     rotation (3, 3): flange -> base at the aligned pose. align maps tool axes to base
     directions, e.g. {"x": "-z"} (5D) or {"x": "-z", "y": "+y"} (6D). Q = R^T M, M holding

@@ -15,12 +15,13 @@ from dataclasses import dataclass
 from typing import Literal, Protocol
 
 from app.arrays import FloatArray
+from app.kinematics.dh_table import Kinematics
 from app.vendors.connector import Connector, ControllerSettings, FrameTarget, ToolTarget
 from app.vendors.files import ControllerFile, FileContext, FileTool, ParsedTool
 from app.vendors.frame import FileFrame, FrameData, ParsedFrame
 from app.vendors.text import ControllerExport
 from app.vendors.tool import ToolData
-from app.words import DeploymentScope, PoseFormat
+from app.words import DeploymentScope, PoseFormat, WorkingAxis
 
 
 class TextModule(Protocol):
@@ -132,6 +133,17 @@ class WireProtocol:
     #: how it addresses a robot's frames (contract v1.4 "Frames"): frame numbers and their
     #: names, symbols, or values
     frames: FrameAddress | None = None
+    #: when its controller refuses a pose read (ControllerRefused), as an example finishing
+    #: "a <maker> ..." ("in `$IPO_MODE #TCP`"); None to give no example
+    refused_when: str | None = None
+    #: what the controller settings' `username` is to it ("the RWS user"), and who it logs
+    #: in as when none is set, in words (its maker's factory user); None: it takes no user
+    user: str | None = None
+    default_user: str | None = None
+    #: why its controller does not say which tool the robot moves by (a pose read's live
+    #: tool has no number and no frame), in words ("RWS does not say which tooldata a
+    #: program uses"); None when it says
+    live_tool_unsaid: str | None = None
 
     @property
     def target_field(self) -> Literal["slot", "symbol", "live"]:
@@ -280,7 +292,12 @@ class Maker:
     - `tool_numbers`: (first, last) when its controllers number their tools, else None;
     - `text`, `file`: its text and file modules; `protocols`: what its connectors speak,
       each with how it addresses a tool and a frame (`WireProtocol.frames`, the one
-      declaration of a frame's place, checked at registration and at deployment).
+      declaration of a frame's place, checked at registration and at deployment);
+    - `arms`: the nominal kinematics of its arms, each named by the preset the API accepts
+      (`{"preset": "ur5e"}`; app.vendors.registry.PRESETS): the controller's flange frame,
+      with an all-zero tool, in its base frame. Nominal means as designed: a real arm's
+      factory calibration differs by up to a few tenths of a millimetre, which is why a
+      robot may carry its own DH links instead of a preset.
     """
 
     format: str
@@ -295,3 +312,20 @@ class Maker:
     frame: Callable[[], FrameModule]
     protocols: tuple[WireProtocol, ...] = ()
     vendor_initials: tuple[str, ...] = ()
+    arms: tuple[Kinematics, ...] = ()
+    #: how a sentence names the number of the tool its controller reports the robot moves by,
+    #: its name and its controller's word ("<maker> $ACT_TOOL"); None where its controller
+    #: reports no tool number
+    active_tool: str | None = None
+    #: how a sentence names the bare flange (no tool selected) in its controller's words, its
+    #: name with them: its null tool ("<maker> $NULLFRAME"), or for a maker of one live TCP
+    #: that TCP, the bare flange being its zero ("<maker> tcp_offset"); None where it has no
+    #: word of its own (its tool 0, or it does not say)
+    bare_flange: str | None = None
+    #: the tool axis its pendant's orientation methods take as the working axis ("x"),
+    #: where the maker has one of its own
+    working_axis: WorkingAxis | None = None
+    #: the tool calibration methods its pendant teaches, each (the method's word, as
+    #: `app.words.word` reads it off the method's Literal; the pendant's name for it,
+    #: "ABC 2-point"): GET /v1/methods' description of the method names them
+    teaches: tuple[tuple[str, str], ...] = ()

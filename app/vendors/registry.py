@@ -7,7 +7,7 @@ lists them and answers by format (`export_tool`, `parse_controller_text`, `contr
 `parse_frame_file`), by robot vendor (`vendor_formats`, `vendor_protocols`) and by
 protocol (`connect`, `has_connector`, `frame_writer_missing`, `pose_format_of`,
 `target_problem`, `describe_target`, `where`, `DEFAULT_PORTS`, `SERVICE_PORTS`,
-`SLOT_RANGES`, `TARGET_FIELD`).
+`SLOT_RANGES`, `TARGET_FIELD`), and the arms they publish by preset name (`PRESETS`).
 
 | protocol | connector | vendor document followed |
 |---|---|---|
@@ -26,8 +26,9 @@ tests/vendors/test_registry.py holds the table true to the registry.
 
 Adding a maker: its package, its line in `MAKERS`, and its words (format, protocols) in
 app.words; tests/vendors/test_registry.py holds that it provides all the registry
-asks. Importing this module imports the makers' declarations only: a text, a file or a
-connector module is loaded when first used (no scipy, no protocol client before). Each
+asks. Importing this module imports the makers' declarations only (their arms' DH tables
+among them, plain dataclasses): a text, a file or a connector module is loaded when first
+used (no scipy, no protocol client before; tests/vendors/test_registry.py holds it). Each
 connector's read or write has its own deadline of ``timeout_s`` covering all its network
 waits; a session whose controller stopped answering closes without waiting again. The
 simulators the tests drive are in tests/controllers/.
@@ -41,6 +42,7 @@ from typing import Literal
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
+from app.kinematics.dh_table import Kinematics
 from app.vendors import abb, fanuc, kuka, techman, ur, yaskawa
 from app.vendors.connector import (
     Connector,
@@ -96,6 +98,74 @@ DEPLOYMENT_SCOPES: dict[str, DeploymentScope] = {n: w.scope for n, w in WIRE_PRO
 _LIVE = tuple(m.name for m in MAKERS if any(w.scope == "live" for w in m.protocols))
 LIVE_MAKERS, LIVE_MAKER_OR = ", ".join(_LIVE), " or ".join(_LIVE)
 STORED_MAKERS = ", ".join(m.name for m in MAKERS if any(w.scope == "stored" for w in m.protocols))
+#: The makers whose controllers address a tool by a symbol (`controller_symbol`), as a
+#: sentence names them: the schemas' description of the field.
+SYMBOL_MAKERS = ", ".join(
+    m.name for m in MAKERS if any(w.target_field == "symbol" for w in m.protocols)
+)
+#: What makes a controller refuse a pose read, e.g. "a KUKA in `$IPO_MODE #TCP`" (each
+#: protocol's `refused_when`): GET /v1/robots/{robot_id}/controller/pose's description.
+REFUSAL_EXAMPLES = " or ".join(
+    dict.fromkeys(
+        f"a {m.name} {w.refused_when}" for m in MAKERS for w in m.protocols if w.refused_when
+    )
+)
+#: The makers whose pendants take X as a tool's working axis (each maker's `working_axis`):
+#: the glossary's `working_axis`.
+X_AXIS_MAKERS = ", ".join(m.name for m in MAKERS if m.working_axis == "x")
+#: What `username` is to each maker whose protocols take one, "ABB: the RWS user" (each
+#: protocol's `user`): the controller's description of `username`; with whom it logs in as
+#: when none is set (`default_user`), the description of the `username` sent.
+_USERS = [(m.name, w) for m in MAKERS for w in m.protocols if w.user is not None]
+USERNAMES = "; ".join(dict.fromkeys(f"{name}: {w.user}" for name, w in _USERS))
+USERNAMES_SENT = "; ".join(
+    dict.fromkeys(
+        f"{name}: {w.user}" + (f" (default: {w.default_user})" if w.default_user else "")
+        for name, w in _USERS
+    )
+)
+#: The makers whose controllers do not say which tool the robot moves by ("ABB"), and why,
+#: "ABB: RWS does not say ..." (each protocol's `live_tool_unsaid`): the schemas'
+#: descriptions of a live tool read (Reconciliation.live_tool, LiveToolOut, FleetLive.state).
+_UNSAID = [(m.name, w.live_tool_unsaid) for m in MAKERS for w in m.protocols if w.live_tool_unsaid]
+LIVE_TOOL_UNSAID = ", ".join(dict.fromkeys(name for name, _ in _UNSAID))
+LIVE_TOOL_UNSAID_WHY = "; ".join(dict.fromkeys(f"{name}: {why}" for name, why in _UNSAID))
+#: The tool numbers the controllers report the robot moves by, as a sentence names them
+#: ("KUKA $ACT_TOOL, ..."; each maker's `active_tool`): LiveToolOut.number's and
+#: FleetLive.number's descriptions.
+ACTIVE_TOOLS = ", ".join(m.active_tool for m in MAKERS if m.active_tool)
+
+
+def taught_as(method: str) -> str:
+    """How the pendants that teach a tool calibration method name it, "ABB TCP&Z,X; Fanuc
+    six-point" (each maker's `teaches`, in MAKERS' order): the method's description in GET
+    /v1/methods (app.methods). KeyError for a method no maker declares."""
+    names = [f"{m.name} {name}" for m in MAKERS for taught, name in m.teaches if taught == method]
+    if not names:
+        raise KeyError(f"no maker declares that its pendant teaches {method!r}")
+    return "; ".join(names)
+
+
+def _bare_flanges() -> str:
+    """The bare flange, no tool selected, as the controllers say it: a controller's tool 0
+    (app.services.robots.live_tool.bare_flange), each maker's null tool ("KUKA $NULLFRAME"),
+    and a zero live TCP of the makers of one live TCP (each maker's `bare_flange`)."""
+    said: list[str] = ["tool 0"]
+    zero: list[str] = []
+    for m in MAKERS:
+        if m.bare_flange is None:
+            continue
+        if any(w.target_field == "live" for w in m.protocols):
+            zero.append(m.bare_flange)  # a maker of one live TCP: that TCP at zero
+        else:
+            said.append(m.bare_flange)  # a null tool
+    if zero:
+        said.append("a zero " + " or ".join(zero))
+    return ", ".join(said)
+
+
+#: FleetLive.no_tool's description of the bare flange (`_bare_flanges`).
+BARE_FLANGES = _bare_flanges()
 #: The protocols `connect` has a connector for.
 CONNECTED_PROTOCOLS: frozenset[str] = frozenset(
     n for n, w in WIRE_PROTOCOLS.items() if w.connector is not None
@@ -115,6 +185,11 @@ TOOL_NUMBERS: dict[str, tuple[int, int]] = {
 }
 #: What each format's file is, in a few words (the console's download buttons, the README).
 FILE_KINDS: dict[str, str] = {m.format: m.file_kind for m in MAKERS}
+#: Preset name (as in the API, `{"preset": "ur5e"}`) -> the nominal kinematics of that arm,
+#: as its maker declares it (`Maker.arms`), in MAKERS' order (the API lists them sorted).
+PRESETS: dict[str, Kinematics] = {
+    arm.name: arm for m in MAKERS for arm in m.arms if arm.name is not None
+}
 #: The pose format the pendant of each protocol's controllers shows a flange pose in (its
 #: maker's): a session captured from the controller types in it unless told otherwise.
 PENDANT_FORMATS: dict[str, PoseFormat] = {

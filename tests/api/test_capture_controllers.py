@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from app.vendors import registry
 from testbed.sim.touches import simulate_touches
 from tests.api.capture_steps import finish, guided_session, tool_on
 from tests.api.controller_rigs import SLOT, SYMBOL, TIMEOUT_S, Rig, rig
@@ -293,3 +294,24 @@ def test_a_captured_check_touches_the_point_the_flange_stands_at(api: Api, cell:
     check = api.post(f"/v1/tools/{tool['id']}/checks", body, scope="calibrate")
     assert check.status_code == 201, check.text  # a captured check: 201 (v1.3 re-check)
     assert abs(check.json()["distance_mm"] - moved_mm) < 0.01, check.json()
+
+
+def test_the_live_tool_is_as_the_makers_declaration_says(api: Api, cell: Cell) -> None:
+    """What the OpenAPI descriptions say of the live tool, composed from the makers'
+    declarations (registry.ACTIVE_TOOLS, LIVE_TOOL_UNSAID), holds at each protocol's
+    controller: a maker that declares an `active_tool` reports the tool number the robot
+    moves by (the cell's), one that does not reports none, and a protocol that declares
+    `live_tool_unsaid` reports neither the number nor the frame."""
+    r, place = cell.rig, cell.place
+    tool = tool_on(api, r)
+    place(TOUCHES.R[0], TOUCHES.f[0])
+    read = api.get(f"/v1/robots/{tool['robot_id']}/controller/pose", scope="calibrate")
+    assert read.status_code == 200, read.text
+    live = read.json()["live_tool"]
+    maker = next(m for m in registry.MAKERS if any(w.name == r.protocol for w in m.protocols))
+    unsaid = registry.WIRE_PROTOCOLS[r.protocol].live_tool_unsaid is not None
+    assert (live["number"] is not None) == (maker.active_tool is not None and not unsaid), live
+    if maker.active_tool is not None:
+        assert live["number"] == SLOT
+    if unsaid:
+        assert live["frame"] is None, live

@@ -8,7 +8,7 @@ import pytest
 from app.jsontypes import JsonObject
 from app.kinematics.dh import flange_poses
 from app.kinematics.poses import POSE_FORMATS
-from app.kinematics.presets import PRESETS
+from app.vendors.registry import PRESETS
 from testbed.sim.touches import simulate_touches
 from tests.api.touches import as_poses, row_counts
 from tests.conftest import TABLES, Api

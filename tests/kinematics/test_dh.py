@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from app.errors import InvalidInput
 from app.kinematics.dh import DHLink, Kinematics, flange_pose, flange_poses, kinematics_from_spec
-from app.kinematics.presets import PRESETS
+from app.vendors.registry import PRESETS
 
 HALF_PI = math.pi / 2
 
@@ -216,17 +216,21 @@ def test_flange_poses_vectorised_equals_single() -> None:
 
 
 def test_spec_preset_and_links() -> None:
-    assert kinematics_from_spec({"preset": "ur5e"}) is PRESETS["ur5e"]
+    assert kinematics_from_spec({"preset": "ur5e"}, presets=PRESETS) is PRESETS["ur5e"]
     spec = PRESETS["tm5_900"].to_spec()
-    rebuilt = kinematics_from_spec(spec)
+    rebuilt = kinematics_from_spec(spec, presets=PRESETS)
     assert isinstance(rebuilt, Kinematics)
     assert rebuilt.links == PRESETS["tm5_900"].links
     assert rebuilt.convention == "dh"
-    minimal = kinematics_from_spec({"convention": "mdh", "links": [{"a": 0, "alpha": 0, "d": 1}]})
+    minimal = kinematics_from_spec(
+        {"convention": "mdh", "links": [{"a": 0, "alpha": 0, "d": 1}]}, presets=PRESETS
+    )
     assert isinstance(minimal, Kinematics)
     assert minimal.links[0].theta_offset_deg == 0.0
     # fields of the other variant left as None (a dumped union model) are ignored
-    ur3e = kinematics_from_spec({"preset": "ur3e", "convention": None, "links": None})
+    ur3e = kinematics_from_spec(
+        {"preset": "ur3e", "convention": None, "links": None}, presets=PRESETS
+    )
     assert isinstance(ur3e, Kinematics)
     assert ur3e.name == "ur3e"
 
@@ -265,7 +269,7 @@ def test_spec_preset_and_links() -> None:
 def test_refuses_bad_kinematics_spec(spec: dict[str, Any], loc: tuple[str | int, ...]) -> None:
     """A bad kinematics spec -> invalid-options naming the field."""
     with pytest.raises(InvalidInput) as info:
-        kinematics_from_spec(spec)
+        kinematics_from_spec(spec, presets=PRESETS)
     assert info.value.kind == "invalid-options"
     assert info.value.loc == loc, info.value
 

@@ -28,8 +28,8 @@ from app.kinematics.poses import (
     poses_from_format,
     resolve_units,
 )
-from app.kinematics.presets import PRESETS
 from app.kinematics.urdf import UrdfChain
+from app.vendors.registry import PRESETS
 
 FAST = settings(
     max_examples=150, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
@@ -341,7 +341,9 @@ def test_one_pose_names_the_pose_by_its_number_and_drops_the_list_index() -> Non
 
 def test_joints_of_a_urdf_robot_go_through_its_chain() -> None:
     text = (Path(__file__).resolve().parents[1] / "data" / "urdf" / "ur5e.urdf").read_text()
-    chain = kinematics_from_spec({"urdf": text, "base_link": "base", "tip_link": "tool0"})
+    chain = kinematics_from_spec(
+        {"urdf": text, "base_link": "base", "tip_link": "tool0"}, presets=PRESETS
+    )
     assert isinstance(chain, UrdfChain)
     q = np.radians([[10.0, -80.0, 70.0, -30.0, 90.0, 15.0], [0.0, -90.0, 90.0, 0.0, 45.0, 0.0]])
     rotations, positions = poses_from_format("joints", q.tolist(), kinematics=chain)

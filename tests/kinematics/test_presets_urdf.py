@@ -23,8 +23,8 @@ import yourdfpy
 from lxml import etree
 
 from app.kinematics.dh import flange_poses, kinematics_from_spec
-from app.kinematics.presets import PRESETS
 from app.kinematics.urdf import UrdfChain
+from app.vendors.registry import PRESETS
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "urdf"
 HALF_PI = math.pi / 2
@@ -147,7 +147,7 @@ def test_the_urdf_as_a_robots_kinematics_gives_the_presets_poses(case: MakersUrd
     way a client would send it, poses the flange as the preset does."""
     text, _, _ = _snapped(_text(case))
     chain = kinematics_from_spec(
-        {"urdf": text, "base_link": case.base_link, "tip_link": case.tip_link}
+        {"urdf": text, "base_link": case.base_link, "tip_link": case.tip_link}, presets=PRESETS
     )
     assert isinstance(chain, UrdfChain)
     q = _random_joints(_model(text), 200, seed=42)

@@ -15,8 +15,8 @@ from scipy.spatial.transform import Rotation
 from app.errors import InvalidInput
 from app.kinematics.dh import flange_poses, kinematics_from_spec
 from app.kinematics.poses import poses_from_format
-from app.kinematics.presets import PRESETS
 from app.kinematics.urdf import UrdfChain, chain_from_spec
+from app.vendors.registry import PRESETS
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "urdf"
 UR5E = (DATA / "ur5e.urdf").read_text()
@@ -24,7 +24,7 @@ IRB4600 = (DATA / "abb_irb4600_40_255.urdf").read_text()
 
 
 def _chain(text: str, **fields: str) -> UrdfChain:
-    chain = kinematics_from_spec({"urdf": text, **fields})
+    chain = kinematics_from_spec({"urdf": text, **fields}, presets=PRESETS)
     assert isinstance(chain, UrdfChain)
     return chain
 

@@ -14,7 +14,6 @@ from app.solvers.orientation import (
     AxisDirection,
     Direction,
     OrientationResult,
-    WorkingAxis,
     angle_between_deg,
     orientation_from_touches,
     orientation_from_translations,
@@ -22,6 +21,7 @@ from app.solvers.orientation import (
     quaternion_wxyz_from_matrix,
     rotation_error_deg,
 )
+from app.words import WorkingAxis
 from testbed.sim.frames import (
     random_rotation,
     tool_down,

@@ -11,6 +11,8 @@ from __future__ import annotations
 import ast
 import inspect
 import re
+import subprocess
+import sys
 import tomllib
 from dataclasses import replace
 from pathlib import Path
@@ -142,6 +144,8 @@ def missing(maker: Maker) -> list[str]:
         low, high = maker.tool_numbers
         if not 0 <= low <= high:
             found.append(f"{maker.format}: tool numbers {maker.tool_numbers} are no range")
+    if any(arm.name is None for arm in maker.arms):
+        found.append(f"{maker.format}: an arm with no preset name")
     found += _text_missing(maker) + _file_missing(maker)
     for wire in maker.protocols:
         found += _protocol_missing(maker, wire)
@@ -151,6 +155,24 @@ def missing(maker: Maker) -> list[str]:
 @pytest.mark.parametrize("maker", MAKERS, ids=lambda m: m.format)
 def test_every_maker_provides_what_the_registry_asks(maker: Maker) -> None:
     assert missing(maker) == []
+
+
+def test_the_presets_are_the_makers_arms_each_named_once() -> None:
+    """PRESETS holds every arm a maker declares, by its name: no two arms share a preset name
+    (a second would hide the first)."""
+    arms = [arm for maker in MAKERS for arm in maker.arms]
+    assert list(registry.PRESETS.values()) == arms
+    assert all(registry.PRESETS[name].name == name for name in registry.PRESETS)
+
+
+def test_importing_the_registry_loads_no_scipy() -> None:
+    """The makers' declarations, their arms' DH tables among them, are plain data: the
+    registry (and so the API schemas) loads scipy only when a pose is computed."""
+    code = "import sys, app.vendors.registry; print('scipy' in sys.modules)"
+    run = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    )
+    assert run.stdout.strip() == "False"
 
 
 @pytest.mark.parametrize("maker", MAKERS, ids=lambda m: m.format)
@@ -319,3 +341,19 @@ def test_a_maker_lacking_a_part_is_told_what_it_lacks() -> None:
     }
     for said, maker in planted.items():
         assert any(said in sentence for sentence in missing(maker)), said
+
+
+def test_what_a_pendant_teaches_is_a_method_and_the_methods_say_it() -> None:
+    """Each maker's `teaches` names a tool calibration method by its word (a typo would name a
+    method GET /v1/methods does not have), and that method's description names the maker's
+    pendant's name for it, every maker's in one parenthesis ("ABB TCP&Z,X; Fanuc six-point")."""
+    from app.methods import METHODS_BY_NAME
+
+    taught = [(maker, method, name) for maker in registry.MAKERS for method, name in maker.teaches]
+    assert {method for _maker, method, _name in taught} <= set(METHODS_BY_NAME)
+    for maker, method, name in taught:
+        description = METHODS_BY_NAME[method].description
+        assert f"({registry.taught_as(method)})" in description
+        assert f"{maker.name} {name}" in registry.taught_as(method)
+    with pytest.raises(KeyError, match="no maker declares"):
+        registry.taught_as("no_such_method")

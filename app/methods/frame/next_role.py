@@ -20,10 +20,10 @@ from app.methods.frame.fixed_npoint import FIXED_NPOINT_FRAME, ORIENTATION
 from app.methods.frame.four_point import FOUR_POINT_FRAME
 from app.methods.frame.three_point import THREE_POINT_FRAME, ThreePointOptions
 from app.solvers.frame import FOUR_POINT, MAX_ANGLE_SIGMA_DEG, THREE_POINT, Construction
-from app.solvers.frame.construction import ThreePointConvention, distance_for_angle_mm
+from app.solvers.frame.construction import distance_for_angle_mm
 from app.solvers.frame.fit_points import MIN_POINTS, TOUCHES_PER_OUTLIER
 from app.solvers.npoint import MIN_POSES
-from app.words import FrameMethodName, FrameTouchTakes
+from app.words import FrameMethodName, FrameTouchTakes, ThreePointConvention
 
 
 @dataclass(frozen=True)

@@ -17,8 +17,7 @@ from pydantic import Field
 from app.methods.frame.base import FrameContext, FrameMethod, FrameSolved, RoleSet, touch_count
 from app.methods.frame.roles import RoleOptions, RoleRequest, RoleTouch, solve_roles
 from app.solvers.frame import THREE_POINT
-from app.solvers.frame.construction import ThreePointConvention
-from app.words import ThreePoint
+from app.words import ThreePoint, ThreePointConvention
 
 
 class ThreePointOptions(RoleOptions):

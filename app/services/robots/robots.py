@@ -18,7 +18,12 @@ from app.services.robots.slots import check_vendor_change
 from app.services.visible import get_live, in_scope
 from app.storage.models import Frame, Robot, RobotController, Tool, new_id, utcnow
 from app.vendors.connector import FrameTarget
-from app.vendors.registry import vendor_frame_problem, vendor_protocols, vendor_speaks
+from app.vendors.registry import (
+    PRESETS,
+    vendor_frame_problem,
+    vendor_protocols,
+    vendor_speaks,
+)
 
 
 def get_robot(session: Session, robot_id: str, *, for_update: bool = False) -> Robot:
@@ -208,7 +213,7 @@ def validate_kinematics(spec: Kinematics | None) -> JsonObject | None:
         return None
     as_dict = spec.model_dump()
     try:
-        kinematics_from_spec(as_dict)
+        kinematics_from_spec(as_dict, presets=PRESETS)
     except InvalidInput as exc:
         loc = ("body", "kinematics", *[p for p in exc.loc if p != "kinematics"])
         raise InvalidInput("invalid-kinematics", exc.detail, loc=loc) from exc

@@ -14,6 +14,7 @@ from app.methods.base import ActiveFrame
 from app.schemas.common import Pose, Units
 from app.services.tools.versions import active_version_row
 from app.storage.models import Calibration, TcpVersion, Tool
+from app.vendors.registry import PRESETS
 from app.words import PoseFormat
 
 
@@ -26,7 +27,7 @@ def parse_poses_with(
     loc: Sequence[str | int],
 ) -> tuple[FloatArray, FloatArray]:
     """Poses in any format -> (R, f), with the robot's kinematics for `joints`."""
-    chain = kinematics_from_spec(kinematics) if kinematics else None
+    chain = kinematics_from_spec(kinematics, presets=PRESETS) if kinematics else None
     unit_map = units.model_dump(exclude_none=True) if units else None
     return poses_from_format(fmt, poses, units=unit_map, kinematics=chain, loc=loc)
 

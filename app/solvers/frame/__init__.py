@@ -18,7 +18,6 @@ from app.solvers.frame.construction import (
     MAX_ANGLE_SIGMA_DEG,
     THREE_POINT,
     Construction,
-    ThreePointConvention,
     construct,
 )
 from app.solvers.frame.fit_points import fit_points as fit_points
@@ -42,7 +41,6 @@ __all__ = [
     "FixedTip",
     "FrameEstimate",
     "Pointer",
-    "ThreePointConvention",
     "construct",
     "fixed_tip",
     "interval_scale",

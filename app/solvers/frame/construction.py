@@ -26,16 +26,16 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Final, Literal
+from typing import Final, get_args
 
 import numpy as np
 
 from app.arrays import FloatArray
 from app.errors import InvalidInput
 from app.solvers.frame.model import FrameEstimate
+from app.words import ThreePointConvention
 
-ThreePointConvention = Literal["origin_x_xy", "abb_user", "ur_plane"]
-CONVENTIONS: Final[tuple[ThreePointConvention, ...]] = ("origin_x_xy", "abb_user", "ur_plane")
+CONVENTIONS: Final[tuple[ThreePointConvention, ...]] = get_args(ThreePointConvention)
 #: Two touches closer than this (mm) are one point: no direction can be taken between them.
 MIN_SEPARATION_MM: Final = 1.0
 #: Default refusal limit of a construction's predicted angle 1-sigma (deg), API.md v1.4.

@@ -23,6 +23,7 @@ from app.vendors.maker import (
     TextModule,
     WireProtocol,
 )
+from app.words import TcpZX, word
 
 
 def _text() -> TextModule:
@@ -60,15 +61,34 @@ _FRAME_BY_SYMBOL = BySymbol(
     'wobjdata (a base) or stationary tooldata (a fixed tool), e.g. "T_ROB1/user/wobjFixA"',
     symbol_problem,
 )
+
+
+def _rws_protocol(name: str, port: int) -> WireProtocol:
+    """A Robot Web Services protocol on `port`: tools and frames by RAPID symbol; it logs
+    in as the user set, else ABB's factory user (rws.py's DEFAULT_USER); a pose read's live
+    tool is unread (rws.py's read_pose: LiveTool(None, None))."""
+    return WireProtocol(
+        name,
+        _BY_SYMBOL,
+        _rws,
+        default_port=port,
+        frames=_FRAME_BY_SYMBOL,
+        user="the RWS user",
+        default_user="ABB's factory user",
+        live_tool_unsaid="RWS does not say which tooldata a program uses",
+    )
+
+
 #: RobotWare 6 Robot Web Services, HTTP + Digest.
-RWS1 = WireProtocol("abb_rws1", _BY_SYMBOL, _rws, default_port=80, frames=_FRAME_BY_SYMBOL)
+RWS1 = _rws_protocol("abb_rws1", 80)
 #: RobotWare 7 Robot Web Services 2.0, HTTPS + Basic.
-RWS2 = WireProtocol("abb_rws2", _BY_SYMBOL, _rws, default_port=443, frames=_FRAME_BY_SYMBOL)
+RWS2 = _rws_protocol("abb_rws2", 443)
 
 MAKER = Maker(
     format="abb",
     pose_format="xyz_wxyz",
     name="ABB",
+    teaches=((word(TcpZX), "TCP&Z,X"),),
     vendor_words=("abb",),
     file_kind="RAPID module",
     tool_numbers=None,

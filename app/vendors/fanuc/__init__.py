@@ -22,6 +22,7 @@ from app.vendors.maker import (
     TextModule,
     WireProtocol,
 )
+from app.words import TcpZX, word
 
 #: (first, last) tool number: UTOOL[1..10].
 TOOL_NUMBERS = (1, 10)
@@ -62,6 +63,7 @@ MAKER = Maker(
     format="fanuc",
     pose_format="fanuc_wpr",
     name="Fanuc",
+    teaches=((word(TcpZX), "six-point"),),
     vendor_words=("fanuc",),
     file_kind="TP program (.LS)",
     tool_numbers=TOOL_NUMBERS,
@@ -69,4 +71,6 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(RMI,),
+    active_tool="FANUC's active UTOOL",
+    bare_flange="FANUC UTOOL 0",
 )

@@ -23,6 +23,7 @@ from app.vendors.maker import (
     TextModule,
     WireProtocol,
 )
+from app.words import Abc2Point, AbcWorld, word
 
 #: (first, last) tool number: $TOOL_DATA[1..16].
 TOOL_NUMBERS = (1, 16)
@@ -56,7 +57,15 @@ def _kvp() -> OpenSession:
 
 #: $TOOL_DATA[n] and BASE_DATA[n] by number.
 _TOOLS, _BASES = BySlot(TOOL_NUMBERS, "$TOOL_DATA[{}]"), BySlot(FRAME_NUMBERS, "BASE_DATA[{}]")
-KVP = WireProtocol("kuka_kvp", _TOOLS, _kvp, default_port=7000, frames=_BASES)
+#: A pose read is refused in external-TCP mode (kvp.py: the tool stands fixed in the cell).
+KVP = WireProtocol(
+    "kuka_kvp",
+    _TOOLS,
+    _kvp,
+    default_port=7000,
+    frames=_BASES,
+    refused_when="in `$IPO_MODE #TCP`",
+)
 
 MAKER = Maker(
     format="kuka",
@@ -69,4 +78,8 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(KVP,),
+    teaches=((word(Abc2Point), "ABC 2-point"), (word(AbcWorld), "ABC world 5D/6D")),
+    active_tool="KUKA $ACT_TOOL",
+    bare_flange="KUKA $NULLFRAME",
+    working_axis="x",
 )

@@ -6,6 +6,7 @@
 | file.py | TMscript lines, one ChangeTCP per tool, for a Script or SET node |
 | frame.py | a frame (base, fixed tool) as text and as the file its controller loads |
 | tmflow.py | the connector: the Listen Node (ChangeTCP) and the Ethernet Slave (the data table) |
+| arms.py | the TM5-900's nominal DH table (the preset tm5_900) |
 
 No tool numbers (TCPs are named in TMflow's TCP list). X Y Z RX RY RZ are taken as
 app.vendors.wpr's fixed-axis convention.
@@ -27,6 +28,7 @@ from app.vendors.maker import (
     TextModule,
     WireProtocol,
 )
+from app.vendors.techman.arms import ARMS
 
 
 def _text() -> TextModule:
@@ -74,4 +76,6 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(TMFLOW,),
+    arms=ARMS,
+    bare_flange="Techman TCP",
 )

@@ -6,6 +6,7 @@
 | file.py | a URScript file with a function per tool that sets its TCP and payload |
 | frame.py | a frame (base, fixed tool) as text and as the file its controller loads |
 | rtde.py | the connector: tcp_offset over RTDE (30004), set_tcp on the secondary (30002) |
+| arms.py | the e-Series arms' nominal DH tables (the presets ur3e, ur5e, ur10e, ur16e) |
 
 No tool numbers (one TCP at a time, named in the installation).
 
@@ -26,6 +27,7 @@ from app.vendors.maker import (
     TextModule,
     WireProtocol,
 )
+from app.vendors.ur.arms import ARMS
 
 
 def _text() -> TextModule:
@@ -73,4 +75,6 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(RTDE,),
+    arms=ARMS,
+    bare_flange="UR tcp_offset",
 )

@@ -7,6 +7,7 @@
 | frame.py | a frame (base, fixed tool) as text and as the file its controller loads |
 | hses.py | the connector: High Speed Ethernet Server (HSES manual, FS100 160766-1CD), UDP |
 | hses_wire.py | HSES packets over UDP under one deadline, and the status codes in words |
+| arms.py | the Motoman GP12's nominal DH table (the preset yaskawa_gp12) |
 
 Tool numbers: tool files 0..63 (YRC1000 and DX200; NX100 had 0..23). X Y Z Rx Ry Rz are
 app.vendors.wpr's fixed-axis convention.
@@ -26,6 +27,7 @@ from app.vendors.maker import (
     TextModule,
     WireProtocol,
 )
+from app.vendors.yaskawa.arms import ARMS
 
 #: (first, last) tool number: tool files 0..63.
 TOOL_NUMBERS = (0, 63)
@@ -78,4 +80,6 @@ MAKER = Maker(
     file=_file,
     frame=_frame,
     protocols=(HSES,),
+    arms=ARMS,
+    active_tool="Yaskawa's tool",
 )
