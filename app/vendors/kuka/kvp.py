@@ -61,7 +61,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from app.kinematics.frames import Wxyz, compose, flange_from_tcp, inverse
+from app.kinematics.frames import Wxyz, compose, inverse
 from app.kinematics.poses import kuka_abc_from_quaternion_wxyz, quaternion_wxyz_from_kuka_abc
 from app.vendors.connector import (
     ClosingSession,
@@ -187,12 +187,13 @@ class KukaKvpConnector(ClosingSession):
             raise ControllerProtocolError(
                 f"{self._peer}: $IPO_MODE = {readings['$IPO_MODE']!r} is neither #BASE nor #TCP"
             )
-        tool = _kuka_frame(self._numbers_of(readings, "$TOOL", _FRAME))
-        world_base = _kuka_frame(self._numbers_of(readings, "$BASE", _FRAME))
-        robroot = _kuka_frame(self._numbers_of(readings, "$ROBROOT_C", _FRAME))
-        base = compose(inverse(*robroot), world_base)  # $BASE in the robot's base frame
-        tcp = _kuka_frame(self._numbers_of(readings, "$POS_ACT", _FRAME))
-        position, quaternion = flange_from_tcp(tcp, tool=tool, base=base)
+        tool, base, tool_inverse = _standing(
+            self._numbers_of(readings, "$TOOL", _FRAME),
+            self._numbers_of(readings, "$BASE", _FRAME),
+            self._numbers_of(readings, "$ROBROOT_C", _FRAME),
+        )
+        tcp = _kuka_frame(self._numbers_of(readings, "$POS_ACT", _FRAME), remembered=False)
+        position, quaternion = compose(base, tcp, tool_inverse)  # flange_from_tcp's product
         return PoseReading(
             flange=Frame(position, quaternion),
             joints_deg=self._numbers_of(readings, "$AXIS_ACT", _ROBOT_AXES),
@@ -354,18 +355,50 @@ def _no_value(name: str, ok: bool) -> ControllerRefused:
     )
 
 
-def _kuka_frame(values: tuple[float, ...]) -> tuple[tuple[float, float, float], Wxyz]:
-    """X, Y, Z, A, B, C (KUKA's R = Rz(A) Ry(B) Rx(C)) -> position and quaternion w, x, y, z."""
+def _kuka_frame(
+    values: tuple[float, ...], *, remembered: bool = True
+) -> tuple[tuple[float, float, float], Wxyz]:
+    """X, Y, Z, A, B, C (KUKA's R = Rz(A) Ry(B) Rx(C)) -> position and quaternion w, x, y, z;
+    `remembered` False for $POS_ACT, whose angles a moving robot never shows twice (kept,
+    they would push the fleet's tools out of `_quaternion`'s memory), and for the standing
+    frames, which `_standing` remembers composed."""
     x, y, z, a, b, c = values
-    return (x, y, z), _quaternion(a, b, c)
+    return (x, y, z), (_quaternion(a, b, c) if remembered else _converted(a, b, c))
 
 
-@functools.lru_cache(maxsize=4096)
+#: How many distinct A, B, C `_quaternion` keeps: the $TOOL_DATA a round reads back, 4 tools
+#: for each of 4000 robots (each different), about 200 bytes an entry (3 MB).
+REMEMBERED_ANGLES = 16384
+
+
+@functools.lru_cache(maxsize=REMEMBERED_ANGLES)
 def _quaternion(a: float, b: float, c: float) -> Wxyz:
     """KUKA A, B, C (degrees) -> quaternion w, x, y, z, remembered: every reconcile round
-    reads each robot's tool, pose, $TOOL, $BASE and $ROBROOT_C, mostly the same angles as the
-    round before, and scipy's conversion was a fifth of the watcher's CPU (py-spy --gil,
-    bench.watch_fleet, 500 robots)."""
+    reads each robot's tool, $TOOL, $BASE and $ROBROOT_C, the same angles as the round
+    before while no one edits them, and scipy's conversion was a fifth of the watcher's CPU
+    (py-spy --gil, bench.watch_fleet, 500 robots)."""
+    return _converted(a, b, c)
+
+
+_Pose = tuple[tuple[float, float, float], Wxyz]
+
+
+@functools.lru_cache(maxsize=REMEMBERED_ANGLES // 4)
+def _standing(
+    tool: tuple[float, ...], world_base: tuple[float, ...], robroot: tuple[float, ...]
+) -> tuple[_Pose, _Pose, _Pose]:
+    """$TOOL, $BASE in the robot's base frame (inverse($ROBROOT_C) * $BASE) and
+    inverse($TOOL), from the three as the KRC printed them, remembered: a robot's tool and
+    base stand while it moves, and every round reads them again (their inverse and product
+    were a tenth of the watcher's samples, py-spy --gil, bench.watch_fleet). flange_from_tcp
+    is compose(base, tcp, inverse(tool)): read_pose composes these in that order."""
+    tool_frame = _kuka_frame(tool, remembered=False)
+    robroot_frame = _kuka_frame(robroot, remembered=False)
+    base = compose(inverse(*robroot_frame), _kuka_frame(world_base, remembered=False))
+    return tool_frame, base, inverse(*tool_frame)
+
+
+def _converted(a: float, b: float, c: float) -> Wxyz:
     w, qx, qy, qz = (float(v) for v in quaternion_wxyz_from_kuka_abc([a, b, c]))
     return w, qx, qy, qz
 

@@ -19,6 +19,7 @@ from app.vendors.connector import (
     ControllerUnreachable,
     ToolTarget,
 )
+from app.vendors.kuka import kvp
 from app.vendors.kuka.kvp import POSE_VARIABLES, KukaKvpConnector
 from app.vendors.kuka.text import KrlSyntaxError, parse_struct
 from app.vendors.registry import connect
@@ -352,6 +353,31 @@ def test_the_flange_is_in_the_robots_base_frame_wherever_it_stands_in_world(
     assert off_mm < 1e-6, (mount, off_mm, off_deg)
     assert off_deg < 1e-6, (mount, off_mm, off_deg)
     assert reading.readings["$ROBROOT_C"] == sim.show_var("$ROBROOT_C")
+
+
+def test_a_moving_robots_pose_does_not_push_its_tool_and_base_out_of_memory(
+    kuka_sim: KukaSimulator,
+) -> None:
+    """$POS_ACT's angles are converted without being remembered (issue 50: a plant's robots
+    move, and each round's new angles filled the remembered conversions and pushed out the
+    tools and bases every round reads again); the tools are, and $TOOL, $BASE and $ROBROOT_C
+    composed, once (`_standing`)."""
+    kuka_sim.set_tool(3, 10.0, -20.0, 180.0, 12.5, -7.25, 3.125)
+    kuka_sim.select_tool(3)
+    kuka_sim.set_base(400.0, -300.0, 50.0, 33.0, 1.5, -2.5)
+    rng = np.random.default_rng(50)
+    with KukaKvpConnector(kuka_settings(kuka_sim)) as kuka:
+        kuka.read_pose()
+        kept = kvp._quaternion.cache_info().currsize
+        standing = kvp._standing.cache_info().currsize
+        for _ in range(40):
+            kuka_sim.jog_flange(*rng.uniform(-900, 900, 3), *rng.uniform(-170, 170, 3))
+            reading = kuka.read_pose()
+        held_at, held_turn = kuka_sim.flange()
+    assert kvp._quaternion.cache_info().currsize == kept, "40 poses, nothing more remembered"
+    assert kvp._standing.cache_info().currsize == standing, "one tool and base, kept once"
+    assert_allclose(reading.flange.position_mm, held_at, atol=1e-3)
+    assert angle_between_deg(reading.flange.quaternion, wxyz(held_turn)) < 1e-3
 
 
 def test_read_pose_asks_for_the_six_variables_once(kuka_sim: KukaSimulator) -> None:
