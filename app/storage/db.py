@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager, nullcontext
 from functools import lru_cache
 from pathlib import Path
-from typing import IO, Generic, NamedTuple, TypeVar
+from typing import IO, Any, Generic, NamedTuple, TypeVar
 
 try:
     import fcntl
@@ -27,6 +27,7 @@ from sqlalchemy.engine import URL, Dialect, make_url
 from sqlalchemy.engine.interfaces import DBAPIConnection
 from sqlalchemy.orm import Session, sessionmaker
 from sqlalchemy.pool import ConnectionPoolEntry, NullPool, Pool, PoolProxiedConnection
+from sqlalchemy.types import Float, TypeEngine
 
 from app.config import get_settings
 from app.metrics import DB_SECONDS, SESSIONS_OPEN
@@ -170,8 +171,7 @@ class HeldRead(Generic[RowT]):
             processors: _Processors = [
                 (i, process)
                 for i, col in enumerate(self._stmt.selected_columns)
-                if (process := col.type.dialect_impl(dialect).result_processor(dialect, None))
-                is not None
+                if (process := _result_processor(col.type, dialect)) is not None
             ]
             # The values the statement holds itself (a literal compared with, a LIMIT), each
             # through its type's bind processor; a named bindparam is given by the caller.
@@ -270,6 +270,17 @@ class _CompiledRead(NamedTuple):
     order: list[str] | None  # the order of positional parameters; None: by name
     processors: _Processors
     fixed: dict[str, object]  # the statement's own values, as sent to the driver
+
+
+def _result_processor(type_: TypeEngine[Any], dialect: Dialect) -> Processor | None:
+    """A column type's result processor for a held read. A float column's needs the type
+    the driver reports (psycopg's numeric processor is chosen by the column's type OID, which
+    a read compiled before its first execution does not have): the drivers return floats
+    for the models' Float columns (double precision, REAL) themselves, so none is needed."""
+    impl = type_.dialect_impl(dialect)
+    if isinstance(impl, Float) and not impl.asdecimal:
+        return None
+    return impl.result_processor(dialect, None)
 
 
 def _bound(process: Processor | None, value: object) -> object:

@@ -14,11 +14,14 @@ found are then stored in one write transaction, each change of a state an audit 
 
 from __future__ import annotations
 
+import functools
+from collections import namedtuple
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
+from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import bindparam, select
 from sqlalchemy.orm import Session
 
 from app.helpers.frame_deviation import (
@@ -35,12 +38,17 @@ from app.services.controllers import states as controller_states
 from app.services.controllers.deployments import side_of
 from app.services.controllers.states import SEVERITY, Observation
 from app.services.lifecycle.subject import AnySubject, Held
-from app.services.robots.connection import get_controller, refusal_words, settings_of
+from app.services.robots.connection import (
+    StoredController,
+    get_controller,
+    refusal_words,
+    settings_of,
+)
 from app.services.robots.live_frame import record_live_frame
 from app.services.robots.live_tool import LiveRead, live_tool_out, read_live, record_live
 from app.services.subjects import SUBJECTS
-from app.services.visible import in_scope
-from app.storage.db import session_scope
+from app.services.visible import robot_visible
+from app.storage.db import HeldRead, session_scope
 from app.storage.models import Robot, RobotController, utcnow
 from app.vendors.connector import (
     Connector,
@@ -93,12 +101,15 @@ class Reading:
 DEPLOYED: tuple[AnySubject, ...] = tuple(s for s in SUBJECTS if s.controller is not None)
 
 
-def _to_check(
-    session: Session, subject: AnySubject, robot_id: str, protocol: ProtocolName
-) -> list[ToCheck]:
-    side = side_of(subject)
+@functools.cache
+def _to_check_read(subject: AnySubject) -> HeldRead[Any]:
+    """The robot's live subjects of the kind with their active versions, oldest first: built
+    once a kind (a round runs it for every robot; building and keying it cost more than its
+    execution), the robot a bound parameter, on the driver's cursor (through Session.execute
+    it was a sixth of the watcher's samples once the stores were), each row a named tuple of
+    the subject's columns that the subject's controller side reads its target from."""
     table, versions = subject.table, subject.versions
-    rows = session.execute(
+    stmt = (
         select(
             table,
             versions.c.version.label("active_number"),
@@ -109,9 +120,18 @@ def _to_check(
             versions,
             (subject.version_key() == table.c.id) & (versions.c.version == table.c.active_version),
         )
-        .where(table.c.robot_id == robot_id, table.c.archived_at.is_(None))
+        .where(table.c.robot_id == bindparam("robot_id"), table.c.archived_at.is_(None))
         .order_by(table.c.created_at, table.c.id)
     )
+    row = namedtuple(f"{subject.kind.title()}ToCheck", list(stmt.selected_columns.keys()))  # type: ignore[misc]
+    return HeldRead(row, stmt)
+
+
+def _to_check(
+    session: Session, subject: AnySubject, robot_id: str, protocol: ProtocolName
+) -> list[ToCheck]:
+    side = side_of(subject)
+    rows = _to_check_read(subject).all_in(session, robot_id=robot_id)
     found = []
     for row in rows:
         target = side.target(row)
@@ -301,16 +321,24 @@ def _read_round(robot_id: str, actor: Principal) -> RoundRead:
     return RoundRead(robot_id, protocol, scope, judging, checks, readings, live, read_from)
 
 
-def _controller(session: Session, robot_id: str) -> RobotController:
-    """The live robot's controller in one statement (a round reads every robot's); else
-    get_controller's answer: 404 for the robot, 409 for no controller."""
-    stmt = (
-        select(RobotController)
-        .join(Robot, Robot.id == RobotController.robot_id)
-        .where(RobotController.robot_id == robot_id, Robot.archived_at.is_(None))
-    )
-    found = session.scalars(in_scope(session, stmt, Robot.id)).one_or_none()
-    return found if found is not None else get_controller(session, robot_id)
+def _controller(session: Session, robot_id: str) -> RobotController | StoredController:
+    """The live robot's controller in one statement (a round reads every robot's, on the
+    driver's cursor: through the ORM it was a sixth of the watcher's samples once the
+    stores were off it), when the session's key may see the robot; else get_controller's
+    answer: 404 for the robot, 409 for no controller."""
+    found = _CONTROLLER.one_or_none_in(session, robot_id=robot_id)
+    if found is not None and robot_visible(session, robot_id):
+        return found
+    return get_controller(session, robot_id)
+
+
+#: The live robot's controller (built once: a round runs it for every robot).
+_CONTROLLER = HeldRead(
+    StoredController,
+    select(*(RobotController.__table__.c[name] for name in StoredController._fields))
+    .join(Robot, Robot.id == RobotController.robot_id)
+    .where(RobotController.robot_id == bindparam("robot_id"), Robot.archived_at.is_(None)),
+)
 
 
 def _judged(judging: dict[str, LiveScope | None], check: ToCheck) -> bool:

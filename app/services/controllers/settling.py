@@ -9,9 +9,11 @@ and a reading taken while the attempt ran could show the frame from before its w
 
 from __future__ import annotations
 
+import functools
 from datetime import datetime
+from typing import NamedTuple
 
-from sqlalchemy import select
+from sqlalchemy import bindparam, select
 from sqlalchemy.orm import Session
 
 from app.helpers.frame_deviation import (
@@ -24,7 +26,9 @@ from app.jsontypes import JsonObject
 from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.services.controllers.states import Observation
-from app.words import SettledHolds
+from app.services.lifecycle.subject import AnySubject
+from app.storage.db import HeldRead
+from app.words import DeploymentStatus, SettledHolds
 
 
 def settle(
@@ -39,10 +43,7 @@ def settle(
     subject = seen.subject
     deployments = subject.deployments
     assert deployments is not None
-    key = deployments.c[subject.key]
-    row = session.execute(
-        select(deployments).where(key == seen.subject_id).order_by(deployments.c.id.desc()).limit(1)
-    ).first()
+    row = _newest(subject).one_or_none_in(session, subject_id=seen.subject_id)
     if row is None or row.status != "unverified" or row.settled is not None:
         return
     if row.created_at >= read_from:
@@ -77,6 +78,35 @@ def settle(
             "controller": held,
             "previous": row.previous,
         },
+    )
+
+
+class _Newest(NamedTuple):
+    """What settling reads of a subject's newest deployment."""
+
+    id: int
+    robot_id: str
+    version: int
+    target: str
+    status: DeploymentStatus
+    previous: JsonObject | None
+    settled: JsonObject | None
+    created_at: datetime
+
+
+@functools.cache
+def _newest(subject: AnySubject) -> HeldRead[_Newest]:
+    """The subject's newest deployment (built once a kind: a round runs it for every subject
+    read, on the driver's cursor), the subject a bound parameter."""
+    deployments = subject.deployments
+    assert deployments is not None
+    key = deployments.c[subject.key]
+    return HeldRead(
+        _Newest,
+        select(*(deployments.c[name] for name in _Newest._fields))
+        .where(key == bindparam("subject_id"))
+        .order_by(deployments.c.id.desc())
+        .limit(1),
     )
 
 

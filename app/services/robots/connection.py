@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ipaddress
 import re
+from typing import NamedTuple
 
 from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
@@ -297,7 +298,22 @@ def controller_document(controller: RobotController) -> dict[str, object]:
     }
 
 
-def settings_of(controller: RobotController) -> ControllerSettings:
+class StoredController(NamedTuple):
+    """A robot's stored controller, the columns settings_of reads (a round reads them on
+    the driver's cursor: app.services.controllers.reconcile)."""
+
+    robot_id: str
+    protocol: ProtocolName
+    host: str
+    port: int | None
+    ports: dict[str, int] | None
+    username: str | None
+    password_encrypted: str | None
+    timeout_s: float
+    tls_verify: bool
+
+
+def settings_of(controller: RobotController | StoredController) -> ControllerSettings:
     """What a connector needs, the password decrypted (in memory only); 409 when the
     secret key cannot open it, 501 when this tcpcal has no connector for its protocol."""
     if not has_connector(controller.protocol):

@@ -13,15 +13,68 @@ moves in a stale frame; none: in an unknown frame.
 from __future__ import annotations
 
 from datetime import datetime
-from typing import cast
+from typing import NamedTuple, cast
 
-from sqlalchemy import Table, delete, insert, select, update
+from sqlalchemy import Table, bindparam, delete, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.helpers.frame_deviation import SYNC_TOLERANCE_DEG, SYNC_TOLERANCE_MM, frames_within
+from app.jsontypes import JsonObject
+from app.storage.db import DriverWrite, HeldRead
 from app.storage.models import Frame, FrameVersion, RobotLiveFrame
 from app.vendors.connector import Frame as Pose
 from app.vendors.connector import LiveFrame
+
+
+class _Version(NamedTuple):
+    """A version of one of the robot's frames."""
+
+    frame_id: str
+    version: int
+    active_version: int | None
+    position_mm: list[float]
+    quaternion: list[float]
+
+
+#: The versions of the robot's live frames, oldest frame first and newest version first
+#: (a round runs it for every robot: on the driver's cursor).
+_VERSIONS = HeldRead(
+    _Version,
+    select(FrameVersion.frame_id, FrameVersion.version, Frame.active_version)
+    .add_columns(FrameVersion.position_mm, FrameVersion.quaternion)
+    .join(Frame, Frame.id == FrameVersion.frame_id)
+    .where(Frame.robot_id == bindparam("robot_id"), Frame.archived_at.is_(None))
+    .order_by(Frame.created_at, Frame.id, FrameVersion.version.desc()),
+)
+_TABLE = cast(Table, RobotLiveFrame.__table__)
+
+
+class _Last(NamedTuple):
+    """What the last round stored of the robot's live frame."""
+
+    read: bool
+    number: int | None
+    name: str | None
+    frame_id: str | None
+    version: int | None
+
+
+_LAST = HeldRead(
+    _Last,
+    select(
+        _TABLE.c.read, _TABLE.c.number, _TABLE.c.name, _TABLE.c.frame_id, _TABLE.c.version
+    ).where(_TABLE.c.robot_id == bindparam("robot_id")),
+)
+#: What a round writes of the robot's live frame (`since` too when it changed): on the
+#: driver's cursor, as record_live's (through Session.execute, the UPDATE built anew each
+#: round was a seventh of what storing a robot's round cost the watcher).
+_WRITTEN = (*_Last._fields, "frame", "checked_at")
+_BY_ROBOT = _TABLE.c.robot_id == bindparam("robot")
+_INSERT = DriverWrite(insert(_TABLE))
+_UPDATE = DriverWrite(update(_TABLE).where(_BY_ROBOT).values({c: bindparam(c) for c in _WRITTEN}))
+_UPDATE_SINCE = DriverWrite(
+    update(_TABLE).where(_BY_ROBOT).values({c: bindparam(c) for c in (*_WRITTEN, "since")})
+)
 
 
 def live_frame_match(session: Session, robot_id: str, frame: Pose | None) -> tuple[str, int] | None:
@@ -30,17 +83,10 @@ def live_frame_match(session: Session, robot_id: str, frame: Pose | None) -> tup
     or the frame is not known."""
     if frame is None:
         return None
-    versions = (
-        select(FrameVersion.frame_id, FrameVersion.version, Frame.active_version)
-        .add_columns(FrameVersion.position_mm, FrameVersion.quaternion)
-        .join(Frame, Frame.id == FrameVersion.frame_id)
-        .where(Frame.robot_id == robot_id, Frame.archived_at.is_(None))
-        .order_by(Frame.created_at, Frame.id, FrameVersion.version.desc())
-    )
     at = (frame.position_mm, frame.quaternion)
     matches = [
         (frame_id, version, version == active)
-        for frame_id, version, active, *value in session.execute(versions)
+        for frame_id, version, active, *value in _VERSIONS.all_in(session, robot_id=robot_id)
         if frames_within(*at, *value, mm=SYNC_TOLERANCE_MM, deg=SYNC_TOLERANCE_DEG)
     ]
     if not matches:
@@ -53,33 +99,27 @@ def record_live_frame(session: Session, *, robot_id: str, live: LiveFrame, at: d
     """Store what the round read of the frame the robot moves in and its match; `since`
     moves when the number, name or match changes. The caller holds the robot's row locked
     (record_live locks it first in the round's transaction). Core statements, as
-    record_live's (a round stores one a robot): an ORM copy of the row is expired."""
+    record_live's, on the driver's cursor (a round stores one a robot): an ORM copy of the
+    row is expired."""
     match = live_frame_match(session, robot_id, live.frame)
     frame_id, version = match if match is not None else (None, None)
-    value = None
+    value: JsonObject | None = None
     if live.frame is not None:
         value = {
             "position_mm": list(live.frame.position_mm),
             "quaternion": list(live.frame.quaternion),
         }
     read = live.frame is not None or live.number is not None or live.name is not None
-    table = cast(Table, RobotLiveFrame.__table__)
-    last = session.execute(
-        select(table.c.read, table.c.number, table.c.name, table.c.frame_id, table.c.version).where(
-            table.c.robot_id == robot_id
-        )
-    ).first()
+    last = _LAST.one_or_none_in(session, robot_id=robot_id)
     now = (read, live.number, live.name, frame_id, version)
-    values: dict[str, object] = dict(
-        zip(("read", "number", "name", "frame_id", "version"), now, strict=True)
-    )
+    values: dict[str, object] = dict(zip(_Last._fields, now, strict=True))
     values |= {"frame": value, "checked_at": at}
     if last is None:
-        session.execute(insert(table).values(robot_id=robot_id, since=at, **values))
+        _INSERT.execute(session, [{"robot_id": robot_id, "since": at, **values}])
+    elif tuple(last) != now:
+        _UPDATE_SINCE.execute(session, [{"robot": robot_id, "since": at, **values}])
     else:
-        if tuple(last) != now:
-            values["since"] = at
-        session.execute(update(table).where(table.c.robot_id == robot_id).values(values))
+        _UPDATE.execute(session, [{"robot": robot_id, **values}])
     copy = session.identity_map.get(session.identity_key(RobotLiveFrame, robot_id))
     if copy is not None:
         session.expire(copy)

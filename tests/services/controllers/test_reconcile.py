@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
+import pytest
 from sqlalchemy import event
 
 from app.services.controllers import reconcile
@@ -16,17 +17,30 @@ from tests.api.test_deployments import _setup
 from tests.conftest import Api
 
 
-def test_a_rounds_read_transaction_reads_the_robot_once(api: Api) -> None:
+def test_a_rounds_read_transaction_reads_the_robot_once(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The robot's row is read once, with its controller, in one statement (get_controller,
     which answers 404 for the robot and 409 for no controller, only when that finds none): the
     round read it a second time before, then once beside a statement for the controller; the
-    read transaction is that statement and one for each subject's rows."""
+    read transaction is that statement and one for each subject's rows (those on the
+    driver's cursor, app.storage.db.HeldRead, counted where they are sent)."""
+    from app.storage import db as storage
+
     with rig("kuka_kvp") as r:
         robot_id = _setup(api, r)["robot"]["id"]
         sent: list[str] = []
 
         def record(*args: Any) -> None:
             sent.append(str(args[2]))
+
+        fetch = storage._fetch
+
+        def held(conn: Any, sql: str, args: Any) -> Any:
+            sent.append(sql)
+            return fetch(conn, sql, args)
+
+        monkeypatch.setattr(storage, "_fetch", held)
 
         engine = get_engine()
         event.listen(engine, "before_cursor_execute", record)
