@@ -197,10 +197,18 @@ function drawSession(ui, body, frame, session, drawController, kind = TEACH, tak
     : null;
   const main = document.querySelector("main");
   let state = session;
-  // One change of the session (a touch added or deleted), main aria-busy until it is drawn.
+  // One change of the session (a touch added or deleted) at a time, main aria-busy until it is
+  // drawn. A touch names the role the session asked for last: sent while the one before it was
+  // on its way, it went in that one's role (two +X touches for an Enter pressed twice, and no
+  // XY touch), so the touch buttons are off until the change is drawn and a second is not sent.
+  let busy = false;
+  let finished = false;
   const change = async (call) => {
+    if (busy) return false;
+    busy = true;
     problem.replaceChildren();
     main.setAttribute("aria-busy", "true");
+    for (const button of touchButtons()) button.disabled = true;
     try {
       state = await call();
       redraw();
@@ -209,10 +217,13 @@ function drawSession(ui, body, frame, session, drawController, kind = TEACH, tak
       problem.replaceChildren(problemBox(error));
       return false;
     } finally {
+      busy = false;
+      for (const button of touchButtons()) button.disabled = finished;
       main.setAttribute("aria-busy", "false");
     }
   };
   const send = async (touch) => {
+    if (busy) return false;
     if (state.next?.role) touch[kind.key] = state.next.role;
     if (nominal) {
       const xyz = nominal.value.trim().split(/[\s,]+/).filter((v) => v !== "").map(Number);
@@ -240,11 +251,14 @@ function drawSession(ui, body, frame, session, drawController, kind = TEACH, tak
     const pose = typed.value.trim().split(/[\s,]+/).map(Number);
     if (await send({ pose })) typed.value = "";
   } }, typed, " ", h("button", { type: "submit" }, "Add typed touch"));
+  const touchButtons = () => [capture, typeForm.querySelector("button[type=submit]"), ...touches.querySelectorAll("button.delete")];
   const finish = h("button", { id: "finish", type: "button", onclick: async () => {
     problem.replaceChildren();
     try {
       const done = await json(`/v1/sessions/${state.id}/finish`, { method: "POST", body: kind.finishBody });
       result.replaceChildren(...kind.result(ui, done));
+      finished = true;
+      for (const button of touchButtons()) button.disabled = true;
       capture.disabled = finish.disabled = true;
       result.focus();
       await drawController();
