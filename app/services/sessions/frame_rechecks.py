@@ -20,11 +20,11 @@ from app.schemas.frame_checks import FrameCheck, FrameCheckCreate
 from app.schemas.frame_sessions import FrameTouchAdd
 from app.security.auth import Principal, transaction_for
 from app.services import idempotency
-from app.services.audit import writes as audit
 from app.services.checks import frame_recheck
 from app.services.controllers.deployments import DEPLOYMENT_WAIT_S
 from app.services.frames import checks
 from app.services.frames.subject import FRAME
+from app.services.sessions import rows
 from app.storage.models import AuditEvent, Frame, GuidedSession, utcnow
 from app.words import AuditAction, Recheck
 
@@ -163,22 +163,20 @@ def _record_finish(row_id: str, actor: Principal, get_row: GetRow, check: FrameC
     with transaction_for(actor, write=True) as session:
         row = get_row(session, row_id, for_update=True)
         row.updated_at = utcnow()
-        audit.record(
+        rows.event(
             session,
-            actor=actor,
-            action=FINISHED,
-            resource_type="session",
-            resource_id=row.id,
-            robot_id=check.robot_id,
-            tool_id=row.tool_id,
-            about={FRAME.key: check.frame_id},
-            version=check.version,
-            details={
+            row,
+            FINISHED,
+            actor,
+            {
                 "check_id": check.id,
                 "verdict": check.verdict,
                 "touches": len(row.poses),
                 "sources": list(row.touches),
             },
+            robot_id=check.robot_id,
+            about={FRAME.key: check.frame_id},
+            version=check.version,
         )
 
 

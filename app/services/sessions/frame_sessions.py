@@ -37,14 +37,13 @@ from app.schemas.frame_sessions import (
 from app.schemas.sessions import SessionFinish
 from app.security.auth import Principal, transaction_for
 from app.services import idempotency
-from app.services.audit import writes as audit
 from app.services.controllers import capture
 from app.services.frames import calibrations
 from app.services.frames.context import FrameDbContext
 from app.services.frames.frames import frame_tolerance, get_frame
 from app.services.frames.subject import FRAME
 from app.services.robots.robots import get_robot
-from app.services.sessions import frame_rechecks
+from app.services.sessions import frame_rechecks, rows
 from app.services.sessions.rows import shown, units_of
 from app.services.sessions.rows import start as start_session
 from app.solvers.frame import MAX_ANGLE_SIGMA_DEG
@@ -483,17 +482,15 @@ def _event(
     details: JsonObject,
     version: int | None = None,
 ) -> None:
-    audit.record(
+    rows.event(
         session,
-        actor=actor,
-        action=action,
-        resource_type="session",
-        resource_id=row.id,
+        row,
+        action,
+        actor,
+        details,
         robot_id=frame.robot_id,
-        tool_id=row.tool_id,
         about={FRAME.key: frame.id},
         version=version,
-        details=details,
     )
 
 

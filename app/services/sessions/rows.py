@@ -9,11 +9,12 @@ from typing import TypedDict
 
 from sqlalchemy.orm import Session
 
+from app.jsontypes import JsonObject
 from app.schemas.common import Units
 from app.security.auth import Principal
 from app.services.audit import writes as audit
 from app.storage.models import GuidedSession
-from app.words import PoseFormat, SessionMethod, SessionStatus
+from app.words import AuditAction, PoseFormat, SessionMethod, SessionStatus
 
 
 def start(
@@ -36,6 +37,33 @@ def start(
         tool_id=row.tool_id,
         about=about,
         details={"method": row.method, "format": row.format},
+    )
+
+
+def event(
+    session: Session,
+    row: GuidedSession,
+    action: AuditAction,
+    actor: Principal,
+    details: JsonObject,
+    *,
+    robot_id: str | None,
+    about: Mapping[str, str] | None = None,
+    version: int | None = None,
+) -> None:
+    """An audit event of a session (its touches' changes, its finish): the session the
+    resource, with its tool and robot and the subject it calibrates (`about`)."""
+    audit.record(
+        session,
+        actor=actor,
+        action=action,
+        resource_type="session",
+        resource_id=row.id,
+        robot_id=robot_id,
+        tool_id=row.tool_id,
+        about=about,
+        version=version,
+        details=details,
     )
 
 

@@ -49,12 +49,11 @@ from app.schemas.sessions import Plan as PlanOut
 from app.schemas.sessions import Session as SessionOut
 from app.security.auth import Principal, transaction_for
 from app.services import idempotency
-from app.services.audit import writes as audit
 from app.services.calibrations import grading, writes
 from app.services.calibrations.contexts import DbContext
 from app.services.controllers import capture
 from app.services.robots.robots import get_robot
-from app.services.sessions import frame_rechecks, frame_sessions
+from app.services.sessions import frame_rechecks, frame_sessions, rows
 from app.services.sessions.rows import shown, units_of
 from app.services.sessions.rows import start as start_session
 from app.services.tools.tools import get_tool
@@ -246,16 +245,14 @@ def _touch_event(
 ) -> None:
     """The audit event of a change to a session's touches (index: 0-based, as in the URL)."""
     tool = session.get(Tool, row.tool_id)
-    audit.record(
+    rows.event(
         session,
-        actor=actor,
-        action=action,
-        resource_type="session",
-        resource_id=row.id,
+        row,
+        action,
+        actor,
+        details,
         robot_id=None if tool is None else tool.robot_id,
-        tool_id=row.tool_id,
         version=version,
-        details=details,
     )
 
 
