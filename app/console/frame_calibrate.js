@@ -259,7 +259,7 @@ function drawSession(ui, body, frame, session, drawController, kind = TEACH, tak
       result.replaceChildren(...kind.result(ui, done));
       finished = true;
       for (const button of touchButtons()) button.disabled = true;
-      capture.disabled = finish.disabled = true;
+      finish.disabled = true;
       result.focus();
       await drawController();
     } catch (error) {
