@@ -55,9 +55,21 @@ def _timed(engine: Engine) -> Engine:
     return engine
 
 
+#: The connections an engine's pool keeps, and the most it opens: SQLAlchemy's default, 5
+#: kept and 10 more opened when needed, closed each one as it came back while 5 others were
+#: idle. The watcher's reading threads (up to 64) each open a short read transaction, so
+#: the connections in use rose above 5 and fell many times a second: 3 instances reading
+#: 2000 robots opened 55 PostgreSQL connections a second (a backend started for each).
+#: Keeping all 15 opens each once; the most is the same.
+POOL_SIZE = 15
+
+
 def make_engine(url: str, **pool: int | type[Pool]) -> Engine:
     """Create an engine with the per-dialect settings this service relies on (`pool`: its
-    connection pool's settings, e.g. pool_size=1 or poolclass=NullPool)."""
+    connection pool's settings, e.g. pool_size=1 or poolclass=NullPool; by default
+    POOL_SIZE connections, kept)."""
+    if not pool and not _in_memory(url):  # an in-memory SQLite keeps one per thread
+        pool = {"pool_size": POOL_SIZE, "max_overflow": 0}
     if not url.startswith("sqlite"):
         return _timed(create_engine(url, pool_pre_ping=True, future=True, **pool))
 
@@ -87,6 +99,14 @@ def make_engine(url: str, **pool: int | type[Pool]) -> Engine:
         driver.execute(f"BEGIN {mode}")
 
     return engine
+
+
+def _in_memory(url: str) -> bool:
+    """Whether the URL is an in-memory SQLite database."""
+    parsed = make_url(url)
+    return parsed.get_backend_name() == "sqlite" and (
+        parsed.database in (None, "", ":memory:") or parsed.query.get("mode") == "memory"
+    )
 
 
 def get_engine() -> Engine:

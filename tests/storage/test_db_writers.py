@@ -212,3 +212,42 @@ def test_a_write_transaction_holds_the_write_lock_from_its_first_statement(
         assert ("database is locked" in error) is locked, error
     finally:
         dispose_engines()
+
+
+def test_the_pool_opens_each_connection_once_however_many_threads_come_and_go(
+    db: object,
+) -> None:
+    """Issue 50: SQLAlchemy's default pool kept 5 connections and closed each one above 5 as
+    it came back, so the watcher's threads, each a short read transaction, opened PostgreSQL
+    connections all the time (55 a second, 3 instances reading 2000 robots). Twelve threads
+    taking one at once, six rounds of them: each connection is opened once."""
+    from sqlalchemy import event
+
+    from app.storage.db import POOL_SIZE
+
+    engine = get_engine()
+    engine.dispose()
+    opened: list[object] = []
+
+    def connected(conn: object, record: object) -> None:
+        opened.append(conn)
+
+    event.listen(engine, "connect", connected)
+    start = threading.Barrier(12)
+
+    def read() -> None:
+        start.wait(10)
+        with session_scope(write=False) as session:
+            session.execute(text("SELECT 1"))
+            time.sleep(0.05)  # the others hold theirs meanwhile
+
+    try:
+        for _ in range(6):
+            threads = [threading.Thread(target=read) for _ in range(12)]
+            for thread in threads:
+                thread.start()
+            for thread in threads:
+                thread.join(10)
+    finally:
+        event.remove(engine, "connect", connected)
+    assert 1 <= len(opened) <= 12 <= POOL_SIZE, len(opened)  # the old pool: 47
