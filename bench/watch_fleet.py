@@ -17,8 +17,9 @@ TCPCAL_RECONCILE_INTERVAL_S; one robot, controller, tool and calibration made th
 API, copied in bulk to the other robots (each its own simulator's port). Once every tool is
 in sync and every robot's live tool read (simulators that serve fewer pose variables than
 the connector asks for stop the run there, with the error the rounds stored), the steady
-rounds are measured (CPU-seconds of the instances' processes per robot read, over
-`--steady-intervals`, 2), then every simulator's tool is edited at once and the database
+rounds are measured over `--steady-intervals` (2): CPU-seconds of the instances' processes
+per robot read, the time from each read of a robot to its next, the machine's busy cores and
+each instance's /ready. Then every simulator's tool is edited at once and the database
 polled every 0.2 s until each tool is drifted (at most `--watch-intervals`, 6): the seconds
 from the edit to each flag, in intervals. `--kill` sends SIGKILL to one instance half an
 interval after the edit (mid-round). A robot read twice less than half an interval apart is
@@ -185,6 +186,14 @@ class Fleet:
     def reads(self, since: float, until: float) -> int:
         return sum(1 for sim in self.sims for t in list(sim.accepted) if since <= t < until)
 
+    def read_gaps(self, since: float, until: float) -> list[float]:
+        """The time from each read of a robot to its next (seconds), every robot's."""
+        gaps: list[float] = []
+        for sim in self.sims:
+            times = [t for t in list(sim.accepted) if since <= t < until]
+            gaps.extend(b - a for a, b in itertools.pairwise(times))
+        return gaps
+
     def double_reads(self, since: float, until: float, apart_s: float) -> int:
         """Reads of a robot that followed its previous read by less than `apart_s`."""
         doubles = 0
@@ -244,6 +253,40 @@ class Instance:
     def cpu_s(self) -> float:
         """CPU-seconds (user + system) of the instance's process and its children so far."""
         return sum(_cpu_of(pid) for pid in _tree_pids(self.process.pid))
+
+
+def _machine_busy_s() -> float:
+    """CPU-seconds every core of the machine has spent not idle so far (/proc/stat)."""
+    fields = [int(v) for v in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+    idle = fields[3] + fields[4]  # idle, iowait
+    return (sum(fields[:8]) - idle) / os.sysconf("SC_CLK_TCK")
+
+
+def _own_cpu_s() -> float:
+    """CPU-seconds this process (every thread) has spent so far."""
+    times = os.times()
+    return times.user + times.system
+
+
+def _postgres_cpu_s() -> float:
+    """CPU-seconds the machine's PostgreSQL processes have spent so far (0 without them)."""
+    total = 0.0
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            head = stat.read_text()
+        except OSError:
+            continue
+        if "(postgres)" in head:
+            total += _cpu_of(int(stat.parent.name))
+    return total
+
+
+def _watcher_of(inst: Instance) -> dict[str, Any] | None:
+    """What the instance's /ready says of its watcher (None: it did not answer)."""
+    try:
+        return dict(httpx.get(f"{inst.url}/ready", timeout=5.0).json()["watcher"])
+    except (httpx.HTTPError, KeyError, ValueError):
+        return None
 
 
 def _tree_pids(root: int) -> list[int]:
@@ -465,9 +508,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             out["error"] = f"the live tool not read on every robot: {out['live_tool_read']}"
             return out
         # the steady rounds: CPU per robot read over `--steady-intervals` intervals
-        cpu0, t0 = sum(i.cpu_s() for i in insts), time.monotonic()
+        cpu0, busy0, t0 = sum(i.cpu_s() for i in insts), _machine_busy_s(), time.monotonic()
+        own0, db0 = _own_cpu_s(), _postgres_cpu_s()
         time.sleep(args.steady_intervals * interval)
-        cpu1, t1 = sum(i.cpu_s() for i in insts), time.monotonic()
+        cpu1, busy1, t1 = sum(i.cpu_s() for i in insts), _machine_busy_s(), time.monotonic()
+        own1, db1 = _own_cpu_s(), _postgres_cpu_s()
         reads = fleet.reads(t0, t1)
         out["steady"] = {
             "seconds": round(t1 - t0, 2),
@@ -476,6 +521,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             "cpu_s": round(cpu1 - cpu0, 2),
             "cpu_ms_per_read": round(1000 * (cpu1 - cpu0) / max(reads, 1), 2),
             "double_reads": fleet.double_reads(t0, t1, interval / 2),
+            "read_gap_s": _spread(fleet.read_gaps(t0, t1)),
+            # the machine's cores busy (of its CPUs), the simulators and the database included
+            "machine_busy_cores": round((busy1 - busy0) / (t1 - t0), 2),
+            # of them: this process (the simulators, the database polls) and PostgreSQL's
+            "bench_cores": round((own1 - own0) / (t1 - t0), 2),
+            "postgres_cores": round((db1 - db0) / (t1 - t0), 2),
+            "watchers": [_watcher_of(i) for i in insts],
         }
         out["edit"] = edit_and_watch(fleet, engine, insts, interval, args)
         out["overrun_lines"] = sum(_overruns(i) for i in insts)
@@ -527,6 +579,13 @@ def edit_and_watch(
     }
 
 
+def _spread(values: list[float]) -> dict[str, float] | None:
+    """The median and the longest of `values` (None for none)."""
+    if not values:
+        return None
+    return {"median": round(statistics.median(values), 3), "max": round(max(values), 3)}
+
+
 def _git_head(tree: Path) -> str:
     done = subprocess.run(
         ["git", "rev-parse", "--short", "HEAD"],
@@ -561,19 +620,22 @@ def markdown(runs: list[dict[str, Any]]) -> str:
         "`.venv/bin/python -m bench.watch_fleet` (bench/watch_fleet.py says what is measured).",
         "",
         "| run | commit | robots | inst | db | reply ms | interval s | kill | in sync s "
-        "| CPU ms/read | server CPU s (steady) | reads/robot/interval | flagged "
-        "| last s (intervals) | within 1 / 2 intervals | double reads | overrun lines | load |",
-        "|" + "---|" * 18,
+        "| CPU ms/read | server CPU s (steady) | reads/robot/interval | read gap s (median / max) "
+        "| flagged | last s (intervals) | within 1 / 2 intervals | double reads | overrun lines "
+        "| load |",
+        "|" + "---|" * 19,
     ]
     for r in runs:
         s, e = r.get("steady", {}), r.get("edit", {})
         last = f"{e.get('last_s')} ({e.get('last_intervals')})" if e else "-"
+        gap = s.get("read_gap_s")
+        gaps = "-" if not gap else f"{gap['median']} / {gap['max']}"
         lines.append(
             f"| {r['label']} | {r['commit']} | {r['robots']} | {r['instances']} | {r['backend']} "
             f"| {r['latency_ms']} | {r['interval_s']} | {'yes' if r['kill'] else 'no'} "
             f"| {r.get('in_sync_after_s') and round(r['in_sync_after_s'], 1)} "
             f"| {s.get('cpu_ms_per_read')} | {s.get('cpu_s')} "
-            f"| {s.get('reads_per_robot_per_interval')} "
+            f"| {s.get('reads_per_robot_per_interval')} | {gaps} "
             f"| {e.get('flagged')}/{r['robots']} | {last} "
             f"| {e.get('within_one_interval')} / {e.get('within_two_intervals')} "
             f"| {s.get('double_reads')} + {e.get('double_reads_after_edit')} "
