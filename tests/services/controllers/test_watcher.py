@@ -410,6 +410,71 @@ def test_a_stalled_read_hands_its_place_on_and_the_pool_is_sized_from_the_fleet(
     assert pool_size(3, 5.0, 1.0, 1) == 3
 
 
+def test_a_robot_is_read_again_the_interval_less_its_lead_after_its_last_read() -> None:
+    """Issue 50: read once an interval, a change made just after a robot's read was recorded
+    the interval and that read's next read and store later (1.35-1.39 intervals for the last
+    of 2000 robots). The period leaves the longest offer-to-stored time of the last reads
+    (and PostgreSQL's tick) before the interval ends, at most half of it."""
+    from app.services.controllers.watcher import FIRST_READ_S, period_after
+
+    assert period_after(10.0, 0.3) == pytest.approx(9.7)
+    assert period_after(10.0, 0.3, tick_s=0.25) == pytest.approx(9.45)
+    assert period_after(10.0, None) == pytest.approx(10.0 - FIRST_READ_S)
+    assert period_after(10.0, 8.0) == 5.0  # at most twice an interval, however slow
+    assert period_after(0.5, 0.02, tick_s=0.02) == pytest.approx(0.46)
+    # the pool measures it from the offer: the wait for a place, the read and the store
+    from app.services.controllers.watcher import ReadPool
+
+    pool = ReadPool(1, lambda robot_id: time.sleep(0.1))
+    try:
+        pool.offer(["a", "b"])
+        assert pool.wait({"a", "b"}, 5.0)
+        longest = pool.longest_settle_s()
+        assert longest is not None
+        assert 0.2 <= longest < 0.2 + 0.2  # b waited for a's place
+        assert pool.median_read_s() == pytest.approx(0.1, abs=0.05)
+    finally:
+        pool.stop()
+
+
+def test_a_sqlite_round_offers_its_robots_evenly_and_each_one_period_after_the_last(
+    db: Database, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Offered all at once, the last of a round's robots waited for a place behind the others
+    (the fleet's queue: half the interval), and its period would leave that as lead. A round
+    offers its robots evenly over SPREAD of its period, in order, so each is read one period
+    after its last read, and the period plus a read's lead is the interval."""
+    from app.services.controllers import watcher as watching_module
+
+    if db.backend != "sqlite":
+        pytest.skip("PostgreSQL's rounds are its leases' claims")
+    began: dict[str, list[float]] = {}
+
+    def read(**kwargs: Any) -> None:
+        began.setdefault(kwargs["robot_id"], []).append(time.monotonic())
+        time.sleep(0.01)
+
+    robots = [f"r{n:02}" for n in range(20)]
+    monkeypatch.setattr(watching_module, "reconcile_robot", read)
+    monkeypatch.setattr(watching_module, "robots_with_controller", lambda: robots)
+    interval = 1.0
+    watcher = watching_module.Watcher(interval, concurrency=4)
+    watcher.start()
+    try:
+        wait_for(lambda: all(len(began.get(r, [])) >= 4 for r in robots), 8.0, "four rounds")
+    finally:
+        watcher.stop()
+    period = watcher.status.period_s
+    assert interval - 0.1 <= period < interval  # the lead: a read of 10 ms and its offer
+    last = [began[r][3] for r in robots]  # the fourth round, its period settled
+    assert last == sorted(last)  # in order
+    spread = last[-1] - last[0]
+    assert 0.8 * watching_module.SPREAD * period <= spread <= watching_module.SPREAD * period
+    for r in robots:
+        gap = began[r][3] - began[r][2]
+        assert abs(gap - period) <= 0.1, (r, gap, period)  # one period after its last read
+
+
 def test_the_reads_that_end_while_a_store_runs_are_stored_together_in_one_transaction(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -623,7 +688,7 @@ def test_a_lease_rounds_overrun_is_said_of_the_fleet_with_advice_that_would_fix_
 
     ticks = [0]
 
-    def tick(self: Leases, reading: set[str], capacity: int, now: float) -> Tick:
+    def tick(self: Leases, reading: set[str], capacity: int, now: float, **_: float) -> Tick:
         ticks[0] += 1
         return Tick(claimed=[], robots=12, due=4, overdue=4, watchers=3)
 
@@ -664,7 +729,7 @@ def test_a_fleet_rounds_overrun_is_counted_by_the_one_instance_that_reports(
 
     ticks = [0]
 
-    def tick(self: Leases, reading: set[str], capacity: int, now: float) -> Tick:
+    def tick(self: Leases, reading: set[str], capacity: int, now: float, **_: float) -> Tick:
         ticks[0] += 1
         return Tick(claimed=[], robots=12, due=4, overdue=4, watchers=3, reports=False)
 
