@@ -5,7 +5,9 @@ beyond the interval."""
 
 from __future__ import annotations
 
+import itertools
 import math
+import statistics
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -469,12 +471,18 @@ def test_a_sqlite_round_offers_its_robots_evenly_and_each_one_period_after_the_l
     period = watcher.status.period_s
     assert interval * (1 - watching_module.LEAD_SHARE) <= period < interval  # 10 ms reads
     last = [began[r][3] for r in robots]  # the fourth round, its period settled
-    assert last == sorted(last)  # in order
+    # in order (robots offered together, within PACE_S, may begin in either order)
+    assert all(b >= a - watching_module.PACE_S for a, b in itertools.pairwise(last)), last
     spread = last[-1] - last[0]
-    assert 0.8 * watching_module.SPREAD * period <= spread <= watching_module.SPREAD * period
-    for r in robots:
-        gap = began[r][3] - began[r][2]
-        assert abs(gap - period) <= 0.1, (r, gap, period)  # one period after its last read
+    evenly = watching_module.SPREAD * period
+    assert 0.8 * evenly <= spread <= evenly + START_MARGIN_S, (spread, evenly)
+    # one period after its last read (offered all at once and read once an interval, the
+    # gaps were the interval): the typical robot to within 20 ms, and none later than the
+    # interval and a thread's wake-up on a loaded machine (START_MARGIN_S; seen: 0.104 s
+    # late for one robot of a fresh clone's `make test`)
+    gaps = [began[r][3] - began[r][2] for r in robots]
+    assert abs(statistics.median(gaps) - period) <= 0.02, (gaps, period)
+    assert max(gaps) <= interval + START_MARGIN_S, (gaps, period)
 
 
 def test_the_reads_that_end_while_a_store_runs_are_stored_together_in_one_transaction(
