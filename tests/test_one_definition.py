@@ -494,18 +494,6 @@ def test_the_guided_method_is_the_one_a_session_takes() -> None:
 MAKER_PACKAGES = tuple(sorted(m.text.__module__.rsplit(".", 1)[-1] for m in registry.MAKERS))
 #: The files that may name any maker: the registry (its import and MAKERS line) and the words.
 MAY_NAME_MAKERS = frozenset({"vendors/registry.py", "words.py"})
-#: Files still naming makers, each with how many mentions it may keep and why (issue 46). A
-#: count only goes down: a new mention fails, and a file reworded lowers its figure here.
-MAKER_MENTIONS: dict[str, tuple[int, str]] = {
-    # Rotation conventions are named after the pendant that shows them (KUKA's A B C about
-    # Z, Y, X, FANUC's W P R, UR's rotation vector, ABB's w-first quaternion): the name is
-    # the convention's, and the conversions live in app.kinematics for every maker to share.
-    "kinematics/poses.py": (15, "the pose conventions, named by the pendant showing them"),
-    "kinematics/readings.py": (3, "the pose conventions a misread reading is tried in"),
-    "kinematics/frames.py": (2, "a user frame as each pendant names it ($BASE, UFRAME)"),
-    "kinematics/urdf.py": (2, "UR's published URDF link names (tool0, base)"),
-    "solvers/frame/construction.py": (8, "the user-frame constructions as each pendant teaches"),
-}
 
 
 def _words_of_words_py() -> frozenset[str]:
@@ -579,17 +567,8 @@ def test_a_maker_is_named_only_by_its_package_the_registry_and_the_words() -> No
     docs/; not scanned here) (issue 46): anything else that knows a maker copies a fact its
     declaration holds. A word app/words.py defines and another file uses as that word
     (`kuka_abc`, `techman_rxyz`, `kuka_kvp`, the format "kuka") is the word, not a copy of
-    the maker; nor is the path of the maker's package (app.vendors.kuka.text). The files
-    that still name one are MAKER_MENTIONS, each with its figure and why: a new mention
-    fails, and so does a figure left above its file's count."""
-    found = maker_mentions()
-    over = {
-        rel: lines
-        for rel, lines in found.items()
-        if len(lines) > MAKER_MENTIONS.get(rel, (0, ""))[0]
-    }
-    assert over == {}, "a maker named where its declaration or the registry is meant"
-    # A file reworded lowers its figure (or leaves the list): the exceptions stay true.
-    assert {rel: len(lines) for rel, lines in found.items()} == {
-        rel: count for rel, (count, _why) in MAKER_MENTIONS.items()
-    }
+    the maker; nor is the path of the maker's package (app.vendors.kuka.text). A pose
+    convention is named by its format's word (`kuka_abc`), and which maker's pendant shows
+    it is Maker.pose_format's (said by GET /v1/formats); each pendant's name for a frame
+    construction is Maker.teaches."""
+    assert maker_mentions() == {}, "a maker named where its declaration or the registry is meant"

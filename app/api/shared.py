@@ -20,6 +20,7 @@ from app.kinematics.poses import (
 )
 from app.schemas.common import Page, Units
 from app.schemas.formats import FormatInfo
+from app.vendors.registry import MAKERS
 
 M = TypeVar("M", bound=BaseModel)
 
@@ -62,8 +63,14 @@ def describe_format(fmt: str) -> FormatInfo:
         components=list(components),
         arity=None if fmt == "joints" else len(components),
         default_units=Units(length=units.length, angle=units.angle),
-        rotation=ROTATION_CONVENTIONS[fmt],
+        rotation=ROTATION_CONVENTIONS[fmt] + _shown_by(fmt),
     )
+
+
+def _shown_by(fmt: str) -> str:
+    """Which makers' pendants show a flange pose in the format (their Maker.pose_format)."""
+    names = [maker.name for maker in MAKERS if maker.pose_format == fmt]
+    return f"; the pose format of the {' and '.join(names)} pendant" if names else ""
 
 
 def all_formats() -> list[FormatInfo]:

@@ -57,7 +57,8 @@ def flange_from_tcp(
 ) -> tuple[Xyz, Wxyz]:
     """The flange in the robot's base frame from a controller's TCP reading: `tcp` is the
     tool frame `tool` (in the flange frame) as seen in the frame `base` (in the robot's base
-    frame; a user frame, KUKA's $BASE, FANUC's UFRAME): flange = base @ tcp @ inverse(tool).
+    frame; a user frame, a base, as each maker's WireProtocol.frames addresses it):
+    flange = base @ tcp @ inverse(tool).
     A missing tool or base is the identity (tool0, the world or robot base)."""
     tool_inverse = inverse(*tool) if tool is not None else _IDENTITY
     return compose(base if base is not None else _IDENTITY, tcp, tool_inverse)

@@ -7,15 +7,17 @@ A pose is the flange in the robot base frame: ``base_from_flange`` as a rotation
 | format | one pose | default units | rotation |
 |---|---|---|---|
 | matrix | 4x4 row-major (nested or flat 16) | mm | upper-left 3x3 |
-| xyz_wxyz | x y z qw qx qy qz (ABB) | mm | unit quaternion |
+| xyz_wxyz | x y z qw qx qy qz | mm | unit quaternion |
 | xyz_xyzw | x y z qx qy qz qw (ROS) | mm | unit quaternion |
 | kuka_abc | X Y Z A B C | mm, deg | Rz(A) Ry(B) Rx(C) |
 | fanuc_wpr, yaskawa_rxyz, techman_rxyz | X Y Z W P R | mm, deg | Rz(R) Ry(P) Rx(W) |
 | ur_rotvec | x y z rx ry rz | m, rad | rotation vector |
 | joints | q1 .. qn | deg | forward kinematics |
 
-KUKA's A, B, C are intrinsic Z-Y'-X'' angles (scipy "ZYX"); Fanuc's W, P, R are fixed-axis
-X, Y, Z angles (scipy "xyz"): both give the same matrix Rz Ry Rx, listed in opposite order.
+`kuka_abc`'s A, B, C are intrinsic Z-Y'-X'' angles (scipy "ZYX"); `fanuc_wpr`'s W, P, R are
+fixed-axis X, Y, Z angles (scipy "xyz"): both give the same matrix Rz Ry Rx, listed in
+opposite order. Which maker's pendant shows which format is its declaration's
+(`Maker.pose_format`, app/vendors/<maker>/), said beside each format by GET /v1/formats.
 """
 
 from __future__ import annotations
@@ -87,15 +89,15 @@ _LABELS: dict[str, tuple[str, ...]] = {
 ROTATION_CONVENTIONS: dict[str, str] = {
     "matrix": "the upper-left 3x3 block of the 4x4 homogeneous matrix base_from_flange, "
     "row-major; last row 0 0 0 1",
-    "xyz_wxyz": "unit quaternion, scalar first (w, x, y, z), as ABB RAPID and NDI write it",
+    "xyz_wxyz": "unit quaternion, scalar first (w, x, y, z), as NDI's trackers write it",
     "xyz_xyzw": "unit quaternion, scalar last (x, y, z, w), as ROS writes it",
     "kuka_abc": "R = Rz(A) Ry(B) Rx(C): intrinsic Z-Y'-X'' Euler angles, A about Z first",
     "fanuc_wpr": "R = Rz(R) Ry(P) Rx(W): fixed-axis X-Y-Z angles, W about base X first "
-    "(the same matrix as KUKA's, angles listed in the opposite order)",
+    "(the same matrix as kuka_abc, angles listed in the opposite order)",
     "yaskawa_rxyz": "fixed-axis X-Y-Z angles Rx, Ry, Rz, as fanuc_wpr",
     "techman_rxyz": "fixed-axis X-Y-Z angles RX, RY, RZ, as fanuc_wpr",
-    "ur_rotvec": "rotation vector (axis times angle), as UR's pose [x, y, z, rx, ry, rz]; "
-    "not the pendant's RPY view (send that as fanuc_wpr)",
+    "ur_rotvec": "rotation vector (axis times angle): [x, y, z, rx, ry, rz], not a pendant's "
+    "RPY view (send that as fanuc_wpr)",
     "joints": "joint angles through the robot's forward kinematics (the robot needs a model)",
 }
 
@@ -168,13 +170,14 @@ def _as_units(fmt: str, units: PoseUnits | Mapping[str, str] | None) -> PoseUnit
 
 
 def matrix_from_kuka_abc(abc_deg: ArrayLike) -> FloatArray:
-    """KUKA A, B, C in degrees ((3,) or (N, 3)) -> R = Rz(A) Ry(B) Rx(C), (3, 3) or (N, 3, 3)."""
+    """`kuka_abc` A, B, C in degrees ((3,) or (N, 3)) -> R = Rz(A) Ry(B) Rx(C), (3, 3) or
+    (N, 3, 3)."""
     matrix: FloatArray = Rotation.from_euler("ZYX", abc_deg, degrees=True).as_matrix()
     return matrix
 
 
 def kuka_abc_from_matrix(rotation: ArrayLike) -> FloatArray:
-    """R ((3, 3) or (N, 3, 3)) -> KUKA A, B, C in degrees; at B = +-90 deg, C is set to 0."""
+    """R ((3, 3) or (N, 3, 3)) -> `kuka_abc` A, B, C in degrees; at B = +-90 deg, C is 0."""
     with warnings.catch_warnings():
         # At gimbal lock only A - C (B = +90) or A + C (B = -90) is defined; scipy puts it
         # all in A and warns. The matrix round-trips either way.
@@ -184,13 +187,13 @@ def kuka_abc_from_matrix(rotation: ArrayLike) -> FloatArray:
 
 
 def matrix_from_fanuc_wpr(wpr_deg: ArrayLike) -> FloatArray:
-    """Fanuc W, P, R in degrees ((3,) or (N, 3)) -> R = Rz(R) Ry(P) Rx(W)."""
+    """`fanuc_wpr` W, P, R in degrees ((3,) or (N, 3)) -> R = Rz(R) Ry(P) Rx(W)."""
     matrix: FloatArray = Rotation.from_euler("xyz", wpr_deg, degrees=True).as_matrix()
     return matrix
 
 
 def fanuc_wpr_from_matrix(rotation: ArrayLike) -> FloatArray:
-    """R ((3, 3) or (N, 3, 3)) -> Fanuc W, P, R in degrees; at P = +-90 deg, W is set to 0."""
+    """R ((3, 3) or (N, 3, 3)) -> `fanuc_wpr` W, P, R in degrees; at P = +-90 deg, W is 0."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         wpr: FloatArray = Rotation.from_matrix(rotation).as_euler("xyz", degrees=True)
@@ -204,7 +207,7 @@ def matrix_from_rotvec(rotvec_rad: ArrayLike) -> FloatArray:
 
 
 def rotvec_from_matrix(rotation: ArrayLike) -> FloatArray:
-    """Rotation matrix -> rotation vector in rad, angle in [0, pi] (as UR reports it)."""
+    """Rotation matrix -> rotation vector in rad, angle in [0, pi] (as `ur_rotvec` has it)."""
     rotvec: FloatArray = Rotation.from_matrix(rotation).as_rotvec()
     return rotvec
 
@@ -532,22 +535,22 @@ def pose_to_format(
 
 
 def kuka_abc_from_quaternion_wxyz(quaternion: ArrayLike) -> FloatArray:
-    """Unit quaternion [w, x, y, z] -> KUKA A, B, C in degrees (R = Rz(A) Ry(B) Rx(C))."""
+    """Unit quaternion [w, x, y, z] -> `kuka_abc` A, B, C in degrees (Rz(A) Ry(B) Rx(C))."""
     return kuka_abc_from_matrix(matrix_from_quaternion_wxyz(quaternion))
 
 
 def quaternion_wxyz_from_kuka_abc(abc_deg: ArrayLike) -> FloatArray:
-    """KUKA A, B, C in degrees -> unit quaternion [w, x, y, z] with w >= 0."""
+    """`kuka_abc` A, B, C in degrees -> unit quaternion [w, x, y, z] with w >= 0."""
     return quaternion_wxyz_from_matrix(matrix_from_kuka_abc(abc_deg))
 
 
 def fanuc_wpr_from_quaternion_wxyz(quaternion: ArrayLike) -> FloatArray:
-    """Unit quaternion [w, x, y, z] -> Fanuc W, P, R in degrees (R = Rz(R) Ry(P) Rx(W))."""
+    """Unit quaternion [w, x, y, z] -> `fanuc_wpr` W, P, R in degrees (Rz(R) Ry(P) Rx(W))."""
     return fanuc_wpr_from_matrix(matrix_from_quaternion_wxyz(quaternion))
 
 
 def quaternion_wxyz_from_fanuc_wpr(wpr_deg: ArrayLike) -> FloatArray:
-    """Fanuc W, P, R in degrees -> unit quaternion [w, x, y, z] with w >= 0."""
+    """`fanuc_wpr` W, P, R in degrees -> unit quaternion [w, x, y, z] with w >= 0."""
     return quaternion_wxyz_from_matrix(matrix_from_fanuc_wpr(wpr_deg))
 
 

@@ -3,9 +3,9 @@
 A reading is a pose format with the length and angle units its numbers are taken in. The
 mix-ups a cell PC makes are other readings of the same numbers: metres sent as millimetres
 (or the other way round), radians as degrees, a quaternion in the other component order, a
-UR pendant's RPY view sent as a rotation vector, KUKA's A B C (about Z, Y, X) sent as
-Fanuc's W P R (about X, Y, Z) or back, which is also the intrinsic/extrinsic confusion of
-one Euler sequence. Formats are only exchanged for formats of the same arity.
+pendant's RPY view sent as a `ur_rotvec` rotation vector, `kuka_abc`'s A B C (about Z, Y, X)
+sent as `fanuc_wpr`'s W P R (about X, Y, Z) or back, which is also the intrinsic/extrinsic
+confusion of one Euler sequence. Formats are only exchanged for formats of the same arity.
 """
 
 from __future__ import annotations

@@ -16,10 +16,11 @@ Refused with 422, naming the joint, when on the chain: `prismatic`
 (a linear track: model the arm from its carriage), `floating` and `planar` joints (not an
 arm), `mimic` joints (a joint driven by another: not a serial arm's axis). The chain runs
 from `base_link` (default: the URDF's root link) to `tip_link` (default: the leaf link at the
-end of the most movable joints, e.g. UR's and ROS-Industrial's `tool0`); `base_link` may be
-any link reached from the root through fixed joints only (UR's `base`, the controller's base
-frame, hangs off `base_link` turned by 180 deg about z). Joint values are given in the chain's
-order, radians unless the request's `units` says degrees; lengths come out in mm.
+end of the most movable joints, e.g. ROS-Industrial's `tool0`); `base_link` may be
+any link reached from the root through fixed joints only (a controller's base frame, such as
+ROS-Industrial's `base`, may hang off `base_link` turned by 180 deg about z). Joint values
+are given in the chain's order, radians unless the request's `units` says degrees; lengths
+come out in mm.
 """
 
 from __future__ import annotations

@@ -6,6 +6,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from app.kinematics.poses import POSE_FORMATS, pose_from_format
+from app.vendors.registry import MAKERS
 from tests.conftest import Api
 
 
@@ -26,6 +27,11 @@ def test_every_format_is_listed_with_components_units_and_rotation(api: Api) -> 
         if info["arity"] is not None:
             assert info["arity"] == len(info["components"])
         assert info["rotation"]
+    # which maker's pendant shows each format is its declaration's (Maker.pose_format)
+    for maker in MAKERS:
+        shown = items[maker.pose_format]["rotation"]
+        assert f"the pose format of the {maker.name} pendant" in shown
+    assert "pendant" not in items["xyz_xyzw"]["rotation"]  # no maker's: ROS's
 
 
 def test_a_pose_written_from_the_listing_reads_back_as_meant(api: Api) -> None:

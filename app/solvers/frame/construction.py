@@ -1,22 +1,23 @@
-"""Frames constructed from role touches, as each maker's pendant computes them.
+"""Frames constructed from role touches, as the pendants compute them (each pendant's name
+for a construction is its maker's declaration, `Maker.teaches`, said by GET /v1/methods).
 
 Every construction maps the touched points (base frame, mm) of its roles to a frame (R, o).
 They are exact: three touches give no residual, so their uncertainty is the touch noise and
 the pointer's TCP error carried through the construction (a numerical Jacobian of the exact
 map, central differences, against the correlated point covariance of `model`).
 
-- `three_point`, convention `origin_x_xy` (KUKA's 3-point base, FANUC's three point user
-  frame, Yaskawa's ORG/XX/XY user frame, Techman's three-point base): the origin at the
-  origin touch, +X through the x touch, Z = X x (xy - origin), Y = Z x X (METHODS.md 7).
-- `three_point`, convention `abb_user` (ABB's user method: X1, X2 on the X axis, Y1 on the
-  Y axis): RAPID's DefFrame(X1, X2, Y1 \\Origin:=3), ABB's "Technical reference manual -
-  RAPID Instructions, Functions and Data types" (3HAC16581-1), DefFrame: "Origin = 3 means
+- `three_point`, convention `origin_x_xy` (a 3-point base or user frame, the ORG/XX/XY user
+  frame): the origin at the origin touch, +X through the x touch, Z = X x (xy - origin),
+  Y = Z x X (METHODS.md 7).
+- `three_point`, convention `abb_user` (X1, X2 on the X axis, Y1 on the Y axis): RAPID's
+  DefFrame(X1, X2, Y1 \\Origin:=3), "Technical reference manual - RAPID Instructions,
+  Functions and Data types" (3HAC16581-1), DefFrame: "Origin = 3 means
   that the origin is placed on the line going through NewP1 and NewP2 and so that NewP3 will
   be placed on the y axis"; X from X1 towards X2, Y towards Y1.
 - `three_point`, convention `ur_plane` (PolyScope's Plane feature, taught by three points:
   the first is the plane's origin, the second gives +X, the third the +Y side; Z by the
   right-hand rule): the same construction as `origin_x_xy`, under the pendant's words.
-- `four_point` (FANUC's four point user frame: Orient Origin Point, X Direction Point, Y
+- `four_point` (the four point user frame: Orient Origin Point, X Direction Point, Y
   Direction Point, System Origin): X from x_start to x, the XY plane through x_start, x and
   xy, the origin moved to the origin touch.
 """
@@ -123,7 +124,7 @@ THREE_POINT: Final[dict[ThreePointConvention, Construction]] = {
 FOUR_POINT: Final = Construction(
     ("x_start", "x", "xy", "origin"),
     {
-        "x_start": "a point on the X axis where it starts (FANUC's Orient Origin Point)",
+        "x_start": "a point on the X axis where it starts (Orient Origin Point)",
         "x": "a point farther along +X (X Direction Point)",
         "xy": "a point in the XY plane, on the +Y side (Y Direction Point)",
         "origin": "the frame's origin (System Origin)",
