@@ -106,9 +106,9 @@ class Leases:
         self.holder = holder or holder_name()
         self.interval_s = interval_s
         #: how often the watcher ticks (claims, renews): a fortieth of the interval, 0.02-0.25 s.
-        #: A robot due waits for the next tick, and a tick claims what the pool can begin soon
-        #: (twice its size less its reads in flight): at a tenth of a 10 s interval, 3
-        #: instances' pools of 34 claimed 0.82 reads a robot an interval of 2000 robots.
+        #: A robot due waits for the next tick, and a tick claims what the pool begins before
+        #: the next (Watcher._capacity): at a tenth of a 10 s interval, claiming twice the
+        #: pool a tick, 3 instances read 2000 robots 0.82 times an interval.
         self.tick_s = min(0.25, max(0.02, interval_s / 40))
         #: a lease not renewed for this long lapses, and an instance not seen for this long
         #: is gone (one that died: it takes no share of a claim after)

@@ -114,8 +114,9 @@ STORE_BATCH = 50
 MAX_SIZE = 64
 #: The share of its period over which a SQLite round offers its robots, evenly in their order:
 #: at the pool's size (reads ending within half the interval) the reads begin as they are
-#: offered with an eighth of the pool to spare, so a robot's offer-to-stored time, the lead
-#: its period leaves, is its read and store, not the fleet's queue.
+#: offered (an eighth of the pool to spare at a period of 0.95 interval, none once the lead
+#: takes LEAD_SHARE of it), so a robot's offer-to-stored time, the lead its period leaves, is
+#: its read and store, not the fleet's queue.
 SPREAD = 0.6
 #: The most of the interval a robot's lead takes from its period: a machine short of CPU
 #: lengthens every read, and a lead of half the interval read each robot twice an interval
@@ -192,7 +193,6 @@ class ReadPool:
         self.stall_s = stall_s
         self._work = work
         self._queue: deque[str] = deque()
-        self._in_flight: set[str] = set()
         #: robot -> when its read began (monotonic), while it reads
         self._reading: dict[str, float] = {}
         self._changed = threading.Condition()
@@ -202,8 +202,8 @@ class ReadPool:
         self._stopped = False
         #: how long the last reads that did not stall took (seconds), newest last
         self.read_s: deque[float] = deque(maxlen=256)
-        #: robot -> when it was offered (monotonic), while it is in flight
-        self._offered: dict[str, float] = {}
+        #: robot -> when it was offered (monotonic): the robots in flight (queued or read)
+        self._in_flight: dict[str, float] = {}
         #: how long the last reads that did not stall took from their offer to their end,
         #: their states stored (seconds): the wait for a place, the read and the store
         self.settle_s: deque[float] = deque(maxlen=256)
@@ -220,9 +220,8 @@ class ReadPool:
             if self._stopped:
                 return set()
             fresh = [robot_id for robot_id in robot_ids if robot_id not in self._in_flight]
-            self._in_flight.update(fresh)
             now = time.monotonic()
-            self._offered.update((robot_id, now) for robot_id in fresh)
+            self._in_flight.update((robot_id, now) for robot_id in fresh)
             self._queue.extend(fresh)
             self._top_up()
             self._changed.notify_all()
@@ -286,7 +285,7 @@ class ReadPool:
         until = time.monotonic() + timeout_s
         with self._changed:
             while True:
-                if self._stopped or not robot_ids & self._in_flight:
+                if self._stopped or not robot_ids & self._in_flight.keys():
                     return True
                 now = time.monotonic()
                 if now >= until:
@@ -298,8 +297,6 @@ class ReadPool:
         """Take no more work; idle threads end now, busy ones when their read ends."""
         with self._changed:
             self._stopped = True
-            for robot_id in self._queue:
-                self._offered.pop(robot_id, None)
             self._queue.clear()
             self._changed.notify_all()
 
@@ -359,11 +356,10 @@ class ReadPool:
                 with self._changed:
                     began = self._reading.pop(robot_id)
                     ended = time.monotonic()
-                    offered = self._offered.pop(robot_id, began)
+                    offered = self._in_flight.pop(robot_id)
                     if ended - began < self.stall_s:
                         self.read_s.append(ended - began)
                         self.settle_s.append(ended - offered)
-                    self._in_flight.discard(robot_id)
                     self._idle += 1
                     self._changed.notify_all()
             with self._changed:
@@ -673,14 +669,13 @@ class Watcher:
         said of the fleet (its robots, the ones overdue, every instance's pool), as the
         leases count it."""
         share = math.ceil(tick.robots / max(1, tick.watchers))
-        now = time.monotonic()
-        while claims and claims[0][0] < now - self.status.interval_s:
-            claims.popleft()
         # the robots read in the last period (a claim waits for a tick): one a robot in a
         # period, whichever instance read it the period before
-        since = now - self.status.period_s - tick_s
+        since = time.monotonic() - self.status.period_s - tick_s
+        while claims and claims[0][0] < since:
+            claims.popleft()
         self._size(max(share, 1))
-        watched = len({r for at, claimed in claims if at >= since for r in claimed})
+        watched = len({robot_id for _, claimed in claims for robot_id in claimed})
         self.status.robots = watched
         WATCHED_ROBOTS.set(watched)
         if tick.overdue > 0 and self.status.rounds > 0 and tick.reports:
